@@ -1,0 +1,289 @@
+"""BiDES swarm state alignment (the paper's Algorithm 1) over per-node ring buffers.
+
+The alignment server keeps the last ``k`` states of every node in
+:class:`RingBuffers` (slot ``frame % k``) and :func:`align` builds a snapshot of
+the whole swarm at one frame, vectorised over nodes (no Python loop per node).
+
+Decisions where DESIGN §3 leaves room (documented here and in the tests):
+
+* **Considered nodes** are those with any state; with ``theta_lag`` set, a node
+  whose newest frame lags the swarm's newest by more than ``theta_lag`` frames is
+  left out of the minimum (optimistic alignment) and shown EXTRAPOLATED.
+* **Aligned frame** ``F = max(prev_frame, min latest over considered nodes)``, so
+  it never goes back.
+* A considered node with a state at exactly ``F`` shows it: EXACT.
+* A hole at ``F`` (lost packet, or a node behind ``F`` because ``prev_frame``
+  held ``F`` up):
+
+  - ``hole_fill=True``: linear interpolation of ``obs`` between the nearest
+    buffered frames below and above ``F`` (``gen_time`` of the lower one,
+    ``frame`` reported as ``F``); if only one side exists, that state is shown
+    as is (its own ``frame`` and ``gen_time``). Flag FILLED either way.
+  - ``hole_fill=False``: the nearest older buffered state is shown as is (its own
+    ``frame``, which differs from ``F``), flagged FILLED (zero-order hold); if
+    there is no older state the node is MISSING (newer states are not shown).
+
+* An excluded (lagging) node is EXTRAPOLATED: ``obs`` linearly extrapolated
+  from its two newest buffered frames to ``F`` (a copy of the newest if it has
+  only one), ``gen_time`` and ``frame`` those of its newest state.
+* MISSING rows have ``frame = -1``, ``gen_time = NaN`` and ``obs = NaN``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "EXACT",
+    "EXTRAPOLATED",
+    "FILLED",
+    "MISSING",
+    "AlignResult",
+    "RingBuffers",
+    "align",
+]
+
+#: The node's state at exactly the aligned frame.
+EXACT = 0
+#: A hole filled from neighbouring frames (interpolated, copied or held).
+FILLED = 1
+#: Node excluded for lag; its state extrapolated to the aligned frame.
+EXTRAPOLATED = 2
+#: Nothing usable to show.
+MISSING = 3
+
+_BIG = np.iinfo(np.int64).max
+
+
+class RingBuffers:
+    """The last ``k`` states of each of ``n`` nodes.
+
+    Args:
+        n: number of nodes.
+        k: ring length (frames kept per node).
+        width: number of observation columns.
+
+    Attributes:
+        frame: ``(n, k)`` frame held by each slot (-1 = empty).
+        gen_time: ``(n, k)`` generation time of each slot's state (NaN if empty).
+        obs: ``(n, k, width)`` the states.
+        latest: ``(n,)`` newest frame ever inserted per node (-1 = none).
+    """
+
+    def __init__(self, n: int, k: int, width: int) -> None:
+        if n < 0 or k < 1 or width < 0:
+            raise ValueError(f"need n >= 0, k >= 1, width >= 0; got {n}, {k}, {width}")
+        self.n, self.k, self.width = int(n), int(k), int(width)
+        self.frame: NDArray[np.int64] = np.full((n, k), -1, dtype=np.int64)
+        self.gen_time: NDArray[np.float64] = np.full((n, k), np.nan)
+        self.obs: NDArray[np.float64] = np.zeros((n, k, width))
+        self.latest: NDArray[np.int64] = np.full(n, -1, dtype=np.int64)
+
+    def insert(self, node: int, frame: int, gen_time: float, obs: ArrayLike) -> bool:
+        """Store ``node``'s state of ``frame`` in slot ``frame % k``.
+
+        Returns:
+            False (and stores nothing) if the slot already holds this frame (a
+            duplicate) or a newer one; True otherwise.
+        """
+        if frame < 0:
+            raise ValueError(f"frame must be >= 0, got {frame}")
+        slot = frame % self.k
+        if self.frame[node, slot] >= frame:
+            return False
+        self.frame[node, slot] = frame
+        self.gen_time[node, slot] = gen_time
+        self.obs[node, slot] = obs
+        if frame > self.latest[node]:
+            self.latest[node] = frame
+        return True
+
+    def insert_many(
+        self,
+        nodes: ArrayLike,
+        frames: ArrayLike,
+        gen_times: ArrayLike,
+        obs: ArrayLike,
+    ) -> NDArray[np.bool_]:
+        """Vectorised :meth:`insert` of a batch (e.g. one cohort of arrivals).
+
+        The result equals inserting the rows one by one in any order: per
+        ``(node, slot)`` the newest frame wins, and of identical ``(node, frame)``
+        rows only the first is accepted.
+
+        Returns:
+            ``(m,)`` True where the row was stored.
+        """
+        nd = np.asarray(nodes, dtype=np.int64).ravel()
+        fr = np.asarray(frames, dtype=np.int64).ravel()
+        gt = np.broadcast_to(np.asarray(gen_times, dtype=np.float64), nd.shape)
+        ob = np.broadcast_to(np.asarray(obs, dtype=np.float64), (nd.size, self.width))
+        if fr.size and fr.min() < 0:
+            raise ValueError("frames must be >= 0")
+        slot = fr % self.k
+        cell = nd * self.k + slot
+        # Per cell keep the newest frame; among equal frames the first row.
+        order = np.lexsort((np.arange(nd.size), -fr, cell))
+        first = np.ones(order.size, dtype=np.bool_)
+        first[1:] = cell[order[1:]] != cell[order[:-1]]
+        best = order[first]
+        ok = fr[best] > self.frame[nd[best], slot[best]]
+        win = best[ok]
+        self.frame[nd[win], slot[win]] = fr[win]
+        self.gen_time[nd[win], slot[win]] = gt[win]
+        self.obs[nd[win], slot[win]] = ob[win]
+        np.maximum.at(self.latest, nd[win], fr[win])
+        accepted = np.zeros(nd.size, dtype=np.bool_)
+        accepted[win] = True
+        return accepted
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the buffers' arrays."""
+        return int(self.frame.nbytes + self.gen_time.nbytes + self.obs.nbytes + self.latest.nbytes)
+
+
+@dataclass
+class AlignResult:
+    """A swarm snapshot produced by :func:`align`.
+
+    Attributes:
+        aligned_frame: the frame ``F`` the snapshot stands for (-1 before any).
+        frame: ``(n,)`` frame of the state shown per node (-1 = missing).
+        gen_time: ``(n,)`` generation time of the state shown (NaN = missing).
+        obs: ``(n, width)`` the states shown (NaN rows = missing).
+        flag: ``(n,)`` uint8, one of EXACT, FILLED, EXTRAPOLATED, MISSING.
+    """
+
+    aligned_frame: int
+    frame: NDArray[np.int64]
+    gen_time: NDArray[np.float64]
+    obs: NDArray[np.float64]
+    flag: NDArray[np.uint8]
+
+
+def _missing(buf: RingBuffers, aligned_frame: int) -> AlignResult:
+    return AlignResult(
+        aligned_frame=aligned_frame,
+        frame=np.full(buf.n, -1, dtype=np.int64),
+        gen_time=np.full(buf.n, np.nan),
+        obs=np.full((buf.n, buf.width), np.nan),
+        flag=np.full(buf.n, MISSING, dtype=np.uint8),
+    )
+
+
+def align(
+    buf: RingBuffers,
+    *,
+    theta_lag: int | None,
+    hole_fill: bool,
+    prev_frame: int = -1,
+) -> AlignResult:
+    """Align the swarm (Algorithm 1); see the module docstring for the rules.
+
+    Args:
+        buf: the per-node ring buffers.
+        theta_lag: lag (frames behind the newest node) beyond which a node is
+            excluded and extrapolated; None = never exclude.
+        hole_fill: fill holes by interpolation (True) or hold the older state.
+        prev_frame: the previous aligned frame (F never decreases).
+
+    Returns:
+        The snapshot.
+    """
+    if theta_lag is not None and theta_lag < 0:
+        raise ValueError(f"theta_lag must be >= 0 or None, got {theta_lag}")
+    latest = buf.latest
+    has = latest >= 0
+    if not has.any():
+        return _missing(buf, prev_frame)
+    considered = has
+    if theta_lag is not None:
+        considered = has & (latest.max() - latest <= theta_lag)
+    F = max(int(prev_frame), int(latest[considered].min()))  # noqa: N806 - paper's name
+
+    n = buf.n
+    rows = np.arange(n)
+    fr = buf.frame
+    valid = fr >= 0
+
+    # Exact state at F.
+    is_f = fr == F
+    exact = considered & is_f.any(axis=1)
+    s_exact = is_f.argmax(axis=1)
+
+    # Nearest buffered frames below and above F.
+    below = np.where(valid & (fr < F), fr, -1)
+    s_lo = below.argmax(axis=1)
+    f_lo = below[rows, s_lo]
+    above = np.where(fr > F, fr, _BIG)
+    s_hi = above.argmin(axis=1)
+    f_hi = above[rows, s_hi]
+    has_lo = f_lo >= 0
+    has_hi = f_hi != _BIG
+
+    hole = considered & ~exact
+    if hole_fill:
+        both = hole & has_lo & has_hi
+        only = hole & (has_lo ^ has_hi)
+        s_only = np.where(has_lo, s_lo, s_hi)
+        filled = both | only
+    else:
+        both = np.zeros(n, dtype=np.bool_)
+        only = hole & has_lo
+        s_only = s_lo
+        filled = only
+
+    # Excluded (lagging) nodes: their two newest frames.
+    excl = has & ~considered
+    s_new = fr.argmax(axis=1)
+    f_new = fr[rows, s_new]
+    prev = fr.copy()
+    prev[rows, s_new] = -1
+    s_old = prev.argmax(axis=1)
+    f_old = prev[rows, s_old]
+
+    frame = np.full(n, -1, dtype=np.int64)
+    gen = np.full(n, np.nan)
+    obs = np.full((n, buf.width), np.nan)
+    flag = np.full(n, MISSING, dtype=np.uint8)
+
+    # Exact and single-source states are shown as stored.
+    sel = np.where(exact, s_exact, s_only)
+    shown = exact | only
+    idx = rows[shown]
+    frame[idx] = fr[idx, sel[idx]]
+    gen[idx] = buf.gen_time[idx, sel[idx]]
+    obs[idx] = buf.obs[idx, sel[idx]]
+    flag[rows[exact]] = EXACT
+    flag[rows[filled]] = FILLED
+
+    # Interpolation across a hole.
+    idx = rows[both]
+    if idx.size:
+        lo, hi = f_lo[idx], f_hi[idx]
+        w = ((F - lo) / (hi - lo))[:, None]
+        o_lo = buf.obs[idx, s_lo[idx]]
+        o_hi = buf.obs[idx, s_hi[idx]]
+        obs[idx] = o_lo + w * (o_hi - o_lo)
+        gen[idx] = buf.gen_time[idx, s_lo[idx]]
+        frame[idx] = F
+
+    # Extrapolation of excluded nodes.
+    idx = rows[excl]
+    if idx.size:
+        o_new = buf.obs[idx, s_new[idx]]
+        two = f_old[idx] >= 0
+        f1 = f_new[idx]
+        f0 = np.where(two, f_old[idx], f1 - 1)
+        o_old = np.where(two[:, None], buf.obs[idx, s_old[idx]], o_new)
+        w = ((F - f1) / (f1 - f0))[:, None]
+        obs[idx] = o_new + w * (o_new - o_old)
+        gen[idx] = buf.gen_time[idx, s_new[idx]]
+        frame[idx] = f1
+        flag[idx] = EXTRAPOLATED
+
+    return AlignResult(aligned_frame=F, frame=frame, gen_time=gen, obs=obs, flag=flag)

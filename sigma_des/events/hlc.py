@@ -1,0 +1,163 @@
+"""Hybrid logical clocks and the HLC consumer's stability buffer (DESIGN §3, ``hlc``).
+
+:class:`HLC` implements the send and receive rules of Kulkarni et al., "Logical
+Physical Clocks" (OPODIS 2014); the physical part ``pt`` is the node's (drifting)
+local clock reading. A new clock starts at ``l = -inf, c = 0``: with ``-inf`` the
+first event takes ``l = pt`` whatever the sign of ``pt`` (a local clock with a
+negative offset reads below 0 near the start of a run), where ``l = 0`` would
+pin ``l`` at 0 and count up ``c`` instead.
+
+:class:`StabilityBuffer` is the consumer: it buffers stamped items and releases,
+in HLC order, those that are causally stable — stamped at or below the minimum,
+over live nodes, of the newest stamp received from each. Since every node's
+stamps strictly increase, nothing stamped at or below that bound can still arrive
+from a live node (over an in-order transport).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["HLC", "Stamp", "StabilityBuffer"]
+
+
+@dataclass(frozen=True, order=True)
+class Stamp:
+    """An HLC timestamp, ordered lexicographically by ``(l, c)``.
+
+    Attributes:
+        l: logical part (the largest physical time seen), seconds.
+        c: counter breaking ties within equal ``l``.
+    """
+
+    l: float  # noqa: E741 - the name used by the paper
+    c: int
+
+
+class HLC:
+    """One node's hybrid logical clock (starts at ``l = -inf``, ``c = 0``)."""
+
+    __slots__ = ("l", "c")
+
+    def __init__(self) -> None:
+        self.l: float = -math.inf
+        self.c: int = 0
+
+    @property
+    def stamp(self) -> Stamp:
+        """The current timestamp (without advancing the clock)."""
+        return Stamp(self.l, self.c)
+
+    def send(self, pt: float) -> Stamp:
+        """Advance for a send or local event at physical time ``pt``.
+
+        ``l' = l; l = max(l', pt); c = c + 1 if l == l' else 0``.
+        """
+        old = self.l
+        self.l = max(old, pt)
+        self.c = self.c + 1 if self.l == old else 0
+        return Stamp(self.l, self.c)
+
+    def receive(self, pt: float, m: Stamp) -> Stamp:
+        """Advance on receiving a message stamped ``m`` at physical time ``pt``.
+
+        ``l' = l; l = max(l', m.l, pt)``; ``c = max(c, m.c) + 1`` if
+        ``l == l' == m.l``, ``c + 1`` if only ``l == l'``, ``m.c + 1`` if only
+        ``l == m.l``, else 0.
+        """
+        old = self.l
+        new = max(old, m.l, pt)
+        if new == old and new == m.l:
+            self.c = max(self.c, m.c) + 1
+        elif new == old:
+            self.c += 1
+        elif new == m.l:
+            self.c = m.c + 1
+        else:
+            self.c = 0
+        self.l = new
+        return Stamp(self.l, self.c)
+
+
+class StabilityBuffer:
+    """Buffers stamped items and releases the causally stable ones in HLC order.
+
+    A node that is not live (crashed or evicted) no longer blocks the bound; its
+    already buffered items stay and are released with everyone else's. If no node
+    is live, nothing can block: the bound is the largest stamp ever received.
+
+    Args:
+        n: number of nodes (ids ``0 … n-1``), all live initially.
+    """
+
+    def __init__(self, n: int) -> None:
+        if n < 0:
+            raise ValueError(f"n must be >= 0, got {n}")
+        self.n = int(n)
+        self._max_l = np.full(self.n, -np.inf)
+        self._max_c = np.zeros(self.n, dtype=np.int64)
+        self._has = np.zeros(self.n, dtype=np.bool_)
+        self._live = np.ones(self.n, dtype=np.bool_)
+        self._heap: list[tuple[float, int, int, int, object]] = []
+        self._seq = 0
+        self.peak = 0
+
+    def _check(self, node: int) -> None:
+        if not 0 <= node < self.n:
+            raise IndexError(f"node must be in [0, {self.n}), got {node}")
+
+    def add(self, node: int, stamp: Stamp, item: object) -> None:
+        """Record that ``node`` sent something stamped ``stamp`` and buffer ``item``."""
+        self._check(node)
+        if not self._has[node] or (stamp.l, stamp.c) > (self._max_l[node], self._max_c[node]):
+            self._max_l[node] = stamp.l
+            self._max_c[node] = stamp.c
+            self._has[node] = True
+        heapq.heappush(self._heap, (stamp.l, stamp.c, node, self._seq, item))
+        self._seq += 1
+        self.peak = max(self.peak, len(self._heap))
+
+    def set_live(self, node: int, live: bool) -> None:
+        """Mark ``node`` live (it blocks the bound) or dead (it does not)."""
+        self._check(node)
+        self._live[node] = bool(live)
+
+    def bound(self) -> Stamp | None:
+        """Min over live nodes of the newest stamp from each (None if one sent nothing)."""
+        live = self._live
+        if not live.any():
+            if not self._has.any():
+                return None
+            ls = np.where(self._has, self._max_l, -np.inf)
+            top = ls.max()
+            return Stamp(float(top), int(self._max_c[self._has & (ls == top)].max()))
+        if not self._has[live].all():
+            return None
+        ls = np.where(live, self._max_l, np.inf)
+        low = ls.min()
+        return Stamp(float(low), int(self._max_c[live & (ls == low)].min()))
+
+    def release(self) -> list[tuple[Stamp, int, object]]:
+        """Remove and return every buffered ``(stamp, node, item)`` stamped <= the bound.
+
+        Returns:
+            The released items in HLC order, ties broken by node id (then by
+            arrival order).
+        """
+        b = self.bound()
+        out: list[tuple[Stamp, int, object]] = []
+        if b is None:
+            return out
+        key = (b.l, b.c)
+        heap = self._heap
+        while heap and (heap[0][0], heap[0][1]) <= key:
+            l_, c_, node, _, item = heapq.heappop(heap)
+            out.append((Stamp(l_, c_), node, item))
+        return out
+
+    def __len__(self) -> int:
+        return len(self._heap)

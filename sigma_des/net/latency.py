@@ -1,0 +1,259 @@
+"""Base-latency distributions of a network hop (DESIGN §2).
+
+A :class:`Dist` is a frozen, validated configuration value that samples
+non-negative delays in seconds from a counter-based :class:`~sigma_des.rng.Stream`.
+Sampling is vectorised: the integer ids (entity, message index, attempt, …) may be
+numpy arrays that broadcast together, and a scalar call returns exactly the
+element of the corresponding array call (both go through the same ufuncs).
+
+Distributions (field use):
+
+* ``constant`` — ``value``.
+* ``uniform`` — ``low`` … ``high``.
+* ``normal`` — ``mean``, ``std``; truncated at 0 (conditioned on ``x >= 0``,
+  exact inverse-CDF truncation, so ``mean`` is the mean of the *untruncated*
+  normal; :meth:`Dist.mean_value` reports the mean of the truncated one).
+* ``lognormal`` — ``mean`` and ``std`` of the delay itself (not of its log);
+  converted to ``sigma² = ln(1 + std²/mean²)``, ``mu = ln(mean) − sigma²/2``.
+* ``exponential`` — ``mean``.
+* ``empirical`` — ``file``: samples in seconds, one per line, or the first
+  column of a CSV (an optional non-numeric header line is skipped, as are blank
+  lines and ``#`` comments). Resampled uniformly, ``samples[floor(u·len)]``.
+  Files are loaded once per (path, modification time) and cached.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, fields
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.special import ndtr
+
+from sigma_des.errors import ConfigError
+from sigma_des.rng import Stream
+
+__all__ = ["DIST_NAMES", "Dist", "dist_from", "load_samples"]
+
+#: Allowed values of :attr:`Dist.dist`.
+DIST_NAMES: tuple[str, ...] = (
+    "constant",
+    "uniform",
+    "normal",
+    "lognormal",
+    "exponential",
+    "empirical",
+)
+
+
+def _nonneg_float(name: str, value: object) -> float:
+    """``value`` as a float, or ConfigError unless it is a finite real ``>= 0``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ConfigError(name, f"must be a number of seconds >= 0, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or v < 0.0:
+        raise ConfigError(name, f"must be >= 0 s (finite), got {value!r}")
+    return v
+
+
+def load_samples(path: str) -> NDArray[np.float64]:
+    """The samples (seconds) of an empirical delay file, cached per path and mtime.
+
+    Args:
+        path: a text file, one sample per line, or a CSV whose first column holds
+            the samples (an optional header line is skipped).
+
+    Returns:
+        A read-only float64 array of at least one finite, non-negative sample.
+
+    Raises:
+        ConfigError: (key ``file``) if the file is missing, empty or holds a
+            negative, non-finite or non-numeric sample.
+    """
+    full = os.path.abspath(path)
+    try:
+        mtime = os.stat(full).st_mtime_ns
+    except OSError as exc:
+        raise ConfigError("file", f"empirical sample file not found: {path!r} ({exc})") from exc
+    return _load_cached(full, mtime)
+
+
+@lru_cache(maxsize=64)
+def _load_cached(path: str, mtime_ns: int) -> NDArray[np.float64]:
+    del mtime_ns  # part of the cache key only
+    values: list[float] = []
+    with open(path, encoding="utf-8") as fh:
+        for lineno, raw in enumerate(fh, start=1):
+            line = raw.strip()
+            if not line or line.startswith("#"):
+                continue
+            cell = line.split(",")[0].strip().strip('"')
+            try:
+                v = float(cell)
+            except ValueError:
+                if not values and lineno == 1:
+                    continue  # header
+                raise ConfigError(
+                    "file", f"{path}:{lineno}: not a number of seconds: {cell!r}"
+                ) from None
+            if not math.isfinite(v) or v < 0.0:
+                raise ConfigError("file", f"{path}:{lineno}: samples must be >= 0 s, got {v!r}")
+            values.append(v)
+    if not values:
+        raise ConfigError("file", f"{path}: no samples")
+    arr = np.asarray(values, dtype=np.float64)
+    arr.setflags(write=False)
+    return arr
+
+
+def _broadcast_shape(ids: tuple[ArrayLike, ...]) -> tuple[int, ...]:
+    """The (at least 1-d) shape that :meth:`Stream.uniform` returns for ``ids``."""
+    if not ids:
+        return (1,)
+    return np.broadcast_shapes(*(np.atleast_1d(np.asarray(i)).shape for i in ids))
+
+
+@dataclass(frozen=True)
+class Dist:
+    """A non-negative delay distribution in seconds (see the module docstring).
+
+    Attributes:
+        dist: one of :data:`DIST_NAMES`.
+        value: the constant delay (``constant``).
+        low: lower bound (``uniform``).
+        high: upper bound (``uniform``).
+        mean: mean (``normal`` before truncation, ``lognormal``, ``exponential``).
+        std: standard deviation (``normal`` before truncation, ``lognormal``).
+        file: path of the sample file (``empirical``).
+    """
+
+    dist: str = "constant"
+    value: float = 0.0
+    low: float = 0.0
+    high: float = 0.0
+    mean: float = 0.0
+    std: float = 0.0
+    file: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.dist, str) or self.dist not in DIST_NAMES:
+            raise ConfigError("dist", f"must be one of {', '.join(DIST_NAMES)}; got {self.dist!r}")
+        for name in ("value", "low", "high", "mean", "std"):
+            object.__setattr__(self, name, _nonneg_float(name, getattr(self, name)))
+        if not isinstance(self.file, str):
+            raise ConfigError("file", f"must be a path string, got {self.file!r}")
+        if self.low > self.high:
+            raise ConfigError("low", f"must be <= high ({self.high}), got {self.low}")
+        if self.dist == "lognormal" and self.std > 0.0 and self.mean == 0.0:
+            raise ConfigError("mean", "must be > 0 s for a lognormal with std > 0, got 0")
+        if self.dist == "empirical":
+            if not self.file:
+                raise ConfigError("file", "required (path of a sample file) for dist 'empirical'")
+            load_samples(self.file)
+
+    # -- derived quantities ---------------------------------------------------
+
+    def _lognormal_params(self) -> tuple[float, float]:
+        sigma2 = math.log1p((self.std / self.mean) ** 2)
+        return math.log(self.mean) - 0.5 * sigma2, math.sqrt(sigma2)
+
+    @property
+    def is_constant(self) -> bool:
+        """True if every sample is the same number (a degenerate distribution)."""
+        d = self.dist
+        if d == "constant":
+            return True
+        if d == "uniform":
+            return self.low == self.high
+        if d in ("normal", "lognormal"):
+            return self.std == 0.0
+        if d == "exponential":
+            return self.mean == 0.0
+        samples = load_samples(self.file)
+        return bool(np.all(samples == samples[0]))
+
+    def mean_value(self) -> float:
+        """The mean delay in seconds (of the truncated distribution for ``normal``)."""
+        d = self.dist
+        if d == "constant":
+            return self.value
+        if d == "uniform":
+            return 0.5 * (self.low + self.high)
+        if d == "normal":
+            if self.std == 0.0:
+                return self.mean
+            alpha = -self.mean / self.std
+            tail = float(ndtr(-alpha))  # P(X >= 0)
+            pdf = math.exp(-0.5 * alpha * alpha) / math.sqrt(2.0 * math.pi)
+            return self.mean + self.std * pdf / tail
+        if d in ("lognormal", "exponential"):
+            return self.mean
+        return float(np.mean(load_samples(self.file)))
+
+    # -- sampling ---------------------------------------------------------------
+
+    def sample(self, stream: Stream, *ids: ArrayLike) -> NDArray[np.float64]:
+        """Delays (s) keyed by ``ids``, one per broadcast id tuple; all ``>= 0``.
+
+        Args:
+            stream: the counter-based stream to draw from.
+            *ids: integer ids (scalars or arrays, broadcast together).
+
+        Returns:
+            A float64 array of the broadcast shape (at least 1-d).
+        """
+        d = self.dist
+        if d == "constant":
+            return np.full(_broadcast_shape(ids), self.value)
+        if d == "uniform":
+            if self.low == self.high:
+                return np.full(_broadcast_shape(ids), self.low)
+            return self.low + (self.high - self.low) * stream.uniform(*ids)
+        if d == "normal":
+            return stream.truncated_normal(self.mean, self.std, 0.0, *ids)
+        if d == "lognormal":
+            if self.std == 0.0:
+                return np.full(_broadcast_shape(ids), self.mean)
+            mu, sigma = self._lognormal_params()
+            return np.exp(mu + sigma * stream.normal(*ids))
+        if d == "exponential":
+            return self.mean * stream.exponential(*ids)
+        samples = load_samples(self.file)
+        idx = (stream.uniform(*ids) * samples.size).astype(np.int64)
+        np.minimum(idx, samples.size - 1, out=idx)
+        return samples[idx]
+
+
+_DIST_FIELDS = frozenset(f.name for f in fields(Dist))
+
+
+def dist_from(value: Any) -> Dist:
+    """Build a :class:`Dist` from a config value.
+
+    Args:
+        value: a :class:`Dist` (returned as is), a bare number of seconds (a
+            constant delay) or a mapping of :class:`Dist` fields.
+
+    Returns:
+        The validated distribution.
+
+    Raises:
+        ConfigError: for an invalid value, an unknown key or a bad field.
+    """
+    if isinstance(value, Dist):
+        return value
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return Dist(dist="constant", value=value)
+    if isinstance(value, dict):
+        unknown = sorted(set(value) - _DIST_FIELDS)
+        if unknown:
+            raise ConfigError(
+                str(unknown[0]),
+                f"unknown key; allowed: {', '.join(sorted(_DIST_FIELDS))}",
+            )
+        return Dist(**value)
+    raise ConfigError("", f"a delay must be a number of seconds or a table, got {value!r}")
