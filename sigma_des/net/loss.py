@@ -195,16 +195,26 @@ class LossProcess:
             A boolean array of the broadcast shape of ``t`` and ``ids``.
         """
         spec = self.spec
-        shape = np.broadcast_shapes(np.shape(np.atleast_1d(t)), *(np.shape(i) for i in ids))
         if spec.model == "bernoulli":
             if spec.p == 0.0:
-                out = np.zeros(shape, dtype=np.bool_)
+                out = np.zeros(_id_shape(ids), dtype=np.bool_)
             else:
                 out = self.stream.uniform(self.link_id, *ids) < spec.p
         else:
             p_state = np.where(self.bad_state(t), spec.loss_bad, spec.loss_good)
             out = self.stream.uniform(self.link_id, *ids) < p_state
-        ep = np.asarray(extra_p, dtype=np.float64)
-        if np.any(ep > 0.0):
-            out = out | (self.stream.uniform(self.link_id, _EXTRA_TAG, *ids) < ep)
-        return np.broadcast_to(out, np.broadcast_shapes(shape, out.shape)).copy()
+        if not (isinstance(extra_p, float | int) and extra_p == 0):
+            ep = np.asarray(extra_p, dtype=np.float64)
+            if np.any(ep > 0.0):
+                out = out | (self.stream.uniform(self.link_id, _EXTRA_TAG, *ids) < ep)
+        t_shape = np.shape(t)
+        if t_shape and t_shape != out.shape:
+            out = np.broadcast_to(out, np.broadcast_shapes(t_shape, out.shape)).copy()
+        return out
+
+
+def _id_shape(ids: tuple[ArrayLike, ...]) -> tuple[int, ...]:
+    """The (at least 1-d) broadcast shape of a stream draw keyed by ``ids``."""
+    if not ids:
+        return (1,)
+    return np.broadcast_shapes(*(np.atleast_1d(np.asarray(i)).shape for i in ids))
