@@ -1,0 +1,357 @@
+"""The per-message engine: one alignment method over the whole distributed loop.
+
+This is the executable specification (DESIGN §6). Every message is an event
+(SimPy events with callbacks, no process per message):
+
+trigger source ──PUBLISH──▶ broker ──N deliveries──▶ physics nodes ──(compute on
+host cores)──▶ state PUBLISH ──▶ broker ──▶ alignment server ──(align ticks)──▶
+renderer samples (render ticks); behaviour commands travel back server ─▶ node.
+
+Physics follows DESIGN §3's frame-boundary rule: a node applies at frame k the
+newest command that reached it before trigger k was issued, so the true state
+of every node at frame k is known when trigger k is issued and the whole swarm
+is stepped then, in one vectorised call. *When* a node computes and publishes
+frame k is what the events model. BiDES time warp rolls a node back and
+re-simulates its rows from a checkpoint.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.agents.base import Behaviour, DynamicsModel, SwarmView
+from sigma_des.config import Scenario
+from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
+from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.kernel import ALIGN, RENDER, TRIGGER, Kernel
+from sigma_des.metrics.collector import Collector
+from sigma_des.net.clocks import NodeClocks
+from sigma_des.net.draws import DrawCache
+from sigma_des.net.network import COMMAND, REPUBLISH, REREQUEST, STATE, Network
+from sigma_des.net.network import TRIGGER as K_TRIGGER
+from sigma_des.rng import RandomStreams
+
+__all__ = ["MethodRun"]
+
+_STEP = 0
+_ROLLBACK = 1
+
+
+class MethodRun:
+    """One scenario under one alignment method.
+
+    Args:
+        sc: the scenario.
+        method: ``none``, ``lockstep``, ``hlc`` or ``bides``.
+        dynamics: the vectorised dynamics model.
+        behaviour: behaviour producing commands (None: no commands).
+    """
+
+    def __init__(self, sc: Scenario, method: str, dynamics: DynamicsModel,
+                 behaviour: Behaviour | None) -> None:
+        self.sc = sc
+        self.method = method
+        n = self.n = sc.nodes
+        self.kernel = Kernel()
+        self.streams = RandomStreams(sc.seed)
+        self.net = Network(self.kernel, sc, self.streams, self._deliver, sc.warmup)
+        self.server = n
+        self.all_nodes = list(range(n))
+        self.dyn = dynamics
+        self.behaviour = behaviour if sc.commands.enabled else None
+        # trigger source
+        self.f_trig = sc.f_trig
+        self.latest_trigger = -1
+        H = self.H = sc.history_frames
+        self.trig_time = np.full(H, np.nan)
+        self.frame_dt = np.zeros(H)
+        # physics truth: checkpoints and published states per frame (ring of H)
+        self.initial = dynamics.initial_state(n)
+        self.state = self.initial.copy()
+        self.ckpt = np.zeros((H,) + self.state.shape)
+        self.obs_hist = np.full((H, n, OBS_WIDTH), np.nan)
+        self.slot_frame = np.full(H, -1, dtype=np.int64)
+        self.cmd = dynamics.default_command(self.state)
+        self.cmd_stamp = [-1] * n
+        # nodes
+        host_of = sc.host_of
+        self.host_of = host_of
+        self.cores: list[list[float]] = [[0.0] * sc.cores_per_host for _ in range(sc.hosts)]
+        self.node_frame = [-1] * n
+        self.node_req = [-1] * n
+        self.node_target = [-1] * n
+        self.node_busy = [False] * n
+        self.rb_steps = [0] * n
+        self.last_pub: list[tuple[int, float, NDArray[np.float64], Stamp | None] | None] = [
+            None] * n
+        st = self.streams.stream("compute")
+        step = sc.compute.step_time
+        self.step_time = DrawCache(
+            n, lambda s, k, i, a: step.sample(st, k, s, i, a),
+            constant=step.value if step.dist == "constant" else None)
+        self.crash_at = [math.inf] * n
+        self.slow: dict[int, list[tuple[float, float, float]]] = {}
+        for f in sc.faults:
+            if f.kind == "crash":
+                self.crash_at[f.node] = min(self.crash_at[f.node], f.start)
+            elif f.kind == "slow":
+                self.slow.setdefault(f.node, []).append((f.start, f.end, f.factor))
+            elif f.kind == "drop":
+                kind = {"trigger": K_TRIGGER, "state": STATE, "command": COMMAND}[f.message]
+                self.net.forced_drops.add((kind, f.node, f.frame))
+        self.rollbacks = 0
+        self.resim_steps = 0
+        self.history_misses = 0
+        # HLC
+        self.use_hlc = method == "hlc"
+        self.clocks = NodeClocks(sc.clocks, self.streams.stream("clocks"), n)
+        self._offset = self.clocks.offset.tolist()
+        self._drift = (self.clocks.drift_ppm * 1e-6).tolist()
+        self.hlc = [HLC() for _ in range(n)] if self.use_hlc else []
+        self.server_hlc = HLC()
+        # server
+        self.aligner: Aligner = ALIGNERS[method](n, sc, self)
+        self.collector = Collector(sc, method, self.net)
+        self.align_tick = 0
+        self._prev_gen = np.full(n, np.nan)
+        self.wall_seconds = 0.0
+
+    # ------------------------------------------------------------ ServerContext
+
+    def now(self) -> float:
+        """Current simulated time (s)."""
+        return self.kernel.now
+
+    def call_at(self, t: float, fn: Callable[..., Any], *args: Any) -> None:
+        """Schedule ``fn(*args)`` at ``t`` (server-side timers)."""
+        self.kernel.at(t, fn, *args, priority=TRIGGER)
+
+    def set_rate(self, f_trig: float) -> None:
+        """Change the trigger rate; takes effect from the next trigger."""
+        self.f_trig = f_trig
+        self.collector.rate_change(self.kernel.now, f_trig)
+
+    def barrier_done(self, frame: int) -> None:
+        """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``)."""
+        t_k = self.trig_time[frame % self.H]
+        self.kernel.at(max(self.kernel.now, t_k + 1.0 / self.f_trig), self._issue,
+                       priority=TRIGGER)
+
+    def rerequest(self, node: int, frame: int, retry: int) -> None:
+        """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
+        self.net.publish(self.server, REREQUEST, node, frame * 64 + min(retry, 63),
+                         frame, self.sc.trigger_payload_bits, (node,))
+
+    # ------------------------------------------------------------ trigger source
+
+    def _local(self, node: int, t: float) -> float:
+        if self.sc.clocks.ntp_period > 0:
+            return float(self.clocks.local_time(node, t))
+        return t + self._offset[node] + self._drift[node] * t
+
+    def _issue(self) -> None:
+        """Issue the next trigger: step the true swarm, publish to every node."""
+        t = self.kernel.now
+        k = self.latest_trigger + 1
+        dt = 1.0 / self.f_trig
+        slot = k % self.H
+        self.trig_time[slot] = t
+        self.frame_dt[slot] = dt
+        self.state = self.dyn.step(self.state, self.cmd, dt, k, np.arange(self.n))
+        self.ckpt[slot] = self.state
+        self.obs_hist[slot] = self.dyn.observe(self.state)
+        self.slot_frame[slot] = k
+        self.latest_trigger = k
+        self.collector.trigger(t, k, dt)
+        self.aligner.on_trigger(k, t)
+        stamp = self.server_hlc.send(t) if self.use_hlc else None
+        self.net.publish(self.server, K_TRIGGER, self.server, k, (k, stamp),
+                         self.sc.trigger_payload_bits, self.all_nodes)
+        if self.method != "lockstep":
+            self.kernel.at(t + 1.0 / self.f_trig, self._issue, priority=TRIGGER)
+
+    # ------------------------------------------------------------ physics nodes
+
+    def _deliver(self, client: int, kind: int, subject: int, index: int, payload: Any,
+                 t_pub: float) -> None:
+        t = self.kernel.now
+        self.collector.delivered(kind, subject, index, t_pub, t)
+        if client == self.server:
+            frame, gen, obs, stamp = payload
+            self.aligner.on_state(t, subject, frame, gen, obs, stamp)
+            return
+        if t >= self.crash_at[client]:
+            return
+        if kind == K_TRIGGER:
+            k, stamp = payload
+            if self.use_hlc:
+                self.hlc[client].receive(self._local(client, t), stamp)
+            self._on_trigger(client, k)
+        elif kind == COMMAND:
+            self._on_command(client, *payload)
+        elif kind == REREQUEST:
+            self._on_rerequest(client, payload, index)
+
+    def _on_trigger(self, i: int, k: int) -> None:
+        if k <= self.node_req[i]:
+            return  # duplicate or stale trigger
+        self.node_req[i] = k
+        if not self.node_busy[i]:
+            self._start_job(i)
+
+    def _on_rerequest(self, i: int, frame: int, index: int) -> None:
+        last = self.last_pub[i]
+        if self.node_frame[i] >= frame and last is not None and last[0] == frame:
+            self.net.publish(i, REPUBLISH, i, index, last, self.sc.payload_bits,
+                             (self.server,))
+        elif self.node_req[i] < frame:
+            self._on_trigger(i, frame)
+
+    def _start_job(self, i: int) -> None:
+        now = self.kernel.now
+        target = self.node_req[i]
+        cost = 0.0
+        for f in range(self.node_frame[i] + 1, target + 1):
+            cost += self.step_time.get(_STEP, i, f, 0)
+        rb = self.rb_steps[i]
+        if rb:
+            for j in range(rb):
+                cost += self.step_time.get(_ROLLBACK, i, target, j)
+            self.rb_steps[i] = 0
+        for (a, b, factor) in self.slow.get(i, ()):
+            if a <= now < b:
+                cost *= factor
+        cores = self.cores[self.host_of[i]]
+        free = heapq.heappop(cores)
+        start = now if now > free else free
+        heapq.heappush(cores, start + cost)
+        self.node_busy[i] = True
+        self.node_target[i] = target
+        self.kernel.at(start + cost, self._complete, i, target)
+
+    def _complete(self, i: int, target: int) -> None:
+        t = self.kernel.now
+        self.node_busy[i] = False
+        if t >= self.crash_at[i]:
+            return
+        if target > self.node_frame[i]:
+            self.node_frame[i] = target
+            slot = target % self.H
+            if self.slot_frame[slot] != target:
+                self.history_misses += 1
+            obs = self.obs_hist[slot, i].copy()
+            stamp = self.hlc[i].send(self._local(i, t)) if self.use_hlc else None
+            payload = (target, t, obs, stamp)
+            self.last_pub[i] = payload
+            self.net.publish(i, STATE, i, target, payload, self.sc.payload_bits,
+                             (self.server,))
+        if self.node_req[i] > self.node_frame[i] or self.rb_steps[i]:
+            self._start_job(i)
+
+    def _on_command(self, i: int, stamp_frame: int, row: NDArray[np.float64]) -> None:
+        if stamp_frame < self.cmd_stamp[i]:
+            return  # an older command overtaken by a newer one
+        self.cmd_stamp[i] = stamp_frame
+        self.cmd[i] = row
+        b = self.sc.bides
+        if self.method != "bides" or not b.time_warp or stamp_frame < 0:
+            return
+        current = self.node_target[i] if self.node_busy[i] else self.node_frame[i]
+        if current - stamp_frame <= b.theta_warp:
+            return
+        self._rollback(i, stamp_frame, current, row)
+
+    def _rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
+        """Re-simulate node ``i`` from frame ``c`` with command ``row`` (time warp)."""
+        oldest = max(0, self.latest_trigger - self.H + 2)
+        c = max(c, oldest)
+        prev = self.initial[i] if c == 0 else self.ckpt[(c - 1) % self.H, i]
+        s = prev[None, :].copy()
+        cmd = row[None, :]
+        node = np.array([i])
+        for f in range(c, self.latest_trigger + 1):
+            slot = f % self.H
+            s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
+            self.ckpt[slot, i] = s[0]
+            self.obs_hist[slot, i] = self.dyn.observe(s)[0]
+        self.state[i] = s[0]
+        steps = max(0, current - c + 1)
+        self.rollbacks += 1
+        self.resim_steps += steps
+        self.rb_steps[i] += steps
+        if not self.node_busy[i]:
+            self._start_job(i)
+
+    # ------------------------------------------------------------ server ticks
+
+    def _align(self) -> None:
+        t = self.kernel.now
+        al = self.aligner
+        al.align(t)
+        gen = al.shown_gen
+        changed = np.flatnonzero(~np.isnan(gen) & ~(gen == self._prev_gen))
+        if changed.size:
+            self.collector.aoi_update(t, changed, gen[changed])
+            self._prev_gen = gen.copy()
+        if al.new_snapshot:
+            self.collector.snapshot(t)
+        if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
+            self._send_commands(t)
+        self.align_tick += 1
+        self.kernel.at(t + 1.0 / self.sc.f_align, self._align, priority=ALIGN)
+
+    def _send_commands(self, t: float) -> None:
+        al = self.aligner
+        valid = ~np.isnan(al.shown_gen)
+        if not valid.any():
+            return
+        assert self.behaviour is not None
+        view = SwarmView(obs=al.shown_obs, frame=al.shown_frame, valid=valid,
+                         aligned_frame=al.aligned_frame)
+        cmds = self.behaviour.commands(view, self.dyn)
+        ok = ~np.isnan(cmds).any(axis=1)
+        tick = self.align_tick
+        bits = self.sc.commands.payload_bits
+        stamp = al.aligned_frame
+        for i in np.flatnonzero(ok).tolist():
+            self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
+
+    def _render(self) -> None:
+        t = self.kernel.now
+        al = self.aligner
+        ref = al.aligned_frame
+        truth = None
+        if ref >= 0 and self.slot_frame[ref % self.H] == ref:
+            truth = self.obs_hist[ref % self.H, :, 9:12]
+        self.collector.render(t, al.shown_gen, al.shown_frame, al.shown_obs, al.flag, truth,
+                              self.f_trig, self.latest_trigger, ref)
+        self.kernel.at(t + 1.0 / self.sc.f_render, self._render, priority=RENDER)
+
+    # ------------------------------------------------------------ run
+
+    def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+        """Run to ``duration`` and return the collector's results."""
+        t0 = time.perf_counter()
+        k = self.kernel
+        k.at(0.0, self._issue, priority=TRIGGER)
+        k.at(0.0, self._align, priority=ALIGN)
+        k.at(0.0, self._render, priority=RENDER)
+        dur = self.sc.duration
+        t = 0.0
+        while t < dur:
+            t = min(dur, t + 1.0)
+            k.run(until=t)
+            if progress is not None:
+                progress(t)
+        self.wall_seconds = time.perf_counter() - t0
+        return self.collector.finish(self)
+
+
+

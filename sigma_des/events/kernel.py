@@ -1,0 +1,65 @@
+"""Thin glue over SimPy: schedule plain callbacks without a process per message.
+
+A :class:`Call` is a SimPy event whose only callback runs ``fn(*args)``; it is
+pushed straight onto the environment's queue with a priority. Priorities order
+simultaneous events deterministically: message arrivals first, then trigger
+issue, alignment ticks and render ticks (so "a command that reached the node
+before trigger k was issued" includes one arriving at the same instant).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import simpy
+
+__all__ = ["ARRIVAL", "TRIGGER", "ALIGN", "RENDER", "Kernel"]
+
+ARRIVAL = 0
+TRIGGER = 1
+ALIGN = 2
+RENDER = 3
+
+
+class Call(simpy.Event):
+    """A pre-triggered SimPy event that calls ``fn(*args)`` when processed."""
+
+    __slots__ = ("fn", "args")
+
+    def __init__(self, env: simpy.Environment, fn: Callable[..., Any], args: tuple[Any, ...]):
+        self.env = env
+        self.callbacks = [self._fire]
+        self._ok = True
+        self._value = None
+        self.fn = fn
+        self.args = args
+
+    def _fire(self, _event: simpy.Event) -> None:
+        self.fn(*self.args)
+
+
+class Kernel:
+    """A SimPy environment plus callback scheduling and an event counter."""
+
+    def __init__(self) -> None:
+        self.env = simpy.Environment()
+        self.events = 0
+
+    @property
+    def now(self) -> float:
+        """Current simulated (true) time in seconds."""
+        return float(self.env.now)
+
+    def at(self, t: float, fn: Callable[..., Any], *args: Any, priority: int = ARRIVAL) -> None:
+        """Run ``fn(*args)`` at absolute time ``t`` (not before now)."""
+        env = self.env
+        delay = t - env.now
+        if delay < 0:
+            raise ValueError(f"cannot schedule in the past: t={t} < now={env.now}")
+        self.events += 1
+        env.schedule(Call(env, fn, args), priority, delay)
+
+    def run(self, until: float) -> None:
+        """Process events up to (and including those at) time ``until``."""
+        self.env.run(until=until)

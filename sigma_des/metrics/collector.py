@@ -1,0 +1,209 @@
+"""Accumulates one run's measurements and turns them into metrics (DESIGN §5).
+
+The engine reports deliveries, triggers, snapshot changes and render ticks; the
+collector keeps only what the metrics need (samples after the warm-up) and, at
+the end, returns a flat ``{metric: value}`` dict plus per-render-tick time
+series. Times are reported in milliseconds, rates in Hz, throughput in Mbps of
+wire bits (every packet on every link, headers and framing included).
+"""
+
+from __future__ import annotations
+
+import math
+import resource
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.config import Scenario
+from sigma_des.events.bides_align import EXTRAPOLATED, FILLED
+from sigma_des.metrics.aoi import AoITracker
+from sigma_des.metrics.stats import summarize
+
+if TYPE_CHECKING:
+    from sigma_des.net.network import Network
+
+__all__ = ["Collector", "METRIC_UNITS", "WALL_METRICS"]
+
+_KINDS = {1: "trigger", 2: "state", 3: "command", 4: "rerequest", 5: "state"}
+
+#: Unit of every metric the collector reports.
+METRIC_UNITS: dict[str, str] = {
+    **{f"aoi_{s}": "ms" for s in ("mean", "std", "p50", "p95", "p99", "max")},
+    "aoi_time_avg": "ms", "aoi_peak_mean": "ms",
+    **{f"latency_{k}_{s}": "ms" for k in ("state", "trigger", "command")
+       for s in ("mean", "p99")},
+    "throughput_mbps": "Mbps", "throughput_max_link_mbps": "Mbps",
+    "packets_per_s": "1/s", "messages_per_s": "1/s",
+    "trigger_rate_hz": "Hz", "f_trig_final_hz": "Hz", "f_trig_min_hz": "Hz",
+    "snapshot_rate_hz": "Hz", "snapshot_interval_std_ms": "ms",
+    "stalls": "count", "stall_time_s": "s",
+    "spread_mean": "frames", "spread_max": "frames",
+    "pos_err_mean": "m", "pos_err_max": "m",
+    "filled_frac": "1", "extrapolated_frac": "1",
+    "duplicates": "count", "retransmissions": "count", "gave_up": "count",
+    "broker_util": "1", "broker_max_wait_ms": "ms",
+    "buffer_bytes_peak": "B", "rollbacks": "count", "resim_steps": "count",
+    "evicted": "count", "rerequests": "count", "history_misses": "count",
+}
+#: Metrics that measure the simulator itself (vary run to run; kept apart).
+WALL_METRICS: dict[str, str] = {
+    "wall_s": "s", "events": "count", "events_per_s": "1/s", "peak_rss_mb": "MB",
+    "speed_x_realtime": "x",
+}
+
+
+class Collector:
+    """Measurement sink of one :class:`~sigma_des.events.engine.MethodRun`."""
+
+    def __init__(self, sc: Scenario, method: str, net: Network) -> None:
+        self.sc = sc
+        self.method = method
+        self.net = net
+        self.w0 = sc.warmup
+        n = sc.nodes
+        self.aoi = AoITracker(n, sc.warmup)
+        H = sc.history_frames
+        self._seen = {k: np.full((n + 1, H), -1, dtype=np.int64) for k in (1, 2, 3, 4, 5)}
+        self._lat: dict[str, list[float]] = {"trigger": [], "state": [], "command": []}
+        self.duplicates = 0
+        self.messages = 0
+        self.triggers = 0
+        self.f_trig_min = sc.f_trig
+        self._snap_times: list[float] = []
+        self._aoi_samples: list[NDArray[np.float64]] = []
+        self._spread: list[int] = []
+        self._pos_err: list[NDArray[np.float64]] = []
+        self._flag_counts = [0, 0, 0]  # shown, filled, extrapolated
+        self.ts: dict[str, list[float]] = {k: [] for k in (
+            "t", "aoi_mean", "aoi_max", "spread", "f_trig", "latest_trigger", "aligned_frame")}
+
+    # ------------------------------------------------------------ events
+
+    def trigger(self, t: float, k: int, dt: float) -> None:
+        """Trigger ``k`` was issued at ``t``."""
+        if t >= self.w0:
+            self.triggers += 1
+
+    def rate_change(self, t: float, f: float) -> None:
+        """The trigger rate changed to ``f``."""
+        if t >= self.w0:
+            self.f_trig_min = min(self.f_trig_min, f)
+
+    def delivered(self, kind: int, subject: int, index: int, t_pub: float, t: float) -> None:
+        """A PUBLISH reached its receiver (first delivery counts; later ones are duplicates)."""
+        seen = self._seen[kind]
+        slot = index % seen.shape[1]
+        if seen[subject, slot] == index:
+            self.duplicates += 1
+            return
+        seen[subject, slot] = index
+        if t_pub >= self.w0:
+            self.messages += 1
+            name = _KINDS[kind]
+            if name in self._lat:
+                self._lat[name].append(t - t_pub)
+
+    def aoi_update(self, t: float, nodes: NDArray[np.int64], gens: NDArray[np.float64]) -> None:
+        """The consumer starts showing new states of ``nodes``."""
+        self.aoi.update(t, nodes, gens)
+
+    def snapshot(self, t: float) -> None:
+        """A new aligned snapshot appeared at ``t``."""
+        if t >= self.w0:
+            self._snap_times.append(t)
+
+    def render(self, t: float, gen: NDArray[np.float64], frame: NDArray[np.int64],
+               obs: NDArray[np.float64], flag: NDArray[np.uint8],
+               truth: NDArray[np.float64] | None, f_trig: float, latest: int,
+               ref: int) -> None:
+        """A render tick: sample AoI and consistency of the shown snapshot."""
+        if t < self.w0:
+            return
+        valid = ~np.isnan(gen)
+        ages = t - gen[valid]
+        self._aoi_samples.append(ages)
+        spread = int(frame[valid].max() - frame[valid].min()) if ages.size else 0
+        self._spread.append(spread)
+        if truth is not None and ages.size:
+            err = np.linalg.norm(obs[valid, 9:12] - truth[valid], axis=1)
+            self._pos_err.append(err[~np.isnan(err)])
+        self._flag_counts[0] += int(valid.sum())
+        self._flag_counts[1] += int(np.count_nonzero(flag == FILLED))
+        self._flag_counts[2] += int(np.count_nonzero(flag == EXTRAPOLATED))
+        ts = self.ts
+        ts["t"].append(t)
+        ts["aoi_mean"].append(float(ages.mean()) if ages.size else math.nan)
+        ts["aoi_max"].append(float(ages.max()) if ages.size else math.nan)
+        ts["spread"].append(spread)
+        ts["f_trig"].append(f_trig)
+        ts["latest_trigger"].append(latest)
+        ts["aligned_frame"].append(ref)
+
+    # ------------------------------------------------------------ results
+
+    def finish(self, run: Any) -> dict[str, Any]:
+        """Metrics of the finished run (see :data:`METRIC_UNITS`, :data:`WALL_METRICS`)."""
+        sc = self.sc
+        window = sc.duration - self.w0
+        m: dict[str, float] = {}
+        ms = 1000.0
+        a = summarize(np.concatenate(self._aoi_samples) if self._aoi_samples else np.empty(0))
+        for s in ("mean", "std", "p50", "p95", "p99", "max"):
+            m[f"aoi_{s}"] = a[s] * ms
+        fin = self.aoi.finish(sc.duration)
+        m["aoi_time_avg"] = fin["time_average"] * ms
+        m["aoi_peak_mean"] = fin["peak_mean"] * ms
+        for kind, xs in self._lat.items():
+            s = summarize(np.asarray(xs))
+            m[f"latency_{kind}_mean"] = s["mean"] * ms
+            m[f"latency_{kind}_p99"] = s["p99"] * ms
+        net = self.net
+        links = net.links()
+        total_bytes = sum(ld.bytes for ld in links)
+        m["throughput_mbps"] = total_bytes * 8 / window / 1e6
+        m["throughput_max_link_mbps"] = max(ld.bytes for ld in links) * 8 / window / 1e6
+        m["packets_per_s"] = sum(ld.packets for ld in links) / window
+        m["messages_per_s"] = self.messages / window
+        m["trigger_rate_hz"] = self.triggers / window
+        m["f_trig_final_hz"] = run.f_trig
+        m["f_trig_min_hz"] = self.f_trig_min
+        snaps = np.asarray(self._snap_times)
+        m["snapshot_rate_hz"] = snaps.size / window
+        gaps = np.diff(np.concatenate([[self.w0], snaps, [sc.duration]]))
+        m["snapshot_interval_std_ms"] = float(np.std(np.diff(snaps))) * ms if snaps.size > 2 \
+            else math.nan
+        stall = gaps > sc.stall_threshold
+        m["stalls"] = int(stall.sum())
+        m["stall_time_s"] = float(gaps[stall].sum())
+        sp = np.asarray(self._spread, dtype=np.float64)
+        m["spread_mean"] = float(sp.mean()) if sp.size else math.nan
+        m["spread_max"] = float(sp.max()) if sp.size else math.nan
+        pe = np.concatenate(self._pos_err) if self._pos_err else np.empty(0)
+        m["pos_err_mean"] = float(pe.mean()) if pe.size else math.nan
+        m["pos_err_max"] = float(pe.max()) if pe.size else math.nan
+        shown = max(1, self._flag_counts[0])
+        m["filled_frac"] = self._flag_counts[1] / shown
+        m["extrapolated_frac"] = self._flag_counts[2] / shown
+        m["duplicates"] = self.duplicates
+        m["retransmissions"] = net.retransmissions
+        m["gave_up"] = net.gave_up
+        m["broker_util"] = net.broker_work / window
+        m["broker_max_wait_ms"] = net.broker_max_wait * ms
+        m["buffer_bytes_peak"] = run.aligner.peak_bytes
+        m["rollbacks"] = run.rollbacks
+        m["resim_steps"] = run.resim_steps
+        m["evicted"] = getattr(run.aligner, "evicted", 0)
+        m["rerequests"] = getattr(run.aligner, "rerequests", 0)
+        m["history_misses"] = run.history_misses
+        links_mbps = {ld.name: ld.bytes * 8 / window / 1e6 for ld in links}
+        wall = {
+            "wall_s": run.wall_seconds,
+            "events": run.kernel.events,
+            "events_per_s": run.kernel.events / max(run.wall_seconds, 1e-9),
+            "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+            "speed_x_realtime": sc.duration / max(run.wall_seconds, 1e-9),
+        }
+        return {"metrics": m, "wall": wall, "links_mbps": links_mbps,
+                "timeseries": {k: np.asarray(v) for k, v in self.ts.items()}}

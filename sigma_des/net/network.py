@@ -1,0 +1,559 @@
+"""The modelled network (DESIGN §2): access links, transports, MQTT QoS, broker.
+
+Topology: every client (physics node ``0..n-1``, and the server ``n`` that hosts
+the interface, the alignment server and the renderer) reaches the single broker
+over its host's access link; nodes on one host share that link. A packet's hop
+time = FIFO serialization on the link direction + base latency (+ fault delay);
+it is lost with the link's loss model. Every random number is drawn by
+``(kind, subject, index, attempt)`` from a stream named after the link class and
+direction, so results do not depend on event order.
+
+Transports: ``datagram`` (a lost packet is gone; MQTT QoS 1 resends with DUP after
+``qos1_timeout`` when no PUBACK came, so duplicates can reach receivers) and
+``stream`` (per-connection in-order delivery; a lost segment is resent after an
+RTO doubling on each try, holding back everything behind it).
+
+The broker is one FIFO server: an inbound PUBLISH costs ``publish_service`` plus
+one ``delivery_service`` per subscriber; delivery ``j`` leaves after the publish
+part and ``j+1`` delivery parts. PUBACKs leave the broker after the publish part
+and cost the broker nothing. All downlink traffic leaves the broker in service
+order, so downlink FIFO reservations can be made when the broker serves.
+
+This module knows nothing of alignment methods or aircraft: a delivered message
+is handed to the ``deliver`` callback given at construction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from sigma_des.config import Scenario
+from sigma_des.events.kernel import Kernel
+from sigma_des.net.draws import DrawCache
+from sigma_des.net.latency import Dist
+from sigma_des.net.loss import LossProcess
+from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
+from sigma_des.rng import RandomStreams
+
+__all__ = [
+    "ACK",
+    "COMMAND",
+    "KIND_NAMES",
+    "REPUBLISH",
+    "REREQUEST",
+    "STATE",
+    "TRIGGER",
+    "Network",
+]
+
+TRIGGER, STATE, COMMAND, REREQUEST, REPUBLISH = 1, 2, 3, 4, 5
+KIND_NAMES = {
+    TRIGGER: "trigger",
+    STATE: "state",
+    COMMAND: "command",
+    REREQUEST: "rerequest",
+    REPUBLISH: "republish",
+}
+ACK = 16  # added to a message kind for its PUBACK's draws
+
+Deliver = Callable[[int, int, int, int, Any, float], None]
+
+
+class _LinkDir:
+    """One direction of one access link: FIFO serialization and byte counts."""
+
+    __slots__ = ("busy", "bits_per_s", "bytes", "packets", "name")
+
+    def __init__(self, name: str, mbps: float) -> None:
+        self.name = name
+        self.busy = 0.0
+        self.bits_per_s = mbps * 1e6
+        self.bytes = 0
+        self.packets = 0
+
+
+class _Conn:
+    """One direction of one client's stream connection (in-order delivery)."""
+
+    __slots__ = ("next_seq", "next_deliver", "pending")
+
+    def __init__(self) -> None:
+        self.next_seq = 0
+        self.next_deliver = 0
+        self.pending: dict[int, tuple[Callable[..., None], tuple[Any, ...]] | None] = {}
+
+
+class Network:
+    """Links, transport, QoS and broker for ``n`` nodes plus the server.
+
+    Args:
+        kernel: the SimPy glue.
+        sc: the scenario.
+        streams: root random streams.
+        deliver: ``deliver(client, kind, subject, index, payload, t_publish)`` is
+            called at the application-level arrival of every PUBLISH (duplicates
+            included) at a client.
+        warmup: traffic before this time is not counted.
+    """
+
+    def __init__(
+        self, kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
+    ) -> None:
+        self.k = kernel
+        self.sc = sc
+        self.n = sc.nodes
+        self.server = sc.nodes
+        self.deliver = deliver
+        self.warmup = warmup
+        net = sc.net
+        self.datagram = net.transport == "datagram"
+        self.qos1 = net.qos == 1
+        self.timeout = net.qos1_timeout
+        self.rto = net.rto
+        self.max_retries = net.max_retries
+        self._overhead = net.tcpip_bytes + net.ethernet_bytes
+        self._topic = net.topic_bytes
+        host_of = sc.host_of
+        # link index per client: hosts 0..H-1, the server's link is H
+        self.link_of = np.array(host_of + [sc.hosts], dtype=np.int64).tolist()
+        nsub = self.n + 1
+        self.up: list[_LinkDir] = []
+        self.down: list[_LinkDir] = []
+        for h in range(sc.hosts + 1):
+            spec = net.host_link if h < sc.hosts else net.server_link
+            name = f"host{h}" if h < sc.hosts else "server"
+            self.up.append(_LinkDir(f"{name}.up", spec.bandwidth_mbps))
+            self.down.append(_LinkDir(f"{name}.down", spec.bandwidth_mbps))
+        self._lat: dict[tuple[bool, bool], DrawCache] = {}
+        self._u: dict[tuple[bool, bool], DrawCache] = {}
+        self._loss: dict[tuple[bool, bool, int], LossProcess] = {}
+        for is_server, spec in ((False, net.host_link), (True, net.server_link)):
+            for up in (True, False):
+                tag = f"{'server' if is_server else 'host'}.{'up' if up else 'down'}"
+                self._lat[is_server, up] = _dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
+                ust = streams.stream(f"lossu.{tag}")
+                self._u[is_server, up] = DrawCache(
+                    nsub, lambda s, k, i, a, st=ust: st.uniform(k, s, i, a)
+                )
+                for h in range(sc.hosts + 1):
+                    if (h == sc.hosts) == is_server:
+                        self._loss[is_server, up, h] = LossProcess(
+                            spec.loss, streams.stream(f"ge.{tag}"), h
+                        )
+        self._svc_pub = _dist_cache(nsub, sc.broker.publish_service, streams, "svc.publish")
+        self._svc_del = _dist_cache(nsub, sc.broker.delivery_service, streams, "svc.delivery")
+        self._conns: dict[tuple[int, bool], _Conn] = {}
+        self.broker_busy = 0.0
+        self.broker_work = 0.0  # service seconds in the metrics window
+        self.broker_max_wait = 0.0
+        self.retransmissions = 0
+        self.gave_up = 0
+        # degrade faults per link: (start, end, extra_delay, extra_loss)
+        self._degrade: dict[int, list[tuple[float, float, float, float]]] = {}
+        for f in sc.faults:
+            if f.kind == "degrade":
+                self._degrade.setdefault(f.host, []).append(
+                    (f.start, f.end, f.extra_delay, f.extra_loss)
+                )
+        self.forced_drops: set[tuple[int, int, int]] = set()
+
+    # ------------------------------------------------------------ sizes
+
+    def wire_bytes(self, payload_bits: int) -> int:
+        """Wire bytes of one PUBLISH carrying ``payload_bits`` at the scenario's QoS."""
+        return frame_bytes(
+            publish_bytes(self._topic, payload_bytes(payload_bits), 1 if self.qos1 else 0),
+            self.sc.net.tcpip_bytes,
+            self.sc.net.ethernet_bytes,
+        )
+
+    @property
+    def ack_bytes(self) -> int:
+        """Wire bytes of one PUBACK."""
+        return PUBACK_BYTES + self._overhead
+
+    # ------------------------------------------------------------ one hop
+
+    def _hop(
+        self,
+        client: int,
+        up: bool,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        nbytes: int,
+        t: float,
+    ) -> tuple[float, bool]:
+        """Transmit one packet on ``client``'s access link at time ``t``.
+
+        Returns:
+            (arrival time at the far end, lost?)
+        """
+        link = self.link_of[client]
+        ld = self.up[link] if up else self.down[link]
+        start = t if t > ld.busy else ld.busy
+        done = start + nbytes * 8 / ld.bits_per_s
+        ld.busy = done
+        if t >= self.warmup:
+            ld.bytes += nbytes
+            ld.packets += 1
+        is_server = client == self.server
+        lat = self._lat[is_server, up].get(kind, subject, index, attempt)
+        p = self._loss_p(self._loss[is_server, up, link], t)
+        extra_delay = 0.0
+        for a, b, d, q in self._degrade.get(link, ()):
+            if a <= t < b:
+                extra_delay += d
+                p = 1.0 - (1.0 - p) * (1.0 - q)
+        lost = False
+        if p > 0.0:
+            lost = self._u[is_server, up].get(kind, subject, index, attempt) < p
+        if attempt == 0 and (kind, subject, index) in self.forced_drops and not up:
+            lost = True
+        return done + lat + extra_delay, lost
+
+    @staticmethod
+    def _loss_p(proc: LossProcess, t: float) -> float:
+        spec = proc.spec
+        if spec.model == "bernoulli":
+            return spec.p
+        return spec.loss_bad if bool(proc.bad_state(t)[0]) else spec.loss_good
+
+    # ------------------------------------------------------------ transport
+
+    def _transmit(
+        self,
+        client: int,
+        up: bool,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        nbytes: int,
+        t: float,
+        on_arrive: Callable[..., None],
+        args: tuple[Any, ...],
+    ) -> tuple[float, bool]:
+        """Send one packet with the configured transport; ``on_arrive(*args)`` runs
+        at its application-level arrival. Returns (first-try arrival, first-try lost)."""
+        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
+        if self.datagram:
+            if not lost:
+                self.k.at(arr, on_arrive, *args)
+            return arr, lost
+        conn = self._conns.get((client, up))
+        if conn is None:
+            conn = self._conns[client, up] = _Conn()
+        seq = conn.next_seq
+        conn.next_seq += 1
+        self._stream_try(
+            conn,
+            seq,
+            client,
+            up,
+            kind,
+            subject,
+            index,
+            attempt,
+            nbytes,
+            t,
+            arr,
+            lost,
+            on_arrive,
+            args,
+        )
+        return arr, lost
+
+    def _stream_try(
+        self,
+        conn: _Conn,
+        seq: int,
+        client: int,
+        up: bool,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        nbytes: int,
+        t: float,
+        arr: float,
+        lost: bool,
+        on_arrive: Callable[..., None],
+        args: tuple[Any, ...],
+    ) -> None:
+        if not lost:
+            self.k.at(arr, self._stream_arrive, conn, seq, on_arrive, args)
+            return
+        if attempt >= self.max_retries:
+            self.gave_up += 1
+            self.k.at(t, self._stream_arrive, conn, seq, None, ())
+            return
+        self.retransmissions += 1
+        self.k.at(
+            t + self.rto * (2**attempt),
+            self._stream_retry,
+            conn,
+            seq,
+            client,
+            up,
+            kind,
+            subject,
+            index,
+            attempt + 1,
+            nbytes,
+            on_arrive,
+            args,
+        )
+
+    def _stream_retry(
+        self,
+        conn: _Conn,
+        seq: int,
+        client: int,
+        up: bool,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        nbytes: int,
+        on_arrive: Callable[..., None],
+        args: tuple[Any, ...],
+    ) -> None:
+        t = self.k.now
+        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
+        self._stream_try(
+            conn,
+            seq,
+            client,
+            up,
+            kind,
+            subject,
+            index,
+            attempt,
+            nbytes,
+            t,
+            arr,
+            lost,
+            on_arrive,
+            args,
+        )
+
+    @staticmethod
+    def _stream_arrive(
+        conn: _Conn, seq: int, on_arrive: Callable[..., None] | None, args: tuple[Any, ...]
+    ) -> None:
+        conn.pending[seq] = (on_arrive, args) if on_arrive is not None else None
+        while conn.next_deliver in conn.pending:
+            item = conn.pending.pop(conn.next_deliver)
+            conn.next_deliver += 1
+            if item is not None:
+                item[0](*item[1])
+
+    # ------------------------------------------------------------ MQTT publish
+
+    def publish(
+        self,
+        client: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        payload_bits: int,
+        subscribers: Sequence[int],
+    ) -> None:
+        """``client`` publishes now; the broker fans the message out to ``subscribers``.
+
+        ``subject`` is the node the message is about (the server ``n`` for a
+        broadcast, whose deliveries are then keyed by each subscriber).
+        """
+        self._publish_try(
+            client, kind, subject, index, payload, payload_bits, tuple(subscribers), 0, self.k.now
+        )
+
+    def _publish_try(
+        self,
+        client: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        bits: int,
+        subs: tuple[int, ...],
+        attempt: int,
+        t_pub: float,
+    ) -> None:
+        t = self.k.now
+        nbytes = self.wire_bytes(bits)
+        arr, lost = self._transmit(
+            client,
+            True,
+            kind,
+            subject,
+            index,
+            attempt,
+            nbytes,
+            t,
+            self._broker_receive,
+            (client, kind, subject, index, payload, bits, subs, attempt, t_pub, t),
+        )
+        if self.datagram and self.qos1 and (lost or arr > t + self.timeout):
+            self._schedule_resend(
+                t + self.timeout,
+                attempt,
+                self._publish_try,
+                (client, kind, subject, index, payload, bits, subs, attempt + 1, t_pub),
+            )
+
+    def _schedule_resend(
+        self, when: float, attempt: int, fn: Callable[..., None], args: tuple[Any, ...]
+    ) -> None:
+        if attempt >= self.max_retries:
+            self.gave_up += 1
+            return
+        self.retransmissions += 1
+        self.k.at(when, fn, *args)
+
+    def _broker_receive(
+        self,
+        client: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        bits: int,
+        subs: tuple[int, ...],
+        attempt: int,
+        t_pub: float,
+        t_sent: float,
+    ) -> None:
+        now = self.k.now
+        s_pub = self._svc_pub.get(kind, subject, index, attempt)
+        broadcast = subject == self.server
+        dsubj = [s if broadcast else subject for s in subs]
+        s_del = [self._svc_del.get(kind, d, index, attempt) for d in dsubj]
+        start = now if now > self.broker_busy else self.broker_busy
+        total = s_pub + sum(s_del)
+        self.broker_busy = start + total
+        if now >= self.warmup:
+            self.broker_work += total
+            self.broker_max_wait = max(self.broker_max_wait, start - now)
+        # PUBACK back to the publisher
+        if self.qos1:
+            ack_t = start + s_pub
+            a_arr, a_lost = self._hop(
+                client, False, kind + ACK, subject, index, attempt, self.ack_bytes, ack_t
+            )
+            if (
+                self.datagram
+                and now <= t_sent + self.timeout
+                and (a_lost or a_arr > t_sent + self.timeout)
+            ):
+                self._schedule_resend(
+                    t_sent + self.timeout,
+                    attempt,
+                    self._publish_try,
+                    (client, kind, subject, index, payload, bits, subs, attempt + 1, t_pub),
+                )
+        d = start + s_pub
+        for sub, ds, sd in zip(subs, dsubj, s_del, strict=True):
+            d += sd
+            self._deliver_try(sub, kind, ds, index, payload, bits, 0, t_pub, d)
+
+    def _deliver_try(
+        self,
+        sub: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        bits: int,
+        attempt: int,
+        t_pub: float,
+        t_depart: float,
+    ) -> None:
+        """Broker → subscriber hop leaving the broker at ``t_depart``."""
+        nbytes = self.wire_bytes(bits)
+        arr, lost = self._transmit(
+            sub,
+            False,
+            kind,
+            subject,
+            index,
+            attempt,
+            nbytes,
+            t_depart,
+            self._client_receive,
+            (sub, kind, subject, index, payload, bits, attempt, t_pub, t_depart),
+        )
+        if self.datagram and self.qos1 and (lost or arr > t_depart + self.timeout):
+            self._schedule_resend(
+                t_depart + self.timeout,
+                attempt,
+                self._redeliver,
+                (sub, kind, subject, index, payload, bits, attempt + 1, t_pub),
+            )
+
+    def _redeliver(
+        self,
+        sub: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        bits: int,
+        attempt: int,
+        t_pub: float,
+    ) -> None:
+        now = self.k.now
+        s_del = self._svc_del.get(kind, subject, index, attempt)
+        start = now if now > self.broker_busy else self.broker_busy
+        self.broker_busy = start + s_del
+        if now >= self.warmup:
+            self.broker_work += s_del
+        self._deliver_try(sub, kind, subject, index, payload, bits, attempt, t_pub, start + s_del)
+
+    def _client_receive(
+        self,
+        sub: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        bits: int,
+        attempt: int,
+        t_pub: float,
+        t_depart: float,
+    ) -> None:
+        now = self.k.now
+        if self.qos1:
+            a_arr, a_lost = self._hop(
+                sub, True, kind + ACK, subject, index, attempt, self.ack_bytes, now
+            )
+            if (
+                self.datagram
+                and now <= t_depart + self.timeout
+                and (a_lost or a_arr > t_depart + self.timeout)
+            ):
+                self._schedule_resend(
+                    t_depart + self.timeout,
+                    attempt,
+                    self._redeliver,
+                    (sub, kind, subject, index, payload, bits, attempt + 1, t_pub),
+                )
+        self.deliver(sub, kind, subject, index, payload, t_pub)
+
+    # ------------------------------------------------------------ accounting
+
+    def links(self) -> list[_LinkDir]:
+        """All link directions (uplinks then downlinks)."""
+        return self.up + self.down
+
+
+def _dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCache:
+    st = streams.stream(name)
+    const = dist.value if dist.dist == "constant" else None
+    return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const)
