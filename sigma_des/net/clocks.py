@@ -138,4 +138,7 @@ class NodeClocks:
 
     def error(self, node: ArrayLike, t: ArrayLike) -> float | NDArray[np.float64]:
         """Clock error ``local_time(node, t) − t`` in seconds."""
-        return self.local_time(node, t) - t  # type: ignore[operator]
+        local = self.local_time(node, t)
+        if isinstance(local, float):
+            return local - float(t)  # type: ignore[arg-type]
+        return local - np.asarray(t, dtype=np.float64)
