@@ -58,46 +58,96 @@ class Results:
 
     def rows(self, include_wall: bool = True) -> list[dict[str, Any]]:
         """Tidy rows: one per method × metric, carrying seed, config hash and version."""
-        base = {"seed": self.scenario.seed, "config_hash": self.config_hash,
-                "version": __version__}
+        base = {"seed": self.scenario.seed, "config_hash": self.config_hash, "version": __version__}
         out: list[dict[str, Any]] = []
         for method, ms in self.methods.items():
             for name, value in ms.items():
-                out.append({**base, "method": method, "metric": name, "value": value,
-                            "unit": METRIC_UNITS.get(name, "")})
+                out.append(
+                    {
+                        **base,
+                        "method": method,
+                        "metric": name,
+                        "value": value,
+                        "unit": METRIC_UNITS.get(name, ""),
+                    }
+                )
             for name, value in self.links_mbps[method].items():
-                out.append({**base, "method": method, "metric": f"link_mbps.{name}",
-                            "value": value, "unit": "Mbps"})
+                out.append(
+                    {
+                        **base,
+                        "method": method,
+                        "metric": f"link_mbps.{name}",
+                        "value": value,
+                        "unit": "Mbps",
+                    }
+                )
             if include_wall:
                 for name, value in self.wall[method].items():
-                    out.append({**base, "method": method, "metric": name, "value": value,
-                                "unit": WALL_METRICS[name]})
+                    out.append(
+                        {
+                            **base,
+                            "method": method,
+                            "metric": name,
+                            "value": value,
+                            "unit": WALL_METRICS[name],
+                        }
+                    )
         return out
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary; wall-time figures are under ``wall`` only."""
-        return _json_safe({
-            "version": __version__, "seed": self.scenario.seed,
-            "config_hash": self.config_hash, "scenario": to_dict(self.scenario),
-            "methods": self.methods, "links_mbps": self.links_mbps, "wall": self.wall,
-        })
+        return _json_safe(
+            {
+                "version": __version__,
+                "seed": self.scenario.seed,
+                "config_hash": self.config_hash,
+                "scenario": to_dict(self.scenario),
+                "methods": self.methods,
+                "links_mbps": self.links_mbps,
+                "wall": self.wall,
+            }
+        )
 
     def table(self) -> str:
         """The per-method comparison table printed by ``sigma-des compare``."""
-        head = ("method", "AoI mean±std ms", "p99", "t-avg", "peak", "lat ms", "lat p99",
-                "Mbps", "snap Hz", "trig Hz", "spread", "rollbk", "wall s")
+        head = (
+            "method",
+            "AoI mean±std ms",
+            "p99",
+            "t-avg",
+            "peak",
+            "lat ms",
+            "lat p99",
+            "Mbps",
+            "snap Hz",
+            "trig Hz",
+            "spread",
+            "rollbk",
+            "wall s",
+        )
         lines = [head]
         for method, m in self.methods.items():
-            lines.append((
-                method, f"{m['aoi_mean']:.2f} ± {m['aoi_std']:.2f}", f"{m['aoi_p99']:.2f}",
-                f"{m['aoi_time_avg']:.2f}", f"{m['aoi_peak_mean']:.2f}",
-                f"{m['latency_state_mean']:.2f}", f"{m['latency_state_p99']:.2f}",
-                f"{m['throughput_mbps']:.2f}", f"{m['snapshot_rate_hz']:.1f}",
-                f"{m['trigger_rate_hz']:.1f}", f"{m['spread_mean']:.2f}",
-                f"{int(m['rollbacks'])}", f"{self.wall[method]['wall_s']:.2f}"))
+            lines.append(
+                (
+                    method,
+                    f"{m['aoi_mean']:.2f} ± {m['aoi_std']:.2f}",
+                    f"{m['aoi_p99']:.2f}",
+                    f"{m['aoi_time_avg']:.2f}",
+                    f"{m['aoi_peak_mean']:.2f}",
+                    f"{m['latency_state_mean']:.2f}",
+                    f"{m['latency_state_p99']:.2f}",
+                    f"{m['throughput_mbps']:.2f}",
+                    f"{m['snapshot_rate_hz']:.1f}",
+                    f"{m['trigger_rate_hz']:.1f}",
+                    f"{m['spread_mean']:.2f}",
+                    f"{int(m['rollbacks'])}",
+                    f"{self.wall[method]['wall_s']:.2f}",
+                )
+            )
         widths = [max(len(r[i]) for r in lines) for i in range(len(head))]
-        return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True))
-                         for r in lines)
+        return "\n".join(
+            "  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in lines
+        )
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
         """Write ``results.csv`` (tidy) and ``summary.json`` into ``out_dir``."""
@@ -126,8 +176,9 @@ def _json_safe(x: Any) -> Any:
     return x
 
 
-def run_method(sc: Scenario, method: str,
-               progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+def run_method(
+    sc: Scenario, method: str, progress: Callable[[float], None] | None = None
+) -> dict[str, Any]:
     """Run one method on ``sc`` and return its raw result dict."""
     if method not in METHODS:
         raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
@@ -135,8 +186,7 @@ def run_method(sc: Scenario, method: str,
     return run.run(progress)
 
 
-def compare(sc: Scenario, methods: Iterable[str] | None = None,
-            progress: bool = True) -> Results:
+def compare(sc: Scenario, methods: Iterable[str] | None = None, progress: bool = True) -> Results:
     """Run every method on the same scenario and seed (identical random draws).
 
     Args:
@@ -151,8 +201,14 @@ def compare(sc: Scenario, methods: Iterable[str] | None = None,
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=round(sc.duration * len(ms), 3), unit="sim-s", delay=2.0,
-                   leave=False, desc="sigma-des")
+
+        bar = tqdm(
+            total=round(sc.duration * len(ms), 3),
+            unit="sim-s",
+            delay=2.0,
+            leave=False,
+            desc="sigma-des",
+        )
     done = 0.0
     for m in ms:
         last = [0.0]
@@ -161,6 +217,7 @@ def compare(sc: Scenario, methods: Iterable[str] | None = None,
             if bar is not None:
                 bar.update(round(t - last[0], 6))
                 last[0] = t
+
         if bar is not None:
             bar.set_postfix_str(m)
         out = run_method(sc, m, tick)

@@ -29,16 +29,26 @@ def _parser() -> argparse.ArgumentParser:
 
     def scenario_args(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("scenario", nargs="?", help="scenario TOML file (default: built-in)")
-        sp.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a scenario key (dotted, value in TOML syntax); "
-                        "repeatable, e.g. --set nodes=50 --set net.host_link.loss.p=0.1")
+        sp.add_argument(
+            "--set",
+            dest="sets",
+            action="append",
+            default=[],
+            metavar="KEY=VALUE",
+            help="override a scenario key (dotted, value in TOML syntax); "
+            "repeatable, e.g. --set nodes=50 --set net.host_link.loss.p=0.1",
+        )
 
     c = sub.add_parser("compare", help="run alignment methods side by side")
     scenario_args(c)
-    c.add_argument("--methods", default=None,
-                   help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)")
-    c.add_argument("--out", default=None, metavar="DIR",
-                   help="write results.csv and summary.json here")
+    c.add_argument(
+        "--methods",
+        default=None,
+        help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
+    )
+    c.add_argument(
+        "--out", default=None, metavar="DIR", help="write results.csv and summary.json here"
+    )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     g = sub.add_parser("config", help="print the resolved scenario as TOML")
@@ -55,13 +65,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             sys.stdout.write(to_toml(sc))
             return 0
         from sigma_des.api import compare
+
         methods = None
         if args.methods is not None:
             methods = [m.strip() for m in args.methods.split(",") if m.strip()]
             for m in methods:
                 if m not in METHODS:
-                    raise ConfigError("--methods", f"unknown method {m!r}; allowed: "
-                                      f"{', '.join(METHODS)}")
+                    raise ConfigError(
+                        "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
+                    )
         res = compare(sc, methods, progress=not args.no_progress)
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)

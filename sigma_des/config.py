@@ -28,9 +28,23 @@ from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossSpec
 
 __all__ = [
-    "BidesSpec", "BrokerSpec", "CommandSpec", "ComputeSpec", "FaultSpec", "HLCSpec",
-    "LinkSpec", "LockstepSpec", "METHODS", "NetSpec", "Scenario", "config_hash",
-    "from_dict", "load", "parse_set", "to_dict", "to_toml",
+    "BidesSpec",
+    "BrokerSpec",
+    "CommandSpec",
+    "ComputeSpec",
+    "FaultSpec",
+    "HLCSpec",
+    "LinkSpec",
+    "LockstepSpec",
+    "METHODS",
+    "NetSpec",
+    "Scenario",
+    "config_hash",
+    "from_dict",
+    "load",
+    "parse_set",
+    "to_dict",
+    "to_toml",
 ]
 
 #: Alignment methods, in their canonical order.
@@ -102,13 +116,19 @@ class NetSpec:
     topic_bytes: int = 8
 
     def __post_init__(self) -> None:
-        _check(self.transport in ("datagram", "stream"), "transport",
-               f"must be 'datagram' or 'stream', got {self.transport!r}")
+        _check(
+            self.transport in ("datagram", "stream"),
+            "transport",
+            f"must be 'datagram' or 'stream', got {self.transport!r}",
+        )
         _check(self.qos in (0, 1), "qos", f"must be 0 or 1, got {self.qos}")
         _positive(self, "rto", "qos1_timeout")
         _nonneg(self, "max_retries", "tcpip_bytes", "ethernet_bytes")
-        _check(1 <= self.topic_bytes <= 65535, "topic_bytes",
-               f"must be in 1..65535, got {self.topic_bytes}")
+        _check(
+            1 <= self.topic_bytes <= 65535,
+            "topic_bytes",
+            f"must be in 1..65535, got {self.topic_bytes}",
+        )
 
 
 @dataclass(frozen=True)
@@ -123,8 +143,7 @@ class BrokerSpec:
 class ComputeSpec:
     """Per-node computation: one physics step's CPU time, contending for host cores."""
 
-    step_time: Dist = field(
-        default_factory=lambda: Dist(dist="lognormal", mean=0.0008, std=0.0002))
+    step_time: Dist = field(default_factory=lambda: Dist(dist="lognormal", mean=0.0008, std=0.0002))
 
 
 @dataclass(frozen=True)
@@ -192,15 +211,24 @@ class BidesSpec:
     theta_warp: int = 10
 
     def __post_init__(self) -> None:
-        _check(2 <= self.ring_size <= 100_000, "ring_size",
-               f"must be in 2..100000, got {self.ring_size}")
+        _check(
+            2 <= self.ring_size <= 100_000,
+            "ring_size",
+            f"must be in 2..100000, got {self.ring_size}",
+        )
         _check(self.theta_lag >= 1, "theta_lag", f"must be >= 1 frame, got {self.theta_lag}")
         _check(self.lag_high >= 1, "lag_high", f"must be >= 1 frame, got {self.lag_high}")
-        _check(0 <= self.lag_low <= self.lag_high, "lag_low",
-               f"must be in 0..lag_high ({self.lag_high}), got {self.lag_low}")
+        _check(
+            0 <= self.lag_low <= self.lag_high,
+            "lag_low",
+            f"must be in 0..lag_high ({self.lag_high}), got {self.lag_low}",
+        )
         _check(0 < self.rate_down < 1, "rate_down", f"must be in (0, 1), got {self.rate_down}")
-        _check(self.rate_up > 1 and math.isfinite(self.rate_up), "rate_up",
-               f"must be > 1, got {self.rate_up}")
+        _check(
+            self.rate_up > 1 and math.isfinite(self.rate_up),
+            "rate_up",
+            f"must be > 1, got {self.rate_up}",
+        )
         _positive(self, "f_trig_min")
         _check(self.hold_down >= 1, "hold_down", f"must be >= 1, got {self.hold_down}")
         _check(self.hold_up >= 1, "hold_up", f"must be >= 1, got {self.hold_up}")
@@ -271,10 +299,12 @@ class FaultSpec:
         _check(self.end > self.start, "end", f"must be > start ({self.start}), got {self.end}")
         _check(self.factor >= 1, "factor", f"must be >= 1, got {self.factor}")
         _nonneg(self, "extra_delay")
-        _check(0 <= self.extra_loss < 1, "extra_loss",
-               f"must be in [0, 1), got {self.extra_loss}")
-        _check(self.message in DROP_MESSAGES, "message",
-               f"must be one of {DROP_MESSAGES}, got {self.message!r}")
+        _check(0 <= self.extra_loss < 1, "extra_loss", f"must be in [0, 1), got {self.extra_loss}")
+        _check(
+            self.message in DROP_MESSAGES,
+            "message",
+            f"must be one of {DROP_MESSAGES}, got {self.message!r}",
+        )
         if self.kind == "drop":
             _check(self.frame >= 0, "frame", f"a drop fault needs frame >= 0, got {self.frame}")
         if self.kind in ("crash", "slow", "drop"):
@@ -337,37 +367,62 @@ class Scenario:
     def __post_init__(self) -> None:
         _check(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
         _check(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
-        _check(1 <= self.hosts <= self.nodes, "hosts",
-               f"must be in 1..nodes ({self.nodes}), got {self.hosts}")
-        _check(self.cores_per_host >= 1, "cores_per_host",
-               f"must be >= 1, got {self.cores_per_host}")
-        _check(self.placement in ("block", "round_robin"), "placement",
-               f"must be 'block' or 'round_robin', got {self.placement!r}")
+        _check(
+            1 <= self.hosts <= self.nodes,
+            "hosts",
+            f"must be in 1..nodes ({self.nodes}), got {self.hosts}",
+        )
+        _check(
+            self.cores_per_host >= 1, "cores_per_host", f"must be >= 1, got {self.cores_per_host}"
+        )
+        _check(
+            self.placement in ("block", "round_robin"),
+            "placement",
+            f"must be 'block' or 'round_robin', got {self.placement!r}",
+        )
         _positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
-        _check(0 <= self.warmup < self.duration, "warmup",
-               f"must be in [0, duration={self.duration}), got {self.warmup}")
+        _check(
+            0 <= self.warmup < self.duration,
+            "warmup",
+            f"must be in [0, duration={self.duration}), got {self.warmup}",
+        )
         _check(self.payload_bits >= 1, "payload_bits", f"must be >= 1, got {self.payload_bits}")
-        _check(self.trigger_payload_bits >= 0, "trigger_payload_bits",
-               f"must be >= 0, got {self.trigger_payload_bits}")
-        _check(self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
-               "dynamics", f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', "
-               f"got {self.dynamics!r}")
+        _check(
+            self.trigger_payload_bits >= 0,
+            "trigger_payload_bits",
+            f"must be >= 0, got {self.trigger_payload_bits}",
+        )
+        _check(
+            self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
+            "dynamics",
+            f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
+        )
         _check(self.engine in ("events",), "engine", f"must be 'events', got {self.engine!r}")
         _check(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
         for m in self.methods:
             _check(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
         _check(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
-        _check(self.history_frames >= 16, "history_frames",
-               f"must be >= 16, got {self.history_frames}")
-        _check(self.bides.f_trig_min <= self.f_trig, "bides.f_trig_min",
-               f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}")
+        _check(
+            self.history_frames >= 16, "history_frames", f"must be >= 16, got {self.history_frames}"
+        )
+        _check(
+            self.bides.f_trig_min <= self.f_trig,
+            "bides.f_trig_min",
+            f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}",
+        )
         for i, f in enumerate(self.faults):
             if f.kind in ("crash", "slow", "drop"):
-                _check(f.node < self.nodes, f"faults[{i}].node",
-                       f"must be in 0..{self.nodes - 1}, got {f.node}")
+                _check(
+                    f.node < self.nodes,
+                    f"faults[{i}].node",
+                    f"must be in 0..{self.nodes - 1}, got {f.node}",
+                )
             else:
-                _check(f.host < self.hosts, f"faults[{i}].host",
-                       f"must be in 0..{self.hosts - 1}, got {f.host}")
+                _check(
+                    f.host < self.hosts,
+                    f"faults[{i}].host",
+                    f"must be in 0..{self.hosts - 1}, got {f.host}",
+                )
 
     @property
     def host_of(self) -> list[int]:
@@ -379,6 +434,7 @@ class Scenario:
 
 
 # ---------------------------------------------------------------- loading
+
 
 def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", str(tp))
@@ -501,8 +557,9 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     cur[parts[-1]] = value
 
 
-def load(path: str | Path | None = None, overrides: typing.Iterable[str] = (),
-         **values: Any) -> Scenario:
+def load(
+    path: str | Path | None = None, overrides: typing.Iterable[str] = (), **values: Any
+) -> Scenario:
     """Load a scenario from an optional TOML file, then apply overrides.
 
     Args:

@@ -18,8 +18,9 @@ def make_dynamics(sc: Scenario) -> DynamicsModel:
     try:
         from sigma_des.agents import registry  # type: ignore[attr-defined]
     except ImportError:
-        raise ConfigError("dynamics", f"{sc.dynamics!r} is not available in this build; "
-                          "use 'pointmass'") from None
+        raise ConfigError(
+            "dynamics", f"{sc.dynamics!r} is not available in this build; use 'pointmass'"
+        ) from None
     try:
         return registry.make_dynamics(sc.dynamics)  # type: ignore[no-any-return]
     except ValueError as e:
@@ -34,10 +35,13 @@ def make_behaviour(sc: Scenario) -> Behaviour | None:
         return Cohesion()
     try:
         from sigma_des.agents import registry  # type: ignore[attr-defined]
+
         return registry.make_behaviour(sc.commands.behaviour)  # type: ignore[no-any-return]
     except (ImportError, AttributeError):
         pass
     except ValueError as e:
         raise ConfigError("commands.behaviour", str(e)) from None
-    raise ConfigError("commands.behaviour",
-                      f"unknown behaviour {sc.commands.behaviour!r}; allowed: cohesion, none")
+    raise ConfigError(
+        "commands.behaviour",
+        f"unknown behaviour {sc.commands.behaviour!r}; allowed: cohesion, none",
+    )

@@ -16,14 +16,26 @@ from sigma_des.agents.base import DynamicsModel, SwarmView
 __all__ = ["Cohesion", "velocity_to_command"]
 
 
-def velocity_to_command(dynamics: DynamicsModel, vn: NDArray[np.float64],
-                        ve: NDArray[np.float64], h: NDArray[np.float64],
-                        vh: NDArray[np.float64]) -> NDArray[np.float64]:
+def velocity_to_command(
+    dynamics: DynamicsModel,
+    vn: NDArray[np.float64],
+    ve: NDArray[np.float64],
+    h: NDArray[np.float64],
+    vh: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """Express desired NED velocity / altitude in ``dynamics``'s command columns."""
     names = tuple(getattr(dynamics, "command_names", ("vn", "ve", "vh")))
-    cols = {"vn": vn, "ve": ve, "vh": vh, "v": np.hypot(vn, ve),
-            "v_cmd": np.hypot(vn, ve), "chi": np.arctan2(ve, vn),
-            "chi_cmd": np.arctan2(ve, vn), "h": h, "h_cmd": h}
+    cols = {
+        "vn": vn,
+        "ve": ve,
+        "vh": vh,
+        "v": np.hypot(vn, ve),
+        "v_cmd": np.hypot(vn, ve),
+        "chi": np.arctan2(ve, vn),
+        "chi_cmd": np.arctan2(ve, vn),
+        "h": h,
+        "h_cmd": h,
+    }
     out = np.full((vn.shape[0], dynamics.command_dim), np.nan)
     for j, name in enumerate(names[: dynamics.command_dim]):
         if name in cols:

@@ -20,8 +20,16 @@ from sigma_des.config import Scenario
 from sigma_des.events.bides_align import EXACT, EXTRAPOLATED, MISSING, RingBuffers, align
 from sigma_des.events.hlc import StabilityBuffer, Stamp
 
-__all__ = ["ALIGNERS", "Aligner", "BidesAligner", "HLCAligner", "LockstepAligner",
-           "NoneAligner", "ServerContext", "OBS_WIDTH"]
+__all__ = [
+    "ALIGNERS",
+    "Aligner",
+    "BidesAligner",
+    "HLCAligner",
+    "LockstepAligner",
+    "NoneAligner",
+    "ServerContext",
+    "OBS_WIDTH",
+]
 
 OBS_WIDTH = 12
 _RECORD_BYTES = OBS_WIDTH * 8 + 8 + 8  # obs + frame + generation time
@@ -83,8 +91,15 @@ class Aligner:
     def on_trigger(self, frame: int, t: float) -> None:
         """A trigger for ``frame`` was issued at ``t``."""
 
-    def on_state(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64],
-                 stamp: Stamp | None) -> None:
+    def on_state(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None,
+    ) -> None:
         """A state of ``node`` for ``frame`` (generated at ``gen``) arrived at ``t``."""
         raise NotImplementedError
 
@@ -112,8 +127,15 @@ class NoneAligner(Aligner):
         self._obs = np.full((n, OBS_WIDTH), np.nan)
         self._dirty = False
 
-    def on_state(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64],
-                 stamp: Stamp | None) -> None:
+    def on_state(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None,
+    ) -> None:
         if frame > self._frame[node]:
             self._frame[node] = frame
             self._gen[node] = gen
@@ -162,8 +184,15 @@ class LockstepAligner(Aligner):
         if spec.eviction_timeout > 0:
             self.ctx.call_at(t + spec.eviction_timeout, self._evict, frame)
 
-    def on_state(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64],
-                 stamp: Stamp | None) -> None:
+    def on_state(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None,
+    ) -> None:
         if frame != self.current or self.complete or self._got[node] or not self.live[node]:
             return
         self._got[node] = True
@@ -190,8 +219,9 @@ class LockstepAligner(Aligner):
         for node in missing.tolist():
             self.rerequests += 1
             self.ctx.rerequest(node, frame, retry)
-        self.ctx.call_at(self.ctx.now() + self.sc.lockstep.retry_timeout, self._retry,
-                         frame, retry + 1)
+        self.ctx.call_at(
+            self.ctx.now() + self.sc.lockstep.retry_timeout, self._retry, frame, retry + 1
+        )
 
     def _evict(self, frame: int) -> None:
         if frame != self.current or self.complete:
@@ -230,8 +260,15 @@ class HLCAligner(Aligner):
         self._heard = np.zeros(n)
         self._live = np.ones(n, dtype=np.bool_)
 
-    def on_state(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64],
-                 stamp: Stamp | None) -> None:
+    def on_state(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None,
+    ) -> None:
         assert stamp is not None, "HLC states must carry a stamp"
         self.buffer.add(node, stamp, (frame, gen, obs))
         self._heard[node] = t
@@ -280,14 +317,25 @@ class BidesAligner(Aligner):
         self.extrapolated = 0
         self.shown_count = 0
 
-    def on_state(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64],
-                 stamp: Stamp | None) -> None:
+    def on_state(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None,
+    ) -> None:
         self.ring.insert(node, frame, gen, obs)
 
     def align(self, t: float) -> None:
         spec = self.spec
-        res = align(self.ring, theta_lag=spec.theta_lag if spec.lag_exclusion else None,
-                    hole_fill=spec.hole_fill, prev_frame=self.aligned_frame)
+        res = align(
+            self.ring,
+            theta_lag=spec.theta_lag if spec.lag_exclusion else None,
+            hole_fill=spec.hole_fill,
+            prev_frame=self.aligned_frame,
+        )
         self.new_snapshot = res.aligned_frame > self.aligned_frame
         self.aligned_frame = res.aligned_frame
         self.shown_frame = res.frame
@@ -329,4 +377,3 @@ ALIGNERS: dict[str, type[Aligner]] = {
     "hlc": HLCAligner,
     "bides": BidesAligner,
 }
-

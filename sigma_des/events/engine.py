@@ -54,8 +54,9 @@ class MethodRun:
         behaviour: behaviour producing commands (None: no commands).
     """
 
-    def __init__(self, sc: Scenario, method: str, dynamics: DynamicsModel,
-                 behaviour: Behaviour | None) -> None:
+    def __init__(
+        self, sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+    ) -> None:
         self.sc = sc
         self.method = method
         n = self.n = sc.nodes
@@ -90,12 +91,15 @@ class MethodRun:
         self.node_busy = [False] * n
         self.rb_steps = [0] * n
         self.last_pub: list[tuple[int, float, NDArray[np.float64], Stamp | None] | None] = [
-            None] * n
+            None
+        ] * n
         st = self.streams.stream("compute")
         step = sc.compute.step_time
         self.step_time = DrawCache(
-            n, lambda s, k, i, a: step.sample(st, k, s, i, a),
-            constant=step.value if step.dist == "constant" else None)
+            n,
+            lambda s, k, i, a: step.sample(st, k, s, i, a),
+            constant=step.value if step.dist == "constant" else None,
+        )
         self.crash_at = [math.inf] * n
         self.slow: dict[int, list[tuple[float, float, float]]] = {}
         for f in sc.faults:
@@ -141,13 +145,19 @@ class MethodRun:
     def barrier_done(self, frame: int) -> None:
         """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``)."""
         t_k = self.trig_time[frame % self.H]
-        self.kernel.at(max(self.kernel.now, t_k + 1.0 / self.f_trig), self._issue,
-                       priority=TRIGGER)
+        self.kernel.at(max(self.kernel.now, t_k + 1.0 / self.f_trig), self._issue, priority=TRIGGER)
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
-        self.net.publish(self.server, REREQUEST, node, frame * 64 + min(retry, 63),
-                         frame, self.sc.trigger_payload_bits, (node,))
+        self.net.publish(
+            self.server,
+            REREQUEST,
+            node,
+            frame * 64 + min(retry, 63),
+            frame,
+            self.sc.trigger_payload_bits,
+            (node,),
+        )
 
     # ------------------------------------------------------------ trigger source
 
@@ -172,15 +182,23 @@ class MethodRun:
         self.collector.trigger(t, k, dt)
         self.aligner.on_trigger(k, t)
         stamp = self.server_hlc.send(t) if self.use_hlc else None
-        self.net.publish(self.server, K_TRIGGER, self.server, k, (k, stamp),
-                         self.sc.trigger_payload_bits, self.all_nodes)
+        self.net.publish(
+            self.server,
+            K_TRIGGER,
+            self.server,
+            k,
+            (k, stamp),
+            self.sc.trigger_payload_bits,
+            self.all_nodes,
+        )
         if self.method != "lockstep":
             self.kernel.at(t + 1.0 / self.f_trig, self._issue, priority=TRIGGER)
 
     # ------------------------------------------------------------ physics nodes
 
-    def _deliver(self, client: int, kind: int, subject: int, index: int, payload: Any,
-                 t_pub: float) -> None:
+    def _deliver(
+        self, client: int, kind: int, subject: int, index: int, payload: Any, t_pub: float
+    ) -> None:
         t = self.kernel.now
         self.collector.delivered(kind, subject, index, t_pub, t)
         if client == self.server:
@@ -209,8 +227,7 @@ class MethodRun:
     def _on_rerequest(self, i: int, frame: int, index: int) -> None:
         last = self.last_pub[i]
         if self.node_frame[i] >= frame and last is not None and last[0] == frame:
-            self.net.publish(i, REPUBLISH, i, index, last, self.sc.payload_bits,
-                             (self.server,))
+            self.net.publish(i, REPUBLISH, i, index, last, self.sc.payload_bits, (self.server,))
         elif self.node_req[i] < frame:
             self._on_trigger(i, frame)
 
@@ -225,7 +242,7 @@ class MethodRun:
             for j in range(rb):
                 cost += self.step_time.get(_ROLLBACK, i, target, j)
             self.rb_steps[i] = 0
-        for (a, b, factor) in self.slow.get(i, ()):
+        for a, b, factor in self.slow.get(i, ()):
             if a <= now < b:
                 cost *= factor
         cores = self.cores[self.host_of[i]]
@@ -250,8 +267,7 @@ class MethodRun:
             stamp = self.hlc[i].send(self._local(i, t)) if self.use_hlc else None
             payload = (target, t, obs, stamp)
             self.last_pub[i] = payload
-            self.net.publish(i, STATE, i, target, payload, self.sc.payload_bits,
-                             (self.server,))
+            self.net.publish(i, STATE, i, target, payload, self.sc.payload_bits, (self.server,))
         if self.node_req[i] > self.node_frame[i] or self.rb_steps[i]:
             self._start_job(i)
 
@@ -313,8 +329,9 @@ class MethodRun:
         if not valid.any():
             return
         assert self.behaviour is not None
-        view = SwarmView(obs=al.shown_obs, frame=al.shown_frame, valid=valid,
-                         aligned_frame=al.aligned_frame)
+        view = SwarmView(
+            obs=al.shown_obs, frame=al.shown_frame, valid=valid, aligned_frame=al.aligned_frame
+        )
         cmds = self.behaviour.commands(view, self.dyn)
         ok = ~np.isnan(cmds).any(axis=1)
         tick = self.align_tick
@@ -330,8 +347,17 @@ class MethodRun:
         truth = None
         if ref >= 0 and self.slot_frame[ref % self.H] == ref:
             truth = self.obs_hist[ref % self.H, :, 9:12]
-        self.collector.render(t, al.shown_gen, al.shown_frame, al.shown_obs, al.flag, truth,
-                              self.f_trig, self.latest_trigger, ref)
+        self.collector.render(
+            t,
+            al.shown_gen,
+            al.shown_frame,
+            al.shown_obs,
+            al.flag,
+            truth,
+            self.f_trig,
+            self.latest_trigger,
+            ref,
+        )
         self.kernel.at(t + 1.0 / self.sc.f_render, self._render, priority=RENDER)
 
     # ------------------------------------------------------------ run
@@ -352,6 +378,3 @@ class MethodRun:
                 progress(t)
         self.wall_seconds = time.perf_counter() - t0
         return self.collector.finish(self)
-
-
-

@@ -31,25 +31,44 @@ _KINDS = {1: "trigger", 2: "state", 3: "command", 4: "rerequest", 5: "state"}
 #: Unit of every metric the collector reports.
 METRIC_UNITS: dict[str, str] = {
     **{f"aoi_{s}": "ms" for s in ("mean", "std", "p50", "p95", "p99", "max")},
-    "aoi_time_avg": "ms", "aoi_peak_mean": "ms",
-    **{f"latency_{k}_{s}": "ms" for k in ("state", "trigger", "command")
-       for s in ("mean", "p99")},
-    "throughput_mbps": "Mbps", "throughput_max_link_mbps": "Mbps",
-    "packets_per_s": "1/s", "messages_per_s": "1/s",
-    "trigger_rate_hz": "Hz", "f_trig_final_hz": "Hz", "f_trig_min_hz": "Hz",
-    "snapshot_rate_hz": "Hz", "snapshot_interval_std_ms": "ms",
-    "stalls": "count", "stall_time_s": "s",
-    "spread_mean": "frames", "spread_max": "frames",
-    "pos_err_mean": "m", "pos_err_max": "m",
-    "filled_frac": "1", "extrapolated_frac": "1",
-    "duplicates": "count", "retransmissions": "count", "gave_up": "count",
-    "broker_util": "1", "broker_max_wait_ms": "ms",
-    "buffer_bytes_peak": "B", "rollbacks": "count", "resim_steps": "count",
-    "evicted": "count", "rerequests": "count", "history_misses": "count",
+    "aoi_time_avg": "ms",
+    "aoi_peak_mean": "ms",
+    **{f"latency_{k}_{s}": "ms" for k in ("state", "trigger", "command") for s in ("mean", "p99")},
+    "throughput_mbps": "Mbps",
+    "throughput_max_link_mbps": "Mbps",
+    "packets_per_s": "1/s",
+    "messages_per_s": "1/s",
+    "trigger_rate_hz": "Hz",
+    "f_trig_final_hz": "Hz",
+    "f_trig_min_hz": "Hz",
+    "snapshot_rate_hz": "Hz",
+    "snapshot_interval_std_ms": "ms",
+    "stalls": "count",
+    "stall_time_s": "s",
+    "spread_mean": "frames",
+    "spread_max": "frames",
+    "pos_err_mean": "m",
+    "pos_err_max": "m",
+    "filled_frac": "1",
+    "extrapolated_frac": "1",
+    "duplicates": "count",
+    "retransmissions": "count",
+    "gave_up": "count",
+    "broker_util": "1",
+    "broker_max_wait_ms": "ms",
+    "buffer_bytes_peak": "B",
+    "rollbacks": "count",
+    "resim_steps": "count",
+    "evicted": "count",
+    "rerequests": "count",
+    "history_misses": "count",
 }
 #: Metrics that measure the simulator itself (vary run to run; kept apart).
 WALL_METRICS: dict[str, str] = {
-    "wall_s": "s", "events": "count", "events_per_s": "1/s", "peak_rss_mb": "MB",
+    "wall_s": "s",
+    "events": "count",
+    "events_per_s": "1/s",
+    "peak_rss_mb": "MB",
     "speed_x_realtime": "x",
 }
 
@@ -76,8 +95,18 @@ class Collector:
         self._spread: list[int] = []
         self._pos_err: list[NDArray[np.float64]] = []
         self._flag_counts = [0, 0, 0]  # shown, filled, extrapolated
-        self.ts: dict[str, list[float]] = {k: [] for k in (
-            "t", "aoi_mean", "aoi_max", "spread", "f_trig", "latest_trigger", "aligned_frame")}
+        self.ts: dict[str, list[float]] = {
+            k: []
+            for k in (
+                "t",
+                "aoi_mean",
+                "aoi_max",
+                "spread",
+                "f_trig",
+                "latest_trigger",
+                "aligned_frame",
+            )
+        }
 
     # ------------------------------------------------------------ events
 
@@ -114,10 +143,18 @@ class Collector:
         if t >= self.w0:
             self._snap_times.append(t)
 
-    def render(self, t: float, gen: NDArray[np.float64], frame: NDArray[np.int64],
-               obs: NDArray[np.float64], flag: NDArray[np.uint8],
-               truth: NDArray[np.float64] | None, f_trig: float, latest: int,
-               ref: int) -> None:
+    def render(
+        self,
+        t: float,
+        gen: NDArray[np.float64],
+        frame: NDArray[np.int64],
+        obs: NDArray[np.float64],
+        flag: NDArray[np.uint8],
+        truth: NDArray[np.float64] | None,
+        f_trig: float,
+        latest: int,
+        ref: int,
+    ) -> None:
         """A render tick: sample AoI and consistency of the shown snapshot."""
         if t < self.w0:
             return
@@ -172,8 +209,9 @@ class Collector:
         snaps = np.asarray(self._snap_times)
         m["snapshot_rate_hz"] = snaps.size / window
         gaps = np.diff(np.concatenate([[self.w0], snaps, [sc.duration]]))
-        m["snapshot_interval_std_ms"] = float(np.std(np.diff(snaps))) * ms if snaps.size > 2 \
-            else math.nan
+        m["snapshot_interval_std_ms"] = (
+            float(np.std(np.diff(snaps))) * ms if snaps.size > 2 else math.nan
+        )
         stall = gaps > sc.stall_threshold
         m["stalls"] = int(stall.sum())
         m["stall_time_s"] = float(gaps[stall].sum())
@@ -205,5 +243,9 @@ class Collector:
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
             "speed_x_realtime": sc.duration / max(run.wall_seconds, 1e-9),
         }
-        return {"metrics": m, "wall": wall, "links_mbps": links_mbps,
-                "timeseries": {k: np.asarray(v) for k, v in self.ts.items()}}
+        return {
+            "metrics": m,
+            "wall": wall,
+            "links_mbps": links_mbps,
+            "timeseries": {k: np.asarray(v) for k, v in self.ts.items()},
+        }

@@ -65,7 +65,7 @@ Deliver = Callable[[int, int, int, int, Any, float], None]
 class _LinkDir:
     """One direction of one access link: FIFO serialization and byte counts."""
 
-    __slots__ = ("busy", "bits_per_s", "bytes", "packets", "name")
+    __slots__ = ("busy", "bits_per_s", "sec_per_byte", "bytes", "packets", "name")
 
     def __init__(self, name: str, mbps: float) -> None:
         self.name = name
@@ -159,16 +159,34 @@ class Network:
                     (f.start, f.end, f.extra_delay, f.extra_loss)
                 )
         self.forced_drops: set[tuple[int, int, int]] = set()
+        self._wire_cache: dict[int, int] = {}
+        self._ack_b = PUBACK_BYTES + self._overhead
+        for ld in self.up + self.down:
+            ld.sec_per_byte = 8.0 / ld.bits_per_s
+        self._ups = [self.up[h] for h in self.link_of]
+        self._downs = [self.down[h] for h in self.link_of]
+        self._cls = [0] * self.n + [1]
+        self._lat_l = [[self._lat[c, False], self._lat[c, True]] for c in (False, True)]
+        self._u_l = [[self._u[c, False], self._u[c, True]] for c in (False, True)]
+        self._p_const: list[list[float | None]] = []
+        for c, spec in ((False, net.host_link), (True, net.server_link)):
+            dyn = spec.loss.model != "bernoulli" or (
+                bool(self._degrade) if not c else sc.hosts in self._degrade
+            )
+            self._p_const.append([None if dyn else spec.loss.p] * 2)
 
     # ------------------------------------------------------------ sizes
 
     def wire_bytes(self, payload_bits: int) -> int:
         """Wire bytes of one PUBLISH carrying ``payload_bits`` at the scenario's QoS."""
-        return frame_bytes(
-            publish_bytes(self._topic, payload_bytes(payload_bits), 1 if self.qos1 else 0),
-            self.sc.net.tcpip_bytes,
-            self.sc.net.ethernet_bytes,
-        )
+        b = self._wire_cache.get(payload_bits)
+        if b is None:
+            b = self._wire_cache[payload_bits] = frame_bytes(
+                publish_bytes(self._topic, payload_bytes(payload_bits), 1 if self.qos1 else 0),
+                self.sc.net.tcpip_bytes,
+                self.sc.net.ethernet_bytes,
+            )
+        return b
 
     @property
     def ack_bytes(self) -> int:
@@ -193,35 +211,53 @@ class Network:
         Returns:
             (arrival time at the far end, lost?)
         """
-        link = self.link_of[client]
-        ld = self.up[link] if up else self.down[link]
-        start = t if t > ld.busy else ld.busy
-        done = start + nbytes * 8 / ld.bits_per_s
+        ld = (self._ups if up else self._downs)[client]
+        busy = ld.busy
+        done = (t if t > busy else busy) + nbytes * ld.sec_per_byte
         ld.busy = done
         if t >= self.warmup:
             ld.bytes += nbytes
             ld.packets += 1
-        is_server = client == self.server
-        lat = self._lat[is_server, up].get(kind, subject, index, attempt)
-        p = self._loss_p(self._loss[is_server, up, link], t)
-        extra_delay = 0.0
-        for a, b, d, q in self._degrade.get(link, ()):
-            if a <= t < b:
-                extra_delay += d
-                p = 1.0 - (1.0 - p) * (1.0 - q)
-        lost = False
-        if p > 0.0:
-            lost = self._u[is_server, up].get(kind, subject, index, attempt) < p
-        if attempt == 0 and (kind, subject, index) in self.forced_drops and not up:
+        cls = self._cls[client]
+        lat = self._lat_l[cls][up].get(kind, subject, index, attempt)
+        p = self._p_const[cls][up]
+        extra = 0.0
+        if p is None:
+            p, extra = self._loss_at(client, up, t)
+        lost = p > 0.0 and self._u_l[cls][up].get(kind, subject, index, attempt) < p
+        if (
+            self.forced_drops
+            and not up
+            and attempt == 0
+            and (kind, subject, index) in self.forced_drops
+        ):
             lost = True
-        return done + lat + extra_delay, lost
+        return done + lat + extra, lost
 
-    @staticmethod
-    def _loss_p(proc: LossProcess, t: float) -> float:
+    def _count(self, client: int, up: bool, nbytes: int, t: float) -> None:
+        """Serialize and count a packet whose arrival does not matter (stream PUBACKs)."""
+        ld = (self._ups if up else self._downs)[client]
+        busy = ld.busy
+        ld.busy = (t if t > busy else busy) + nbytes * ld.sec_per_byte
+        if t >= self.warmup:
+            ld.bytes += nbytes
+            ld.packets += 1
+
+    def _loss_at(self, client: int, up: bool, t: float) -> tuple[float, float]:
+        """Time-dependent loss probability and extra delay (Gilbert–Elliott, faults)."""
+        link = self.link_of[client]
+        proc = self._loss[client == self.server, up, link]
         spec = proc.spec
         if spec.model == "bernoulli":
-            return spec.p
-        return spec.loss_bad if bool(proc.bad_state(t)[0]) else spec.loss_good
+            p = spec.p
+        else:
+            p = spec.loss_bad if bool(proc.bad_state(t)[0]) else spec.loss_good
+        extra = 0.0
+        for a, b, d, q in self._degrade.get(link, ()):
+            if a <= t < b:
+                extra += d
+                p = 1.0 - (1.0 - p) * (1.0 - q)
+        return p, extra
 
     # ------------------------------------------------------------ transport
 
@@ -323,7 +359,7 @@ class Network:
         on_arrive: Callable[..., None],
         args: tuple[Any, ...],
     ) -> None:
-        t = self.k.now
+        t = self.k.env._now
         arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
         self._stream_try(
             conn,
@@ -386,7 +422,7 @@ class Network:
         attempt: int,
         t_pub: float,
     ) -> None:
-        t = self.k.now
+        t = self.k.env._now
         nbytes = self.wire_bytes(bits)
         arr, lost = self._transmit(
             client,
@@ -430,7 +466,7 @@ class Network:
         t_pub: float,
         t_sent: float,
     ) -> None:
-        now = self.k.now
+        now = self.k.env._now
         s_pub = self._svc_pub.get(kind, subject, index, attempt)
         broadcast = subject == self.server
         dsubj = [s if broadcast else subject for s in subs]
@@ -442,16 +478,14 @@ class Network:
             self.broker_work += total
             self.broker_max_wait = max(self.broker_max_wait, start - now)
         # PUBACK back to the publisher
-        if self.qos1:
+        if self.qos1 and not self.datagram:
+            self._count(client, False, self._ack_b, start + s_pub)
+        elif self.qos1:
             ack_t = start + s_pub
             a_arr, a_lost = self._hop(
-                client, False, kind + ACK, subject, index, attempt, self.ack_bytes, ack_t
+                client, False, kind + ACK, subject, index, attempt, self._ack_b, ack_t
             )
-            if (
-                self.datagram
-                and now <= t_sent + self.timeout
-                and (a_lost or a_arr > t_sent + self.timeout)
-            ):
+            if now <= t_sent + self.timeout and (a_lost or a_arr > t_sent + self.timeout):
                 self._schedule_resend(
                     t_sent + self.timeout,
                     attempt,
@@ -508,7 +542,7 @@ class Network:
         attempt: int,
         t_pub: float,
     ) -> None:
-        now = self.k.now
+        now = self.k.env._now
         s_del = self._svc_del.get(kind, subject, index, attempt)
         start = now if now > self.broker_busy else self.broker_busy
         self.broker_busy = start + s_del
@@ -528,16 +562,14 @@ class Network:
         t_pub: float,
         t_depart: float,
     ) -> None:
-        now = self.k.now
-        if self.qos1:
+        now = self.k.env._now
+        if self.qos1 and not self.datagram:
+            self._count(sub, True, self._ack_b, now)
+        elif self.qos1:
             a_arr, a_lost = self._hop(
-                sub, True, kind + ACK, subject, index, attempt, self.ack_bytes, now
+                sub, True, kind + ACK, subject, index, attempt, self._ack_b, now
             )
-            if (
-                self.datagram
-                and now <= t_depart + self.timeout
-                and (a_lost or a_arr > t_depart + self.timeout)
-            ):
+            if now <= t_depart + self.timeout and (a_lost or a_arr > t_depart + self.timeout):
                 self._schedule_resend(
                     t_depart + self.timeout,
                     attempt,
