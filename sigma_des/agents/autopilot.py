@@ -145,7 +145,9 @@ def fixedwing_autopilot(x: np.ndarray, prm: np.ndarray, cmd: np.ndarray, phi: fl
     act[6] = _clip(kr * (x[L.R] - rss), -dmax, dmax)
     # Longitudinal: altitude PI -> pitch -> elevator; airspeed PI -> throttle.
     eh = _clip(hc - x[L.H], -hemax, hemax)
-    x[L.I1] = _clip(x[L.I1] + h * eh, -thmax / kih, thmax / kih)
+    if abs(eh) < 5.0:
+        # Integrate only near the target altitude: no wind-up during long climbs.
+        x[L.I1] = _clip(x[L.I1] + h * eh, -thmax / kih, thmax / kih)
     thc = _clip(prm[L.TRIM_THETA] + kh * eh + kih * x[L.I1], -thmax, thmax)
     act[5] = _clip(prm[L.TRIM_DE] - kth * (thc - theta) + kq * x[L.Q], -dmax, dmax)
     ev = vc - va
