@@ -124,6 +124,9 @@ class MethodRun:
         self.aligner: Aligner = ALIGNERS[method](n, sc, self)
         self.collector = Collector(sc, method, self.net)
         self.align_tick = 0
+        self.render_tick = 0
+        # periodic triggers: T_k = t0 + (k - k0) / f, rebased when the rate changes
+        self._base: tuple[float, int, float] = (0.0, 0, sc.f_trig)
         self._prev_gen = np.full(n, np.nan)
         self.wall_seconds = 0.0
 
@@ -192,7 +195,10 @@ class MethodRun:
             self.all_nodes,
         )
         if self.method != "lockstep":
-            self.kernel.at(t + 1.0 / self.f_trig, self._issue, priority=TRIGGER)
+            if self.f_trig != self._base[2]:  # the rate changed: count periods from here
+                self._base = (t, k, self.f_trig)
+            t0, k0, f = self._base
+            self.kernel.at(t0 + (k + 1 - k0) / f, self._issue, priority=TRIGGER)
 
     # ------------------------------------------------------------ physics nodes
 
@@ -321,7 +327,7 @@ class MethodRun:
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
-        self.kernel.at(t + 1.0 / self.sc.f_align, self._align, priority=ALIGN)
+        self.kernel.at(self.align_tick / self.sc.f_align, self._align, priority=ALIGN)
 
     def _send_commands(self, t: float) -> None:
         al = self.aligner
@@ -358,7 +364,8 @@ class MethodRun:
             self.latest_trigger,
             ref,
         )
-        self.kernel.at(t + 1.0 / self.sc.f_render, self._render, priority=RENDER)
+        self.render_tick += 1
+        self.kernel.at(self.render_tick / self.sc.f_render, self._render, priority=RENDER)
 
     # ------------------------------------------------------------ run
 
