@@ -49,7 +49,7 @@ _NO_ACT = np.zeros((0, 7))
 @njit(cache=True)
 def forces_of(x: np.ndarray, prm: np.ndarray, rho: float) -> tuple[float, float, float,
                                                                    float, float, float]:
-    """Non-inlined wrapper of forces_moments in still air (for trim and sensors)."""
+    """Non-inlined wrapper of forces_moments in still air (for trim)."""
     return forces_moments(x, prm, 0.0, 0.0, 0.0, rho)
 
 

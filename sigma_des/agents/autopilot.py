@@ -3,16 +3,18 @@
 Both autopilots read the common guidance command ``[v_cmd, chi_cmd, h_cmd,
 phi_cmd]`` (see aircraft.py) and the true state (perfect state estimation: the
 sensors of sensors.py model what an estimator would be fed, they do not close the
-loop), run at every physics sub-step, and write seven actuator commands
+loop), run their inner loops at every physics sub-step (slow outer parts — yaw,
+course, command geometry — once per frame step), and write seven actuator commands
 ``[omega_0..omega_3 (rad/s), delta_a, delta_e, delta_r (rad)]``. Their integrators
 are state columns ``I0..I3``, so a checkpoint includes them.
 
 Multirotor cascade (the classic PX4-style structure): horizontal velocity PI and
 altitude P -> climb-rate PI give an acceleration demand; that becomes a thrust
-magnitude and roll/pitch angles (heading = ``chi_cmd``); attitude P -> body-rate
+magnitude and a thrust direction (tilt-limited; heading = ``chi_cmd``);
+geometric attitude P (body z axis -> demanded direction) -> body-rate
 setpoints; rate P -> moments; the inverse mixer turns (thrust, L, M, N) into rotor
-thrusts and ``omega = sqrt(T / kT)``. ``phi_cmd`` (if not NaN) overrides the roll
-angle. Integrators: I0/I1 north/east velocity error (m), I2 climb-rate error (m).
+thrusts and ``omega = sqrt(T / kT)``. ``phi_cmd`` (if not NaN) sets the lateral acceleration to
+``g tan(phi_cmd)`` (the bank angle of a coordinated turn). Integrators: I0/I1 north/east velocity error (m), I2 climb-rate error (m).
 
 Fixed-wing successive loop closure (Beard & McLain 2012, ch. 6): course P ->
 roll angle (or ``phi_cmd`` directly, the paper's formation law); roll PI + rate
@@ -31,9 +33,11 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
+from sigma_des.agents.approx import asin_fast, atan2_fast, wrap_pi
+from sigma_des.agents.rigid_body import to_body
 
-__all__ = ["MULTIROTOR_GAINS", "FIXEDWING_GAINS", "multirotor_autopilot",
-           "fixedwing_autopilot", "wrap_pi"]
+__all__ = ["MULTIROTOR_GAINS", "FIXEDWING_GAINS", "multirotor_prepare", "multirotor_autopilot",
+           "fixedwing_prepare", "fixedwing_autopilot"]
 
 #: Gain slots of the multirotor cascade (units in brackets in docs/AGENTS.md).
 MULTIROTOR_GAINS: tuple[str, ...] = (
@@ -48,30 +52,47 @@ FIXEDWING_GAINS: tuple[str, ...] = (
 
 
 @njit(cache=True, inline="always")
-def wrap_pi(a: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-@njit(cache=True, inline="always")
 def _clip(v: float, lo: float, hi: float) -> float:
     return lo if v < lo else (hi if v > hi else v)
 
 
 @njit(cache=True, inline="always")
-def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, cmd: np.ndarray, phi: float,
-                         theta: float, psi: float, vn: float, ve: float, vd: float,
-                         g: float, h: float, act: np.ndarray) -> None:
-    """Cascade controller: writes ``act`` and advances integrators I0..I2 of ``x``."""
+def multirotor_prepare(prm: np.ndarray, cmd: np.ndarray, rm: tuple, pre: np.ndarray) -> None:
+    """Per-frame part of the cascade: velocity vector, yaw-rate and roll-override set-points.
+
+    The yaw loop and the command geometry change slowly, so they are evaluated
+    once per frame step and held over its sub-steps (saves trigonometry).
+    """
+    gb = L.GAIN_BASE
+    tilt, vmax, rmax = prm[gb + 10], prm[gb + 12], prm[gb + 13]
+    vc = _clip(cmd[0], 0.0, vmax)
+    chi = cmd[1]
+    pre[0] = vc * math.cos(chi)
+    pre[1] = vc * math.sin(chi)
+    pre[2] = cmd[2]
+    psi = atan2_fast(rm[3], rm[0])
+    pre[3] = _clip(prm[gb + 8] * wrap_pi(chi - psi), -rmax, rmax)
+    pre[4] = math.tan(_clip(cmd[3], -tilt, tilt)) if cmd[3] == cmd[3] else math.nan
+    hn = math.sqrt(rm[0] * rm[0] + rm[3] * rm[3])
+    pre[5], pre[6] = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
+    pre[7] = math.tan(tilt)
+
+
+@njit(cache=True, inline="always")
+def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, pre: np.ndarray, rm: tuple,
+                         vn: float, ve: float, vd: float, g: float, h: float,
+                         act: np.ndarray) -> None:
+    """Cascade controller sub-step: writes ``act`` and advances integrators I0..I2 of ``x``.
+
+    The attitude loop is geometric: the error is the rotation taking the body z
+    axis to the demanded thrust direction, expressed in body axes — no Euler angles.
+    """
     gb = L.GAIN_BASE
     kv, kiv, kh, vzmax = prm[gb], prm[gb + 1], prm[gb + 2], prm[gb + 3]
     kvz, kiz, katt, krate = prm[gb + 4], prm[gb + 5], prm[gb + 6], prm[gb + 7]
-    kyaw, krr, tilt, amax = prm[gb + 8], prm[gb + 9], prm[gb + 10], prm[gb + 11]
-    vmax, rmax = prm[gb + 12], prm[gb + 13]
-    vc, chi, hc, phic = cmd[0], cmd[1], cmd[2], cmd[3]
-    vc = _clip(vc, 0.0, vmax)
+    krr, amax = prm[gb + 9], prm[gb + 11]
     # Velocity PI (north/east) -> horizontal acceleration demand.
-    en, ee = vc * math.cos(chi) - vn, vc * math.sin(chi) - ve
+    en, ee = pre[0] - vn, pre[1] - ve
     ilim = amax / kiv
     x[L.I0] = _clip(x[L.I0] + h * en, -ilim, ilim)
     x[L.I1] = _clip(x[L.I1] + h * ee, -ilim, ilim)
@@ -82,29 +103,33 @@ def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, cmd: np.ndarray, phi: f
         an *= amax / amag
         ae *= amax / amag
     # Altitude P -> climb-rate PI -> vertical acceleration demand (up).
-    vzc = _clip(kh * (hc - x[L.H]), -vzmax, vzmax)
+    vzc = _clip(kh * (pre[2] - x[L.H]), -vzmax, vzmax)
     ez = vzc + vd
     x[L.I2] = _clip(x[L.I2] + h * ez, -0.5 * g / kiz, 0.5 * g / kiz)
     gz = g + kvz * ez + kiz * x[L.I2]
     if gz < 0.3 * g:
         gz = 0.3 * g
-    # Acceleration -> attitude in the heading frame (heading = commanded course).
-    cp, sp = math.cos(psi), math.sin(psi)
-    afwd = cp * an + sp * ae
-    argt = -sp * an + cp * ae
-    thc = _clip(-math.atan(afwd / gz), -tilt, tilt)
-    if phic == phic:        # not NaN: roll override
-        phc = _clip(phic, -tilt, tilt)
-    else:
-        phc = _clip(math.atan(argt * math.cos(thc) / gz), -tilt, tilt)
-    thrust = prm[L.MASS] * gz / max(math.cos(phi) * math.cos(theta), 0.5)
-    # Attitude P -> rate setpoints -> rate P -> moments.
-    pc = katt * (phc - phi)
-    qc = katt * (thc - theta)
-    rc = _clip(kyaw * wrap_pi(chi - psi), -rmax, rmax)
-    lm = prm[L.IXX] * krate * (pc - x[L.P])
-    mm = prm[L.IYY] * krate * (qc - x[L.Q])
-    nm = prm[L.IZZ] * krr * (rc - x[L.R])
+    if pre[4] == pre[4]:
+        # Roll override: keep the forward demand, set the lateral one to g tan(phi).
+        ch, sh = pre[5], pre[6]
+        afwd = ch * an + sh * ae
+        argt = gz * pre[4]
+        an, ae = ch * afwd - sh * argt, sh * afwd + ch * argt
+    lim = gz * pre[7]
+    amag = math.sqrt(an * an + ae * ae)
+    if amag > lim:
+        an *= lim / amag
+        ae *= lim / amag
+    # Demanded thrust direction (NED, pointing "down" like body z) vs body z.
+    fn = math.sqrt(an * an + ae * ae + gz * gz)
+    zdx, zdy, zdz = -an / fn, -ae / fn, gz / fn
+    zbx, zby, zbz = rm[2], rm[5], rm[8]
+    ex, ey, ez_ = to_body(rm, zby * zdz - zbz * zdy, zbz * zdx - zbx * zdz, zbx * zdy - zby * zdx)
+    thrust = prm[L.MASS] * max(gz * zbz - an * zbx - ae * zby, 0.0)
+    # Attitude P -> rate set-points -> rate P -> moments.
+    lm = prm[L.IXX] * krate * (katt * ex - x[L.P])
+    mm = prm[L.IYY] * krate * (katt * ey - x[L.Q])
+    nm = prm[L.IZZ] * krr * (pre[3] - x[L.R])
     # Inverse mixer: rotor thrusts; omega from the static thrust constant.
     kt = prm[L.KT]
     mb = L.MIX_BASE
@@ -119,38 +144,47 @@ def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, cmd: np.ndarray, phi: f
 
 
 @njit(cache=True, inline="always")
-def fixedwing_autopilot(x: np.ndarray, prm: np.ndarray, cmd: np.ndarray, phi: float,
-                        theta: float, vn: float, ve: float, va: float, g: float,
-                        h: float, act: np.ndarray) -> None:
-    """Successive-loop-closure controller: writes ``act``, advances I0..I2 of ``x``."""
+def fixedwing_prepare(prm: np.ndarray, cmd: np.ndarray, vn: float, ve: float,
+                      pre: np.ndarray) -> None:
+    """Per-frame part: airspeed and altitude set-points, course loop -> roll set-point."""
     gb = L.GAIN_BASE
-    kchi, phimax, kphi, kp = prm[gb], prm[gb + 1], prm[gb + 2], prm[gb + 3]
+    phimax = prm[gb + 1]
+    pre[0] = _clip(cmd[0], prm[gb + 13], prm[gb + 14])
+    pre[2] = cmd[2]
+    if cmd[3] == cmd[3]:
+        pre[3] = _clip(cmd[3], -phimax, phimax)
+    else:
+        chi = atan2_fast(ve, vn)
+        pre[3] = _clip(prm[gb] * wrap_pi(cmd[1] - chi), -phimax, phimax)
+
+
+@njit(cache=True, inline="always")
+def fixedwing_autopilot(x: np.ndarray, prm: np.ndarray, pre: np.ndarray, rm: tuple,
+                        va: float, g: float, h: float, act: np.ndarray) -> None:
+    """Successive-loop-closure sub-step: writes ``act``, advances I0..I2 of ``x``."""
+    gb = L.GAIN_BASE
+    kphi, kp = prm[gb + 2], prm[gb + 3]
     kiphi, kh, kih, thmax = prm[gb + 4], prm[gb + 5], prm[gb + 6], prm[gb + 7]
     kth, kq, kv, kiv = prm[gb + 8], prm[gb + 9], prm[gb + 10], prm[gb + 11]
-    kr, vmin, vmax, hemax = prm[gb + 12], prm[gb + 13], prm[gb + 14], prm[gb + 15]
+    kr, hemax = prm[gb + 12], prm[gb + 15]
     dmax = prm[L.DELTA_MAX]
-    vc, chic, hc, phic = cmd[0], cmd[1], cmd[2], cmd[3]
-    vc = _clip(vc, vmin, vmax)
-    # Lateral: course -> roll (unless the roll command is given) -> aileron.
-    if phic == phic:
-        phc = _clip(phic, -phimax, phimax)
-    else:
-        chi = math.atan2(ve, vn)
-        phc = _clip(kchi * wrap_pi(chic - chi), -phimax, phimax)
-    eph = phc - phi
+    phi = atan2_fast(rm[7], rm[8])
+    theta = asin_fast(-rm[6])
+    # Lateral: roll PI + rate damping -> aileron.
+    eph = pre[3] - phi
     x[L.I0] = _clip(x[L.I0] + h * eph, -0.5, 0.5)
     act[4] = _clip(kphi * eph - kp * x[L.P] + kiphi * x[L.I0], -dmax, dmax)
-    # Yaw damper about the coordinated-turn yaw rate.
-    rss = g / max(va, 1.0) * math.sin(phi)
+    # Yaw damper about the coordinated-turn yaw rate g sin(phi) / V.
+    rss = g / max(va, 1.0) * rm[7]
     act[6] = _clip(kr * (x[L.R] - rss), -dmax, dmax)
     # Longitudinal: altitude PI -> pitch -> elevator; airspeed PI -> throttle.
-    eh = _clip(hc - x[L.H], -hemax, hemax)
+    eh = _clip(pre[2] - x[L.H], -hemax, hemax)
     if abs(eh) < 5.0:
         # Integrate only near the target altitude: no wind-up during long climbs.
         x[L.I1] = _clip(x[L.I1] + h * eh, -thmax / kih, thmax / kih)
     thc = _clip(prm[L.TRIM_THETA] + kh * eh + kih * x[L.I1], -thmax, thmax)
     act[5] = _clip(prm[L.TRIM_DE] - kth * (thc - theta) + kq * x[L.Q], -dmax, dmax)
-    ev = vc - va
+    ev = pre[0] - va
     x[L.I2] = _clip(x[L.I2] + h * ev, -1.0 / kiv, 1.0 / kiv)
     thr = _clip(prm[L.TRIM_THROTTLE] + kv * ev + kiv * x[L.I2], 0.0, 1.0)
     act[0] = thr * prm[L.OMEGA_MAX]

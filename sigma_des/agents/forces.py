@@ -14,24 +14,22 @@ from numba import njit
 
 from sigma_des.agents import layout as L
 from sigma_des.agents.aero import aero_forces
-from sigma_des.agents.rigid_body import rotate_to_body
 from sigma_des.agents.rotor import rotor_thrust_torque
 
 __all__ = ["forces_moments"]
 
 
 @njit(cache=True, inline="always")
-def forces_moments(x: np.ndarray, prm: np.ndarray, wn: float, we: float, wd: float,
+def forces_moments(x: np.ndarray, prm: np.ndarray, bx: float, by: float, bz: float,
                    rho: float) -> tuple[float, float, float, float, float, float]:
     """Body force (N) and moment (N m) of rotors and aerodynamics for state row ``x``.
 
     Args:
         x: one state row (layout.py); rotor speeds and surfaces are read from it.
         prm: aircraft parameter vector.
-        wn, we, wd: wind at the aircraft, NED (m/s).
+        bx, by, bz: wind at the aircraft in body axes (m/s).
         rho: air density (kg/m^3).
     """
-    bx, by, bz = rotate_to_body(x, wn, we, wd)
     ur, vr, wr = x[L.U] - bx, x[L.V] - by, x[L.W] - bz
     fx, fy, fz, lm, mm, nm = aero_forces(prm, ur, vr, wr, x[L.P], x[L.Q], x[L.R],
                                          x[L.DA], x[L.DE], x[L.DR], rho)

@@ -6,9 +6,10 @@ result of row ``i`` does not depend on the batch it is in (the same scalar code
 runs for every row; no BLAS, no cross-row reductions, no ``fastmath``).
 
 Per frame step (held over its sub-steps): air density and gravity at the row's
-altitude, the Dryden turbulence update for (node, frame), the wind vector. Per
-sub-step: Euler angles, autopilot, first-order actuator lags (exact exponential
-discretisation), forces, rigid-body integration.
+altitude, the Dryden turbulence update for (node, frame), the wind vector, the
+slow autopilot parts. Per sub-step: rotation matrix, autopilot inner loops,
+first-order actuator lags (exact exponential discretisation), forces,
+rigid-body integration.
 """
 
 from __future__ import annotations
@@ -19,11 +20,13 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
+from sigma_des.agents.approx import atan2_fast
 from sigma_des.agents.atmosphere import gravity_scalar, isa_scalar
-from sigma_des.agents.autopilot import fixedwing_autopilot, multirotor_autopilot
+from sigma_des.agents.autopilot import (fixedwing_autopilot, fixedwing_prepare,
+                                        multirotor_autopilot, multirotor_prepare)
 from sigma_des.agents.forces import forces_moments
-from sigma_des.agents.rigid_body import euler_of, rigid_body_substep, rotate_to_body, rotate_to_ned
-from sigma_des.agents.wind import mean_wind, turbulence_update, wind_ned
+from sigma_des.agents.rigid_body import rigid_body_substep, rotmat, to_body, to_ned
+from sigma_des.agents.wind import mean_wind, turbulence_update
 
 __all__ = ["step_kernel"]
 
@@ -56,35 +59,46 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
     x = np.empty(L.STATE_DIM)
     act = np.zeros(7)
     cmd = np.empty(4)
+    pre = np.zeros(8)
     for i in range(n):
         for j in range(L.STATE_DIM):
             x[j] = state[i, j]
-        phi, theta, psi = euler_of(x)
-        vn, ve, vd = rotate_to_ned(x, x[L.U], x[L.V], x[L.W])
+        rm = rotmat(x)
+        vn, ve, vd = to_ned(rm, x[L.U], x[L.V], x[L.W])
         _, _, rho = isa_scalar(x[L.H])
         g = gravity_scalar(x[L.H])
+        # Wind: mean (at this step's time and altitude) + turbulence in heading axes.
+        wn, we, wd = mean_wind(prm, x[L.TIME], x[L.H])
+        if turb:
+            spd = math.sqrt((vn - wn) ** 2 + (ve - we) ** 2 + (vd - wd) ** 2)
+            turbulence_update(x, prm, key, nodes[i], frame, dt, spd)
+            hn = math.sqrt(rm[0] * rm[0] + rm[3] * rm[3])
+            ch, sh = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
+            wn += ch * x[L.TU] - sh * x[L.TV]
+            we += sh * x[L.TU] + ch * x[L.TV]
+            wd += x[L.TW]
         if kind != 0:
             # NaN in v / chi / h = keep the current value (resolved per step).
-            cmd[0] = command[i, 0] if command[i, 0] == command[i, 0] else math.hypot(vn, ve)
-            cmd[1] = command[i, 1] if command[i, 1] == command[i, 1] else psi
-            cmd[2] = command[i, 2] if command[i, 2] == command[i, 2] else x[L.H]
+            c0, c1, c2 = command[i, 0], command[i, 1], command[i, 2]
+            cmd[0] = c0 if c0 == c0 else math.sqrt(vn * vn + ve * ve)
+            cmd[1] = c1 if c1 == c1 else atan2_fast(rm[3], rm[0])
+            cmd[2] = c2 if c2 == c2 else x[L.H]
             cmd[3] = command[i, 3]
-        if turb:
-            mn, me, md = mean_wind(prm, x[L.TIME], x[L.H])
-            spd = math.sqrt((vn - mn) ** 2 + (ve - me) ** 2 + (vd - md) ** 2)
-            turbulence_update(x, prm, key, nodes[i], frame, dt, spd)
-        wn, we, wd = wind_ned(x, prm, psi)
+            if kind == 1:
+                multirotor_prepare(prm, cmd, rm, pre)
+            else:
+                fixedwing_prepare(prm, cmd, vn, ve, pre)
         for s in range(nsub):
             if s > 0:
-                phi, theta, psi = euler_of(x)
-                vn, ve, vd = rotate_to_ned(x, x[L.U], x[L.V], x[L.W])
+                rm = rotmat(x)
+                vn, ve, vd = to_ned(rm, x[L.U], x[L.V], x[L.W])
+            bx, by, bz = to_body(rm, wn, we, wd)
             if kind == 1:
-                multirotor_autopilot(x, prm, cmd, phi, theta, psi, vn, ve, vd, g, h, act)
+                multirotor_autopilot(x, prm, pre, rm, vn, ve, vd, g, h, act)
             elif kind == 2:
-                bx, by, bz = rotate_to_body(x, wn, we, wd)
                 ur, vr, wr = x[L.U] - bx, x[L.V] - by, x[L.W] - bz
                 va = math.sqrt(ur * ur + vr * vr + wr * wr)
-                fixedwing_autopilot(x, prm, cmd, phi, theta, vn, ve, va, g, h, act)
+                fixedwing_autopilot(x, prm, pre, rm, va, g, h, act)
             else:
                 for j in range(7):
                     act[j] = act_cmd[i, j]
@@ -93,7 +107,7 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
             x[L.DA] += asv * (act[4] - x[L.DA])
             x[L.DE] += asv * (act[5] - x[L.DE])
             x[L.DR] += asv * (act[6] - x[L.DR])
-            fx, fy, fz, lm, mm, nm = forces_moments(x, prm, wn, we, wd, rho)
-            rigid_body_substep(x, prm, fx, fy, fz, lm, mm, nm, g, h)
+            fx, fy, fz, lm, mm, nm = forces_moments(x, prm, bx, by, bz, rho)
+            rigid_body_substep(x, prm, rm, fx, fy, fz, lm, mm, nm, g, h)
         for j in range(L.STATE_DIM):
             out[i, j] = x[j]

@@ -135,7 +135,7 @@ class AircraftParams:
     v_cruise: float = 0.0
     altitude: float = 100.0
     spacing: float = 10.0
-    max_substep: float = 0.0025
+    max_substep: float = 0.005
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ConfigError:

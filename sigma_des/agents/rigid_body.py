@@ -21,7 +21,7 @@ from numba import njit
 
 from sigma_des.agents import layout as L
 
-__all__ = ["euler_of", "rotate_to_ned", "rigid_body_substep"]
+__all__ = ["euler_of", "rotmat", "to_ned", "to_body", "rigid_body_substep"]
 
 
 @njit(cache=True, inline="always")
@@ -29,51 +29,45 @@ def euler_of(x: np.ndarray) -> tuple[float, float, float]:
     """Roll, pitch, yaw (rad, ZYX convention) of the quaternion in state row ``x``."""
     q0, q1, q2, q3 = x[L.Q0], x[L.Q1], x[L.Q2], x[L.Q3]
     phi = math.atan2(2.0 * (q0 * q1 + q2 * q3), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
-    s = 2.0 * (q0 * q2 - q3 * q1)
-    if s > 1.0:
-        s = 1.0
-    elif s < -1.0:
-        s = -1.0
+    s = min(max(2.0 * (q0 * q2 - q3 * q1), -1.0), 1.0)
     theta = math.asin(s)
     psi = math.atan2(2.0 * (q0 * q3 + q1 * q2), 1.0 - 2.0 * (q2 * q2 + q3 * q3))
     return phi, theta, psi
 
 
 @njit(cache=True, inline="always")
-def rotate_to_ned(x: np.ndarray, a: float, b: float, c: float) -> tuple[float, float, float]:
-    """Rotate the body vector ``(a, b, c)`` into NED with the quaternion in row ``x``."""
+def rotmat(x: np.ndarray) -> tuple[float, float, float, float, float, float, float, float, float]:
+    """Body->NED rotation matrix of row ``x``, row-major ``(r00, r01, ..., r22)``."""
     q0, q1, q2, q3 = x[L.Q0], x[L.Q1], x[L.Q2], x[L.Q3]
-    n = ((1.0 - 2.0 * (q2 * q2 + q3 * q3)) * a + 2.0 * (q1 * q2 - q0 * q3) * b
-         + 2.0 * (q1 * q3 + q0 * q2) * c)
-    e = (2.0 * (q1 * q2 + q0 * q3) * a + (1.0 - 2.0 * (q1 * q1 + q3 * q3)) * b
-         + 2.0 * (q2 * q3 - q0 * q1) * c)
-    d = (2.0 * (q1 * q3 - q0 * q2) * a + 2.0 * (q2 * q3 + q0 * q1) * b
-         + (1.0 - 2.0 * (q1 * q1 + q2 * q2)) * c)
-    return n, e, d
+    return (1.0 - 2.0 * (q2 * q2 + q3 * q3), 2.0 * (q1 * q2 - q0 * q3), 2.0 * (q1 * q3 + q0 * q2),
+            2.0 * (q1 * q2 + q0 * q3), 1.0 - 2.0 * (q1 * q1 + q3 * q3), 2.0 * (q2 * q3 - q0 * q1),
+            2.0 * (q1 * q3 - q0 * q2), 2.0 * (q2 * q3 + q0 * q1), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
 
 
 @njit(cache=True, inline="always")
-def rotate_to_body(x: np.ndarray, n: float, e: float, d: float) -> tuple[float, float, float]:
-    """Rotate the NED vector ``(n, e, d)`` into body axes (transpose rotation)."""
-    q0, q1, q2, q3 = x[L.Q0], x[L.Q1], x[L.Q2], x[L.Q3]
-    a = ((1.0 - 2.0 * (q2 * q2 + q3 * q3)) * n + 2.0 * (q1 * q2 + q0 * q3) * e
-         + 2.0 * (q1 * q3 - q0 * q2) * d)
-    b = (2.0 * (q1 * q2 - q0 * q3) * n + (1.0 - 2.0 * (q1 * q1 + q3 * q3)) * e
-         + 2.0 * (q2 * q3 + q0 * q1) * d)
-    c = (2.0 * (q1 * q3 + q0 * q2) * n + 2.0 * (q2 * q3 - q0 * q1) * e
-         + (1.0 - 2.0 * (q1 * q1 + q2 * q2)) * d)
-    return a, b, c
+def to_ned(rm: tuple, a: float, b: float, c: float) -> tuple[float, float, float]:
+    """Rotate body vector ``(a, b, c)`` to NED with matrix ``rm`` (from :func:`rotmat`)."""
+    return (rm[0] * a + rm[1] * b + rm[2] * c, rm[3] * a + rm[4] * b + rm[5] * c,
+            rm[6] * a + rm[7] * b + rm[8] * c)
 
 
 @njit(cache=True, inline="always")
-def rigid_body_substep(x: np.ndarray, prm: np.ndarray, fx: float, fy: float, fz: float,
-                       lm: float, mm: float, nm: float, g: float, h: float) -> None:
+def to_body(rm: tuple, n: float, e: float, d: float) -> tuple[float, float, float]:
+    """Rotate NED vector ``(n, e, d)`` to body axes (transpose of ``rm``)."""
+    return (rm[0] * n + rm[3] * e + rm[6] * d, rm[1] * n + rm[4] * e + rm[7] * d,
+            rm[2] * n + rm[5] * e + rm[8] * d)
+
+
+@njit(cache=True, inline="always")
+def rigid_body_substep(x: np.ndarray, prm: np.ndarray, rm: tuple, fx: float, fy: float,
+                       fz: float, lm: float, mm: float, nm: float, g: float, h: float) -> None:
     """Advance row ``x`` in place by ``h`` seconds under body force/moment and gravity.
 
     Args:
         x: one state row (modified in place: velocities, rates, quaternion,
             position, time).
         prm: aircraft parameter vector.
+        rm: rotation matrix of ``x`` at the start of the sub-step (:func:`rotmat`).
         fx, fy, fz: non-gravitational body force (N).
         lm, mm, nm: body moment about the centre of gravity (N m).
         g: gravitational acceleration (m/s^2).
@@ -85,9 +79,7 @@ def rigid_body_substep(x: np.ndarray, prm: np.ndarray, fx: float, fy: float, fz:
     p, q, r = x[L.P], x[L.Q], x[L.R]
     q0, q1, q2, q3 = x[L.Q0], x[L.Q1], x[L.Q2], x[L.Q3]
     # Gravity in body axes: third row of the body->NED rotation times g.
-    gx = 2.0 * (q1 * q3 - q0 * q2) * g
-    gy = 2.0 * (q2 * q3 + q0 * q1) * g
-    gz = (1.0 - 2.0 * (q1 * q1 + q2 * q2)) * g
+    gx, gy, gz = rm[6] * g, rm[7] * g, rm[8] * g
     du = r * v - q * w + fx / m + gx
     dv = p * w - r * u + fy / m + gy
     dw = q * u - p * v + fz / m + gz
@@ -109,7 +101,7 @@ def rigid_body_substep(x: np.ndarray, prm: np.ndarray, fx: float, fy: float, fz:
     pn, qn, rn = p + h * dp, q + h * dq, r + h * dr
     # Position with the average body velocity, rotated by the start attitude.
     ua, va, wa = 0.5 * (u + un), 0.5 * (v + vn_), 0.5 * (w + wn)
-    dn, de, dd = rotate_to_ned(x, ua, va, wa)
+    dn, de, dd = to_ned(rm, ua, va, wa)
     x[L.XN] += h * dn
     x[L.YE] += h * de
     x[L.H] -= h * dd

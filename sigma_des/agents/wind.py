@@ -118,11 +118,3 @@ def turbulence_update(x: np.ndarray, prm: np.ndarray, key: np.uint64, node: np.i
     x[L.TU] = auv * x[L.TU] + kuv * e0
     x[L.TV] = auv * x[L.TV] + kuv * e1
     x[L.TW] = aw * x[L.TW] + sw * math.sqrt(1.0 - aw * aw) * e2
-
-
-@njit(cache=True, inline="always")
-def wind_ned(x: np.ndarray, prm: np.ndarray, psi: float) -> tuple[float, float, float]:
-    """Total wind NED at row ``x``: mean (at its time and altitude) + rotated turbulence."""
-    wn, we, wd = mean_wind(prm, x[L.TIME], x[L.H])
-    c, s = math.cos(psi), math.sin(psi)
-    return (wn + c * x[L.TU] - s * x[L.TV], we + s * x[L.TU] + c * x[L.TV], wd + x[L.TW])
