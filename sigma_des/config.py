@@ -248,7 +248,7 @@ class CommandSpec:
 
     enabled: bool = True
     behaviour: str = "cohesion"
-    every: int = 1
+    every: int = 3
     payload_bits: int = 96
 
     def __post_init__(self) -> None:
@@ -447,7 +447,7 @@ def _convert(value: Any, tp: Any, key: str) -> Any:
             value = {"dist": "constant", "value": float(value)}
         if not isinstance(value, dict):
             raise ConfigError(key, f"must be a table ({_type_name(tp)}), got {value!r}")
-        return from_dict(tp, value, key)
+        return from_dict(typing.cast(type[Any], tp), value, key)
     if origin is tuple:
         (elem, _ellipsis) = typing.get_args(tp)
         if isinstance(value, str) and elem is str:

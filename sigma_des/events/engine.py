@@ -107,9 +107,6 @@ class MethodRun:
                 self.crash_at[f.node] = min(self.crash_at[f.node], f.start)
             elif f.kind == "slow":
                 self.slow.setdefault(f.node, []).append((f.start, f.end, f.factor))
-            elif f.kind == "drop":
-                kind = {"trigger": K_TRIGGER, "state": STATE, "command": COMMAND}[f.message]
-                self.net.forced_drops.add((kind, f.node, f.frame))
         self.rollbacks = 0
         self.resim_steps = 0
         self.history_misses = 0

@@ -29,14 +29,15 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
 from sigma_des.events.kernel import Kernel
-from sigma_des.net.draws import DrawCache
+from sigma_des.net.draws import DrawCache, Sampler
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
-from sigma_des.rng import RandomStreams
+from sigma_des.rng import RandomStreams, Stream
 
 __all__ = [
     "ACK",
@@ -71,6 +72,7 @@ class _LinkDir:
         self.name = name
         self.busy = 0.0
         self.bits_per_s = mbps * 1e6
+        self.sec_per_byte = 8.0 / self.bits_per_s
         self.bytes = 0
         self.packets = 0
 
@@ -135,9 +137,7 @@ class Network:
                 tag = f"{'server' if is_server else 'host'}.{'up' if up else 'down'}"
                 self._lat[is_server, up] = _dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
                 ust = streams.stream(f"lossu.{tag}")
-                self._u[is_server, up] = DrawCache(
-                    nsub, lambda s, k, i, a, st=ust: st.uniform(k, s, i, a)
-                )
+                self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust))
                 for h in range(sc.hosts + 1):
                     if (h == sc.hosts) == is_server:
                         self._loss[is_server, up, h] = LossProcess(
@@ -158,11 +158,12 @@ class Network:
                 self._degrade.setdefault(f.host, []).append(
                     (f.start, f.end, f.extra_delay, f.extra_loss)
                 )
-        self.forced_drops: set[tuple[int, int, int]] = set()
+        # drop faults: the first transmission on the broker-to-receiver hop is lost
+        kinds = {"trigger": TRIGGER, "state": STATE, "command": COMMAND}
+        self.forced_drops: set[tuple[int, int, int]] = {
+            (kinds[f.message], f.node, f.frame) for f in sc.faults if f.kind == "drop"}
         self._wire_cache: dict[int, int] = {}
-        self._ack_b = PUBACK_BYTES + self._overhead
-        for ld in self.up + self.down:
-            ld.sec_per_byte = 8.0 / ld.bits_per_s
+        self._ack_b = frame_bytes(PUBACK_BYTES, net.tcpip_bytes, net.ethernet_bytes)
         self._ups = [self.up[h] for h in self.link_of]
         self._downs = [self.down[h] for h in self.link_of]
         self._cls = [0] * self.n + [1]
@@ -191,7 +192,7 @@ class Network:
     @property
     def ack_bytes(self) -> int:
         """Wire bytes of one PUBACK."""
-        return PUBACK_BYTES + self._overhead
+        return self._ack_b
 
     # ------------------------------------------------------------ one hop
 
@@ -589,3 +590,10 @@ def _dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCa
     st = streams.stream(name)
     const = dist.value if dist.dist == "constant" else None
     return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const)
+
+
+def _uniform_sampler(st: Stream) -> Sampler:
+    def sample(s: NDArray[np.int64], k: int, i: int, a: int) -> NDArray[np.float64]:
+        return st.uniform(k, s, i, a)
+
+    return sample
