@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
-from sigma_des.agents.counter_rng import absorb, normal_pair
+from sigma_des.agents.counter_rng import absorb, normal_at
 from sigma_des.errors import ConfigError
 
 __all__ = ["WindConfig", "mean_wind", "dryden_scales", "turbulence_update"]
@@ -112,8 +112,7 @@ def turbulence_update(x: np.ndarray, prm: np.ndarray, key: np.uint64, node: np.i
     auv = math.exp(-spd * dt / luv)
     aw = math.exp(-spd * dt / lw)
     h2 = absorb(absorb(key, node), frame)
-    e0, e1 = normal_pair(h2, 0)
-    e2, _ = normal_pair(h2, 1)
+    e0, e1, e2 = normal_at(h2, 0), normal_at(h2, 1), normal_at(h2, 2)
     kuv = suv * math.sqrt(1.0 - auv * auv)
     x[L.TU] = auv * x[L.TU] + kuv * e0
     x[L.TV] = auv * x[L.TV] + kuv * e1
