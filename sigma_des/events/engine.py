@@ -366,13 +366,18 @@ class MethodRun:
 
     # ------------------------------------------------------------ run
 
-    def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
-        """Run to ``duration`` and return the collector's results."""
-        t0 = time.perf_counter()
+    def start(self) -> None:
+        """Schedule the first trigger, alignment tick and render tick at t = 0."""
         k = self.kernel
         k.at(0.0, self._issue, priority=TRIGGER)
         k.at(0.0, self._align, priority=ALIGN)
         k.at(0.0, self._render, priority=RENDER)
+
+    def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
+        """Run to ``duration`` and return the collector's results."""
+        t0 = time.perf_counter()
+        k = self.kernel
+        self.start()
         dur = self.sc.duration
         t = 0.0
         while t < dur:
