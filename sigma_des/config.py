@@ -198,7 +198,7 @@ class BidesSpec:
     ring_size: int = 30
     hole_fill: bool = True
     lag_exclusion: bool = True
-    theta_lag: int = 20
+    theta_lag: int = 3
     adaptation: bool = True
     lag_high: int = 10
     lag_low: int = 4
