@@ -39,7 +39,8 @@ Array = NDArray[np.float64]
 def formation_slots(obs: Array, leader: int, d: float, theta: float) -> Array:
     """``(n, 2)`` NED slot of every node (the leader's own position for the leader)."""
     n = obs.shape[0]
-    rank = np.arange(n) - (np.arange(n) > leader)       # 0 for the leader, then 1, 2, …
+    i = np.arange(n)
+    rank = np.where(i < leader, i + 1, i)               # followers 1, 2, … in node order
     rank[leader] = 0
     row = np.ceil(rank / 2.0)
     side = np.where(rank % 2 == 1, 1.0, -1.0)
