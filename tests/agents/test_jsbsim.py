@@ -51,3 +51,15 @@ def test_rollback_reinitialises_from_the_row() -> None:
 def test_unknown_jsbsim_model_names_the_field() -> None:
     with pytest.raises(ConfigError, match="dynamics.*unknown JSBSim model.*allowed"):
         JSBSimModel("F451")
+
+
+def test_c172x_holds_altitude_and_speed_under_its_autopilot() -> None:
+    m = make_dynamics("jsbsim:c172x")
+    s = m.initial_state(1)
+    cmd = m.default_command(s)
+    hs = []
+    for k in range(1, 1001):                           # 10 s at 50 m/s
+        s = m.step(s, cmd, 0.01, k, np.arange(1))
+        hs.append(s[0, 11])
+    assert np.abs(np.array(hs) - 100.0).max() < 6.0
+    assert abs(np.linalg.norm(s[0, 0:3]) - 50.0) < 3.0
