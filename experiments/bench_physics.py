@@ -91,7 +91,7 @@ def main() -> None:
         s = pm.initial_state(n)
         c = pm.default_command(s)
         nodes = np.arange(n)
-        st = best_ms(lambda k: pm.step(s, c, DT, k, nodes), 50, batches)
+        st = best_ms(lambda k, s=s, c=c, nodes=nodes: pm.step(s, c, DT, k, nodes), 50, batches)
         print(f"{'pointmass':<22}{n:>7}{st:>10.3f}{'-':>12}{st:>10.3f}{st / n * 1e3:>13.3f}")
     for model in ("F450", "c172x"):
         ms = bench_jsbsim(model, 50 if args.quick else 200)

@@ -108,7 +108,7 @@ class GeneralAircraft:
             return
         ratio = prm[L.KQ] / prm[L.KT]
         a = np.zeros((4, 4))
-        for i, rot in enumerate(self.params.rotors):
+        for i in range(len(self.params.rotors)):
             k = L.ROTOR_BASE + L.ROTOR_STRIDE * i
             pos, ax, spin = prm[k:k + 3], prm[k + 3:k + 6], prm[k + 6]
             a[0, i] = -ax[2]

@@ -14,7 +14,8 @@ magnitude and a thrust direction (tilt-limited; heading = ``chi_cmd``);
 geometric attitude P (body z axis -> demanded direction) -> body-rate
 setpoints; rate P -> moments; the inverse mixer turns (thrust, L, M, N) into rotor
 thrusts and ``omega = sqrt(T / kT)``. ``phi_cmd`` (if not NaN) sets the lateral acceleration to
-``g tan(phi_cmd)`` (the bank angle of a coordinated turn). Integrators: I0/I1 north/east velocity error (m), I2 climb-rate error (m).
+``g tan(phi_cmd)`` (the bank angle of a coordinated turn).
+Integrators: I0/I1 north/east velocity error (m), I2 climb-rate error (m).
 
 Fixed-wing successive loop closure (Beard & McLain 2012, ch. 6): course P ->
 roll angle (or ``phi_cmd`` directly, the paper's formation law); roll PI + rate

@@ -22,8 +22,12 @@ from numba import njit
 from sigma_des.agents import layout as L
 from sigma_des.agents.approx import atan2_fast
 from sigma_des.agents.atmosphere import gravity_scalar, isa_scalar
-from sigma_des.agents.autopilot import (fixedwing_autopilot, fixedwing_prepare,
-                                        multirotor_autopilot, multirotor_prepare)
+from sigma_des.agents.autopilot import (
+    fixedwing_autopilot,
+    fixedwing_prepare,
+    multirotor_autopilot,
+    multirotor_prepare,
+)
 from sigma_des.agents.forces import forces_moments
 from sigma_des.agents.rigid_body import rigid_body_substep, rotmat, to_body, to_ned
 from sigma_des.agents.wind import mean_wind, turbulence_update

@@ -151,7 +151,8 @@ class AircraftParams:
             if not getattr(self, name) > 0:
                 raise bad(name, f"must be > 0, got {getattr(self, name)}")
         if not 0 <= self.omega_min < self.omega_max:
-            raise bad("omega_min", f"must be in [0, omega_max={self.omega_max}), got {self.omega_min}")
+            raise bad("omega_min",
+                      f"must be in [0, omega_max={self.omega_max}), got {self.omega_min}")
         if not 0 <= self.rotor_pitch < 0.7:
             raise bad("rotor_pitch", f"must be in [0, 0.7) rad, got {self.rotor_pitch}")
         if self.rotor_cd0 < 0:

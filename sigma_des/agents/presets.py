@@ -147,4 +147,5 @@ def preset(name: str) -> AircraftParams:
     try:
         return PRESETS[name]()
     except KeyError:
-        raise ConfigError("preset", f"unknown preset {name!r}; allowed: {sorted(PRESETS)}") from None
+        raise ConfigError("preset",
+                          f"unknown preset {name!r}; allowed: {sorted(PRESETS)}") from None

@@ -196,9 +196,10 @@ class Sensors:
         nd = nodes[:, None]
         tab = self.table
         cal = np.empty((nodes.shape[0], 56))
-        cal[:, :16] = tab[:, 1] + tab[:, 2] * self._streams.stream("agents.sensors.bias").normal(nd, ch)
-        cal[:, 16:32] = tab[:, 3] * self._streams.stream("agents.sensors.scale").normal(nd, ch)
-        ph = 2 * np.pi * self._streams.stream("agents.sensors.phase").uniform(nd, np.arange(12)[None, :])
+        st = self._streams.stream
+        cal[:, :16] = tab[:, 1] + tab[:, 2] * st("agents.sensors.bias").normal(nd, ch)
+        cal[:, 16:32] = tab[:, 3] * st("agents.sensors.scale").normal(nd, ch)
+        ph = 2 * np.pi * st("agents.sensors.phase").uniform(nd, np.arange(12)[None, :])
         # Per IMU channel c: cos p1, sin p1, cos p2, sin p2 (sin(wt+p) = s cos p + c sin p).
         cal[:, 32:56:4], cal[:, 33:56:4] = np.cos(ph[:, 0::2]), np.sin(ph[:, 0::2])
         cal[:, 34:56:4], cal[:, 35:56:4] = np.cos(ph[:, 1::2]), np.sin(ph[:, 1::2])

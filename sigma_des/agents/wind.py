@@ -61,7 +61,8 @@ class WindConfig:
         if len(self.mean_ned) != 3 or not all(math.isfinite(c) for c in self.mean_ned):
             raise ConfigError("wind.mean_ned", f"must be 3 finite numbers, got {self.mean_ned}")
         if not self.decay_tau > 0:
-            raise ConfigError("wind.decay_tau", f"must be > 0 (inf = no decay), got {self.decay_tau}")
+            raise ConfigError("wind.decay_tau",
+                              f"must be > 0 (inf = no decay), got {self.decay_tau}")
         if not 0 <= self.shear < 1:
             raise ConfigError("wind.shear", f"must be in [0, 1), got {self.shear}")
         if not self.h_ref > 0:

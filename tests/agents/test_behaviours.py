@@ -9,8 +9,14 @@ import pytest
 
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.base import SwarmView
-from sigma_des.agents.behaviours import (BehaviourSet, Rule, rectangle_carrot, route_rule,
-                                         separation_rule, to_command)
+from sigma_des.agents.behaviours import (
+    BehaviourSet,
+    Rule,
+    rectangle_carrot,
+    route_rule,
+    separation_rule,
+    to_command,
+)
 from sigma_des.agents.dtw import dtw, dtw_normalised
 from sigma_des.agents.formation import formation_rule, formation_slots
 from sigma_des.agents.ideal import fly

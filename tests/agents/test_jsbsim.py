@@ -37,8 +37,9 @@ def test_rollback_reinitialises_from_the_row() -> None:
     s0 = m.initial_state(1)
     cmd = m.default_command(s0)
     s1 = m.step(s0, cmd, 0.01, 1, np.arange(1))
+    s = s1
     for k in range(2, 50):
-        s = m.step(s1 if k == 2 else s, cmd, 0.01, k, np.arange(1))
+        s = m.step(s, cmd, 0.01, k, np.arange(1))
     again = m.step(s0, cmd, 0.01, 1, np.arange(1))      # s0 != node's last row -> re-init
     # Approximate, not bit-exact: the rotors keep their current rpm (not in the row),
     # so velocities differ slightly; positions are restored from the row.
