@@ -4,6 +4,9 @@ Commands:
   compare  run alignment methods side by side on one scenario, print a table,
            write results.csv (tidy) and summary.json.
   config   print the full resolved scenario as TOML (start from the defaults).
+  sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
+           by default), resumable through a SQLite results store; writes
+           runs.csv and aggregate.csv (see docs/SWEEPS.md).
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -53,6 +56,12 @@ def _parser() -> argparse.ArgumentParser:
 
     g = sub.add_parser("config", help="print the resolved scenario as TOML")
     scenario_args(g)
+
+    from sigma_des.sweep.cli import add_sweep_args
+
+    s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
+    scenario_args(s)
+    add_sweep_args(s)
     return p
 
 
@@ -64,6 +73,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "config":
             sys.stdout.write(to_toml(sc))
             return 0
+        if args.command == "sweep":
+            from sigma_des.sweep.cli import run_sweep_command
+
+            return run_sweep_command(args, sc)
         from sigma_des.api import compare
 
         methods = None

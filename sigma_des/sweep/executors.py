@@ -1,0 +1,99 @@
+"""Where a sweep's tasks run: in this process, or on Dask (local cluster or remote).
+
+:func:`executor` is a context manager yielding ``submit(fn, tasks)``, an iterator of
+``(task, payload)`` pairs in completion order. With Dask every task is one future
+of :func:`~sigma_des.sweep.tasks.execute`; results come back through
+``as_completed`` to the client, the only process that writes the results store.
+On exit (also on an interrupt) unfinished futures are cancelled and a cluster
+started here is shut down.
+"""
+
+from __future__ import annotations
+
+import logging
+import traceback
+import warnings
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any
+
+from sigma_des import __version__
+from sigma_des.sweep.tasks import Task, TaskFn, execute
+
+__all__ = ["Submit", "executor", "local_cluster", "run_inprocess"]
+
+#: ``submit(fn, tasks)`` → (task, payload) pairs as the tasks complete.
+Submit = Callable[[TaskFn, Sequence[Task]], Iterator[tuple[Task, dict[str, Any]]]]
+
+
+def run_inprocess(fn: TaskFn, tasks: Sequence[Task]) -> Iterator[tuple[Task, dict[str, Any]]]:
+    """Run the tasks here, one after another (no Dask)."""
+    for t in tasks:
+        yield t, execute(fn, t.scenario, t.method)
+
+
+@contextmanager
+def executor(client: Any, n_workers: int) -> Iterator[Submit]:
+    """Yield a ``submit(fn, tasks)`` that yields (task, payload) as tasks complete."""
+    if client == "inprocess":
+        yield run_inprocess
+        return
+    from dask.distributed import Client, as_completed
+
+    cluster = None
+    own = not isinstance(client, Client)
+    if client is None or client == "local":
+        cluster = local_cluster(n_workers)
+        try:
+            dc = Client(cluster)
+        except BaseException:
+            cluster.close()
+            raise
+    elif isinstance(client, str):
+        dc = Client(client, timeout="10s")
+    else:
+        dc = client
+    futures: list[Any] = []
+
+    def submit(fn: TaskFn, tasks: Sequence[Task]) -> Iterator[tuple[Task, dict[str, Any]]]:
+        owner = {}
+        for i, t in enumerate(tasks):
+            fut = dc.submit(execute, fn, t.scenario, t.method, pure=False, priority=len(tasks) - i)
+            owner[fut.key] = t
+            futures.append(fut)
+        for fut in as_completed(futures):
+            t = owner[fut.key]
+            if fut.status == "finished":
+                yield t, fut.result()
+            elif fut.status == "error":  # the worker died or the task did not unpickle
+                exc = fut.exception()
+                text = "".join(traceback.format_exception(type(exc), exc, fut.traceback()))
+                yield t, {"status": "failed", "error": text, "version": __version__}
+            # cancelled futures are simply not stored
+
+    try:
+        yield submit
+    finally:
+        if futures:
+            dc.cancel(futures)
+        if own:
+            dc.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def local_cluster(n_workers: int) -> Any:
+    """A LocalCluster bound to 127.0.0.1 only: processes, one thread each, no dashboard."""
+    from dask.distributed import LocalCluster
+
+    with warnings.catch_warnings():
+        # the scheduler's small HTTP endpoint falls back to a free loopback port
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
+        return LocalCluster(
+            n_workers=n_workers,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
