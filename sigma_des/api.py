@@ -17,14 +17,19 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
 from sigma_des import __version__
+from sigma_des.agents.ideal import fly
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.engine import MethodRun
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
+from sigma_des.metrics.fidelity import fidelity
 
-__all__ = ["Results", "compare", "run_method"]
+__all__ = ["Results", "compare", "ideal_run", "run_method"]
 
 TIDY_COLUMNS = ("seed", "config_hash", "version", "method", "metric", "value", "unit")
 
@@ -39,6 +44,7 @@ class Results:
         wall: per method, the simulator's own cost (wall time, events/s, RSS).
         links_mbps: per method, wire Mbps of every link direction.
         timeseries: per method, per-render-tick arrays (t, aoi_mean, f_trig, …).
+        fidelity: per method, formation error per logged sample (``t``, ``formation_err``).
     """
 
     scenario: Scenario
@@ -46,6 +52,7 @@ class Results:
     wall: dict[str, dict[str, float]] = field(default_factory=dict)
     links_mbps: dict[str, dict[str, float]] = field(default_factory=dict)
     timeseries: dict[str, dict[str, Any]] = field(default_factory=dict)
+    fidelity: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def config_hash(self) -> str:
@@ -122,6 +129,8 @@ class Results:
             "snap Hz",
             "trig Hz",
             "spread",
+            "form m",
+            "DTW r",
             "rollbk",
             "wall s",
         )
@@ -140,6 +149,8 @@ class Results:
                     f"{m['snapshot_rate_hz']:.1f}",
                     f"{m['trigger_rate_hz']:.1f}",
                     f"{m['spread_mean']:.2f}",
+                    f"{m.get('formation_err_mean', math.nan):.2f}",
+                    f"{m.get('dtw_r', math.nan):.2f}",
                     f"{int(m['rollbacks'])}",
                     f"{self.wall[method]['wall_s']:.2f}",
                 )
@@ -176,14 +187,45 @@ def _json_safe(x: Any) -> Any:
     return x
 
 
+def ideal_run(sc: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The reference flight: same aircraft and behaviour, zero latency, perfect alignment."""
+    return fly(
+        make_dynamics(sc),
+        make_behaviour(sc),
+        sc.nodes,
+        sc.duration,
+        1.0 / sc.f_trig,
+        log_rate=sc.fidelity.log_rate,
+    )
+
+
 def run_method(
-    sc: Scenario, method: str, progress: Callable[[float], None] | None = None
+    sc: Scenario,
+    method: str,
+    progress: Callable[[float], None] | None = None,
+    ideal: NDArray[np.float64] | None = None,
 ) -> dict[str, Any]:
-    """Run one method on ``sc`` and return its raw result dict."""
+    """Run one method on ``sc`` and return its raw result dict.
+
+    Args:
+        sc: the scenario.
+        method: alignment method.
+        progress: called with the simulated time after every simulated second.
+        ideal: ideal-run positions for the fidelity metrics (computed when needed and
+            ``sc.fidelity.enabled``).
+    """
     if method not in METHODS:
         raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
     run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
-    return run.run(progress)
+    out = run.run(progress)
+    if sc.fidelity.enabled:
+        if ideal is None:
+            ideal = ideal_run(sc)[1]
+        _t, pos = run.trajectory()
+        fid, err = fidelity(pos, ideal, 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
+        out["metrics"].update(fid)
+        out["fidelity"] = {"t": _t[: len(err)], "formation_err": err}
+    return out
 
 
 def compare(sc: Scenario, methods: Iterable[str] | None = None, progress: bool = True) -> Results:
@@ -209,7 +251,7 @@ def compare(sc: Scenario, methods: Iterable[str] | None = None, progress: bool =
             leave=False,
             desc="sigma-des",
         )
-    done = 0.0
+    ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
     for m in ms:
         last = [0.0]
 
@@ -220,12 +262,13 @@ def compare(sc: Scenario, methods: Iterable[str] | None = None, progress: bool =
 
         if bar is not None:
             bar.set_postfix_str(m)
-        out = run_method(sc, m, tick)
-        done += sc.duration
+        out = run_method(sc, m, tick, ideal)
         res.methods[m] = out["metrics"]
         res.wall[m] = out["wall"]
         res.links_mbps[m] = out["links_mbps"]
         res.timeseries[m] = out["timeseries"]
+        if "fidelity" in out:
+            res.fidelity[m] = out["fidelity"]
     if bar is not None:
         bar.close()
     return res

@@ -33,6 +33,7 @@ __all__ = [
     "CommandSpec",
     "ComputeSpec",
     "FaultSpec",
+    "FidelitySpec",
     "HLCSpec",
     "LinkSpec",
     "LockstepSpec",
@@ -247,13 +248,32 @@ class CommandSpec:
     """
 
     enabled: bool = True
-    behaviour: str = "cohesion"
+    behaviour: str = "formation"
     every: int = 3
     payload_bits: int = 96
 
     def __post_init__(self) -> None:
         _check(self.every >= 1, "every", f"must be >= 1, got {self.every}")
         _check(self.payload_bits >= 0, "payload_bits", f"must be >= 0, got {self.payload_bits}")
+
+
+@dataclass(frozen=True)
+class FidelitySpec:
+    """Swarm fidelity against an ideal run (zero latency, perfect alignment).
+
+    Attributes:
+        enabled: fly the ideal run and compute formation error and DTW.
+        log_rate: trajectory sampling rate (Hz of physics time; the paper: 30 Hz).
+        dtw_nodes: DTW is averaged over at most this many evenly spread nodes.
+    """
+
+    enabled: bool = True
+    log_rate: float = 30.0
+    dtw_nodes: int = 50
+
+    def __post_init__(self) -> None:
+        _positive(self, "log_rate")
+        _check(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
 
 
 FAULT_KINDS = ("crash", "slow", "degrade", "drop")
@@ -349,7 +369,7 @@ class Scenario:
     warmup: float = 1.0
     payload_bits: int = 150
     trigger_payload_bits: int = 64
-    dynamics: str = "pointmass"
+    dynamics: str = "quadrotor"
     engine: str = "events"
     methods: tuple[str, ...] = METHODS
     history_frames: int = 512
@@ -362,6 +382,7 @@ class Scenario:
     hlc: HLCSpec = field(default_factory=HLCSpec)
     bides: BidesSpec = field(default_factory=BidesSpec)
     commands: CommandSpec = field(default_factory=CommandSpec)
+    fidelity: FidelitySpec = field(default_factory=FidelitySpec)
     faults: tuple[FaultSpec, ...] = ()
 
     def __post_init__(self) -> None:

@@ -1,10 +1,10 @@
-"""Resolve the scenario's dynamics and behaviour names to objects."""
+"""Resolve the scenario's dynamics and behaviour names to objects (via the agents registry)."""
 
 from __future__ import annotations
 
 from sigma_des.agents.base import Behaviour, DynamicsModel
-from sigma_des.agents.cohesion import Cohesion
-from sigma_des.agents.pointmass import PointMass
+from sigma_des.agents.registry import make_behaviour as _make_behaviour
+from sigma_des.agents.registry import make_dynamics as _make_dynamics
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 
@@ -13,16 +13,10 @@ __all__ = ["make_dynamics", "make_behaviour"]
 
 def make_dynamics(sc: Scenario) -> DynamicsModel:
     """The dynamics model named by ``sc.dynamics``."""
-    if sc.dynamics == "pointmass":
-        return PointMass()
     try:
-        from sigma_des.agents import registry  # type: ignore[attr-defined]
-    except ImportError:
-        raise ConfigError(
-            "dynamics", f"{sc.dynamics!r} is not available in this build; use 'pointmass'"
-        ) from None
-    try:
-        return registry.make_dynamics(sc.dynamics)  # type: ignore[no-any-return]
+        return _make_dynamics(sc.dynamics)
+    except ConfigError as e:
+        raise ConfigError("dynamics", e.reason) from None
     except ValueError as e:
         raise ConfigError("dynamics", str(e)) from None
 
@@ -31,17 +25,9 @@ def make_behaviour(sc: Scenario) -> Behaviour | None:
     """The behaviour named by ``sc.commands.behaviour`` (None: commands disabled)."""
     if not sc.commands.enabled or sc.commands.behaviour == "none":
         return None
-    if sc.commands.behaviour == "cohesion":
-        return Cohesion()
     try:
-        from sigma_des.agents import registry  # type: ignore[attr-defined]
-
-        return registry.make_behaviour(sc.commands.behaviour)  # type: ignore[no-any-return]
-    except (ImportError, AttributeError):
-        pass
+        return _make_behaviour(sc.commands.behaviour)
+    except ConfigError as e:
+        raise ConfigError("commands.behaviour", e.reason) from None
     except ValueError as e:
         raise ConfigError("commands.behaviour", str(e)) from None
-    raise ConfigError(
-        "commands.behaviour",
-        f"unknown behaviour {sc.commands.behaviour!r}; allowed: cohesion, none",
-    )

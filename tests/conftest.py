@@ -12,6 +12,7 @@ from sigma_des import Scenario, load
 #: instantaneous broker, constant 2 ms compute, QoS 0, no commands, ideal clocks.
 TINY: dict[str, Any] = {
     "nodes": 3,
+    "dynamics": "pointmass",
     "hosts": 2,
     "cores_per_host": 4,
     "f_trig": 100.0,

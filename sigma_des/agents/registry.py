@@ -12,6 +12,7 @@ from typing import Any
 
 from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.agents.behaviours import BehaviourSet, route_rule, separation_rule
+from sigma_des.agents.cohesion import Cohesion
 from sigma_des.agents.formation import FormationRoute, formation_rule
 from sigma_des.agents.pointmass import PointMass
 from sigma_des.errors import ConfigError
@@ -40,6 +41,7 @@ DYNAMICS: dict[str, Callable[..., DynamicsModel]] = {
 
 #: Built-in behaviours.
 BEHAVIOURS: dict[str, Callable[..., Behaviour]] = {
+    "cohesion": Cohesion,
     "route": lambda **p: BehaviourSet([route_rule(**p)], name="route"),
     "formation": FormationRoute,
     "follow": lambda **p: BehaviourSet([formation_rule(**p)], name="follow"),

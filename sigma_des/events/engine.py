@@ -32,6 +32,7 @@ from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
 from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.events.kernel import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.fidelity import TrajectoryLog
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.draws import DrawCache
 from sigma_des.net.network import COMMAND, REPUBLISH, REREQUEST, STATE, Network
@@ -65,6 +66,7 @@ class MethodRun:
         self.net = Network(self.kernel, sc, self.streams, self._deliver, sc.warmup)
         self.server = n
         self.all_nodes = list(range(n))
+        self._nodes = np.arange(n, dtype=np.int64)
         self.dyn = dynamics
         self.behaviour = behaviour if sc.commands.enabled else None
         # trigger source
@@ -79,6 +81,11 @@ class MethodRun:
         self.ckpt = np.zeros((H,) + self.state.shape)
         self.obs_hist = np.full((H, n, OBS_WIDTH), np.nan)
         self.slot_frame = np.full(H, -1, dtype=np.int64)
+        # physics time of each frame (sum of its dt), and the fidelity log, which takes
+        # a frame only when it leaves the ring (it can no longer be rolled back)
+        self.phys_t = 0.0
+        self.phys_hist = np.zeros(H)
+        self.traj = TrajectoryLog(sc.fidelity.log_rate, dynamics.observe(self.initial)[:, 9:12])
         self.cmd = dynamics.default_command(self.state)
         self.cmd_stamp = [-1] * n
         # nodes
@@ -172,9 +179,13 @@ class MethodRun:
         k = self.latest_trigger + 1
         dt = 1.0 / self.f_trig
         slot = k % self.H
+        if self.slot_frame[slot] >= 0:
+            self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
         self.trig_time[slot] = t
         self.frame_dt[slot] = dt
-        self.state = self.dyn.step(self.state, self.cmd, dt, k, np.arange(self.n))
+        self.phys_t += dt
+        self.phys_hist[slot] = self.phys_t
+        self.state = self.dyn.step(self.state, self.cmd, dt, k, self._nodes)
         self.ckpt[slot] = self.state
         self.obs_hist[slot] = self.dyn.observe(self.state)
         self.slot_frame[slot] = k
@@ -336,7 +347,7 @@ class MethodRun:
             obs=al.shown_obs, frame=al.shown_frame, valid=valid, aligned_frame=al.aligned_frame
         )
         cmds = self.behaviour.commands(view, self.dyn)
-        ok = ~np.isnan(cmds).any(axis=1)
+        ok = ~np.isnan(cmds).all(axis=1)  # NaN cells mean 'keep'; an all-NaN row, 'none'
         tick = self.align_tick
         bits = self.sc.commands.payload_bits
         stamp = al.aligned_frame
@@ -363,6 +374,15 @@ class MethodRun:
         )
         self.render_tick += 1
         self.kernel.at(self.render_tick / self.sc.f_render, self._render, priority=RENDER)
+
+    def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True positions logged at ``fidelity.log_rate`` Hz of physics time, so far."""
+        log = self.traj
+        first = max(0, self.latest_trigger - self.H + 1)
+        for f in range(first, self.latest_trigger + 1):
+            slot = f % self.H
+            log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
+        return log.arrays()
 
     # ------------------------------------------------------------ run
 

@@ -62,6 +62,9 @@ METRIC_UNITS: dict[str, str] = {
     "evicted": "count",
     "rerequests": "count",
     "history_misses": "count",
+    "formation_err_mean": "m",
+    "formation_err_max": "m",
+    "dtw_r": "m",
 }
 #: Metrics that measure the simulator itself (vary run to run; kept apart).
 WALL_METRICS: dict[str, str] = {
@@ -193,9 +196,9 @@ class Collector:
         m["aoi_time_avg"] = fin["time_average"] * ms
         m["aoi_peak_mean"] = fin["peak_mean"] * ms
         for kind, xs in self._lat.items():
-            s = summarize(np.asarray(xs))
-            m[f"latency_{kind}_mean"] = s["mean"] * ms
-            m[f"latency_{kind}_p99"] = s["p99"] * ms
+            lat = summarize(np.asarray(xs))
+            m[f"latency_{kind}_mean"] = lat["mean"] * ms
+            m[f"latency_{kind}_p99"] = lat["p99"] * ms
         net = self.net
         links = net.links()
         total_bytes = sum(ld.bytes for ld in links)

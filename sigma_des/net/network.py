@@ -110,6 +110,7 @@ class Network:
         self.server = sc.nodes
         self.deliver = deliver
         self.warmup = warmup
+        self.end = sc.duration  # traffic leaving after the run is not counted
         net = sc.net
         self.datagram = net.transport == "datagram"
         self.qos1 = net.qos == 1
@@ -216,7 +217,7 @@ class Network:
         busy = ld.busy
         done = (t if t > busy else busy) + nbytes * ld.sec_per_byte
         ld.busy = done
-        if t >= self.warmup:
+        if self.warmup <= t < self.end:
             ld.bytes += nbytes
             ld.packets += 1
         cls = self._cls[client]
@@ -235,12 +236,19 @@ class Network:
             lost = True
         return done + lat + extra, lost
 
+    def _work(self, a: float, b: float) -> None:
+        """Count broker busy time [a, b) inside the metrics window."""
+        lo = a if a > self.warmup else self.warmup
+        hi = b if b < self.end else self.end
+        if hi > lo:
+            self.broker_work += hi - lo
+
     def _count(self, client: int, up: bool, nbytes: int, t: float) -> None:
         """Serialize and count a packet whose arrival does not matter (stream PUBACKs)."""
         ld = (self._ups if up else self._downs)[client]
         busy = ld.busy
         ld.busy = (t if t > busy else busy) + nbytes * ld.sec_per_byte
-        if t >= self.warmup:
+        if self.warmup <= t < self.end:
             ld.bytes += nbytes
             ld.packets += 1
 
@@ -473,10 +481,7 @@ class Network:
         dsubj = [s if broadcast else subject for s in subs]
         s_del = [self._svc_del.get(kind, d, index, attempt) for d in dsubj]
         start = now if now > self.broker_busy else self.broker_busy
-        total = s_pub + sum(s_del)
-        self.broker_busy = start + total
-        if now >= self.warmup:
-            self.broker_work += total
+        if self.warmup <= now < self.end:
             self.broker_max_wait = max(self.broker_max_wait, start - now)
         # PUBACK back to the publisher
         if self.qos1 and not self.datagram:
@@ -497,6 +502,9 @@ class Network:
         for sub, ds, sd in zip(subs, dsubj, s_del, strict=True):
             d += sd
             self._deliver_try(sub, kind, ds, index, payload, bits, 0, t_pub, d)
+        # free exactly when the last delivery leaves (same float as that departure)
+        self.broker_busy = d
+        self._work(start, d)
 
     def _deliver_try(
         self,
@@ -547,8 +555,7 @@ class Network:
         s_del = self._svc_del.get(kind, subject, index, attempt)
         start = now if now > self.broker_busy else self.broker_busy
         self.broker_busy = start + s_del
-        if now >= self.warmup:
-            self.broker_work += s_del
+        self._work(start, start + s_del)
         self._deliver_try(sub, kind, subject, index, payload, bits, attempt, t_pub, start + s_del)
 
     def _client_receive(
