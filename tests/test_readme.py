@@ -36,11 +36,13 @@ def test_readme_commands_are_the_ci_commands() -> None:
 def test_readme_scenario_file_loads_and_cli_config_runs(capsys: pytest.CaptureFixture[str],
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(README.parent)
-    for line in _blocks("bash")[2].splitlines():
-        if line.startswith("sigma-des compare scenarios/"):
-            path = line.split()[2]
-            assert main(["config", path]) == 0
-            assert "nodes = 10" in capsys.readouterr().out
+    lines = [ln for b in _blocks("bash") for ln in b.splitlines()
+             if ln.startswith("sigma-des compare scenarios/")]
+    assert lines, "README names no scenario file"
+    for line in lines:
+        path = line.split()[2]
+        assert main(["config", path]) == 0
+        assert "nodes = 10" in capsys.readouterr().out
 
 
 def test_readme_error_message_is_real(capsys: pytest.CaptureFixture[str]) -> None:
