@@ -11,6 +11,7 @@ engine passes in. Pick one by name from :data:`ALIGNERS`.
 
 from __future__ import annotations
 
+import typing
 from typing import Any, Protocol
 
 import numpy as np
@@ -286,7 +287,7 @@ class HLCAligner(Aligner):
         self._note_memory()
         changed = False
         for _stamp, node, item in self.buffer.release():
-            frame, gen, obs = item  # type: ignore[misc]
+            frame, gen, obs = typing.cast(tuple[int, float, NDArray[np.float64]], item)
             if frame > self.shown_frame[node]:
                 self.shown_frame[node] = frame
                 self.shown_gen[node] = gen

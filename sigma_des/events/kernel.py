@@ -10,9 +10,8 @@ before trigger k was issued" includes one arriving at the same instant).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
-
 from heapq import heappush
+from typing import Any
 
 import simpy
 
@@ -60,7 +59,7 @@ class Kernel:
             raise ValueError(f"cannot schedule in the past: t={t} < now={env._now}")
         self.events += 1
         # same tuple as Environment.schedule(), pushed directly: this is the hot path
-        heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))
+        heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))  # type: ignore[misc]
 
     def run(self, until: float) -> None:
         """Process events up to (and including those at) time ``until``."""
