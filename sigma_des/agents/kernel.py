@@ -6,7 +6,8 @@ result of row ``i`` does not depend on the batch it is in (the same scalar code
 runs for every row; no BLAS, no cross-row reductions, no ``fastmath``).
 
 Per frame step (held over its sub-steps): air density and gravity at the row's
-altitude, the Dryden turbulence update for (node, frame), the wind vector, the
+altitude, the Dryden turbulence update (at its own, lower rate, keyed by node and
+update index; see wind.py), the wind vector, the
 slow autopilot parts. Per sub-step: rotation matrix, autopilot inner loops,
 first-order actuator lags (exact exponential discretisation), forces,
 rigid-body integration.
@@ -59,7 +60,8 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
     asv = 1.0 - math.exp(-h / prm[L.TAU_SERVO])
     kind = int(prm[L.AP_KIND])
     nrot = int(prm[L.NROT])
-    turb = prm[L.ENV_TURB_ON] > 0.0
+    tp = prm[L.ENV_TURB_ON]
+    turb = tp > 0.0
     x = np.empty(L.STATE_DIM)
     act = np.zeros(7)
     cmd = np.empty(4)
@@ -74,8 +76,13 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
         # Wind: mean (at this step's time and altitude) + turbulence in heading axes.
         wn, we, wd = mean_wind(prm, x[L.TIME], x[L.H])
         if turb:
-            spd = math.sqrt((vn - wn) ** 2 + (ve - we) ** 2 + (vd - wd) ** 2)
-            turbulence_update(x, prm, key, nodes[i], frame, dt, spd)
+            # Update at the turbulence rate (wind.py): when this frame crosses one or
+            # more multiples of the period tp, over exactly the periods crossed.
+            e0 = math.floor(x[L.TIME] / tp + 1e-6)
+            e1 = math.floor((x[L.TIME] + dt) / tp + 1e-6)
+            if e1 > e0:
+                spd = math.sqrt((vn - wn) ** 2 + (ve - we) ** 2 + (vd - wd) ** 2)
+                turbulence_update(x, prm, key, nodes[i], np.int64(e1), (e1 - e0) * tp, spd)
             hn = math.sqrt(rm[0] * rm[0] + rm[3] * rm[3])
             ch, sh = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
             wn += ch * x[L.TU] - sh * x[L.TV]
