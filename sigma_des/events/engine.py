@@ -17,6 +17,7 @@ re-simulates its rows from a checkpoint.
 
 from __future__ import annotations
 
+import gc
 import heapq
 import math
 import time
@@ -396,8 +397,24 @@ class MethodRun:
     def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
         """Run to ``duration`` and return the collector's results."""
         t0 = time.perf_counter()
-        k = self.kernel
         self.start()
+        # Millions of short-lived event objects make CPython's cyclic GC run thousands
+        # of collections (20-50 % of the wall time at 1000 nodes). Processed events hold
+        # no reference cycles (SimPy clears their callbacks), so reference counting frees
+        # them; the cyclic GC is paused for the run and one collection follows it.
+        was_enabled = gc.isenabled()
+        gc.disable()
+        try:
+            self._advance(progress)
+        finally:
+            if was_enabled:
+                gc.enable()
+            gc.collect()
+        self.wall_seconds = time.perf_counter() - t0
+        return self.collector.finish(self)
+
+    def _advance(self, progress: Callable[[float], None] | None) -> None:
+        k = self.kernel
         dur = self.sc.duration
         t = 0.0
         while t < dur:
@@ -405,5 +422,3 @@ class MethodRun:
             k.run(until=t)
             if progress is not None:
                 progress(t)
-        self.wall_seconds = time.perf_counter() - t0
-        return self.collector.finish(self)

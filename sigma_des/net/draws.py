@@ -33,11 +33,11 @@ class DrawCache:
     __slots__ = ("_subjects", "_sampler", "_cache", "_limit", "constant")
 
     def __init__(
-        self, n_subjects: int, sampler: Sampler, limit: int = 2048, constant: float | None = None
+        self, n_subjects: int, sampler: Sampler, limit: int = 512, constant: float | None = None
     ) -> None:
         self._subjects = np.arange(n_subjects, dtype=np.int64)
         self._sampler = sampler
-        self._cache: OrderedDict[tuple[int, int, int], list[float]] = OrderedDict()
+        self._cache: OrderedDict[tuple[int, int, int], NDArray[np.float64]] = OrderedDict()
         self._limit = limit
         self.constant = constant
 
@@ -48,11 +48,12 @@ class DrawCache:
         key = (kind, index, attempt)
         vec = self._cache.get(key)
         if vec is None:
-            vec = self._sampler(self._subjects, kind, index, attempt).tolist()
+            # kept as a numpy array: no per-value Python objects for the GC to scan
+            vec = self._sampler(self._subjects, kind, index, attempt)
             self._cache[key] = vec
             if len(self._cache) > self._limit:
                 self._cache.popitem(last=False)
-        return vec[subject]
+        return vec.item(subject)  # type: ignore[no-any-return]
 
     def vector(self, kind: int, index: int, attempt: int) -> NDArray[np.float64]:
         """Values for all subjects (uncached; for batched callers)."""
