@@ -160,7 +160,7 @@ def plots(study: common.Study, windows: dict[str, tuple[float, float]]) -> None:
             ax.set_xlabel("simulated time (s)")
         ax_aoi.set_yscale("log")
         ax_aoi.set_ylabel("AoI, mean over nodes (ms)")
-        ax_aoi.set_title(f"{v}: AoI over time (seed {seed})")
+        ax_aoi.set_title(f"{v}: AoI over time, mean over all nodes incl. the faulty (seed {seed})")
         ax_rate.set_ylabel("rate (Hz; 0.25 s windows)")
         ax_rate.set_title(f"{v}: aligned frame rate and BiDES trigger rate")
         ax_aoi.legend(loc="upper left", ncols=3, fontsize=7)
