@@ -11,6 +11,8 @@ ideal one:
 * DTW distance of each node's trajectory to its ideal trajectory, normalised as
   the paper does (``r = D·T/s``, see :mod:`sigma_des.agents.dtw`), averaged over
   (at most ``dtw_nodes`` evenly spread) nodes.
+
+Both are taken over the physics time that both the run and the ideal run cover.
 """
 
 from __future__ import annotations
@@ -79,8 +81,10 @@ def fidelity(
     err = np.linalg.norm(shape_a - shape_b, axis=2).mean(axis=1)
     n = pos.shape[1]
     pick = np.unique(np.linspace(0, n - 1, min(n, dtw_nodes)).round().astype(int))
-    d = np.asarray(dtw(pos[:, pick], ideal[:, pick]))
-    r = np.asarray(dtw_normalised(d, period, (len(pos) - 1) * period or period))
+    # over the physics time both runs cover (a run whose triggers slowed down, like a
+    # stalled Lock-Step, flies less; its trigger rate reports that, not its DTW)
+    d = np.asarray(dtw(a[:, pick], b[:, pick]))
+    r = np.asarray(dtw_normalised(d, period, (t - 1) * period))
     return {
         "formation_err_mean": float(err.mean()),
         "formation_err_max": float(err.max()),
