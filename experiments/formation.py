@@ -37,9 +37,10 @@ Metrics (per method and for the ideal run):
 * ``conv_h_s`` / ``conv_v_s`` — convergence time of a follower: the first time
   after which its horizontal (vertical) distance to its slot stays below
   ``--h-threshold`` (5 m) / ``--v-threshold`` (2 m) until the end of the
-  *convergence window*, which ends at the leader's first turn (course more than
-  15° off its initial course — at a corner of the rectangle every slot swings
-  round, and the followers leave it for a while) or at the end of the flight.
+  *convergence window*, which ends where the leader's first turn begins (the last
+  time its course is within 1° of the initial course before it turns more than
+  15° — at a corner of the rectangle every slot swings round, and the followers
+  leave it for a while) or at the end of the flight.
   NaN = not converged within the window. Reported per follower
   (``conv_h_s.node<i>``), as mean and max over followers, and as the fraction of
   followers that converged;
@@ -127,6 +128,7 @@ NETWORKS: dict[str, tuple[Path | None, tuple[str, ...]]] = {
                      'net.server_link.latency={dist="constant", value=0.0}')),
 }
 TURN_DEG = 15.0
+TURN_START_DEG = 1.0
 COLORS = {**common.COLORS, IDEAL: "#000000"}
 UNITS = {"conv_h_s": "s", "conv_v_s": "s", "conv_h_s_mean": "s", "conv_h_s_max": "s",
          "conv_v_s_mean": "s", "conv_v_s_max": "s", "converged_h_frac": "",
@@ -234,9 +236,13 @@ def window_end(t: Array, course: Array) -> float:
         return float(t[-1]) if len(t) else 0.0
     c0 = course[min(len(course) - 1, 3)]                 # initial course (skip edge samples)
     dev = np.abs((course - c0 + np.pi) % (2 * np.pi) - np.pi)
-    off = np.nonzero(dev > math.radians(TURN_DEG))[0]
-    off = off[t[off] > 1.0]
-    return float(t[off[0]]) if off.size else float(t[-1])
+    off = np.nonzero((dev > math.radians(TURN_DEG)) & (t > 1.0))[0]
+    if not off.size:
+        return float(t[-1])
+    # Back to where that turn began (course within TURN_START_DEG of the initial one):
+    # the slots start to swing as soon as the leader banks.
+    calm = np.nonzero(dev[: off[0]] <= math.radians(TURN_START_DEG))[0]
+    return float(t[calm[-1]]) if calm.size else float(t[off[0]])
 
 
 def convergence_time(t: Array, d: Array, threshold: float, t_end: float) -> float:
@@ -392,7 +398,7 @@ def write_outputs(args: argparse.Namespace, runs: list[dict[str, Any]], params: 
         "network": args.network,
         "start": {"mode": args.start, "offset_h_m": args.offset[0], "offset_v_m": args.offset[1]},
         "thresholds": {"horizontal_m": args.h_threshold, "vertical_m": args.v_threshold,
-                       "turn_deg": TURN_DEG},
+                       "turn_deg": TURN_DEG, "turn_start_deg": TURN_START_DEG},
         "match_flight": bool(args.match_flight),
         "paper": PAPER,
         "formation_parameters": params,
