@@ -149,8 +149,9 @@ samples (render tick × node).
   synchronisation and discovery costs we do not model); our barrier costs one round
   trip through a lightly loaded broker on a LAN with no loss and 0.8 ms steps, so
   the barrier completes well within the 10 ms frame. Lock-Step degrades in our model
-  when rounds get slow — loss, stragglers, a saturated broker (see the 1000-node,
-  latency-tolerance and fault studies).
+  when rounds get slow — loss, stragglers, crashes (see the latency-tolerance and
+  fault studies); on a saturated broker (1000 nodes) its blocking even helps, pacing
+  the triggers to what the broker can serve.
 * *Latency.* Our state latency is the model's publish → server delivery (two LAN
   hops of 0.25 ms, serialization, broker service) — the paper's 3.5 ms includes
   the real software stack (Python MQTT clients, OS scheduling) that we represent
