@@ -33,6 +33,7 @@ __all__ = [
 ]
 
 OBS_WIDTH = 12
+_Record = tuple[int, float, NDArray[np.float64]]  # (frame, generation time, obs)
 _RECORD_BYTES = OBS_WIDTH * 8 + 8 + 8  # obs + frame + generation time
 
 
@@ -174,12 +175,15 @@ class LockstepAligner(Aligner):
         self._done_has = np.zeros(n, dtype=np.bool_)
         self._dirty = False
         self.evicted = 0
+        self.rejoined = 0
         self.rerequests = 0
+        self._missing = 0
 
     def on_trigger(self, frame: int, t: float) -> None:
         self.current = frame
         self.complete = False
         self._got[:] = False
+        self._missing = int(self.live.sum())  # a counter: O(1) per arrival, not O(n)
         spec = self.sc.lockstep
         self.ctx.call_at(t + spec.retry_timeout, self._retry, frame, 1)
         if spec.eviction_timeout > 0:
@@ -194,15 +198,22 @@ class LockstepAligner(Aligner):
         obs: NDArray[np.float64],
         stamp: Stamp | None,
     ) -> None:
-        if frame != self.current or self.complete or self._got[node] or not self.live[node]:
+        if not self.live[node] and frame == self.current:
+            # an evicted node that has caught up (delivers the newest frame) rejoins; it
+            # counts from this frame if the barrier still waits, else from the next one
+            self.live[node] = True
+            self.rejoined += 1
+            self._missing += 1
+        if frame != self.current or self.complete or self._got[node]:
             return
+        self._missing -= 1
         self._got[node] = True
         self._gen[node] = gen
         self._obs[node] = obs
         self._check_complete()
 
     def _check_complete(self) -> None:
-        if self.complete or not self._got[self.live].all():
+        if self.complete or self._missing > 0:
             return
         self.complete = True
         got = self._got
@@ -230,6 +241,7 @@ class LockstepAligner(Aligner):
         missing = self.live & ~self._got
         self.evicted += int(missing.sum())
         self.live &= ~missing
+        self._missing = 0
         self._check_complete()
 
     def align(self, t: float) -> None:
@@ -287,7 +299,7 @@ class HLCAligner(Aligner):
         self._note_memory()
         changed = False
         for _stamp, node, item in self.buffer.release():
-            frame, gen, obs = typing.cast(tuple[int, float, NDArray[np.float64]], item)
+            frame, gen, obs = typing.cast(_Record, item)
             if frame > self.shown_frame[node]:
                 self.shown_frame[node] = frame
                 self.shown_gen[node] = gen

@@ -60,6 +60,7 @@ METRIC_UNITS: dict[str, str] = {
     "rollbacks": "count",
     "resim_steps": "count",
     "evicted": "count",
+    "rejoined": "count",
     "rerequests": "count",
     "history_misses": "count",
     "formation_err_mean": "m",
@@ -117,6 +118,8 @@ class Collector:
         """Trigger ``k`` was issued at ``t``."""
         if t >= self.w0:
             self.triggers += 1
+            # the rate in force for this trigger (a rate set before the window counts too)
+            self.f_trig_min = min(self.f_trig_min, 1.0 / dt)
 
     def rate_change(self, t: float, f: float) -> None:
         """The trigger rate changed to ``f``."""
@@ -236,6 +239,7 @@ class Collector:
         m["rollbacks"] = run.rollbacks
         m["resim_steps"] = run.resim_steps
         m["evicted"] = getattr(run.aligner, "evicted", 0)
+        m["rejoined"] = getattr(run.aligner, "rejoined", 0)
         m["rerequests"] = getattr(run.aligner, "rerequests", 0)
         m["history_misses"] = run.history_misses
         links_mbps = {ld.name: ld.bytes * 8 / window / 1e6 for ld in links}

@@ -128,3 +128,37 @@ def test_lockstep_eviction_unblocks_a_crashed_node() -> None:
     assert run2.latest_trigger < run.latest_trigger
     assert out2["metrics"]["stalls"] >= 1
     assert out["metrics"]["trigger_rate_hz"] > out2["metrics"]["trigger_rate_hz"]
+
+
+def test_lockstep_evicted_straggler_rejoins() -> None:
+    from sigma_des.events.engine import MethodRun
+    from sigma_des.factory import make_behaviour, make_dynamics
+
+    # node 1 is 20x slow for 0.2 s: 40 ms per step > the 25 ms eviction timeout
+    sc = tiny(**{"lockstep.eviction_timeout": 0.025,
+                 "faults": [{"kind": "slow", "node": 1, "start": 0.3, "end": 0.5,
+                             "factor": 20.0}]})
+    run = MethodRun(sc, "lockstep", make_dynamics(sc), make_behaviour(sc))
+    m = run.run()["metrics"]
+    al = run.aligner
+    assert al.evicted >= 1  # type: ignore[attr-defined]
+    assert al.rejoined >= 1  # type: ignore[attr-defined]
+    assert bool(al.live.all())  # type: ignore[attr-defined]
+    # after the slow window the barrier runs at the full rate again
+    k, H = run.latest_trigger, sc.history_frames
+    assert run.trig_time[k % H] - run.trig_time[(k - 1) % H] == pytest.approx(0.010, abs=1e-12)
+    assert m["evicted"] == al.evicted  # type: ignore[attr-defined]
+
+
+
+def test_f_trig_min_counts_a_rate_set_before_the_window() -> None:
+    from sigma_des.events.engine import MethodRun
+    from sigma_des.factory import make_behaviour, make_dynamics
+
+    sc = tiny(**{"warmup": 0.5, "bides.adaptation": False})
+    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))
+    run.start()
+    run.kernel.run(0.1)
+    run.set_rate(50.0)  # lowered before the metrics window opens, and kept
+    run._advance(None)
+    assert run.collector.finish(run)["metrics"]["f_trig_min_hz"] == 50.0
