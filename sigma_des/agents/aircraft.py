@@ -89,7 +89,7 @@ class GeneralAircraft:
             if bad:
                 raise ConfigError(f"{p.name}.{bad[0]}",
                                   f"unknown parameter; allowed: {sorted(known)}")
-            p = dataclasses.replace(p, **overrides)
+            p = dataclasses.replace(p, **overrides)  # type: ignore[arg-type]
         self.params = p
         self.name = p.name
         self.wind = wind or WindConfig()

@@ -100,5 +100,5 @@ def normals(key: np.uint64, a: np.int64, b: np.int64, k: int) -> np.ndarray:
     h2 = absorb(absorb(key, a), b)
     out = np.empty(k)
     for j in range(k):
-        out[j] = normal_at(h2, j)
+        out[j] = normal_at(h2, j)  # type: ignore[arg-type]
     return out

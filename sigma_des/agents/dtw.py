@@ -42,7 +42,7 @@ def _dtw(a: np.ndarray, b: np.ndarray) -> float:
                 best = cur[j - 1]
             cur[j] = math.sqrt(d) + best
         prev, cur = cur, prev
-    return prev[m]
+    return float(prev[m])
 
 
 def dtw(a: ArrayLike, b: ArrayLike) -> float | NDArray[np.float64]:

@@ -140,7 +140,7 @@ def _sensor_kernel(state: np.ndarray, nodes: np.ndarray, frame: np.int64, prm: n
         h2 = absorb(absorb(key, nodes[i]), frame)
         for c in range(16):
             out[i, c] = ((1.0 + cal[i, 16 + c]) * ideal[c] + cal[i, c]
-                         + tab[c, 0] * normal_at(h2, c))
+                         + tab[c, 0] * normal_at(h2, c))  # type: ignore[arg-type]
         nrot = int(prm[L.NROT])
         om = 0.0
         for j in range(nrot):

@@ -131,7 +131,7 @@ def turbulence_update(x: np.ndarray, prm: np.ndarray, key: np.uint64, node: np.i
     auv = math.exp(-spd * dt / luv)
     aw = math.exp(-spd * dt / lw)
     h2 = absorb(absorb(key, node), frame)
-    e0, e1, e2 = normal_at(h2, 0), normal_at(h2, 1), normal_at(h2, 2)
+    e0, e1, e2 = normal_at(h2, 0), normal_at(h2, 1), normal_at(h2, 2)  # type: ignore[arg-type]
     kuv = suv * math.sqrt(1.0 - auv * auv)
     x[L.TU] = auv * x[L.TU] + kuv * e0
     x[L.TV] = auv * x[L.TV] + kuv * e1
