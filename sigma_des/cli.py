@@ -53,6 +53,9 @@ def _parser() -> argparse.ArgumentParser:
         "--out", default=None, metavar="DIR", help="write results.csv and summary.json here"
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="run up to N methods at once in worker processes (default 1; "
+                   "results are identical)")
 
     g = sub.add_parser("config", help="print the resolved scenario as TOML")
     scenario_args(g)
@@ -87,7 +90,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise ConfigError(
                         "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
                     )
-        res = compare(sc, methods, progress=not args.no_progress)
+        res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2

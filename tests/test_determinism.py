@@ -39,3 +39,19 @@ def test_draws_do_not_depend_on_request_order() -> None:
     backward = [float(s.uniform(2, i, 5, 0)[0]) for i in reversed(range(10))][::-1]
     vector = s.uniform(2, list(range(10)), 5, 0).tolist()
     assert forward == backward == vector
+
+
+def test_parallel_methods_give_identical_results() -> None:
+    a = compare(SC, ["none", "hlc", "bides"], progress=False)
+    b = compare(SC, ["none", "hlc", "bides"], progress=False, jobs=2)
+    assert list(b.methods) == ["none", "hlc", "bides"]
+    assert _rows(a) == _rows(b)
+
+
+def test_jobs_must_be_positive() -> None:
+    import pytest
+
+    from sigma_des import ConfigError
+
+    with pytest.raises(ConfigError, match="jobs"):
+        compare(SC, ["none"], progress=False, jobs=0)
