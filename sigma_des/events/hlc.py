@@ -102,7 +102,9 @@ class StabilityBuffer:
         self._max_c = np.zeros(self.n, dtype=np.int64)
         self._has = np.zeros(self.n, dtype=np.bool_)
         self._live = np.ones(self.n, dtype=np.bool_)
-        self._heap: list[tuple[float, int, int, int, object]] = []
+        # newest (l, c) per node as plain tuples: the per-message path avoids numpy scalars
+        self._max_key: list[tuple[float, int] | None] = [None] * self.n
+        self._heap: list[tuple[float, int, int, int, Stamp, object]] = []
         self._seq = 0
         self.peak = 0
 
@@ -112,14 +114,20 @@ class StabilityBuffer:
 
     def add(self, node: int, stamp: Stamp, item: object) -> None:
         """Record that ``node`` sent something stamped ``stamp`` and buffer ``item``."""
-        self._check(node)
-        if not self._has[node] or (stamp.l, stamp.c) > (self._max_l[node], self._max_c[node]):
+        if not 0 <= node < self.n:
+            self._check(node)
+        key = (stamp.l, stamp.c)
+        cur = self._max_key[node]
+        if cur is None or key > cur:
+            self._max_key[node] = key
             self._max_l[node] = stamp.l
             self._max_c[node] = stamp.c
             self._has[node] = True
-        heapq.heappush(self._heap, (stamp.l, stamp.c, node, self._seq, item))
+        heap = self._heap
+        heapq.heappush(heap, (stamp.l, stamp.c, node, self._seq, stamp, item))
         self._seq += 1
-        self.peak = max(self.peak, len(self._heap))
+        if len(heap) > self.peak:
+            self.peak = len(heap)
 
     def set_live(self, node: int, live: bool) -> None:
         """Mark ``node`` live (it blocks the bound) or dead (it does not)."""
@@ -155,8 +163,8 @@ class StabilityBuffer:
         key = (b.l, b.c)
         heap = self._heap
         while heap and (heap[0][0], heap[0][1]) <= key:
-            l_, c_, node, _, item = heapq.heappop(heap)
-            out.append((Stamp(l_, c_), node, item))
+            entry = heapq.heappop(heap)
+            out.append((entry[4], entry[2], entry[5]))
         return out
 
     def __len__(self) -> int:
