@@ -504,8 +504,9 @@ pre-fault median. Means over seeds.
 * *Degraded host.* Lost packets on the stream transport are resent after RTO with
   back-off and block their connections, so the affected host's states arrive in
   bursts. Lock-Step stalls on every hole; with eviction it drops the affected host's
-  nodes — and, in our engine, an evicted node never rejoins, so `lockstep_evict`
-  carries on after the window with fewer nodes. HLC waits for the slow host. BiDES
+  nodes during the window, and each rejoins once it delivers the frame the barrier
+  is waiting for (after the window, when its connection has drained), so
+  `lockstep_evict` recovers to the full swarm. HLC waits for the slow host. BiDES
   excludes the late nodes during the window, keeps showing the other hosts' nodes at the
   full rate and takes the late ones back when they catch up; the affected nodes' own
   states are still late (head-of-line blocking drains for a while after the window), so
