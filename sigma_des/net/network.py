@@ -170,6 +170,11 @@ class Network:
         self._cls = [0] * self.n + [1]
         self._lat_l = [[self._lat[c, False], self._lat[c, True]] for c in (False, True)]
         self._u_l = [[self._u[c, False], self._u[c, True]] for c in (False, True)]
+        self._in_order: list[list[bool]] = []
+        for _c, spec in ((False, net.host_link), (True, net.server_link)):
+            ordered = (spec.latency.dist == "constant" and spec.loss.model == "bernoulli"
+                       and spec.loss.p == 0.0 and not self._degrade and not self.forced_drops)
+            self._in_order.append([ordered, ordered])
         self._p_const: list[list[float | None]] = []
         for c, spec in ((False, net.host_link), (True, net.server_link)):
             dyn = spec.loss.model != "bernoulli" or (
@@ -286,7 +291,9 @@ class Network:
         """Send one packet with the configured transport; ``on_arrive(*args)`` runs
         at its application-level arrival. Returns (first-try arrival, first-try lost)."""
         arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
-        if self.datagram:
+        if self.datagram or self._in_order[self._cls[client]][up]:
+            # a stream on a lossless constant-latency link is already in order (FIFO
+            # serialization + equal latency): the in-order bookkeeping would change nothing
             if not lost:
                 self.k.at(arr, on_arrive, *args)
             return arr, lost
