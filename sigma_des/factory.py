@@ -28,6 +28,6 @@ def make_behaviour(sc: Scenario) -> Behaviour | None:
     try:
         return _make_behaviour(sc.commands.behaviour)
     except ConfigError as e:
-        raise ConfigError("commands.behaviour", e.reason) from None
+        raise ConfigError("commands.behaviour", f"{e.reason}, or 'none'") from None
     except ValueError as e:
         raise ConfigError("commands.behaviour", str(e)) from None
