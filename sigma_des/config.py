@@ -25,7 +25,20 @@ import tomli_w
 from sigma_des.errors import ConfigError
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
-from sigma_des.net.loss import LossSpec
+from sigma_des.specs import (
+    BidesSpec,
+    BrokerSpec,
+    CommandSpec,
+    ComputeSpec,
+    FaultSpec,
+    FidelitySpec,
+    HLCSpec,
+    LinkSpec,
+    LockstepSpec,
+    NetSpec,
+    require,
+    require_positive,
+)
 
 __all__ = [
     "BidesSpec",
@@ -51,286 +64,6 @@ __all__ = [
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
 DYNAMICS_BUILTIN: tuple[str, ...] = ("pointmass", "quadrotor", "fixedwing")
-
-
-def _check(cond: bool, key: str, reason: str) -> None:
-    if not cond:
-        raise ConfigError(key, reason)
-
-
-def _positive(obj: Any, *names: str) -> None:
-    for n in names:
-        v = getattr(obj, n)
-        _check(v > 0 and math.isfinite(v), n, f"must be a finite number > 0, got {v}")
-
-
-def _nonneg(obj: Any, *names: str) -> None:
-    for n in names:
-        v = getattr(obj, n)
-        _check(v >= 0, n, f"must be >= 0, got {v}")
-
-
-@dataclass(frozen=True)
-class LinkSpec:
-    """A host's access link to the broker (both directions alike).
-
-    Attributes:
-        latency: base one-way latency distribution of a packet on this link (s).
-        bandwidth_mbps: link rate; serialization = wire bits / rate, FIFO per direction.
-        loss: packet loss model of this link.
-    """
-
-    latency: Dist = field(default_factory=lambda: Dist(dist="constant", value=0.00025))
-    bandwidth_mbps: float = 1000.0
-    loss: LossSpec = field(default_factory=LossSpec)
-
-    def __post_init__(self) -> None:
-        _positive(self, "bandwidth_mbps")
-
-
-@dataclass(frozen=True)
-class NetSpec:
-    """Network: per-link impairments, transport, MQTT QoS and framing overheads.
-
-    Attributes:
-        host_link: links of the physics hosts.
-        server_link: link of the server host (interface + alignment server + renderer).
-        transport: ``datagram`` (a lost packet is gone) or ``stream`` (TCP-like).
-        qos: MQTT QoS, 0 or 1.
-        rto: stream transport: retransmission timeout of a lost segment (s).
-        qos1_timeout: datagram + QoS 1: resend with DUP if no PUBACK after this (s).
-        max_retries: resends of one packet before giving up (stream and QoS 1).
-        tcpip_bytes: TCP/IP header bytes per packet.
-        ethernet_bytes: Ethernet framing bytes per packet (header, FCS, preamble, gap).
-        topic_bytes: MQTT topic length in bytes.
-    """
-
-    host_link: LinkSpec = field(default_factory=LinkSpec)
-    server_link: LinkSpec = field(default_factory=LinkSpec)
-    transport: str = "stream"
-    qos: int = 1
-    rto: float = 0.2
-    qos1_timeout: float = 0.1
-    max_retries: int = 5
-    tcpip_bytes: int = 40
-    ethernet_bytes: int = 38
-    topic_bytes: int = 8
-
-    def __post_init__(self) -> None:
-        _check(
-            self.transport in ("datagram", "stream"),
-            "transport",
-            f"must be 'datagram' or 'stream', got {self.transport!r}",
-        )
-        _check(self.qos in (0, 1), "qos", f"must be 0 or 1, got {self.qos}")
-        _positive(self, "rto", "qos1_timeout")
-        _nonneg(self, "max_retries", "tcpip_bytes", "ethernet_bytes")
-        _check(
-            1 <= self.topic_bytes <= 65535,
-            "topic_bytes",
-            f"must be in 1..65535, got {self.topic_bytes}",
-        )
-
-
-@dataclass(frozen=True)
-class BrokerSpec:
-    """Single-threaded MQTT broker: service time per inbound PUBLISH and per delivery."""
-
-    publish_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=4e-6))
-    delivery_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=3e-6))
-
-
-@dataclass(frozen=True)
-class ComputeSpec:
-    """Per-node computation: one physics step's CPU time, contending for host cores."""
-
-    step_time: Dist = field(default_factory=lambda: Dist(dist="lognormal", mean=0.0008, std=0.0002))
-
-
-@dataclass(frozen=True)
-class LockstepSpec:
-    """Lock-Step barrier parameters.
-
-    Attributes:
-        retry_timeout: after this long without a node's state of frame k, re-request it (s).
-        eviction_timeout: evict a node missing this long after trigger k (s); 0 = never.
-    """
-
-    retry_timeout: float = 0.05
-    eviction_timeout: float = 0.0
-
-    def __post_init__(self) -> None:
-        _positive(self, "retry_timeout")
-        _nonneg(self, "eviction_timeout")
-
-
-@dataclass(frozen=True)
-class HLCSpec:
-    """HLC consumer: a node silent this long is treated as dead (0 = never)."""
-
-    liveness_timeout: float = 0.5
-
-    def __post_init__(self) -> None:
-        _nonneg(self, "liveness_timeout")
-
-
-@dataclass(frozen=True)
-class BidesSpec:
-    """BiDES parts and parameters (each part can be switched off).
-
-    Attributes:
-        ring_size: K, states kept per node by the alignment server.
-        hole_fill: fill a frame missing from a node's buffer from neighbouring frames.
-        lag_exclusion: leave out of the minimum nodes lagging more than ``theta_lag``.
-        theta_lag: Θ_lag in frames.
-        adaptation: adapt ``f_trig`` to the alignment lag.
-        lag_high: lower ``f_trig`` when (latest trigger − aligned frame) > this for
-            ``hold_down`` consecutive alignment ticks.
-        lag_low: raise it again when the lag < this for ``hold_up`` consecutive ticks.
-        rate_down: factor applied when lowering (0 < x < 1).
-        rate_up: factor applied when raising (> 1), capped at the nominal ``f_trig``.
-        f_trig_min: lowest trigger rate (Hz).
-        hold_down: consecutive ticks over ``lag_high`` before lowering.
-        hold_up: consecutive ticks under ``lag_low`` before raising.
-        time_warp: roll a node back when a command is more than ``theta_warp`` behind.
-        theta_warp: Θ_warp in frames.
-    """
-
-    ring_size: int = 30
-    hole_fill: bool = True
-    lag_exclusion: bool = True
-    theta_lag: int = 3
-    adaptation: bool = True
-    lag_high: int = 10
-    lag_low: int = 4
-    rate_down: float = 0.8
-    rate_up: float = 1.1
-    f_trig_min: float = 10.0
-    hold_down: int = 3
-    hold_up: int = 30
-    time_warp: bool = True
-    theta_warp: int = 10
-
-    def __post_init__(self) -> None:
-        _check(
-            2 <= self.ring_size <= 100_000,
-            "ring_size",
-            f"must be in 2..100000, got {self.ring_size}",
-        )
-        _check(self.theta_lag >= 1, "theta_lag", f"must be >= 1 frame, got {self.theta_lag}")
-        _check(self.lag_high >= 1, "lag_high", f"must be >= 1 frame, got {self.lag_high}")
-        _check(
-            0 <= self.lag_low <= self.lag_high,
-            "lag_low",
-            f"must be in 0..lag_high ({self.lag_high}), got {self.lag_low}",
-        )
-        _check(0 < self.rate_down < 1, "rate_down", f"must be in (0, 1), got {self.rate_down}")
-        _check(
-            self.rate_up > 1 and math.isfinite(self.rate_up),
-            "rate_up",
-            f"must be > 1, got {self.rate_up}",
-        )
-        _positive(self, "f_trig_min")
-        _check(self.hold_down >= 1, "hold_down", f"must be >= 1, got {self.hold_down}")
-        _check(self.hold_up >= 1, "hold_up", f"must be >= 1, got {self.hold_up}")
-        _check(self.theta_warp >= 0, "theta_warp", f"must be >= 0, got {self.theta_warp}")
-
-
-@dataclass(frozen=True)
-class CommandSpec:
-    """Behaviour commands sent from the server back to the physics nodes.
-
-    Attributes:
-        enabled: send commands at all.
-        behaviour: behaviour name (see ``sigma_des.agents`` registry).
-        every: send at every ``every``-th alignment tick.
-        payload_bits: command payload size.
-    """
-
-    enabled: bool = True
-    behaviour: str = "formation"
-    every: int = 3
-    payload_bits: int = 96
-
-    def __post_init__(self) -> None:
-        _check(self.every >= 1, "every", f"must be >= 1, got {self.every}")
-        _check(self.payload_bits >= 0, "payload_bits", f"must be >= 0, got {self.payload_bits}")
-
-
-@dataclass(frozen=True)
-class FidelitySpec:
-    """Swarm fidelity against an ideal run (zero latency, perfect alignment).
-
-    Attributes:
-        enabled: fly the ideal run and compute formation error and DTW.
-        log_rate: trajectory sampling rate (Hz of physics time; the paper: 30 Hz).
-        dtw_nodes: DTW is averaged over at most this many evenly spread nodes.
-    """
-
-    enabled: bool = True
-    log_rate: float = 30.0
-    dtw_nodes: int = 50
-
-    def __post_init__(self) -> None:
-        _positive(self, "log_rate")
-        _check(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
-
-
-FAULT_KINDS = ("crash", "slow", "degrade", "drop")
-DROP_MESSAGES = ("trigger", "state", "command")
-
-
-@dataclass(frozen=True)
-class FaultSpec:
-    """An injected fault.
-
-    Attributes:
-        kind: ``crash`` (node stops for good at ``start``), ``slow`` (node's steps take
-            ``factor`` times longer in [start, end)), ``degrade`` (host link gets
-            ``extra_delay`` seconds and ``extra_loss`` probability in [start, end)),
-            ``drop`` (the first transmission of one message on its broker-to-receiver
-            hop is lost: ``message`` of ``node`` for ``frame``; for commands ``frame``
-            is the alignment tick number).
-        node: target node of crash/slow/drop.
-        host: target host of degrade.
-        start: start time (s).
-        end: end time (s); inf = until the end.
-        factor: slow-down factor (>= 1).
-        extra_delay: extra one-way delay (s).
-        extra_loss: extra loss probability in [0, 1).
-        message: ``drop``: ``trigger``, ``state`` or ``command``.
-        frame: ``drop``: frame (or command tick) of the dropped message.
-    """
-
-    kind: str = "crash"
-    node: int = -1
-    host: int = -1
-    start: float = 0.0
-    end: float = math.inf
-    factor: float = 1.0
-    extra_delay: float = 0.0
-    extra_loss: float = 0.0
-    message: str = "state"
-    frame: int = -1
-
-    def __post_init__(self) -> None:
-        _check(self.kind in FAULT_KINDS, "kind", f"must be one of {FAULT_KINDS}, got {self.kind!r}")
-        _check(self.start >= 0, "start", f"must be >= 0 s, got {self.start}")
-        _check(self.end > self.start, "end", f"must be > start ({self.start}), got {self.end}")
-        _check(self.factor >= 1, "factor", f"must be >= 1, got {self.factor}")
-        _nonneg(self, "extra_delay")
-        _check(0 <= self.extra_loss < 1, "extra_loss", f"must be in [0, 1), got {self.extra_loss}")
-        _check(
-            self.message in DROP_MESSAGES,
-            "message",
-            f"must be one of {DROP_MESSAGES}, got {self.message!r}",
-        )
-        if self.kind == "drop":
-            _check(self.frame >= 0, "frame", f"a drop fault needs frame >= 0, got {self.frame}")
-        if self.kind in ("crash", "slow", "drop"):
-            _check(self.node >= 0, "node", f"a {self.kind} fault needs node >= 0")
-        else:
-            _check(self.host >= 0, "host", "a degrade fault needs host >= 0")
 
 
 @dataclass(frozen=True)
@@ -386,60 +119,60 @@ class Scenario:
     faults: tuple[FaultSpec, ...] = ()
 
     def __post_init__(self) -> None:
-        _check(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
-        _check(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
-        _check(
+        require(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
+        require(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
+        require(
             1 <= self.hosts <= self.nodes,
             "hosts",
             f"must be in 1..nodes ({self.nodes}), got {self.hosts}",
         )
-        _check(
+        require(
             self.cores_per_host >= 1, "cores_per_host", f"must be >= 1, got {self.cores_per_host}"
         )
-        _check(
+        require(
             self.placement in ("block", "round_robin"),
             "placement",
             f"must be 'block' or 'round_robin', got {self.placement!r}",
         )
-        _positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
-        _check(
+        require_positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
+        require(
             0 <= self.warmup < self.duration,
             "warmup",
             f"must be in [0, duration={self.duration}), got {self.warmup}",
         )
-        _check(self.payload_bits >= 1, "payload_bits", f"must be >= 1, got {self.payload_bits}")
-        _check(
+        require(self.payload_bits >= 1, "payload_bits", f"must be >= 1, got {self.payload_bits}")
+        require(
             self.trigger_payload_bits >= 0,
             "trigger_payload_bits",
             f"must be >= 0, got {self.trigger_payload_bits}",
         )
-        _check(
+        require(
             self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
             "dynamics",
             f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
         )
-        _check(self.engine in ("events",), "engine", f"must be 'events', got {self.engine!r}")
-        _check(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
+        require(self.engine in ("events",), "engine", f"must be 'events', got {self.engine!r}")
+        require(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
         for m in self.methods:
-            _check(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
-        _check(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
-        _check(
+            require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
+        require(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
+        require(
             self.history_frames >= 16, "history_frames", f"must be >= 16, got {self.history_frames}"
         )
-        _check(
+        require(
             self.bides.f_trig_min <= self.f_trig,
             "bides.f_trig_min",
             f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}",
         )
         for i, f in enumerate(self.faults):
             if f.kind in ("crash", "slow", "drop"):
-                _check(
+                require(
                     f.node < self.nodes,
                     f"faults[{i}].node",
                     f"must be in 0..{self.nodes - 1}, got {f.node}",
                 )
             else:
-                _check(
+                require(
                     f.host < self.hosts,
                     f"faults[{i}].host",
                     f"must be in 0..{self.hosts - 1}, got {f.host}",
