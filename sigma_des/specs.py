@@ -33,17 +33,20 @@ __all__ = [
 
 
 def require(cond: bool, key: str, reason: str) -> None:
+    """Raise ``ConfigError(key, reason)`` unless ``cond``."""
     if not cond:
         raise ConfigError(key, reason)
 
 
 def require_positive(obj: Any, *names: str) -> None:
+    """Each named field of ``obj`` must be a finite number > 0."""
     for n in names:
         v = getattr(obj, n)
         require(v > 0 and math.isfinite(v), n, f"must be a finite number > 0, got {v}")
 
 
 def require_nonneg(obj: Any, *names: str) -> None:
+    """Each named field of ``obj`` must be >= 0."""
     for n in names:
         v = getattr(obj, n)
         require(v >= 0, n, f"must be >= 0, got {v}")
