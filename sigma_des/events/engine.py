@@ -194,6 +194,15 @@ class MethodRun:
         self.collector.trigger(t, k, dt)
         self.aligner.on_trigger(k, t)
         stamp = self.server_hlc.send(t) if self.use_hlc else None
+        self._send_trigger(k, stamp)
+        if self.method != "lockstep":
+            if self.f_trig != self._base[2]:  # the rate changed: count periods from here
+                self._base = (t, k, self.f_trig)
+            t0, k0, f = self._base
+            self.kernel.at(t0 + (k + 1 - k0) / f, self._issue, priority=TRIGGER)
+
+    def _send_trigger(self, k: int, stamp: Stamp | None) -> None:
+        """Publish trigger ``k`` to every node (a hook the cohort engine overrides)."""
         self.net.publish(
             self.server,
             K_TRIGGER,
@@ -203,11 +212,6 @@ class MethodRun:
             self.sc.trigger_payload_bits,
             self.all_nodes,
         )
-        if self.method != "lockstep":
-            if self.f_trig != self._base[2]:  # the rate changed: count periods from here
-                self._base = (t, k, self.f_trig)
-            t0, k0, f = self._base
-            self.kernel.at(t0 + (k + 1 - k0) / f, self._issue, priority=TRIGGER)
 
     # ------------------------------------------------------------ physics nodes
 
@@ -349,10 +353,14 @@ class MethodRun:
         )
         cmds = self.behaviour.commands(view, self.dyn)
         ok = ~np.isnan(cmds).all(axis=1)  # NaN cells mean 'keep'; an all-NaN row, 'none'
-        tick = self.align_tick
+        self._send_command_batch(self.align_tick, al.aligned_frame, np.flatnonzero(ok), cmds)
+
+    def _send_command_batch(
+        self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
+    ) -> None:
+        """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
         bits = self.sc.commands.payload_bits
-        stamp = al.aligned_frame
-        for i in np.flatnonzero(ok).tolist():
+        for i in nodes.tolist():
             self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
 
     def _render(self) -> None:
@@ -414,11 +422,23 @@ class MethodRun:
         return self.collector.finish(self)
 
     def _advance(self, progress: Callable[[float], None] | None) -> None:
+        """Process every event at a time ``< duration`` (nothing at exactly ``duration``).
+
+        The strict bound is part of the model: which events a run covers must not
+        depend on how an engine breaks ties at the end time.
+        """
         k = self.kernel
+        env = k.env
         dur = self.sc.duration
         t = 0.0
         while t < dur:
             t = min(dur, t + 1.0)
-            k.run(until=t)
+            if t < dur:
+                # events at exactly t left behind by run(until) are still processed
+                # first by the next call (same heap order), so the split is invisible
+                k.run(until=t)
+            else:
+                while env.peek() < dur:
+                    env.step()
             if progress is not None:
                 progress(t)
