@@ -63,6 +63,7 @@ __all__ = [
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
+ENGINES: tuple[str, ...] = ("cohort", "events")
 DYNAMICS_BUILTIN: tuple[str, ...] = ("pointmass", "quadrotor", "fixedwing")
 
 
@@ -84,7 +85,10 @@ class Scenario:
         payload_bits: state payload size (the paper: 150 bits).
         trigger_payload_bits: trigger payload size.
         dynamics: ``pointmass``, ``quadrotor``, ``fixedwing`` or ``jsbsim:<model>``.
-        engine: ``events`` (per-message SimPy engine).
+        engine: ``cohort`` (messages in a compiled core; features it does not
+            reproduce fall back to the per-message engine per method) or ``events``
+            (the per-message SimPy engine, the executable specification). Both give
+            identical results, so the engine is not part of the config hash.
         methods: alignment methods to run side by side.
         history_frames: true states kept per node for consistency metrics.
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
@@ -151,7 +155,9 @@ class Scenario:
             "dynamics",
             f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
         )
-        require(self.engine in ("events",), "engine", f"must be 'events', got {self.engine!r}")
+        require(
+            self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
+        )
         require(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
         for m in self.methods:
             require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
@@ -277,10 +283,11 @@ def to_toml(s: Scenario) -> str:
 
 
 def config_hash(s: Scenario) -> str:
-    """Stable 12-hex-digit hash of everything but the seed and the method list."""
+    """Stable 12-hex-digit hash of everything but the seed, the methods and the engine."""
     d = to_dict(s)
     d.pop("seed")
     d.pop("methods")
+    d.pop("engine")
     blob = json.dumps(d, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:12]
 

@@ -105,6 +105,26 @@ class Aligner:
         """A state of ``node`` for ``frame`` (generated at ``gen``) arrived at ``t``."""
         raise NotImplementedError
 
+    def on_states(
+        self,
+        t: NDArray[np.float64],
+        nodes: NDArray[np.int64],
+        frames: NDArray[np.int64],
+        gens: NDArray[np.float64],
+        obs: NDArray[np.float64],
+        hlc_l: NDArray[np.float64],
+        hlc_c: NDArray[np.int64],
+    ) -> None:
+        """A batch of :meth:`on_state` calls, in arrival order (the cohort engine's path).
+
+        Subclasses override it with a vectorised equivalent; ``hlc_l``/``hlc_c`` are
+        the stamps' parts (meaningful for HLC only).
+        """
+        for j in range(nodes.size):
+            self.on_state(
+                float(t[j]), int(nodes[j]), int(frames[j]), float(gens[j]), obs[j].copy(), None
+            )
+
     def align(self, t: float) -> None:
         """Refresh the shown snapshot (alignment tick)."""
         raise NotImplementedError
@@ -142,6 +162,30 @@ class NoneAligner(Aligner):
             self._frame[node] = frame
             self._gen[node] = gen
             self._obs[node] = obs
+            self._dirty = True
+
+    def on_states(
+        self,
+        t: NDArray[np.float64],
+        nodes: NDArray[np.int64],
+        frames: NDArray[np.int64],
+        gens: NDArray[np.float64],
+        obs: NDArray[np.float64],
+        hlc_l: NDArray[np.float64],
+        hlc_c: NDArray[np.int64],
+    ) -> None:
+        # one by one, a row is taken if its frame beats the node's newest so far: per
+        # node that is the first row of the batch's highest frame, if above the stored
+        order = np.lexsort((np.arange(nodes.size), -frames, nodes))
+        first = np.ones(order.size, dtype=np.bool_)
+        first[1:] = nodes[order[1:]] != nodes[order[:-1]]
+        best = order[first]
+        win = best[frames[best] > self._frame[nodes[best]]]
+        if win.size:
+            nd = nodes[win]
+            self._frame[nd] = frames[win]
+            self._gen[nd] = gens[win]
+            self._obs[nd] = obs[win]
             self._dirty = True
 
     def align(self, t: float) -> None:
@@ -289,6 +333,26 @@ class HLCAligner(Aligner):
             self._live[node] = True
             self.buffer.set_live(node, True)
 
+    def on_states(
+        self,
+        t: NDArray[np.float64],
+        nodes: NDArray[np.int64],
+        frames: NDArray[np.int64],
+        gens: NDArray[np.float64],
+        obs: NDArray[np.float64],
+        hlc_l: NDArray[np.float64],
+        hlc_c: NDArray[np.int64],
+    ) -> None:
+        for j in range(nodes.size):
+            self.on_state(
+                float(t[j]),
+                int(nodes[j]),
+                int(frames[j]),
+                float(gens[j]),
+                obs[j].copy(),
+                Stamp(float(hlc_l[j]), int(hlc_c[j])),
+            )
+
     def align(self, t: float) -> None:
         timeout = self.sc.hlc.liveness_timeout
         if timeout > 0:
@@ -340,6 +404,18 @@ class BidesAligner(Aligner):
         stamp: Stamp | None,
     ) -> None:
         self.ring.insert(node, frame, gen, obs)
+
+    def on_states(
+        self,
+        t: NDArray[np.float64],
+        nodes: NDArray[np.int64],
+        frames: NDArray[np.int64],
+        gens: NDArray[np.float64],
+        obs: NDArray[np.float64],
+        hlc_l: NDArray[np.float64],
+        hlc_c: NDArray[np.int64],
+    ) -> None:
+        self.ring.insert_many(nodes, frames, gens, obs)
 
     def align(self, t: float) -> None:
         spec = self.spec

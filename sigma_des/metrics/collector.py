@@ -140,6 +140,19 @@ class Collector:
             if name in self._lat:
                 self._lat[name].append(t - t_pub)
 
+    def delivered_batch(self, kind: int, latencies: NDArray[np.float64], messages: int) -> None:
+        """Many first deliveries of ``kind`` (the cohort engine's path; no duplicates).
+
+        Args:
+            kind: message kind (its latency series gets ``latencies``, in order).
+            latencies: delivery latencies (s) of the counted messages.
+            messages: number of counted messages (published after the warm-up).
+        """
+        self.messages += messages
+        name = _KINDS[kind]
+        if name in self._lat and latencies.size:
+            self._lat[name].extend(latencies.tolist())
+
     def aoi_update(self, t: float, nodes: NDArray[np.int64], gens: NDArray[np.float64]) -> None:
         """The consumer starts showing new states of ``nodes``."""
         self.aoi.update(t, nodes, gens)

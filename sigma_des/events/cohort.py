@@ -1,0 +1,403 @@
+"""The cohort engine: frame-level control in SimPy, messages in a compiled core.
+
+:class:`CohortRun` is a :class:`~sigma_des.events.engine.MethodRun` whose
+messages (trigger fan-out, node computation, state fan-in, commands) never
+become SimPy events. SimPy keeps the frame-level and control events — trigger
+issue with the whole-swarm physics step, alignment ticks (with adaptation and
+commands) and render ticks. Before each control event at time ``t`` the driver
+runs the compiled message core (:mod:`sigma_des.events.cohort_jit`) through every
+message event at or before ``t`` (messages come first at equal times, as in the
+specification), then hands the batch of state deliveries to the aligner in one
+vectorised call, and the latency samples to the collector.
+
+Exactness: the compiled core makes the same floating point operations in the
+same order as the per-message engine and reads the same counter-based draws, so
+result tables are identical on the same seed. Features whose per-message
+behaviour is not reproduced by the core are listed by :func:`unsupported`; for
+them :func:`run` falls back to the per-message engine for the whole run and
+says why.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.agents.base import Behaviour, DynamicsModel
+from sigma_des.config import Scenario
+from sigma_des.events import cohort_jit as J
+from sigma_des.events.aligners import OBS_WIDTH
+from sigma_des.events.engine import _ROLLBACK, _STEP, MethodRun
+from sigma_des.events.hlc import Stamp
+from sigma_des.net.draws import DrawCache
+
+__all__ = ["CohortFallback", "CohortRun", "make_run", "unsupported"]
+
+
+class CohortFallback(RuntimeError):
+    """The cohort core met something it cannot reproduce exactly (run per message)."""
+
+
+def unsupported(sc: Scenario, method: str) -> str | None:
+    """Why ``method`` on ``sc`` cannot run on the cohort core (None: it can).
+
+    These features fall back to the per-message engine for the whole run:
+    Lock-Step (its barrier and re-requests are driven by single messages), drop and
+    degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
+    datagrams (resends and PUBACK hops), and the stream transport on a link with
+    loss or random latency (in-order hold-back and retransmission).
+    """
+    why: list[str] = []
+    if method == "lockstep":
+        why.append("lockstep (message-driven barrier and re-requests)")
+    kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
+    if kinds:
+        why.append(f"faults of kind {', '.join(kinds)}")
+    if sc.clocks.ntp_period > 0:
+        why.append("NTP-corrected clocks")
+    net = sc.net
+    for name, link in (("host_link", net.host_link), ("server_link", net.server_link)):
+        if link.loss.model != "bernoulli":
+            why.append(f"{name}: Gilbert-Elliott loss")
+        elif net.transport == "stream" and (
+            link.latency.dist != "constant" or link.loss.p > 0.0
+        ):
+            why.append(f"{name}: stream transport with loss or random latency")
+    if net.transport == "datagram" and net.qos == 1:
+        why.append("QoS 1 over datagram (resends, PUBACK hops)")
+    return "; ".join(why) if why else None
+
+
+def make_run(
+    sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+) -> tuple[MethodRun, str]:
+    """The run object for ``sc.engine`` and the fallback reason ("" if none)."""
+    if sc.engine == "cohort":
+        why = unsupported(sc, method)
+        if why is None:
+            return CohortRun(sc, method, dynamics, behaviour), ""
+        return MethodRun(sc, method, dynamics, behaviour), why
+    return MethodRun(sc, method, dynamics, behaviour), ""
+
+
+_Sampler = Callable[[int, int], NDArray[np.float64]]
+
+
+class CohortRun(MethodRun):
+    """One scenario under one method, messages processed by the compiled core.
+
+    Args:
+        sc: the scenario (must be supported: see :func:`unsupported`).
+        method: ``none``, ``hlc`` or ``bides``.
+        dynamics: the vectorised dynamics model.
+        behaviour: behaviour producing commands (None: no commands).
+
+    Raises:
+        CohortFallback: the scenario uses a feature the core does not reproduce.
+    """
+
+    def __init__(
+        self, sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+    ) -> None:
+        why = unsupported(sc, method)
+        if why is not None:
+            raise CohortFallback(why)
+        super().__init__(sc, method, dynamics, behaviour)
+        n = self.n
+        net = self.net
+        self.cmd = np.ascontiguousarray(self.cmd, dtype=np.float64)
+        self._t_event = 0.0
+        R = sc.history_frames
+        W = OBS_WIDTH
+        M = int(self.cmd.shape[1])
+        cap = 4 * (n + 1) + 256
+        iv = np.zeros(J.I_LEN, dtype=np.int64)
+        iv[J.I_FREE] = cap
+        fv = np.zeros(J.F_LEN)
+        q = np.zeros(J.Q_LEN, dtype=np.int64)
+        q[J.Q_N] = n
+        q[J.Q_H] = self.H
+        q[J.Q_HLC] = int(self.use_hlc)
+        q[J.Q_WARP] = int(method == "bides" and sc.bides.time_warp)
+        q[J.Q_THETA] = sc.bides.theta_warp
+        q[J.Q_QOS1S] = int(net.qos1 and not net.datagram)
+        q[J.Q_ACK] = net.ack_bytes
+        q[J.Q_W] = W
+        q[J.Q_M] = M
+        g = np.array([sc.warmup, sc.duration])
+        nl = sc.hosts + 1
+        spb = np.zeros((2, nl))
+        for h in range(nl):
+            spb[1, h] = net.up[h].sec_per_byte
+            spb[0, h] = net.down[h].sec_per_byte
+        # draw tables: a row of all subjects per (source, kind, index), filled by Python
+        cmap = np.full((J.N_SOURCES, 4), -1, dtype=np.int64)
+        cval = np.zeros(J.N_SOURCES)
+        self._fills: dict[int, list[tuple[int, _Sampler]]] = {0: [], 1: [], 2: [], 3: []}
+        p_loss = np.array([sc.net.host_link.loss.p, sc.net.server_link.loss.p])
+        combos: list[tuple[int, int, DrawCache]] = []
+        for cls, is_server in ((0, False), (1, True)):
+            kinds_up = (1, 3) if is_server else (2,)  # trigger/command from the server
+            kinds_down = (2,) if is_server else (1, 3)
+            for up, kinds in ((1, kinds_up), (0, kinds_down)):
+                src = J.lat_source(cls, up)
+                lat = net._lat[is_server, bool(up)]
+                for k in kinds:
+                    combos.append((src, k, lat))
+                    if p_loss[cls] > 0.0:
+                        combos.append((J.U_OFFSET + src, k, net._u[is_server, bool(up)]))
+        for k in (1, 2, 3):
+            combos.append((J.SVC_PUB, k, net._svc_pub))
+            combos.append((J.SVC_DEL, k, net._svc_del))
+        combos.append((J.STEP, 0, self.step_time))
+        nc = 0
+        for src, k, cache in combos:
+            if cache.constant is not None:
+                cval[src] = cache.constant
+                continue
+            cmap[src, k] = nc
+            sampler_kind = _STEP if src == J.STEP else k
+            self._fills[k].append((nc, _vector_of(cache, sampler_kind)))
+            nc += 1
+        self._dval = np.zeros((max(nc, 1), R, n + 1))
+        self._dtag = np.full((max(nc, 1), R), -1, dtype=np.int64)
+        wb = np.zeros(6, dtype=np.int64)
+        wb[1] = net.wire_bytes(sc.trigger_payload_bits)
+        wb[2] = net.wire_bytes(sc.payload_bits)
+        wb[3] = net.wire_bytes(sc.commands.payload_bits)
+        nd = np.zeros((J.N_ROWS, n), dtype=np.int64)
+        nd[[J.N_FRAME, J.N_REQ, J.N_TARGET, J.N_CSTAMP]] = -1
+        self._nd = nd
+        # Python-side views used by MethodRun._rollback
+        self.rb_steps = nd[J.N_RB]  # type: ignore[assignment]
+        self.node_busy = nd[J.N_BUSY]  # type: ignore[assignment]
+        crash = np.array(self.crash_at, dtype=np.float64)
+        ptr = np.zeros(n + 1, dtype=np.int64)
+        rows: list[tuple[float, float, float]] = []
+        for i in range(n):
+            rows.extend(self.slow.get(i, ()))
+            ptr[i + 1] = len(rows)
+        slow = np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64)
+        cores = np.zeros((sc.hosts, sc.cores_per_host))
+        out_cap = 2 * (n + 1) + 64
+        lat_cap = 4 * (n + 1) + 256
+        P = max(W, M)
+        fields: list[Any] = [None] * J.N_FIELDS
+        fields[J.HT] = np.zeros(cap)
+        fields[J.HE] = np.zeros(cap, dtype=np.int64)
+        fields[J.HS] = np.zeros(cap, dtype=np.int64)
+        fields[J.EVI] = np.zeros((cap, J.E_COLS), dtype=np.int64)
+        fields[J.EVF] = np.zeros((cap, J.EF_PAY + P))
+        fields[J.FREE] = np.arange(cap, dtype=np.int64)[::-1].copy()
+        fields[J.II] = iv
+        fields[J.FF] = fv
+        fields[J.QQ] = q
+        fields[J.GG] = g
+        fields[J.LBUSY] = np.zeros((2, nl))
+        fields[J.LCNT] = np.zeros((2, 2, nl), dtype=np.int64)
+        fields[J.LSPB] = spb
+        fields[J.LINK_OF] = np.array(net.link_of, dtype=np.int64)
+        fields[J.CMAP] = cmap
+        fields[J.CVAL] = cval
+        fields[J.DVAL] = self._dval
+        fields[J.DTAG] = self._dtag
+        fields[J.PLOSS] = p_loss
+        fields[J.WB] = wb
+        fields[J.ND] = nd
+        fields[J.HOST_OF] = np.array(self.host_of, dtype=np.int64)
+        fields[J.CRASH] = crash
+        fields[J.SLOW_PTR] = ptr
+        fields[J.SLOW] = slow
+        fields[J.CORES] = cores
+        fields[J.HLC_L] = np.full(n, -math.inf)
+        fields[J.HLC_C] = np.zeros(n, dtype=np.int64)
+        fields[J.OFF] = np.array(self._offset, dtype=np.float64)
+        fields[J.DRIFT] = np.array(self._drift, dtype=np.float64)
+        fields[J.SLOT_FRAME] = self.slot_frame
+        fields[J.OBS_HIST] = self.obs_hist
+        fields[J.CMD] = self.cmd
+        fields[J.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
+        fields[J.OUT_F] = np.zeros((out_cap, 3 + W))
+        fields[J.LAT_BUF] = np.zeros((3, lat_cap))
+        self._fields = fields
+        self.S = tuple(fields)
+
+    # ------------------------------------------------------------ draw tables
+
+    def _fill(self, kind: int, index: int) -> None:
+        """Make the draw rows of ``(kind, index)`` present (a pure function of the key)."""
+        R = self._dtag.shape[1]
+        r = index % R
+        for c, sample in self._fills[kind]:
+            if self._dtag[c, r] != index:
+                v = sample(index, 0)
+                self._dval[c, r, : v.size] = v
+                self._dtag[c, r] = index
+
+    # ------------------------------------------------------------ space
+
+    def _ensure_space(self, k: int) -> None:
+        iv = self.S[J.II]
+        if iv[J.I_FREE] >= k + self.n + 4:
+            return
+        f = self._fields
+        old = f[J.HT].size
+        new = 2 * old + k
+        for pos in (J.HT, J.HE, J.HS):
+            a = np.zeros(new, dtype=f[pos].dtype)
+            a[:old] = f[pos]
+            f[pos] = a
+        for pos in (J.EVI, J.EVF):
+            a = np.zeros((new,) + f[pos].shape[1:], dtype=f[pos].dtype)
+            a[:old] = f[pos]
+            f[pos] = a
+        nfree = int(iv[J.I_FREE])
+        free = np.zeros(new, dtype=np.int64)
+        free[:nfree] = f[J.FREE][:nfree]
+        extra = np.arange(new - 1, old - 1, -1, dtype=np.int64)
+        free[nfree : nfree + extra.size] = extra
+        f[J.FREE] = free
+        iv[J.I_FREE] = nfree + extra.size
+        self.S = tuple(f)
+
+    # ------------------------------------------------------------ MethodRun hooks
+
+    def _send_trigger(self, k: int, stamp: Stamp | None) -> None:
+        self._fill(1, k)
+        self._fill(2, k)
+        self._fill(0, k)
+        self._ensure_space(2)
+        hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
+        J.publish_trigger(self.S, k, self.kernel.now, hl, hc)
+
+    def _send_command_batch(
+        self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
+    ) -> None:
+        if nodes.size == 0:
+            return
+        self._fill(3, tick)
+        self._ensure_space(nodes.size + 2)
+        rows = np.ascontiguousarray(cmds, dtype=np.float64)
+        J.publish_commands(
+            self.S, tick, stamp, nodes.astype(np.int64), rows, self.kernel.now
+        )
+
+    def _start_job(self, i: int) -> None:
+        """A job start that needs Python (rollback draws): same arithmetic as the core."""
+        now = self._t_event
+        nd = self._nd
+        target = int(nd[J.N_REQ, i])
+        cost = 0.0
+        for f in range(int(nd[J.N_FRAME, i]) + 1, target + 1):
+            cost += self.step_time.get(_STEP, i, f, 0)
+        rb = int(nd[J.N_RB, i])
+        if rb:
+            for j in range(rb):
+                cost += self.step_time.get(_ROLLBACK, i, target, j)
+            nd[J.N_RB, i] = 0
+        for a, b, factor in self.slow.get(i, ()):
+            if a <= now < b:
+                cost *= factor
+        self._ensure_space(2)
+        J.reserve(self.S, i, target, cost, now)
+
+    # ------------------------------------------------------------ driver
+
+    def _messages(self, bound: float, strict: bool) -> None:
+        """Run the message core to ``bound``, serving its requests for Python."""
+        while True:
+            code = J.advance(self.S, bound, strict)
+            if code == J.OK:
+                return
+            if code == J.NEED_SPACE:
+                self._ensure_space(self.n + 8)
+            elif code == J.NEED_FLUSH:
+                self._flush()
+            elif code == J.NEED_START:
+                self._t_event = float(self.S[J.FF][J.F_PT])
+                self._start_job(int(self.S[J.II][J.I_PNODE]))
+            elif code == J.NEED_ROLLBACK:
+                iv = self.S[J.II]
+                i = int(iv[J.I_PNODE])
+                self._t_event = float(self.S[J.FF][J.F_PT])
+                self._rollback(i, int(iv[J.I_PA]), int(iv[J.I_PB]), self.cmd[i].copy())
+            else:
+                raise CohortFallback(
+                    "a message needed a random draw older than history_frames "
+                    f"({self.sc.history_frames}) frames"
+                )
+
+    def _flush(self) -> None:
+        """Hand buffered state deliveries to the aligner, latencies to the collector."""
+        S = self.S
+        iv = S[J.II]
+        o = int(iv[J.I_OUT])
+        if o:
+            oi = S[J.OUT_I][:o]
+            of = S[J.OUT_F][:o]
+            self.aligner.on_states(
+                of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
+            )
+            iv[J.I_OUT] = 0
+        for k in range(3):
+            m = int(iv[J.I_LAT + k])
+            if m:
+                self.collector.delivered_batch(k + 1, S[J.LAT_BUF][k, :m].copy(), 0)
+                iv[J.I_LAT + k] = 0
+
+    def _advance(self, progress: Callable[[float], None] | None) -> None:
+        env = self.kernel.env
+        dur = self.sc.duration
+        next_p = 1.0
+        while True:
+            tc = env.peek()
+            last = tc >= dur
+            bound = dur if last else tc
+            self._messages(bound, last)
+            self._flush()
+            if progress is not None:
+                while next_p < dur and next_p <= bound:
+                    progress(next_p)
+                    next_p += 1.0
+            if last:
+                break
+            env.step()
+        if progress is not None:
+            progress(dur)
+        self._write_back()
+
+    def _write_back(self) -> None:
+        """Copy the core's counters into the objects the collector reads."""
+        S = self.S
+        net = self.net
+        cnt = S[J.LCNT]
+        busy = S[J.LBUSY]
+        for h in range(self.sc.hosts + 1):
+            net.up[h].bytes = int(cnt[1, 0, h])
+            net.up[h].packets = int(cnt[1, 1, h])
+            net.up[h].busy = float(busy[1, h])
+            net.down[h].bytes = int(cnt[0, 0, h])
+            net.down[h].packets = int(cnt[0, 1, h])
+            net.down[h].busy = float(busy[0, h])
+        fv = S[J.FF]
+        iv = S[J.II]
+        net.broker_busy = float(fv[J.F_BUSY])
+        net.broker_work = float(fv[J.F_WORK])
+        net.broker_max_wait = float(fv[J.F_MAXWAIT])
+        self.history_misses += int(iv[J.I_HMISS])
+        self.collector.delivered_batch(1, np.empty(0), int(iv[J.I_MSGS]))
+        self.kernel.events += int(iv[J.I_NEV])
+        iv[J.I_MSGS] = 0
+        iv[J.I_HMISS] = 0
+        iv[J.I_NEV] = 0
+
+
+def _vector_of(cache: DrawCache, kind: int) -> _Sampler:
+    def sample(index: int, attempt: int) -> NDArray[np.float64]:
+        return cache.vector(kind, index, attempt)
+
+    return sample
