@@ -80,7 +80,7 @@ SVC_PUB, SVC_DEL, STEP = 8, 9, 10
 N_SOURCES = 11
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def lat_source(cls: int, up: int) -> int:
     """Latency source of link class ``cls`` (0 host, 1 server) and direction ``up``."""
     return 2 * (1 - cls) + (1 - up)
@@ -89,7 +89,7 @@ def lat_source(cls: int, up: int) -> int:
 # ---------------------------------------------------------------- heap and slots
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _push(S, t, slot):  # type: ignore[no-untyped-def]
     ht = S[HT]
     he = S[HE]
@@ -114,7 +114,7 @@ def _push(S, t, slot):  # type: ignore[no-untyped-def]
     hs[i] = slot
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _pop(S):  # type: ignore[no-untyped-def]
     ht = S[HT]
     he = S[HE]
@@ -147,14 +147,14 @@ def _pop(S):  # type: ignore[no-untyped-def]
     return top
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _alloc(S):  # type: ignore[no-untyped-def]
     iv = S[II]
     iv[I_FREE] -= 1
     return S[FREE][iv[I_FREE]]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _release(S, slot):  # type: ignore[no-untyped-def]
     iv = S[II]
     S[FREE][iv[I_FREE]] = slot
@@ -164,7 +164,7 @@ def _release(S, slot):  # type: ignore[no-untyped-def]
 # ---------------------------------------------------------------- draws and links
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
     c = S[CMAP][src, kind]
     if c < 0:
@@ -177,7 +177,7 @@ def _draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
     return S[DVAL][c, r, subj]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untyped-def]
     """Network._hop: FIFO serialization + latency; returns (arrival, lost)."""
     link = S[LINK_OF][client]
@@ -199,7 +199,7 @@ def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untype
     return done + lat, lost
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
     """Network._count: serialize and count a packet whose arrival does not matter."""
     link = S[LINK_OF][client]
@@ -212,7 +212,7 @@ def _count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
         S[LCNT][up, 1, link] += 1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
     """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
     evi = S[EVI]
@@ -231,12 +231,13 @@ def _send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyp
 # ---------------------------------------------------------------- broker
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _deliver_try(S, src, sub, kind, dsubj, index, d):  # type: ignore[no-untyped-def]
     slot = _alloc(S)
     evf = S[EVF]
     evi = S[EVI]
-    evf[slot, :] = evf[src, :]
+    for j in range(evf.shape[1]):
+        evf[slot, j] = evf[src, j]
     evf[slot, EF_TDEP] = d
     evi[slot, E_TYPE] = EV_CLIENT
     evi[slot, E_WHO] = sub
@@ -251,7 +252,7 @@ def _deliver_try(S, src, sub, kind, dsubj, index, d):  # type: ignore[no-untyped
         _push(S, arr, slot)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _work(S, a, b):  # type: ignore[no-untyped-def]
     g = S[GG]
     lo = a if a > g[G_WARMUP] else g[G_WARMUP]
@@ -260,7 +261,7 @@ def _work(S, a, b):  # type: ignore[no-untyped-def]
         S[FF][F_WORK] += hi - lo
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _broker(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EVI]
     ff = S[FF]
@@ -294,12 +295,12 @@ def _broker(S, s, now):  # type: ignore[no-untyped-def]
 # ---------------------------------------------------------------- nodes
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _local(S, i, t):  # type: ignore[no-untyped-def]
     return t + S[OFF][i] + S[DRIFT][i] * t
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
     """Take the host's earliest-free core for ``cost`` seconds; schedule completion."""
     row = S[CORES][S[HOST_OF][i]]
@@ -321,7 +322,7 @@ def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
     _push(S, start + cost, slot)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _start_job(S, i, now):  # type: ignore[no-untyped-def]
     nd = S[ND]
     if nd[N_RB, i] != 0:  # rollback draws are Python's: hand the start over
@@ -342,7 +343,7 @@ def _start_job(S, i, now):  # type: ignore[no-untyped-def]
     reserve(S, i, target, cost, now)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _done(S, s, now):  # type: ignore[no-untyped-def]
     nd = S[ND]
     i = S[EVI][s, E_WHO]
@@ -361,7 +362,9 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
         w = S[QQ][Q_W]
         evf[ns, EF_TPUB] = now
         evf[ns, EF_GEN] = now
-        evf[ns, EF_PAY : EF_PAY + w] = S[OBS_HIST][sl, i, :]
+        oh = S[OBS_HIST]
+        for j in range(w):
+            evf[ns, EF_PAY + j] = oh[sl, i, j]
         if S[QQ][Q_HLC]:
             pt = _local(S, i, now)
             hl = S[HLC_L]
@@ -376,7 +379,7 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
         _start_job(S, i, now)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _client(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EVI]
     evf = S[EVF]
@@ -407,7 +410,8 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         of[o, 1] = evf[s, EF_GEN]
         of[o, 2] = evf[s, EF_L]
         w = q[Q_W]
-        of[o, 3 : 3 + w] = evf[s, EF_PAY : EF_PAY + w]
+        for j in range(w):
+            of[o, 3 + j] = evf[s, EF_PAY + j]
         return
     if now >= S[CRASH][sub]:
         return
@@ -444,7 +448,9 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
             return  # an older command overtaken by a newer one
         nd[N_CSTAMP, sub] = stamp
         m = q[Q_M]
-        S[CMD][sub, :] = evf[s, EF_PAY : EF_PAY + m]
+        cmd = S[CMD]
+        for j in range(m):
+            cmd[sub, j] = evf[s, EF_PAY + j]
         if not q[Q_WARP] or stamp < 0:
             return
         current = nd[N_TARGET, sub] if nd[N_BUSY, sub] else nd[N_FRAME, sub]
@@ -460,7 +466,7 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
 # ---------------------------------------------------------------- entry points
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
     """The server publishes trigger ``k`` at ``t`` (with its HLC stamp)."""
     ns = _alloc(S)
@@ -471,7 +477,7 @@ def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
     _send_up(S, ns, n, K_TRIGGER, n, k, t)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped-def]
     """The server publishes ``rows[i]`` to each node ``i`` of ``nodes``, in order."""
     n = S[QQ][Q_N]
@@ -479,12 +485,13 @@ def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped
     for i in nodes:
         ns = _alloc(S)
         S[EVF][ns, EF_TPUB] = t
-        S[EVF][ns, EF_PAY : EF_PAY + m] = rows[i, :]
+        for j in range(m):
+            S[EVF][ns, EF_PAY + j] = rows[i, j]
         S[EVI][ns, E_AUX] = stamp
         _send_up(S, ns, n, K_COMMAND, i, tick, t)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
 
