@@ -24,7 +24,8 @@ from sigma_des import __version__
 from sigma_des.agents.ideal import fly
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.events.cohort import make_run
+from sigma_des.events.cohort import CohortFallback, make_run
+from sigma_des.events.engine import MethodRun
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import fidelity
@@ -217,7 +218,12 @@ def run_method(
     if method not in METHODS:
         raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
     run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
-    out = run.run(progress)
+    try:
+        out = run.run(progress)
+    except CohortFallback as exc:  # met mid-run: redo the whole run per message
+        fallback = str(exc)
+        run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+        out = run.run(progress)
     out["engine"] = {
         "requested": sc.engine,
         "used": "events" if fallback or sc.engine == "events" else "cohort",

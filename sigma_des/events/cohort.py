@@ -86,6 +86,10 @@ def make_run(
 
 _Sampler = Callable[[int, int], NDArray[np.float64]]
 
+#: Spare capacity of the core's event table and delivery buffers beyond what one
+#: frame needs; they grow (or are flushed) on demand, so this changes speed only.
+SLACK = 256
+
 
 class CohortRun(MethodRun):
     """One scenario under one method, messages processed by the compiled core.
@@ -114,7 +118,7 @@ class CohortRun(MethodRun):
         R = sc.history_frames
         W = OBS_WIDTH
         M = int(self.cmd.shape[1])
-        cap = 4 * (n + 1) + 256
+        cap = 4 * (n + 1) + SLACK
         iv = np.zeros(J.I_LEN, dtype=np.int64)
         iv[J.I_FREE] = cap
         fv = np.zeros(J.F_LEN)
@@ -183,8 +187,8 @@ class CohortRun(MethodRun):
             ptr[i + 1] = len(rows)
         slow = np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64)
         cores = np.zeros((sc.hosts, sc.cores_per_host))
-        out_cap = 2 * (n + 1) + 64
-        lat_cap = 4 * (n + 1) + 256
+        out_cap = 2 * (n + 1) + SLACK
+        lat_cap = 4 * (n + 1) + SLACK
         P = max(W, M)
         fields: list[Any] = [None] * J.N_FIELDS
         fields[J.HT] = np.zeros(cap)

@@ -1,0 +1,249 @@
+"""The cohort engine reproduces the per-message engine exactly (DESIGN §6).
+
+Every test runs one scenario on both engines and compares the whole result:
+every metric, per-link throughput, the per-render-tick time series and the
+fidelity series, bit for bit. Scenarios the cohort core does not reproduce must
+fall back to the per-message engine and say why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import sigma_des.events.cohort as cohort
+from sigma_des import Scenario, load
+from sigma_des.api import ideal_run, run_method
+from sigma_des.events.cohort import CohortRun, unsupported
+from sigma_des.factory import make_behaviour, make_dynamics
+from tests.conftest import tiny
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
+
+
+def run_both(sc: Scenario, method: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Run ``method`` on both engines; assert identical results; return both."""
+    ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
+    ev = run_method(replace(sc, engine="events"), method, ideal=ideal)
+    co = run_method(replace(sc, engine="cohort"), method, ideal=ideal)
+    diff = {
+        k: (ev["metrics"][k], co["metrics"].get(k))
+        for k in ev["metrics"]
+        if not _same(ev["metrics"][k], co["metrics"].get(k))
+    }
+    assert not diff, f"{method}: metrics differ: {diff}"
+    assert set(ev["metrics"]) == set(co["metrics"])
+    assert ev["links_mbps"] == co["links_mbps"]
+    for key, series in ev["timeseries"].items():
+        np.testing.assert_array_equal(series, co["timeseries"][key], err_msg=key)
+    if "fidelity" in ev:
+        np.testing.assert_array_equal(
+            ev["fidelity"]["formation_err"], co["fidelity"]["formation_err"]
+        )
+    assert ev["engine"]["used"] == "events"
+    return ev, co
+
+
+@pytest.mark.parametrize("method", ["none", "hlc", "bides"])
+def test_tiny_hand_scenario_identical(method: str) -> None:
+    _ev, co = run_both(tiny(), method)
+    assert co["engine"] == {"requested": "cohort", "used": "cohort", "fallback": ""}
+
+
+def test_200_nodes_with_loss_adaptation_and_rollbacks() -> None:
+    """A fixed larger case: 200 quadrotors, 2 % loss (datagram), adaptation, time warp."""
+    sc = load(
+        None,
+        [
+            "duration=2.0",
+            "warmup=0.5",
+            'net.transport="datagram"',
+            "net.qos=0",
+            "net.host_link.loss.p=0.02",
+            "net.server_link.loss.p=0.01",
+            'net.host_link.latency={dist="lognormal", mean=0.002, std=0.001}',
+            # a slow broker makes BiDES lag, adapt its rate and roll nodes back
+            "broker.publish_service=0.00002",
+            "broker.delivery_service=0.000015",
+            "bides.theta_warp=2",
+            "bides.hold_down=1",
+        ],
+    )
+    for method in ("none", "hlc", "bides"):
+        ev, co = run_both(sc, method)
+        assert co["engine"]["used"] == "cohort"
+        if method == "bides":
+            m = ev["metrics"]
+            # the case really exercises what it claims to
+            assert m["rollbacks"] > 0
+            assert m["f_trig_min_hz"] < 100.0
+            assert m["filled_frac"] > 0.0
+
+
+def test_crash_slow_drift_and_qos1_stream_identical() -> None:
+    sc = tiny(
+        nodes=12,
+        duration=2.0,
+        faults=[
+            {"kind": "crash", "node": 2, "start": 0.7},
+            {"kind": "slow", "node": 3, "start": 0.3, "end": 1.5, "factor": 6.0},
+            {"kind": "slow", "node": 3, "start": 1.0, "end": 1.2, "factor": 2.0},
+        ],
+        **{
+            "clocks.offset_std": 0.003,
+            "clocks.drift_ppm_std": 80.0,
+            "net.qos": 1,
+            "commands.enabled": True,
+            "dynamics": "fixedwing",
+        },
+    )
+    for method in ("none", "hlc", "bides"):
+        run_both(sc, method)
+
+
+def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With no spare capacity the core must grow its tables and flush mid-run."""
+    monkeypatch.setattr(cohort, "SLACK", 0)
+    sc = tiny(
+        nodes=6,
+        **{
+            "broker.publish_service": 0.001,
+            "broker.delivery_service": 0.0008,
+            "commands.enabled": True,
+        },
+    )
+    for method in ("none", "bides"):
+        run_both(sc, method)
+    run = CohortRun(replace(sc, engine="cohort"), "none", make_dynamics(sc), make_behaviour(sc))
+    cap0 = run.S[0].size
+    run.run()
+    assert run.S[0].size > cap0  # the event table grew
+
+
+@pytest.mark.parametrize(
+    ("over", "method", "why"),
+    [
+        ({}, "lockstep", "lockstep"),
+        ({"net.host_link.loss": {"p": 0.1}}, "bides", "stream transport with loss"),
+        ({"net.transport": "datagram", "net.qos": 1}, "none", "QoS 1 over datagram"),
+        ({"clocks.ntp_period": 1.0, "clocks.ntp_residual_std": 1e-4}, "hlc", "NTP"),
+        (
+            {"faults": [{"kind": "drop", "node": 1, "frame": 20, "message": "state"}]},
+            "bides",
+            "faults of kind drop",
+        ),
+        (
+            {"net.transport": "datagram",
+             "net.server_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.5}},
+            "none",
+            "Gilbert",
+        ),
+    ],
+)
+def test_unsupported_features_fall_back_and_say_why(
+    over: dict[str, Any], method: str, why: str
+) -> None:
+    sc = tiny(**over)
+    assert why in (unsupported(sc, method) or "")
+    _ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "events"
+    assert why in co["engine"]["fallback"]
+    with pytest.raises(cohort.CohortFallback, match=why):
+        CohortRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+
+
+def test_draw_older_than_history_falls_back_mid_run() -> None:
+    """A node so slow it catches up more than ``history_frames`` frames at once."""
+    sc = tiny(
+        history_frames=16,
+        faults=[{"kind": "slow", "node": 0, "start": 0.1, "end": 0.6, "factor": 40.0}],
+        **{"compute.step_time": {"dist": "uniform", "low": 0.001, "high": 0.003}},
+    )
+    ev, co = run_both(sc, "none")
+    assert co["engine"]["used"] == "events"
+    assert "history_frames" in co["engine"]["fallback"]
+    assert ev["metrics"]["history_misses"] > 0
+
+
+_LAT = st.sampled_from(
+    [
+        0.0005,
+        {"dist": "uniform", "low": 0.0002, "high": 0.004},
+        {"dist": "normal", "mean": 0.003, "std": 0.002},
+        {"dist": "exponential", "mean": 0.001},
+    ]
+)
+
+
+@st.composite
+def scenarios(draw: st.DrawFn) -> tuple[Scenario, str]:
+    """Small random scenarios mixing every option the cohort core handles."""
+    n = draw(st.integers(2, 20))
+    transport = draw(st.sampled_from(["stream", "datagram"]))
+    over: dict[str, Any] = {
+        "seed": draw(st.integers(0, 2**31)),
+        "nodes": n,
+        "hosts": draw(st.integers(1, min(4, n))),
+        "cores_per_host": draw(st.integers(1, 4)),
+        "f_trig": draw(st.sampled_from([50.0, 100.0, 200.0])),
+        "f_align": draw(st.sampled_from([20.0, 30.0, 60.0])),
+        "duration": 1.0,
+        "warmup": draw(st.sampled_from([0.0, 0.2])),
+        "dynamics": draw(st.sampled_from(["pointmass", "pointmass", "fixedwing", "quadrotor"])),
+        "net.transport": transport,
+        "broker.publish_service": draw(st.sampled_from([0.0, 0.00005, {"dist": "exponential",
+                                                                       "mean": 0.0001}])),
+        "broker.delivery_service": draw(st.sampled_from([0.0, 0.00003])),
+        "compute.step_time": draw(st.sampled_from([0.002, {"dist": "lognormal", "mean": 0.002,
+                                                           "std": 0.001}])),
+        "commands.enabled": draw(st.booleans()),
+        "commands.every": draw(st.integers(1, 3)),
+        "bides.adaptation": draw(st.booleans()),
+        "bides.hold_down": draw(st.integers(1, 3)),
+        "bides.time_warp": draw(st.booleans()),
+        "bides.theta_warp": draw(st.integers(0, 4)),
+        "bides.lag_exclusion": draw(st.booleans()),
+        "bides.hole_fill": draw(st.booleans()),
+        "clocks.offset_std": draw(st.sampled_from([0.0, 0.002])),
+        "clocks.drift_ppm_std": draw(st.sampled_from([0.0, 100.0])),
+    }
+    if transport == "datagram":
+        over["net.qos"] = 0
+        over["net.host_link.latency"] = draw(_LAT)
+        over["net.server_link.latency"] = draw(_LAT)
+        over["net.host_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.05, 0.3]))}
+        over["net.server_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.1]))}
+    else:
+        over["net.qos"] = draw(st.sampled_from([0, 1]))
+    faults = []
+    if draw(st.booleans()):
+        faults.append({"kind": "crash", "node": draw(st.integers(0, n - 1)),
+                       "start": draw(st.sampled_from([0.0, 0.3]))})
+    if draw(st.booleans()):
+        faults.append({"kind": "slow", "node": draw(st.integers(0, n - 1)), "start": 0.2,
+                       "end": 0.7, "factor": draw(st.sampled_from([2.0, 10.0]))})
+    if faults:
+        over["faults"] = faults
+    return tiny(**over), draw(st.sampled_from(["none", "hlc", "bides"]))
+
+
+@settings(
+    max_examples=30,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(scenarios())
+def test_random_scenarios_identical(case: tuple[Scenario, str]) -> None:
+    sc, method = case
+    _ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
