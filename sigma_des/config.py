@@ -107,7 +107,7 @@ class Scenario:
     payload_bits: int = 150
     trigger_payload_bits: int = 64
     dynamics: str = "quadrotor"
-    engine: str = "events"
+    engine: str = "cohort"
     methods: tuple[str, ...] = METHODS
     history_frames: int = 512
     stall_threshold: float = 0.1

@@ -2,17 +2,23 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from conftest import tiny
 
 from sigma_des.agents.pointmass import PointMass
+from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import MethodRun
 from sigma_des.factory import make_behaviour, make_dynamics
 
 
 def _run(sc, method: str = "bides") -> MethodRun:  # type: ignore[no-untyped-def]
-    return MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+    """The run on the cohort engine when it supports ``sc`` (it is exact), else per message."""
+    run, _why = make_run(replace(sc, engine="cohort"), method, make_dynamics(sc),
+                         make_behaviour(sc))
+    return run
 
 
 def _expected_rates(lags: np.ndarray, sc) -> list[float]:  # type: ignore[no-untyped-def]
@@ -66,7 +72,7 @@ def test_adaptation_off_keeps_rate() -> None:
 def test_rollback_resimulates_exactly_the_expected_frames() -> None:
     # no behaviour runs, so the hand-delivered command is the node's newest
     sc = tiny(**{"bides.theta_warp": 5})
-    run = _run(sc)
+    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
     run.start()
     run.kernel.run(0.5)
     i = 0
@@ -93,7 +99,7 @@ def test_rollback_resimulates_exactly_the_expected_frames() -> None:
 
 def test_no_rollback_within_theta_warp() -> None:
     sc = tiny(**{"bides.theta_warp": 5})
-    run = _run(sc)
+    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
     run.start()
     run.kernel.run(0.5)
     current = run.node_busy[0] and run.node_target[0] or run.node_frame[0]

@@ -39,9 +39,10 @@ def test_wire_sizes_of_the_tiny_scenario() -> None:
     assert frame_bytes(publish_bytes(8, payload_bytes(150), 0)) == WS
 
 
-@pytest.fixture(scope="module")
-def results():  # type: ignore[no-untyped-def]
-    return compare(tiny(), progress=False)
+@pytest.fixture(scope="module", params=["events", "cohort"])
+def results(request):  # type: ignore[no-untyped-def]
+    """The tiny scenario on each engine: both must give the hand-computed figures."""
+    return compare(tiny(engine=request.param), progress=False)
 
 
 def _aoi_none() -> np.ndarray:
