@@ -46,6 +46,8 @@ class Results:
         links_mbps: per method, wire Mbps of every link direction.
         timeseries: per method, per-render-tick arrays (t, aoi_mean, f_trig, …).
         fidelity: per method, formation error per logged sample (``t``, ``formation_err``).
+        engines: per method, the engine ``requested`` and ``used`` and why it fell back
+            to the per-message engine (``fallback``, empty if it did not).
     """
 
     scenario: Scenario
@@ -54,6 +56,7 @@ class Results:
     links_mbps: dict[str, dict[str, float]] = field(default_factory=dict)
     timeseries: dict[str, dict[str, Any]] = field(default_factory=dict)
     fidelity: dict[str, dict[str, Any]] = field(default_factory=dict)
+    engines: dict[str, dict[str, str]] = field(default_factory=dict)
 
     @property
     def config_hash(self) -> str:
@@ -113,6 +116,7 @@ class Results:
                 "methods": self.methods,
                 "links_mbps": self.links_mbps,
                 "wall": self.wall,
+                "engines": self.engines,
             }
         )
 
@@ -157,9 +161,22 @@ class Results:
                 )
             )
         widths = [max(len(r[i]) for r in lines) for i in range(len(head))]
-        return "\n".join(
+        text = "\n".join(
             "  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in lines
         )
+        return text + "\n" + self.engine_note()
+
+    def engine_note(self) -> str:
+        """One line per engine used, naming methods that fell back and why."""
+        used = {m: e.get("used", "?") for m, e in self.engines.items()}
+        lines = []
+        for eng in sorted(set(used.values())):
+            ms = [m for m, u in used.items() if u == eng]
+            lines.append(f"engine {eng}: {', '.join(ms)}")
+        for m, e in self.engines.items():
+            if e.get("fallback"):
+                lines.append(f"  {m} fell back to the per-message engine: {e['fallback']}")
+        return "\n".join(lines)
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
         """Write ``results.csv`` (tidy) and ``summary.json`` into ``out_dir``."""
@@ -304,6 +321,7 @@ def compare(
         res.wall[m] = out["wall"]
         res.links_mbps[m] = out["links_mbps"]
         res.timeseries[m] = out["timeseries"]
+        res.engines[m] = out["engine"]
         if "fidelity" in out:
             res.fidelity[m] = out["fidelity"]
     if bar is not None:
