@@ -45,15 +45,12 @@ class CohortFallback(RuntimeError):
 def unsupported(sc: Scenario, method: str) -> str | None:
     """Why ``method`` on ``sc`` cannot run on the cohort core (None: it can).
 
-    These features fall back to the per-message engine for the whole run:
-    Lock-Step (its barrier and re-requests are driven by single messages), drop and
+    These features fall back to the per-message engine for the whole run: drop and
     degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
     datagrams (resends and PUBACK hops), and the stream transport on a link with
     loss or random latency (in-order hold-back and retransmission).
     """
     why: list[str] = []
-    if method == "lockstep":
-        why.append("lockstep (message-driven barrier and re-requests)")
     kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
     if kinds:
         why.append(f"faults of kind {', '.join(kinds)}")
@@ -132,6 +129,7 @@ class CohortRun(MethodRun):
         q[J.Q_ACK] = net.ack_bytes
         q[J.Q_W] = W
         q[J.Q_M] = M
+        q[J.Q_LOCK] = int(method == "lockstep")
         g = np.array([sc.warmup, sc.duration])
         nl = sc.hosts + 1
         spb = np.zeros((2, nl))
@@ -139,14 +137,16 @@ class CohortRun(MethodRun):
             spb[1, h] = net.up[h].sec_per_byte
             spb[0, h] = net.down[h].sec_per_byte
         # draw tables: a row of all subjects per (source, kind, index), filled by Python
-        cmap = np.full((J.N_SOURCES, 4), -1, dtype=np.int64)
+        cmap = np.full((J.N_SOURCES, 6), -1, dtype=np.int64)
         cval = np.zeros(J.N_SOURCES)
-        self._fills: dict[int, list[tuple[int, _Sampler]]] = {0: [], 1: [], 2: [], 3: []}
+        self._fills: dict[int, list[tuple[int, _Sampler]]] = {k: [] for k in range(6)}
         p_loss = np.array([sc.net.host_link.loss.p, sc.net.server_link.loss.p])
         combos: list[tuple[int, int, DrawCache]] = []
         for cls, is_server in ((0, False), (1, True)):
-            kinds_up = (1, 3) if is_server else (2,)  # trigger/command from the server
-            kinds_down = (2,) if is_server else (1, 3)
+            # server → broker: trigger, command, re-request; node → broker: (re)published
+            # state; the downlinks carry them on to their receivers
+            kinds_up = (1, 3, 4) if is_server else (2, 5)
+            kinds_down = (2, 5) if is_server else (1, 3, 4)
             for up, kinds in ((1, kinds_up), (0, kinds_down)):
                 src = J.lat_source(cls, up)
                 lat = net._lat[is_server, bool(up)]
@@ -154,7 +154,7 @@ class CohortRun(MethodRun):
                     combos.append((src, k, lat))
                     if p_loss[cls] > 0.0:
                         combos.append((J.U_OFFSET + src, k, net._u[is_server, bool(up)]))
-        for k in (1, 2, 3):
+        for k in (1, 2, 3, 4, 5):
             combos.append((J.SVC_PUB, k, net._svc_pub))
             combos.append((J.SVC_DEL, k, net._svc_del))
         combos.append((J.STEP, 0, self.step_time))
@@ -173,6 +173,8 @@ class CohortRun(MethodRun):
         wb[1] = net.wire_bytes(sc.trigger_payload_bits)
         wb[2] = net.wire_bytes(sc.payload_bits)
         wb[3] = net.wire_bytes(sc.commands.payload_bits)
+        wb[4] = net.wire_bytes(sc.trigger_payload_bits)
+        wb[5] = net.wire_bytes(sc.payload_bits)
         nd = np.zeros((J.N_ROWS, n), dtype=np.int64)
         nd[[J.N_FRAME, J.N_REQ, J.N_TARGET, J.N_CSTAMP]] = -1
         self._nd = nd
@@ -227,6 +229,12 @@ class CohortRun(MethodRun):
         fields[J.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
         fields[J.OUT_F] = np.zeros((out_cap, 3 + W))
         fields[J.LAT_BUF] = np.zeros((3, lat_cap))
+        last_i = np.zeros((n, 2), dtype=np.int64)
+        last_i[:, 0] = -1
+        fields[J.LAST_I] = last_i
+        fields[J.LAST_F] = np.zeros((n, 2 + W))
+        fields[J.LS] = np.zeros((2, n), dtype=np.int64)
+        self._lockstep = method == "lockstep"
         self._fields = fields
         self.S = tuple(fields)
 
@@ -290,6 +298,13 @@ class CohortRun(MethodRun):
             self.S, tick, stamp, nodes.astype(np.int64), rows, self.kernel.now
         )
 
+    def rerequest(self, node: int, frame: int, retry: int) -> None:
+        index = frame * 64 + min(retry, 63)
+        self._fill(4, index)
+        self._fill(5, index)
+        self._ensure_space(2)
+        J.publish_rerequest(self.S, node, frame, index, self.kernel.now)
+
     def _start_job(self, i: int) -> None:
         """A job start that needs Python (rollback draws): same arithmetic as the core."""
         now = self._t_event
@@ -311,12 +326,36 @@ class CohortRun(MethodRun):
 
     # ------------------------------------------------------------ driver
 
-    def _messages(self, bound: float, strict: bool) -> None:
-        """Run the message core to ``bound``, serving its requests for Python."""
+    def _sync_barrier(self) -> None:
+        """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
+        al: Any = self.aligner
+        S = self.S
+        S[J.LS][0] = al._got
+        S[J.LS][1] = al.live
+        iv = S[J.II]
+        iv[J.I_LCUR] = al.current
+        iv[J.I_LMISS] = al._missing
+        iv[J.I_LCOMP] = int(al.complete)
+
+    def _messages(self, bound: float, strict: bool) -> bool:
+        """Run the message core to ``bound``, serving its requests for Python.
+
+        Returns:
+            True if it stopped early because a Lock-Step barrier completed (the next
+            trigger may now come before ``bound``); False when it reached ``bound``.
+        """
         while True:
+            if self._lockstep:
+                self._flush()
+                self._sync_barrier()
             code = J.advance(self.S, bound, strict)
             if code == J.OK:
-                return
+                return False
+            if code == J.BARRIER:
+                # the aligner sees the completing state at its own arrival time
+                self.kernel.env._now = float(self.S[J.FF][J.F_PT])
+                self._flush()
+                return True
             if code == J.NEED_SPACE:
                 self._ensure_space(self.n + 8)
             elif code == J.NEED_FLUSH:
@@ -361,7 +400,8 @@ class CohortRun(MethodRun):
             tc = env.peek()
             last = tc >= dur
             bound = dur if last else tc
-            self._messages(bound, last)
+            if self._messages(bound, last):
+                continue  # a barrier completed: a trigger may now come before tc
             self._flush()
             if progress is not None:
                 while next_p < dur and next_p <= bound:

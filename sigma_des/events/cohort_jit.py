@@ -30,6 +30,7 @@ from numba import njit
 __all__ = [
     "advance",
     "publish_commands",
+    "publish_rerequest",
     "publish_trigger",
     "reserve",
 ]
@@ -37,10 +38,10 @@ __all__ = [
 # event types
 EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
 # exit codes of advance()
-OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS = 0, 1, 2, 3, 4, 5
+OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
 
 # message kinds (as in sigma_des.net.network)
-K_TRIGGER, K_STATE, K_COMMAND = 1, 2, 3
+K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = 1, 2, 3, 4, 5
 
 # positions in the state tuple S
 HT, HE, HS, EVI, EVF, FREE, II, FF, QQ, GG = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
@@ -50,27 +51,30 @@ ND, HOST_OF, CRASH, SLOW_PTR, SLOW, CORES = 20, 21, 22, 23, 24, 25
 HLC_L, HLC_C, OFF, DRIFT = 26, 27, 28, 29
 SLOT_FRAME, OBS_HIST, CMD = 30, 31, 32
 OUT_I, OUT_F, LAT_BUF = 33, 34, 35
-N_FIELDS = 36
+LAST_I, LAST_F, LS = 36, 37, 38
+N_FIELDS = 39
 
 # int scalars S[II]
 I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
 I_LAT = 12  # three counters: trigger, state, command latencies buffered
-I_LEN = 15
+I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
+I_LEN = 18
 # float scalars S[FF]
 F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
 F_LEN = 4
 # int parameters S[QQ]
-Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M = range(9)
-Q_LEN = 9
+Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
+Q_LEN = 10
 # float parameters S[GG]
 G_WARMUP, G_END = 0, 1
 G_LEN = 2
 # node integer rows S[ND]
 N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
 N_ROWS = 6
-# event int columns S[EVI]: type, client/receiver, kind, subject, index, aux (HLC c or stamp)
-E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX = range(6)
-E_COLS = 6
+# event int columns S[EVI]: type, client/receiver, kind, subject, index, aux (HLC c or
+# command stamp), frame (of a state, republished state or re-request)
+E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
+E_COLS = 7
 # event float columns S[EVF]: t_publish, t_depart, HLC l, generation time, payload...
 EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
 # draw sources: latency and loss uniforms per (link class, direction), broker, compute
@@ -245,6 +249,7 @@ def _deliver_try(S, src, sub, kind, dsubj, index, d):  # type: ignore[no-untyped
     evi[slot, E_SUBJ] = dsubj
     evi[slot, E_INDEX] = index
     evi[slot, E_AUX] = evi[src, E_AUX]
+    evi[slot, E_FRAME] = evi[src, E_FRAME]
     arr, lost = _hop(S, sub, 0, kind, dsubj, index, S[WB][kind], d)
     if lost:
         _release(S, slot)
@@ -285,7 +290,7 @@ def _broker(S, s, now):  # type: ignore[no-untyped-def]
             d += _draw(S, SVC_DEL, kind, sub, index)
             _deliver_try(S, s, sub, kind, sub, index, d)
     else:
-        sub = n if kind == K_STATE else subject
+        sub = n if kind == K_STATE or kind == K_REPUB else subject
         d += _draw(S, SVC_DEL, kind, subject, index)
         _deliver_try(S, s, sub, kind, subject, index, d)
     ff[F_BUSY] = d
@@ -374,6 +379,16 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
             hl[i] = new
             evf[ns, EF_L] = new
             S[EVI][ns, E_AUX] = S[HLC_C][i]
+        S[EVI][ns, E_FRAME] = target
+        if S[QQ][Q_LOCK]:  # kept for re-requests (MethodRun.last_pub)
+            li = S[LAST_I]
+            lf = S[LAST_F]
+            li[i, 0] = target
+            li[i, 1] = S[EVI][ns, E_AUX]
+            lf[i, 0] = now
+            lf[i, 1] = evf[ns, EF_L]
+            for j in range(w):
+                lf[i, 2 + j] = evf[ns, EF_PAY + j]
         _send_up(S, ns, i, K_STATE, i, target, now)
     if nd[N_REQ, i] > nd[N_FRAME, i] or nd[N_RB, i] != 0:
         _start_job(S, i, now)
@@ -395,16 +410,18 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         _count(S, sub, 1, q[Q_ACK], now)
     if t_pub >= S[GG][G_WARMUP]:  # Collector.delivered (no duplicates on this path)
         iv[I_MSGS] += 1
-        c = I_LAT + kind - 1
-        S[LAT_BUF][kind - 1, iv[c]] = now - t_pub
-        iv[c] += 1
+        if kind != K_REREQ:  # a republished state's latency counts as a state's
+            lk = 1 if kind == K_REPUB else kind - 1
+            S[LAT_BUF][lk, iv[I_LAT + lk]] = now - t_pub
+            iv[I_LAT + lk] += 1
     if sub == n:
         o = iv[I_OUT]
         iv[I_OUT] = o + 1
         oi = S[OUT_I]
         of = S[OUT_F]
+        frame = evi[s, E_FRAME]
         oi[o, 0] = subject
-        oi[o, 1] = index
+        oi[o, 1] = frame
         oi[o, 2] = evi[s, E_AUX]
         of[o, 0] = now
         of[o, 1] = evf[s, EF_GEN]
@@ -412,6 +429,18 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         w = q[Q_W]
         for j in range(w):
             of[o, 3 + j] = evf[s, EF_PAY + j]
+        if q[Q_LOCK]:  # LockstepAligner.on_state's barrier count, mirrored
+            ls = S[LS]
+            if ls[1, subject] == 0 and frame == iv[I_LCUR]:
+                ls[1, subject] = 1
+                iv[I_LMISS] += 1
+            if frame == iv[I_LCUR] and iv[I_LCOMP] == 0 and ls[0, subject] == 0:
+                iv[I_LMISS] -= 1
+                ls[0, subject] = 1
+                if iv[I_LMISS] <= 0:
+                    iv[I_LCOMP] = 1
+                    iv[I_PEND] = BARRIER
+                    S[FF][F_PT] = now
         return
     if now >= S[CRASH][sub]:
         return
@@ -440,6 +469,24 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
             hl[sub] = new
         if index > nd[N_REQ, sub]:
             nd[N_REQ, sub] = index
+            if nd[N_BUSY, sub] == 0:
+                _start_job(S, sub, now)
+    elif kind == K_REREQ:
+        frame = evi[s, E_FRAME]
+        li = S[LAST_I]
+        if nd[N_FRAME, sub] >= frame and li[sub, 0] == frame:
+            ns = _alloc(S)
+            lf = S[LAST_F]
+            evf[ns, EF_TPUB] = now
+            evf[ns, EF_GEN] = lf[sub, 0]
+            evf[ns, EF_L] = lf[sub, 1]
+            for j in range(q[Q_W]):
+                evf[ns, EF_PAY + j] = lf[sub, 2 + j]
+            evi[ns, E_AUX] = li[sub, 1]
+            evi[ns, E_FRAME] = frame
+            _send_up(S, ns, sub, K_REPUB, sub, index, now)
+        elif nd[N_REQ, sub] < frame:
+            nd[N_REQ, sub] = frame
             if nd[N_BUSY, sub] == 0:
                 _start_job(S, sub, now)
     elif kind == K_COMMAND:
@@ -489,6 +536,15 @@ def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped
             S[EVF][ns, EF_PAY + j] = rows[i, j]
         S[EVI][ns, E_AUX] = stamp
         _send_up(S, ns, n, K_COMMAND, i, tick, t)
+
+
+@njit(cache=True, _nrt=False)
+def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
+    """Lock-Step: the server asks ``node`` again for its state of ``frame``."""
+    ns = _alloc(S)
+    S[EVF][ns, EF_TPUB] = t
+    S[EVI][ns, E_FRAME] = frame
+    _send_up(S, ns, S[QQ][Q_N], K_REREQ, node, index, t)
 
 
 @njit(cache=True, _nrt=False)

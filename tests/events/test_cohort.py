@@ -54,7 +54,7 @@ def run_both(sc: Scenario, method: str) -> tuple[dict[str, Any], dict[str, Any]]
     return ev, co
 
 
-@pytest.mark.parametrize("method", ["none", "hlc", "bides"])
+@pytest.mark.parametrize("method", ["none", "lockstep", "hlc", "bides"])
 def test_tiny_hand_scenario_identical(method: str) -> None:
     _ev, co = run_both(tiny(), method)
     assert co["engine"] == {"requested": "cohort", "used": "cohort", "fallback": ""}
@@ -79,9 +79,11 @@ def test_200_nodes_with_loss_adaptation_and_rollbacks() -> None:
             "bides.hold_down=1",
         ],
     )
-    for method in ("none", "hlc", "bides"):
+    for method in ("none", "lockstep", "hlc", "bides"):
         ev, co = run_both(sc, method)
         assert co["engine"]["used"] == "cohort"
+        if method == "lockstep":
+            assert ev["metrics"]["rerequests"] > 0  # lost states were asked for again
         if method == "bides":
             m = ev["metrics"]
             # the case really exercises what it claims to
@@ -133,7 +135,6 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
 @pytest.mark.parametrize(
     ("over", "method", "why"),
     [
-        ({}, "lockstep", "lockstep"),
         ({"net.host_link.loss": {"p": 0.1}}, "bides", "stream transport with loss"),
         ({"net.transport": "datagram", "net.qos": 1}, "none", "QoS 1 over datagram"),
         ({"clocks.ntp_period": 1.0, "clocks.ntp_residual_std": 1e-4}, "hlc", "NTP"),
@@ -160,6 +161,29 @@ def test_unsupported_features_fall_back_and_say_why(
     assert why in co["engine"]["fallback"]
     with pytest.raises(cohort.CohortFallback, match=why):
         CohortRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+
+
+def test_lockstep_eviction_rejoin_and_republish_identical() -> None:
+    """Lock-Step's barrier exits: re-requests, republished states, eviction, rejoin."""
+    sc = tiny(
+        nodes=8,
+        duration=2.0,
+        faults=[
+            {"kind": "crash", "node": 1, "start": 0.5},
+            {"kind": "slow", "node": 4, "start": 0.3, "end": 0.6, "factor": 30.0},
+        ],
+        **{
+            "net.transport": "datagram",
+            "net.host_link.loss": {"p": 0.1},
+            "lockstep.retry_timeout": 0.02,
+            "lockstep.eviction_timeout": 0.08,
+            "commands.enabled": True,
+        },
+    )
+    ev, co = run_both(sc, "lockstep")
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    assert m["evicted"] >= 2 and m["rejoined"] >= 1 and m["rerequests"] > 0
 
 
 def test_draw_older_than_history_falls_back_mid_run() -> None:
@@ -234,7 +258,9 @@ def scenarios(draw: st.DrawFn) -> tuple[Scenario, str]:
                        "end": 0.7, "factor": draw(st.sampled_from([2.0, 10.0]))})
     if faults:
         over["faults"] = faults
-    return tiny(**over), draw(st.sampled_from(["none", "hlc", "bides"]))
+    if draw(st.booleans()):
+        over["lockstep.eviction_timeout"] = draw(st.sampled_from([0.05, 0.2]))
+    return tiny(**over), draw(st.sampled_from(["none", "lockstep", "hlc", "bides"]))
 
 
 @settings(
