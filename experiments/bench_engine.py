@@ -1,28 +1,46 @@
 #!/usr/bin/env python
-"""Benchmark the sigma_des engine against an idiomatic process-per-message SimPy model.
+"""Benchmark the cohort engine, the per-message engine and a process-per-message SimPy model.
 
 For every node count N this measures, each case in a fresh child process (so
 peak RSS is per case, single-threaded):
 
-* the engine (``MethodRun``) for each method of ``--methods`` on the full
-  scenario (commands on, default settings);
-* the engine with method ``none`` on the *restricted* scenario (commands off;
-  transport stream without loss, QoS 1, no faults: the defaults), and
-* the baseline (``baseline_process_model.ProcessModel``: one SimPy process per
-  message, ``simpy.Resource`` broker/links/cores) on the very same restricted
-  scenario and seed;
+* on the *full* scenario (commands on, default settings), for each method of
+  ``--methods``: the cohort engine (``engine="cohort"``, impl ``cohort``) and the
+  per-message SimPy engine that is the executable specification
+  (``engine="events"``, impl ``events``);
+* on the *restricted* scenario (commands off; transport stream without loss,
+  QoS 1, no faults: the defaults), method ``none``: ``cohort``, ``events`` and the
+  baseline (``baseline_process_model.ProcessModel``: one SimPy process per
+  message, ``simpy.Resource`` broker/links/cores) on the very same scenario and
+  seed;
 
 and reports wall seconds per simulated second, times real time, events per
-wall second (engine: kernel events; baseline: SimPy processes + timeouts +
-resource requests it created), peak RSS, the speed ratio engine / baseline on
-the identical restricted scenario, and the engine's and the baseline's metrics
-side by side (they implement the same model with the same keyed random draws,
-so they should agree; see docs/BENCHMARKS.md).
+wall second (engines: kernel events, the cohort core's message events included;
+baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
+the engine really used (the cohort engine falls back to the per-message engine
+for features it does not reproduce, see ``sigma_des.events.cohort.unsupported``,
+or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
+cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
+per simulated second).
+
+The per-message engine and the baseline are slow at large N, so at
+N >= ``--large-n`` (1000) they simulate ``min(duration, --events-cap)`` and
+``min(duration, --baseline-cap)`` (2 s each), and above ``--baseline-max-n``
+(1000) the baseline is skipped with a note.
+
+It also checks the metrics: cohort and events must be bit-identical on every
+metric (max relative difference exactly 0), cohort and baseline must agree to
+:data:`BASELINE_RTOL` on :data:`COMPARED` (two independent implementations of the
+same model with the same keyed random draws; see docs/BENCHMARKS.md). Metrics
+are only compared between runs of the same simulated duration: where
+``--events-cap`` or ``--baseline-cap`` shortens a run, a cohort *twin* of that
+duration is run as well. The exit status is 1 if a check fails.
 
 Examples::
 
-    python experiments/bench_engine.py                      # N = 10,100,200,1000, 5 s each
+    python experiments/bench_engine.py                      # N = 200,1000,10000, 5 s each
     python experiments/bench_engine.py --quick --out q.csv  # N = 10,50, 1 s (tests)
+    python experiments/bench_engine.py --nodes 200 --methods all
     python experiments/bench_engine.py --nodes 200 --set compute.step_time=0.0008
 
 Timing figures depend on the machine; nothing here asserts on them.
@@ -38,8 +56,9 @@ import os
 import platform
 import subprocess
 import sys
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:
@@ -48,7 +67,14 @@ if str(HERE) not in sys.path:
 #: Physics nodes per host (the paper: 20 aircraft per PC).
 NODES_PER_HOST = 20
 
-#: Metrics compared between the engine (method none) and the baseline: (name, unit).
+#: Alignment methods (``--methods all``), as in ``sigma_des.config.METHODS``.
+ALL_METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
+
+#: The two engines of ``sigma_des`` (scenario field ``engine``).
+ENGINES: tuple[str, ...] = ("cohort", "events")
+
+#: Metrics compared between the engines and the baseline, and written to the CSV:
+#: (name, unit).
 COMPARED: tuple[tuple[str, str], ...] = (
     ("latency_state_mean", "ms"),
     ("latency_state_p99", "ms"),
@@ -65,17 +91,29 @@ COMPARED: tuple[tuple[str, str], ...] = (
     ("pos_err_mean", "m"),
 )
 
+#: Largest relative difference of a :data:`COMPARED` metric accepted between the
+#: cohort engine and the baseline (floating point summation order; the observed
+#: differences are ~1e-14).
+BASELINE_RTOL = 1e-9
+
+#: Baseline wall seconds per node and simulated second, for the skip note when no
+#: baseline ran in this invocation (measured: ~29 s per simulated s at N = 1000).
+BASELINE_S_PER_NODE = 0.025
+
 
 def _col(name: str, unit: str) -> str:
     return f"{name}_{unit}" if unit else name
 
 
-#: CSV columns, one row per (N, case).
+#: CSV columns, one row per case.
 COLUMNS: tuple[str, ...] = (
     "n",
     "impl",
     "method",
     "scenario",
+    "role",
+    "engine_used",
+    "fallback",
     "sim_s",
     "wall_s",
     "wall_per_sim_s",
@@ -83,6 +121,7 @@ COLUMNS: tuple[str, ...] = (
     "events",
     "events_per_s",
     "peak_rss_mb",
+    "ratio_vs_events",
     "ratio_vs_baseline",
     *(_col(n, u) for n, u in COMPARED),
     "max_rel_diff",
@@ -92,33 +131,104 @@ COLUMNS: tuple[str, ...] = (
 _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 
 
+class Case(NamedTuple):
+    """One planned run.
+
+    Attributes:
+        impl: ``cohort``, ``events`` or ``baseline``.
+        method: alignment method.
+        scenario: ``full`` or ``restricted``.
+        sim_s: simulated seconds.
+        role: ``main`` (a timed case of the tables) or ``twin`` (a cohort run at
+            the capped duration of an ``events`` or ``baseline`` case, so that
+            metrics are compared between runs of equal duration).
+    """
+
+    impl: str
+    method: str
+    scenario: str
+    sim_s: float
+    role: str = "main"
+
+
 # ---------------------------------------------------------------- one case (child process)
 
 
 def overrides_for(
-    n: int, duration: float, restricted: bool, extra: list[str] | tuple[str, ...] = ()
+    n: int,
+    duration: float,
+    restricted: bool,
+    extra: Sequence[str] = (),
+    impl: str = "baseline",
 ) -> list[str]:
-    """The scenario of one case as ``key=value`` overrides (see ``sigma_des.config.load``)."""
+    """The scenario of one case as ``key=value`` overrides (see ``sigma_des.config.load``).
+
+    Args:
+        n: number of nodes (``NODES_PER_HOST`` per host).
+        duration: simulated seconds (warm-up ``min(1 s, duration/5)``).
+        restricted: commands off (the scenario class the baseline supports).
+        extra: further overrides (``--set``), applied before the engine.
+        impl: ``cohort`` or ``events`` select that engine (last, so ``--set`` cannot
+            change it); ``baseline`` leaves the scenario's engine field alone.
+    """
     hosts = max(1, math.ceil(n / NODES_PER_HOST))
     warmup = min(1.0, 0.2 * duration)
     ov = [f"nodes={n}", f"hosts={hosts}", f"duration={duration!r}", f"warmup={warmup!r}"]
     if restricted:
         ov.append("commands.enabled=false")
-    return ov + list(extra)
+    ov += list(extra)
+    if impl in ENGINES:
+        ov.append(f'engine="{impl}"')
+    return ov
 
 
-def _simulate(impl: str, method: str, sc: Any) -> tuple[float, int, dict[str, float]]:
-    """Build and run one simulation; return (wall seconds, events, metrics)."""
+class Sim(NamedTuple):
+    """What one simulation returns.
+
+    Attributes:
+        wall_s: wall seconds to build and run the model.
+        events: event count (see the module docstring).
+        metrics: every metric of the run.
+        engine_used: ``cohort``, ``events`` or ``baseline``.
+        fallback: why the cohort engine was not used ("" if it was or not asked for).
+    """
+
+    wall_s: float
+    events: int
+    metrics: dict[str, float]
+    engine_used: str
+    fallback: str
+
+
+def _simulate(impl: str, method: str, sc: Any) -> Sim:
+    """Build and run one simulation.
+
+    For the engines this does what ``sigma_des.api.run_method`` does without the
+    fidelity metrics (whose ideal run would be timed too): ``make_run`` picks the
+    engine of ``sc.engine``; a mid-run ``CohortFallback`` re-runs the whole
+    simulation on the per-message engine, and the wall time includes the aborted
+    attempt (what a user of the cohort engine pays).
+    """
     import time
 
-    if impl == "engine":
+    if impl in ENGINES:
+        from sigma_des.events.cohort import CohortFallback, make_run
         from sigma_des.events.engine import MethodRun
         from sigma_des.factory import make_behaviour, make_dynamics
 
+        if sc.engine != impl:
+            raise ValueError(f"impl {impl!r} but scenario engine {sc.engine!r}")
         t0 = time.perf_counter()
-        run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
-        out = run.run()
-        return time.perf_counter() - t0, int(run.kernel.events), dict(out["metrics"])
+        run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+        try:
+            out = run.run()
+        except CohortFallback as exc:
+            fallback = str(exc) or "CohortFallback"
+            run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+            out = run.run()
+        wall = time.perf_counter() - t0
+        used = "events" if fallback or impl == "events" else "cohort"
+        return Sim(wall, int(run.kernel.events), dict(out["metrics"]), used, fallback)
     if impl == "baseline":
         from baseline_process_model import ProcessModel, check_supported
 
@@ -126,7 +236,7 @@ def _simulate(impl: str, method: str, sc: Any) -> tuple[float, int, dict[str, fl
         t0 = time.perf_counter()
         model = ProcessModel(sc)
         metrics = model.run()
-        return time.perf_counter() - t0, model.sim_events, metrics
+        return Sim(time.perf_counter() - t0, model.sim_events, metrics, "baseline", "")
     raise ValueError(f"unknown impl {impl!r}")
 
 
@@ -136,8 +246,8 @@ def run_case(
     """Run one case in this process; return timing, counts, peak RSS and metrics.
 
     A 0.05 s two-node run of the same kind goes first, untimed, so that one-off
-    costs (lazy imports, numba JIT/cache loading of the dynamics) are not counted
-    as simulation time.
+    costs (lazy imports, numba JIT/cache loading of the dynamics and of the
+    cohort core) are not counted as simulation time.
     """
     import resource
 
@@ -153,20 +263,23 @@ def run_case(
         warm = None
     if warm is not None:
         _simulate(impl, method, warm)
-    wall, events, metrics = _simulate(impl, method, sc)
+    sim = _simulate(impl, method, sc)
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
     return {
         "sim_s": sc.duration,
-        "wall_s": wall,
-        "events": events,
+        "wall_s": sim.wall_s,
+        "events": sim.events,
         "peak_rss_mb": rss_mb,
-        "metrics": {k: float(v) for k, v in metrics.items()},
+        "engine_used": sim.engine_used,
+        "fallback": sim.fallback,
+        "metrics": {k: float(v) for k, v in sim.metrics.items()},
     }
 
 
 #: Modules a forkserver imports once, so that each forked case starts with them loaded.
 PRELOAD = [
     "sigma_des.events.engine",
+    "sigma_des.events.cohort",
     "sigma_des.factory",
     "sigma_des.agents.registry",
     "baseline_process_model",
@@ -190,6 +303,63 @@ def run_fresh(
         return pool.apply(run_case, (impl, method, overrides, cpu))  # type: ignore[no-any-return]
 
 
+# ---------------------------------------------------------------- planning
+
+
+def plan(
+    n: int,
+    methods: Sequence[str],
+    duration: float,
+    events_cap: float,
+    baseline_cap: float | None,
+    large_n: int,
+) -> list[Case]:
+    """The cases of one node count, in running order.
+
+    Args:
+        n: number of nodes.
+        methods: methods timed on the full scenario.
+        duration: simulated seconds of the cohort cases.
+        events_cap: at ``n >= large_n`` the ``events`` cases simulate
+            ``min(duration, events_cap)``.
+        baseline_cap: the same for the baseline; None: no baseline at this N.
+        large_n: where the caps start.
+    """
+    big = n >= large_n
+    dur_e = min(duration, events_cap) if big else duration
+    cases: list[Case] = []
+    for m in methods:
+        cases += [Case("cohort", m, "full", duration), Case("events", m, "full", dur_e)]
+        if dur_e != duration:
+            cases.append(Case("cohort", m, "full", dur_e, "twin"))
+    cases += [
+        Case("cohort", "none", "restricted", duration),
+        Case("events", "none", "restricted", dur_e),
+    ]
+    twins = [dur_e]
+    if baseline_cap is not None:
+        dur_b = min(duration, baseline_cap) if big else duration
+        cases.append(Case("baseline", "none", "restricted", dur_b))
+        twins.append(dur_b)
+    for d in sorted(set(twins) - {duration}, reverse=True):
+        cases.append(Case("cohort", "none", "restricted", d, "twin"))
+    return cases
+
+
+def baseline_estimate_s(rows: Iterable[dict[str, Any]], n: int, sim_s: float) -> float:
+    """Estimated baseline wall seconds at ``n`` nodes for ``sim_s`` simulated seconds.
+
+    Linear in N from the largest baseline case measured so far, else from
+    :data:`BASELINE_S_PER_NODE`.
+    """
+    done = [r for r in rows if r["impl"] == "baseline"]
+    per_node = BASELINE_S_PER_NODE
+    if done:
+        last = max(done, key=lambda r: r["n"])
+        per_node = last["wall_per_sim_s"] / last["n"]
+    return per_node * n * sim_s
+
+
 # ---------------------------------------------------------------- reporting
 
 
@@ -201,14 +371,34 @@ def _rel(a: float, b: float) -> float:
     return abs(a - b) / max(abs(a), abs(b), 1e-300)
 
 
-def make_row(n: int, impl: str, method: str, scenario: str, res: dict[str, Any]) -> dict[str, Any]:
+def max_rel_diff(
+    a: dict[str, float], b: dict[str, float], names: Iterable[str]
+) -> tuple[float, str]:
+    """Largest relative difference between two metric dicts over ``names``, and where.
+
+    A metric missing on one side counts as NaN (so it differs unless both lack it).
+    The metric name is "" when every difference is 0.
+    """
+    worst, where = 0.0, ""
+    for name in names:
+        d = _rel(a.get(name, math.nan), b.get(name, math.nan))
+        if d > worst:
+            worst, where = d, name
+    return worst, where
+
+
+def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
+    """One CSV row (plus the private key ``_metrics``: every metric of the run)."""
     wall = res["wall_s"]
     sim = res["sim_s"]
     row: dict[str, Any] = {
         "n": n,
-        "impl": impl,
-        "method": method,
-        "scenario": scenario,
+        "impl": case.impl,
+        "method": case.method,
+        "scenario": case.scenario,
+        "role": case.role,
+        "engine_used": res["engine_used"],
+        "fallback": res["fallback"],
         "sim_s": sim,
         "wall_s": wall,
         "wall_per_sim_s": wall / sim,
@@ -216,13 +406,70 @@ def make_row(n: int, impl: str, method: str, scenario: str, res: dict[str, Any])
         "events": res["events"],
         "events_per_s": res["events"] / wall,
         "peak_rss_mb": res["peak_rss_mb"],
+        "ratio_vs_events": "",
         "ratio_vs_baseline": "",
         "max_rel_diff": "",
         "max_rel_diff_metric": "",
+        "_metrics": res["metrics"],
     }
     for name, unit in COMPARED:
         row[_col(name, unit)] = res["metrics"].get(name, math.nan)
     return row
+
+
+class Check(NamedTuple):
+    """One metric comparison between a cohort run and an events or baseline run."""
+
+    n: int
+    scenario: str
+    method: str
+    other: str
+    sim_s: float
+    diff: float
+    metric: str
+    ok: bool
+
+
+def annotate(rows: list[dict[str, Any]]) -> list[Check]:
+    """Fill the ratio and difference columns of ``rows``; return the metric checks.
+
+    Per (N, method, scenario): ``ratio_vs_events`` on the cohort rows and
+    ``ratio_vs_baseline`` on the cohort and events rows are the other case's wall
+    seconds per simulated second divided by this row's (this row's speed-up; per
+    simulated second, so valid where a cap shortened the other case).
+    ``max_rel_diff`` on an events or baseline row compares it with the cohort row
+    of the same simulated duration: over every metric for events (must be 0.0),
+    over :data:`COMPARED` for the baseline (must be <= :data:`BASELINE_RTOL`).
+    """
+    groups: dict[tuple[int, str, str], list[dict[str, Any]]] = {}
+    for r in rows:
+        groups.setdefault((r["n"], r["method"], r["scenario"]), []).append(r)
+    checks: list[Check] = []
+    for (n, method, scenario), rs in groups.items():
+        main = {r["impl"]: r for r in rs if r["role"] == "main"}
+        cohort_at = {r["sim_s"]: r for r in rs if r["impl"] == "cohort"}
+        for impl, targets in (("events", ("cohort",)), ("baseline", ("cohort", "events"))):
+            other = main.get(impl)
+            if other is None:
+                continue
+            for r in rs:
+                if r["impl"] in targets:
+                    r[f"ratio_vs_{impl}"] = other["wall_per_sim_s"] / r["wall_per_sim_s"]
+            twin = cohort_at.get(other["sim_s"])
+            if twin is None:
+                continue
+            if impl == "events":
+                names: Iterable[str] = sorted(set(twin["_metrics"]) | set(other["_metrics"]))
+                tol = 0.0
+            else:
+                names = [nm for nm, _u in COMPARED]
+                tol = BASELINE_RTOL
+            diff, where = max_rel_diff(twin["_metrics"], other["_metrics"], names)
+            other["max_rel_diff"], other["max_rel_diff_metric"] = diff, where
+            checks.append(
+                Check(n, scenario, method, impl, other["sim_s"], diff, where, diff <= tol)
+            )
+    return checks
 
 
 def _fmt(x: Any, spec: str) -> str:
@@ -231,47 +478,120 @@ def _fmt(x: Any, spec: str) -> str:
     return format(x, spec)
 
 
-def speed_table(rows: list[dict[str, Any]], methods: list[str]) -> str:
-    """One line per N: engine per method, engine none (restricted), baseline, ratio."""
-    by_n: dict[int, dict[tuple[str, str, str], dict[str, Any]]] = {}
-    for r in rows:
-        by_n.setdefault(r["n"], {})[r["impl"], r["method"], r["scenario"]] = r
-    head = ["N"]
-    for m in methods:
-        head += [f"eng[{m}] s/s", "xRT", "ev/s", "RSS MB"]
-    head += ["eng[none*] s/s", "xRT", "ev/s", "RSS MB"]
-    head += ["base[none*] s/s", "xRT", "ev/s", "RSS MB", "sim s", "ratio"]
+def speed_table(rows: list[dict[str, Any]]) -> str:
+    """One line per case (cohort twins marked ``cohort~``)."""
+    head = [
+        "N",
+        "scenario",
+        "method",
+        "impl",
+        "engine used",
+        "sim s",
+        "s/s",
+        "xRT",
+        "ev/s",
+        "RSS MB",
+    ]
     lines = [head]
-    for n, cases in sorted(by_n.items()):
-        line = [str(n)]
-        keys = [("engine", m, "full") for m in methods] + [("engine", "none", "restricted")]
-        keys.append(("baseline", "none", "restricted"))
-        for key in keys:
-            c = cases.get(key)
-            if c is None:
-                line += ["-"] * 4
-            else:
-                line += [
-                    _fmt(c["wall_per_sim_s"], ".3f"),
-                    _fmt(c["x_realtime"], ".2f"),
-                    _fmt(c["events_per_s"], ",.0f"),
-                    _fmt(c["peak_rss_mb"], ".0f"),
-                ]
-        bl = cases.get(("baseline", "none", "restricted"))
-        line += [
-            _fmt(bl["sim_s"], "g") if bl else "-",
-            _fmt(bl["ratio_vs_baseline"], ".2f") + "x" if bl else "-",
+    for r in rows:
+        lines.append(
+            [
+                str(r["n"]),
+                r["scenario"],
+                r["method"],
+                r["impl"] + ("~" if r["role"] == "twin" else ""),
+                r["engine_used"],
+                _fmt(r["sim_s"], "g"),
+                _fmt(r["wall_per_sim_s"], ".3f"),
+                _fmt(r["x_realtime"], ".2f"),
+                _fmt(r["events_per_s"], ",.0f"),
+                _fmt(r["peak_rss_mb"], ".0f"),
+            ]
+        )
+    return _align(lines)
+
+
+def speedup_table(rows: list[dict[str, Any]]) -> str:
+    """One line per (N, scenario, method): cohort/events, cohort/baseline, events/baseline.
+
+    ``cohort ran as`` is the engine the cohort case really used (``events`` after a
+    fallback, where cohort/events compares the per-message engine with itself).
+    """
+    lines = [
+        [
+            "N",
+            "scenario",
+            "method",
+            "cohort ran as",
+            "cohort/events",
+            "cohort/baseline",
+            "events/baseline",
         ]
-        lines.append(line)
+    ]
+    for r in rows:
+        if r["impl"] != "cohort" or r["role"] != "main":
+            continue
+        ev = next(
+            (
+                x
+                for x in rows
+                if (x["n"], x["method"], x["scenario"], x["impl"], x["role"])
+                == (r["n"], r["method"], r["scenario"], "events", "main")
+            ),
+            None,
+        )
+        lines.append(
+            [
+                str(r["n"]),
+                r["scenario"],
+                r["method"],
+                r["engine_used"],
+                _fmt(r["ratio_vs_events"], ".2f"),
+                _fmt(r["ratio_vs_baseline"], ".2f"),
+                _fmt(ev["ratio_vs_baseline"] if ev else "", ".2f"),
+            ]
+        )
+    return _align(lines)
+
+
+def check_table(checks: list[Check]) -> str:
+    """One line per metric comparison."""
+    lines = [["N", "scenario", "method", "compared", "sim s", "max rel diff", "in", "verdict"]]
+    for c in checks:
+        if c.other == "events":
+            verdict = "identical" if c.ok else "DIFFERENT"
+        else:
+            verdict = f"<= {BASELINE_RTOL:.0e}" if c.ok else f"DIFFERENT (> {BASELINE_RTOL:.0e})"
+        lines.append(
+            [
+                str(c.n),
+                c.scenario,
+                c.method,
+                f"cohort vs {c.other}",
+                f"{c.sim_s:g}",
+                f"{c.diff:.1e}",
+                c.metric or "-",
+                verdict,
+            ]
+        )
     return _align(lines)
 
 
 def metric_table(rows: list[dict[str, Any]]) -> str:
-    """One line per N: engine (method none) vs baseline on the restricted scenario."""
-    by_n: dict[int, dict[str, dict[str, Any]]] = {}
-    for r in rows:
-        if r["scenario"] == "restricted":
-            by_n.setdefault(r["n"], {})[r["impl"]] = r
+    """One line per N: cohort (method none) vs baseline on the restricted scenario."""
+    pairs: list[tuple[dict[str, Any], dict[str, Any]]] = []
+    for b in rows:
+        if b["impl"] != "baseline":
+            continue
+        for c in rows:
+            if (c["impl"], c["scenario"], c["n"], c["sim_s"]) == (
+                "cohort",
+                "restricted",
+                b["n"],
+                b["sim_s"],
+            ):
+                pairs.append((c, b))
+                break
     show = (
         "latency_state_mean",
         "latency_state_p99",
@@ -279,20 +599,17 @@ def metric_table(rows: list[dict[str, Any]]) -> str:
         "trigger_rate_hz",
         "throughput_mbps",
     )
-    head = ["N"]
+    head = ["N", "sim s"]
     for name in show:
-        head += [f"{name} eng", "base"]
-    head += ["max rel diff (all)", "in"]
+        head += [f"{name} cohort", "base"]
+    head += ["max rel diff", "in"]
     lines = [head]
-    for n, c in sorted(by_n.items()):
-        e, b = c.get("engine"), c.get("baseline")
-        if e is None or b is None:
-            continue
-        line = [str(n)]
+    for c, b in pairs:
+        line = [str(b["n"]), f"{b['sim_s']:g}"]
         for name in show:
             col = _col(name, dict(COMPARED)[name])
-            line += [f"{e[col]:.6f}", f"{b[col]:.6f}"]
-        line += [f"{b['max_rel_diff']:.1e}", b["max_rel_diff_metric"]]
+            line += [f"{c[col]:.6f}", f"{b[col]:.6f}"]
+        line += [f"{b['max_rel_diff']:.1e}", b["max_rel_diff_metric"] or "-"]
         lines.append(line)
     return _align(lines)
 
@@ -335,22 +652,39 @@ def _machine() -> str:
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--nodes", default="10,100,200,1000", help="comma-separated node counts")
+    p.add_argument("--nodes", default="200,1000,10000", help="comma-separated node counts")
     p.add_argument("--duration", type=float, default=5.0, help="simulated seconds per case")
-    p.add_argument("--methods", default="bides", help="engine methods to time on the full scenario")
+    p.add_argument(
+        "--methods",
+        default="bides",
+        help="methods timed on the full scenario: comma-separated, or 'all' "
+        f"({','.join(ALL_METHODS)})",
+    )
     p.add_argument(
         "--baseline",
         action=argparse.BooleanOptionalAction,
         default=True,
-        help="also run the process-per-message SimPy baseline (and the engine twin)",
+        help="also run the process-per-message SimPy baseline (restricted scenario)",
+    )
+    p.add_argument(
+        "--events-cap",
+        type=float,
+        default=2.0,
+        help="at N >= --large-n the events cases simulate min(duration, this)",
     )
     p.add_argument(
         "--baseline-cap",
         type=float,
         default=2.0,
-        help="at N >= --large-n the baseline and its engine twin simulate min(duration, this)",
+        help="at N >= --large-n the baseline simulates min(duration, this)",
     )
-    p.add_argument("--large-n", type=int, default=1000, help="see --baseline-cap")
+    p.add_argument(
+        "--baseline-max-n",
+        type=int,
+        default=1000,
+        help="skip the baseline above this N (it would take many minutes)",
+    )
+    p.add_argument("--large-n", type=int, default=1000, help="see --events-cap, --baseline-cap")
     p.add_argument("--quick", action="store_true", help="tiny run: N = 10,50, 1 s (for tests)")
     p.add_argument(
         "--set",
@@ -370,8 +704,20 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a = p.parse_args(argv)
     if a.quick:
         a.nodes, a.duration = "10,50", 1.0
-    a.node_list = [int(x) for x in str(a.nodes).split(",") if x.strip()]
-    a.method_list = [m.strip() for m in a.methods.split(",") if m.strip()]
+    try:
+        a.node_list = [int(x) for x in str(a.nodes).split(",") if x.strip()]
+    except ValueError:
+        p.error(f"--nodes: not a comma-separated list of integers: {a.nodes!r}")
+    if a.methods.strip() == "all":
+        a.method_list = list(ALL_METHODS)
+    else:
+        a.method_list = [m.strip() for m in a.methods.split(",") if m.strip()]
+    bad = [m for m in a.method_list if m not in ALL_METHODS]
+    if bad:
+        p.error(f"--methods: unknown {', '.join(bad)}; allowed: {','.join(ALL_METHODS)} or all")
+    for opt in ("duration", "events_cap", "baseline_cap"):
+        if not getattr(a, opt) > 0:
+            p.error(f"--{opt.replace('_', '-')} must be > 0")
     return a
 
 
@@ -379,7 +725,7 @@ def main(argv: list[str] | None = None) -> int:
     a = parse_args(argv)
     for var in _THREAD_VARS:  # one core per case: no BLAS/numba worker threads
         os.environ.setdefault(var, "1")
-    print(f"sigma_des engine benchmark  ({_machine()})")
+    print(f"sigma_des engine benchmark: cohort vs events vs baseline  ({_machine()})")
     print(
         f"scenario: defaults + {NODES_PER_HOST} nodes/host, duration {a.duration:g} s "
         f"(warm-up {min(1.0, 0.2 * a.duration):g} s); overrides: {a.set or 'none'}"
@@ -397,61 +743,69 @@ def main(argv: list[str] | None = None) -> int:
             notes.append(f"no baseline: {err}")
             a.baseline = False
     for n in a.node_list:
-        for m in a.method_list:
-            res = run_fresh(
-                "engine", m, overrides_for(n, a.duration, False, a.set), a.cpu, a.start_method
-            )
-            rows.append(make_row(n, "engine", m, "full", res))
-            print(f"  N={n:<5} engine {m:<8} full        {res['wall_s']:8.2f} s wall", flush=True)
-        if not a.baseline:
-            continue
-        dur = a.duration
-        if n >= a.large_n and a.baseline_cap < dur:
-            dur = a.baseline_cap
+        big = n >= a.large_n
+        if big and a.events_cap < a.duration:
             notes.append(
-                f"N={n}: the baseline and its engine twin simulate {dur:g} s instead of "
-                f"{a.duration:g} s (--baseline-cap; the baseline would take minutes)"
+                f"N={n}: the events engine (and its cohort twin) simulates {a.events_cap:g} s "
+                f"instead of {a.duration:g} s (--events-cap)"
             )
-        ov = overrides_for(n, dur, True, a.set)
-        e = make_row(
-            n,
-            "engine",
-            "none",
-            "restricted",
-            run_fresh("engine", "none", ov, a.cpu, a.start_method),
-        )
-        print(f"  N={n:<5} engine none     restricted  {e['wall_s']:8.2f} s wall", flush=True)
-        b = make_row(
-            n,
-            "baseline",
-            "none",
-            "restricted",
-            run_fresh("baseline", "none", ov, a.cpu, a.start_method),
-        )
-        print(f"  N={n:<5} baseline none   restricted  {b['wall_s']:8.2f} s wall", flush=True)
-        b["ratio_vs_baseline"] = b["wall_per_sim_s"] / e["wall_per_sim_s"]
-        e["ratio_vs_baseline"] = b["ratio_vs_baseline"]
-        diffs = {nm: _rel(e[_col(nm, u)], b[_col(nm, u)]) for nm, u in COMPARED}
-        worst = max(diffs, key=lambda nm: diffs[nm])
-        b["max_rel_diff"], b["max_rel_diff_metric"] = diffs[worst], worst
-        rows += [e, b]
-        for r in rows:
-            if r["n"] == n and r["impl"] == "engine" and r["scenario"] == "full":
-                r["ratio_vs_baseline"] = b["wall_per_sim_s"] / r["wall_per_sim_s"]
+        with_baseline = a.baseline and n <= a.baseline_max_n
+        if a.baseline and not with_baseline:
+            dur_b = min(a.duration, a.baseline_cap) if big else a.duration
+            est = baseline_estimate_s(rows, n, dur_b)
+            took = f"> {math.floor(est / 60)} minutes" if est >= 120 else f"~{est:.0f} s"
+            msg = (
+                f"N={n}: baseline skipped (--baseline-max-n {a.baseline_max_n}): the baseline "
+                f"would take {took} ({dur_b:g} s simulated, linear in N)"
+            )
+            notes.append(msg)
+            print("  " + msg, flush=True)
+        elif with_baseline and big and a.baseline_cap < a.duration:
+            notes.append(
+                f"N={n}: the baseline (and its cohort twin) simulates {a.baseline_cap:g} s "
+                f"instead of {a.duration:g} s (--baseline-cap)"
+            )
+        cap_b = a.baseline_cap if with_baseline else None
+        for case in plan(n, a.method_list, a.duration, a.events_cap, cap_b, a.large_n):
+            ov = overrides_for(n, case.sim_s, case.scenario == "restricted", a.set, case.impl)
+            res = run_fresh(case.impl, case.method, ov, a.cpu, a.start_method)
+            rows.append(make_row(case, n, res))
+            print(
+                f"  N={n:<6} {case.impl + ('~' if case.role == 'twin' else ''):<9} "
+                f"{case.method:<8} {case.scenario:<10} {case.sim_s:5g} s sim "
+                f"{res['wall_s']:9.2f} s wall  ({res['engine_used']})",
+                flush=True,
+            )
+            if res["fallback"]:
+                note = f"{case.method} on the {case.scenario} scenario: cohort fell back to the "
+                note += f"per-message engine: {res['fallback']}"
+                if note not in notes:
+                    notes.append(note)
+    checks = annotate(rows)
     print()
     print(
         "Speed (s/s = wall seconds per simulated second, xRT = times real time, "
         "ev/s = events per wall second;"
     )
     print(
-        "none* = method none on the restricted scenario, identical for engine and baseline; "
-        "ratio = engine speed / baseline speed on it)"
+        "full = commands on; restricted = commands off, the baseline's scenario class; "
+        "cohort~ = cohort twin at a capped duration)"
     )
-    print(speed_table(rows, a.method_list))
-    if a.baseline:
+    print(speed_table(rows))
+    print()
+    print("Speed-up (ratio of wall seconds per simulated second; - = not measured)")
+    print(speedup_table(rows))
+    print()
+    print(
+        "Metric checks (same simulated duration; cohort vs events: every metric, must be "
+        f"identical; cohort vs baseline: {len(COMPARED)} metrics, rel. diff <= "
+        f"{BASELINE_RTOL:.0e})"
+    )
+    print(check_table(checks))
+    if any(r["impl"] == "baseline" for r in rows):
         print()
         print(
-            "Metrics, engine vs baseline (method none, restricted scenario, same seed;"
+            "Metrics, cohort vs baseline (method none, restricted scenario, same seed;"
             " ms, Hz, Mbps)"
         )
         print(metric_table(rows))
@@ -460,11 +814,15 @@ def main(argv: list[str] | None = None) -> int:
     if a.out is not None:
         a.out.parent.mkdir(parents=True, exist_ok=True)
         with a.out.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=COLUMNS)
+            w = csv.DictWriter(fh, fieldnames=COLUMNS, extrasaction="ignore")
             w.writeheader()
             for r in rows:
                 w.writerow(r)
         print(f"wrote {a.out}")
+    failed = [c for c in checks if not c.ok]
+    if failed:
+        print(f"FAILED: {len(failed)} metric check(s) (see 'Metric checks' above)")
+        return 1
     return 0
 
 

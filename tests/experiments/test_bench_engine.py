@@ -2,8 +2,9 @@
 
 The baseline (experiments/baseline_process_model.py) is an independent
 implementation of the model (one SimPy process per message, simpy.Resource for
-the broker, the links and the host cores), so agreement with the engine is a
-real cross-check. No assertion here depends on timing.
+the broker, the links and the host cores), so agreement with the engines is a
+real cross-check; the cohort and the per-message ("events") engine must agree
+bit for bit. No assertion here depends on timing.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -24,6 +26,7 @@ EXPERIMENTS = ROOT / "experiments"
 BENCH = EXPERIMENTS / "bench_engine.py"
 sys.path.insert(0, str(EXPERIMENTS))
 
+import bench_engine  # noqa: E402
 from baseline_process_model import ProcessModel, Unsupported, check_supported  # noqa: E402
 
 # The engine books a broker service's end as start + (publish + Σ deliveries) but its
@@ -32,19 +35,7 @@ from baseline_process_model import ProcessModel, Unsupported, check_supported  #
 # that and far below any modelling difference (serialization ~1 µs, service ~3 µs).
 TOL_S = 1e-12
 
-EXPECTED_COLUMNS = [
-    "n",
-    "impl",
-    "method",
-    "scenario",
-    "sim_s",
-    "wall_s",
-    "wall_per_sim_s",
-    "x_realtime",
-    "events",
-    "events_per_s",
-    "peak_rss_mb",
-    "ratio_vs_baseline",
+METRIC_COLUMNS = [
     "latency_state_mean_ms",
     "latency_state_p99_ms",
     "latency_trigger_mean_ms",
@@ -58,12 +49,32 @@ EXPECTED_COLUMNS = [
     "snapshot_rate_hz",
     "spread_mean",
     "pos_err_mean_m",
+]
+
+EXPECTED_COLUMNS = [
+    "n",
+    "impl",
+    "method",
+    "scenario",
+    "role",
+    "engine_used",
+    "fallback",
+    "sim_s",
+    "wall_s",
+    "wall_per_sim_s",
+    "x_realtime",
+    "events",
+    "events_per_s",
+    "peak_rss_mb",
+    "ratio_vs_events",
+    "ratio_vs_baseline",
+    *METRIC_COLUMNS,
     "max_rel_diff",
     "max_rel_diff_metric",
 ]
 
 
-def test_quick_run_writes_table_and_csv_and_matches_engine(tmp_path: Path) -> None:
+def test_quick_run_writes_tables_and_csv_and_engines_agree(tmp_path: Path) -> None:
     out = tmp_path / "bench.csv"
     # everything constant: link latencies and broker service (defaults), step time (set)
     proc = subprocess.run(
@@ -81,36 +92,48 @@ def test_quick_run_writes_table_and_csv_and_matches_engine(tmp_path: Path) -> No
         timeout=300,
         cwd=ROOT,
     )
-    assert proc.returncode == 0, proc.stderr
-    assert "Speed" in proc.stdout and "Metrics, engine vs baseline" in proc.stdout
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    for header in ("Speed (", "Speed-up", "Metric checks", "Metrics, cohort vs baseline"):
+        assert header in proc.stdout, header
     with out.open() as fh:
         reader = csv.DictReader(fh)
         assert reader.fieldnames == EXPECTED_COLUMNS
         rows = list(reader)
     cases = {(int(r["n"]), r["impl"], r["method"], r["scenario"]): r for r in rows}
+    assert len(cases) == len(rows)
     assert set(cases) == {
         (n, impl, m, s)
         for n in (10, 50)
         for impl, m, s in (
-            ("engine", "bides", "full"),
-            ("engine", "none", "restricted"),
+            ("cohort", "bides", "full"),
+            ("events", "bides", "full"),
+            ("cohort", "none", "restricted"),
+            ("events", "none", "restricted"),
             ("baseline", "none", "restricted"),
         )
     }
     for r in rows:
+        assert r["role"] == "main"
         assert float(r["sim_s"]) == 1.0
-        for col in (
-            "wall_s",
-            "wall_per_sim_s",
-            "x_realtime",
-            "events",
-            "events_per_s",
-            "peak_rss_mb",
-            "ratio_vs_baseline",
-        ):
+        assert r["engine_used"] == r["impl"], r
+        assert r["fallback"] == "", r
+        for col in ("wall_s", "wall_per_sim_s", "x_realtime", "events", "events_per_s"):
             assert float(r[col]) > 0, (col, r)
+        assert float(r["peak_rss_mb"]) > 0
+        if r["impl"] == "cohort":
+            assert float(r["ratio_vs_events"]) > 0, r
+        if r["scenario"] == "restricted" and r["impl"] != "baseline":
+            assert float(r["ratio_vs_baseline"]) > 0, r
     for n in (10, 50):
-        e = cases[n, "engine", "none", "restricted"]
+        # cohort vs events: bit-identical (every metric in the child, these in the CSV)
+        for m, s in (("bides", "full"), ("none", "restricted")):
+            c, e = cases[n, "cohort", m, s], cases[n, "events", m, s]
+            assert float(e["max_rel_diff"]) == 0.0, (n, m, e["max_rel_diff_metric"])
+            assert e["max_rel_diff_metric"] == ""
+            for col in METRIC_COLUMNS:
+                assert c[col] == e[col], (n, m, col, c[col], e[col])
+            assert c["events"] == e["events"]  # the same events, counted the same way
+        c = cases[n, "cohort", "none", "restricted"]
         b = cases[n, "baseline", "none", "restricted"]
         # two independent implementations, same constant-latency scenario
         for col in (
@@ -120,7 +143,7 @@ def test_quick_run_writes_table_and_csv_and_matches_engine(tmp_path: Path) -> No
             "aoi_mean_ms",
             "aoi_p99_ms",
         ):
-            assert abs(float(e[col]) - float(b[col])) <= TOL_S * 1e3, (n, col, e[col], b[col])
+            assert abs(float(c[col]) - float(b[col])) <= TOL_S * 1e3, (n, col, c[col], b[col])
         for col in (
             "trigger_rate_hz",
             "throughput_mbps",
@@ -128,9 +151,82 @@ def test_quick_run_writes_table_and_csv_and_matches_engine(tmp_path: Path) -> No
             "snapshot_rate_hz",
             "spread_mean",
         ):
-            assert float(e[col]) == float(b[col]), (n, col, e[col], b[col])
-        assert float(b["max_rel_diff"]) < 1e-9
-        assert math.isclose(float(e["latency_state_mean_ms"]), 0.52, rel_tol=0.05)
+            assert float(c[col]) == float(b[col]), (n, col, c[col], b[col])
+        assert float(b["max_rel_diff"]) < bench_engine.BASELINE_RTOL
+        assert math.isclose(float(c["latency_state_mean_ms"]), 0.52, rel_tol=0.05)
+
+
+def test_plan_caps_twins_and_baseline_skip() -> None:
+    small = bench_engine.plan(200, ["bides"], 5.0, 2.0, 2.0, 1000)
+    assert [(c.impl, c.method, c.scenario, c.sim_s, c.role) for c in small] == [
+        ("cohort", "bides", "full", 5.0, "main"),
+        ("events", "bides", "full", 5.0, "main"),
+        ("cohort", "none", "restricted", 5.0, "main"),
+        ("events", "none", "restricted", 5.0, "main"),
+        ("baseline", "none", "restricted", 5.0, "main"),
+    ]
+    # at N >= large_n: events and baseline capped, a cohort twin per capped duration
+    big = bench_engine.plan(1000, ["none", "bides"], 5.0, 2.0, 1.0, 1000)
+    assert [(c.impl, c.method, c.scenario, c.sim_s, c.role) for c in big] == [
+        ("cohort", "none", "full", 5.0, "main"),
+        ("events", "none", "full", 2.0, "main"),
+        ("cohort", "none", "full", 2.0, "twin"),
+        ("cohort", "bides", "full", 5.0, "main"),
+        ("events", "bides", "full", 2.0, "main"),
+        ("cohort", "bides", "full", 2.0, "twin"),
+        ("cohort", "none", "restricted", 5.0, "main"),
+        ("events", "none", "restricted", 2.0, "main"),
+        ("baseline", "none", "restricted", 1.0, "main"),
+        ("cohort", "none", "restricted", 2.0, "twin"),
+        ("cohort", "none", "restricted", 1.0, "twin"),
+    ]
+    # no baseline (above --baseline-max-n), caps above the duration: no twins
+    assert [c.impl for c in bench_engine.plan(10000, ["bides"], 1.0, 2.0, None, 1000)] == [
+        "cohort",
+        "events",
+        "cohort",
+        "events",
+    ]
+
+
+def _row(impl: str, sim_s: float, wall_s: float, role: str = "main", **metrics: float) -> Any:
+    case = bench_engine.Case(impl, "none", "restricted", sim_s, role)
+    res = {
+        "sim_s": sim_s,
+        "wall_s": wall_s,
+        "events": 100,
+        "peak_rss_mb": 1.0,
+        "engine_used": impl,
+        "fallback": "",
+        "metrics": metrics,
+    }
+    return bench_engine.make_row(case, 1000, res)
+
+
+def test_annotate_ratios_per_simulated_second_and_same_duration_checks() -> None:
+    rows = [
+        _row("cohort", 5.0, 1.0, aoi_mean=1.0, rollbacks=0.0),
+        _row("events", 2.0, 8.0, aoi_mean=1.0, rollbacks=1.0),
+        _row("baseline", 1.0, 10.0, aoi_mean=1.0 + 1e-12),
+        _row("cohort", 2.0, 0.5, "twin", aoi_mean=1.0, rollbacks=1.0),
+        _row("cohort", 1.0, 0.25, "twin", aoi_mean=1.0, rollbacks=0.0),
+    ]
+    checks = bench_engine.annotate(rows)
+    cohort, events, base, twin_e, twin_b = rows
+    assert cohort["ratio_vs_events"] == pytest.approx(4.0 / 0.2)  # per simulated second
+    assert cohort["ratio_vs_baseline"] == pytest.approx(10.0 / 0.2)
+    assert events["ratio_vs_baseline"] == pytest.approx(10.0 / 4.0)
+    assert twin_e["ratio_vs_events"] == pytest.approx(4.0 / 0.25)
+    # events compared with the 2 s twin on every metric (the 5 s main row differs)
+    assert (events["max_rel_diff"], events["max_rel_diff_metric"]) == (0.0, "")
+    assert base["max_rel_diff"] == pytest.approx(1e-12)
+    assert base["max_rel_diff_metric"] == "aoi_mean"
+    assert [(c.other, c.sim_s, c.ok) for c in checks] == [
+        ("events", 2.0, True),
+        ("baseline", 1.0, True),
+    ]
+    rows[3]["_metrics"]["rollbacks"] = 2.0  # any difference fails the identity check
+    assert [c.ok for c in bench_engine.annotate(rows)] == [False, True]
 
 
 @pytest.mark.parametrize("qos", [0, 1])
