@@ -53,6 +53,17 @@ def forces_of(x: np.ndarray, prm: np.ndarray, rho: float) -> tuple[float, float,
     return forces_moments(x, prm, 0.0, 0.0, 0.0, rho)
 
 
+@njit(cache=True)
+def _step_frames(s0: np.ndarray, cmd: np.ndarray, dts: np.ndarray, first: np.int64,
+                 nodes: np.ndarray, prm: np.ndarray, key: np.uint64, out: np.ndarray) -> None:
+    cur = s0.copy()
+    nxt = np.empty_like(cur)
+    for j in range(dts.shape[0]):
+        step_kernel(cur, cmd, _NO_ACT, dts[j], first + j, nodes, prm, key, nxt)
+        out[j] = nxt[0]
+        cur[0] = nxt[0]
+
+
 def observe_state(state: NDArray[np.float64]) -> NDArray[np.float64]:
     """Published ``(n, 12)`` state ``[u v w phi theta psi p q r x y h]`` of aircraft rows."""
     q0, q1, q2, q3 = (state[:, L.Q0], state[:, L.Q1], state[:, L.Q2], state[:, L.Q3])
@@ -200,6 +211,30 @@ class GeneralAircraft:
         out = np.empty_like(state)
         step_kernel(state, command, _NO_ACT, float(dt), np.int64(frame), nodes, self.prm,
                     self.key, out)
+        return out
+
+    def step_frames(self, state: NDArray[np.float64], command: NDArray[np.float64],
+                    dts: NDArray[np.float64], first_frame: int, node: int
+                    ) -> NDArray[np.float64]:
+        """One aircraft through consecutive frames (a time-warp re-simulation).
+
+        Row ``j`` of the result equals ``step`` of row ``j-1`` (``state`` for j = 0)
+        by ``dts[j]`` to frame ``first_frame + j``: the same compiled row step, without
+        a Python call per frame.
+
+        Args:
+            state: ``(STATE_DIM,)`` start state.
+            command: ``(4,)`` command held over all frames.
+            dts: ``(m,)`` frame steps.
+            first_frame: frame the first step leads to.
+            node: the aircraft's node id.
+        """
+        s0 = np.ascontiguousarray(state, dtype=np.float64).reshape(1, L.STATE_DIM)
+        cmd = np.ascontiguousarray(command, dtype=np.float64).reshape(1, 4)
+        out = np.empty((len(dts), L.STATE_DIM))
+        _step_frames(s0, cmd, np.ascontiguousarray(dts, dtype=np.float64),
+                     np.int64(first_frame), np.array([node], dtype=np.int64), self.prm,
+                     self.key, out)
         return out
 
     def step_open_loop(self, state: NDArray[np.float64], actuators: NDArray[np.float64],
