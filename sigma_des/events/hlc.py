@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["HLC", "Stamp", "StabilityBuffer"]
+__all__ = ["HLC", "BatchStabilityBuffer", "Stamp", "StabilityBuffer"]
 
 
 @dataclass(frozen=True, order=True)
@@ -136,18 +136,7 @@ class StabilityBuffer:
 
     def bound(self) -> Stamp | None:
         """Min over live nodes of the newest stamp from each (None if one sent nothing)."""
-        live = self._live
-        if not live.any():
-            if not self._has.any():
-                return None
-            ls = np.where(self._has, self._max_l, -np.inf)
-            top = ls.max()
-            return Stamp(float(top), int(self._max_c[self._has & (ls == top)].max()))
-        if not self._has[live].all():
-            return None
-        ls = np.where(live, self._max_l, np.inf)
-        low = ls.min()
-        return Stamp(float(low), int(self._max_c[live & (ls == low)].min()))
+        return _bound(self._live, self._has, self._max_l, self._max_c)
 
     def release(self) -> list[tuple[Stamp, int, object]]:
         """Remove and return every buffered ``(stamp, node, item)`` stamped <= the bound.
@@ -169,3 +158,110 @@ class StabilityBuffer:
 
     def __len__(self) -> int:
         return len(self._heap)
+
+
+class BatchStabilityBuffer:
+    """:class:`StabilityBuffer` for batches of arrivals (the cohort engine's path).
+
+    Same bound, same release set and the same release order — by ``(l, c)``, then
+    node id, then arrival order — with the items held in arrays instead of a heap.
+
+    Args:
+        n: number of nodes, all live initially.
+        width: columns of the buffered ``obs`` rows.
+    """
+
+    def __init__(self, n: int, width: int) -> None:
+        self.n = int(n)
+        self._max_l = np.full(self.n, -np.inf)
+        self._max_c = np.zeros(self.n, dtype=np.int64)
+        self._has = np.zeros(self.n, dtype=np.bool_)
+        self._live = np.ones(self.n, dtype=np.bool_)
+        self._l = np.empty(0)
+        self._c = np.empty(0, dtype=np.int64)
+        self._node = np.empty(0, dtype=np.int64)
+        self._seq = np.empty(0, dtype=np.int64)
+        self._frame = np.empty(0, dtype=np.int64)
+        self._gen = np.empty(0)
+        self._obs = np.empty((0, width))
+        self._next = 0
+        self.peak = 0
+
+    def add_many(
+        self,
+        nodes: np.ndarray,
+        l: np.ndarray,  # noqa: E741 - the HLC's name
+        c: np.ndarray,
+        frames: np.ndarray,
+        gens: np.ndarray,
+        obs: np.ndarray,
+    ) -> None:
+        """Buffer a batch (in arrival order) and update each node's newest stamp."""
+        m = nodes.size
+        if m == 0:
+            return
+        order = np.lexsort((c, l, nodes))  # per node, the lexicographically largest last
+        last = np.ones(m, dtype=np.bool_)
+        last[:-1] = nodes[order[:-1]] != nodes[order[1:]]
+        top = order[last]
+        nd = nodes[top]
+        tl, tc = l[top], c[top]
+        cl, cc = self._max_l[nd], self._max_c[nd]
+        newer = ~self._has[nd] | (tl > cl) | ((tl == cl) & (tc > cc))
+        self._max_l[nd[newer]] = tl[newer]
+        self._max_c[nd[newer]] = tc[newer]
+        self._has[nd] = True
+        self._l = np.concatenate([self._l, l])
+        self._c = np.concatenate([self._c, c])
+        self._node = np.concatenate([self._node, nodes])
+        self._seq = np.concatenate([self._seq, np.arange(self._next, self._next + m)])
+        self._frame = np.concatenate([self._frame, frames])
+        self._gen = np.concatenate([self._gen, gens])
+        self._obs = np.concatenate([self._obs, obs])
+        self._next += m
+        self.peak = max(self.peak, len(self))
+
+    def set_live(self, node: int, live: bool) -> None:
+        """Mark ``node`` live (it blocks the bound) or dead (it does not)."""
+        self._live[node] = bool(live)
+
+    def bound(self) -> Stamp | None:
+        """Min over live nodes of the newest stamp from each (None if one sent nothing)."""
+        return _bound(self._live, self._has, self._max_l, self._max_c)
+
+    def release_arrays(
+        self,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Remove the causally stable items; return their (node, frame, gen, obs) in order."""
+        b = self.bound()
+        if b is None or self._l.size == 0:
+            return (np.empty(0, dtype=np.int64), np.empty(0, dtype=np.int64), np.empty(0),
+                    np.empty((0, self._obs.shape[1])))
+        stable = (self._l < b.l) | ((self._l == b.l) & (self._c <= b.c))
+        idx = np.flatnonzero(stable)
+        idx = idx[np.lexsort((self._seq[idx], self._node[idx], self._c[idx], self._l[idx]))]
+        out = (self._node[idx], self._frame[idx], self._gen[idx], self._obs[idx])
+        keep = ~stable
+        self._l, self._c, self._node = self._l[keep], self._c[keep], self._node[keep]
+        self._seq, self._frame = self._seq[keep], self._frame[keep]
+        self._gen, self._obs = self._gen[keep], self._obs[keep]
+        return out
+
+    def __len__(self) -> int:
+        return int(self._l.size)
+
+
+def _bound(
+    live: np.ndarray, has: np.ndarray, max_l: np.ndarray, max_c: np.ndarray
+) -> Stamp | None:
+    if not live.any():
+        if not has.any():
+            return None
+        ls = np.where(has, max_l, -np.inf)
+        top = ls.max()
+        return Stamp(float(top), int(max_c[has & (ls == top)].max()))
+    if not has[live].all():
+        return None
+    ls = np.where(live, max_l, np.inf)
+    low = ls.min()
+    return Stamp(float(low), int(max_c[live & (ls == low)].min()))

@@ -88,7 +88,10 @@ class Collector:
         n = sc.nodes
         self.aoi = AoITracker(n, sc.warmup)
         H = sc.history_frames
-        self._seen = {k: np.full((n + 1, H), -1, dtype=np.int64) for k in (1, 2, 3, 4, 5)}
+        # per kind, the newest index seen per (subject, index % H): made on first use, so
+        # a run that never calls delivered() (the cohort engine) never holds them
+        self._seen: dict[int, NDArray[np.int64]] = {}
+        self._seen_shape = (n + 1, H)
         self._lat: dict[str, list[float]] = {"trigger": [], "state": [], "command": []}
         self.duplicates = 0
         self.messages = 0
@@ -128,7 +131,9 @@ class Collector:
 
     def delivered(self, kind: int, subject: int, index: int, t_pub: float, t: float) -> None:
         """A PUBLISH reached its receiver (first delivery counts; later ones are duplicates)."""
-        seen = self._seen[kind]
+        seen = self._seen.get(kind)
+        if seen is None:
+            seen = self._seen[kind] = np.full(self._seen_shape, -1, dtype=np.int64)
         slot = index % seen.shape[1]
         if seen[subject, slot] == index:
             self.duplicates += 1

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import math
 
-from hypothesis import given
+import numpy as np
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sigma_des.events.hlc import HLC, StabilityBuffer, Stamp
@@ -155,3 +156,47 @@ def test_no_live_node_releases_everything() -> None:
     buf.set_live(1, False)
     assert buf.bound() == Stamp(1.0, 7)
     assert [item for _, _, item in buf.release()] == ["c", "a", "b"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.lists(
+            st.tuples(
+                st.integers(0, 3),
+                st.sampled_from([0.0, 0.5, 1.0, 1.5]),
+                st.integers(0, 2),
+            ),
+            max_size=6,
+        ),
+        min_size=1,
+        max_size=6,
+    ),
+    st.lists(st.integers(0, 3), max_size=3),
+)
+def test_batch_buffer_releases_what_the_heap_buffer_releases(
+    batches: list[list[tuple[int, float, int]]], dead: list[int]
+) -> None:
+    """Same bound, same released set, same order (HLC order, node, arrival)."""
+    from sigma_des.events.hlc import BatchStabilityBuffer
+
+    heap, batch = StabilityBuffer(4), BatchStabilityBuffer(4, 1)
+    for node in dead:
+        heap.set_live(node, False)
+        batch.set_live(node, False)
+    seq = 0
+    for rows in batches:
+        for node, l_, c in rows:
+            heap.add(node, Stamp(l_, c), seq)
+            seq += 1
+        if rows:
+            nodes = np.array([r[0] for r in rows], dtype=np.int64)
+            ls = np.array([r[1] for r in rows])
+            cs = np.array([r[2] for r in rows], dtype=np.int64)
+            ids = np.arange(seq - len(rows), seq, dtype=np.int64)
+            batch.add_many(nodes, ls, cs, ids, ids.astype(float), ids[:, None].astype(float))
+        assert heap.bound() == batch.bound()
+        want = [(node, item) for _s, node, item in heap.release()]
+        got_nodes, got_ids, _g, _o = batch.release_arrays()
+        assert list(zip(got_nodes.tolist(), got_ids.tolist(), strict=True)) == want
+        assert len(heap) == len(batch)
