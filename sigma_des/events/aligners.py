@@ -37,6 +37,25 @@ _Record = tuple[int, float, NDArray[np.float64]]  # (frame, generation time, obs
 _RECORD_BYTES = OBS_WIDTH * 8 + 8 + 8  # obs + frame + generation time
 
 
+def newest_rows(
+    nodes: NDArray[np.int64], frames: NDArray[np.int64], current: NDArray[np.int64]
+) -> NDArray[np.intp]:
+    """Rows a one-by-one "take it if its frame beats the node's current" loop keeps.
+
+    Going through the rows in order, a row replaces its node's entry when its frame
+    is greater than the entry's; what remains is, per node, the first row with the
+    node's highest frame in the batch, if that frame beats ``current[node]``.
+
+    Returns:
+        Indices of those rows (at most one per node).
+    """
+    order = np.lexsort((np.arange(nodes.size), -frames, nodes))
+    first = np.ones(order.size, dtype=np.bool_)
+    first[1:] = nodes[order[1:]] != nodes[order[:-1]]
+    best = order[first]
+    return best[frames[best] > current[nodes[best]]]
+
+
 class ServerContext(Protocol):
     """What an aligner may ask of the engine (trigger source and scheduler)."""
 
@@ -174,13 +193,7 @@ class NoneAligner(Aligner):
         hlc_l: NDArray[np.float64],
         hlc_c: NDArray[np.int64],
     ) -> None:
-        # one by one, a row is taken if its frame beats the node's newest so far: per
-        # node that is the first row of the batch's highest frame, if above the stored
-        order = np.lexsort((np.arange(nodes.size), -frames, nodes))
-        first = np.ones(order.size, dtype=np.bool_)
-        first[1:] = nodes[order[1:]] != nodes[order[:-1]]
-        best = order[first]
-        win = best[frames[best] > self._frame[nodes[best]]]
+        win = newest_rows(nodes, frames, self._frame)
         if win.size:
             nd = nodes[win]
             self._frame[nd] = frames[win]
@@ -389,13 +402,7 @@ class HLCAligner(Aligner):
         nodes, frames, gens, obs = self.buffer.release_arrays()
         changed = False
         if nodes.size:
-            # one by one in release order a state is shown if its frame beats the shown
-            # one: per node, the first released state of the node's highest frame
-            order = np.lexsort((np.arange(nodes.size), -frames, nodes))
-            first = np.ones(order.size, dtype=np.bool_)
-            first[1:] = nodes[order[1:]] != nodes[order[:-1]]
-            best = order[first]
-            win = best[frames[best] > self.shown_frame[nodes[best]]]
+            win = newest_rows(nodes, frames, self.shown_frame)
             if win.size:
                 nd = nodes[win]
                 self.shown_frame[nd] = frames[win]

@@ -191,8 +191,12 @@ def _draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
 
 
 @_jit
-def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untyped-def]
-    """Network._hop: FIFO serialization + latency; returns (arrival, lost)."""
+def _count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
+    """Network._count: FIFO serialization on the client's link, counted in the window.
+
+    Returns:
+        The time the last bit leaves.
+    """
     link = S[LINK_OF][client]
     lb = S[LBUSY]
     busy = lb[up, link]
@@ -202,6 +206,13 @@ def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untype
     if g[G_WARMUP] <= t and t < g[G_END]:
         S[LCNT][up, 0, link] += nbytes
         S[LCNT][up, 1, link] += 1
+    return done
+
+
+@_jit
+def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untyped-def]
+    """Network._hop: FIFO serialization + latency; returns (arrival, lost)."""
+    done = _count(S, client, up, nbytes, t)
     cls = 1 if client == S[QQ][Q_N] else 0
     src = lat_source(cls, up)
     lat = _draw(S, src, kind, subj, index)
@@ -210,19 +221,6 @@ def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untype
     if p > 0.0:
         lost = _draw(S, U_OFFSET + src, kind, subj, index) < p
     return done + lat, lost
-
-
-@_jit
-def _count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
-    """Network._count: serialize and count a packet whose arrival does not matter."""
-    link = S[LINK_OF][client]
-    lb = S[LBUSY]
-    busy = lb[up, link]
-    lb[up, link] = (t if t > busy else busy) + nbytes * S[LSPB][up, link]
-    g = S[GG]
-    if g[G_WARMUP] <= t and t < g[G_END]:
-        S[LCNT][up, 0, link] += nbytes
-        S[LCNT][up, 1, link] += 1
 
 
 @_jit
