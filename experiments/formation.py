@@ -103,7 +103,7 @@ from sigma_des.agents.formation import (  # noqa: E402
 )
 from sigma_des.agents.ideal import fly  # noqa: E402
 from sigma_des.config import Scenario, config_hash, to_dict  # noqa: E402
-from sigma_des.events.engine import MethodRun  # noqa: E402
+from sigma_des.events.cohort import execute  # noqa: E402
 from sigma_des.factory import make_behaviour, make_dynamics  # noqa: E402
 from sigma_des.metrics.collector import METRIC_UNITS  # noqa: E402
 from sigma_des.metrics.fidelity import fidelity  # noqa: E402
@@ -301,8 +301,8 @@ def flight_metrics(t: Array, pos: Array, ideal: Array, args: argparse.Namespace
 def run_engine(sc: Scenario, method: str, dyn: Any) -> tuple[dict[str, Any], Array, Array]:
     """One method on ``sc`` (what :func:`sigma_des.api.run_method` does, keeping the
     trajectory): returns the engine's result dict and the ``(T,)``, ``(T, n, 3)`` log."""
-    run = MethodRun(sc, method, dyn, make_behaviour(sc))
-    out = run.run(None)
+    run, out, engine = execute(sc, method, lambda: dyn, lambda: make_behaviour(sc))
+    out["engine"] = engine
     t, pos = run.trajectory()
     return out, t, pos
 

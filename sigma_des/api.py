@@ -24,8 +24,7 @@ from sigma_des import __version__
 from sigma_des.agents.ideal import fly
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.events.cohort import CohortFallback, make_run
-from sigma_des.events.engine import MethodRun
+from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import fidelity
@@ -234,18 +233,10 @@ def run_method(
     """
     if method not in METHODS:
         raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
-    run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
-    try:
-        out = run.run(progress)
-    except CohortFallback as exc:  # met mid-run: redo the whole run per message
-        fallback = str(exc)
-        run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
-        out = run.run(progress)
-    out["engine"] = {
-        "requested": sc.engine,
-        "used": "events" if fallback or sc.engine == "events" else "cohort",
-        "fallback": fallback,
-    }
+    run, out, engine = execute(
+        sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress
+    )
+    out["engine"] = engine
     if sc.fidelity.enabled:
         if ideal is None:
             ideal = ideal_run(sc)[1]

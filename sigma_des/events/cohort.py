@@ -35,7 +35,7 @@ from sigma_des.events.engine import _ROLLBACK, _STEP, MethodRun
 from sigma_des.events.hlc import Stamp
 from sigma_des.net.draws import DrawCache
 
-__all__ = ["CohortFallback", "CohortRun", "make_run", "unsupported"]
+__all__ = ["CohortFallback", "CohortRun", "execute", "make_run", "unsupported"]
 
 
 class CohortFallback(RuntimeError):
@@ -79,6 +79,36 @@ def make_run(
             return CohortRun(sc, method, dynamics, behaviour), ""
         return MethodRun(sc, method, dynamics, behaviour), why
     return MethodRun(sc, method, dynamics, behaviour), ""
+
+
+def execute(
+    sc: Scenario,
+    method: str,
+    dynamics: Callable[[], DynamicsModel],
+    behaviour: Callable[[], Behaviour | None],
+    progress: Callable[[float], None] | None = None,
+) -> tuple[MethodRun, dict[str, Any], dict[str, str]]:
+    """Run ``method`` on the engine ``sc.engine`` asks for, falling back when needed.
+
+    Args:
+        sc: the scenario.
+        method: alignment method.
+        dynamics: makes the dynamics model (called again for a mid-run fallback).
+        behaviour: makes a fresh behaviour (behaviours may keep state).
+        progress: called with the simulated time after every simulated second.
+
+    Returns:
+        The finished run, its result dict and ``{"requested", "used", "fallback"}``.
+    """
+    run, why = make_run(sc, method, dynamics(), behaviour())
+    try:
+        out = run.run(progress)
+    except CohortFallback as exc:  # met mid-run: redo the whole run per message
+        why = str(exc)
+        run = MethodRun(sc, method, dynamics(), behaviour())
+        out = run.run(progress)
+    used = "events" if why or sc.engine == "events" else "cohort"
+    return run, out, {"requested": sc.engine, "used": used, "fallback": why}
 
 
 _Sampler = Callable[[int, int], NDArray[np.float64]]
