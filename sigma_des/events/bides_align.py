@@ -34,6 +34,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
@@ -56,6 +57,26 @@ EXTRAPOLATED = 2
 MISSING = 3
 
 _BIG = np.iinfo(np.int64).max
+
+
+@njit(cache=True)
+def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, latest: np.ndarray,
+                 nodes: np.ndarray, frames: np.ndarray, gens: np.ndarray, rows: np.ndarray,
+                 accepted: np.ndarray) -> None:
+    """:meth:`RingBuffers.insert` row after row (compiled; the same rule, in order)."""
+    k = frame.shape[1]
+    for j in range(nodes.shape[0]):
+        nd = nodes[j]
+        f = frames[j]
+        slot = f % k
+        if frame[nd, slot] >= f:
+            continue
+        frame[nd, slot] = f
+        gen_time[nd, slot] = gens[j]
+        obs[nd, slot, :] = rows[j, :]
+        if f > latest[nd]:
+            latest[nd] = f
+        accepted[j] = True
 
 
 class RingBuffers:
@@ -108,36 +129,25 @@ class RingBuffers:
         gen_times: ArrayLike,
         obs: ArrayLike,
     ) -> NDArray[np.bool_]:
-        """Vectorised :meth:`insert` of a batch (e.g. one cohort of arrivals).
+        """:meth:`insert` of a batch (e.g. one cohort of arrivals), compiled.
 
-        The result equals inserting the rows one by one in any order: per
-        ``(node, slot)`` the newest frame wins, and of identical ``(node, frame)``
-        rows only the first is accepted.
+        Exactly :meth:`insert` called for each row in order. The buffers end up the
+        same for any order of the rows: per ``(node, slot)`` the newest frame wins,
+        and of identical ``(node, frame)`` rows the first.
 
         Returns:
-            ``(m,)`` True where the row was stored.
+            ``(m,)`` what :meth:`insert` returned for each row.
         """
-        nd = np.asarray(nodes, dtype=np.int64).ravel()
-        fr = np.asarray(frames, dtype=np.int64).ravel()
-        gt = np.broadcast_to(np.asarray(gen_times, dtype=np.float64), nd.shape)
-        ob = np.broadcast_to(np.asarray(obs, dtype=np.float64), (nd.size, self.width))
+        nd = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
+        fr = np.ascontiguousarray(frames, dtype=np.int64).ravel()
+        gt = np.ascontiguousarray(np.broadcast_to(np.asarray(gen_times, dtype=np.float64),
+                                                  nd.shape))
+        ob = np.ascontiguousarray(np.broadcast_to(np.asarray(obs, dtype=np.float64),
+                                                  (nd.size, self.width)))
         if fr.size and fr.min() < 0:
             raise ValueError("frames must be >= 0")
-        slot = fr % self.k
-        cell = nd * self.k + slot
-        # Per cell keep the newest frame; among equal frames the first row.
-        order = np.lexsort((np.arange(nd.size), -fr, cell))
-        first = np.ones(order.size, dtype=np.bool_)
-        first[1:] = cell[order[1:]] != cell[order[:-1]]
-        best = order[first]
-        ok = fr[best] > self.frame[nd[best], slot[best]]
-        win = best[ok]
-        self.frame[nd[win], slot[win]] = fr[win]
-        self.gen_time[nd[win], slot[win]] = gt[win]
-        self.obs[nd[win], slot[win]] = ob[win]
-        np.maximum.at(self.latest, nd[win], fr[win])
         accepted = np.zeros(nd.size, dtype=np.bool_)
-        accepted[win] = True
+        _insert_rows(self.frame, self.gen_time, self.obs, self.latest, nd, fr, gt, ob, accepted)
         return accepted
 
     @property

@@ -225,7 +225,7 @@ class CohortRun(MethodRun):
         fields: list[Any] = [None] * J.N_FIELDS
         fields[J.HT] = np.zeros(cap)
         fields[J.HE] = np.zeros(cap, dtype=np.int64)
-        fields[J.HS] = np.zeros(cap, dtype=np.int64)
+        fields[J.HS] = np.zeros(0, dtype=np.int64)  # unused: keys hold the slot
         fields[J.EVI] = np.zeros((cap, J.E_COLS), dtype=np.int64)
         fields[J.EVF] = np.zeros((cap, J.EF_PAY + P))
         fields[J.FREE] = np.arange(cap, dtype=np.int64)[::-1].copy()
@@ -289,7 +289,9 @@ class CohortRun(MethodRun):
         f = self._fields
         old = f[J.HT].size
         new = 2 * old + k
-        for pos in (J.HT, J.HE, J.HS):
+        if new > J.MAX_SLOTS:
+            raise CohortFallback(f"more than {J.MAX_SLOTS} messages in flight")
+        for pos in (J.HT, J.HE):
             a = np.zeros(new, dtype=f[pos].dtype)
             a[:old] = f[pos]
             f[pos] = a

@@ -62,6 +62,10 @@ SLOT_FRAME, OBS_HIST, CMD = 30, 31, 32
 OUT_I, OUT_F, LAT_BUF = 33, 34, 35
 LAST_I, LAST_F, LS = 36, 37, 38
 N_FIELDS = 39
+# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
+SLOT_BITS = 24
+SLOT_MASK = (1 << SLOT_BITS) - 1
+MAX_SLOTS = 1 << SLOT_BITS
 
 # int scalars S[II]
 I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
@@ -105,58 +109,52 @@ def lat_source(cls: int, up: int) -> int:
 @_jit
 def _push(S, t, slot):  # type: ignore[no-untyped-def]
     ht = S[HT]
-    he = S[HE]
-    hs = S[HS]
+    hk = S[HE]
     iv = S[II]
     e = iv[I_EID]
     iv[I_EID] = e + 1
     iv[I_NEV] += 1
+    key = (e << SLOT_BITS) | slot  # sequence number first: it alone orders equal times
     i = iv[I_HEAP]
     iv[I_HEAP] = i + 1
     while i > 0:
         p = (i - 1) >> 1
-        if t < ht[p] or (t == ht[p] and e < he[p]):
+        if t < ht[p] or (t == ht[p] and key < hk[p]):
             ht[i] = ht[p]
-            he[i] = he[p]
-            hs[i] = hs[p]
+            hk[i] = hk[p]
             i = p
         else:
             break
     ht[i] = t
-    he[i] = e
-    hs[i] = slot
+    hk[i] = key
 
 
 @_jit
 def _pop(S):  # type: ignore[no-untyped-def]
     ht = S[HT]
-    he = S[HE]
-    hs = S[HS]
+    hk = S[HE]
     iv = S[II]
     n = iv[I_HEAP] - 1
     iv[I_HEAP] = n
-    top = hs[0]
+    top = hk[0] & SLOT_MASK
     if n > 0:
         t = ht[n]
-        e = he[n]
-        s = hs[n]
+        key = hk[n]
         i = 0
         while True:
             c = 2 * i + 1
             if c >= n:
                 break
-            if c + 1 < n and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and he[c + 1] < he[c])):
+            if c + 1 < n and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and hk[c + 1] < hk[c])):
                 c += 1
-            if ht[c] < t or (ht[c] == t and he[c] < e):
+            if ht[c] < t or (ht[c] == t and hk[c] < key):
                 ht[i] = ht[c]
-                he[i] = he[c]
-                hs[i] = hs[c]
+                hk[i] = hk[c]
                 i = c
             else:
                 break
         ht[i] = t
-        he[i] = e
-        hs[i] = s
+        hk[i] = key
     return top
 
 
