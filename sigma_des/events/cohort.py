@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.config import Scenario
 from sigma_des.events import cohort_jit as J
+from sigma_des.events import cohort_state as CS
 from sigma_des.events.aligners import OBS_WIDTH
 from sigma_des.events.engine import _ROLLBACK, _STEP, MethodRun
 from sigma_des.events.hlc import Stamp
@@ -146,20 +147,20 @@ class CohortRun(MethodRun):
         W = OBS_WIDTH
         M = int(self.cmd.shape[1])
         cap = 4 * (n + 1) + SLACK
-        iv = np.zeros(J.I_LEN, dtype=np.int64)
-        iv[J.I_FREE] = cap
-        fv = np.zeros(J.F_LEN)
-        q = np.zeros(J.Q_LEN, dtype=np.int64)
-        q[J.Q_N] = n
-        q[J.Q_H] = self.H
-        q[J.Q_HLC] = int(self.use_hlc)
-        q[J.Q_WARP] = int(method == "bides" and sc.bides.time_warp)
-        q[J.Q_THETA] = sc.bides.theta_warp
-        q[J.Q_QOS1S] = int(net.qos1 and not net.datagram)
-        q[J.Q_ACK] = net.ack_bytes
-        q[J.Q_W] = W
-        q[J.Q_M] = M
-        q[J.Q_LOCK] = int(method == "lockstep")
+        iv = np.zeros(CS.I_LEN, dtype=np.int64)
+        iv[CS.I_FREE] = cap
+        fv = np.zeros(CS.F_LEN)
+        q = np.zeros(CS.Q_LEN, dtype=np.int64)
+        q[CS.Q_N] = n
+        q[CS.Q_H] = self.H
+        q[CS.Q_HLC] = int(self.use_hlc)
+        q[CS.Q_WARP] = int(method == "bides" and sc.bides.time_warp)
+        q[CS.Q_THETA] = sc.bides.theta_warp
+        q[CS.Q_QOS1S] = int(net.qos1 and not net.datagram)
+        q[CS.Q_ACK] = net.ack_bytes
+        q[CS.Q_W] = W
+        q[CS.Q_M] = M
+        q[CS.Q_LOCK] = int(method == "lockstep")
         g = np.array([sc.warmup, sc.duration])
         nl = sc.hosts + 1
         spb = np.zeros((2, nl))
@@ -167,8 +168,8 @@ class CohortRun(MethodRun):
             spb[1, h] = net.up[h].sec_per_byte
             spb[0, h] = net.down[h].sec_per_byte
         # draw tables: a row of all subjects per (source, kind, index), filled by Python
-        cmap = np.full((J.N_SOURCES, 6), -1, dtype=np.int64)
-        cval = np.zeros(J.N_SOURCES)
+        cmap = np.full((CS.N_SOURCES, 6), -1, dtype=np.int64)
+        cval = np.zeros(CS.N_SOURCES)
         self._fills: dict[int, list[tuple[int, _Sampler]]] = {k: [] for k in range(6)}
         p_loss = np.array([sc.net.host_link.loss.p, sc.net.server_link.loss.p])
         combos: list[tuple[int, int, DrawCache]] = []
@@ -178,23 +179,23 @@ class CohortRun(MethodRun):
             kinds_up = (1, 3, 4) if is_server else (2, 5)
             kinds_down = (2, 5) if is_server else (1, 3, 4)
             for up, kinds in ((1, kinds_up), (0, kinds_down)):
-                src = J.lat_source(cls, up)
+                src = CS.lat_source(cls, up)
                 lat = net._lat[is_server, bool(up)]
                 for k in kinds:
                     combos.append((src, k, lat))
                     if p_loss[cls] > 0.0:
-                        combos.append((J.U_OFFSET + src, k, net._u[is_server, bool(up)]))
+                        combos.append((CS.U_OFFSET + src, k, net._u[is_server, bool(up)]))
         for k in (1, 2, 3, 4, 5):
-            combos.append((J.SVC_PUB, k, net._svc_pub))
-            combos.append((J.SVC_DEL, k, net._svc_del))
-        combos.append((J.STEP, 0, self.step_time))
+            combos.append((CS.SVC_PUB, k, net._svc_pub))
+            combos.append((CS.SVC_DEL, k, net._svc_del))
+        combos.append((CS.STEP, 0, self.step_time))
         nc = 0
         for src, k, cache in combos:
             if cache.constant is not None:
                 cval[src] = cache.constant
                 continue
             cmap[src, k] = nc
-            sampler_kind = _STEP if src == J.STEP else k
+            sampler_kind = _STEP if src == CS.STEP else k
             self._fills[k].append((nc, _vector_of(cache, sampler_kind)))
             nc += 1
         self._dval = np.zeros((max(nc, 1), R, n + 1))
@@ -205,12 +206,12 @@ class CohortRun(MethodRun):
         wb[3] = net.wire_bytes(sc.commands.payload_bits)
         wb[4] = net.wire_bytes(sc.trigger_payload_bits)
         wb[5] = net.wire_bytes(sc.payload_bits)
-        nd = np.zeros((J.N_ROWS, n), dtype=np.int64)
-        nd[[J.N_FRAME, J.N_REQ, J.N_TARGET, J.N_CSTAMP]] = -1
+        nd = np.zeros((CS.N_ROWS, n), dtype=np.int64)
+        nd[[CS.N_FRAME, CS.N_REQ, CS.N_TARGET, CS.N_CSTAMP]] = -1
         self._nd = nd
         # Python-side views used by MethodRun._rollback
-        self.rb_steps = nd[J.N_RB]  # type: ignore[assignment]
-        self.node_busy = nd[J.N_BUSY]  # type: ignore[assignment]
+        self.rb_steps = nd[CS.N_RB]  # type: ignore[assignment]
+        self.node_busy = nd[CS.N_BUSY]  # type: ignore[assignment]
         crash = np.array(self.crash_at, dtype=np.float64)
         ptr = np.zeros(n + 1, dtype=np.int64)
         rows: list[tuple[float, float, float]] = []
@@ -222,48 +223,48 @@ class CohortRun(MethodRun):
         out_cap = 2 * (n + 1) + SLACK
         lat_cap = 4 * (n + 1) + SLACK
         P = max(W, M)
-        fields: list[Any] = [None] * J.N_FIELDS
-        fields[J.HT] = np.zeros(cap)
-        fields[J.HE] = np.zeros(cap, dtype=np.int64)
-        fields[J.HS] = np.zeros(0, dtype=np.int64)  # unused: keys hold the slot
-        fields[J.EVI] = np.zeros((cap, J.E_COLS), dtype=np.int64)
-        fields[J.EVF] = np.zeros((cap, J.EF_PAY + P))
-        fields[J.FREE] = np.arange(cap, dtype=np.int64)[::-1].copy()
-        fields[J.II] = iv
-        fields[J.FF] = fv
-        fields[J.QQ] = q
-        fields[J.GG] = g
-        fields[J.LBUSY] = np.zeros((2, nl))
-        fields[J.LCNT] = np.zeros((2, 2, nl), dtype=np.int64)
-        fields[J.LSPB] = spb
-        fields[J.LINK_OF] = np.array(net.link_of, dtype=np.int64)
-        fields[J.CMAP] = cmap
-        fields[J.CVAL] = cval
-        fields[J.DVAL] = self._dval
-        fields[J.DTAG] = self._dtag
-        fields[J.PLOSS] = p_loss
-        fields[J.WB] = wb
-        fields[J.ND] = nd
-        fields[J.HOST_OF] = np.array(self.host_of, dtype=np.int64)
-        fields[J.CRASH] = crash
-        fields[J.SLOW_PTR] = ptr
-        fields[J.SLOW] = slow
-        fields[J.CORES] = cores
-        fields[J.HLC_L] = np.full(n, -math.inf)
-        fields[J.HLC_C] = np.zeros(n, dtype=np.int64)
-        fields[J.OFF] = np.array(self._offset, dtype=np.float64)
-        fields[J.DRIFT] = np.array(self._drift, dtype=np.float64)
-        fields[J.SLOT_FRAME] = self.slot_frame
-        fields[J.OBS_HIST] = self.obs_hist
-        fields[J.CMD] = self.cmd
-        fields[J.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
-        fields[J.OUT_F] = np.zeros((out_cap, 3 + W))
-        fields[J.LAT_BUF] = np.zeros((3, lat_cap))
+        fields: list[Any] = [None] * CS.N_FIELDS
+        fields[CS.HT] = np.zeros(cap)
+        fields[CS.HE] = np.zeros(cap, dtype=np.int64)
+        fields[CS.HS] = np.zeros(0, dtype=np.int64)  # unused: keys hold the slot
+        fields[CS.EVI] = np.zeros((cap, CS.E_COLS), dtype=np.int64)
+        fields[CS.EVF] = np.zeros((cap, CS.EF_PAY + P))
+        fields[CS.FREE] = np.arange(cap, dtype=np.int64)[::-1].copy()
+        fields[CS.II] = iv
+        fields[CS.FF] = fv
+        fields[CS.QQ] = q
+        fields[CS.GG] = g
+        fields[CS.LBUSY] = np.zeros((2, nl))
+        fields[CS.LCNT] = np.zeros((2, 2, nl), dtype=np.int64)
+        fields[CS.LSPB] = spb
+        fields[CS.LINK_OF] = np.array(net.link_of, dtype=np.int64)
+        fields[CS.CMAP] = cmap
+        fields[CS.CVAL] = cval
+        fields[CS.DVAL] = self._dval
+        fields[CS.DTAG] = self._dtag
+        fields[CS.PLOSS] = p_loss
+        fields[CS.WB] = wb
+        fields[CS.ND] = nd
+        fields[CS.HOST_OF] = np.array(self.host_of, dtype=np.int64)
+        fields[CS.CRASH] = crash
+        fields[CS.SLOW_PTR] = ptr
+        fields[CS.SLOW] = slow
+        fields[CS.CORES] = cores
+        fields[CS.HLC_L] = np.full(n, -math.inf)
+        fields[CS.HLC_C] = np.zeros(n, dtype=np.int64)
+        fields[CS.OFF] = np.array(self._offset, dtype=np.float64)
+        fields[CS.DRIFT] = np.array(self._drift, dtype=np.float64)
+        fields[CS.SLOT_FRAME] = self.slot_frame
+        fields[CS.OBS_HIST] = self.obs_hist
+        fields[CS.CMD] = self.cmd
+        fields[CS.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
+        fields[CS.OUT_F] = np.zeros((out_cap, 3 + W))
+        fields[CS.LAT_BUF] = np.zeros((3, lat_cap))
         last_i = np.zeros((n, 2), dtype=np.int64)
         last_i[:, 0] = -1
-        fields[J.LAST_I] = last_i
-        fields[J.LAST_F] = np.zeros((n, 2 + W))
-        fields[J.LS] = np.zeros((2, n), dtype=np.int64)
+        fields[CS.LAST_I] = last_i
+        fields[CS.LAST_F] = np.zeros((n, 2 + W))
+        fields[CS.LS] = np.zeros((2, n), dtype=np.int64)
         self._lockstep = method == "lockstep"
         self._fields = fields
         self.S = tuple(fields)
@@ -283,29 +284,29 @@ class CohortRun(MethodRun):
     # ------------------------------------------------------------ space
 
     def _ensure_space(self, k: int) -> None:
-        iv = self.S[J.II]
-        if iv[J.I_FREE] >= k + self.n + 4:
+        iv = self.S[CS.II]
+        if iv[CS.I_FREE] >= k + self.n + 4:
             return
         f = self._fields
-        old = f[J.HT].size
+        old = f[CS.HT].size
         new = 2 * old + k
-        if new > J.MAX_SLOTS:
-            raise CohortFallback(f"more than {J.MAX_SLOTS} messages in flight")
-        for pos in (J.HT, J.HE):
+        if new > CS.MAX_SLOTS:
+            raise CohortFallback(f"more than {CS.MAX_SLOTS} messages in flight")
+        for pos in (CS.HT, CS.HE):
             a = np.zeros(new, dtype=f[pos].dtype)
             a[:old] = f[pos]
             f[pos] = a
-        for pos in (J.EVI, J.EVF):
+        for pos in (CS.EVI, CS.EVF):
             a = np.zeros((new,) + f[pos].shape[1:], dtype=f[pos].dtype)
             a[:old] = f[pos]
             f[pos] = a
-        nfree = int(iv[J.I_FREE])
+        nfree = int(iv[CS.I_FREE])
         free = np.zeros(new, dtype=np.int64)
-        free[:nfree] = f[J.FREE][:nfree]
+        free[:nfree] = f[CS.FREE][:nfree]
         extra = np.arange(new - 1, old - 1, -1, dtype=np.int64)
         free[nfree : nfree + extra.size] = extra
-        f[J.FREE] = free
-        iv[J.I_FREE] = nfree + extra.size
+        f[CS.FREE] = free
+        iv[CS.I_FREE] = nfree + extra.size
         self.S = tuple(f)
 
     # ------------------------------------------------------------ MethodRun hooks
@@ -341,15 +342,15 @@ class CohortRun(MethodRun):
         """A job start that needs Python (rollback draws): same arithmetic as the core."""
         now = self._t_event
         nd = self._nd
-        target = int(nd[J.N_REQ, i])
+        target = int(nd[CS.N_REQ, i])
         cost = 0.0
-        for f in range(int(nd[J.N_FRAME, i]) + 1, target + 1):
+        for f in range(int(nd[CS.N_FRAME, i]) + 1, target + 1):
             cost += self.step_time.get(_STEP, i, f, 0)
-        rb = int(nd[J.N_RB, i])
+        rb = int(nd[CS.N_RB, i])
         if rb:
             for j in range(rb):
                 cost += self.step_time.get(_ROLLBACK, i, target, j)
-            nd[J.N_RB, i] = 0
+            nd[CS.N_RB, i] = 0
         for a, b, factor in self.slow.get(i, ()):
             if a <= now < b:
                 cost *= factor
@@ -362,12 +363,12 @@ class CohortRun(MethodRun):
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
         al: Any = self.aligner
         S = self.S
-        S[J.LS][0] = al._got
-        S[J.LS][1] = al.live
-        iv = S[J.II]
-        iv[J.I_LCUR] = al.current
-        iv[J.I_LMISS] = al._missing
-        iv[J.I_LCOMP] = int(al.complete)
+        S[CS.LS][0] = al._got
+        S[CS.LS][1] = al.live
+        iv = S[CS.II]
+        iv[CS.I_LCUR] = al.current
+        iv[CS.I_LMISS] = al._missing
+        iv[CS.I_LCOMP] = int(al.complete)
 
     def _messages(self, bound: float, strict: bool) -> bool:
         """Run the message core to ``bound``, serving its requests for Python.
@@ -381,25 +382,25 @@ class CohortRun(MethodRun):
                 self._flush()
                 self._sync_barrier()
             code = J.advance(self.S, bound, strict)
-            if code == J.OK:
+            if code == CS.OK:
                 return False
-            if code == J.BARRIER:
+            if code == CS.BARRIER:
                 # the aligner sees the completing state at its own arrival time
-                self.kernel.env._now = float(self.S[J.FF][J.F_PT])
+                self.kernel.env._now = float(self.S[CS.FF][CS.F_PT])
                 self._flush()
                 return True
-            if code == J.NEED_SPACE:
+            if code == CS.NEED_SPACE:
                 self._ensure_space(self.n + 8)
-            elif code == J.NEED_FLUSH:
+            elif code == CS.NEED_FLUSH:
                 self._flush()
-            elif code == J.NEED_START:
-                self._t_event = float(self.S[J.FF][J.F_PT])
-                self._start_job(int(self.S[J.II][J.I_PNODE]))
-            elif code == J.NEED_ROLLBACK:
-                iv = self.S[J.II]
-                i = int(iv[J.I_PNODE])
-                self._t_event = float(self.S[J.FF][J.F_PT])
-                self._rollback(i, int(iv[J.I_PA]), int(iv[J.I_PB]), self.cmd[i].copy())
+            elif code == CS.NEED_START:
+                self._t_event = float(self.S[CS.FF][CS.F_PT])
+                self._start_job(int(self.S[CS.II][CS.I_PNODE]))
+            elif code == CS.NEED_ROLLBACK:
+                iv = self.S[CS.II]
+                i = int(iv[CS.I_PNODE])
+                self._t_event = float(self.S[CS.FF][CS.F_PT])
+                self._rollback(i, int(iv[CS.I_PA]), int(iv[CS.I_PB]), self.cmd[i].copy())
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "
@@ -409,20 +410,20 @@ class CohortRun(MethodRun):
     def _flush(self) -> None:
         """Hand buffered state deliveries to the aligner, latencies to the collector."""
         S = self.S
-        iv = S[J.II]
-        o = int(iv[J.I_OUT])
+        iv = S[CS.II]
+        o = int(iv[CS.I_OUT])
         if o:
-            oi = S[J.OUT_I][:o]
-            of = S[J.OUT_F][:o]
+            oi = S[CS.OUT_I][:o]
+            of = S[CS.OUT_F][:o]
             self.aligner.on_states(
                 of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
             )
-            iv[J.I_OUT] = 0
+            iv[CS.I_OUT] = 0
         for k in range(3):
-            m = int(iv[J.I_LAT + k])
+            m = int(iv[CS.I_LAT + k])
             if m:
-                self.collector.delivered_batch(k + 1, S[J.LAT_BUF][k, :m].copy(), 0)
-                iv[J.I_LAT + k] = 0
+                self.collector.delivered_batch(k + 1, S[CS.LAT_BUF][k, :m].copy(), 0)
+                iv[CS.I_LAT + k] = 0
 
     def _advance(self, progress: Callable[[float], None] | None) -> None:
         env = self.kernel.env
@@ -450,8 +451,8 @@ class CohortRun(MethodRun):
         """Copy the core's counters into the objects the collector reads."""
         S = self.S
         net = self.net
-        cnt = S[J.LCNT]
-        busy = S[J.LBUSY]
+        cnt = S[CS.LCNT]
+        busy = S[CS.LBUSY]
         for h in range(self.sc.hosts + 1):
             net.up[h].bytes = int(cnt[1, 0, h])
             net.up[h].packets = int(cnt[1, 1, h])
@@ -459,17 +460,17 @@ class CohortRun(MethodRun):
             net.down[h].bytes = int(cnt[0, 0, h])
             net.down[h].packets = int(cnt[0, 1, h])
             net.down[h].busy = float(busy[0, h])
-        fv = S[J.FF]
-        iv = S[J.II]
-        net.broker_busy = float(fv[J.F_BUSY])
-        net.broker_work = float(fv[J.F_WORK])
-        net.broker_max_wait = float(fv[J.F_MAXWAIT])
-        self.history_misses += int(iv[J.I_HMISS])
-        self.collector.delivered_batch(1, np.empty(0), int(iv[J.I_MSGS]))
-        self.kernel.events += int(iv[J.I_NEV])
-        iv[J.I_MSGS] = 0
-        iv[J.I_HMISS] = 0
-        iv[J.I_NEV] = 0
+        fv = S[CS.FF]
+        iv = S[CS.II]
+        net.broker_busy = float(fv[CS.F_BUSY])
+        net.broker_work = float(fv[CS.F_WORK])
+        net.broker_max_wait = float(fv[CS.F_MAXWAIT])
+        self.history_misses += int(iv[CS.I_HMISS])
+        self.collector.delivered_batch(1, np.empty(0), int(iv[CS.I_MSGS]))
+        self.kernel.events += int(iv[CS.I_NEV])
+        iv[CS.I_MSGS] = 0
+        iv[CS.I_HMISS] = 0
+        iv[CS.I_NEV] = 0
 
 
 def _vector_of(cache: DrawCache, kind: int) -> _Sampler:

@@ -10,7 +10,8 @@ point operations in the same order as the specification and numbers events in
 the same relative order, so simultaneous events are broken the same way and the
 results are bit-identical.
 
-All state lives in one tuple ``S`` of numpy arrays (positions below), shared with
+All state lives in one tuple ``S`` of numpy arrays (its layout and the heap, slot,
+draw and link primitives are in :mod:`sigma_des.events.cohort_state`), shared with
 the Python driver (:mod:`sigma_des.events.cohort`). The loop hands control back
 to Python, between two events, when something needs Python: a time-warp rollback
 (re-simulating physics), a job whose cost includes rollback draws, a full
@@ -24,17 +25,109 @@ uses, and this loop reads them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
-
-from numba import njit
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-#: Compiled without numba's reference counting: every array is borrowed from the
-#: driver and nothing is allocated, and NRT's atomic increments on each array access
-#: made the loop ~4x slower.
-_jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+from sigma_des.events.cohort_state import (
+    BARRIER,
+    CMD,
+    CORES,
+    CRASH,
+    DRAW_MISS,
+    DRIFT,
+    E_AUX,
+    E_FRAME,
+    E_INDEX,
+    E_KIND,
+    E_SUBJ,
+    E_TYPE,
+    E_WHO,
+    EF_GEN,
+    EF_L,
+    EF_PAY,
+    EF_TDEP,
+    EF_TPUB,
+    EV_BROKER,
+    EV_CLIENT,
+    EV_DONE,
+    EVF,
+    EVI,
+    F_BUSY,
+    F_MAXWAIT,
+    F_PT,
+    F_WORK,
+    FF,
+    G_END,
+    G_WARMUP,
+    GG,
+    HLC_C,
+    HLC_L,
+    HOST_OF,
+    HT,
+    I_ERR,
+    I_FREE,
+    I_HEAP,
+    I_HMISS,
+    I_LAT,
+    I_LCOMP,
+    I_LCUR,
+    I_LMISS,
+    I_MSGS,
+    I_OUT,
+    I_PA,
+    I_PB,
+    I_PEND,
+    I_PNODE,
+    II,
+    K_COMMAND,
+    K_REPUB,
+    K_REREQ,
+    K_STATE,
+    K_TRIGGER,
+    LAST_F,
+    LAST_I,
+    LAT_BUF,
+    LS,
+    N_BUSY,
+    N_CSTAMP,
+    N_FRAME,
+    N_RB,
+    N_REQ,
+    N_TARGET,
+    ND,
+    NEED_FLUSH,
+    NEED_ROLLBACK,
+    NEED_SPACE,
+    NEED_START,
+    OBS_HIST,
+    OFF,
+    OK,
+    OUT_F,
+    OUT_I,
+    Q_ACK,
+    Q_HLC,
+    Q_LOCK,
+    Q_M,
+    Q_N,
+    Q_QOS1S,
+    Q_THETA,
+    Q_W,
+    Q_WARP,
+    QQ,
+    SLOT_FRAME,
+    SLOW,
+    SLOW_PTR,
+    STEP,
+    SVC_DEL,
+    SVC_PUB,
+    WB,
+    alloc,
+    count,
+    draw,
+    hop,
+    jit,
+    pop,
+    push,
+    release,
+    send_up,
+)
 
 __all__ = [
     "advance",
@@ -44,205 +137,13 @@ __all__ = [
     "reserve",
 ]
 
-# event types
-EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
-# exit codes of advance()
-OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
-
-# message kinds (as in sigma_des.net.network)
-K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = 1, 2, 3, 4, 5
-
-# positions in the state tuple S
-HT, HE, HS, EVI, EVF, FREE, II, FF, QQ, GG = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
-LBUSY, LCNT, LSPB, LINK_OF = 10, 11, 12, 13
-CMAP, CVAL, DVAL, DTAG, PLOSS, WB = 14, 15, 16, 17, 18, 19
-ND, HOST_OF, CRASH, SLOW_PTR, SLOW, CORES = 20, 21, 22, 23, 24, 25
-HLC_L, HLC_C, OFF, DRIFT = 26, 27, 28, 29
-SLOT_FRAME, OBS_HIST, CMD = 30, 31, 32
-OUT_I, OUT_F, LAT_BUF = 33, 34, 35
-LAST_I, LAST_F, LS = 36, 37, 38
-N_FIELDS = 39
-# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
-SLOT_BITS = 24
-SLOT_MASK = (1 << SLOT_BITS) - 1
-MAX_SLOTS = 1 << SLOT_BITS
-
-# int scalars S[II]
-I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
-I_LAT = 12  # three counters: trigger, state, command latencies buffered
-I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
-I_LEN = 18
-# float scalars S[FF]
-F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
-F_LEN = 4
-# int parameters S[QQ]
-Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
-Q_LEN = 10
-# float parameters S[GG]
-G_WARMUP, G_END = 0, 1
-G_LEN = 2
-# node integer rows S[ND]
-N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
-N_ROWS = 6
-# event int columns S[EVI]: type, client/receiver, kind, subject, index, aux (HLC c or
-# command stamp), frame (of a state, republished state or re-request)
-E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
-E_COLS = 7
-# event float columns S[EVF]: t_publish, t_depart, HLC l, generation time, payload...
-EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
-# draw sources: latency and loss uniforms per (link class, direction), broker, compute
-LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
-U_OFFSET = 4
-SVC_PUB, SVC_DEL, STEP = 8, 9, 10
-N_SOURCES = 11
-
-
-@_jit
-def lat_source(cls: int, up: int) -> int:
-    """Latency source of link class ``cls`` (0 host, 1 server) and direction ``up``."""
-    return 2 * (1 - cls) + (1 - up)
-
-
-# ---------------------------------------------------------------- heap and slots
-
-
-@_jit
-def _push(S, t, slot):  # type: ignore[no-untyped-def]
-    ht = S[HT]
-    hk = S[HE]
-    iv = S[II]
-    e = iv[I_EID]
-    iv[I_EID] = e + 1
-    iv[I_NEV] += 1
-    key = (e << SLOT_BITS) | slot  # sequence number first: it alone orders equal times
-    i = iv[I_HEAP]
-    iv[I_HEAP] = i + 1
-    while i > 0:
-        p = (i - 1) >> 1
-        if t < ht[p] or (t == ht[p] and key < hk[p]):
-            ht[i] = ht[p]
-            hk[i] = hk[p]
-            i = p
-        else:
-            break
-    ht[i] = t
-    hk[i] = key
-
-
-@_jit
-def _pop(S):  # type: ignore[no-untyped-def]
-    ht = S[HT]
-    hk = S[HE]
-    iv = S[II]
-    n = iv[I_HEAP] - 1
-    iv[I_HEAP] = n
-    top = hk[0] & SLOT_MASK
-    if n > 0:
-        t = ht[n]
-        key = hk[n]
-        i = 0
-        while True:
-            c = 2 * i + 1
-            if c >= n:
-                break
-            if c + 1 < n and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and hk[c + 1] < hk[c])):
-                c += 1
-            if ht[c] < t or (ht[c] == t and hk[c] < key):
-                ht[i] = ht[c]
-                hk[i] = hk[c]
-                i = c
-            else:
-                break
-        ht[i] = t
-        hk[i] = key
-    return top
-
-
-@_jit
-def _alloc(S):  # type: ignore[no-untyped-def]
-    iv = S[II]
-    iv[I_FREE] -= 1
-    return S[FREE][iv[I_FREE]]
-
-
-@_jit
-def _release(S, slot):  # type: ignore[no-untyped-def]
-    iv = S[II]
-    S[FREE][iv[I_FREE]] = slot
-    iv[I_FREE] += 1
-
-
-# ---------------------------------------------------------------- draws and links
-
-
-@_jit
-def _draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
-    c = S[CMAP][src, kind]
-    if c < 0:
-        return S[CVAL][src]
-    tag = S[DTAG]
-    r = index % tag.shape[1]
-    if tag[c, r] != index:
-        S[II][I_ERR] = 1
-        return 0.0
-    return S[DVAL][c, r, subj]
-
-
-@_jit
-def _count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
-    """Network._count: FIFO serialization on the client's link, counted in the window.
-
-    Returns:
-        The time the last bit leaves.
-    """
-    link = S[LINK_OF][client]
-    lb = S[LBUSY]
-    busy = lb[up, link]
-    done = (t if t > busy else busy) + nbytes * S[LSPB][up, link]
-    lb[up, link] = done
-    g = S[GG]
-    if g[G_WARMUP] <= t and t < g[G_END]:
-        S[LCNT][up, 0, link] += nbytes
-        S[LCNT][up, 1, link] += 1
-    return done
-
-
-@_jit
-def _hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untyped-def]
-    """Network._hop: FIFO serialization + latency; returns (arrival, lost)."""
-    done = _count(S, client, up, nbytes, t)
-    cls = 1 if client == S[QQ][Q_N] else 0
-    src = lat_source(cls, up)
-    lat = _draw(S, src, kind, subj, index)
-    p = S[PLOSS][cls]
-    lost = False
-    if p > 0.0:
-        lost = _draw(S, U_OFFSET + src, kind, subj, index) < p
-    return done + lat, lost
-
-
-@_jit
-def _send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
-    """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
-    evi = S[EVI]
-    evi[slot, E_TYPE] = EV_BROKER
-    evi[slot, E_WHO] = client
-    evi[slot, E_KIND] = kind
-    evi[slot, E_SUBJ] = subject
-    evi[slot, E_INDEX] = index
-    arr, lost = _hop(S, client, 1, kind, subject, index, S[WB][kind], t)
-    if lost:
-        _release(S, slot)
-    else:
-        _push(S, arr, slot)
-
 
 # ---------------------------------------------------------------- broker
 
 
-@_jit
+@jit
 def _deliver_try(S, src, sub, kind, dsubj, index, d):  # type: ignore[no-untyped-def]
-    slot = _alloc(S)
+    slot = alloc(S)
     evf = S[EVF]
     evi = S[EVI]
     for j in range(evf.shape[1]):
@@ -255,14 +156,14 @@ def _deliver_try(S, src, sub, kind, dsubj, index, d):  # type: ignore[no-untyped
     evi[slot, E_INDEX] = index
     evi[slot, E_AUX] = evi[src, E_AUX]
     evi[slot, E_FRAME] = evi[src, E_FRAME]
-    arr, lost = _hop(S, sub, 0, kind, dsubj, index, S[WB][kind], d)
+    arr, lost = hop(S, sub, 0, kind, dsubj, index, S[WB][kind], d)
     if lost:
-        _release(S, slot)
+        release(S, slot)
     else:
-        _push(S, arr, slot)
+        push(S, arr, slot)
 
 
-@_jit
+@jit
 def _work(S, a, b):  # type: ignore[no-untyped-def]
     g = S[GG]
     lo = a if a > g[G_WARMUP] else g[G_WARMUP]
@@ -271,7 +172,7 @@ def _work(S, a, b):  # type: ignore[no-untyped-def]
         S[FF][F_WORK] += hi - lo
 
 
-@_jit
+@jit
 def _broker(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EVI]
     ff = S[FF]
@@ -282,21 +183,21 @@ def _broker(S, s, now):  # type: ignore[no-untyped-def]
     kind = evi[s, E_KIND]
     subject = evi[s, E_SUBJ]
     index = evi[s, E_INDEX]
-    s_pub = _draw(S, SVC_PUB, kind, subject, index)
+    s_pub = draw(S, SVC_PUB, kind, subject, index)
     busy = ff[F_BUSY]
     start = now if now > busy else busy
     if g[G_WARMUP] <= now and now < g[G_END]:
         ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
     if q[Q_QOS1S]:
-        _count(S, client, 0, q[Q_ACK], start + s_pub)
+        count(S, client, 0, q[Q_ACK], start + s_pub)
     d = start + s_pub
     if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
         for sub in range(n):
-            d += _draw(S, SVC_DEL, kind, sub, index)
+            d += draw(S, SVC_DEL, kind, sub, index)
             _deliver_try(S, s, sub, kind, sub, index, d)
     else:
         sub = n if kind == K_STATE or kind == K_REPUB else subject
-        d += _draw(S, SVC_DEL, kind, subject, index)
+        d += draw(S, SVC_DEL, kind, subject, index)
         _deliver_try(S, s, sub, kind, subject, index, d)
     ff[F_BUSY] = d
     _work(S, start, d)
@@ -305,12 +206,12 @@ def _broker(S, s, now):  # type: ignore[no-untyped-def]
 # ---------------------------------------------------------------- nodes
 
 
-@_jit
+@jit
 def _local(S, i, t):  # type: ignore[no-untyped-def]
     return t + S[OFF][i] + S[DRIFT][i] * t
 
 
-@_jit
+@jit
 def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
     """Take the host's earliest-free core for ``cost`` seconds; schedule completion."""
     row = S[CORES][S[HOST_OF][i]]
@@ -324,15 +225,15 @@ def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
     nd = S[ND]
     nd[N_BUSY, i] = 1
     nd[N_TARGET, i] = target
-    slot = _alloc(S)
+    slot = alloc(S)
     evi = S[EVI]
     evi[slot, E_TYPE] = EV_DONE
     evi[slot, E_WHO] = i
     evi[slot, E_INDEX] = target
-    _push(S, start + cost, slot)
+    push(S, start + cost, slot)
 
 
-@_jit
+@jit
 def _start_job(S, i, now):  # type: ignore[no-untyped-def]
     nd = S[ND]
     if nd[N_RB, i] != 0:  # rollback draws are Python's: hand the start over
@@ -344,7 +245,7 @@ def _start_job(S, i, now):  # type: ignore[no-untyped-def]
     target = nd[N_REQ, i]
     cost = 0.0
     for f in range(nd[N_FRAME, i] + 1, target + 1):
-        cost += _draw(S, STEP, 0, i, f)
+        cost += draw(S, STEP, 0, i, f)
     ptr = S[SLOW_PTR]
     slow = S[SLOW]
     for j in range(ptr[i], ptr[i + 1]):
@@ -353,7 +254,7 @@ def _start_job(S, i, now):  # type: ignore[no-untyped-def]
     reserve(S, i, target, cost, now)
 
 
-@_jit
+@jit
 def _done(S, s, now):  # type: ignore[no-untyped-def]
     nd = S[ND]
     i = S[EVI][s, E_WHO]
@@ -367,7 +268,7 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
         sl = target % h
         if S[SLOT_FRAME][sl] != target:
             S[II][I_HMISS] += 1
-        ns = _alloc(S)
+        ns = alloc(S)
         evf = S[EVF]
         w = S[QQ][Q_W]
         evf[ns, EF_TPUB] = now
@@ -394,12 +295,12 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
             lf[i, 1] = evf[ns, EF_L]
             for j in range(w):
                 lf[i, 2 + j] = evf[ns, EF_PAY + j]
-        _send_up(S, ns, i, K_STATE, i, target, now)
+        send_up(S, ns, i, K_STATE, i, target, now)
     if nd[N_REQ, i] > nd[N_FRAME, i] or nd[N_RB, i] != 0:
         _start_job(S, i, now)
 
 
-@_jit
+@jit
 def _client(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EVI]
     evf = S[EVF]
@@ -412,7 +313,7 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
     index = evi[s, E_INDEX]
     t_pub = evf[s, EF_TPUB]
     if q[Q_QOS1S]:
-        _count(S, sub, 1, q[Q_ACK], now)
+        count(S, sub, 1, q[Q_ACK], now)
     if t_pub >= S[GG][G_WARMUP]:  # Collector.delivered (no duplicates on this path)
         iv[I_MSGS] += 1
         if kind != K_REREQ:  # a republished state's latency counts as a state's
@@ -480,7 +381,7 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         frame = evi[s, E_FRAME]
         li = S[LAST_I]
         if nd[N_FRAME, sub] >= frame and li[sub, 0] == frame:
-            ns = _alloc(S)
+            ns = alloc(S)
             lf = S[LAST_F]
             evf[ns, EF_TPUB] = now
             evf[ns, EF_GEN] = lf[sub, 0]
@@ -489,7 +390,7 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
                 evf[ns, EF_PAY + j] = lf[sub, 2 + j]
             evi[ns, E_AUX] = li[sub, 1]
             evi[ns, E_FRAME] = frame
-            _send_up(S, ns, sub, K_REPUB, sub, index, now)
+            send_up(S, ns, sub, K_REPUB, sub, index, now)
         elif nd[N_REQ, sub] < frame:
             nd[N_REQ, sub] = frame
             if nd[N_BUSY, sub] == 0:
@@ -518,41 +419,41 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
 # ---------------------------------------------------------------- entry points
 
 
-@_jit
+@jit
 def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
     """The server publishes trigger ``k`` at ``t`` (with its HLC stamp)."""
-    ns = _alloc(S)
+    ns = alloc(S)
     S[EVF][ns, EF_TPUB] = t
     S[EVF][ns, EF_L] = hlc_l
     S[EVI][ns, E_AUX] = hlc_c
     n = S[QQ][Q_N]
-    _send_up(S, ns, n, K_TRIGGER, n, k, t)
+    send_up(S, ns, n, K_TRIGGER, n, k, t)
 
 
-@_jit
+@jit
 def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped-def]
     """The server publishes ``rows[i]`` to each node ``i`` of ``nodes``, in order."""
     n = S[QQ][Q_N]
     m = S[QQ][Q_M]
     for i in nodes:
-        ns = _alloc(S)
+        ns = alloc(S)
         S[EVF][ns, EF_TPUB] = t
         for j in range(m):
             S[EVF][ns, EF_PAY + j] = rows[i, j]
         S[EVI][ns, E_AUX] = stamp
-        _send_up(S, ns, n, K_COMMAND, i, tick, t)
+        send_up(S, ns, n, K_COMMAND, i, tick, t)
 
 
-@_jit
+@jit
 def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
     """Lock-Step: the server asks ``node`` again for its state of ``frame``."""
-    ns = _alloc(S)
+    ns = alloc(S)
     S[EVF][ns, EF_TPUB] = t
     S[EVI][ns, E_FRAME] = frame
-    _send_up(S, ns, S[QQ][Q_N], K_REREQ, node, index, t)
+    send_up(S, ns, S[QQ][Q_N], K_REREQ, node, index, t)
 
 
-@_jit
+@jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
 
@@ -577,7 +478,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             or iv[I_LAT + 2] >= lat_cap
         ):
             return NEED_FLUSH
-        s = _pop(S)
+        s = pop(S)
         typ = S[EVI][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
@@ -585,7 +486,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             _broker(S, s, t)
         else:
             _done(S, s, t)
-        _release(S, s)
+        release(S, s)
         if iv[I_ERR]:
             return DRAW_MISS
         if iv[I_PEND]:
