@@ -80,10 +80,16 @@ def test_defaults_round_trip() -> None:
     assert tomllib.loads(to_toml(Scenario()))["nodes"] == 200
 
 
-def test_config_hash_ignores_seed_and_methods_only() -> None:
+def test_config_hash_ignores_seed_methods_and_engine_only() -> None:
     a = Scenario()
     assert config_hash(a) == config_hash(Scenario(seed=9, methods=("bides",)))
+    assert config_hash(a) == config_hash(Scenario(engine="events"))  # same results
     assert config_hash(a) != config_hash(Scenario(nodes=201))
+
+
+def test_unknown_engine_names_the_choices() -> None:
+    with pytest.raises(ConfigError, match="engine: must be one of \\('cohort', 'events'\\)"):
+        Scenario(engine="fast")
 
 
 def test_cli_compare_writes_table_and_files(tmp_path: Path,
@@ -103,3 +109,17 @@ def test_cli_compare_writes_table_and_files(tmp_path: Path,
     assert s1 == s2
     header = (tmp_path / "a" / "results.csv").read_text().splitlines()[0]
     assert header == "seed,config_hash,version,method,metric,value,unit"
+    # every method ran on the default cohort engine, and both the file and the footer say so
+    assert {m: e["used"] for m, e in s1["engines"].items()} == dict.fromkeys(
+        ("none", "lockstep", "hlc", "bides"), "cohort")
+    assert "engine cohort: none, lockstep, hlc, bides" in out
+
+
+def test_cli_footer_names_a_fallback_and_its_reason(capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["compare", "--set", "nodes=4", "--set", "hosts=1", "--set", "duration=0.3",
+            "--set", "warmup=0.1", "--set", "net.host_link.loss.p=0.05", "--methods", "none",
+            "--no-progress"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "engine events: none" in out
+    assert "none fell back to the per-message engine: host_link: stream transport" in out
