@@ -1,17 +1,9 @@
-"""The modelled network (DESIGN §2): access links, transports, MQTT QoS, broker.
+"""MQTT over the modelled links, and the broker (DESIGN §2).
 
-Topology: every client (physics node ``0..n-1``, and the server ``n`` that hosts
-the interface, the alignment server and the renderer) reaches the single broker
-over its host's access link; nodes on one host share that link. A packet's hop
-time = FIFO serialization on the link direction + base latency (+ fault delay);
-it is lost with the link's loss model. Every random number is drawn by
-``(kind, subject, index, attempt)`` from a stream named after the link class and
-direction, so results do not depend on event order.
-
-Transports: ``datagram`` (a lost packet is gone; MQTT QoS 1 resends with DUP after
-``qos1_timeout`` when no PUBACK came, so duplicates can reach receivers) and
-``stream`` (per-connection in-order delivery; a lost segment is resent after an
-RTO doubling on each try, holding back everything behind it).
+Links and transports (FIFO serialization, latency, loss, in-order streams) are
+in :mod:`sigma_des.net.links`; this module adds MQTT on top. QoS 1 over
+``datagram`` resends with DUP after ``qos1_timeout`` when no PUBACK came, so
+duplicates can reach receivers; over ``stream`` the PUBACKs are counted traffic.
 
 The broker is one FIFO server: an inbound PUBLISH costs ``publish_service`` plus
 one ``delivery_service`` per subscriber; delivery ``j`` leaves after the publish
@@ -28,16 +20,11 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
 from sigma_des.config import Scenario
 from sigma_des.events.kernel import Kernel
-from sigma_des.net.draws import DrawCache, Sampler
-from sigma_des.net.latency import Dist
-from sigma_des.net.loss import LossProcess
+from sigma_des.net.links import Links, dist_cache
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
-from sigma_des.rng import RandomStreams, Stream
+from sigma_des.rng import RandomStreams
 
 __all__ = [
     "ACK",
@@ -63,32 +50,7 @@ ACK = 16  # added to a message kind for its PUBACK's draws
 Deliver = Callable[[int, int, int, int, Any, float], None]
 
 
-class _LinkDir:
-    """One direction of one access link: FIFO serialization and byte counts."""
-
-    __slots__ = ("busy", "bits_per_s", "sec_per_byte", "bytes", "packets", "name")
-
-    def __init__(self, name: str, mbps: float) -> None:
-        self.name = name
-        self.busy = 0.0
-        self.bits_per_s = mbps * 1e6
-        self.sec_per_byte = 8.0 / self.bits_per_s
-        self.bytes = 0
-        self.packets = 0
-
-
-class _Conn:
-    """One direction of one client's stream connection (in-order delivery)."""
-
-    __slots__ = ("next_seq", "next_deliver", "pending")
-
-    def __init__(self) -> None:
-        self.next_seq = 0
-        self.next_deliver = 0
-        self.pending: dict[int, tuple[Callable[..., None], tuple[Any, ...]] | None] = {}
-
-
-class Network:
+class Network(Links):
     """Links, transport, QoS and broker for ``n`` nodes plus the server.
 
     Args:
@@ -104,83 +66,23 @@ class Network:
     def __init__(
         self, kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
     ) -> None:
-        self.k = kernel
-        self.sc = sc
-        self.n = sc.nodes
-        self.server = sc.nodes
+        # drop faults: the first transmission on the broker-to-receiver hop is lost
+        kinds = {"trigger": TRIGGER, "state": STATE, "command": COMMAND}
+        drops = {(kinds[f.message], f.node, f.frame) for f in sc.faults if f.kind == "drop"}
+        super().__init__(kernel, sc, streams, warmup, drops)
         self.deliver = deliver
-        self.warmup = warmup
-        self.end = sc.duration  # traffic leaving after the run is not counted
         net = sc.net
-        self.datagram = net.transport == "datagram"
         self.qos1 = net.qos == 1
         self.timeout = net.qos1_timeout
-        self.rto = net.rto
-        self.max_retries = net.max_retries
-        self._overhead = net.tcpip_bytes + net.ethernet_bytes
         self._topic = net.topic_bytes
-        host_of = sc.host_of
-        # link index per client: hosts 0..H-1, the server's link is H
-        self.link_of = np.array(host_of + [sc.hosts], dtype=np.int64).tolist()
         nsub = self.n + 1
-        self.up: list[_LinkDir] = []
-        self.down: list[_LinkDir] = []
-        for h in range(sc.hosts + 1):
-            spec = net.host_link if h < sc.hosts else net.server_link
-            name = f"host{h}" if h < sc.hosts else "server"
-            self.up.append(_LinkDir(f"{name}.up", spec.bandwidth_mbps))
-            self.down.append(_LinkDir(f"{name}.down", spec.bandwidth_mbps))
-        self._lat: dict[tuple[bool, bool], DrawCache] = {}
-        self._u: dict[tuple[bool, bool], DrawCache] = {}
-        self._loss: dict[tuple[bool, bool, int], LossProcess] = {}
-        for is_server, spec in ((False, net.host_link), (True, net.server_link)):
-            for up in (True, False):
-                tag = f"{'server' if is_server else 'host'}.{'up' if up else 'down'}"
-                self._lat[is_server, up] = _dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
-                ust = streams.stream(f"lossu.{tag}")
-                self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust))
-                for h in range(sc.hosts + 1):
-                    if (h == sc.hosts) == is_server:
-                        self._loss[is_server, up, h] = LossProcess(
-                            spec.loss, streams.stream(f"ge.{tag}"), h
-                        )
-        self._svc_pub = _dist_cache(nsub, sc.broker.publish_service, streams, "svc.publish")
-        self._svc_del = _dist_cache(nsub, sc.broker.delivery_service, streams, "svc.delivery")
-        self._conns: dict[tuple[int, bool], _Conn] = {}
+        self._svc_pub = dist_cache(nsub, sc.broker.publish_service, streams, "svc.publish")
+        self._svc_del = dist_cache(nsub, sc.broker.delivery_service, streams, "svc.delivery")
         self.broker_busy = 0.0
         self.broker_work = 0.0  # service seconds in the metrics window
         self.broker_max_wait = 0.0
-        self.retransmissions = 0
-        self.gave_up = 0
-        # degrade faults per link: (start, end, extra_delay, extra_loss)
-        self._degrade: dict[int, list[tuple[float, float, float, float]]] = {}
-        for f in sc.faults:
-            if f.kind == "degrade":
-                self._degrade.setdefault(f.host, []).append(
-                    (f.start, f.end, f.extra_delay, f.extra_loss)
-                )
-        # drop faults: the first transmission on the broker-to-receiver hop is lost
-        kinds = {"trigger": TRIGGER, "state": STATE, "command": COMMAND}
-        self.forced_drops: set[tuple[int, int, int]] = {
-            (kinds[f.message], f.node, f.frame) for f in sc.faults if f.kind == "drop"}
         self._wire_cache: dict[int, int] = {}
         self._ack_b = frame_bytes(PUBACK_BYTES, net.tcpip_bytes, net.ethernet_bytes)
-        self._ups = [self.up[h] for h in self.link_of]
-        self._downs = [self.down[h] for h in self.link_of]
-        self._cls = [0] * self.n + [1]
-        self._lat_l = [[self._lat[c, False], self._lat[c, True]] for c in (False, True)]
-        self._u_l = [[self._u[c, False], self._u[c, True]] for c in (False, True)]
-        self._in_order: list[list[bool]] = []
-        for _c, spec in ((False, net.host_link), (True, net.server_link)):
-            ordered = (spec.latency.dist == "constant" and spec.loss.model == "bernoulli"
-                       and spec.loss.p == 0.0 and not self._degrade and not self.forced_drops)
-            self._in_order.append([ordered, ordered])
-        self._p_const: list[list[float | None]] = []
-        for c, spec in ((False, net.host_link), (True, net.server_link)):
-            dyn = spec.loss.model != "bernoulli" or (
-                bool(self._degrade) if not c else sc.hosts in self._degrade
-            )
-            self._p_const.append([None if dyn else spec.loss.p] * 2)
 
     # ------------------------------------------------------------ sizes
 
@@ -200,210 +102,12 @@ class Network:
         """Wire bytes of one PUBACK."""
         return self._ack_b
 
-    # ------------------------------------------------------------ one hop
-
-    def _hop(
-        self,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        nbytes: int,
-        t: float,
-    ) -> tuple[float, bool]:
-        """Transmit one packet on ``client``'s access link at time ``t``.
-
-        Returns:
-            (arrival time at the far end, lost?)
-        """
-        ld = (self._ups if up else self._downs)[client]
-        busy = ld.busy
-        done = (t if t > busy else busy) + nbytes * ld.sec_per_byte
-        ld.busy = done
-        if self.warmup <= t < self.end:
-            ld.bytes += nbytes
-            ld.packets += 1
-        cls = self._cls[client]
-        lat = self._lat_l[cls][up].get(kind, subject, index, attempt)
-        p = self._p_const[cls][up]
-        extra = 0.0
-        if p is None:
-            p, extra = self._loss_at(client, up, t)
-        lost = p > 0.0 and self._u_l[cls][up].get(kind, subject, index, attempt) < p
-        if (
-            self.forced_drops
-            and not up
-            and attempt == 0
-            and (kind, subject, index) in self.forced_drops
-        ):
-            lost = True
-        return done + lat + extra, lost
-
     def _work(self, a: float, b: float) -> None:
         """Count broker busy time [a, b) inside the metrics window."""
         lo = a if a > self.warmup else self.warmup
         hi = b if b < self.end else self.end
         if hi > lo:
             self.broker_work += hi - lo
-
-    def _count(self, client: int, up: bool, nbytes: int, t: float) -> None:
-        """Serialize and count a packet whose arrival does not matter (stream PUBACKs)."""
-        ld = (self._ups if up else self._downs)[client]
-        busy = ld.busy
-        ld.busy = (t if t > busy else busy) + nbytes * ld.sec_per_byte
-        if self.warmup <= t < self.end:
-            ld.bytes += nbytes
-            ld.packets += 1
-
-    def _loss_at(self, client: int, up: bool, t: float) -> tuple[float, float]:
-        """Time-dependent loss probability and extra delay (Gilbert–Elliott, faults)."""
-        link = self.link_of[client]
-        proc = self._loss[client == self.server, up, link]
-        spec = proc.spec
-        if spec.model == "bernoulli":
-            p = spec.p
-        else:
-            p = spec.loss_bad if bool(proc.bad_state(t)[0]) else spec.loss_good
-        extra = 0.0
-        for a, b, d, q in self._degrade.get(link, ()):
-            if a <= t < b:
-                extra += d
-                p = 1.0 - (1.0 - p) * (1.0 - q)
-        return p, extra
-
-    # ------------------------------------------------------------ transport
-
-    def _transmit(
-        self,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        nbytes: int,
-        t: float,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> tuple[float, bool]:
-        """Send one packet with the configured transport; ``on_arrive(*args)`` runs
-        at its application-level arrival. Returns (first-try arrival, first-try lost)."""
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
-        if self.datagram or self._in_order[self._cls[client]][up]:
-            # a stream on a lossless constant-latency link is already in order (FIFO
-            # serialization + equal latency): the in-order bookkeeping would change nothing
-            if not lost:
-                self.k.at(arr, on_arrive, *args)
-            return arr, lost
-        conn = self._conns.get((client, up))
-        if conn is None:
-            conn = self._conns[client, up] = _Conn()
-        seq = conn.next_seq
-        conn.next_seq += 1
-        self._stream_try(
-            conn,
-            seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
-            attempt,
-            nbytes,
-            t,
-            arr,
-            lost,
-            on_arrive,
-            args,
-        )
-        return arr, lost
-
-    def _stream_try(
-        self,
-        conn: _Conn,
-        seq: int,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        nbytes: int,
-        t: float,
-        arr: float,
-        lost: bool,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> None:
-        if not lost:
-            self.k.at(arr, self._stream_arrive, conn, seq, on_arrive, args)
-            return
-        if attempt >= self.max_retries:
-            self.gave_up += 1
-            self.k.at(t, self._stream_arrive, conn, seq, None, ())
-            return
-        self.retransmissions += 1
-        self.k.at(
-            t + self.rto * (2**attempt),
-            self._stream_retry,
-            conn,
-            seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
-            attempt + 1,
-            nbytes,
-            on_arrive,
-            args,
-        )
-
-    def _stream_retry(
-        self,
-        conn: _Conn,
-        seq: int,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        nbytes: int,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> None:
-        t = self.k.env._now
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
-        self._stream_try(
-            conn,
-            seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
-            attempt,
-            nbytes,
-            t,
-            arr,
-            lost,
-            on_arrive,
-            args,
-        )
-
-    @staticmethod
-    def _stream_arrive(
-        conn: _Conn, seq: int, on_arrive: Callable[..., None] | None, args: tuple[Any, ...]
-    ) -> None:
-        conn.pending[seq] = (on_arrive, args) if on_arrive is not None else None
-        while conn.next_deliver in conn.pending:
-            item = conn.pending.pop(conn.next_deliver)
-            conn.next_deliver += 1
-            if item is not None:
-                item[0](*item[1])
 
     # ------------------------------------------------------------ MQTT publish
 
@@ -594,20 +298,3 @@ class Network:
         self.deliver(sub, kind, subject, index, payload, t_pub)
 
     # ------------------------------------------------------------ accounting
-
-    def links(self) -> list[_LinkDir]:
-        """All link directions (uplinks then downlinks)."""
-        return self.up + self.down
-
-
-def _dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCache:
-    st = streams.stream(name)
-    const = dist.value if dist.dist == "constant" else None
-    return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const)
-
-
-def _uniform_sampler(st: Stream) -> Sampler:
-    def sample(s: NDArray[np.int64], k: int, i: int, a: int) -> NDArray[np.float64]:
-        return st.uniform(k, s, i, a)
-
-    return sample
