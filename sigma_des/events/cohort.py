@@ -265,6 +265,9 @@ class CohortRun(MethodRun):
         fields[CS.LAST_I] = last_i
         fields[CS.LAST_F] = np.zeros((n, 2 + W))
         fields[CS.LS] = np.zeros((2, n), dtype=np.int64)
+        # duplicate check of re-requests and republished states (Lock-Step only)
+        seen_shape = (2, n + 1, sc.history_frames) if method == "lockstep" else (2, 1, 1)
+        fields[CS.SEEN] = np.full(seen_shape, -1, dtype=np.int64)
         self._lockstep = method == "lockstep"
         self._fields = fields
         self.S = tuple(fields)
@@ -467,6 +470,8 @@ class CohortRun(MethodRun):
         net.broker_max_wait = float(fv[CS.F_MAXWAIT])
         self.history_misses += int(iv[CS.I_HMISS])
         self.collector.delivered_batch(1, np.empty(0), int(iv[CS.I_MSGS]))
+        self.collector.duplicates += int(iv[CS.I_DUPS])
+        iv[CS.I_DUPS] = 0
         self.kernel.events += int(iv[CS.I_NEV])
         iv[CS.I_MSGS] = 0
         iv[CS.I_HMISS] = 0

@@ -61,6 +61,7 @@ from sigma_des.events.cohort_state import (
     HLC_L,
     HOST_OF,
     HT,
+    I_DUPS,
     I_ERR,
     I_FREE,
     I_HEAP,
@@ -111,6 +112,7 @@ from sigma_des.events.cohort_state import (
     Q_W,
     Q_WARP,
     QQ,
+    SEEN,
     SLOT_FRAME,
     SLOW,
     SLOW_PTR,
@@ -314,7 +316,19 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
     t_pub = evf[s, EF_TPUB]
     if q[Q_QOS1S]:
         count(S, sub, 1, q[Q_ACK], now)
-    if t_pub >= S[GG][G_WARMUP]:  # Collector.delivered (no duplicates on this path)
+    # Collector.delivered: on this path only a re-request or republished state can come
+    # twice (a retry index is capped at 63: frame * 64 + min(retry, 63))
+    dup = False
+    if kind >= K_REREQ:
+        seen = S[SEEN]
+        row = kind - K_REREQ
+        slot = index % seen.shape[2]
+        if seen[row, subject, slot] == index:
+            dup = True
+            iv[I_DUPS] += 1
+        else:
+            seen[row, subject, slot] = index
+    if not dup and t_pub >= S[GG][G_WARMUP]:
         iv[I_MSGS] += 1
         if kind != K_REREQ:  # a republished state's latency counts as a state's
             lk = 1 if kind == K_REPUB else kind - 1

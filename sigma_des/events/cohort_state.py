@@ -42,7 +42,8 @@ HLC_L, HLC_C, OFF, DRIFT = 26, 27, 28, 29
 SLOT_FRAME, OBS_HIST, CMD = 30, 31, 32
 OUT_I, OUT_F, LAT_BUF = 33, 34, 35
 LAST_I, LAST_F, LS = 36, 37, 38
-N_FIELDS = 39
+SEEN = 39  # Lock-Step: newest index seen per (re-request/republish, subject, index % H)
+N_FIELDS = 40
 # heap keys pack (sequence << SLOT_BITS) | event slot into one int64
 SLOT_BITS = 24
 SLOT_MASK = (1 << SLOT_BITS) - 1
@@ -52,7 +53,8 @@ MAX_SLOTS = 1 << SLOT_BITS
 I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
 I_LAT = 12  # three counters: trigger, state, command latencies buffered
 I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
-I_LEN = 18
+I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
+I_LEN = 19
 # float scalars S[FF]
 F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
 F_LEN = 4

@@ -186,6 +186,19 @@ def test_lockstep_eviction_rejoin_and_republish_identical() -> None:
     assert m["evicted"] >= 2 and m["rejoined"] >= 1 and m["rerequests"] > 0
 
 
+def test_lockstep_stalled_by_a_crash_counts_duplicate_rerequests() -> None:
+    """A crashed node without eviction stalls Lock-Step; past 63 retries the re-request
+    index repeats (frame * 64 + min(retry, 63)) and repeats count as duplicates."""
+    sc = tiny(
+        duration=1.0,
+        faults=[{"kind": "crash", "node": 1, "start": 0.2}],
+        **{"lockstep.retry_timeout": 0.005},
+    )
+    ev, co = run_both(sc, "lockstep")
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["duplicates"] > 0
+
+
 def test_draw_older_than_history_falls_back_mid_run() -> None:
     """A node so slow it catches up more than ``history_frames`` frames at once."""
     sc = tiny(
