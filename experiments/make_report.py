@@ -597,7 +597,8 @@ reproduce each study *in kind* with sigma_des's discrete-event model (see
 paper gives them, our documented defaults where it does not. All four methods run on
 identical random draws; tables show means over seeds.
 
-To regenerate everything (full modes; about an hour on 2 cores, `--jobs 2` to
+To regenerate everything (full modes; about 12 minutes on 2 cores with the cohort
+engine — 6 of them the 140-run node sweep — `--jobs 2` to
 parallelise seeds):
 
 ```bash
