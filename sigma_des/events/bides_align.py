@@ -216,84 +216,85 @@ def align(
     F = max(int(prev_frame), int(latest[considered].min()))  # noqa: N806 - paper's name
 
     n = buf.n
-    rows = np.arange(n)
-    fr = buf.frame
-    valid = fr >= 0
-
-    # Exact state at F.
-    is_f = fr == F
-    exact = considered & is_f.any(axis=1)
-    s_exact = is_f.argmax(axis=1)
-
-    # Nearest buffered frames below and above F.
-    below = np.where(valid & (fr < F), fr, -1)
-    s_lo = below.argmax(axis=1)
-    f_lo = below[rows, s_lo]
-    above = np.where(fr > F, fr, _BIG)
-    s_hi = above.argmin(axis=1)
-    f_hi = above[rows, s_hi]
-    has_lo = f_lo >= 0
-    has_hi = f_hi != _BIG
-
-    hole = considered & ~exact
-    if hole_fill:
-        both = hole & has_lo & has_hi
-        only = hole & (has_lo ^ has_hi)
-        s_only = np.where(has_lo, s_lo, s_hi)
-        filled = both | only
-    else:
-        both = np.zeros(n, dtype=np.bool_)
-        only = hole & has_lo
-        s_only = s_lo
-        filled = only
-
-    # Excluded (lagging) nodes: their two newest frames.
-    excl = has & ~considered
-    s_new = fr.argmax(axis=1)
-    f_new = fr[rows, s_new]
-    prev = fr.copy()
-    prev[rows, s_new] = -1
-    s_old = prev.argmax(axis=1)
-    f_old = prev[rows, s_old]
-
     frame = np.full(n, -1, dtype=np.int64)
     gen = np.full(n, np.nan)
     obs = np.full((n, buf.width), np.nan)
     flag = np.full(n, MISSING, dtype=np.uint8)
-
-    # Exact and single-source states are shown as stored.
-    sel = np.where(exact, s_exact, s_only)
-    shown = exact | only
-    idx = rows[shown]
-    frame[idx] = fr[idx, sel[idx]]
-    gen[idx] = buf.gen_time[idx, sel[idx]]
-    obs[idx] = buf.obs[idx, sel[idx]]
-    flag[rows[exact]] = EXACT
-    flag[rows[filled]] = FILLED
-
-    # Interpolation across a hole.
-    idx = rows[both]
-    if idx.size:
-        lo, hi = f_lo[idx], f_hi[idx]
-        w = ((F - lo) / (hi - lo))[:, None]
-        o_lo = buf.obs[idx, s_lo[idx]]
-        o_hi = buf.obs[idx, s_hi[idx]]
-        obs[idx] = o_lo + w * (o_hi - o_lo)
-        gen[idx] = buf.gen_time[idx, s_lo[idx]]
-        frame[idx] = F
-
-    # Extrapolation of excluded nodes.
-    idx = rows[excl]
-    if idx.size:
-        o_new = buf.obs[idx, s_new[idx]]
-        two = f_old[idx] >= 0
-        f1 = f_new[idx]
-        f0 = np.where(two, f_old[idx], f1 - 1)
-        o_old = np.where(two[:, None], buf.obs[idx, s_old[idx]], o_new)
-        w = ((F - f1) / (f1 - f0))[:, None]
-        obs[idx] = o_new + w * (o_new - o_old)
-        gen[idx] = buf.gen_time[idx, s_new[idx]]
-        frame[idx] = f1
-        flag[idx] = EXTRAPOLATED
-
+    _align_rows(buf.frame, buf.gen_time, buf.obs, has, considered, F, hole_fill,
+                frame, gen, obs, flag)
     return AlignResult(aligned_frame=F, frame=frame, gen_time=gen, obs=obs, flag=flag)
+
+
+@njit(cache=True)
+def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
+                considered: np.ndarray, F: int, hole_fill: bool, frame: np.ndarray,  # noqa: N803
+                gen: np.ndarray, obs: np.ndarray, flag: np.ndarray) -> None:
+    """Per node: the exact, filled, held or extrapolated row at ``F`` (module docstring).
+
+    Ties go to the first slot, as ``argmax``/``argmin`` do; weights are
+    ``float(a) / float(b)`` of integer frame differences, then ``o + w * (p - o)``
+    per column — the arithmetic of the rules, row by row.
+    """
+    n, k = fr.shape
+    width = ob.shape[2]
+    for i in range(n):
+        if not has[i]:
+            continue
+        if not considered[i]:  # lagging: extrapolate from its two newest frames
+            s_new = 0
+            for s in range(1, k):
+                if fr[i, s] > fr[i, s_new]:
+                    s_new = s
+            f1 = fr[i, s_new]
+            s_old = -1
+            for s in range(k):
+                if s != s_new and (s_old < 0 or fr[i, s] > fr[i, s_old]):
+                    s_old = s
+            f_old = fr[i, s_old] if s_old >= 0 else -1
+            two = f_old >= 0
+            f0 = f_old if two else f1 - 1
+            w = (F - f1) / (f1 - f0)
+            for c in range(width):
+                o_new = ob[i, s_new, c]
+                o_old = ob[i, s_old, c] if two else o_new
+                obs[i, c] = o_new + w * (o_new - o_old)
+            gen[i] = gt[i, s_new]
+            frame[i] = f1
+            flag[i] = EXTRAPOLATED
+            continue
+        s_exact = -1
+        s_lo = -1
+        s_hi = -1
+        for s in range(k):
+            f = fr[i, s]
+            if f == F and s_exact < 0:
+                s_exact = s
+            if 0 <= f < F and (s_lo < 0 or f > fr[i, s_lo]):
+                s_lo = s
+            if f > F and (s_hi < 0 or f < fr[i, s_hi]):
+                s_hi = s
+        sel = -1
+        if s_exact >= 0:
+            sel = s_exact
+            flag[i] = EXACT
+        elif s_lo >= 0 and s_hi >= 0 and hole_fill:
+            lo = fr[i, s_lo]
+            hi = fr[i, s_hi]
+            w = (F - lo) / (hi - lo)
+            for c in range(width):
+                o_lo = ob[i, s_lo, c]
+                obs[i, c] = o_lo + w * (ob[i, s_hi, c] - o_lo)
+            gen[i] = gt[i, s_lo]
+            frame[i] = F
+            flag[i] = FILLED
+        elif s_lo >= 0:
+            sel = s_lo
+            flag[i] = FILLED
+        elif s_hi >= 0 and hole_fill:
+            sel = s_hi
+            flag[i] = FILLED
+        if sel >= 0:
+            frame[i] = fr[i, sel]
+            gen[i] = gt[i, sel]
+            for c in range(width):
+                obs[i, c] = ob[i, sel, c]
