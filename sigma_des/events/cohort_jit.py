@@ -303,19 +303,14 @@ def _done(S, s, now):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _client(S, s, now):  # type: ignore[no-untyped-def]
+def _delivered(S, s, now):  # type: ignore[no-untyped-def]
+    """Collector.delivered for one arrival: duplicates, message count, latency."""
     evi = S[EVI]
-    evf = S[EVF]
-    q = S[QQ]
     iv = S[II]
-    n = q[Q_N]
-    sub = evi[s, E_WHO]
     kind = evi[s, E_KIND]
     subject = evi[s, E_SUBJ]
     index = evi[s, E_INDEX]
-    t_pub = evf[s, EF_TPUB]
-    if q[Q_QOS1S]:
-        count(S, sub, 1, q[Q_ACK], now)
+    t_pub = S[EVF][s, EF_TPUB]
     # Collector.delivered: on this path only a re-request or republished state can come
     # twice (a retry index is capped at 63: frame * 64 + min(retry, 63))
     dup = False
@@ -334,34 +329,54 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
             lk = 1 if kind == K_REPUB else kind - 1
             S[LAT_BUF][lk, iv[I_LAT + lk]] = now - t_pub
             iv[I_LAT + lk] += 1
-    if sub == n:
-        o = iv[I_OUT]
-        iv[I_OUT] = o + 1
-        oi = S[OUT_I]
-        of = S[OUT_F]
-        frame = evi[s, E_FRAME]
-        oi[o, 0] = subject
-        oi[o, 1] = frame
-        oi[o, 2] = evi[s, E_AUX]
-        of[o, 0] = now
-        of[o, 1] = evf[s, EF_GEN]
-        of[o, 2] = evf[s, EF_L]
-        w = q[Q_W]
-        for j in range(w):
-            of[o, 3 + j] = evf[s, EF_PAY + j]
-        if q[Q_LOCK]:  # LockstepAligner.on_state's barrier count, mirrored
-            ls = S[LS]
-            if ls[1, subject] == 0 and frame == iv[I_LCUR]:
-                ls[1, subject] = 1
-                iv[I_LMISS] += 1
-            if frame == iv[I_LCUR] and iv[I_LCOMP] == 0 and ls[0, subject] == 0:
-                iv[I_LMISS] -= 1
-                ls[0, subject] = 1
-                if iv[I_LMISS] <= 0:
-                    iv[I_LCOMP] = 1
-                    iv[I_PEND] = BARRIER
-                    S[FF][F_PT] = now
-        return
+
+
+@jit
+def _at_server(S, s, now):  # type: ignore[no-untyped-def]
+    """A (re)published state reaches the server: buffer it for the aligner."""
+    evi = S[EVI]
+    evf = S[EVF]
+    q = S[QQ]
+    iv = S[II]
+    subject = evi[s, E_SUBJ]
+    o = iv[I_OUT]
+    iv[I_OUT] = o + 1
+    oi = S[OUT_I]
+    of = S[OUT_F]
+    frame = evi[s, E_FRAME]
+    oi[o, 0] = subject
+    oi[o, 1] = frame
+    oi[o, 2] = evi[s, E_AUX]
+    of[o, 0] = now
+    of[o, 1] = evf[s, EF_GEN]
+    of[o, 2] = evf[s, EF_L]
+    w = q[Q_W]
+    for j in range(w):
+        of[o, 3 + j] = evf[s, EF_PAY + j]
+    if q[Q_LOCK]:  # LockstepAligner.on_state's barrier count, mirrored
+        ls = S[LS]
+        if ls[1, subject] == 0 and frame == iv[I_LCUR]:
+            ls[1, subject] = 1
+            iv[I_LMISS] += 1
+        if frame == iv[I_LCUR] and iv[I_LCOMP] == 0 and ls[0, subject] == 0:
+            iv[I_LMISS] -= 1
+            ls[0, subject] = 1
+            if iv[I_LMISS] <= 0:
+                iv[I_LCOMP] = 1
+                iv[I_PEND] = BARRIER
+                S[FF][F_PT] = now
+
+
+@jit
+def _at_node(S, s, now):  # type: ignore[no-untyped-def]
+    """A trigger, re-request or command reaches its (live) node."""
+    evi = S[EVI]
+    evf = S[EVF]
+    q = S[QQ]
+    iv = S[II]
+    sub = evi[s, E_WHO]
+    kind = evi[s, E_KIND]
+    index = evi[s, E_INDEX]
     if now >= S[CRASH][sub]:
         return
     nd = S[ND]
@@ -428,6 +443,20 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         iv[I_PA] = stamp
         iv[I_PB] = current
         S[FF][F_PT] = now
+
+
+@jit
+def _client(S, s, now):  # type: ignore[no-untyped-def]
+    """A delivery reaches its subscriber (Network._client_receive + deliver)."""
+    q = S[QQ]
+    sub = S[EVI][s, E_WHO]
+    if q[Q_QOS1S]:
+        count(S, sub, 1, q[Q_ACK], now)
+    _delivered(S, s, now)
+    if sub == q[Q_N]:
+        _at_server(S, s, now)
+    else:
+        _at_node(S, s, now)
 
 
 # ---------------------------------------------------------------- entry points
