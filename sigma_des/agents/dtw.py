@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["dtw", "dtw_normalised"]
+__all__ = ["dtw", "dtw_normalised", "dtw_rows"]
 
 
 @njit(cache=True)
@@ -67,3 +67,24 @@ def dtw_normalised(d: float | NDArray[np.float64], period: float,
     if period <= 0 or duration <= 0:
         raise ValueError("dtw_normalised: period and duration must be > 0")
     return d * period / duration
+
+
+@njit(cache=True)
+def _dtw_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    for r in range(a.shape[0]):
+        out[r] = _dtw(a[r], b[r])
+
+
+def dtw_rows(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Row-wise DTW of ``(R, T, d)`` and ``(R, T', d)`` stacks: one compiled call, ``(R,)``.
+
+    Row ``r`` equals ``dtw(a[r], b[r])`` exactly (the same recursion); used to score a
+    whole GA population at once (sigma_des/tuning).
+    """
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if a.ndim != 3 or b.ndim != 3 or a.shape[0] != b.shape[0] or a.shape[2] != b.shape[2]:
+        raise ValueError(f"dtw_rows: shapes {a.shape} and {b.shape} are not (R, T, d) alike")
+    out = np.empty(a.shape[0])
+    _dtw_rows(a, b, out)
+    return out
