@@ -3,7 +3,8 @@
 ``D`` is the exact dynamic-time-warping distance (agents/dtw.py: Euclidean
 local cost, steps (1,0), (0,1), (1,1); eq. (14) with the cumulative ``D^e`` on
 the right-hand side) between the logged and the simulated trajectory, summed
-over the replay windows; a trajectory point is the vector of the
+over the replay windows (within a Sakoe–Chiba band, ``tune.band``: see
+spec.py for why); a trajectory point is the vector of the
 ``tune.channels`` state columns in SI units (rad, rad/s, m). ``T`` is the
 replayed flight time and ``s`` the logged flight distance (path length, floored
 at 1 m so a hover log does not divide by ~0). Lower is better.
@@ -39,18 +40,20 @@ class FitnessSpec:
         channels: state columns of a DTW point.
         duration: replayed flight time T (s).
         distance: logged flight distance s (m), already floored.
+        band: Sakoe–Chiba band (samples; -1 = unconstrained DTW).
     """
 
     channels: tuple[str, ...]
     duration: float
     distance: float
+    band: int = -1
 
     @classmethod
-    def of(cls, win: Windows, channels: tuple[str, ...]) -> FitnessSpec:
+    def of(cls, win: Windows, channels: tuple[str, ...], band: int = -1) -> FitnessSpec:
         """T and s of the replayed windows."""
         d = np.diff(win.obs[:, :, 9:12], axis=1)
         s = float(np.sqrt((d * d).sum(axis=2)).sum())
-        return cls(channels, win.count * win.steps * win.dt, max(s, MIN_DISTANCE))
+        return cls(channels, win.count * win.steps * win.dt, max(s, MIN_DISTANCE), band)
 
 
 def _aligned(log: NDArray[np.float64], sim: NDArray[np.float64],
@@ -79,7 +82,7 @@ def fitness(win: Windows, sim: NDArray[np.float64], spec: FitnessSpec) -> NDArra
     ok = np.isfinite(b.reshape(p_n, -1)).all(axis=1)
     b = np.where(np.isfinite(b), b, 0.0)
     m, d = a.shape[2], a.shape[3]
-    dist = dtw_rows(a.reshape(p_n * s_n, m, d), b.reshape(p_n * s_n, m, d))
+    dist = dtw_rows(a.reshape(p_n * s_n, m, d), b.reshape(p_n * s_n, m, d), spec.band)
     total = dist.reshape(p_n, s_n).sum(axis=1)
     r = total * spec.duration / spec.distance
     return np.where(ok & np.isfinite(r), r, np.inf)

@@ -12,8 +12,9 @@ the stream ``tuning.ga`` keyed by generation, individual, gene and purpose):
 - selection: tournament of ``tune.tournament`` (ties: the lower index);
 - crossover: the paper's arithmetic crossover, eq. (12), ``p = d x + (1 - d) y``,
   ``q = d y + (1 - d) x`` with one ``d`` uniform in [0, 1] per pair;
-- mutation: Gaussian, ``tune.sigma`` of the bound width, per gene with
-  probability ``tune.indpb``, clipped to the bounds;
+- mutation: Gaussian, ``tune.sigma`` of the bound width (shrinking by
+  ``tune.sigma_decay`` per generation), per gene with probability
+  ``tune.indpb``, clipped to the bounds;
 - elitism: the best ``tune.elite`` go through unchanged.
 
 Every generation's new individuals are scored together: one batched flight of
@@ -89,14 +90,16 @@ class Evaluator:
         names: gene names.
         channels: DTW point columns.
         wind: replay wind (default still air).
+        band: DTW Sakoe–Chiba band (samples; -1 = none).
     """
 
     def __init__(self, win: Windows, base_params: AircraftParams, names: tuple[str, ...],
-                 channels: tuple[str, ...], wind: WindConfig | None = None) -> None:
+                 channels: tuple[str, ...], wind: WindConfig | None = None,
+                 band: int = -1) -> None:
         self.win = win
         self.base = base_params
         self.names = names
-        self.spec = FitnessSpec.of(win, channels)
+        self.spec = FitnessSpec.of(win, channels, band)
         self.wind = wind
 
     def params_of(self, x: NDArray[np.float64]) -> AircraftParams | None:
@@ -145,7 +148,8 @@ def _vary(off: list[Any], spec: TuneSpec, rng: Stream, gen: int) -> None:
         if _u(rng, gen, j, 0, _MUT) >= spec.mutpb:
             continue
         hit = rng.uniform(gen, j, np.arange(g_n), _GENE) < spec.indpb
-        step = spec.sigma * rng.normal(gen, j, np.arange(g_n), _STEP)
+        sd = max(spec.sigma_min, spec.sigma * spec.sigma_decay ** (gen - 1))
+        step = sd * rng.normal(gen, j, np.arange(g_n), _STEP)
         for g in np.flatnonzero(hit):
             ind[g] = float(min(1.0, max(0.0, ind[g] + step[g])))
         if hit.any() and ind.fitness.valid:
@@ -208,7 +212,7 @@ def tune(log: FlightLog, start: AircraftParams, spec: TuneSpec,
     t0 = time.perf_counter()
     names, lo, hi = bounds(spec, start, log.kind)
     win = windows(resample(log, spec.rate), spec.segment)
-    ev = Evaluator(win, start, names, spec.channels, wind)
+    ev = Evaluator(win, start, names, spec.channels_of(log.kind), wind, spec.band)
     x0 = [get_value(start, g) for g in names]
     best, r, hist, n = run_ga(ev, x0, lo, hi, spec)
     r0 = float(ev(np.array([x0]))[0])

@@ -82,15 +82,22 @@ def _quad_control(model: GeneralAircraft, obs: NDArray[np.float64],
     return act
 
 
+def _square(t: float, period: float) -> float:
+    return 1.0 if (t / period) % 1.0 < 0.5 else -1.0
+
+
 def _wing_control(model: GeneralAircraft, obs: NDArray[np.float64],
-                  ref: tuple[float, float, float]) -> NDArray[np.float64]:
+                  ref: tuple[float, float, float], t: float) -> NDArray[np.float64]:
     p, tr = model.params, model.trim
     _, _, _, phi, th, _, pr, qr, rr = obs[:9]
     va = math.sqrt(obs[0] ** 2 + obs[1] ** 2 + obs[2] ** 2)
     act = np.zeros(7)
     act[0] = min(p.omega_max, max(0.0, tr["omega"] + 40.0 * (p.v_cruise - va)))
-    act[4] = 0.6 * (ref[0] - phi) - 0.08 * pr
-    act[5] = tr["delta_e"] - 1.2 * (tr["alpha"] + ref[1] - th) + 0.15 * qr
+    # Feedback plus direct surface square waves: inputs not fully explained by the
+    # state, so moment derivatives stay separable (closed-loop identifiability).
+    act[4] = 0.6 * (ref[0] - phi) - 0.08 * pr + 0.05 * _square(t, 0.9)
+    act[5] = (tr["delta_e"] - 1.2 * (tr["alpha"] + ref[1] - th) + 0.15 * qr
+              + 0.04 * _square(t, 0.7))
     act[6] = 0.2 * rr
     act[4:7] = np.clip(act[4:7], -p.delta_max, p.delta_max)
     return act
@@ -127,7 +134,7 @@ def fly(params: AircraftParams | str, kind: str, duration: float = 12.0, rate: f
         obs[k] = o
         ref = manoeuvre(t[k], kind, amp, variant)
         a = (_quad_control(model, o, ref, h_ref) if kind == "quadrotor"
-             else _wing_control(model, o, ref))
+             else _wing_control(model, o, ref, float(t[k])))
         acts[k] = a
         if k == 0:
             # Logs start in steady flight: actuators at their first command (replay.py).
