@@ -136,16 +136,16 @@ def check_log(log: FlightLog) -> None:
         out = np.flatnonzero((col < lo) | (col > hi))
         if out.size:
             i = int(out[0])
-            raise _bad(src, name, f"value {col[i]!r} at data row {i + 1} outside "
+            raise _bad(src, name, f"value {float(col[i])!r} at data row {i + 1} outside "
                        f"[{lo:g}, {hi:g}] (units: see sigma_des/tuning/flightlog.py)")
     if log.t[0] < 0:
-        raise _bad(src, "t", f"must be >= 0, got {log.t[0]!r} at data row 1")
+        raise _bad(src, "t", f"must be >= 0, got {float(log.t[0])!r} at data row 1")
     dt = np.diff(log.t)
     bad = np.flatnonzero(dt <= 0)
     if bad.size:
         i = int(bad[0]) + 1
         what = "duplicated" if dt[i - 1] == 0 else "non-monotone (decreasing)"
-        raise _bad(src, "t", f"{what} timestamp {log.t[i]!r} at data row {i + 1}")
+        raise _bad(src, "t", f"{what} timestamp {float(log.t[i])!r} at data row {i + 1}")
 
 
 def read_csv(path: str | Path, kind: str) -> FlightLog:

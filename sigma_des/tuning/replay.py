@@ -22,6 +22,7 @@ one-by-one path through ``GeneralAircraft.step_open_loop``; tested).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -184,7 +185,8 @@ def replay_serial(win: Windows, params: AircraftParams,
     The reference (and benchmark baseline) of :func:`replay_batch`: returns
     ``(S, M + 1, 12)``, equal to one candidate's slice of the batch bit for bit.
     """
-    model = GeneralAircraft(params, wind=wind)
+    # Open loop: no autopilot, hence no trim to solve for odd candidates.
+    model = GeneralAircraft(dataclasses.replace(params, autopilot="none", gains={}), wind=wind)
     model.key = np.uint64(0)
     node = np.zeros(1, dtype=np.int64)
     out = np.empty((win.count, win.steps + 1, L.STATE_DIM))

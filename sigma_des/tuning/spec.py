@@ -91,7 +91,7 @@ class TuneSpec:
     cxpb: float = 0.7
     mutpb: float = 0.3
     sigma: float = 0.1
-    sigma_decay: float = 0.95
+    sigma_decay: float = 0.97
     sigma_min: float = 0.002
     indpb: float = 0.5
     elite: int = 2

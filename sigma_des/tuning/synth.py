@@ -97,7 +97,7 @@ def _wing_control(model: GeneralAircraft, obs: NDArray[np.float64],
     # state, so moment derivatives stay separable (closed-loop identifiability).
     act[4] = 0.6 * (ref[0] - phi) - 0.08 * pr + 0.05 * _square(t, 0.9)
     act[5] = (tr["delta_e"] - 1.2 * (tr["alpha"] + ref[1] - th) + 0.15 * qr
-              + 0.04 * _square(t, 0.7))
+              + 0.08 * _square(t, 0.7))
     act[6] = 0.2 * rr
     act[4:7] = np.clip(act[4:7], -p.delta_max, p.delta_max)
     return act
