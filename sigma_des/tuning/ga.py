@@ -113,9 +113,10 @@ class Evaluator:
         """``r`` of every row of ``xs`` (``(P, G)`` gene values); ``inf`` if invalid."""
         ps = [self.params_of(x) for x in xs]
         ok = [i for i, p in enumerate(ps) if p is not None]
+        valid = [p for p in ps if p is not None]
         out = np.full(len(ps), np.inf)
         if ok:
-            prms = param_matrix([ps[i] for i in ok if ps[i] is not None], self.wind)
+            prms = param_matrix(valid, self.wind)
             out[ok] = fitness(self.win, replay_batch(self.win, prms), self.spec)
         return out
 

@@ -99,7 +99,8 @@ def markdown(rep: dict[str, Any]) -> str:
              f"Log `{rep['log']}`, seed {rep['seed']}, sigma_des {rep['version']}; fitness "
              f"r = D T / s: {f(rep['fitness_start'])} -> {f(rep['fitness_best'])} "
              f"({rep['evaluations']} evaluations).", "",
-             "| gene | lower | upper | start | fitted | true | error |", "|---|---|---|---|---|---|---|"]
+             "| gene | lower | upper | start | fitted | true | error |",
+             "|---|---|---|---|---|---|---|"]
     for g in rep["genes"]:
         err = f"{100 * g['rel_error']:+.1f} %" if "rel_error" in g else "–"
         lines.append(f"| {g['name']} | {f(g['lower'])} | {f(g['upper'])} | {f(g['start'])} | "

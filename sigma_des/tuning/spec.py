@@ -27,7 +27,8 @@ from dataclasses import dataclass, fields
 from sigma_des.agents.params import AeroCoeffs, AircraftParams
 from sigma_des.errors import ConfigError
 
-__all__ = ["TuneSpec", "GENE_NAMES", "DEFAULT_GENES", "DEFAULT_CHANNELS", "get_value", "with_values", "bounds"]
+__all__ = ["TuneSpec", "GENE_NAMES", "DEFAULT_GENES", "DEFAULT_CHANNELS", "get_value",
+           "with_values", "bounds"]
 
 _TOP = tuple(f.name for f in fields(AircraftParams)
              if f.type in ("float", float) and f.name not in ("altitude", "spacing",
@@ -138,7 +139,7 @@ class TuneSpec:
         req(len(set(self.params)) == len(self.params), "params", "names a parameter twice")
         for k in ("lower", "upper"):
             v = getattr(self, k)
-            req(len(v) in (0, len(self.params)) and (len(v) == 0 or self.params), k,
+            req(len(v) in (0, len(self.params)) and (len(v) == 0 or bool(self.params)), k,
                 f"must be empty or hold one value per tune.params entry "
                 f"({len(self.params)}), got {len(v)}")
             req(all(math.isfinite(x) for x in v), k, "must be finite")

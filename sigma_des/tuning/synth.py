@@ -126,7 +126,7 @@ def fly(params: AircraftParams | str, kind: str, duration: float = 12.0, rate: f
     state = model.initial_state(1)
     nodes = np.zeros(1, dtype=np.int64)
     h_ref = float(state[0, L.H])
-    t = np.arange(n) * dt
+    t = np.arange(n, dtype=np.float64) * dt
     obs = np.empty((n, 12))
     acts = np.empty((n, 7))
     for k in range(n):
