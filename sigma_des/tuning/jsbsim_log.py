@@ -12,7 +12,8 @@ represents them), in our rotor order (JSBSim engines 0–3 are front-right,
 aft-left, front-left, aft-right, the same order and spin senses as our
 preset). The log starts after 3 s of hover (the motors spin up from rest
 in JSBSim's initial condition; a log must start in steady flight). The
-logged state is JSBSim's, with the same seeded sensor noise as synth.py. Fitting our model to such a log tests the tuning across model
+logged state is JSBSim's, with the same seeded sensor noise as synth.py.
+Fitting our model to such a log tests the tuning across model
 structures: JSBSim's propeller tables, motor model and frame aerodynamics are
 not ours.
 """
