@@ -67,7 +67,7 @@ def section(outputs: Path) -> str:
     """Markdown for the study (a 'Not run' note when its outputs are missing)."""
     path = Path(outputs) / "model_tuning" / "summary.json"
     if not path.exists():
-        return (f"## {TITLE}\n\nNot run yet: `python experiments/model_tuning.py` writes "
+        return (f"## {TITLE}\n\nNot run: `python experiments/model_tuning.py` writes "
                 f"`{Path(outputs).name}/model_tuning/summary.json`.\n")
     s = json.loads(path.read_text())
     out = [f"## {TITLE}", ""]
