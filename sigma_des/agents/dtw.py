@@ -23,14 +23,17 @@ __all__ = ["dtw", "dtw_normalised", "dtw_rows"]
 
 
 @njit(cache=True)
-def _dtw(a: np.ndarray, b: np.ndarray) -> float:
+def _dtw_banded(a: np.ndarray, b: np.ndarray, band: int) -> float:
+    """Exact DTW restricted to the Sakoe–Chiba band ``|i - j| <= band`` (cells outside: inf)."""
     n, m = a.shape[0], b.shape[0]
     prev = np.full(m + 1, np.inf)
     cur = np.full(m + 1, np.inf)
     prev[0] = 0.0
     for i in range(1, n + 1):
-        cur[0] = np.inf
-        for j in range(1, m + 1):
+        cur[:] = np.inf
+        lo = max(1, i - band)
+        hi = min(m, i + band)
+        for j in range(lo, hi + 1):
             d = 0.0
             for k in range(a.shape[1]):
                 e = a[i - 1, k] - b[j - 1, k]
@@ -43,6 +46,12 @@ def _dtw(a: np.ndarray, b: np.ndarray) -> float:
             cur[j] = math.sqrt(d) + best
         prev, cur = cur, prev
     return float(prev[m])
+
+
+@njit(cache=True)
+def _dtw(a: np.ndarray, b: np.ndarray) -> float:
+    # Unconstrained: a band wider than both series reaches every cell.
+    return _dtw_banded(a, b, max(a.shape[0], b.shape[0]))
 
 
 def dtw(a: ArrayLike, b: ArrayLike) -> float | NDArray[np.float64]:
@@ -67,32 +76,6 @@ def dtw_normalised(d: float | NDArray[np.float64], period: float,
     if period <= 0 or duration <= 0:
         raise ValueError("dtw_normalised: period and duration must be > 0")
     return d * period / duration
-
-
-@njit(cache=True)
-def _dtw_banded(a: np.ndarray, b: np.ndarray, band: int) -> float:
-    """Exact DTW restricted to the Sakoe–Chiba band ``|i - j| <= band`` (cells outside: inf)."""
-    n, m = a.shape[0], b.shape[0]
-    prev = np.full(m + 1, np.inf)
-    cur = np.full(m + 1, np.inf)
-    prev[0] = 0.0
-    for i in range(1, n + 1):
-        cur[:] = np.inf
-        lo = max(1, i - band)
-        hi = min(m, i + band)
-        for j in range(lo, hi + 1):
-            d = 0.0
-            for k in range(a.shape[1]):
-                e = a[i - 1, k] - b[j - 1, k]
-                d += e * e
-            best = prev[j - 1]
-            if prev[j] < best:
-                best = prev[j]
-            if cur[j - 1] < best:
-                best = cur[j - 1]
-            cur[j] = math.sqrt(d) + best
-        prev, cur = cur, prev
-    return float(prev[m])
 
 
 @njit(cache=True)
