@@ -51,9 +51,10 @@ def _jsbsim(s: dict[str, Any]) -> list[str]:
     out += ["", "Fitted (mean over seeds): " + ", ".join(
         f"{k} {v:.4g}" for k, v in fitted.items()) + ". The motor lag goes to a few ms "
         "because the logged speeds are measured, not commanded. Yaw is the model difference "
-        "that remains: JSBSim's propeller torque (its C_POWER table and the propellers' own "
-        "inertia, whose spin-up reaction torque acts on yaw) is not our blade-element torque, "
-        "so izz and rotor_cd0 run to their bounds and the yaw-rate R² stays low.", "",
+        "that remains: izz and rotor_cd0 run to their bounds and the yaw-rate R² stays low; "
+        "the likely cause (not isolated) is JSBSim's propeller torque — its C_POWER table "
+        "and the propellers' own inertia, whose spin-up reaction torque acts on yaw — which "
+        "our blade-element torque does not reproduce.", "",
         "Fixed wing: not run. No small fixed wing ships with jsbsim 1.3 (its fixed wings are "
         "full-size aircraft — c172x, pa28, J3Cub, … — with piston engines and variable-"
         "pitch or fixed-pitch propeller models); our fixed-wing model is the 3.3 kg TALON "
