@@ -26,6 +26,7 @@ from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
+from sigma_des.ideal_cache import cached
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import fidelity
 
@@ -205,7 +206,16 @@ def _json_safe(x: Any) -> Any:
 
 
 def ideal_run(sc: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """The reference flight: same aircraft and behaviour, zero latency, perfect alignment."""
+    """The reference flight: same aircraft and behaviour, zero latency, perfect alignment.
+
+    Computed once per scenario and then read from the on-disk cache of
+    :mod:`sigma_des.ideal_cache` (shared by every method, process and run).
+    """
+    return cached(sc, fly_ideal)
+
+
+def fly_ideal(sc: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`ideal_run` computed, bypassing the cache: ``(times (T,), positions (T, n, 3))``."""
     return fly(
         make_dynamics(sc),
         make_behaviour(sc),

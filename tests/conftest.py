@@ -2,11 +2,24 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
 from typing import Any
 
 import pytest
 
 from sigma_des import Scenario, load
+
+# The ideal-run cache (sigma_des.ideal_cache) of this test process and its children goes
+# to a private directory, removed at the end, so tests never read or fill ~/.cache.
+_CACHE_ROOT = tempfile.mkdtemp(prefix="sigma_des_test_cache_")
+os.environ["SIGMA_DES_CACHE_DIR"] = _CACHE_ROOT
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """Remove this process's ideal-run cache directory."""
+    shutil.rmtree(_CACHE_ROOT, ignore_errors=True)
 
 #: A tiny deterministic scenario: 3 nodes on 2 hosts, constant latencies, no loss,
 #: instantaneous broker, constant 2 ms compute, QoS 0, no commands, ideal clocks.

@@ -1,0 +1,148 @@
+"""On-disk cache of the ideal fidelity run, shared by methods, processes and runs.
+
+The ideal run (zero latency, perfect alignment: :func:`sigma_des.agents.ideal.fly`)
+is the same for every alignment method of a scenario, so it is computed once and
+kept as one ``.npz`` file per scenario under :func:`cache_dir`:
+
+* ``$SIGMA_DES_CACHE_DIR/ideal/`` if that variable is set (``off``, ``0`` or the
+  empty string switch the cache off: every call computes);
+* else ``$XDG_CACHE_HOME/sigma_des/ideal/``, else ``~/.cache/sigma_des/ideal/``.
+
+The file name is a key over everything the run could depend on: the whole resolved
+scenario but its method list and engine (the seed included, so nothing relies on the
+ideal run being seed-free), the contents of the ``dynamics_params`` file, the package
+version, a fingerprint of the package's source files (so an edited checkout never
+reads a stale entry although ``__version__`` is unchanged), and the numpy, numba and
+Python versions and the machine type (the compiled kernels' floats). A hit returns
+the very arrays that were computed (float64, bit-identical).
+
+Writers are safe to run concurrently: each writes a private temporary file in the
+cache directory and renames it over the entry (``os.replace`` is atomic on POSIX), so
+a reader sees either no entry or a complete one; two writers of one key write the
+same bytes. An entry that cannot be read (truncated, foreign) counts as a miss and is
+rewritten. The directory can be deleted at any time.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import sys
+import tempfile
+import zipfile
+from collections.abc import Callable
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des import __version__
+from sigma_des.config import Scenario, to_dict
+
+__all__ = ["ENV_VAR", "cache_dir", "cache_key", "cached", "code_fingerprint"]
+
+#: Environment variable naming the cache root (``off`` / ``0`` / empty: no cache).
+ENV_VAR = "SIGMA_DES_CACHE_DIR"
+
+_OFF = ("", "0", "off", "false", "no")
+
+Arrays = tuple[NDArray[np.float64], NDArray[np.float64]]
+
+
+def cache_dir() -> Path | None:
+    """The directory of ideal-run entries, or None when the cache is switched off."""
+    root = os.environ.get(ENV_VAR)
+    if root is not None:
+        if root.strip().lower() in _OFF:
+            return None
+        return Path(root) / "ideal"
+    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(xdg) / "sigma_des" / "ideal"
+
+
+@lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """SHA-256 over the package's ``.py`` sources (relative path and bytes, sorted)."""
+    pkg = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for p in sorted(pkg.rglob("*.py")):
+        h.update(p.relative_to(pkg).as_posix().encode())
+        h.update(b"\0")
+        h.update(p.read_bytes())
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def _file_digest(path: str) -> str:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return "unreadable"
+
+
+def cache_key(sc: Scenario) -> str:
+    """The entry name of ``sc``'s ideal run (64 hex digits)."""
+    import numba
+
+    d = to_dict(sc)
+    d.pop("methods")
+    d.pop("engine")
+    blob = {
+        "scenario": d,
+        "dynamics_params": _file_digest(sc.dynamics_params) if sc.dynamics_params else "",
+        "version": __version__,
+        "code": code_fingerprint(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "python": sys.version.split()[0],
+        "machine": platform.machine(),
+    }
+    return hashlib.sha256(json.dumps(blob, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _read(path: Path) -> Arrays | None:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            t, pos = z["t"], z["pos"]
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    if t.dtype != np.float64 or pos.dtype != np.float64 or pos.ndim != 3 or len(t) != len(pos):
+        return None
+    return t, pos
+
+
+def _write(path: Path, t: NDArray[np.float64], pos: NDArray[np.float64]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem[:16]}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, t=t, pos=pos)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def cached(sc: Scenario, compute: Callable[[Scenario], Arrays]) -> Arrays:
+    """``compute(sc)``, read from the cache when an entry exists, else computed and stored.
+
+    A cache directory that cannot be created or written only costs the store: the
+    computed arrays are returned all the same.
+    """
+    d = cache_dir()
+    if d is None:
+        return compute(sc)
+    path = d / f"{cache_key(sc)}.npz"
+    hit = _read(path) if path.exists() else None
+    if hit is not None:
+        return hit
+    t, pos = compute(sc)
+    try:
+        _write(path, np.ascontiguousarray(t, dtype=np.float64),
+               np.ascontiguousarray(pos, dtype=np.float64))
+    except OSError:
+        pass
+    return t, pos
