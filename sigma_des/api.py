@@ -22,11 +22,11 @@ from numpy.typing import NDArray
 
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
+from sigma_des.cache.ideal import cached
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
-from sigma_des.ideal_cache import cached
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import fidelity
 
@@ -209,7 +209,7 @@ def ideal_run(sc: Scenario) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The reference flight: same aircraft and behaviour, zero latency, perfect alignment.
 
     Computed once per scenario and then read from the on-disk cache of
-    :mod:`sigma_des.ideal_cache` (shared by every method, process and run).
+    :mod:`sigma_des.cache.ideal` (shared by every method, process and run).
     """
     return cached(sc, fly_ideal)
 

@@ -7,6 +7,8 @@ Commands:
   sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
            by default), resumable through a SQLite results store; writes
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
+  warmup   compile the numba kernels into numba's cache (once, after installing;
+           the kernel groups in parallel processes).
   tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
            see sigma_des/tuning); writes a fitted.toml for dynamics_params.
 
@@ -71,6 +73,10 @@ def _parser() -> argparse.ArgumentParser:
     from sigma_des.tuning.cli import add_parser as add_tune_parser
 
     add_tune_parser(sub)
+
+    from sigma_des.cache.cli import add_parser as add_warmup_parser
+
+    add_warmup_parser(sub)
     return p
 
 
@@ -81,6 +87,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         from sigma_des.tuning.cli import run as run_tune
 
         return run_tune(args)
+    if args.command == "warmup":
+        from sigma_des.cache.cli import run as run_warmup
+
+        return run_warmup(args)
     try:
         sc = load(args.scenario, args.sets)
         if args.command == "config":

@@ -11,7 +11,7 @@ import pytest
 
 from sigma_des import Scenario, load
 
-# The ideal-run cache (sigma_des.ideal_cache) of this test process and its children goes
+# The ideal-run cache (sigma_des.cache.ideal) of this test process and its children goes
 # to a private directory, removed at the end, so tests never read or fill ~/.cache.
 _CACHE_ROOT = tempfile.mkdtemp(prefix="sigma_des_test_cache_")
 os.environ["SIGMA_DES_CACHE_DIR"] = _CACHE_ROOT

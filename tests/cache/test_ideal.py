@@ -14,7 +14,7 @@ import pytest
 
 import sigma_des.api as api
 from sigma_des import Scenario
-from sigma_des import ideal_cache as ic
+from sigma_des.cache import ideal as ic
 
 
 def _sc(**kw: object) -> Scenario:

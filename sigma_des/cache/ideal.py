@@ -66,7 +66,7 @@ def cache_dir() -> Path | None:
 @lru_cache(maxsize=1)
 def code_fingerprint() -> str:
     """SHA-256 over the package's ``.py`` sources (relative path and bytes, sorted)."""
-    pkg = Path(__file__).resolve().parent
+    pkg = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
     for p in sorted(pkg.rglob("*.py")):
         h.update(p.relative_to(pkg).as_posix().encode())

@@ -1,0 +1,7 @@
+"""Caches that spare repeated work: the ideal fidelity run on disk, numba kernels warmed up.
+
+* :mod:`sigma_des.cache.ideal` — the ideal run, computed once per scenario and shared by
+  every method, process and run (``SIGMA_DES_CACHE_DIR``).
+* :mod:`sigma_des.cache.warmup` — ``sigma-des warmup``: compile every kernel a default
+  run uses into numba's cache, the groups in parallel processes.
+"""

@@ -1,0 +1,96 @@
+"""Compile every numba kernel a default run uses into numba's on-disk cache, in parallel.
+
+A fresh install compiles its kernels on first use (about 45 CPU-seconds on the 2-core
+reference machine; see docs/BENCHMARKS.md, "First-run cost"), so the first ``compare``
+spends most of a minute before it simulates. ``sigma-des warmup`` (run once after
+installing) pays that cost up front and splits it over the CPUs: the kernels fall in
+two independent groups of similar size, each compiled in its own process —
+
+* ``core``: the compiled message core (``advance``, the ``publish_*`` entry points),
+  the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths: every method of a
+  tiny point-mass scenario with commands;
+* ``physics``: the 6-DoF aircraft step and observation (quadrotor and fixed wing, one
+  specialisation), the sensors, wind and atmosphere kernels, and the DTW of the fidelity
+  metrics: a tiny ideal flight of each preset.
+
+Each unit runs tiny scenarios, so the argument types (and hence the compiled
+specialisations) are those of a run at any size. Compiled code goes where numba puts it
+(``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``), so later processes load it
+instead of compiling.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from typing import NamedTuple
+
+__all__ = ["UNITS", "UnitTime", "run_unit", "warm"]
+
+
+class UnitTime(NamedTuple):
+    """What one warm-up unit cost in its process."""
+
+    unit: str
+    wall_s: float
+    cpu_s: float
+    compiled: int
+
+
+def _core() -> None:
+    from sigma_des.api import compare
+    from sigma_des.config import METHODS, load
+
+    sc = load(None, ["nodes=4", "hosts=2", "duration=0.3", "warmup=0.1", "dynamics=\"pointmass\"",
+                     "fidelity.enabled=false"])
+    compare(sc, METHODS, progress=False)
+
+
+def _physics() -> None:
+    from sigma_des.api import fly_ideal
+    from sigma_des.config import load
+    from sigma_des.metrics.fidelity import fidelity
+
+    for dyn in ("quadrotor", "fixedwing"):
+        sc = load(None, ["nodes=3", "hosts=1", "duration=0.3", "warmup=0.1",
+                         f"dynamics=\"{dyn}\""])
+        _t, pos = fly_ideal(sc)
+        fidelity(pos, pos[::-1].copy(), 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
+
+
+#: The warm-up units, by name, in the order they are started.
+UNITS: dict[str, Callable[[], None]] = {"core": _core, "physics": _physics}
+
+
+def run_unit(name: str) -> UnitTime:
+    """Run one unit in this process; ``compiled`` counts the kernels it compiled (not loaded)."""
+    from numba.core import event
+
+    if name not in UNITS:
+        raise ValueError(f"unknown warm-up unit {name!r}; allowed: {', '.join(UNITS)}")
+    w, c = time.perf_counter(), time.process_time()
+    with event.install_recorder("numba:compile") as rec:
+        UNITS[name]()
+    compiled = sum(1 for _ts, ev in rec.buffer if ev.is_start)
+    return UnitTime(name, time.perf_counter() - w, time.process_time() - c, compiled)
+
+
+def warm(jobs: int = 2, units: Sequence[str] | None = None) -> list[UnitTime]:
+    """Run the warm-up units, up to ``jobs`` at once, each in a fresh worker process.
+
+    Returns:
+        One :class:`UnitTime` per unit, in :data:`UNITS` order.
+    """
+    names = list(UNITS) if units is None else list(units)
+    for n in names:
+        if n not in UNITS:
+            raise ValueError(f"unknown warm-up unit {n!r}; allowed: {', '.join(UNITS)}")
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    import multiprocessing as mp
+
+    # spawn: each worker starts from a clean interpreter, as a later command does
+    with ProcessPoolExecutor(max_workers=min(jobs, len(names)),
+                             mp_context=mp.get_context("spawn")) as pool:
+        return list(pool.map(run_unit, names))
