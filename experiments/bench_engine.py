@@ -118,6 +118,8 @@ COLUMNS: tuple[str, ...] = (
     "wall_s",
     "wall_per_sim_s",
     "x_realtime",
+    "cpu_per_sim_s",
+    "x_realtime_cpu",
     "events",
     "events_per_s",
     "peak_rss_mb",
@@ -191,6 +193,8 @@ class Sim(NamedTuple):
         metrics: every metric of the run.
         engine_used: ``cohort``, ``events`` or ``baseline``.
         fallback: why the cohort engine was not used ("" if it was or not asked for).
+        cpu_s: CPU seconds of this process over the same span (``time.process_time``;
+            on a shared machine the figure that descheduling does not inflate).
     """
 
     wall_s: float
@@ -198,6 +202,7 @@ class Sim(NamedTuple):
     metrics: dict[str, float]
     engine_used: str
     fallback: str
+    cpu_s: float = math.nan
 
 
 def _simulate(impl: str, method: str, sc: Any) -> Sim:
@@ -218,7 +223,7 @@ def _simulate(impl: str, method: str, sc: Any) -> Sim:
 
         if sc.engine != impl:
             raise ValueError(f"impl {impl!r} but scenario engine {sc.engine!r}")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
         try:
             out = run.run()
@@ -226,17 +231,18 @@ def _simulate(impl: str, method: str, sc: Any) -> Sim:
             fallback = str(exc) or "CohortFallback"
             run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
             out = run.run()
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         used = "events" if fallback or impl == "events" else "cohort"
-        return Sim(wall, int(run.kernel.events), dict(out["metrics"]), used, fallback)
+        return Sim(wall, int(run.kernel.events), dict(out["metrics"]), used, fallback, cpu)
     if impl == "baseline":
         from baseline_process_model import ProcessModel, check_supported
 
         check_supported(sc, method)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         model = ProcessModel(sc)
         metrics = model.run()
-        return Sim(time.perf_counter() - t0, model.sim_events, metrics, "baseline", "")
+        return Sim(time.perf_counter() - t0, model.sim_events, metrics, "baseline", "",
+                   time.process_time() - c0)
     raise ValueError(f"unknown impl {impl!r}")
 
 
@@ -268,6 +274,7 @@ def run_case(
     return {
         "sim_s": sc.duration,
         "wall_s": sim.wall_s,
+        "cpu_s": sim.cpu_s,
         "events": sim.events,
         "peak_rss_mb": rss_mb,
         "engine_used": sim.engine_used,
@@ -391,6 +398,7 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
     """One CSV row (plus the private key ``_metrics``: every metric of the run)."""
     wall = res["wall_s"]
     sim = res["sim_s"]
+    cpu = res.get("cpu_s", math.nan)
     row: dict[str, Any] = {
         "n": n,
         "impl": case.impl,
@@ -403,6 +411,8 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
         "wall_s": wall,
         "wall_per_sim_s": wall / sim,
         "x_realtime": sim / wall,
+        "cpu_per_sim_s": cpu / sim,
+        "x_realtime_cpu": sim / cpu if cpu > 0 else math.nan,
         "events": res["events"],
         "events_per_s": res["events"] / wall,
         "peak_rss_mb": res["peak_rss_mb"],
@@ -489,6 +499,8 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
         "sim s",
         "s/s",
         "xRT",
+        "cpu s/s",
+        "xRT cpu",
         "ev/s",
         "RSS MB",
     ]
@@ -504,6 +516,8 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
                 _fmt(r["sim_s"], "g"),
                 _fmt(r["wall_per_sim_s"], ".3f"),
                 _fmt(r["x_realtime"], ".2f"),
+                _fmt(r["cpu_per_sim_s"], ".3f"),
+                _fmt(r["x_realtime_cpu"], ".2f"),
                 _fmt(r["events_per_s"], ",.0f"),
                 _fmt(r["peak_rss_mb"], ".0f"),
             ]

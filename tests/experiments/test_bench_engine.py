@@ -63,6 +63,8 @@ EXPECTED_COLUMNS = [
     "wall_s",
     "wall_per_sim_s",
     "x_realtime",
+    "cpu_per_sim_s",
+    "x_realtime_cpu",
     "events",
     "events_per_s",
     "peak_rss_mb",
@@ -117,7 +119,8 @@ def test_quick_run_writes_tables_and_csv_and_engines_agree(tmp_path: Path) -> No
         assert float(r["sim_s"]) == 1.0
         assert r["engine_used"] == r["impl"], r
         assert r["fallback"] == "", r
-        for col in ("wall_s", "wall_per_sim_s", "x_realtime", "events", "events_per_s"):
+        for col in ("wall_s", "wall_per_sim_s", "x_realtime", "cpu_per_sim_s", "events",
+                    "events_per_s"):
             assert float(r[col]) > 0, (col, r)
         assert float(r["peak_rss_mb"]) > 0
         if r["impl"] == "cohort":
