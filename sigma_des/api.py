@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
-from sigma_des.cache.ideal import cached
+from sigma_des.cache.ideal import cache_dir, cached
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
@@ -292,19 +292,27 @@ def compare(
             leave=False,
             desc="sigma-des",
         )
-    ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
     outs: dict[str, dict[str, Any]] = {}
     if jobs > 1 and len(ms) > 1:
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
         with ProcessPoolExecutor(max_workers=min(jobs, len(ms))) as pool:
-            futures = {pool.submit(run_method, sc, m, None, ideal): m for m in ms}
+            if cache_dir() is None:
+                ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
+                futures = {pool.submit(run_method, sc, m, None, ideal): m for m in ms}
+            else:
+                # the workers read the ideal run from the cache once they need it (after
+                # their simulation); meanwhile this process flies and stores it
+                futures = {pool.submit(run_method, sc, m): m for m in ms}
+                if sc.fidelity.enabled:
+                    ideal_run(sc)
             for fut in as_completed(futures):
                 outs[futures[fut]] = fut.result()
                 if bar is not None:
                     bar.set_postfix_str(futures[fut])
                     bar.update(sc.duration)
     else:
+        ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
         for m in ms:
             last = [0.0]
 

@@ -18,9 +18,11 @@ the very arrays that were computed (float64, bit-identical).
 
 Writers are safe to run concurrently: each writes a private temporary file in the
 cache directory and renames it over the entry (``os.replace`` is atomic on POSIX), so
-a reader sees either no entry or a complete one; two writers of one key write the
-same bytes. An entry that cannot be read (truncated, foreign) counts as a miss and is
-rewritten. The directory can be deleted at any time.
+a reader sees either no entry or a complete one. On a miss the computing process holds
+an exclusive ``flock`` on ``<key>.lock`` (POSIX), so processes that miss the same key at
+once (the methods of a sweep point on several workers) wait for the first one and read
+its entry instead of flying the same run again. An entry that cannot be read (truncated,
+foreign) counts as a miss and is rewritten. The directory can be deleted at any time.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ import platform
 import sys
 import tempfile
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 
@@ -126,6 +129,28 @@ def _write(path: Path, t: NDArray[np.float64], pos: NDArray[np.float64]) -> None
         raise
 
 
+@contextmanager
+def _locked(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` (created); no lock where flock is missing."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        yield
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fh = path.open("a")
+    except OSError:
+        yield
+        return
+    with fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
 def cached(sc: Scenario, compute: Callable[[Scenario], Arrays]) -> Arrays:
     """``compute(sc)``, read from the cache when an entry exists, else computed and stored.
 
@@ -135,14 +160,19 @@ def cached(sc: Scenario, compute: Callable[[Scenario], Arrays]) -> Arrays:
     d = cache_dir()
     if d is None:
         return compute(sc)
-    path = d / f"{cache_key(sc)}.npz"
+    key = cache_key(sc)
+    path = d / f"{key}.npz"
     hit = _read(path) if path.exists() else None
     if hit is not None:
         return hit
-    t, pos = compute(sc)
-    try:
-        _write(path, np.ascontiguousarray(t, dtype=np.float64),
-               np.ascontiguousarray(pos, dtype=np.float64))
-    except OSError:
-        pass
+    with _locked(d / f"{key}.lock"):
+        hit = _read(path) if path.exists() else None  # written while we waited
+        if hit is not None:
+            return hit
+        t, pos = compute(sc)
+        try:
+            _write(path, np.ascontiguousarray(t, dtype=np.float64),
+                   np.ascontiguousarray(pos, dtype=np.float64))
+        except OSError:
+            pass
     return t, pos

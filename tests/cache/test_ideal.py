@@ -101,7 +101,8 @@ def test_unreadable_entry_is_a_miss_and_is_rewritten(cache: Path) -> None:
 
 def test_entry_is_shared_with_other_processes(cache: Path) -> None:
     """A child process (as in ``compare --jobs`` or a sweep worker) reads the entry the
-    parent wrote, and concurrent children writing one key leave one readable entry."""
+    parent wrote; of concurrent children missing one key exactly one flies the run (the
+    others wait on its lock and read its entry), leaving one readable entry."""
     sc = _sc(nodes=3)
     _t, p0 = api.ideal_run(sc)
     code = (
@@ -111,6 +112,11 @@ def test_entry_is_shared_with_other_processes(cache: Path) -> None:
         "def boom(sc): raise SystemExit(3)\n"
         "sc = Scenario(nodes=3, hosts=1, duration=0.3, warmup=0.1, dynamics='pointmass')\n"
         "if sys.argv[1] == 'read': api.fly_ideal = boom\n"
+        "real = api.fly_ideal\n"
+        "def counted(sc):\n"
+        "    open(sys.argv[2] + '.flew', 'w').close()\n"
+        "    return real(sc)\n"
+        "if sys.argv[1] == 'write': api.fly_ideal = counted\n"
         "t, p = api.ideal_run(sc)\n"
         "np.save(sys.argv[2], p)\n"
     )
@@ -127,5 +133,7 @@ def test_entry_is_shared_with_other_processes(cache: Path) -> None:
     assert [p.wait(timeout=120) for p in procs] == [0, 0, 0]
     entries = list(cache.glob("*.npz"))
     assert len(entries) == 1 and not list(cache.glob("*.tmp"))
+    assert len(list(cache.parent.glob("*.flew"))) == 1
+    assert all(np.load(str(out) + f"{i}.npy").tobytes() == p0.tobytes() for i in range(3))
     hit = ic._read(entries[0])
     assert hit is not None and hit[1].tobytes() == p0.tobytes()
