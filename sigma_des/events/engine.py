@@ -153,9 +153,22 @@ class MethodRun:
         self.collector.rate_change(self.kernel.now, f_trig)
 
     def barrier_done(self, frame: int) -> None:
-        """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``)."""
-        t_k = self.trig_time[frame % self.H]
-        self.kernel.at(max(self.kernel.now, t_k + 1.0 / self.f_trig), self._issue, priority=TRIGGER)
+        """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``).
+
+        The earliest time comes from the trigger grid ``t0 + (k - k0) / f`` (by
+        multiplication, so it never drifts); a barrier that completes later than that
+        issues the trigger at once and restarts the grid there.
+        """
+        k = frame + 1
+        t0, k0, f = self._base
+        if self.f_trig != f:  # the rate changed: count periods from trigger ``frame``
+            t0, k0, f = self._base = (float(self.trig_time[frame % self.H]), frame, self.f_trig)
+        t = t0 + (k - k0) / f
+        now = self.kernel.now
+        if t < now:  # the barrier was late: trigger now, count periods from here
+            t = now
+            self._base = (now, k, f)
+        self.kernel.at(t, self._issue, priority=TRIGGER)
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
