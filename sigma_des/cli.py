@@ -19,7 +19,7 @@ import sys
 from collections.abc import Sequence
 
 from sigma_des import __version__
-from sigma_des.config import METHODS, load, to_toml
+from sigma_des.config import METHODS, NODES_PER_HOST, load, to_toml
 from sigma_des.errors import ConfigError
 
 __all__ = ["main"]
@@ -74,7 +74,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         sc = load(args.scenario, args.sets)
         if args.command == "config":
-            sys.stdout.write(to_toml(sc))
+            sys.stdout.write(
+                f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts ({NODES_PER_HOST} nodes each);"
+                f" here that is hosts = {sc.hosts}\n" + to_toml(sc)
+            )
             return 0
         if args.command == "sweep":
             from sigma_des.sweep.cli import run_sweep_command

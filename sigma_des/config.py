@@ -51,6 +51,7 @@ __all__ = [
     "LinkSpec",
     "LockstepSpec",
     "METHODS",
+    "NODES_PER_HOST",
     "NetSpec",
     "Scenario",
     "config_hash",
@@ -60,6 +61,9 @@ __all__ = [
     "to_dict",
     "to_toml",
 ]
+
+#: Nodes per host when ``hosts = 0`` (auto): the paper's 20 aircraft per PC.
+NODES_PER_HOST = 20
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
@@ -75,6 +79,8 @@ class Scenario:
         seed: root seed of all random streams.
         nodes: number of physics nodes (aircraft).
         hosts: number of physics hosts; nodes are placed on them by ``placement``.
+            0 (the default) means ``ceil(nodes / NODES_PER_HOST)`` hosts, the paper's
+            20 aircraft per PC, so any ``nodes`` works without setting ``hosts``.
         cores_per_host: CPU cores per host shared by its nodes.
         placement: ``block`` (consecutive nodes share a host) or ``round_robin``.
         f_trig: nominal trigger frequency (Hz); the physics step is ``1/f_trig``.
@@ -96,7 +102,7 @@ class Scenario:
 
     seed: int = 1
     nodes: int = 200
-    hosts: int = 10
+    hosts: int = 0
     cores_per_host: int = 8
     placement: str = "block"
     f_trig: float = 100.0
@@ -125,10 +131,13 @@ class Scenario:
     def __post_init__(self) -> None:
         require(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
         require(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
+        if self.hosts == 0:  # auto placement: the paper's 20 nodes per host
+            object.__setattr__(self, "hosts", math.ceil(self.nodes / NODES_PER_HOST))
         require(
             1 <= self.hosts <= self.nodes,
             "hosts",
-            f"must be in 1..nodes ({self.nodes}), got {self.hosts}",
+            f"must be 0 (auto: ceil(nodes/{NODES_PER_HOST})) or in 1..nodes ({self.nodes}), "
+            f"got {self.hosts}",
         )
         require(
             self.cores_per_host >= 1, "cores_per_host", f"must be >= 1, got {self.cores_per_host}"
