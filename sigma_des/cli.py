@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from sigma_des import __version__
 from sigma_des.config import METHODS, NODES_PER_HOST, load, to_toml
 from sigma_des.errors import ConfigError
+from sigma_des.outputs import check_out_dir
 
 __all__ = ["main"]
 
@@ -50,7 +51,7 @@ def _parser() -> argparse.ArgumentParser:
         help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
     )
     c.add_argument(
-        "--out", default=None, metavar="DIR", help="write results.csv and summary.json here"
+        "--out", default=None, metavar="DIR", help="write results.csv, wall.csv and summary.json here"
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -93,14 +94,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise ConfigError(
                         "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
                     )
+        if args.out:  # a bad output location must not cost the whole run
+            check_out_dir(args.out)
         res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
+        print(res.table())
+        if args.out:
+            csv_path, json_path = res.write(args.out)
+            print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2
-    print(res.table())
-    if args.out:
-        csv_path, json_path = res.write(args.out)
-        print(f"wrote {csv_path} and {json_path}")
     return 0
 
 
