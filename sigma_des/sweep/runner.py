@@ -282,10 +282,15 @@ class Sweep:
         return [*self.keys, "config_hash", "method", "metric", "unit", "n", "mean", "std", "ci95"]
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
-        """Write ``runs.csv`` (tidy per-run rows) and ``aggregate.csv`` into ``out_dir``."""
+        """Write ``runs.csv`` (tidy per-run rows) and ``aggregate.csv`` (deterministic:
+        no wall-time figures) and ``wall.csv`` (the per-run wall-time rows) into ``out_dir``."""
         d = Path(out_dir)
-        runs = write_csv(self.rows(), d / "runs.csv", self.row_columns())
-        agg = write_csv(self.aggregate(), d / "aggregate.csv", self.aggregate_columns())
+        runs = write_csv(self.rows(include_wall=False), d / "runs.csv", self.row_columns())
+        agg = write_csv(
+            self.aggregate(include_wall=False), d / "aggregate.csv", self.aggregate_columns()
+        )
+        wall = [r for r in self.rows() if r["metric"] in WALL_METRICS]
+        write_csv(wall, d / "wall.csv", self.row_columns())
         return runs, agg
 
     def describe(self) -> str:
