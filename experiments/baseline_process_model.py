@@ -478,7 +478,7 @@ class ProcessModel:
         links = self.up + self.down
         m["throughput_mbps"] = sum(ld.bytes for ld in links) * 8 / window / 1e6
         m["packets_per_s"] = sum(ld.packets for ld in links) / window
-        m["messages_per_s"] = self.messages / window
+        m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["snapshot_rate_hz"] = self.snapshots / window
         m["spread_mean"] = float(np.mean(self.spread)) if self.spread else math.nan

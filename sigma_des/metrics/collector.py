@@ -37,7 +37,7 @@ METRIC_UNITS: dict[str, str] = {
     "throughput_mbps": "Mbps",
     "throughput_max_link_mbps": "Mbps",
     "packets_per_s": "1/s",
-    "messages_per_s": "1/s",
+    "deliveries_per_s": "1/s",
     "trigger_rate_hz": "Hz",
     "f_trig_final_hz": "Hz",
     "f_trig_min_hz": "Hz",
@@ -226,7 +226,7 @@ class Collector:
         m["throughput_mbps"] = total_bytes * 8 / window / 1e6
         m["throughput_max_link_mbps"] = max(ld.bytes for ld in links) * 8 / window / 1e6
         m["packets_per_s"] = sum(ld.packets for ld in links) / window
-        m["messages_per_s"] = self.messages / window
+        m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["f_trig_final_hz"] = run.f_trig
         m["f_trig_min_hz"] = self.f_trig_min
