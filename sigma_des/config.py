@@ -86,6 +86,14 @@ class Scenario:
         f_trig: nominal trigger frequency (Hz); the physics step is ``1/f_trig``.
         f_align: alignment ticks per second at the server.
         f_render: render ticks per second; AoI and consistency are sampled here.
+        align_phase: alignment tick j is at ``(j + align_phase) / f_align``: the
+            server's loop runs on its own clock, not in step with the triggers. The
+            default 0.1 puts the command ticks (every 3rd, 20 Hz) 1.67 ms after a
+            trigger, while that frame's states are arriving; phase 0 would make every
+            command tick coincide with a trigger instant (a tie, not a deployment).
+        render_phase: render tick j is at ``(j + render_phase) / f_render``; the
+            default 0.6 samples half an alignment period after each alignment tick,
+            so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
         duration: simulated time (s).
         warmup: metrics ignore everything before this time (s).
         payload_bits: state payload size (the paper: 150 bits).
@@ -108,6 +116,8 @@ class Scenario:
     f_trig: float = 100.0
     f_align: float = 60.0
     f_render: float = 60.0
+    align_phase: float = 0.1
+    render_phase: float = 0.6
     duration: float = 10.0
     warmup: float = 1.0
     payload_bits: int = 150
@@ -148,6 +158,9 @@ class Scenario:
             f"must be 'block' or 'round_robin', got {self.placement!r}",
         )
         require_positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
+        for key in ("align_phase", "render_phase"):
+            v = getattr(self, key)
+            require(0.0 <= v < 1.0, key, f"must be in [0, 1) (a fraction of a tick), got {v}")
         require(
             0 <= self.warmup < self.duration,
             "warmup",

@@ -367,7 +367,7 @@ class MethodRun:
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
-        self.kernel.at(self.align_tick / self.sc.f_align, self._align, priority=ALIGN)
+        self.kernel.at(self._align_time(self.align_tick), self._align, priority=ALIGN)
 
     def _send_commands(self, t: float) -> None:
         al = self.aligner
@@ -409,7 +409,15 @@ class MethodRun:
             ref,
         )
         self.render_tick += 1
-        self.kernel.at(self.render_tick / self.sc.f_render, self._render, priority=RENDER)
+        self.kernel.at(self._render_time(self.render_tick), self._render, priority=RENDER)
+
+    def _align_time(self, j: int) -> float:
+        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (multiplied, no drift)."""
+        return (j + self.sc.align_phase) / self.sc.f_align
+
+    def _render_time(self, j: int) -> float:
+        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
+        return (j + self.sc.render_phase) / self.sc.f_render
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at ``fidelity.log_rate`` Hz of physics time, so far."""
@@ -423,11 +431,11 @@ class MethodRun:
     # ------------------------------------------------------------ run
 
     def start(self) -> None:
-        """Schedule the first trigger, alignment tick and render tick at t = 0."""
+        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases)."""
         k = self.kernel
         k.at(0.0, self._issue, priority=TRIGGER)
-        k.at(0.0, self._align, priority=ALIGN)
-        k.at(0.0, self._render, priority=RENDER)
+        k.at(self._align_time(0), self._align, priority=ALIGN)
+        k.at(self._render_time(0), self._render, priority=RENDER)
 
     def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
         """Run to ``duration`` and return the collector's results."""
