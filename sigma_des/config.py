@@ -340,6 +340,24 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     cur[parts[-1]] = value
 
 
+def _read_toml(p: Path) -> dict[str, Any]:
+    """The TOML table in scenario file ``p``; every file error is a ConfigError."""
+    if p.is_dir():
+        raise ConfigError(str(p), "is a directory, not a scenario file (a TOML file)")
+    try:
+        return tomllib.loads(p.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(str(p), "scenario file not found") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(
+            str(p), f"not a text (UTF-8 TOML) file: undecodable byte at offset {e.start}"
+        ) from None
+    except OSError as e:
+        raise ConfigError(str(p), f"cannot read scenario file: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(str(p), f"not valid TOML: {e}") from None
+
+
 def load(
     path: str | Path | None = None, overrides: typing.Iterable[str] = (), **values: Any
 ) -> Scenario:
@@ -355,13 +373,7 @@ def load(
     """
     data: dict[str, Any] = {}
     if path is not None:
-        p = Path(path)
-        try:
-            data = tomllib.loads(p.read_text())
-        except FileNotFoundError:
-            raise ConfigError(str(p), "scenario file not found") from None
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError(str(p), f"not valid TOML: {e}") from None
+        data = _read_toml(Path(path))
     for item in overrides:
         k, v = parse_set(item)
         _apply(data, k, v)

@@ -78,6 +78,10 @@ def run_sweep_command(args: argparse.Namespace, base: Scenario) -> int:
         ConfigError: invalid grid, method or seed (before any work).
     """
     grid = parse_grid_args(args.grid)
+    if args.out:  # a bad output location must not cost the whole sweep
+        from sigma_des.outputs import check_out_dir
+
+        check_out_dir(args.out)
     store = Path(args.store) if args.store else None
     if store is None:
         store = Path(args.out) / "sweep.sqlite" if args.out else Path("sweep.sqlite")

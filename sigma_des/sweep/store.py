@@ -15,6 +15,7 @@ counts how many results for that key arrived (1 on first completion, +1 per retr
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -22,6 +23,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
 from typing import Any
+
+from sigma_des.errors import ConfigError
 
 __all__ = ["STATUSES", "ResultStore", "RunKey"]
 
@@ -32,6 +35,9 @@ RunKey = tuple[str, int, str]
 STATUSES: tuple[str, ...] = ("ok", "failed")
 
 SCHEMA_VERSION = "1"
+
+#: The first 16 bytes of every SQLite 3 database file.
+_SQLITE_MAGIC = b"SQLite format 3\x00"
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -74,6 +80,41 @@ _COLS = (
 )
 
 
+def _check_path(path: Path) -> bool:
+    """Refuse a store path that cannot be a results store; True if the file exists.
+
+    Raises:
+        ConfigError: (key ``--store``) a directory, an empty file, a path under a
+            file, or an unreadable file.
+    """
+    if path.is_dir():
+        raise ConfigError("--store", f"{path} is a directory; give the path of a .sqlite file")
+    if path.exists():
+        if path.stat().st_size == 0:
+            raise ConfigError(
+                "--store", f"{path} is an empty file, not a results store; delete it to start "
+                "a new store there"
+            )
+        if not os.access(path, os.R_OK | os.W_OK):
+            raise ConfigError("--store", f"{path}: no permission to read and write it")
+        with path.open("rb") as fh:
+            head = fh.read(len(_SQLITE_MAGIC))
+        if head != _SQLITE_MAGIC:
+            raise ConfigError(
+                "--store", f"{path} is not a sigma-des results store (not an SQLite file); "
+                "give another path or move the file away"
+            )
+        return True
+    for parent in path.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigError("--store", f"{path} lies under {parent}, which is a file")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError("--store", f"cannot create {path.parent}: {e.strerror or e}") from None
+    return False
+
+
 class ResultStore:
     """SQLite store of finished runs (see the module docstring).
 
@@ -85,8 +126,28 @@ class ResultStore:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(self.path, isolation_level=None, timeout=30.0)
+        existed = _check_path(self.path)
+        try:
+            self._db = sqlite3.connect(self.path, isolation_level=None, timeout=30.0)
+        except sqlite3.Error as e:
+            raise ConfigError("--store", f"cannot open {self.path}: {e}") from None
+        try:
+            self._open(existed)
+        except sqlite3.DatabaseError as e:
+            self._db.close()
+            raise ConfigError(
+                "--store", f"{self.path} is not a sigma-des results store (SQLite: {e}); "
+                "give another path or move the file away"
+            ) from None
+        except BaseException:
+            self._db.close()
+            raise
+
+    def _open(self, existed: bool) -> None:
+        if existed:  # an existing file must be an intact SQLite database
+            bad = self._db.execute("PRAGMA quick_check").fetchone()
+            if bad is None or bad[0] != "ok":
+                raise sqlite3.DatabaseError(f"integrity check failed: {bad and bad[0]}")
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.execute("PRAGMA synchronous=FULL")
         self._db.executescript(_SCHEMA)  # idempotent; executescript manages its own commit
@@ -95,8 +156,9 @@ class ResultStore:
             if row is None:
                 self._db.execute("INSERT INTO meta VALUES ('schema', ?)", (SCHEMA_VERSION,))
             elif row[0] != SCHEMA_VERSION:
-                raise RuntimeError(
-                    f"{self.path}: results store schema {row[0]}, expected {SCHEMA_VERSION}"
+                raise ConfigError(
+                    "--store",
+                    f"{self.path}: results store schema {row[0]}, expected {SCHEMA_VERSION}",
                 )
 
     # ------------------------------------------------------------ plumbing
