@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
+from sigma_des.budget import check_memory
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
@@ -270,6 +271,7 @@ def compare(
     methods: Iterable[str] | None = None,
     progress: bool = True,
     jobs: int = 1,
+    force: bool = False,
 ) -> Results:
     """Run every method on the same scenario and seed (identical random draws).
 
@@ -280,14 +282,17 @@ def compare(
         progress: show a progress bar on stderr for runs longer than ~2 s.
         jobs: run up to this many methods at once in worker processes (results are
             identical; only the wall-time figures change).
+        force: run even when the memory estimate exceeds the available memory.
 
     Raises:
-        ConfigError: ``jobs`` < 1 or an unknown method.
+        ConfigError: ``jobs`` < 1, an unknown method, or (key ``memory``) the run's
+            memory estimate exceeds the available memory (see :mod:`sigma_des.budget`).
     """
     if jobs < 1:
         raise ConfigError("jobs", f"must be >= 1, got {jobs}")
     ms: Sequence[str] = tuple(methods) if methods is not None else sc.methods
     sc = replace(sc, methods=tuple(ms))  # validates the names
+    check_memory(sc, min(jobs, len(ms)), force)
     res = Results(sc)
     bar = None
     if progress:

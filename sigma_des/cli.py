@@ -54,6 +54,8 @@ def _parser() -> argparse.ArgumentParser:
         "--out", default=None, metavar="DIR", help="write results.csv, wall.csv and summary.json here"
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.add_argument("--force", action="store_true",
+                   help="run even if the memory estimate exceeds the available memory")
     c.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="run up to N methods at once in worker processes (default 1; "
                    "results are identical)")
@@ -96,7 +98,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     )
         if args.out:  # a bad output location must not cost the whole run
             check_out_dir(args.out)
-        res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
+        res = compare(
+            sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force
+        )
         print(res.table())
         if args.out:
             csv_path, json_path = res.write(args.out)

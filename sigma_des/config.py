@@ -64,6 +64,12 @@ __all__ = [
 
 #: Nodes per host when ``hosts = 0`` (auto): the paper's 20 aircraft per PC.
 NODES_PER_HOST = 20
+#: Largest trigger, alignment and render rate (Hz): a 0.1 ms physics step.
+MAX_RATE_HZ = 10_000.0
+#: Longest simulated duration (s): one day.
+MAX_DURATION_S = 86_400.0
+#: Largest ``history_frames``.
+MAX_HISTORY_FRAMES = 100_000
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
@@ -83,7 +89,8 @@ class Scenario:
             20 aircraft per PC, so any ``nodes`` works without setting ``hosts``.
         cores_per_host: CPU cores per host shared by its nodes.
         placement: ``block`` (consecutive nodes share a host) or ``round_robin``.
-        f_trig: nominal trigger frequency (Hz); the physics step is ``1/f_trig``.
+        f_trig: nominal trigger frequency (Hz), at most 10 kHz; the physics step is
+            ``1/f_trig``. ``f_align`` and ``f_render`` have the same bound.
         f_align: alignment ticks per second at the server.
         f_render: render ticks per second; AoI and consistency are sampled here.
         align_phase: alignment tick j is at ``(j + align_phase) / f_align``: the
@@ -94,7 +101,7 @@ class Scenario:
         render_phase: render tick j is at ``(j + render_phase) / f_render``; the
             default 0.6 samples half an alignment period after each alignment tick,
             so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
-        duration: simulated time (s).
+        duration: simulated time (s), at most 86400 (one day).
         warmup: metrics ignore everything before this time (s).
         payload_bits: state payload size (the paper: 150 bits).
         trigger_payload_bits: trigger payload size.
@@ -104,7 +111,7 @@ class Scenario:
             (the per-message SimPy engine, the executable specification). Both give
             identical results, so the engine is not part of the config hash.
         methods: alignment methods to run side by side.
-        history_frames: true states kept per node for consistency metrics.
+        history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
     """
 
@@ -158,6 +165,14 @@ class Scenario:
             f"must be 'block' or 'round_robin', got {self.placement!r}",
         )
         require_positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
+        for key in ("f_trig", "f_align", "f_render"):
+            v = getattr(self, key)
+            require(v <= MAX_RATE_HZ, key, f"must be in (0, {MAX_RATE_HZ:g}] Hz, got {v}")
+        require(
+            self.duration <= MAX_DURATION_S,
+            "duration",
+            f"must be in (0, {MAX_DURATION_S:g}] s, got {self.duration}",
+        )
         for key in ("align_phase", "render_phase"):
             v = getattr(self, key)
             require(0.0 <= v < 1.0, key, f"must be in [0, 1) (a fraction of a tick), got {v}")
@@ -185,7 +200,9 @@ class Scenario:
             require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
         require(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
         require(
-            self.history_frames >= 16, "history_frames", f"must be >= 16, got {self.history_frames}"
+            16 <= self.history_frames <= MAX_HISTORY_FRAMES,
+            "history_frames",
+            f"must be in 16..{MAX_HISTORY_FRAMES}, got {self.history_frames}",
         )
         require(
             self.bides.f_trig_min <= self.f_trig,
