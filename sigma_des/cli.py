@@ -54,6 +54,8 @@ def _parser() -> argparse.ArgumentParser:
         "--out", default=None, metavar="DIR", help="write results.csv, wall.csv and summary.json here"
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.add_argument("--no-plots", action="store_true",
+                   help="with --out: do not draw the PNG plots next to the tables")
     c.add_argument("--force", action="store_true",
                    help="run even if the memory estimate exceeds the available memory")
     c.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -105,10 +107,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.out:
             csv_path, json_path = res.write(args.out)
             print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
+            if not args.no_plots:
+                _plots(res, args.out)
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2
     return 0
+
+
+def _plots(res: object, out: str) -> None:
+    """Draw the comparison's plots into ``out`` (a one-line note without matplotlib)."""
+    from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+
+    if not have_matplotlib():
+        print(MISSING_NOTE)
+        return
+    paths = write_plots(res, out)  # type: ignore[arg-type]
+    print(f"plots: {', '.join(p.name for p in paths)}")
 
 
 if __name__ == "__main__":
