@@ -51,7 +51,10 @@ def _parser() -> argparse.ArgumentParser:
         help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
     )
     c.add_argument(
-        "--out", default=None, metavar="DIR", help="write results.csv, wall.csv and summary.json here"
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="write results.csv, wall.csv, summary.json and plots here",
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
     c.add_argument("--no-plots", action="store_true",
@@ -80,8 +83,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         sc = load(args.scenario, args.sets)
         if args.command == "config":
             sys.stdout.write(
-                f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts ({NODES_PER_HOST} nodes each);"
-                f" here that is hosts = {sc.hosts}\n" + to_toml(sc)
+                f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts "
+                f"({NODES_PER_HOST} nodes each); here that is hosts = {sc.hosts}\n"
+                + to_toml(sc)
             )
             return 0
         if args.command == "sweep":

@@ -66,7 +66,7 @@ def ensure_cache_dir(package: Path = _PACKAGE) -> str | None:
     if "numba" in sys.modules:  # numba read its configuration already
         from numba.core import config
 
-        config.CACHE_DIR = str(tmp)
+        config.CACHE_DIR = str(tmp)  # type: ignore[attr-defined]
     print(
         f"sigma-des: warning: cannot write numba's cache next to {package} or in "
         f"{_user_cache_dir()}; caching compiled kernels in {tmp}",

@@ -85,8 +85,8 @@ def write_files(out_dir: str | Path, files: Mapping[str, Writer]) -> list[Path]:
     try:
         with _temporaries(d) as tmps:
             for name, writer in files.items():
-                fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".tmp")
-                tmps.append(Path(tmp))
+                fd, tmp_name = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".tmp")
+                tmps.append(Path(tmp_name))
                 with os.fdopen(fd, "w", newline="") as fh:
                     writer(fh)
             for tmp, final in zip(tmps, finals, strict=True):

@@ -61,7 +61,9 @@ def test_unwritable_directory_is_refused(tmp_path: Path) -> None:
         d.chmod(0o700)
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(st.integers(0, 2))
 def test_a_failed_write_leaves_nothing(tmp_path: Path, failing: int) -> None:
     """Whichever file's writer fails, no final file (and no temporary) is left."""
