@@ -30,7 +30,8 @@ from typing import Any
 
 from sigma_des.config import Scenario, to_dict
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
-from sigma_des.sweep.aggregate import aggregate_rows, write_csv
+from sigma_des.outputs import check_out_dir, write_files
+from sigma_des.sweep.aggregate import aggregate_rows, csv_writer
 from sigma_des.sweep.executors import executor
 from sigma_des.sweep.grid import (
     Grid,
@@ -322,13 +323,18 @@ class Sweep:
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
         """Write ``runs.csv`` (tidy per-run rows) and ``aggregate.csv`` (deterministic:
         no wall-time figures) and ``wall.csv`` (the per-run wall-time rows) into ``out_dir``."""
-        d = Path(out_dir)
-        runs = write_csv(self.rows(include_wall=False), d / "runs.csv", self.row_columns())
-        agg = write_csv(
-            self.aggregate(include_wall=False), d / "aggregate.csv", self.aggregate_columns()
-        )
+        d = check_out_dir(out_dir)
         wall = [r for r in self.rows() if r["metric"] in WALL_METRICS]
-        write_csv(wall, d / "wall.csv", self.row_columns())
+        runs, agg, _wall = write_files(
+            d,
+            {
+                "runs.csv": csv_writer(self.rows(include_wall=False), self.row_columns()),
+                "aggregate.csv": csv_writer(
+                    self.aggregate(include_wall=False), self.aggregate_columns()
+                ),
+                "wall.csv": csv_writer(wall, self.row_columns()),
+            },
+        )
         return runs, agg
 
     def describe(self) -> str:
