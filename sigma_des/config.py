@@ -148,7 +148,10 @@ class Scenario:
     def __post_init__(self) -> None:
         require(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
         require(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
-        if self.hosts == 0:  # auto placement: the paper's 20 nodes per host
+        # auto placement: the paper's 20 nodes per host; ``hosts_auto`` (not a field)
+        # remembers it, so a sweep point that changes ``nodes`` places them anew
+        object.__setattr__(self, "hosts_auto", self.hosts == 0)
+        if self.hosts == 0:
             object.__setattr__(self, "hosts", math.ceil(self.nodes / NODES_PER_HOST))
         require(
             1 <= self.hosts <= self.nodes,

@@ -43,3 +43,15 @@ def test_config_says_how_hosts_was_chosen(capsys: pytest.CaptureFixture[str]) ->
     out = capsys.readouterr().out
     assert out.startswith("# hosts = 0 (the default) means ceil(nodes / 20) hosts")
     assert "\nhosts = 1\n" in out
+
+
+def test_sweep_points_place_their_own_nodes() -> None:
+    """A grid over nodes on an auto-placed base gets ceil(nodes/20) hosts per point;
+    a base with explicit hosts keeps them."""
+    from sigma_des.sweep.grid import apply_point
+
+    auto = load(None, [])
+    assert [apply_point(auto, {"nodes": n}).hosts for n in (4, 50, 1000)] == [1, 3, 50]
+    assert apply_point(auto, {"nodes": 50, "hosts": 5}).hosts == 5
+    fixed = load(None, ["hosts=2"])
+    assert apply_point(fixed, {"nodes": 50}).hosts == 2

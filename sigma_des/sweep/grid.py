@@ -230,6 +230,8 @@ def apply_point(base: Scenario, point: Mapping[str, Any]) -> Scenario:
         ConfigError: unknown key, wrong type or out-of-range value, naming the key.
     """
     data = to_dict(base)
+    if getattr(base, "hosts_auto", False):
+        data["hosts"] = 0  # placed anew from the point's nodes (unless it sets hosts)
     for key, value in point.items():
         parts = key.split(".")
         cur: dict[str, Any] = data
