@@ -21,6 +21,7 @@ def pytest_unconfigure(config: pytest.Config) -> None:
     """Remove this process's ideal-run cache directory."""
     shutil.rmtree(_CACHE_ROOT, ignore_errors=True)
 
+
 #: A tiny deterministic scenario: 3 nodes on 2 hosts, constant latencies, no loss,
 #: instantaneous broker, constant 2 ms compute, QoS 0, no commands, ideal clocks.
 TINY: dict[str, Any] = {
@@ -31,6 +32,8 @@ TINY: dict[str, Any] = {
     "f_trig": 100.0,
     "f_align": 25.0,
     "f_render": 25.0,
+    "align_phase": 0.0,
+    "render_phase": 0.0,
     "duration": 1.0,
     "warmup": 0.2,
     "net": {
