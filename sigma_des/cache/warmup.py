@@ -77,7 +77,9 @@ def run_unit(name: str) -> UnitTime:
 
 
 def warm(jobs: int = 2, units: Sequence[str] | None = None) -> list[UnitTime]:
-    """Run the warm-up units, up to ``jobs`` at once, each in a fresh worker process.
+    """Run the warm-up units, up to ``jobs`` at once, in fresh spawned worker processes.
+
+    With ``jobs`` below the number of units, a worker runs several units in turn.
 
     Returns:
         One :class:`UnitTime` per unit, in :data:`UNITS` order.
