@@ -56,6 +56,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="run up to N methods at once in worker processes (default 1; "
                    "results are identical)")
+    c.add_argument("--record", default=None, metavar="FILE.mcap",
+                   help="also record every run to this MCAP file (settings: record.*)")
 
     g = sub.add_parser("config", help="print the resolved scenario as TOML")
     scenario_args(g)
@@ -90,7 +92,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise ConfigError(
                         "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
                     )
-        res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
+        if args.record is not None:
+            from sigma_des.record.cli import check_record_path
+
+            check_record_path(args.record)
+        res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs,
+                      record=args.record)
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2
