@@ -7,6 +7,8 @@ Commands:
   sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
            by default), resumable through a SQLite results store; writes
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
+  replay   rebuild the trajectories of a recording (compare --record) at any
+           rate with a chosen interpolant; writes a tidy CSV.
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -67,12 +69,19 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
     scenario_args(s)
     add_sweep_args(s)
+    from sigma_des.record.cli import add_replay_parser
+
+    add_replay_parser(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
+    if args.command == "replay":
+        from sigma_des.record.cli import run_replay
+
+        return run_replay(args)
     try:
         sc = load(args.scenario, args.sets)
         if args.command == "config":
