@@ -217,7 +217,7 @@ class _Batch:
 
     def extend(self, **cols: ArrayLike) -> None:
         for k, v in cols.items():
-            arr = np.atleast_1d(np.asarray(v))
+            arr = np.atleast_1d(np.array(v))  # a copy: callers may reuse their buffers
             self.cols.setdefault(k, []).append(arr)
         self.size += int(np.atleast_1d(np.asarray(next(iter(cols.values())))).shape[0])
 
@@ -239,6 +239,8 @@ class MethodRecorder:
         self._seq = dict.fromkeys(KINDS, 0)
         self._buf = {k: _Batch() for k in ("trigger", "state", "command")}
         self._cmd_values: list[list[float]] = []
+        self._pending: list[tuple[NDArray[Any], ...]] = []
+        self._n_pending = 0
         self._n = dict.fromkeys(KINDS, 0)
         p = rec.params
         self.encoder = (
@@ -318,13 +320,27 @@ class MethodRecorder:
         t_recv: ArrayLike,
         values: ArrayLike,
     ) -> None:
-        """Many state deliveries (``values``: m × 9, pos, vel, att), in arrival order."""
-        nd = np.asarray(nodes, dtype=np.int64).ravel()
-        fr = np.asarray(frames, dtype=np.int64).ravel()
-        ts = np.asarray(t_send, dtype=float).ravel()
-        tr = np.asarray(t_recv, dtype=float).ravel()
-        v = np.asarray(values, dtype=float).reshape(-1, 9)
+        """Many state deliveries (``values``: m × 9, pos, vel, att), in arrival order.
+
+        The arrays are copied (callers may reuse their buffers) and encoded once
+        ``batch`` states are pending.
+        """
+        nd = np.array(nodes, dtype=np.int64).ravel()
+        v = np.array(values, dtype=float).reshape(-1, 9)
+        self._pending.append((nd, np.array(frames, dtype=np.int64).ravel(),
+                              np.array(t_send, dtype=float).ravel(),
+                              np.array(t_recv, dtype=float).ravel(), v))
+        self._n_pending += nd.size
         self._n["state"] += nd.size
+        if self._n_pending >= self.rec.batch:
+            self._encode_pending()
+
+    def _encode_pending(self) -> None:
+        if not self._pending:
+            return
+        nd, fr, ts, tr, v = (np.concatenate(c) for c in zip(*self._pending, strict=True))
+        self._pending = []
+        self._n_pending = 0
         cols: dict[str, Any]
         if self.encoder is not None:
             rows, key, v = self.encoder.encode(nd, fr, ts, v)
@@ -388,6 +404,7 @@ class MethodRecorder:
 
     def flush(self) -> None:
         """Write every buffered batch."""
+        self._encode_pending()
         for kind in self._buf:
             self._flush(kind)
 

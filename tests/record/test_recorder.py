@@ -179,3 +179,22 @@ def test_existing_file_kept_unless_overwrite(tmp_path: Path) -> None:
     with pytest.raises(FileExistsError):
         Recorder(path, overwrite=False)
     assert path.read_bytes() == b"keep me"
+
+
+@pytest.mark.parametrize("mode", ["full", "incremental"])
+def test_states_are_copied_from_reused_buffers(tmp_path: Path, mode: str) -> None:
+    """The cohort core hands out views of buffers it overwrites (a one-row batch is one)."""
+    path = tmp_path / "b.mcap"
+    buf = np.zeros((1, 9))
+    nodes = np.zeros((1, 2), dtype=np.int64)
+    with Recorder(path, mode=mode, deadband_pos=0.0, deadband_vel=0.0,
+                  deadband_att=0.0) as rec:
+        run = rec.run("none")
+        for k in range(5):
+            buf[0, 0] = float(k)
+            nodes[0, 1] = k
+            run.states(nodes[:1, 0], nodes[:1, 1], buf[:1, 0] * 0.01, buf[:1, 0] * 0.01 + 1e-3,
+                       buf[:1])
+    st = read_states(path)["none"]
+    assert st.pos[:, 0].tolist() == [0.0, 1.0, 2.0, 3.0, 4.0]
+    assert st.frame.tolist() == [0, 1, 2, 3, 4]
