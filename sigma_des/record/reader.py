@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
+import orjson
 from mcap.reader import make_reader
 from numpy.typing import NDArray
 
@@ -77,24 +77,34 @@ class Recording:
     params: dict[str, Any]
     runs: dict[str, dict[str, str]]
     topics: dict[str, tuple[str, str]]
+    _cache: dict[str, list[tuple[int, bytes]]] | None = field(default=None, repr=False)
 
     def messages(self, kind: str, method: str) -> Iterator[dict[str, Any]]:
         """Decoded bodies of ``/<method>/<kind>``, in write order."""
         topic = f"/{method}/{kind}"
+        raw = self._raw()
+        try:
+            for _seq, data in sorted(raw.get(topic, []), key=lambda x: x[0]):
+                body = orjson.loads(data)
+                if not isinstance(body, dict):
+                    raise ValueError("a message is not a JSON object")
+                yield body
+        except ValueError as e:  # orjson.JSONDecodeError is a ValueError
+            raise RecordError(str(self.path), f"corrupt data on {topic}: {e}") from None
+
+    def _raw(self) -> dict[str, list[tuple[int, bytes]]]:
+        """Every message's bytes by topic (one pass over the file, kept)."""
+        if self._cache is not None:
+            return self._cache
+        out: dict[str, list[tuple[int, bytes]]] = {}
         try:
             with self.path.open("rb") as fh:
-                reader = make_reader(fh)
-                got = [
-                    (m.sequence, m.data)
-                    for _s, _c, m in reader.iter_messages(topics=[topic], log_time_order=False)
-                ]
-            got.sort(key=lambda x: x[0])
-            for _seq, data in got:
-                yield json.loads(data)
-        except RecordError:
-            raise
+                for _s, ch, m in make_reader(fh).iter_messages(log_time_order=False):
+                    out.setdefault(ch.topic, []).append((m.sequence, m.data))
         except Exception as e:  # untrusted file: any decoding failure means corrupt
-            raise RecordError(str(self.path), f"corrupt data on {topic}: {e}") from None
+            raise RecordError(str(self.path), f"corrupt data: {type(e).__name__}: {e}") from None
+        self._cache = out
+        return out
 
 
 def open_recording(path: str | Path) -> Recording:
@@ -167,21 +177,25 @@ def read_states(path: str | Path, method: str | None = None) -> dict[str, StateT
 
 
 def _states(rec: Recording, method: str) -> StateTable:
+    ints = ("node", "frame", "key")
     cols: dict[str, list[Any]] = {}
-    for body in rec.messages("state", method):
-        for k in ("node", "frame", "t_send", "t_recv", "key", *_POSE_COLS):
-            if k in body:
-                cols.setdefault(k, []).extend(body[k])
-    def arr(k: str, dt: Any) -> Any:
-        return np.asarray([np.nan if v is None else v for v in cols.get(k, [])], dtype=dt)
     try:
-        node = np.asarray(cols.get("node", []), dtype=np.int64)
+        for body in rec.messages("state", method):
+            for k in ("node", "frame", "t_send", "t_recv", "key", *_POSE_COLS):
+                if k in body:  # None -> NaN
+                    cols.setdefault(k, []).append(
+                        np.array(body[k], dtype=np.int64 if k in ints else float))
+
+        def arr(k: str, dt: Any) -> Any:
+            xs = cols.get(k)
+            return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dtype=dt)
+
+        node = arr("node", np.int64)
         vals = np.stack([arr(c, float) for c in _POSE_COLS], axis=1) if node.size else (
             np.zeros((0, 9)))
         if rec.record_mode == "incremental":
-            vals = decode(node, np.asarray(cols.get("key", []), dtype=np.int8), vals)
-        st = StateTable(node, np.asarray(cols.get("frame", []), dtype=np.int64),
-                        arr("t_send", float), arr("t_recv", float),
+            vals = decode(node, arr("key", np.int8), vals)
+        st = StateTable(node, arr("frame", np.int64), arr("t_send", float), arr("t_recv", float),
                         vals[:, 0:3], vals[:, 3:6], vals[:, 6:9])
     except (ValueError, TypeError) as e:
         raise RecordError(str(rec.path), f"corrupt states of {method!r}: {e}") from None
@@ -190,7 +204,7 @@ def _states(rec: Recording, method: str) -> StateTable:
     return st
 
 
-def read_table(path: str | Path) -> pd.DataFrame:
+def read_table(path: str | Path) -> Any:
     """One row per recorded message: ``method, kind, node, frame, t_send, t_recv``.
 
     ``node``/``frame`` are floats (NaN where not applicable: render samples have no
@@ -198,11 +212,16 @@ def read_table(path: str | Path) -> pd.DataFrame:
     samples, whose time is ``t_recv`` (the time shown). Incremental recordings list
     the stored states only.
 
+    Returns:
+        A ``pandas.DataFrame``.
+
     Raises:
         RecordError: the file cannot be read.
     """
+    import pandas as pd
+
     rec = open_recording(path)
-    frames: list[pd.DataFrame] = []
+    frames: list[Any] = []
     for method in rec.methods:
         for kind in KINDS:
             frames.append(_kind_rows(rec, method, kind))
@@ -213,7 +232,9 @@ def read_table(path: str | Path) -> pd.DataFrame:
     return df[list(TABLE_COLUMNS)]
 
 
-def _kind_rows(rec: Recording, method: str, kind: str) -> pd.DataFrame:
+def _kind_rows(rec: Recording, method: str, kind: str) -> Any:
+    import pandas as pd
+
     node: list[Any] = []
     frame: list[Any] = []
     ts: list[Any] = []
@@ -239,6 +260,6 @@ def _kind_rows(rec: Recording, method: str, kind: str) -> pd.DataFrame:
     except (KeyError, TypeError) as e:
         raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: {e}") from None
     def f(xs: list[Any]) -> NDArray[np.float64]:
-        return np.asarray([np.nan if v is None else v for v in xs], dtype=float)
+        return np.array(xs, dtype=float)  # None -> NaN
     return pd.DataFrame({"method": method, "kind": kind, "node": f(node), "frame": f(frame),
                          "t_send": f(ts), "t_recv": f(tr)})

@@ -64,6 +64,9 @@ class RecordTap:
             keyframe_every=spec.keyframe_every,
         )
         self.run: MethodRecorder = self.rec.run(method, mode="des")
+        self._incremental = spec.mode == "incremental"
+        self._pending: list[tuple[_F, NDArray[np.int64], NDArray[np.int64], _F, _F]] = []
+        self._n_pending = 0
 
     def trigger(self, node: int, frame: int, t_send: float, t_recv: float) -> None:
         """A trigger delivery (node -1 and NaN receive time: the trigger's issue)."""
@@ -71,9 +74,22 @@ class RecordTap:
 
     def states(self, t_recv: _F, nodes: NDArray[np.int64], frames: NDArray[np.int64],
                gens: _F, obs: _F) -> None:
-        """State deliveries to the server, in arrival order."""
-        pos, vel, att = obs_to_ned(np.asarray(obs, dtype=float).reshape(-1, obs.shape[-1]))
-        self.run.states(nodes, frames, gens, t_recv, np.concatenate([pos, vel, att], axis=1))
+        """State deliveries to the server, in arrival order (converted in batches)."""
+        self._pending.append((np.array(t_recv, dtype=float), np.array(nodes, dtype=np.int64),
+                              np.array(frames, dtype=np.int64), np.array(gens, dtype=float),
+                              np.array(obs, dtype=float).reshape(-1, obs.shape[-1])))
+        self._n_pending += self._pending[-1][1].size
+        if self._n_pending >= self.rec.batch:
+            self._states_now()
+
+    def _states_now(self) -> None:
+        if not self._pending:
+            return
+        tr, nd, fr, gen, obs = (np.concatenate(c) for c in zip(*self._pending, strict=True))
+        self._pending = []
+        self._n_pending = 0
+        pos, vel, att = obs_to_ned(obs)
+        self.run.states(nd, fr, gen, tr, np.concatenate([pos, vel, att], axis=1))
 
     def commands(self, nodes: NDArray[np.int64], tick: int, t_send: float, t_recv: _F,
                  rows: _F) -> None:
@@ -83,6 +99,9 @@ class RecordTap:
 
     def snapshot(self, t: float, frame: int, frames: NDArray[np.int64], obs: _F) -> None:
         """A new aligned snapshot shown at ``t``."""
+        if self._incremental:  # frames only: the poses are in the state channel
+            self.run.snapshot(t=t, frame=frame, frames=frames, pos=np.zeros((0, 3)))
+            return
         pos, _vel, att = obs_to_ned(obs)
         self.run.snapshot(t=t, frame=frame, frames=frames, pos=pos, att=att)
 
@@ -92,4 +111,5 @@ class RecordTap:
 
     def close(self) -> None:
         """Finish the file."""
+        self._states_now()
         self.rec.close()

@@ -28,6 +28,7 @@ from types import TracebackType
 from typing import IO, Any
 
 import numpy as np
+import orjson
 from mcap.writer import CompressionType, Writer
 from numpy.typing import ArrayLike, NDArray
 
@@ -48,12 +49,9 @@ def _ns(t: float) -> int:
     return max(0, round(t * 1e9)) if math.isfinite(t) else 0
 
 
-def _clean(a: NDArray[np.float64]) -> list[Any]:
-    """A float column as JSON-ready values (NaN → null)."""
-    out: list[Any] = a.tolist()
-    if np.isnan(a).any():
-        return [None if x != x else x for x in out]
-    return out
+def _col(a: ArrayLike, dtype: Any = np.float64) -> NDArray[Any]:
+    """A contiguous column orjson serialises natively (NaN → null)."""
+    return np.ascontiguousarray(np.asarray(a, dtype=dtype))
 
 
 class Recorder:
@@ -177,7 +175,7 @@ class Recorder:
         )
 
     def _add(self, channel: int, seq: int, t_send: float, t_recv: float, body: Any) -> None:
-        data = json.dumps(body, separators=(",", ":"), allow_nan=False).encode()
+        data = orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)  # NaN, inf -> null
         self._w.add_message(channel, _ns(t_recv), data, _ns(t_send), sequence=seq)
 
     def close(self) -> None:
@@ -238,7 +236,7 @@ class MethodRecorder:
         self._ch = {k: rec._channel(method, k, mode) for k in KINDS}
         self._seq = dict.fromkeys(KINDS, 0)
         self._buf = {k: _Batch() for k in ("trigger", "state", "command")}
-        self._cmd_values: list[list[float]] = []
+        self._cmd_values: list[NDArray[np.float64]] = []
         self._pending: list[tuple[NDArray[Any], ...]] = []
         self._n_pending = 0
         self._n = dict.fromkeys(KINDS, 0)
@@ -293,7 +291,7 @@ class MethodRecorder:
         """An aligned snapshot shown at ``t`` (``pos``: n × 3 NED m; ``att``: n × 3 rad)."""
         fr = np.asarray(frames, dtype=np.int64).ravel()
         if self.rec.mode == "incremental":
-            body: dict[str, Any] = {"t": t, "frame": int(frame), "frames": fr.tolist()}
+            body: dict[str, Any] = {"t": t, "frame": int(frame), "frames": _col(fr, np.int64)}
         else:
             body = _poses_in_frame(t, int(frame), fr, np.asarray(pos, dtype=float), att)
         self._write("snapshot", t, t, body)
@@ -301,7 +299,7 @@ class MethodRecorder:
 
     def render(self, t: float, aoi: ArrayLike) -> None:
         """One render sample: the Age of Information of every node (s; NaN: none)."""
-        self._write("render", t, t, {"t": t, "aoi": _clean(np.asarray(aoi, dtype=float))})
+        self._write("render", t, t, {"t": t, "aoi": _col(aoi).ravel()})
         self._n["render"] += 1
 
     # ------------------------------------------------------------ vectorised forms
@@ -364,7 +362,10 @@ class MethodRecorder:
         values: ArrayLike,
     ) -> None:
         """Many command deliveries; ``values``: one row (sequence of floats) each."""
-        rows = [_clean(np.asarray(r, dtype=float).ravel()) for r in values]  # type: ignore[union-attr]
+        if isinstance(values, np.ndarray) and values.ndim == 2:
+            rows: list[NDArray[np.float64]] = list(np.array(values, dtype=float))
+        else:
+            rows = [np.asarray(r, dtype=float).ravel() for r in values]  # type: ignore[union-attr]
         self._cmd_values.extend(rows)
         self._bulk("command", node=nodes, frame=frames, t_send=t_send, t_recv=t_recv)
 
@@ -385,12 +386,13 @@ class MethodRecorder:
         cols = b.take()
         body: dict[str, Any] = {"seq": self._seq[kind]}
         for k, v in cols.items():
-            if k in ("node", "frame", "key"):
-                body[k] = v.astype(np.int64).tolist()
-            else:
-                body[k] = _clean(v.astype(float))
+            body[k] = _col(v, np.int64 if k in ("node", "frame", "key") else np.float64)
         if kind == "command":
-            body["values"] = self._cmd_values
+            vals = self._cmd_values
+            if len({r.size for r in vals}) == 1:
+                body["values"] = _col(np.stack(vals))
+            else:
+                body["values"] = [_col(r) for r in vals]
             self._cmd_values = []
         ts = cols["t_send"].astype(float)
         tr = cols["t_recv"].astype(float)
@@ -445,8 +447,8 @@ def _poses_in_frame(
         "frame_id": "ned",
         "poses": poses,
         "frame": frame,
-        "frames": frames.tolist(),
-        "nodes": np.flatnonzero(ok).tolist(),
+        "frames": _col(frames, np.int64),
+        "nodes": np.flatnonzero(ok).astype(np.int64),
     }
 
 
