@@ -80,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     d = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="bench_record_"))
     d.mkdir(parents=True, exist_ok=True)
     base = [f"nodes={a.nodes}", f"hosts={a.hosts}", f"duration={a.duration}",
+            f"warmup={min(1.0, a.duration / 5)}",
             "fidelity.enabled=false"]
     inc_sets = [*base, "record.mode=incremental", f"record.deadband_pos={a.deadband_pos}",
                 f"record.deadband_vel={a.deadband_vel}",

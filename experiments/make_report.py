@@ -644,6 +644,9 @@ plots into `{outputs.name}/<study>/`; `--quick` runs a seconds-long smoke versio
                 + plots_line(name, pngs, outputs)
                 + "\n"
             )
+    from report_interpolation import section as interpolation_section  # issue 12
+
+    body.append(interpolation_section(outputs))
     return "\n".join(body).rstrip() + "\n"
 
 
