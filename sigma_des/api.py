@@ -344,8 +344,12 @@ def _record_parts(record: str | Path | None, ms: Sequence[str]) -> dict[str, Pat
 
 
 def _join_parts(sc: Scenario, out: Path, parts: list[Path]) -> None:
+    """Join the per-method recordings into ``out`` (one method: the file is renamed)."""
     from sigma_des.record.writer import Recorder
 
+    if len(parts) == 1:
+        parts[0].replace(out)
+        return
     r = sc.record
     with Recorder(
         out,

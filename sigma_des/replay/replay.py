@@ -92,8 +92,11 @@ def _node(path: str | Path, m: str, st: StateTable, node: int, rate: float, meth
     k0, k1 = math.ceil(t[0] * rate - 1e-9), math.floor(t[-1] * rate + 1e-9)
     grid = np.arange(k0, k1 + 1) / rate
     grid = grid[(grid >= t[0]) & (grid <= t[-1])]
-    p = interpolate(t, pos, method=method, at=grid, velocities=vel, attitudes=att,
-                    window=window)
-    a = slerp_attitude(t, att, grid)
+    try:
+        p = interpolate(t, pos, method=method, at=grid, velocities=vel, attitudes=att,
+                        window=window)
+        a = slerp_attitude(t, att, grid)
+    except ValueError as e:  # e.g. non-finite recorded values
+        raise RecordError(str(path), f"{m} node {node}: {e}") from None
     return pd.DataFrame({"method": m, "node": node, "t": grid, "x": p[:, 0], "y": p[:, 1],
                          "z": p[:, 2], "phi": a[:, 0], "theta": a[:, 1], "psi": a[:, 2]})

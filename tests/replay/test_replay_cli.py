@@ -103,6 +103,18 @@ def test_bad_input_exits_2_naming_file_and_problem(tmp_path: Path, case: str,
     assert not (tmp_path / "o.csv").exists()
 
 
+def test_non_finite_state_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "nan.mcap"
+    with Recorder(path) as rec:
+        run = rec.run("none")
+        for k in range(6):
+            run.state(node=0, frame=k, t_send=k / 10, t_recv=k / 10,
+                      pos=(math.nan if k == 3 else 0.0, 0, 0), vel=(0, 0, 0), att=(0, 0, 0))
+    assert main(["replay", str(path), "--rate", "60", "--out", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and "none node 0: times and samples must be finite" in err
+
+
 def test_unknown_schema_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from mcap.writer import Writer
 
