@@ -69,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
     scenario_args(s)
     add_sweep_args(s)
-    from sigma_des.record.cli import add_replay_parser
+    from sigma_des.replay.cli import add_replay_parser
 
     add_replay_parser(sub)
     return p
@@ -79,7 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
     if args.command == "replay":
-        from sigma_des.record.cli import run_replay
+        from sigma_des.replay.cli import run_replay
 
         return run_replay(args)
     try:
