@@ -10,8 +10,8 @@ recorded, recorded ``full``, recorded ``incremental`` (dead-bands ``--deadband-p
 * wall time of each run and the recording overhead (recorded / not recorded − 1);
 * file size of both recordings and the ratio full / incremental; states stored;
 * reconstruction error of the incremental file: every state of the full recording is
-  rebuilt from the incremental one (``hermite-dw`` on the stored states, at the full
-  recording's instants): mean, p99 and max 3-D error (m);
+  rebuilt from the incremental one (``hermite-dw``, window ``none`` as in the replay, on
+  the stored states, at the full recording's instants): mean, p99 and max 3-D error (m);
 * replay of the incremental file to ``--rate`` Hz for all nodes (``hermite-dw``):
   the read + rebuild time and, apart, the CSV write time.
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from sigma_des import compare, load
 from sigma_des.record import open_recording, read_states
-from sigma_des.replay import interpolate
+from sigma_des.replay import WindowRule, interpolate
 from sigma_des.replay.replay import node_samples, replay
 
 
@@ -67,7 +67,8 @@ def reconstruction_error(full: Path, inc: Path, method: str) -> dict[str, float]
     for node in np.unique(a.node).tolist():
         _f, t, pos, _v, _att = node_samples(a, node)
         _g, tb, pb, vb, ab = node_samples(b, node)
-        got = interpolate(tb, pb, "hermite-dw", at=t, velocities=vb, attitudes=ab)
+        got = interpolate(tb, pb, "hermite-dw", at=t, velocities=vb, attitudes=ab,
+                          window=WindowRule(rule="none"))  # the replay's default
         ok = ~np.isnan(got).any(axis=1)  # after the last stored state: not rebuilt
         errs.append(np.linalg.norm(got[ok] - pos[ok], axis=1))
     e = np.concatenate(errs)

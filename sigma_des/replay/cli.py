@@ -15,6 +15,7 @@ __all__ = ["add_replay_parser", "run_replay"]
 def add_replay_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``sigma-des replay`` on the top-level subparsers."""
     from sigma_des.replay.interpolate import INTERP_METHODS
+    from sigma_des.replay.window import RULES
 
     r = sub.add_parser("replay", help="rebuild recorded trajectories at any rate")
     r.add_argument("recording", metavar="FILE.mcap", help="a recording (compare/live --record)")
@@ -23,6 +24,11 @@ def add_replay_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[
                    help="interpolation method (default hermite-dw)")
     r.add_argument("--methods", default=None,
                    help="comma-separated alignment methods to replay (default: all recorded)")
+    r.add_argument("--window", default="none", choices=RULES,
+                   help="hermite-dw tangent window rule (default none: recorded states are "
+                   "exact; 'both' is eq. (15) in our reading, for noisy logs)")
+    r.add_argument("--window-w", type=int, default=1, metavar="W",
+                   help="default window half-width w of eq. (15), samples (default 1)")
     r.add_argument("--out", required=True, metavar="traj.csv", help="output CSV")
     r.add_argument("--force", action="store_true", help="overwrite --out if it exists")
 
@@ -32,6 +38,7 @@ def run_replay(args: argparse.Namespace) -> int:
     import time
 
     from sigma_des.replay.replay import replay
+    from sigma_des.replay.window import WindowRule
 
     out = Path(args.out)
     try:
@@ -51,8 +58,11 @@ def run_replay(args: argparse.Namespace) -> int:
                 if m not in have:
                     raise ConfigError("--methods", f"{m!r} is not in {args.recording} "
                                       f"(recorded: {', '.join(have)})")
+        if args.window_w < 0:
+            raise ConfigError("--window-w", f"must be >= 0 samples, got {args.window_w}")
+        window = WindowRule(rule=args.window, w=args.window_w)
         t0 = time.perf_counter()
-        df = replay(args.recording, args.rate, args.method, methods)
+        df = replay(args.recording, args.rate, args.method, methods, window)
         t1 = time.perf_counter()
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)

@@ -50,7 +50,9 @@ def replay(
         rate: output rate (Hz, > 0).
         method: interpolation method (see :data:`~sigma_des.replay.INTERP_METHODS`).
         methods: recorded alignment methods to replay (default: all).
-        window: the dynamic-window rule (``hermite-dw``).
+        window: the dynamic-window rule (``hermite-dw``); default ``rule="none"``: the
+            simulator records exact states, and on noise-free samples any tangent window
+            only adds bias (see docs/REPLAY.md).
 
     Returns:
         Tidy rows :data:`REPLAY_COLUMNS` (NED m, rad).
@@ -64,6 +66,7 @@ def replay(
         raise ValueError(f"rate must be a finite number > 0 Hz, got {rate}")
     if method not in MIN_SAMPLES:
         raise ValueError(f"unknown method {method!r}; allowed: {', '.join(MIN_SAMPLES)}")
+    window = window or WindowRule(rule="none")
     tables = read_states(path)
     parts: list[pd.DataFrame] = []
     for m, st in tables.items():

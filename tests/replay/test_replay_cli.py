@@ -55,6 +55,12 @@ def test_cli_writes_the_csv_and_upsamples(tmp_path: Path) -> None:
     out = tmp_path / "traj.csv"
     assert main(["replay", str(path), "--rate", "250", "--method", "pchip",
                  "--methods", "bides", "--out", str(out)]) == 0
+    dw = tmp_path / "dw.csv"
+    assert main(["replay", str(path), "--rate", "250", "--window", "both", "--window-w", "2",
+                 "--methods", "bides", "--out", str(dw)]) == 0
+    assert len(pd.read_csv(dw)) == 2 * 98
+    assert main(["replay", str(path), "--rate", "250", "--window-w", "-1",
+                 "--out", str(tmp_path / "x.csv")]) == 2
     df = pd.read_csv(out)
     assert set(df.method) == {"bides"} and set(df.node) == {0, 1}
     assert len(df) == 2 * 98  # 0 .. 0.39 s at 250 Hz: k = 0 .. 97
