@@ -82,7 +82,7 @@ class Recording:
     def messages(self, kind: str, method: str) -> Iterator[dict[str, Any]]:
         """Decoded bodies of ``/<method>/<kind>``, in write order."""
         topic = f"/{method}/{kind}"
-        raw = self._raw()
+        raw = self.prefetch([topic]) if topic not in (self._cache or {}) else self._cache or {}
         try:
             for _seq, data in sorted(raw.get(topic, []), key=lambda x: x[0]):
                 body = orjson.loads(data)
@@ -92,19 +92,18 @@ class Recording:
         except ValueError as e:  # orjson.JSONDecodeError is a ValueError
             raise RecordError(str(self.path), f"corrupt data on {topic}: {e}") from None
 
-    def _raw(self) -> dict[str, list[tuple[int, bytes]]]:
-        """Every message's bytes by topic (one pass over the file, kept)."""
-        if self._cache is not None:
-            return self._cache
-        out: dict[str, list[tuple[int, bytes]]] = {}
+    def prefetch(self, topics: list[str]) -> dict[str, list[tuple[int, bytes]]]:
+        """Read the messages of ``topics`` in one pass over the file and keep their bytes."""
+        out: dict[str, list[tuple[int, bytes]]] = {t: [] for t in topics}
         try:
             with self.path.open("rb") as fh:
-                for _s, ch, m in make_reader(fh).iter_messages(log_time_order=False):
-                    out.setdefault(ch.topic, []).append((m.sequence, m.data))
+                it = make_reader(fh).iter_messages(topics=topics, log_time_order=False)
+                for _s, ch, m in it:
+                    out[ch.topic].append((m.sequence, m.data))
         except Exception as e:  # untrusted file: any decoding failure means corrupt
             raise RecordError(str(self.path), f"corrupt data: {type(e).__name__}: {e}") from None
-        self._cache = out
-        return out
+        self._cache = {**(self._cache or {}), **out}
+        return self._cache
 
 
 def open_recording(path: str | Path) -> Recording:
@@ -173,6 +172,7 @@ def read_states(path: str | Path, method: str | None = None) -> dict[str, StateT
     methods = rec.methods if method is None else [method]
     if method is not None and method not in rec.methods:
         raise RecordError(str(rec.path), f"method {method!r} not recorded; has {rec.methods}")
+    rec.prefetch([f"/{m}/state" for m in methods])
     return {m: _states(rec, m) for m in methods}
 
 
@@ -221,6 +221,7 @@ def read_table(path: str | Path) -> Any:
     import pandas as pd
 
     rec = open_recording(path)
+    rec.prefetch(list(rec.topics))
     frames: list[Any] = []
     for method in rec.methods:
         for kind in KINDS:
