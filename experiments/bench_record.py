@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -49,6 +50,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=60.0)
     p.add_argument("--dir", default=None, help="keep the recordings here (default: temp)")
     p.add_argument("--out", default=None, help="write the figures as JSON here")
+    p.add_argument("--reuse", action="store_true",
+                   help="keep the run figures of --out and the recordings in --dir; redo only "
+                   "the reconstruction and replay measurements")
     return p
 
 
@@ -87,17 +91,24 @@ def main(argv: list[str] | None = None) -> int:
                 f"record.deadband_vel={a.deadband_vel}",
                 f"record.deadband_att={a.deadband_att}",
                 f"record.keyframe_every={a.keyframe_every}"]
-    _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"], a.method,
-         d / "warm.mcap")
     full, inc = d / "full.mcap", d / "incremental.mcap"
-    wall = {"plain": _run(base, a.method, None), "full": _run(base, a.method, full),
-            "incremental": _run(inc_sets, a.method, inc)}
+    if a.reuse:
+        if not (a.out and Path(a.out).is_file() and full.is_file() and inc.is_file()):
+            print("--reuse needs --out JSON and --dir with full.mcap, incremental.mcap",
+                  file=sys.stderr)
+            return 2
+        wall = json.loads(Path(a.out).read_text())["wall_s"]
+    else:
+        _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"], a.method,
+             d / "warm.mcap")
+        wall = {"plain": _run(base, a.method, None), "full": _run(base, a.method, full),
+                "incremental": _run(inc_sets, a.method, inc)}
     size = {"full": full.stat().st_size, "incremental": inc.stat().st_size}
     runs = open_recording(inc).runs[a.method]
     err = reconstruction_error(full, inc, a.method)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     df = replay(inc, a.rate, "hermite-dw")
-    t_replay = time.perf_counter() - t0
+    t_replay, c_replay = time.perf_counter() - t0, time.process_time() - c0
     t0 = time.perf_counter()
     df.to_csv(d / "traj.csv", index=False)
     t_csv = time.perf_counter() - t0
@@ -111,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         "states": int(runs["states"]), "states_stored": int(runs["states_stored"]),
         "reconstruction": err,
         "replay": {"rate_hz": a.rate, "rows": len(df), "read_and_rebuild_s": t_replay,
-                   "csv_write_s": t_csv},
+                   "read_and_rebuild_cpu_s": c_replay, "csv_write_s": t_csv},
+        "load_avg_1min": os.getloadavg()[0], "cpus": os.cpu_count(),
     }
     text = json.dumps(res, indent=2)
     print(text)

@@ -154,12 +154,19 @@ def decode(nodes: _I, key: NDArray[np.int8], values: _F) -> _F:
     if np.any(starts & ~k):
         bad = int(nd[np.flatnonzero(starts & ~k)[0]])
         raise ValueError(f"node {bad}: the first recorded state is not a keyframe")
-    seg = np.cumsum(k)  # one segment per keyframe, within one node (starts are keys)
     v = values[order]
-    res = np.empty_like(v)
-    bounds = np.flatnonzero(np.r_[True, seg[1:] != seg[:-1]])
-    ends = np.r_[bounds[1:], seg.size]
-    for a, b in zip(bounds.tolist(), ends.tolist(), strict=True):
-        np.cumsum(v[a:b], axis=0, out=res[a:b])  # sequential: the encoder's additions
+    res = v.copy()
+    # position of each row within its keyframe segment (node starts are keyframes)
+    first = np.flatnonzero(k)
+    seg_start = first[np.cumsum(k) - 1]
+    offset = np.arange(v.shape[0]) - seg_start
+    # res[r] = res[r - 1] + v[r] along each segment, one offset at a time for all
+    # segments at once: the encoder's additions, in the encoder's order
+    rows_by_offset = np.argsort(offset, kind="stable")
+    counts = np.bincount(offset)
+    pos = np.cumsum(counts)
+    for o in range(1, counts.size):
+        r = rows_by_offset[pos[o - 1] : pos[o]]
+        res[r] = res[r - 1] + v[r]
     out[order] = res
     return out

@@ -35,8 +35,8 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from sigma_des.replay.window import WindowRule, window_sizes
 
-__all__ = ["INTERP_METHODS", "MIN_SAMPLES", "interpolate", "slerp_attitude",
-           "hermite_tangents"]
+__all__ = ["INTERP_METHODS", "MIN_SAMPLES", "hermite_tangents", "interpolate",
+           "slerp_attitude", "slerp_segments"]
 
 _F = NDArray[np.float64]
 
@@ -180,4 +180,64 @@ def slerp_attitude(times: ArrayLike, euler: ArrayLike, at: ArrayLike) -> _F:
     hit = (k < t.size) & (t[np.minimum(k, t.size - 1)] == q[inside])
     res[hit] = e[k[hit]]
     out[inside] = res
+    return out
+
+
+def _quat(e: _F) -> _F:
+    """Unit quaternions (x, y, z, w) of Z-Y-X Euler angles (φ, θ, ψ) (SciPy's convention)."""
+    hp, ht, hs = e[:, 0] / 2, e[:, 1] / 2, e[:, 2] / 2
+    cp, sp, ct, st, cs, ss = np.cos(hp), np.sin(hp), np.cos(ht), np.sin(ht), np.cos(hs), np.sin(hs)
+    return np.stack([sp * ct * cs - cp * st * ss, cp * st * cs + sp * ct * ss,
+                     cp * ct * ss - sp * st * cs, cp * ct * cs + sp * st * ss], axis=1)
+
+
+def _euler(q: _F) -> _F:
+    """Z-Y-X Euler angles (φ, θ, ψ) of unit quaternions (x, y, z, w)."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    phi = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    theta = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    psi = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.stack([phi, theta, psi], axis=1)
+
+
+def slerp_segments(times: _F, euler: _F, starts: NDArray[np.intp], at: _F,
+                   seg: NDArray[np.intp]) -> _F:
+    """:func:`slerp_attitude` for many trajectories at once (the replay's fast path).
+
+    The same spherical linear interpolation as ``scipy.spatial.transform.Slerp`` (equal to
+    it to ~1e-12, tested), written on quaternion arrays in numpy: SciPy's ``Rotation``
+    products cost microseconds per element, seconds for a 1000-node replay.
+
+    Args:
+        times: concatenated sample times of every trajectory (each strictly increasing,
+            at least 2 samples).
+        euler: ``(m, 3)`` Z-Y-X Euler angles of those samples.
+        starts: ``(k + 1,)`` start of each trajectory in ``times`` (last entry ``m``).
+        at: query times, each inside its trajectory's span.
+        seg: trajectory index of each query, non-decreasing (queries grouped by trajectory).
+
+    Returns:
+        ``(len(at), 3)`` Euler angles; exactly the sample's at a sample time.
+    """
+    lo, hi = starts[seg], starts[seg + 1]
+    j = np.empty(at.size, dtype=np.intp)
+    qs = np.searchsorted(seg, np.arange(starts.size))  # each trajectory's block of queries
+    for s in range(starts.size - 1):
+        a, b, qa, qb = int(starts[s]), int(starts[s + 1]), int(qs[s]), int(qs[s + 1])
+        j[qa:qb] = a + np.searchsorted(times[a:b], at[qa:qb], side="right") - 1
+    j = np.clip(j, lo, hi - 2)
+    frac = (at - times[j]) / (times[j + 1] - times[j])
+    quat = _quat(euler)
+    q0, q1 = quat[j], quat[j + 1]
+    dot = np.einsum("ij,ij->i", q0, q1)
+    q1 = np.where(dot[:, None] < 0, -q1, q1)  # the short way round
+    ang = np.arccos(np.clip(np.abs(dot), -1.0, 1.0))
+    small = ang < 1e-9
+    sin = np.where(small, 1.0, np.sin(ang))
+    w0 = np.where(small, 1 - frac, np.sin((1 - frac) * ang) / sin)
+    w1 = np.where(small, frac, np.sin(frac * ang) / sin)
+    q = w0[:, None] * q0 + w1[:, None] * q1
+    out = _euler(q / np.linalg.norm(q, axis=1)[:, None])
+    out[at == times[j]] = euler[j[at == times[j]]]
+    out[at == times[j + 1]] = euler[j[at == times[j + 1]] + 1]
     return out

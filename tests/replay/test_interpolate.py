@@ -126,3 +126,29 @@ def test_unknown_method_and_window_values() -> None:
         WindowRule(rule="wide")
     with pytest.raises(ValueError, match="omega"):
         WindowRule(omega=0.0)
+
+
+def test_slerp_segments_equals_slerp_per_trajectory() -> None:
+    from sigma_des.replay.interpolate import slerp_segments
+
+    t1, t2 = np.array([0.0, 0.5, 1.0]), np.array([0.2, 0.4, 0.9, 1.3])
+    e1 = np.array([[0.0, 0.1, 0.2], [0.3, -0.2, 2.5], [0.1, 0.0, -3.0]])
+    e2 = np.array([[0.2, 0.0, 0.0], [0.0, 0.4, 1.0], [-0.3, 0.1, 1.5], [0.0, 0.0, 3.1]])
+    q1, q2 = np.linspace(0, 1, 11), np.array([0.2, 0.5, 0.9, 1.1, 1.3])
+    got = slerp_segments(np.r_[t1, t2], np.r_[e1, e2], np.array([0, 3, 7]), np.r_[q1, q2],
+                         np.r_[np.zeros(11, int), np.ones(5, int)])
+    want = np.r_[slerp_attitude(t1, e1, q1), slerp_attitude(t2, e2, q2)]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert np.array_equal(got[-1], e2[-1]) and np.array_equal(got[11], e2[0])
+
+
+def test_slerp_segments_matches_scipy_on_random_attitudes() -> None:
+    from sigma_des.replay.interpolate import slerp_segments
+
+    rng = np.random.default_rng(3)  # local generator: test data only
+    t = np.cumsum(rng.uniform(0.05, 0.5, 40))
+    e = np.stack([rng.uniform(-1, 1, 40), rng.uniform(-1.2, 1.2, 40),
+                  rng.uniform(-math.pi, math.pi, 40)], axis=1)
+    q = np.sort(rng.uniform(t[0], t[-1], 300))
+    got = slerp_segments(t, e, np.array([0, 40]), q, np.zeros(300, dtype=np.intp))
+    np.testing.assert_allclose(got, slerp_attitude(t, e, q), atol=1e-9)
