@@ -129,7 +129,8 @@ def section(outputs: Path) -> str:
     path = Path(outputs) / "interpolation" / "summary.json"
     head = "## Replay memory: interpolation, the paper's Table III (`interpolation`)\n\n"
     if not path.exists():
-        return head + "Not run yet: `python experiments/interpolation.py`.\n"
+        return head + ("Not run: `python experiments/interpolation.py` writes "
+                       f"`{Path(outputs).name}/interpolation/summary.json`.\n")
     s = json.loads(path.read_text())
     mode = " (**quick mode**)" if s.get("quick") else ""
     text = head + render(s) + (

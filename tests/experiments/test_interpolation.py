@@ -56,7 +56,7 @@ def test_report_section(out: Path) -> None:
     text = section(out)
     assert "| Akima | 0.609 / 4.089 / 0.993 |" in text and "quick mode" in text
     assert "Ablation of the window rule" in text
-    assert "Not run yet" in section(out / "nothing")
+    assert "Not run: `python experiments/interpolation.py`" in section(out / "nothing")
 
 
 def test_bench_record_tiny(tmp_path: Path) -> None:
