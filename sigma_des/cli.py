@@ -9,6 +9,8 @@ Commands:
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
   replay   rebuild the trajectories of a recording (compare --record) at any
            rate with a chosen interpolant; writes a tidy CSV.
+  tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
+           see sigma_des/tuning); writes a fitted.toml for dynamics_params.
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -72,6 +74,10 @@ def _parser() -> argparse.ArgumentParser:
     from sigma_des.replay.cli import add_replay_parser
 
     add_replay_parser(sub)
+
+    from sigma_des.tuning.cli import add_parser as add_tune_parser
+
+    add_tune_parser(sub)
     return p
 
 
@@ -82,6 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         from sigma_des.replay.cli import run_replay
 
         return run_replay(args)
+    if args.command == "tune":
+        from sigma_des.tuning.cli import run as run_tune
+
+        return run_tune(args)
     try:
         sc = load(args.scenario, args.sets)
         if args.command == "config":
