@@ -56,13 +56,13 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
         self.agents: list[str] = []
         self.render_mode = None
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - spaces must be the same objects
+    @functools.cache  # noqa: B019 - spaces must be the same objects
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
         """Box of ``obs_dim`` float32 columns in [-10, 10] (see ``tasks``)."""
         self._index(agent)
         return gymnasium.spaces.Box(-OBS_CLIP, OBS_CLIP, (self.vec.obs_dim,), dtype=np.float32)
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
+    @functools.cache  # noqa: B019
     def action_space(self, agent: str) -> gymnasium.spaces.Box:
         """Box of 3 float32 columns in [-1, 1] (see ``tasks``)."""
         self._index(agent)

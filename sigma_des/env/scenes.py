@@ -131,15 +131,20 @@ class SceneBatch:
         dyn: the dynamics model.
         task: the task.
         n_scenes: number of scenes.
+        scene_ids: the identity of each scene in its seed (default ``0..n_scenes-1``);
+            scenes with the same id replay the same episodes (common random numbers).
     """
 
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
-                 n_scenes: int) -> None:
+                 n_scenes: int, scene_ids: list[int] | None = None) -> None:
         self.sc = sc
         self.method = method
         self.dyn = dyn
         self.task = task
         self.n_scenes = n_scenes
+        self.ids = list(range(n_scenes)) if scene_ids is None else [int(i) for i in scene_ids]
+        if len(self.ids) != n_scenes:
+            raise ValueError(f"scene_ids: needs {n_scenes} ids, got {len(self.ids)}")
         self.root = sc.seed
         self.episode = [0] * n_scenes
         self.scenes: list[Scene] = []
@@ -161,7 +166,7 @@ class SceneBatch:
         self.advance([self.scenes[s]])
 
     def _fresh(self, s: int) -> Scene:
-        sc = replace(self.sc, seed=scene_seed(self.root, s, self.episode[s]))
+        sc = replace(self.sc, seed=scene_seed(self.root, self.ids[s], self.episode[s]))
         return Scene(sc, self.method, self.dyn, self.task)
 
     def advance(self, scenes: list[Scene]) -> None:

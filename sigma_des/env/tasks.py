@@ -144,7 +144,8 @@ class Task:
         return np.full((view.obs.shape[0], 4), np.nan)
 
     # ---------------------------------------------------------------- shared
-    def observe(self, view: SwarmView, ep: Any, t: float, agents: list[int]) -> Array:
+    def observe(self, view: SwarmView, ep: Any, t: float, agents: list[int]
+                ) -> NDArray[np.float32]:
         """``(len(agents), obs_dim)`` observations from the shown swarm view."""
         obs = view.obs
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)

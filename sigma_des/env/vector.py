@@ -78,6 +78,8 @@ class SwarmVec:
         perfect_info: observe the true state instead of the aligned view.
         seed: root seed (overrides ``scenario['seed']`` if given).
         autoreset: reset finished scenes on the next step (else stepping one is an error).
+        scene_ids: identity of each scene in its seed (default ``0..n_scenes-1``):
+            scenes sharing an id replay the same episodes (common random numbers).
 
     Raises:
         ConfigError: (a ValueError) an unknown task, key or out-of-range option.
@@ -87,7 +89,7 @@ class SwarmVec:
                  scenario: Mapping[str, Any] | None = None,
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
-                 autoreset: bool = True) -> None:
+                 autoreset: bool = True, scene_ids: list[int] | None = None) -> None:
         self.opts = EnvOptions(task, method, max_steps, perfect_info, n_scenes)
         self.task = make_task(task, dict(task_params or {}))
         self.sc = build_scenario(self.opts, scenario)
@@ -99,7 +101,7 @@ class SwarmVec:
         self.n_agents = len(self.agent_nodes)
         self.obs_dim = self.task.obs_dim
         self.autoreset = autoreset
-        self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes)
+        self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes, scene_ids)
         self._seed = self.sc.seed if seed is None else int(seed)
         self.steps = np.zeros(n_scenes, dtype=np.int64)
         self.done = np.ones(n_scenes, dtype=bool)
