@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+
 ROOT = Path(__file__).resolve().parents[1]
 
 INTRO = """# Multi-agent learning over the distributed loop (`sigma_des.env`)
