@@ -175,8 +175,8 @@ def _train(outputs: Path) -> str:
              "* **perfect**: agents observe the true current state over an ideal network "
              "(0.25 ms links, no loss) — what a peer environment gives.", "",
              "Learning curves (elite mean fitness per iteration, in its own training "
-             "condition): ![learning curves](../out/env/train/learning_curves.png) "
-             "(`/work/out/env/train/learning_curves.png`)", "",
+             "condition; plot: `learning_curves.png` under the outputs, e.g. "
+             "`/work/out/env/train/learning_curves.png`):", "",
              "| iteration | " + " | ".join(f"{c} elite" for c in ("delay", "perfect")) + " |",
              "|---:|---:|---:|"]
     its = sorted({int(r["iteration"]) for r in hist})
@@ -194,20 +194,33 @@ def _train(outputs: Path) -> str:
         lines.append(f"| {r['trained']} | {r['evaluated']} | {r['fitness']:.3f} | "
                      f"{r['error']:.2f} | {r['failed']:.2f} |")
     ev = {(r["trained"], r["evaluated"]): r for r in d["eval"]}
-    if ("delay", "delay") in ev and ("perfect", "delay") in ev:
-        dd, pd = ev[("delay", "delay")], ev[("perfect", "delay")]
-        better = dd["fitness"] > pd["fitness"]
-        lines += ["", f"Under delay, the policy trained under delay scores "
-                  f"{dd['fitness']:.3f} (slot error {dd['error']:.2f} m) against "
-                  f"{pd['fitness']:.3f} ({pd['error']:.2f} m) for the one trained with "
-                  "perfect information: " +
-                  ("training under the deployed network conditions pays."
-                   if better else "no advantage at this budget.")]
+    if all((t, e) in ev for t in ("delay", "perfect") for e in ("delay", "perfect")):
+        lines += ["", _verdict(ev)]
     wall = d.get("wall_s", {})
     if wall:
         lines += ["", "Training wall time: " + ", ".join(f"{k} {v:.0f} s"
                                                          for k, v in wall.items()) + "."]
     return "\n".join(lines) + "\n"
+
+
+def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:
+    """The comparison in words, without claiming more than the table shows."""
+    dd, dp = ev[("delay", "delay")]["fitness"], ev[("delay", "perfect")]["fitness"]
+    pd, pp = ev[("perfect", "delay")]["fitness"], ev[("perfect", "perfect")]["fitness"]
+    text = (f"Under delay, the policy trained under delay scores {dd:.3f} against {pd:.3f} "
+            "for the one trained with perfect information; with perfect information "
+            f"{dp:.3f} against {pp:.3f}. Moving from perfect information to delay costs "
+            f"the delay-trained policy {dp - dd:.3f} and the perfect-trained one "
+            f"{pp - pd:.3f}. ")
+    if dd > pd and pp > dp:
+        return text + ("Each policy is best in the condition it was trained in: the "
+                       "advantage under delay is specific to training under delay.")
+    if dd > pd:
+        return text + ("The delay-trained policy is better in *both* conditions, so this "
+                       "run does not separate a delay-specific advantage from training "
+                       "noise (CEM at this budget is not converged); it shows that the "
+                       "toolbox trains under delay at least as well as without it.")
+    return text + "Training under delay gave no advantage under delay in this run."
 
 
 def build(outputs: Path) -> str:
