@@ -196,11 +196,27 @@ def _train(outputs: Path) -> str:
     ev = {(r["trained"], r["evaluated"]): r for r in d["eval"]}
     if all((t, e) in ev for t in ("delay", "perfect") for e in ("delay", "perfect")):
         lines += ["", _verdict(ev)]
+    lines += _other_seeds(outputs)
     wall = d.get("wall_s", {})
     if wall:
         lines += ["", "Training wall time: " + ", ".join(f"{k} {v:.0f} s"
                                                          for k, v in wall.items()) + "."]
     return "\n".join(lines) + "\n"
+
+
+def _other_seeds(outputs: Path) -> list[str]:
+    """The 2 x 2 evaluation of further training seeds (``train_seed*/summary.json``)."""
+    rows = []
+    for p in sorted(outputs.glob("train_seed*/summary.json")):
+        d = json.loads(p.read_text())
+        ev = {(r["trained"], r["evaluated"]): r["fitness"] for r in d["eval"]}
+        cells = [f"{ev[(t, e)]:.3f}" for t in ("delay", "perfect") for e in ("delay", "perfect")]
+        rows.append(f"| {d['args']['seed']} | " + " | ".join(cells) + " |")
+    if not rows:
+        return []
+    return ["", "Further training seeds (same budget; fitness, trained → evaluated):", "",
+            "| seed | delay → delay | delay → perfect | perfect → delay | perfect → perfect |",
+            "|---:|---:|---:|---:|---:|", *rows]
 
 
 def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -17,9 +18,15 @@ def test_report_from_quick_outputs(tmp_path: Path) -> None:
     assert "no `bench.json`" in report_env.build(tmp_path)  # missing outputs are said
     bench_env.main(["--quick", "--variant", "default", "--out", str(tmp_path)])
     train_formation.main(["--quick", "--out", str(tmp_path / "train")])
+    summary = json.loads((tmp_path / "train" / "summary.json").read_text())
+    summary["args"]["seed"] = 5
+    (tmp_path / "train_seed5").mkdir()
+    (tmp_path / "train_seed5" / "summary.json").write_text(json.dumps(summary))
     doc = tmp_path / "ENV.md"
     assert report_env.main(["--outputs", str(tmp_path), "--doc", str(doc)]) == 0
     text = doc.read_text()
     assert "| 2 scenes × 10 agents |" in text and "Memory per scene" in text
     assert text.count("| untrained | ") == 2 and "| perfect | delay |" in text
     assert "Under delay, the policy trained under delay scores" in text
+    ev = {(r["trained"], r["evaluated"]): r["fitness"] for r in summary["eval"]}
+    assert f"| 5 | {ev[('delay', 'delay')]:.3f} | " in text  # the further seed's row
