@@ -133,6 +133,8 @@ class SwarmVec:
         live = [s for s in range(self.n_scenes) if not self.done[s]]
         for s in live:
             sc = scenes[s]
+            if sc.ended:  # nothing was ever shown before the scenario's end: truncated below
+                continue
             view = self._view(sc)
             nodes, cmds = self.task.commands(a[s], view, sc.ep, sc.now(), self.agent_nodes,
                                              self.dyn)

@@ -171,3 +171,13 @@ def test_bad_options_raise_naming_the_field(kwargs: dict, key: str) -> None:
     with pytest.raises(ValueError, match=key):
         SwarmEnv(**kwargs)
     assert issubclass(ConfigError, ValueError)
+
+
+def test_a_scene_that_never_shows_a_state_is_truncated_not_crashed() -> None:
+    # 5 s links: no state reaches the server before the scenario ends (2.1 s)
+    env = SwarmEnv(scenario={**SMALL, "net.host_link.latency": 5.0}, max_steps=1)
+    obs, infos = env.reset(seed=1)
+    assert all((o == 0).all() for o in obs.values())
+    assert all(np.isnan(i["aoi"]) for i in infos.values())
+    _, _, te, tr, _ = env.step({a: np.zeros(3) for a in env.agents})
+    assert all(tr.values()) and not any(te.values()) and env.agents == []
