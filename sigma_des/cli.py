@@ -7,6 +7,8 @@ Commands:
   sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
            by default), resumable through a SQLite results store; writes
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
+  tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
+           see sigma_des/tuning); writes a fitted.toml for dynamics_params.
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -65,12 +67,20 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
     scenario_args(s)
     add_sweep_args(s)
+
+    from sigma_des.tuning.cli import add_parser as add_tune_parser
+
+    add_tune_parser(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
+    if args.command == "tune":
+        from sigma_des.tuning.cli import run as run_tune
+
+        return run_tune(args)
     try:
         sc = load(args.scenario, args.sets)
         if args.command == "config":
