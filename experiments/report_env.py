@@ -59,6 +59,10 @@ text in that script.*
   `pending_state`, see `docs/MODEL.md` § Engines) lets the batch stop every scene just
   before its next trigger and step the physics of all waiting scenes in one call of the
   dynamics model (rows are independent, so this is bit-identical to stepping alone).
+  Scenarios the compiled cohort core does not reproduce (e.g. the stream transport with
+  loss, see `docs/MODEL.md` § Engines) run on the per-message engine, slower; a
+  mid-episode cohort fallback (a draw older than `history_frames`) raises instead of
+  being redone — use `engine = "events"` or more history then.
 
 ## Tasks, observations, actions, rewards
 
