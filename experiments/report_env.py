@@ -62,7 +62,10 @@ text in that script.*
   Scenarios the compiled cohort core does not reproduce (e.g. the stream transport with
   loss, see `docs/MODEL.md` § Engines) run on the per-message engine, slower; a
   mid-episode cohort fallback (a draw older than `history_frames`) raises instead of
-  being redone — use `engine = "events"` or more history then.
+  being redone — use `engine = "events"` or more history then. The aircraft models'
+  turbulence is keyed by the model's own seed and the node id (as in `sigma-des
+  compare`), so it is the same in every scene and episode; the network draws, the route
+  and the goals are per scene and episode.
 
 ## Tasks, observations, actions, rewards
 
