@@ -58,7 +58,8 @@ text in that script.*
   boundary after they arrive. The engines' stepping hook (`MethodRun.advance_until`,
   `pending_state`, see `docs/MODEL.md` § Engines) lets the batch stop every scene just
   before its next trigger and step the physics of all waiting scenes in one call of the
-  dynamics model (rows are independent, so this is bit-identical to stepping alone).
+  dynamics model per distinct (frame, dt) — one call while the scenes' trigger clocks
+  agree (rows are independent, so this is bit-identical to stepping alone).
   Scenarios the compiled cohort core does not reproduce (e.g. the stream transport with
   loss, see `docs/MODEL.md` § Engines) run on the per-message engine, slower; a
   mid-episode cohort fallback (a draw older than `history_frames`) raises instead of
@@ -66,6 +67,13 @@ text in that script.*
   turbulence is keyed by the model's own seed and the node id (as in `sigma-des
   compare`), so it is the same in every scene and episode; the network draws, the route
   and the goals are per scene and episode.
+
+```python
+from sigma_des.env import SwarmVec
+vec = SwarmVec(task="formation", method="hlc", n_scenes=500, scenario={"nodes": 11})
+obs, infos = vec.reset(seed=0)                  # (500, 10, 9) float32
+obs, rew, term, trunc, infos = vec.step(actions)  # actions (500, 10, 3) in [-1, 1]
+```
 
 ## Tasks, observations, actions, rewards
 
