@@ -9,6 +9,8 @@ agent's decision: ``scenes x 10`` per env step. Times are the thread's CPU time
 steps after a reset (reset excluded). ``--variant const`` also runs every case with
 a constant compute time (no per-frame random draws). Memory per scene: Python heap
 allocated by ``reset`` (tracemalloc) of a batch of ``--mem-scenes`` scenes / scenes.
+For reference, the same scenario run on its own by the simulator (no env; the
+built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
 
 Usage: ``python experiments/bench_env.py [--quick] [--out /work/out/env]``
 """
@@ -59,6 +61,24 @@ def speed(method: str, scenes: int, variant: str, steps: int, reps: int) -> dict
             "ms_per_scene_step": best / (scenes * steps) * 1e3}
 
 
+def plain(method: str, decisions: int) -> dict[str, Any]:
+    """The same scenario run on its own (behaviour ``follow``, no env): ms per decision."""
+    from dataclasses import replace
+
+    from sigma_des.events.cohort import make_run
+    from sigma_des.factory import make_behaviour, make_dynamics
+
+    env = make(method, 1, "default")
+    period = env.sc.commands.every / env.sc.f_align
+    sc = replace(env.sc, duration=decisions * period,
+                 commands=replace(env.sc.commands, behaviour="follow"))
+    run, _ = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+    t = time.thread_time()
+    run.run()
+    dt = time.thread_time() - t
+    return {"method": method, "decisions": decisions, "ms_per_decision": dt / decisions * 1e3}
+
+
 def memory(method: str, scenes: int) -> float:
     """Python heap bytes per scene allocated by ``reset`` (tracemalloc)."""
     env = make(method, scenes, "default")
@@ -96,6 +116,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{variant:8s} {method:9s} {scenes:4d} scenes: "
                       f"{r['agent_steps_per_s']:9.0f} agent-steps/s "
                       f"({r['ms_per_scene_step']:.3f} ms per scene-step)", flush=True)
+    plains = [plain(m, 20 if args.quick else 500) for m in METHODS]
+    for p in plains:
+        print(f"plain run {p['method']:9s}: {p['ms_per_decision']:.3f} ms per decision period "
+              "(the simulator alone, same scenario, built-in behaviour)", flush=True)
     mem = {m: memory(m, mem_scenes) for m in METHODS}
     for m, b in mem.items():
         print(f"memory per scene ({m}): {b / 1024:.1f} KiB", flush=True)
@@ -107,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         for r in rows:
             w.writerow({**r, "version": __version__})
     (out / "bench.json").write_text(json.dumps(
-        {"version": __version__, "agents": AGENTS, "rows": rows,
+        {"version": __version__, "agents": AGENTS, "rows": rows, "plain": plains,
          "memory_bytes_per_scene": mem, "mem_scenes": mem_scenes, "quick": args.quick},
         indent=2) + "\n")
     return 0

@@ -139,6 +139,13 @@ def _bench(outputs: Path) -> str:
                 cells.append(f"{r['agent_steps_per_s']:,.0f}")
             lines.append(f"| {s} scenes × {d['agents']} agents | " + " | ".join(cells) + " |")
         lines.append("")
+    if d.get("plain"):
+        lines.append("For reference, the same scenario run by the simulator alone (no env, "
+                     "the built-in `follow` behaviour sending the commands), CPU ms per "
+                     "decision period (0.1 s simulated): " +
+                     ", ".join(f"{p['method']} {p['ms_per_decision']:.2f}" for p in d["plain"])
+                     + " — against the env's ms per scene-step in `bench.csv`.")
+        lines.append("")
     mem = d["memory_bytes_per_scene"]
     lines.append("Memory per scene (Python heap allocated by `reset`, tracemalloc, "
                  f"{d['mem_scenes']} scenes): " +
