@@ -156,20 +156,24 @@ def _bench(outputs: Path) -> str:
 
 
 BOUND = """**What bounds it.** The goal (≥ 100 000 agent-steps/s at 500 × 10 on one core) is
-**not met**: we measure about 10⁴, an order of magnitude short, roughly flat in the
-number of scenes (batching the physics is not what limits it). A decision of one scene
-costs ~1 ms: five trigger issues, two alignment ticks and the render tick of its own
-SimPy control plane, each a few numpy calls over 11 rows. A cProfile of 100 scenes
-under BiDES (default variant) splits a scene-step into: trigger issue 35 % (of which
-25 % are the per-frame draw-table fills — counter-based RNG hashing a handful of draws
-per frame through ~10 numpy calls), alignment ticks incl. AoI bookkeeping 16 %,
-hand-over of delivery batches to aligner and collector 13 %, the message-core driver
-7 %, the compiled message core itself 5 %, the task's observation/command/reward code
-16 %, the batched physics 2.5 %. 100 k agent-steps/s means ≤ 100 µs per scene-step of
-5 frames: reachable only if the per-scene control plane (draw fills, aligner, collector)
-is itself batched across scenes — one compiled core over all scenes' message heaps, and
-draws hashed for all scenes in one call — rather than one Python object graph per scene.
-That is a larger change to the engine than this issue; the env's API would not change.
+**not met**: we measure 5 000–10 000 agent-steps/s, an order of magnitude short, flat in
+the number of scenes — batching the physics across scenes is not what limits it. A
+decision of one scene costs 1–2 ms of CPU, and the simulator alone costs the same per
+decision period on the same scenario (the "plain run" figures above): the env adds
+little; the bound is each scene's own control plane — five trigger issues, two
+alignment ticks and a render tick per decision, each a few dozen numpy calls over 11
+rows. A cProfile of 100 scenes under BiDES (default variant) splits a scene-step into:
+trigger issue 35 % (of which 25 % are the per-frame draw-table fills — counter-based
+hashing of a handful of draws per frame through ~10 numpy calls), alignment ticks incl.
+AoI bookkeeping 16 %, hand-over of delivery batches to aligner and collector 13 %, the
+message-core driver 7 %, the compiled message core itself 5 %, the task's observation,
+command and reward code 16 %, the batched physics 2.5 %. 100 k agent-steps/s means
+≤ 100 µs per scene-step of 5 frames: reachable only if the per-scene control plane
+(draw fills, aligner, collector) is itself batched across scenes — one compiled core
+over all scenes' message heaps and draws hashed for all scenes in one call — instead of
+one Python object graph per scene. That is a larger change to the engine than this
+issue; the env's API would not change. (Figures from a shared 2-core machine under
+load; repeated runs vary by ~±30 %.)
 """
 
 
