@@ -231,18 +231,28 @@ def _train(outputs: Path) -> str:
 
 
 def _other_seeds(outputs: Path) -> list[str]:
-    """The 2 x 2 evaluation of further training seeds (``train_seed*/summary.json``)."""
+    """The 2 x 2 evaluation of further training runs (``train_*/summary.json``)."""
     rows = []
-    for p in sorted(outputs.glob("train_seed*/summary.json")):
+    wins = []
+    for p in sorted(outputs.glob("train_*/summary.json")):
         d = json.loads(p.read_text())
+        a = d["args"]
         ev = {(r["trained"], r["evaluated"]): r["fitness"] for r in d["eval"]}
         cells = [f"{ev[(t, e)]:.3f}" for t in ("delay", "perfect") for e in ("delay", "perfect")]
-        rows.append(f"| {d['args']['seed']} | " + " | ".join(cells) + " |")
+        wins.append(ev[("delay", "delay")] > ev[("perfect", "delay")])
+        lat = a.get("latency", 0.15) * 1e3
+        rows.append(f"| `{p.parent.name}` | {a['seed']} | {lat:.0f} ms, {a.get('loss', 0.1):.0%} | "
+                    f"{a['nodes']} × {a['population']} × {a['episodes']} × {a['iterations']} | "
+                    + " | ".join(cells) + " |")
     if not rows:
         return []
-    return ["", "Further training seeds (same budget; fitness, trained → evaluated):", "",
-            "| seed | delay → delay | delay → perfect | perfect → delay | perfect → perfect |",
-            "|---:|---:|---:|---:|---:|", *rows]
+    return ["", "Further training runs (fitness, trained → evaluated; budget = nodes × "
+            "population × episodes × iterations):", "",
+            "| run | seed | delay condition | budget | delay → delay | delay → perfect | "
+            "perfect → delay | perfect → perfect |",
+            "|---|---:|---|---|---:|---:|---:|---:|", *rows, "",
+            f"In {sum(wins)} of these {len(wins)} further runs the delay-trained policy is "
+            "the better one under delay."]
 
 
 def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:

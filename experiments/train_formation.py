@@ -2,8 +2,9 @@
 
 Two training conditions, the same CEM learner (``sigma_des.env.learn``) and seeds:
 
-* ``delay``: BiDES alignment over lossy, slow host links (latency normal 150 ms ±
-  30 ms, Bernoulli loss 10 %), agents observe the aligned view;
+* ``delay``: BiDES alignment over lossy, slow host links (default latency normal
+  150 ms ± 30 ms, Bernoulli loss 10 %; ``--latency``, ``--loss``), agents observe the
+  aligned view;
 * ``perfect``: what peer environments give — agents observe the true current
   state, on an ideal network (the scenario's default 0.25 ms links, no loss).
 
@@ -42,12 +43,17 @@ CONDITIONS: dict[str, dict[str, Any]] = {
 }
 
 
-def env_kwargs(cond: str, nodes: int, max_steps: int) -> dict[str, Any]:
-    """SwarmVec arguments of one condition."""
+def env_kwargs(cond: str, nodes: int, max_steps: int, latency: float = 0.15,
+               loss: float = 0.1) -> dict[str, Any]:
+    """SwarmVec arguments of one condition (``latency``, ``loss``: the delay condition's)."""
     c = CONDITIONS[cond]
+    over = dict(c["overrides"])
+    if over:
+        over["net.host_link.latency"] = {"dist": "normal", "mean": latency,
+                                         "std": latency / 5}
+        over["net.host_link.loss"] = {"p": loss}
     return {"task": "formation", "method": c["method"], "max_steps": max_steps,
-            "perfect_info": c["perfect_info"],
-            "scenario": {"nodes": nodes, **c["overrides"]}}
+            "perfect_info": c["perfect_info"], "scenario": {"nodes": nodes, **over}}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -61,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-steps", type=int, default=100)
     ap.add_argument("--eval-episodes", type=int, default=16)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--latency", type=float, default=0.15,
+                    help="delay condition: mean host-link latency (s), std = mean / 5")
+    ap.add_argument("--loss", type=float, default=0.1, help="delay condition: loss probability")
     ap.add_argument("--out", default="out/env/train")
     a = ap.parse_args(argv)
     if a.quick:
@@ -82,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"elite {row['elite_fitness']:8.3f} best err {row['best_error']:6.2f} m",
                   flush=True)
 
-        kw = env_kwargs(cond, a.nodes, a.max_steps)
+        kw = env_kwargs(cond, a.nodes, a.max_steps, a.latency, a.loss)
         policies[cond], _ = train(kw, cfg, log)
         wall[cond] = time.perf_counter() - t0
     shape = policies["delay"].shape
@@ -91,8 +100,8 @@ def main(argv: list[str] | None = None) -> int:
     eval_seed = 10_000 + a.seed  # held-out episodes, the same for every policy
     for trained, theta in policies.items():
         for cond in CONDITIONS:
-            r = evaluate(theta, env_kwargs(cond, a.nodes, a.max_steps), a.eval_episodes,
-                         eval_seed)
+            r = evaluate(theta, env_kwargs(cond, a.nodes, a.max_steps, a.latency, a.loss),
+                         a.eval_episodes, eval_seed)
             evals.append({"trained": trained, "evaluated": cond, **r})
             print(f"trained {trained:9s} evaluated {cond:8s}: fitness {r['fitness']:8.3f} "
                   f"slot error {r['error']:6.2f} m failed {r['failed']:.2f}", flush=True)

@@ -29,4 +29,7 @@ def test_report_from_quick_outputs(tmp_path: Path) -> None:
     assert text.count("| untrained | ") == 2 and "| perfect | delay |" in text
     assert "Under delay, the policy trained under delay scores" in text
     ev = {(r["trained"], r["evaluated"]): r["fitness"] for r in summary["eval"]}
-    assert f"| 5 | {ev[('delay', 'delay')]:.3f} | " in text  # the further seed's row
+    # the further run's row: its seed, delay condition, budget and 2 x 2 evaluation
+    assert f"| `train_seed5` | 5 | 150 ms, 10% | 3 × 6 × 1 × 3 | {ev[('delay', 'delay')]:.3f} |" \
+        in text
+    assert "of these 1 further runs" in text
