@@ -223,6 +223,7 @@ def _train(outputs: Path) -> str:
     if all((t, e) in ev for t in ("delay", "perfect") for e in ("delay", "perfect")):
         lines += ["", _verdict(ev)]
     lines += _other_seeds(outputs)
+    lines += ["", _conclusion(outputs)]
     wall = d.get("wall_s", {})
     if wall:
         lines += ["", "Training wall time: " + ", ".join(f"{k} {v:.0f} s"
@@ -253,6 +254,24 @@ def _other_seeds(outputs: Path) -> list[str]:
             "|---|---:|---|---|---:|---:|---:|---:|", *rows, "",
             f"In {sum(wins)} of these {len(wins)} further runs the delay-trained policy is "
             "the better one under delay."]
+
+
+def _conclusion(outputs: Path) -> str:
+    """One sentence over every training run: is the delay-specific advantage shown?"""
+    specific = []
+    for p in [outputs / "train" / "summary.json", *sorted(outputs.glob("train_*/summary.json"))]:
+        ev = {(r["trained"], r["evaluated"]): r["fitness"]
+              for r in json.loads(p.read_text())["eval"]}
+        specific.append(ev[("delay", "delay")] > ev[("perfect", "delay")]
+                        and ev[("perfect", "perfect")] > ev[("delay", "perfect")])
+    if all(specific):
+        return (f"**Conclusion.** In all {len(specific)} runs each policy is best in the "
+                "condition it was trained in: training under delay pays under delay.")
+    return (f"**Conclusion.** Each policy is best in its own training condition in "
+            f"{sum(specific)} of {len(specific)} runs: at these budgets the learner improves "
+            "the policy under delay as well as without it, but a better policy *under delay* "
+            "from training under delay is **not established**: which policy wins varies "
+            "between runs, as large as the CEM noise at this budget (not converged).")
 
 
 def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:
