@@ -226,7 +226,7 @@ def _train(outputs: Path) -> str:
     lines += ["", _conclusion(outputs)]
     wall = d.get("wall_s", {})
     if wall:
-        lines += ["", "Training wall time: " + ", ".join(f"{k} {v:.0f} s"
+        lines += ["", "Training wall time of the first run: " + ", ".join(f"{k} {v:.0f} s"
                                                          for k, v in wall.items()) + "."]
     return "\n".join(lines) + "\n"
 
@@ -271,7 +271,7 @@ def _conclusion(outputs: Path) -> str:
             f"{sum(specific)} of {len(specific)} runs: at these budgets the learner improves "
             "the policy under delay as well as without it, but a better policy *under delay* "
             "from training under delay is **not established**: which policy wins varies "
-            "between runs, as large as the CEM noise at this budget (not converged).")
+            "between runs, within the noise of CEM at this budget (not converged).")
 
 
 def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:
