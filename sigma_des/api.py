@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
-from sigma_des.config import METHODS, Scenario, config_hash, to_dict
+from sigma_des.config import ALL_METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -231,8 +231,8 @@ def run_method(
         ideal: ideal-run positions for the fidelity metrics (computed when needed and
             ``sc.fidelity.enabled``).
     """
-    if method not in METHODS:
-        raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
+    if method not in ALL_METHODS:
+        raise ConfigError("methods", f"unknown method {method!r}; allowed: {ALL_METHODS}")
     run, out, engine = execute(
         sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress
     )

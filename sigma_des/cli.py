@@ -21,7 +21,7 @@ import sys
 from collections.abc import Sequence
 
 from sigma_des import __version__
-from sigma_des.config import METHODS, load, to_toml
+from sigma_des.config import ALL_METHODS, load, to_toml
 from sigma_des.errors import ConfigError
 
 __all__ = ["main"]
@@ -49,7 +49,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument(
         "--methods",
         default=None,
-        help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
+        help=f"comma-separated subset of {','.join(ALL_METHODS)} (default: scenario's)",
     )
     c.add_argument(
         "--out", default=None, metavar="DIR", help="write results.csv and summary.json here"
@@ -96,9 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.methods is not None:
             methods = [m.strip() for m in args.methods.split(",") if m.strip()]
             for m in methods:
-                if m not in METHODS:
+                if m not in ALL_METHODS:
                     raise ConfigError(
-                        "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
+                        "--methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}"
                     )
         res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
     except ConfigError as e:

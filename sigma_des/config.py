@@ -25,6 +25,7 @@ import tomli_w
 from sigma_des.errors import ConfigError
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
+from sigma_des.peer_specs import DdsSpec, RpcSpec
 from sigma_des.specs import (
     BidesSpec,
     BrokerSpec,
@@ -50,6 +51,7 @@ __all__ = [
     "HLCSpec",
     "LinkSpec",
     "LockstepSpec",
+    "ALL_METHODS",
     "METHODS",
     "NetSpec",
     "Scenario",
@@ -63,6 +65,10 @@ __all__ = [
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
+#: Methods modelling the peer simulators' architectures (not run unless asked for).
+PEER_METHODS: tuple[str, ...] = ("rpc",)
+#: Every method a scenario may name.
+ALL_METHODS: tuple[str, ...] = METHODS + PEER_METHODS
 ENGINES: tuple[str, ...] = ("cohort", "events")
 DYNAMICS_BUILTIN: tuple[str, ...] = ("pointmass", "quadrotor", "fixedwing")
 
@@ -92,7 +98,8 @@ class Scenario:
             reproduce fall back to the per-message engine per method) or ``events``
             (the per-message SimPy engine, the executable specification). Both give
             identical results, so the engine is not part of the config hash.
-        methods: alignment methods to run side by side.
+        methods: alignment methods to run side by side (default: the four of
+            :data:`METHODS`; ``rpc`` of :data:`PEER_METHODS` only when named).
         history_frames: true states kept per node for consistency metrics.
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
     """
@@ -124,6 +131,8 @@ class Scenario:
     bides: BidesSpec = field(default_factory=BidesSpec)
     commands: CommandSpec = field(default_factory=CommandSpec)
     fidelity: FidelitySpec = field(default_factory=FidelitySpec)
+    dds: DdsSpec = field(default_factory=DdsSpec)
+    rpc: RpcSpec = field(default_factory=RpcSpec)
     faults: tuple[FaultSpec, ...] = ()
 
     def __post_init__(self) -> None:
@@ -171,9 +180,9 @@ class Scenario:
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
         )
-        require(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
+        require(len(self.methods) > 0, "methods", f"must name at least one of {ALL_METHODS}")
         for m in self.methods:
-            require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
+            require(m in ALL_METHODS, "methods", f"unknown method {m!r}; allowed: {ALL_METHODS}")
         require(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
         require(
             self.history_frames >= 16, "history_frames", f"must be >= 16, got {self.history_frames}"
