@@ -158,3 +158,39 @@ def test_discovery_is_all_to_all(nodes: int) -> None:
     assert sum(len(s) for s in net.matched) == parts * (parts - 1)  # type: ignore[attr-defined]
     # no user sample was sent to an unmatched reader after the warm-up
     assert net.dds_unmatched == 0  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "key", "words"),
+    [
+        (["net.middleware='zmq'"], "net.middleware", "'mqtt' or 'dds'"),
+        (["net.middleware='dds'"], "net.transport", "datagram"),
+        (["net.middleware='dds'", "net.transport='datagram'"], "net.qos", "must be 0"),
+        (["dds.history_depth=0"], "dds.history_depth", ">= 1"),
+        (["dds.heartbeat_period=0"], "dds.heartbeat_period", "> 0"),
+        (["dds.spdp_bytes=70000"], "dds.spdp_bytes", "1..65507"),
+        (["dds.writer_cost=-1e-6"], "dds.writer_cost.value", ">= 0"),
+        (["dds.endpoints=-1"], "dds.endpoints", ">= 0"),
+        (["dds.multicast=1"], "dds.multicast", "true or false"),
+        (["rpc.in_flight=-1"], "rpc.in_flight", ">= 0"),
+        (["rpc.render_per_vehicle=-0.1"], "rpc.render_per_vehicle", ">= 0"),
+        (["rpc.calltime=1"], "rpc.calltime", "unknown key"),
+        (["methods=['rpcx']"], "methods", "rpc"),
+    ],
+)
+def test_bad_peer_keys_exit_2_naming_the_key(
+    overrides: list[str], key: str, words: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sigma_des import ConfigError, load
+    from sigma_des.cli import main
+
+    with pytest.raises(ConfigError) as ei:
+        load(None, overrides)
+    assert ei.value.key == key
+    assert words in ei.value.reason
+    args = ["compare", "--no-progress"]
+    for o in overrides:
+        args += ["--set", o]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert key in err and "Traceback" not in err
