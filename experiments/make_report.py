@@ -647,6 +647,9 @@ plots into `{outputs.name}/<study>/`; `--quick` runs a seconds-long smoke versio
     from report_model_tuning import section as model_tuning_section
 
     body.append(model_tuning_section(outputs))
+    from report_peer import section as peer_section
+
+    body.append(peer_section(outputs))
     return "\n".join(body).rstrip() + "\n"
 
 

@@ -46,7 +46,7 @@ import common  # noqa: E402
 
 NAME = "peer_architectures"
 NODES = (20, 40, 60, 100, 150, 200, 300)
-QUICK_NODES = (10, 20)
+QUICK_NODES = (8, 16)
 #: Gazebo-style Lock-Step over DDS (RTPS over UDP; the re-request only restarts the
 #: loop at launch, when samples written before discovery matched were not sent).
 DDS = ("net.middleware='dds'", "net.transport='datagram'", "net.qos=0",
