@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
+from sigma_des.errors import ConfigError
 from sigma_des.events.aligners import _RECORD_BYTES, OBS_WIDTH, Aligner, ServerContext
 from sigma_des.events.bides_align import EXACT, MISSING
 from sigma_des.events.hlc import Stamp
@@ -52,6 +53,12 @@ class RpcAligner(Aligner):
     name = "rpc"
 
     def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
+        if sc.net.middleware != "mqtt":
+            raise ConfigError(
+                "methods",
+                "rpc models msgpack-rpc over TCP and needs net.middleware = 'mqtt' (with "
+                f"zero broker service it is a plain relay), got {sc.net.middleware!r}",
+            )
         super().__init__(n, sc, ctx)
         self.rctx = cast(RpcContext, ctx)
         spec = sc.rpc

@@ -82,3 +82,14 @@ def test_rpc_shows_the_rendered_frame(engine: str) -> None:
     assert res.engines["rpc"]["used"] == "events"
     if engine == "cohort":
         assert "rpc method" in res.engines["rpc"]["fallback"]
+
+
+def test_rpc_over_dds_is_refused_naming_the_key(capsys: pytest.CaptureFixture[str]) -> None:
+    from sigma_des.cli import main
+
+    args = ["compare", "--no-progress", "--methods", "rpc", "--set", "net.middleware=dds",
+            "--set", "net.transport=datagram", "--set", "net.qos=0", "--set", "nodes=3",
+            "--set", "hosts=1"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "methods" in err and "middleware" in err and "Traceback" not in err
