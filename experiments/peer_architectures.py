@@ -79,7 +79,7 @@ def overrides(n: int, quick: bool) -> list[str]:
             *PINNED]
     if quick:
         return [*base, "hosts=2", "duration=0.8", "warmup=0.3"]
-    return [*base, "duration=10.0", "warmup=2.0"]
+    return [*base, "duration=6.0", "warmup=1.5"]
 
 
 def unstable(m: dict[str, float], f_trig: float) -> bool:
