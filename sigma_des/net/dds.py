@@ -129,8 +129,9 @@ class DdsNetwork(Network):
         # discovery: heard[q] = participants q has heard (SPDP); matched[a] = readers a knows
         self.heard: list[set[int]] = [set() for _ in range(nsub)]
         self.matched: list[set[int]] = [set() for _ in range(nsub)]
-        # reliability: samples written per (writer, kind); lost samples per pair
-        self._written: dict[tuple[int, int], int] = {}
+        # reliability: samples written per writer (participant, kind, topic subject);
+        # lost samples per writer/reader participant pair
+        self._written: dict[tuple[int, int, int], int] = {}
         self._lost: dict[tuple[int, int], dict[tuple[int, int, int], tuple[Any, ...]]] = {}
         self.dds_meta_messages = 0
         self.dds_unmatched = 0
@@ -197,7 +198,7 @@ class DdsNetwork(Network):
     ) -> None:
         """``client`` writes a sample; it goes to every matched reader in ``subscribers``."""
         t = self.k.now
-        wk = (client, kind)
+        wk = (client, kind, subject)  # one writer per topic: per-vehicle topics apart
         seq = self._written.get(wk, 0)
         self._written[wk] = seq + 1
         subs = [s for s in subscribers if s in self.matched[client]]
@@ -294,7 +295,8 @@ class DdsNetwork(Network):
                 continue
             msg, _ts = item
             kind, seq, attempt = key
-            if self._written[(w, kind)] - seq > d.history_depth or attempt >= self.max_retries:
+            written = self._written[(w, kind, msg[1])]
+            if written - seq > d.history_depth or attempt >= self.max_retries:
                 self.gave_up += 1  # out of the KEEP_LAST history: the reader gets a GAP
                 continue
             self.retransmissions += 1

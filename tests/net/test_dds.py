@@ -20,6 +20,8 @@ A0 + (i+1)RS.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from conftest import tiny
@@ -194,3 +196,16 @@ def test_bad_peer_keys_exit_2_naming_the_key(
     assert main(args) == 2
     err = capsys.readouterr().err
     assert key in err and "Traceback" not in err
+
+
+def test_same_seed_same_results_with_random_costs_and_loss() -> None:
+    over = {**DDS, "methods": ["none", "lockstep"], "dds.heartbeat_period": 0.1,
+            "dds.reader_cost": {"dist": "exponential", "mean": 3e-5},
+            "net.host_link.latency": {"dist": "uniform", "low": 0.0005, "high": 0.0015},
+            "net.host_link.loss": {"model": "bernoulli", "p": 0.05}}
+    a = compare(tiny(**over), progress=False)
+    b = compare(tiny(**over), progress=False)
+    assert json.dumps(a.methods, sort_keys=True) == json.dumps(b.methods, sort_keys=True)
+    assert a.methods["none"]["retransmissions"] > 0  # repairs happened
+    c = compare(tiny(**over, seed=2), progress=False)
+    assert c.methods["none"]["latency_state_mean"] != a.methods["none"]["latency_state_mean"]
