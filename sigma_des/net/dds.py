@@ -20,8 +20,9 @@ The model (parameters and sources in :mod:`sigma_des.peer_specs`, docs/MODEL.md)
   DATA was lost; the writer resends each after ``nack_response_delay`` if it is
   still among the last ``history_depth`` samples of that topic, else the reader
   gets a GAP (``gave_up``). Resends count in ``retransmissions``, up to
-  ``net.max_retries`` per sample. A reader delivers a sample as soon as it arrives
-  (no in-order hold-back behind a missing one: a simplification).
+  ``net.max_retries`` per sample. A reliable reader delivers each writer's samples in
+  order: one behind a missing sample waits until it is repaired or a GAP for it
+  arrives (head-of-line blocking). HEARTBEATs piggybacked on DATA are not modelled.
 * **Discovery.** SPDP: every participant multicasts an announcement
   ``spdp_initial_count`` times ``spdp_initial_period`` apart from a launch time
   drawn in ``[0, spdp_initial_period)``, then every ``spdp_period``; the switch
@@ -69,7 +70,7 @@ HEARTBEAT = 32
 ACKNACK = 32
 
 # draw kinds of metatraffic (user kinds are < 16, PUBACK draws 16..31)
-_HB, _AN, _SPDP, _SEDP = 40, 41, 42, 43
+_HB, _AN, _SPDP, _SEDP, _GAP = 40, 41, 42, 43, 44
 
 
 def data_bytes(payload_bits: int, unicast: bool = True) -> int:
@@ -133,6 +134,9 @@ class DdsNetwork(Network):
         # lost samples per writer/reader participant pair
         self._written: dict[tuple[int, int, int], int] = {}
         self._lost: dict[tuple[int, int], dict[tuple[int, int, int], tuple[Any, ...]]] = {}
+        # in-order delivery per (writer participant, kind, topic subject, reader)
+        self._next: dict[tuple[int, int, int, int], int] = {}
+        self._held: dict[tuple[int, int, int, int], dict[int, tuple[Any, ...] | None]] = {}
         self.dds_meta_messages = 0
         self.dds_unmatched = 0
         phase = streams.stream("dds.launch").uniform(0, list(range(nsub)), 0, 0)
@@ -206,6 +210,8 @@ class DdsNetwork(Network):
             self.dds_unmatched += len(subscribers) - len(subs)
         if not subs:
             return
+        for sub in subs:  # a reader's first sample from this writer starts its order
+            self._next.setdefault((client, kind, subject, sub), seq)
         broadcast = subject == self.server
         msg = (kind, subject, index, payload, payload_bits, t, seq, broadcast)
         if self.spec.multicast and len(subs) > 1:
@@ -252,7 +258,26 @@ class DdsNetwork(Network):
         ds = sub if msg[7] else subject
         cost = self._r_cost.get(kind, ds, index, attempt) + self._dispatch[sub]
         done = self._cpu(sub, self.k.now, cost)
-        self.k.at(done, self.deliver, sub, kind, ds, index, payload, t_pub)
+        item = (sub, kind, ds, index, payload, t_pub)
+        if self.spec.reliable:
+            self.k.at(done, self._ordered_ready, (client, kind, subject, sub), msg[6], item)
+        else:
+            self.k.at(done, self.deliver, *item)
+
+    def _ordered_ready(self, ch: tuple[int, int, int, int], seq: int,
+                  item: tuple[Any, ...] | None) -> None:
+        """Sample ``seq`` (None: a GAP) of channel ``ch`` is ready; deliver what is in order."""
+        nxt = self._next[ch]
+        if seq < nxt:
+            return  # a duplicate of something already delivered or skipped
+        held = self._held.setdefault(ch, {})
+        held[seq] = item
+        while nxt in held:
+            it = held.pop(nxt)
+            nxt += 1
+            if it is not None:
+                self.deliver(*it)
+        self._next[ch] = nxt
 
     # ------------------------------------------------------------ reliability
 
@@ -298,9 +323,21 @@ class DdsNetwork(Network):
             written = self._written[(w, kind, msg[1])]
             if written - seq > d.history_depth or attempt >= self.max_retries:
                 self.gave_up += 1  # out of the KEEP_LAST history: the reader gets a GAP
+                self._count_meta(t)
+                self._send(w, r, _GAP, r, seq, 0, self._an_b, t, self._on_gap,
+                           ((w, kind, msg[1], r), seq, 0))
                 continue
             self.retransmissions += 1
             self.k.at(t, self._send_data, w, r, msg, attempt + 1, t)
+
+    def _on_gap(self, ok: bool, ch: tuple[int, int, int, int], seq: int, attempt: int) -> None:
+        if not ok:  # a lost GAP: the writer repeats it after the next HEARTBEAT round
+            t = self.k.now + self.spec.heartbeat_period
+            self.k.at(t, self._send, ch[0], ch[3], _GAP, ch[3], seq, attempt + 1, self._an_b,
+                      t, self._on_gap, (ch, seq, attempt + 1))
+            return
+        done = self._cpu(ch[3], self.k.now, self.spec.meta_cost)
+        self.k.at(done, self._ordered_ready, ch, seq, None)
 
     # ------------------------------------------------------------ discovery
 

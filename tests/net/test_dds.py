@@ -209,3 +209,43 @@ def test_same_seed_same_results_with_random_costs_and_loss() -> None:
     assert a.methods["none"]["retransmissions"] > 0  # repairs happened
     c = compare(tiny(**over, seed=2), progress=False)
     assert c.methods["none"]["latency_state_mean"] != a.methods["none"]["latency_state_mean"]
+
+
+def _deliveries(depth: int) -> tuple[MethodRun, list[tuple[int, float, float]]]:
+    """Method none, one node; the state of frame 40 is lost on the server's link."""
+    from sigma_des.net.network import STATE
+
+    sc = tiny(methods=["none"], nodes=1, hosts=1, **{
+        **DDS, "dds.heartbeat_period": 0.1, "dds.history_depth": depth,
+        "faults": [{"kind": "drop", "message": "state", "node": 0, "frame": 40}]})
+    run = MethodRun(sc, "none", make_dynamics(sc), make_behaviour(sc))
+    got: list[tuple[int, float, float]] = []
+    inner = run.net.deliver
+
+    def record(client: int, kind: int, subject: int, index: int, payload: object,
+               t_pub: float) -> None:
+        if kind == STATE:
+            got.append((index, run.kernel.now, t_pub))
+        inner(client, kind, subject, index, payload, t_pub)
+
+    run.net.deliver = record
+    run.run()
+    return run, got
+
+
+@pytest.mark.parametrize("depth", [100, 2])
+def test_reliable_reader_holds_later_samples_behind_a_lost_one(depth: int) -> None:
+    run, got = _deliveries(depth)
+    frames = [f for f, _t, _p in got]
+    assert frames == sorted(frames)  # in order, always
+    when = {f: t for f, t, _p in got}
+    pub = {f: p for f, _t, p in got}
+    held = [f for f in frames if f > 40 and when[f] == when[41]]
+    assert len(held) >= 2  # later frames waited behind frame 40 ...
+    assert when[41] - pub[41] > 0.010  # ... far longer than a delivery takes (~3 ms)
+    assert when[max(held) + 1] - pub[max(held) + 1] < 0.005
+    assert max(held) + 1 in when and when[max(held) + 1] > when[41]
+    if depth == 100:  # repaired: frame 40 is delivered first, at the same instant
+        assert when[40] == when[41] and run.net.retransmissions == 1
+    else:  # out of the history: a GAP releases the held frames; 40 is never delivered
+        assert 40 not in when and run.net.gave_up == 1
