@@ -7,6 +7,8 @@ Commands:
   sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
            by default), resumable through a SQLite results store; writes
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
+  live     run the scenario live over a real Mosquitto broker (docs/LIVE.md).
+  calibrate  fit DES parameters from a live run; writes a scenario TOML.
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -65,6 +67,11 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
     scenario_args(s)
     add_sweep_args(s)
+
+    from sigma_des.live.cli import add_calibrate_parser, add_live_parser
+
+    add_live_parser(sub, scenario_args)
+    add_calibrate_parser(sub)
     return p
 
 
@@ -72,7 +79,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
     try:
+        if args.command == "calibrate":
+            from sigma_des.live.cli import run_calibrate
+
+            return run_calibrate(args)
         sc = load(args.scenario, args.sets)
+        if args.command == "live":
+            from sigma_des.live.cli import run_live_command
+
+            return run_live_command(args, sc)
         if args.command == "config":
             sys.stdout.write(to_toml(sc))
             return 0

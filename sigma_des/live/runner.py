@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -58,6 +59,9 @@ class LiveOptions:
         broker_down_s: ... and start it again this long after.
         kill_host_at: fault injection: ``(host, t)``: kill that host process at ``t``.
         ready_timeout: seconds to wait for the host processes to subscribe.
+        record: keep what ``live --record`` writes (states' poses, snapshots, renders).
+        hook: called as ``hook(addr, topics, server)`` right after the first trigger is
+            scheduled (tests use it to start a rogue client).
     """
 
     broker: str | None = None
@@ -71,6 +75,8 @@ class LiveOptions:
     broker_down_s: float = 0.5
     kill_host_at: tuple[int, float] | None = None
     ready_timeout: float = 60.0
+    record: bool = False
+    hook: Callable[[BrokerAddress, Topics, LiveServer], None] | None = None
 
     def __post_init__(self) -> None:
         if self.max_inflight < 0:
@@ -92,8 +98,13 @@ def check_live(sc: Scenario) -> None:
 
 def run_live(sc: Scenario, methods: list[str] | None = None,
              opts: LiveOptions | None = None,
-             progress: bool = False) -> tuple[Results, pd.DataFrame]:
-    """Run ``methods`` live on ``sc``; return the Results and the message table.
+             progress: bool = False
+             ) -> tuple[Results, pd.DataFrame, dict[str, dict[str, list[Any]]]]:
+    """Run ``methods`` live on ``sc``.
+
+    Returns:
+        The Results (as ``compare``'s, ``mode = "live"``), the message table and, per
+        method, what the server kept for a recording (empty unless ``opts.record``).
 
     Raises:
         ConfigError: unknown method, unsupported keys, mosquitto missing, broker
@@ -106,6 +117,7 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
     res = Results(sc)
     res.mode = "live"
     tables: list[pd.DataFrame] = []
+    kept: dict[str, dict[str, list[Any]]] = {}
     with ExitStack() as stack:
         broker: Broker | None = None
         if opts.broker is None:
@@ -119,6 +131,7 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             addr = BrokerAddress(host, port, opts.username, opts.password)
         for m in ms:
             out, table, interrupted = _run_method(sc, m, addr, opts, broker, progress)
+            kept[m] = out.pop("kept")
             res.methods[m] = out["metrics"]
             res.wall[m] = out["wall"]
             res.links_mbps[m] = out["links_mbps"]
@@ -131,7 +144,7 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
                 break
     msgs = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame(
         columns=list(MESSAGE_COLUMNS))
-    return res, msgs
+    return res, msgs, kept
 
 
 def _host_cfg(sc: Scenario, m: str, h: int, addr: BrokerAddress, run: str,
@@ -214,7 +227,7 @@ def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
         def factory(subs: list[tuple[str, int]], cb: Any) -> Client:
             return Client(addr, f"{run}-srv", subs, cb, opts.max_inflight)
 
-        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair)
+        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record)
         try:
             srv.client.start(timeout=5.0)
         except ConnectionError as e:
@@ -230,6 +243,8 @@ def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
         _inject(srv, opts, broker, procs)
         w0 = time.perf_counter()
         srv.start(t0)
+        if opts.hook is not None:
+            opts.hook(addr, topics, srv)
         try:
             srv.loop.run(until=sc.duration)
         except KeyboardInterrupt:
@@ -248,6 +263,7 @@ def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
                 _reap(p)
         out = srv.finish()
         table = _messages(m, srv, d, sc.hosts)
+    out["kept"] = srv.kept
     out["live"] = _live_info(srv, procs, table, sc)
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
     return out, table, interrupted

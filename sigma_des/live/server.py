@@ -109,11 +109,12 @@ class LiveServer:
         topics: the run's topics.
         qos: MQTT QoS of every message.
         impair: apply the server link's impairments.
-        recorder: optional per-method recorder (``sigma_des.record`` run writer).
+        record: keep states with their pose, snapshots and render samples in
+            :attr:`kept` (for ``live --record``).
     """
 
     def __init__(self, sc: Scenario, method: str, client_factory: Any, topics: Topics,
-                 qos: int, impair: bool, recorder: Any = None) -> None:
+                 qos: int, impair: bool, record: bool = False) -> None:
         self.sc = sc
         self.method = method
         self.n = n = sc.nodes
@@ -138,7 +139,9 @@ class LiveServer:
         self.align_tick = 0
         self.render_tick = 0
         self._prev_gen = np.full(n, np.nan)
-        self.rec = recorder
+        self.record = record
+        self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
+                                           "renders": []}
         self.rows: list[tuple[Any, ...]] = []
         self.ready: set[int] = set()
         self.stats: dict[int, dict[str, Any]] = {}
@@ -266,8 +269,11 @@ class LiveServer:
             return
         rep = kind == _REPUBLISH_KIND
         self.collector.delivered(_REPUBLISH_KIND if rep else STATE, node, frame, t_send, t)
-        self.rows.append(("state", self.host_of[node], node, frame, t_send, t, math.nan,
+        self.rows.append(("state", self.host_of[node], node, frame, t_send, t, self.now(),
                           math.nan, 1.0 if rep else 0.0))
+        if self.record:
+            self.kept["states"].append((node, frame, t_send, t))
+            self.kept["obs"].append(obs.tolist())
         stamp = Stamp(hl, hc) if self.use_hlc else None
         self.aligner.on_state(t, node, frame, t_gen, obs, stamp)
 
@@ -286,9 +292,10 @@ class LiveServer:
             self._prev_gen = gen.copy()
         if al.new_snapshot:
             self.collector.snapshot(t)
-            if self.rec is not None:
-                self.rec.snapshot(t=t, frame=al.aligned_frame, frames=al.shown_frame.copy(),
-                                  pos=al.shown_obs[:, 9:12].copy())
+            if self.record:
+                self.kept["snapshots"].append(
+                    (t, al.aligned_frame, al.shown_frame.copy(), al.shown_obs[:, 9:12].copy())
+                )
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
@@ -316,10 +323,8 @@ class LiveServer:
         al = self.aligner
         self.collector.render(t, al.shown_gen, al.shown_frame, al.shown_obs, al.flag, None,
                               self.f_trig, self.latest_trigger, al.aligned_frame)
-        if self.rec is not None:
-            valid = ~np.isnan(al.shown_gen)
-            aoi = np.where(valid, t - np.where(valid, al.shown_gen, 0.0), np.nan)
-            self.rec.render(t=t, aoi=aoi)
+        if self.record:
+            self.kept["renders"].append((t, t - al.shown_gen))
         self.render_tick += 1
         self.loop.call_at(self.render_tick / self.sc.f_render, self._render)
 

@@ -1,0 +1,146 @@
+"""Fit the DES's network, broker and compute parameters from a live run.
+
+From the message table (``messages.csv.gz`` or an MCAP recording), inside the
+metrics window:
+
+* **broker per-delivery service** ``broker.delivery_service``: the slope of a
+  trigger's delivery delay against its position in the fan-out (the k-th host to
+  receive frame f waited for k-1 deliveries before it), least squares;
+* **per-hop latency** (``net.host_link.latency``, an empirical sample file): a
+  state travels host -> broker -> server, so one hop is
+  ``(state latency - publish_service - delivery_service) / 2``; the broker's
+  publish service is not separable from the hop latency from outside the broker,
+  so the base scenario's value is kept;
+* **the server's receive cost** (time from the client's receipt to the loop
+  handling the state): the DES has no such stage, so it is folded into the
+  server link's latency (``net.server_link.latency``: hop + receive queueing,
+  sampled pairwise) when its mean exceeds 5 % of the hop's;
+* **node step time** ``compute.step_time``: a lognormal with the mean and standard
+  deviation of (state publish - trigger receipt) per job.
+
+The result is the live run's scenario with these parameters replaced, written as
+TOML that ``sigma-des compare`` runs (the sample files sit next to it).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sigma_des.config import Scenario, from_dict, to_toml
+from sigma_des.errors import ConfigError
+from sigma_des.live.messages import read_messages
+from sigma_des.net.latency import Dist
+from sigma_des.specs import BrokerSpec, ComputeSpec
+
+__all__ = ["calibrate", "calibrated_toml", "fanout_slope"]
+
+
+def fanout_slope(trig: pd.DataFrame) -> tuple[float, float]:
+    """Least-squares ``(intercept, slope)`` of trigger delay vs position in its fan-out.
+
+    Args:
+        trig: rows with ``frame``, ``t_send``, ``t_recv`` (one per receiving client).
+
+    Returns:
+        Intercept (s) and slope (s per delivery); slope 0 with fewer than two receivers.
+    """
+    if trig.empty:
+        return 0.0, 0.0
+    t = trig.sort_values(["frame", "t_recv"], kind="stable")
+    pos = t.groupby("frame").cumcount().to_numpy(dtype=np.float64)
+    delay = (t["t_recv"] - t["t_send"]).to_numpy()
+    if pos.max() < 1:
+        return float(delay.mean()), 0.0
+    slope, intercept = np.polyfit(pos, delay, 1)
+    return float(intercept), float(slope)
+
+
+def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
+    summ = (source if source.is_dir() else source.parent) / "summary.json"
+    if summ.exists():
+        d = json.loads(summ.read_text())["scenario"]
+        return from_dict(Scenario, d)  # type: ignore[no-any-return]
+    n = int(msgs["node"].max()) + 1
+    return Scenario(nodes=n, hosts=min(n, max(1, int(msgs.get("host", pd.Series([0])).max()) + 1)))
+
+
+def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, dict[str, Any]]:
+    """Fit a DES scenario to the live run at ``source``.
+
+    Args:
+        source: a ``sigma-des live --out`` directory (or MCAP file).
+        files_dir: where to write the empirical latency files (default: next to source).
+
+    Returns:
+        The calibrated scenario and a report of the fitted figures (seconds).
+
+    Raises:
+        ConfigError: naming the source if it holds too few messages to fit.
+    """
+    msgs = read_messages(source)
+    base = _base_scenario(source, msgs)
+    w = msgs[(msgs["t_send"] >= base.warmup) & (msgs["t_send"] < base.duration)]
+    states = w[(w["kind"] == "state") & ~w["republish"].astype(bool)]
+    if len(states) < 10:
+        raise ConfigError(str(source), f"only {len(states)} states in the window; need >= 10")
+    _, slope = fanout_slope(w[w["kind"] == "trigger"])
+    delivery = max(slope, 0.0)
+    publish = base.broker.publish_service.mean_value()
+    lat = (states["t_recv"] - states["t_send"]).to_numpy()
+    hop = np.clip((lat - publish - delivery) / 2.0, 0.0, None)
+    queue = np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None)
+    queue = np.nan_to_num(queue)
+    fold = float(queue.mean()) > 0.05 * float(hop.mean())
+    d = files_dir or (source if source.is_dir() else source.parent)
+    d.mkdir(parents=True, exist_ok=True)
+    hop_file = d / "hop_latency.txt"
+    np.savetxt(hop_file, hop, fmt="%.9g")
+    srv_file = hop_file
+    if fold:
+        srv_file = d / "server_latency.txt"
+        np.savetxt(srv_file, hop + queue, fmt="%.9g")
+    pub = w[w["kind"] == "state_pub"]
+    cost = (pub["t_send"] - pub["t_trig"]).to_numpy()
+    cost = cost[np.isfinite(cost) & (cost >= 0)]
+    step_mean = float(cost.mean()) if cost.size else base.compute.step_time.mean_value()
+    step_std = float(cost.std()) if cost.size > 1 else 0.0
+    net = base.net
+    sc = replace(
+        base,
+        net=replace(
+            net,
+            host_link=replace(net.host_link, latency=Dist(dist="empirical", file=str(hop_file))),
+            server_link=replace(net.server_link,
+                                latency=Dist(dist="empirical", file=str(srv_file))),
+        ),
+        broker=BrokerSpec(publish_service=base.broker.publish_service,
+                          delivery_service=Dist(dist="constant", value=delivery)),
+        compute=ComputeSpec(step_time=Dist(dist="lognormal", mean=max(step_mean, 1e-7),
+                                           std=step_std)),
+    )
+    report = {
+        "states": int(len(states)),
+        "state_latency_mean_s": float(lat.mean()),
+        "hop_latency_mean_s": float(hop.mean()),
+        "hop_latency_p99_s": float(np.percentile(hop, 99)),
+        "delivery_service_s": delivery,
+        "publish_service_s": publish,
+        "server_receive_queue_mean_s": float(queue.mean()),
+        "server_queue_folded_into_server_link": fold,
+        "step_time_mean_s": step_mean,
+        "step_time_std_s": step_std,
+    }
+    return sc, report
+
+
+def calibrated_toml(sc: Scenario, report: dict[str, Any]) -> str:
+    """The calibrated scenario as TOML, the fitted figures as a comment header."""
+    head = ["# calibrated by `sigma-des calibrate` from a live run"]
+    head += [f"# {k} = {v}" for k, v in report.items()]
+    return "\n".join(head) + "\n" + to_toml(sc)

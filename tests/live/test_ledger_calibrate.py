@@ -1,0 +1,33 @@
+"""Wire-byte ledger (hand-computed frames) and the fan-out slope fit (exact line)."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from sigma_des import Scenario
+from sigma_des.live.calibrate import fanout_slope
+from sigma_des.live.ledger import Ledger
+
+
+def test_ledger_counts_framing_and_pubacks_in_the_window() -> None:
+    led = Ledger(Scenario(nodes=2, hosts=1, duration=2.0, warmup=1.0), "host0")
+    led.sent(1.5, topic_len=20, size=85, qos=1)
+    led.sent(0.5, topic_len=20, size=85, qos=1)  # before the window: not counted
+    led.received(1.2, topic_len=10, size=33, qos=0)
+    # PUBLISH = 1 + 1 + (2 + 20 + 2 + 85) = 111; + TCP/IP 40 + Ethernet 38 = 189
+    # PUBACK = 4 + 40 -> padded to 46, + 38 = 84; QoS 0 trigger 1+1+(2+10+33)=47 +78 = 125
+    assert led.as_dict() == {"host0.up": [189, 1], "host0.down": [84 + 125, 2]}
+
+
+def test_fanout_slope_recovers_an_exact_line() -> None:
+    rows = []
+    for f in range(5):
+        for pos in range(4):
+            rows.append({"frame": f, "t_send": f * 0.01,
+                         "t_recv": f * 0.01 + 0.001 + 0.0002 * pos})
+    a, b = fanout_slope(pd.DataFrame(rows).sample(frac=1.0, random_state=0))
+    assert a == pytest.approx(0.001, abs=1e-12)
+    assert b == pytest.approx(0.0002, abs=1e-12)
+    one = pd.DataFrame([{"frame": 0, "t_send": 0.0, "t_recv": 0.003}])
+    assert fanout_slope(one) == (pytest.approx(0.003), 0.0)
