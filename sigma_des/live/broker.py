@@ -169,6 +169,12 @@ class Broker:
 
     def start(self) -> BrokerAddress:
         """Write the config, start Mosquitto and wait (<= 5 s) for its port."""
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", self.port))
+            except OSError as e:
+                raise ConfigError("--broker-port",
+                                  f"127.0.0.1:{self.port} is in use ({e.strerror})") from None
         self._dir = tempfile.TemporaryDirectory(prefix="sigma-des-mqtt-")
         d = Path(self._dir.name)
         passwd = d / "passwd"

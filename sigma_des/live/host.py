@@ -16,6 +16,7 @@ from __future__ import annotations
 import heapq
 import json
 import math
+import os
 import sys
 import time
 from typing import Any
@@ -117,6 +118,7 @@ class Host:
         self.steps = 0
         self.rejected = 0
         self.stop_requested = False
+        self.started = False
         subs = [(topics.trig, self.qos), (topics.host_down(host), self.qos), (topics.ctl, 1)]
         self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
                              int(cfg["max_inflight"]))
@@ -157,6 +159,7 @@ class Host:
             if not math.isfinite(t0):
                 raise WireError("control: bad t0")
             self.loop.t0 = t0
+            self.started = True
         elif payload == b"stop":
             self.stop_requested = True
             self.loop.stop()
@@ -331,6 +334,13 @@ class Host:
 
     # ------------------------------------------------------------ run
 
+    def announce(self) -> None:
+        """Publish ``ready`` every 0.2 s until ``go`` (the server may subscribe after us)."""
+        if self.started:
+            return
+        self.client.publish(self.topics.ready(self.h), b"1", 1)
+        self.loop.call_at(self.loop.now() + 0.2, self.announce)
+
     def warm_up(self) -> None:
         """Call every compiled kernel once (numba loads its cache lazily on first call)."""
         dt = 1.0 / self.sc.f_trig
@@ -359,30 +369,39 @@ class Host:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of a host process: ``python -m sigma_des.live.host CONFIG.json``."""
+    """Entry point of a host process: ``python -m sigma_des.live.host CONFIG.json``.
+
+    The process serves the runs listed in the config (one per method) one after
+    the other: for each, a fresh :class:`Host` on the run's topics announces itself
+    ready, runs until ``stop`` (bounded by duration + ``linger`` s), reports its
+    counters and writes its rows.
+    """
     args = sys.argv[1:] if argv is None else argv
     cfg = json.loads(open(args[0]).read())
     sc = from_dict(Scenario, cfg["scenario"])
-    topics = Topics(cfg["run"])
     addr = BrokerAddress(**cfg["broker"])
     h = int(cfg["host"])
-    host = Host(sc, cfg["method"], h, cfg, topics, addr, float(cfg["t0"]))
-    host.warm_up()
-    host.client.start(timeout=10.0)
-    host.client.publish(topics.ready(h), b"1", 1)
-    # run until told to stop (bounded: duration plus a generous margin)
-    host.loop.run(until=sc.duration + float(cfg.get("linger", 60.0)))
-    host.client.publish(topics.stats(h), json.dumps(host.stats()).encode(), 1)
-    _write_rows(cfg["rows_path"], host.rows)
-    time.sleep(0.2)  # let paho flush the stats message
-    host.client.stop()
+    for i, (method, run) in enumerate(cfg["runs"]):
+        topics = Topics(run)
+        host = Host(sc, method, h, cfg, topics, addr, time.monotonic())
+        if i == 0:
+            host.warm_up()
+        host.client.start(timeout=10.0)
+        host.announce()
+        host.loop.run(until=sc.duration + float(cfg.get("linger", 120.0)))
+        host.client.publish(topics.stats(h), json.dumps(host.stats()).encode(), 1)
+        _write_rows(cfg["rows_path"].format(run=run), host.rows)
+        time.sleep(0.1)  # let paho flush the stats message
+        host.client.stop()
     return 0
 
 
 def _write_rows(path: str, rows: list[tuple[Any, ...]]) -> None:
     arr = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 8)
     kinds = np.array([r[0] for r in rows], dtype="U10")
-    np.savez(path, kinds=kinds, values=arr)
+    tmp = path + ".part.npz"
+    np.savez(tmp, kinds=kinds, values=arr)
+    os.replace(tmp, path)  # the runner waits for the file: it must appear complete
 
 
 if __name__ == "__main__":

@@ -129,8 +129,14 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             if not wait_port(host, port, 2.0):
                 raise ConfigError("--broker", f"nothing accepts connections at {host}:{port}")
             addr = BrokerAddress(host, port, opts.username, opts.password)
-        for m in ms:
-            out, table, interrupted = _run_method(sc, m, addr, opts, broker, progress)
+        keep = os.environ.get("SIGMA_DES_LIVE_KEEP")  # keep the hosts' logs for debugging
+        d = Path(keep) if keep else Path(stack.enter_context(
+            tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
+        d.mkdir(parents=True, exist_ok=True)
+        runs = [(m, secrets.token_hex(4) + m) for m in ms]
+        procs = _spawn_hosts(sc, runs, addr, opts, d, stack)
+        for m, run in runs:
+            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d)
             kept[m] = out.pop("kept")
             res.methods[m] = out["metrics"]
             res.wall[m] = out["wall"]
@@ -147,37 +153,30 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
     return res, msgs, kept
 
 
-def _host_cfg(sc: Scenario, m: str, h: int, addr: BrokerAddress, run: str,
-              opts: LiveOptions, d: Path) -> Path:
-    cfg = {
-        "scenario": to_dict(sc),
-        "method": m,
-        "host": h,
-        "run": run,
-        "t0": time.monotonic(),
-        "broker": addr.__dict__,
-        "qos": sc.net.qos,
-        "impair": opts.impair,
-        "step_delay": opts.step_delay,
-        "max_inflight": opts.max_inflight,
-        "rows_path": str(d / f"rows_h{h}.npz"),
-    }
-    path = d / f"host{h}.json"
-    path.write_text(json.dumps(cfg, default=float))
-    return path
-
-
-def _spawn_hosts(sc: Scenario, m: str, addr: BrokerAddress, run: str, opts: LiveOptions,
-                 d: Path, stack: ExitStack) -> list[subprocess.Popen[bytes]]:
+def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
+                 opts: LiveOptions, d: Path, stack: ExitStack) -> list[subprocess.Popen[bytes]]:
+    """One process per host, serving every run (method) in turn."""
     env = dict(os.environ)
     here = str(Path(__file__).resolve().parents[2])
     env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     procs = []
     for h in range(sc.hosts):
-        cfg = _host_cfg(sc, m, h, addr, run, opts, d)
+        cfg = {
+            "scenario": to_dict(sc),
+            "runs": runs,
+            "host": h,
+            "broker": addr.__dict__,
+            "qos": sc.net.qos,
+            "impair": opts.impair,
+            "step_delay": opts.step_delay,
+            "max_inflight": opts.max_inflight,
+            "rows_path": str(d / ("rows_{run}" + f"_h{h}.npz")),
+        }
+        path = d / f"host{h}.json"
+        path.write_text(json.dumps(cfg, default=float))
         log = open(d / f"host{h}.log", "wb")
         stack.callback(log.close)
-        p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(cfg)],
+        p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
                              stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                              env=env)
         stack.callback(_reap, p)
@@ -200,12 +199,12 @@ def _pump(srv: LiveServer, seconds: float) -> None:
     srv.loop.run(until=srv.loop.now() + seconds)
 
 
-def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], timeout: float,
-                d: Path) -> None:
+def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected: int,
+                timeout: float, d: Path) -> None:
     deadline = time.monotonic() + timeout
-    while len(srv.ready) < len(procs):
+    while len(srv.ready) < expected:
         for h, p in enumerate(procs):
-            if p.poll() is not None:
+            if p.poll() is not None and p.returncode != -9:
                 log = (d / f"host{h}.log").read_text(errors="replace")[-800:]
                 raise RuntimeError(f"live host {h} exited at start (status {p.returncode}):\n{log}")
         if time.monotonic() > deadline:
@@ -213,17 +212,12 @@ def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], timeout: 
         _pump(srv, 0.05)
 
 
-def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
-                broker: Broker | None, progress: bool) -> tuple[dict[str, Any], pd.DataFrame,
-                                                                bool]:
-    run = secrets.token_hex(4) + m
+def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveOptions,
+                broker: Broker | None, procs: list[subprocess.Popen[bytes]], d: Path
+                ) -> tuple[dict[str, Any], pd.DataFrame, bool]:
     topics = Topics(run)
     interrupted = False
-    keep = os.environ.get("SIGMA_DES_LIVE_KEEP")
-    with ExitStack() as stack, tempfile.TemporaryDirectory(prefix="sigma-des-live-") as tmp:
-        d = Path(keep) if keep else Path(tmp)
-        d.mkdir(parents=True, exist_ok=True)
-
+    with ExitStack() as stack:
         def factory(subs: list[tuple[str, int]], cb: Any) -> Client:
             return Client(addr, f"{run}-srv", subs, cb, opts.max_inflight)
 
@@ -233,9 +227,9 @@ def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
         except ConnectionError as e:
             raise ConfigError("--broker", str(e)) from None
         stack.callback(srv.client.stop)
-        procs = _spawn_hosts(sc, m, addr, run, opts, d, stack)
         srv.warm_up()
-        _wait_ready(srv, procs, opts.ready_timeout, d)
+        live = [p for p in procs if p.poll() is None]
+        _wait_ready(srv, procs, len(live), opts.ready_timeout, d)
         t0 = time.monotonic() + 0.3
         srv.client.publish(topics.ctl, f"go:{t0!r}".encode(), 1)
         while time.monotonic() < t0:
@@ -256,13 +250,12 @@ def _run_method(sc: Scenario, m: str, addr: BrokerAddress, opts: LiveOptions,
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline and not set(alive) <= set(srv.stats):
             _pump(srv, 0.05)
-        for p in procs:
-            try:
-                p.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                _reap(p)
+        for h in alive:  # the rows file follows the stats message
+            f = d / f"rows_{run}_h{h}.npz"
+            while time.monotonic() < deadline and not f.exists():
+                time.sleep(0.01)
         out = srv.finish()
-        table = _messages(m, srv, d, sc.hosts)
+        table = _messages(run, m, srv, d, sc.hosts)
     out["kept"] = srv.kept
     out["live"] = _live_info(srv, procs, table, sc)
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
@@ -279,11 +272,11 @@ def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,
         srv.loop.call_at(t, procs[h].kill)
 
 
-def _messages(m: str, srv: LiveServer, d: Path, hosts: int) -> pd.DataFrame:
+def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int) -> pd.DataFrame:
     kinds: list[np.ndarray] = [np.array([r[0] for r in srv.rows], dtype="U12")]
     vals: list[np.ndarray] = [np.array([r[1:] for r in srv.rows], dtype=np.float64).reshape(-1, 8)]
     for h in range(hosts):
-        p = d / f"rows_h{h}.npz"
+        p = d / f"rows_{run}_h{h}.npz"
         if p.exists():
             with np.load(p) as z:
                 kinds.append(z["kinds"].astype("U12"))
@@ -315,7 +308,7 @@ def _live_info(srv: LiveServer, procs: list[subprocess.Popen[bytes]], table: pd.
         "missed_frac": 1.0 - len(got) / expected if expected else float("nan"),
         "late": srv.late,
         "hosts_reported": sorted(st),
-        "hosts_exit": [p.returncode for p in procs],
+        "hosts_killed": [h for h, p in enumerate(procs) if p.returncode == -9],
         "step_real_ms": 1000.0 * sum(float(s.get("step_real_s", 0)) for s in st.values())
         / max(1, sum(int(s.get("steps", 0)) for s in st.values())),
     }

@@ -1,0 +1,107 @@
+"""Live runs on a real broker: all four methods, the output files, calibration, CLI errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sigma_des.cli import main
+from sigma_des.config import load
+from tests.live.conftest import LIVE_SETS, needs_mosquitto
+
+pytestmark = needs_mosquitto
+
+
+@pytest.fixture(scope="module")
+def live_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("live")
+    sets = [a for s in LIVE_SETS for a in ("--set", s)]
+    assert main(["live", *sets, "--out", str(out)]) == 0
+    return out
+
+
+def test_writes_compares_files_with_mode_live(live_dir: Path) -> None:
+    summ = json.loads((live_dir / "summary.json").read_text())
+    assert summ["mode"] == "live" and summ["interrupted"] is False
+    assert set(summ["methods"]) == {"none", "lockstep", "hlc", "bides"}
+    rows = pd.read_csv(live_dir / "results.csv")
+    assert set(rows["method"]) == {"none", "lockstep", "hlc", "bides"}
+    for m, ms in summ["methods"].items():
+        assert ms["latency_state_mean"] > 0, m
+        assert ms["aoi_mean"] > 0, m
+        assert ms["rejected"] == 0 and ms["unknown_topic"] == 0
+        assert summ["live"][m]["hosts_killed"] == []
+        assert summ["live"][m]["hosts_reported"] == [0, 1]
+    # BiDES and Lock-Step show one frame for everyone, live as in the DES
+    assert summ["methods"]["bides"]["spread_mean"] == 0.0
+    assert summ["methods"]["lockstep"]["spread_mean"] == 0.0
+
+
+def test_message_table_is_consistent_with_the_metrics(live_dir: Path) -> None:
+    msgs = pd.read_csv(live_dir / "messages.csv.gz")
+    summ = json.loads((live_dir / "summary.json").read_text())
+    sc = load(None, LIVE_SETS)
+    for m, g in msgs.groupby("method"):
+        # first copy of each (kind, node, frame), republished Lock-Step states a kind of
+        # their own, as the collector counts them
+        st = g[g["kind"] == "state"]
+        first = st.drop_duplicates(["republish", "node", "frame"])
+        first = first[first["t_send"] >= sc.warmup]
+        lat = (first["t_recv"] - first["t_send"]).mean() * 1000.0
+        assert lat == pytest.approx(summ["methods"][m]["latency_state_mean"], rel=1e-6)
+        trig = g[g["kind"] == "trigger"]
+        assert set(trig["host"]) == {0, 1}
+        assert (trig["t_recv"] >= trig["t_send"]).all()
+        sent = g[g["kind"] == "trigger_sent"]
+        n_win = ((sent["t_send"] >= sc.warmup) & (sent["t_send"] < sc.duration)).sum()
+        window = sc.duration - sc.warmup
+        assert n_win / window == pytest.approx(summ["methods"][m]["trigger_rate_hz"])
+
+
+def test_throughput_is_the_ledgers_bytes(live_dir: Path) -> None:
+    summ = json.loads((live_dir / "summary.json").read_text())
+    for m in summ["methods"]:
+        links = summ["links_mbps"][m]
+        assert {"server.up", "server.down", "host0.up", "host1.down"} <= set(links)
+        assert sum(links.values()) == pytest.approx(summ["methods"][m]["throughput_mbps"])
+
+
+def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "cal.toml"
+    assert main(["calibrate", str(live_dir), "--out", str(out)]) == 0
+    sc = load(str(out), ["duration=0.5", "warmup=0.1"])
+    assert sc.net.host_link.latency.dist == "empirical"
+    hop = np.loadtxt(sc.net.host_link.latency.file)
+    assert hop.min() >= 0 and 0 < hop.mean() < 0.1
+    assert sc.compute.step_time.dist == "lognormal"
+    assert main(["compare", str(out), "--set", "duration=0.5", "--set", "warmup=0.1",
+                 "--methods", "bides", "--no-progress"]) == 0
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--methods", "nope"], "--methods: unknown method 'nope'"),
+        (["--broker", "nohost"], "--broker: must be HOST:PORT"),
+        (["--broker", "127.0.0.1:1"], "--broker: nothing accepts connections"),
+        (["--set", 'faults=[{kind="drop", node=0, frame=3, message="state"}]'],
+         "faults[0].kind: live mode runs 'crash' and 'slow'"),
+        (["--set", "nodes=0"], "nodes: must be in"),
+        (["--record", "x.txt"], "--record: must name a .mcap file"),
+        (["--broker-port", "0"], "--broker-port: must be in 1..65535"),
+    ],
+)
+def test_bad_input_exits_2_naming_the_key(args: list[str], needle: str,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["live", "--set", "duration=0.5", "--set", "warmup=0.1", *args]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+
+
+def test_calibrate_bad_source_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["calibrate", str(tmp_path)]) == 2
+    assert "messages.csv.gz" in capsys.readouterr().err
