@@ -187,6 +187,7 @@ class Broker:
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
+            start_new_session=True,  # Ctrl-C reaches us only; we stop the broker ourselves
         )
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
@@ -220,6 +221,7 @@ class Broker:
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            start_new_session=True,
         )
         wait_port("127.0.0.1", self.port, 5.0)
 

@@ -84,7 +84,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
                        record=rec_cls is not None)
     try:
-        res, msgs, kept = run_live(sc, methods, opts)
+        res, msgs, kept = run_live(sc, methods, opts, progress=True)
     except KeyboardInterrupt:
         print("sigma-des: interrupted before any method finished; broker and hosts stopped",
               file=sys.stderr)

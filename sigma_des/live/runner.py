@@ -136,7 +136,8 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
         runs = [(m, secrets.token_hex(4) + m) for m in ms]
         procs = _spawn_hosts(sc, runs, addr, opts, d, stack)
         for m, run in runs:
-            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d)
+            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d,
+                                                  progress)
             kept[m] = out.pop("kept")
             res.methods[m] = out["metrics"]
             res.wall[m] = out["wall"]
@@ -178,7 +179,7 @@ def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
         stack.callback(log.close)
         p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
                              stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                             env=env)
+                             env=env, start_new_session=True)  # Ctrl-C: we stop them
         stack.callback(_reap, p)
         procs.append(p)
     return procs
@@ -213,8 +214,8 @@ def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected:
 
 
 def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveOptions,
-                broker: Broker | None, procs: list[subprocess.Popen[bytes]], d: Path
-                ) -> tuple[dict[str, Any], pd.DataFrame, bool]:
+                broker: Broker | None, procs: list[subprocess.Popen[bytes]], d: Path,
+                progress: bool) -> tuple[dict[str, Any], pd.DataFrame, bool]:
     topics = Topics(run)
     interrupted = False
     with ExitStack() as stack:
@@ -235,6 +236,9 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         while time.monotonic() < t0:
             _pump(srv, 0.02)
         _inject(srv, opts, broker, procs)
+        if progress:
+            print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
+                  file=sys.stderr, flush=True)
         w0 = time.perf_counter()
         srv.start(t0)
         if opts.hook is not None:
