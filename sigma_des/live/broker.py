@@ -192,7 +192,8 @@ class Broker:
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
             if self.proc.poll() is not None:
-                err = (self.proc.stderr.read() if self.proc.stderr else b"").decode(errors="replace")
+                raw = self.proc.stderr.read() if self.proc.stderr else b""
+                err = raw.decode(errors="replace")
                 log = d / "mosquitto.log"
                 err += log.read_text(errors="replace") if log.exists() else ""
                 self.stop()

@@ -34,6 +34,8 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
                    help="port of our own broker (default: a free one)")
     p.add_argument("--max-inflight", type=int, default=0, metavar="N",
                    help="QoS 1 in-flight window per client (default 0: unlimited)")
+    p.add_argument("--bundle", action="store_true",
+                   help="a host sends the states its nodes finish together as one PUBLISH")
     p.add_argument("--no-impair", action="store_true",
                    help="do not apply the scenario's link latency/loss in the clients")
     p.add_argument("--no-step-delay", action="store_true",
@@ -62,7 +64,8 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         methods = [m.strip() for m in args.methods.split(",") if m.strip()]
         for m in methods:
             if m not in METHODS:
-                raise ConfigError("--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}")
+                allowed = ", ".join(METHODS)
+                raise ConfigError("--methods", f"unknown method {m!r}; allowed: {allowed}")
     if args.broker is not None:
         parse_broker(args.broker)
     if args.broker_port is not None and not 1 <= args.broker_port <= 65535:
@@ -82,6 +85,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     opts = LiveOptions(broker=args.broker, username=args.username, password=args.password,
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
+                       bundle=args.bundle,
                        record=rec_cls is not None)
     try:
         res, msgs, kept = run_live(sc, methods, opts, progress=True)

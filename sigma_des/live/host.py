@@ -33,6 +33,7 @@ from sigma_des.live.loop import Client, Loop
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.live.wire import (
     COMMAND,
+    MAX_BUNDLE,
     REREQUEST,
     STATE,
     TRIGGER,
@@ -68,6 +69,8 @@ class Host:
         self.h = host
         self.qos = int(cfg["qos"])
         self.step_delay = bool(cfg["step_delay"])
+        self.bundle = bool(cfg.get("bundle", False))
+        self._pending: list[tuple[bytes, int, int]] = []
         self.topics = topics
         self.loop = Loop(t0)
         n = sc.nodes
@@ -136,10 +139,7 @@ class Host:
                 self._deliver(t, TRIGGER, self.sc.nodes, frame, t_send, len(topic), len(payload),
                               self._on_trigger, frame, t_send, dt, hl, hc)
             elif topic == tp.cmd(self.h):
-                node, stamp, tick, t_send, vals = decode_command(payload, self.cmd.shape[1])
-                j = self._local_index(node)
-                self._deliver(t, COMMAND, node, tick, t_send, len(topic), len(payload),
-                              self._on_command, j, stamp, tick, t_send, vals)
+                self._commands(t, topic, payload)
             elif topic == tp.rereq(self.h):
                 node, frame, retry, t_send = decode_rerequest(payload)
                 j = self._local_index(node)
@@ -151,6 +151,26 @@ class Host:
                 self.rejected += 1
         except WireError:
             self.rejected += 1
+
+    def _commands(self, t: float, topic: str, payload: bytes) -> None:
+        """One command, or (``--bundle``) a whole number of same-size command records."""
+        width = self.cmd.shape[1]
+        size = 23 + 8 * width
+        if len(payload) % size or len(payload) // size > MAX_BUNDLE:
+            raise WireError(f"command: {len(payload)} bytes is not a multiple of {size}")
+        recs = []
+        for r in range(len(payload) // size):
+            node, stamp, tick, t_send, vals = decode_command(payload[r * size:(r + 1) * size],
+                                                             width)
+            recs.append((self._local_index(node), stamp, tick, t_send, vals))
+        if not recs:
+            raise WireError("command: empty")
+        self._deliver(t, COMMAND, int(self.nodes[recs[0][0]]), recs[0][2], recs[0][3],
+                      len(topic), len(payload), self._on_commands, recs)
+
+    def _on_commands(self, t: float, recs: list[tuple[Any, ...]]) -> None:
+        for rec in recs:
+            self._on_command(t, *rec)
 
     def _control(self, payload: bytes) -> None:
         """``go:<t0>`` sets the run's time origin (monotonic seconds); ``stop`` ends the run."""
@@ -284,7 +304,20 @@ class Host:
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         node = int(self.nodes[j])
         payload = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
-        self._publish(self.topics.state(self.h), payload, t, STATE, node, frame)
+        if not self.bundle:
+            self._publish(self.topics.state(self.h), payload, t, STATE, node, frame)
+            return
+        if not self._pending:
+            self.loop.call_at(t, self._flush)  # after the current handler, before the inbox
+        self._pending.append((payload, node, frame))
+
+    def _flush(self) -> None:
+        """``--bundle``: publish the states of this loop turn as one message."""
+        pend, self._pending = self._pending, []
+        if pend:
+            t = self.loop.now()
+            self._publish(self.topics.state(self.h), b"".join(p for p, _n, _f in pend), t,
+                          STATE, pend[0][1], pend[0][2])
 
     def _on_rerequest(self, t: float, j: int, frame: int) -> None:
         if t >= self.crash_at[j]:

@@ -150,7 +150,7 @@ class Client:
         self.disconnects += 1
 
     def _on_message(self, client: mqtt.Client, userdata: Any, msg: mqtt.MQTTMessage) -> None:
-        self._handler(msg.topic, msg.payload)
+        self._handler(msg.topic, bytes(msg.payload))
 
     def start(self, timeout: float = 5.0) -> None:
         """Connect and start paho's network thread; wait (bounded) for the CONNACK.

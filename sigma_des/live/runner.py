@@ -55,6 +55,7 @@ class LiveOptions:
         impair: apply the scenario's link latency/loss in the clients.
         step_delay: add the scenario's drawn ``compute.step_time`` to each node's real step.
         max_inflight: QoS 1 in-flight window per client (0: unlimited).
+        bundle: a host sends the states its nodes finish in one loop turn as one PUBLISH.
         kill_broker_at: fault injection: kill our broker at this time (s) ...
         broker_down_s: ... and start it again this long after.
         kill_host_at: fault injection: ``(host, t)``: kill that host process at ``t``.
@@ -71,6 +72,7 @@ class LiveOptions:
     impair: bool = True
     step_delay: bool = True
     max_inflight: int = 0
+    bundle: bool = False
     kill_broker_at: float | None = None
     broker_down_s: float = 0.5
     kill_host_at: tuple[int, float] | None = None
@@ -171,6 +173,7 @@ def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
             "impair": opts.impair,
             "step_delay": opts.step_delay,
             "max_inflight": opts.max_inflight,
+            "bundle": opts.bundle,
             "rows_path": str(d / ("rows_{run}" + f"_h{h}.npz")),
         }
         path = d / f"host{h}.json"
@@ -222,7 +225,8 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         def factory(subs: list[tuple[str, int]], cb: Any) -> Client:
             return Client(addr, f"{run}-srv", subs, cb, opts.max_inflight)
 
-        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record)
+        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record,
+                         opts.bundle)
         try:
             srv.client.start(timeout=5.0)
         except ConnectionError as e:

@@ -29,6 +29,8 @@ from sigma_des.live.loop import Client, Loop
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.live.wire import (
     COMMAND,
+    MAX_BUNDLE,
+    STATE_BYTES,
     REREQUEST,
     STATE,
     TRIGGER,
@@ -111,10 +113,11 @@ class LiveServer:
         impair: apply the server link's impairments.
         record: keep states with their pose, snapshots and render samples in
             :attr:`kept` (for ``live --record``).
+        bundle: send each host's commands of one tick as one PUBLISH.
     """
 
     def __init__(self, sc: Scenario, method: str, client_factory: Any, topics: Topics,
-                 qos: int, impair: bool, record: bool = False) -> None:
+                 qos: int, impair: bool, record: bool = False, bundle: bool = False) -> None:
         self.sc = sc
         self.method = method
         self.n = n = sc.nodes
@@ -140,6 +143,7 @@ class LiveServer:
         self.render_tick = 0
         self._prev_gen = np.full(n, np.nan)
         self.record = record
+        self.bundle = bundle
         self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
                                            "renders": []}
         self.rows: list[tuple[Any, ...]] = []
@@ -239,26 +243,36 @@ class LiveServer:
             except ValueError:
                 self.rejected += 1
             return
-        try:
-            kind, node, frame, t_gen, t_send, hl, hc, obs = decode_state(payload, self.n)
-        except WireError:
-            self.rejected += 1
+        size = STATE_BYTES
+        count = len(payload) // size
+        if len(payload) % size or not 1 <= count <= MAX_BUNDLE:
+            self.rejected += 1  # not a whole number of states (or too many): drop it all
             return
-        if self.host_of[node] != host:
-            self.rejected += 1
+        recs = []
+        for r in range(count):
+            try:
+                rec = decode_state(payload[r * size:(r + 1) * size], self.n)
+            except WireError:
+                self.rejected += 1
+                continue
+            if self.host_of[rec[1]] != host:
+                self.rejected += 1
+                continue
+            recs.append(rec)
+        if not recs:
             return
         if not self.running:
-            self.late += 1
+            self.late += len(recs)
             return
-        self.ledger.received(t_send, len(topic), len(payload), self.qos)
-        d = self.impair.delay(t, DOWN, STATE, node, frame)
+        self.ledger.received(recs[0][4], len(topic), len(payload), self.qos)
+        d = self.impair.delay(t, DOWN, STATE, recs[0][1], recs[0][2])
         if math.isinf(d):
             return
-        args = (kind, node, frame, t_gen, t_send, hl, hc, obs)
-        if d > 0:
-            self.loop.call_at(t + d, self._state_at, args)
-        else:
-            self._state(t, *args)
+        for args in recs:
+            if d > 0:
+                self.loop.call_at(t + d, self._state_at, args)
+            else:
+                self._state(t, *args)
 
     def _state_at(self, args: tuple[Any, ...]) -> None:
         self._state(self.now(), *args)
@@ -312,6 +326,14 @@ class LiveServer:
         cmds = self.behaviour.commands(view, self.dyn)
         ok = np.flatnonzero(~np.isnan(cmds).all(axis=1))
         tick = self.align_tick
+        if self.bundle:  # one PUBLISH per host: its nodes' command records back to back
+            per_host: dict[int, list[bytes]] = {}
+            for i in ok.tolist():
+                per_host.setdefault(self.host_of[i], []).append(
+                    encode_command(i, al.aligned_frame, tick, t, cmds[i]))
+            for h, recs in per_host.items():
+                self._publish(self.topics.cmd(h), b"".join(recs), t, COMMAND, h, tick)
+            return
         for i in ok.tolist():
             payload = encode_command(i, al.aligned_frame, tick, t, cmds[i])
             self._publish(self.topics.cmd(self.host_of[i]), payload, t, COMMAND, i, tick)

@@ -18,6 +18,10 @@ on one monotonic clock):
   m u16, m x f64 values
 * rerequest [21]: kind u8 = 4, node u32, frame u32, retry u32, t_send f64
 
+With ``--bundle``, a host packs the states its nodes finish in one turn of its loop
+into one PUBLISH: the payload is those 85-byte records back to back (at most
+:data:`MAX_BUNDLE`); the server accepts any whole number of records.
+
 The paper's state is 150 bits (19 bytes: pose and velocity packed at reduced
 precision); ours is 85 bytes because it carries the whole 12-column published
 state in float32 plus the time and HLC fields the measurements need. The DES
@@ -50,6 +54,7 @@ __all__ = [
     "encode_rerequest",
     "encode_state",
     "encode_trigger",
+    "MAX_BUNDLE",
     "STATE_BYTES",
     "TRIGGER_BYTES",
 ]
@@ -62,6 +67,8 @@ _REREQ = struct.Struct("<BIIId")
 TRIGGER_BYTES = _TRIG.size
 STATE_BYTES = _STATE.size
 MAX_COMMAND_VALUES = 64
+#: Most states one PUBLISH may carry (``--bundle``: a host's states of one loop turn).
+MAX_BUNDLE = 4096
 _U32 = 2**32 - 1
 
 
