@@ -30,9 +30,9 @@ from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.live.wire import (
     COMMAND,
     MAX_BUNDLE,
-    STATE_BYTES,
     REREQUEST,
     STATE,
+    STATE_BYTES,
     TRIGGER,
     Topics,
     WireError,

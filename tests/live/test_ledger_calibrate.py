@@ -6,7 +6,9 @@ import pandas as pd
 import pytest
 
 from sigma_des import Scenario
-from sigma_des.live.calibrate import fanout_slope
+import numpy as np
+
+from sigma_des.live.calibrate import delivery_floor, fanout_slope
 from sigma_des.live.ledger import Ledger
 
 
@@ -31,3 +33,16 @@ def test_fanout_slope_recovers_an_exact_line() -> None:
     assert b == pytest.approx(0.0002, abs=1e-12)
     one = pd.DataFrame([{"frame": 0, "t_send": 0.0, "t_recv": 0.003}])
     assert fanout_slope(one) == (pytest.approx(0.003), 0.0)
+
+
+def test_delivery_floor_is_the_low_quantile_of_consecutive_gaps() -> None:
+    rows = []
+    for f in range(40):  # 3 receivers: gaps 0.0001 exactly, plus a late wake-up on 1 in 4
+        late = 0.002 if f % 4 == 0 else 0.0
+        for pos in range(3):
+            rows.append({"frame": f, "t_recv": f * 0.01 + 0.0001 * pos + (late if pos else 0)})
+    df = pd.DataFrame(rows)
+    assert delivery_floor(df) == pytest.approx(0.0001, abs=1e-12)
+    gaps = np.array([0.0021] * 10 + [0.0001] * 70)
+    assert delivery_floor(df, q=0.99) == pytest.approx(np.quantile(gaps, 0.99))
+    assert delivery_floor(df.iloc[:1]) == 0.0
