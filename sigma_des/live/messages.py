@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 
 from sigma_des.config import to_dict
 from sigma_des.errors import ConfigError
@@ -62,13 +63,30 @@ def read_messages(source: Path) -> pd.DataFrame:
     return df
 
 
+def ned(obs: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                           NDArray[np.float64]]:
+    """NED position (m), NED velocity (m/s) and Euler angles (rad) of ``(n, 12)`` published
+    states (``OBS_FIELDS``: body velocities u, v, w rotated by the ZYX Euler angles;
+    altitude up -> down)."""
+    u, v, w = obs[:, 0], obs[:, 1], obs[:, 2]
+    phi, th, psi = obs[:, 3], obs[:, 4], obs[:, 5]
+    cf, sf, ct, st, cp, sp = (np.cos(phi), np.sin(phi), np.cos(th), np.sin(th), np.cos(psi),
+                              np.sin(psi))
+    vn = ct * cp * u + (sf * st * cp - cf * sp) * v + (cf * st * cp + sf * sp) * w
+    ve = ct * sp * u + (sf * st * sp + cf * cp) * v + (cf * st * sp - sf * cp) * w
+    vd = -st * u + sf * ct * v + cf * ct * w
+    pos = np.stack([obs[:, 9], obs[:, 10], -obs[:, 11]], axis=1)
+    return pos, np.stack([vn, ve, vd], axis=1), obs[:, 3:6].copy()
+
+
 def record_messages(recorder_cls: Any, path: str, res: Any, msgs: pd.DataFrame,
                     kept: dict[str, dict[str, list[Any]]]) -> None:
     """Write the live run to an MCAP file through the recorder API (``sigma_des.record``).
 
-    Triggers are recorded once per node on the receiving host, states with their pose,
-    commands with their values; aligned snapshots and render samples as kept by the
-    server (``kept[method]``, see ``LiveServer.kept``).
+    Triggers are recorded once per node of the receiving host (its receive time),
+    states with their NED pose, commands with their values and the host's receive
+    time, aligned snapshots and render samples as the server kept them
+    (``kept[method]``, see ``LiveServer.kept``).
     """
     sc = res.scenario
     host_of = np.asarray(sc.host_of)
@@ -81,14 +99,17 @@ def record_messages(recorder_cls: Any, path: str, res: Any, msgs: pd.DataFrame,
                     run.trigger(frame=int(r.frame), node=i, t_send=float(r.t_send),
                                 t_recv=float(r.t_recv))
             k = kept.get(method, {})
-            for (node, frame, ts, tr), obs in zip(k.get("states", []), k.get("obs", []),
-                                                  strict=True):
-                run.state(node=node, frame=frame, t_send=ts, t_recv=tr,
-                          pos=tuple(obs[9:12]), vel=tuple(obs[0:3]), att=tuple(obs[3:6]))
-            for r in m[m["kind"] == "command"].itertuples():
-                run.command(node=int(r.node), frame=int(r.frame), t_send=float(r.t_send),
-                            t_recv=float(r.t_recv), values=())
-            for t, frame, frames, pos in k.get("snapshots", []):
-                run.snapshot(t=t, frame=frame, frames=frames, pos=pos)
+            if k.get("obs"):
+                pos, vel, att = ned(np.asarray(k["obs"], dtype=np.float64))
+                for j, (node, frame, ts, tr) in enumerate(k["states"]):
+                    run.state(node=node, frame=frame, t_send=ts, t_recv=tr,
+                              pos=tuple(pos[j]), vel=tuple(vel[j]), att=tuple(att[j]))
+            got = {(int(r.node), int(r.frame)): float(r.t_recv)
+                   for r in m[m["kind"] == "command"].itertuples()}
+            for node, tick, ts, values in k.get("commands", []):
+                run.command(node=node, frame=tick, t_send=ts,
+                            t_recv=got.get((node, tick), float("nan")), values=tuple(values))
+            for t, frame, frames, obs in k.get("snapshots", []):
+                run.snapshot(t=t, frame=frame, frames=frames, pos=ned(obs)[0])
             for t, aoi in k.get("renders", []):
                 run.render(t=t, aoi=aoi)

@@ -145,7 +145,7 @@ class LiveServer:
         self.record = record
         self.bundle = bundle
         self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
-                                           "renders": []}
+                                           "renders": [], "commands": []}
         self.rows: list[tuple[Any, ...]] = []
         self.ready: set[int] = set()
         self.stats: dict[int, dict[str, Any]] = {}
@@ -308,7 +308,7 @@ class LiveServer:
             self.collector.snapshot(t)
             if self.record:
                 self.kept["snapshots"].append(
-                    (t, al.aligned_frame, al.shown_frame.copy(), al.shown_obs[:, 9:12].copy())
+                    (t, al.aligned_frame, al.shown_frame.copy(), al.shown_obs.copy())
                 )
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
@@ -326,6 +326,8 @@ class LiveServer:
         cmds = self.behaviour.commands(view, self.dyn)
         ok = np.flatnonzero(~np.isnan(cmds).all(axis=1))
         tick = self.align_tick
+        if self.record:
+            self.kept["commands"] += [(i, tick, t, cmds[i].tolist()) for i in ok.tolist()]
         if self.bundle:  # one PUBLISH per host: its nodes' command records back to back
             per_host: dict[int, list[bytes]] = {}
             for i in ok.tolist():

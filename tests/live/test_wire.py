@@ -88,3 +88,16 @@ def test_topics_parse_only_ours() -> None:
     assert tp.parse_up("sd/other/up/h1/state") is None
     assert tp.parse_up("sd/abc/up/hx/state") is None
     assert tp.parse_up(tp.trig) is None
+
+
+def test_ned_rotates_body_velocity_and_flips_altitude() -> None:
+    from sigma_des.live.messages import ned
+
+    obs = np.zeros((2, 12))
+    obs[:, 0] = 1.0  # u = 1 m/s forward
+    obs[:, 9:12] = [10.0, 20.0, 30.0]  # x north, y east, h up
+    obs[1, 5] = math.pi / 2  # heading east
+    pos, vel, att = ned(obs)
+    np.testing.assert_allclose(pos, [[10.0, 20.0, -30.0]] * 2)
+    np.testing.assert_allclose(vel, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], atol=1e-15)
+    np.testing.assert_array_equal(att[1], [0.0, 0.0, math.pi / 2])
