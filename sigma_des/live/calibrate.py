@@ -105,7 +105,23 @@ def apply_overrides(sc: Scenario, overrides: list[str]) -> Scenario:
         Path(path).unlink()
 
 
+def _mcap_scenario(path: Path) -> dict[str, Any] | None:
+    """The scenario stored in an MCAP recording's ``sigma_des`` metadata record, if any."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        for rec in make_reader(fh).iter_metadata():
+            if rec.name == "sigma_des" and "scenario" in rec.metadata:
+                d = json.loads(rec.metadata["scenario"])
+                return d if d else None
+    return None
+
+
 def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
+    if source.suffix == ".mcap":
+        d = _mcap_scenario(source)
+        if d is not None:
+            return from_dict(Scenario, d)  # type: ignore[no-any-return]
     summ = (source if source.is_dir() else source.parent) / "summary.json"
     if summ.exists():
         d = json.loads(summ.read_text())["scenario"]
@@ -129,11 +145,19 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
     """
     msgs = read_messages(source)
     base = _base_scenario(source, msgs)
+    # an MCAP table (sigma_des.record.read_table) has the contract columns only
+    if "republish" not in msgs:
+        msgs = msgs.assign(republish=False)
+    if "t_trig" not in msgs:
+        msgs = msgs.assign(t_trig=np.nan)
+    if "host" not in msgs:
+        msgs = msgs.assign(host=np.asarray(base.host_of)[msgs["node"].fillna(0).clip(0).astype(int)])
     w = msgs[(msgs["t_send"] >= base.warmup) & (msgs["t_send"] < base.duration)]
     states = w[(w["kind"] == "state") & ~w["republish"].astype(bool)]
     if len(states) < 10:
         raise ConfigError(str(source), f"only {len(states)} states in the window; need >= 10")
-    trig = w[w["kind"] == "trigger"]
+    # one row per receiving client (a recording repeats a host's receipt for its nodes)
+    trig = w[w["kind"] == "trigger"].drop_duplicates(["frame", "host", "t_recv"])
     _, slope = fanout_slope(trig)
     delivery = max(delivery_floor(trig), 0.0)
     publish = base.broker.publish_service.mean_value()
@@ -154,9 +178,9 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
     cost = (pub["t_send"] - pub["t_trig"]).to_numpy()
     cost = cost[np.isfinite(cost) & (cost >= 0)]
     step_mean = float(cost.mean()) if cost.size else base.compute.step_time.mean_value()
-    step_std = float(cost.std()) if cost.size > 1 else 0.0
+    step_std = float(cost.std()) if cost.size > 1 else base.compute.step_time.std
     net = base.net
-    topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{h}/state")
+    topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
     width = make_dynamics(base).command_dim
@@ -176,7 +200,8 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
                           delivery_service=Dist(dist="constant",
                                                 value=delivery * base.hosts / base.nodes)),
         compute=ComputeSpec(step_time=Dist(dist="lognormal", mean=max(step_mean, 1e-7),
-                                           std=step_std)),
+                                           std=step_std))
+        if cost.size else base.compute,  # a recording has no publish rows: keep the base's
     )
     report = {
         "states": int(len(states)),
