@@ -151,7 +151,8 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
     if "t_trig" not in msgs:
         msgs = msgs.assign(t_trig=np.nan)
     if "host" not in msgs:
-        msgs = msgs.assign(host=np.asarray(base.host_of)[msgs["node"].fillna(0).clip(0).astype(int)])
+        nodes = msgs["node"].fillna(0).clip(0).astype(int)
+        msgs = msgs.assign(host=np.asarray(base.host_of)[nodes])
     w = msgs[(msgs["t_send"] >= base.warmup) & (msgs["t_send"] < base.duration)]
     states = w[(w["kind"] == "state") & ~w["republish"].astype(bool)]
     if len(states) < 10:
