@@ -13,7 +13,7 @@ is shared: read every figure next to its load). The goal of issue 11 is N >= 100
 100 Hz, QoS 1, < 1 % missed frames and mean state latency < 5 ms; a row ``meets``
 it or not. Nothing here asserts on timing.
 
-    python experiments/bench_live.py                          # N = 20,50,100,200, 4 methods, both modes
+    python experiments/bench_live.py                        # N = 20..200, 4 methods, 2 modes
     python experiments/bench_live.py --quick --out /tmp/bl    # N = 4, 1 s (the tests' smoke run)
 """
 

@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from sigma_des import Scenario
-import numpy as np
-
 from sigma_des.live.calibrate import delivery_floor, fanout_slope
 from sigma_des.live.ledger import Ledger
 
