@@ -56,6 +56,10 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: igno
 
 def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     """Run ``live``; ConfigError propagates to the caller (exit 2)."""
+    try:
+        import paho.mqtt  # noqa: F401
+    except ImportError:
+        raise ConfigError("live", "needs paho-mqtt 2: pip install 'sigma-des[live]'") from None
     from sigma_des.live.broker import parse_broker
     from sigma_des.live.runner import LiveOptions, run_live
 
