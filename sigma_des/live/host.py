@@ -87,6 +87,10 @@ class Host:
         self.frame = -1
         self.frame_dt = np.zeros(H)
         self.obs_hist = np.zeros((H, m, 12))
+        self.slot_frame = np.full(H, -1, dtype=np.int64)
+        self.phys_hist = np.zeros(H)
+        self.phys_t = 0.0
+        self.track: list[tuple[int, float, NDArray[np.float64]]] = []
         self.warp = method == "bides" and sc.bides.time_warp
         self.ckpt = np.zeros((H if self.warp else 0, m, self.state.shape[1]))
         self.node_frame = [-1] * m
@@ -240,13 +244,37 @@ class Host:
 
     def _step(self, f: int, dt: float) -> None:
         slot = f % self.H
+        self._log_slot(slot)
         self.frame_dt[slot] = dt
+        self.phys_t += dt
+        self.phys_hist[slot] = self.phys_t
+        self.slot_frame[slot] = f
         self.state = self.dyn.step(self.state, self.cmd, dt, f, self.nodes)
         if self.warp:
             self.ckpt[slot] = self.state
         self.obs_hist[slot] = self.dyn.observe(self.state)
         self.frame = f
         self.steps += 1
+
+    def _log_slot(self, slot: int) -> None:
+        """Log the true positions of the frame leaving ``slot`` (it can no longer be
+        rolled back), for the fidelity metrics, as the DES engine does."""
+        f = int(self.slot_frame[slot])
+        if f >= 0:
+            self.track.append((f, float(self.phys_hist[slot]),
+                               self.obs_hist[slot, :, 9:12].copy()))
+
+    def track_arrays(self) -> dict[str, NDArray[Any]]:
+        """Every logged frame (frames still in the ring flushed), in frame order."""
+        first = max(0, self.frame - self.H + 1)
+        for f in range(first, self.frame + 1):
+            self._log_slot(f % self.H)
+            self.slot_frame[f % self.H] = -1
+        fr = np.array([x[0] for x in self.track], dtype=np.int64)
+        t = np.array([x[1] for x in self.track], dtype=np.float64)
+        pos = (np.stack([x[2] for x in self.track]) if self.track
+               else np.zeros((0, self.m, 3)))
+        return {"track_frames": fr, "track_t": t, "track_pos": pos, "nodes": self.nodes}
 
     def _local_time(self, j: int, t: float) -> float:
         return float(self.clocks.local_time(int(self.nodes[j]), t))
@@ -423,17 +451,18 @@ def main(argv: list[str] | None = None) -> int:
         host.announce()
         host.loop.run(until=sc.duration + float(cfg.get("linger", 120.0)))
         host.client.publish(topics.stats(h), json.dumps(host.stats()).encode(), 1)
-        _write_rows(cfg["rows_path"].format(run=run), host.rows)
+        _write_rows(cfg["rows_path"].format(run=run), host.rows, host.track_arrays())
         time.sleep(0.1)  # let paho flush the stats message
         host.client.stop()
     return 0
 
 
-def _write_rows(path: str, rows: list[tuple[Any, ...]]) -> None:
+def _write_rows(path: str, rows: list[tuple[Any, ...]], track: dict[str, NDArray[Any]]) -> None:
     arr = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 8)
     kinds = np.array([r[0] for r in rows], dtype="U10")
     tmp = path + ".part.npz"
-    np.savez(tmp, kinds=kinds, values=arr)
+    np.savez(tmp, kinds=kinds, values=arr, track_frames=track["track_frames"],
+             track_t=track["track_t"], track_pos=track["track_pos"], nodes=track["nodes"])
     os.replace(tmp, path)  # the runner waits for the file: it must appear complete
 
 

@@ -147,6 +147,8 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             res.timeseries[m] = out["timeseries"]
             res.engines[m] = {"requested": "live", "used": "live", "fallback": ""}
             res.live[m] = out["live"]
+            if "fidelity" in out:
+                res.fidelity[m] = out["fidelity"]
             tables.append(table)
             if interrupted:
                 res.interrupted = True
@@ -264,10 +266,51 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
                 time.sleep(0.01)
         out = srv.finish()
         table = _messages(run, m, srv, d, sc.hosts)
+        if sc.fidelity.enabled:
+            _fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
     out["live"] = _live_info(srv, procs, table, sc)
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
     return out, table, interrupted
+
+
+def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:
+    """Formation error and DTW against the ideal run, from the hosts' true positions.
+
+    The hosts log every frame's true positions (as the DES engine does); frames that
+    every host logged are sampled at ``fidelity.log_rate`` Hz of physics time. A host
+    that did not report (killed) leaves the metrics NaN.
+    """
+    from sigma_des.api import ideal_run
+    from sigma_des.metrics.fidelity import TrajectoryLog, fidelity
+
+    n = sc.nodes
+    tracks = []
+    for h in range(sc.hosts):
+        p = d / f"rows_{run}_h{h}.npz"
+        if not p.exists():
+            return
+        with np.load(p) as z:
+            tracks.append((z["nodes"], z["track_frames"], z["track_t"], z["track_pos"]))
+    common = set(tracks[0][1].tolist())
+    for tr in tracks[1:]:
+        common &= set(tr[1].tolist())
+    frames = np.array(sorted(common), dtype=np.int64)
+    if frames.size < 2:
+        return
+    pos = np.zeros((frames.size, n, 3))
+    t = np.zeros(frames.size)
+    for nodes, fr, tt, pp in tracks:
+        idx = np.searchsorted(fr, frames)
+        pos[:, nodes] = pp[idx]
+        t = tt[idx]
+    log = TrajectoryLog(sc.fidelity.log_rate, srv.dyn.observe(srv.dyn.initial_state(n))[:, 9:12])
+    for k in range(frames.size):
+        log.add(float(t[k]), pos[k])
+    times, traj = log.arrays()
+    fid, err = fidelity(traj, ideal_run(sc)[1], 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
+    out["metrics"].update(fid)
+    out["fidelity"] = {"t": times[: len(err)], "formation_err": err}
 
 
 def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,

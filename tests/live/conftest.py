@@ -15,7 +15,7 @@ needs_mosquitto = pytest.mark.skipif(
 )
 
 #: A small live scenario: 4 nodes on 2 hosts, 1.5 s.
-LIVE_SETS = ["nodes=4", "hosts=2", "duration=1.5", "warmup=0.3", "fidelity.enabled=false"]
+LIVE_SETS = ["nodes=4", "hosts=2", "duration=1.5", "warmup=0.3"]
 
 
 def live_scenario(*extra: str) -> Scenario:
