@@ -110,3 +110,18 @@ def test_bad_input_exits_2_naming_the_key(args: list[str], needle: str,
 def test_calibrate_bad_source_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["calibrate", str(tmp_path)]) == 2
     assert "messages.csv.gz" in capsys.readouterr().err
+
+
+def test_external_broker_with_credentials(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    from sigma_des.live.broker import Broker
+
+    with Broker() as addr:
+        base = ["live", "--set", "nodes=2", "--set", "hosts=1", "--set", "duration=1.0",
+                "--set", "warmup=0.2", "--methods", "none", "--broker",
+                f"{addr.host}:{addr.port}", "--username", addr.username]
+        assert main([*base, "--password", "wrong"]) == 2
+        assert "--broker: MQTT connect" in capsys.readouterr().err
+        assert main([*base, "--password", addr.password, "--out", str(tmp_path)]) == 0
+    summ = json.loads((tmp_path / "summary.json").read_text())
+    assert summ["methods"]["none"]["latency_state_mean"] > 0
