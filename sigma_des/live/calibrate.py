@@ -21,7 +21,9 @@ metrics window:
   server link's latency (``net.server_link.latency``: hop + receive queueing,
   sampled pairwise) when its mean exceeds 5 % of the hop's;
 * **node step time** ``compute.step_time``: a lognormal with the mean and standard
-  deviation of (state publish - trigger receipt) per job;
+  deviation of (state publish - trigger receipt) per job; the report also gives the
+  share of its variance common to a host's nodes in one frame (:func:`host_share`;
+  the DES draws every node independently);
 * **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
   and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
   so the DES counts the same bytes.
@@ -90,6 +92,24 @@ def delivery_floor(trig: pd.DataFrame, q: float = 0.05) -> float:
     same = t["frame"].to_numpy()[1:] == t["frame"].to_numpy()[:-1]
     gaps = np.diff(t["t_recv"].to_numpy())[same]
     return float(np.quantile(gaps, q)) if gaps.size else 0.0
+
+
+def host_share(pub: pd.DataFrame) -> float:
+    """Share of the step-time variance that is common to a host's nodes in one frame.
+
+    Args:
+        pub: ``state_pub`` rows with ``host``, ``frame`` and ``cost`` = publish minus
+            trigger receipt (s).
+
+    Returns:
+        ``var(per host-and-frame means) / var(all)``: 0 if the nodes of a host vary
+        independently, 1 if they always finish together; NaN with fewer than 2 rows.
+    """
+    c = pub["cost"]
+    if len(c) < 2 or float(c.var(ddof=0)) == 0.0:
+        return float("nan")
+    means = pub.groupby(["host", "frame"])["cost"].transform("mean")
+    return float(means.var(ddof=0) / c.var(ddof=0))
 
 
 def apply_overrides(sc: Scenario, overrides: list[str]) -> Scenario:
@@ -176,8 +196,9 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
         srv_file = d / "server_latency.txt"
         np.savetxt(srv_file, hop + queue, fmt="%.9g")
     pub = w[w["kind"] == "state_pub"]
-    cost = (pub["t_send"] - pub["t_trig"]).to_numpy()
-    cost = cost[np.isfinite(cost) & (cost >= 0)]
+    pub = pub.assign(cost=pub["t_send"] - pub["t_trig"])
+    pub = pub[np.isfinite(pub["cost"]) & (pub["cost"] >= 0)]
+    cost = pub["cost"].to_numpy()
     step_mean = float(cost.mean()) if cost.size else base.compute.step_time.mean_value()
     step_std = float(cost.std()) if cost.size > 1 else base.compute.step_time.std
     net = base.net
@@ -217,6 +238,7 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
         "server_queue_folded_into_server_link": fold,
         "step_time_mean_s": step_mean,
         "step_time_std_s": step_std,
+        "step_time_host_share": host_share(pub),
     }
     return sc, report
 
