@@ -12,11 +12,13 @@ The password file uses Mosquitto 2's PBKDF2-SHA512 format (``$7$``), so
 from __future__ import annotations
 
 import base64
+import ctypes
 import hashlib
 import os
 import pwd
 import secrets
 import shutil
+import signal
 import socket
 import subprocess
 import tempfile
@@ -31,6 +33,7 @@ __all__ = [
     "Broker",
     "BrokerAddress",
     "INSTALL_HINT",
+    "child_setup",
     "find_mosquitto",
     "free_port",
     "parse_broker",
@@ -61,6 +64,17 @@ class BrokerAddress:
     port: int
     username: str = ""
     password: str = ""
+
+
+def child_setup() -> None:
+    """``preexec_fn`` of our children: a session of their own (the terminal's Ctrl-C
+    reaches only us; we stop them) and, on Linux, SIGTERM when we die, so nothing
+    outlives a killed ``sigma-des``."""
+    os.setsid()
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
 
 
 def find_mosquitto() -> str | None:
@@ -187,7 +201,7 @@ class Broker:
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
-            start_new_session=True,  # Ctrl-C reaches us only; we stop the broker ourselves
+            preexec_fn=child_setup,  # Ctrl-C reaches us only; we stop the broker ourselves
         )
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline:
@@ -222,7 +236,7 @@ class Broker:
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
-            start_new_session=True,
+            preexec_fn=child_setup,
         )
         wait_port("127.0.0.1", self.port, 5.0)
 

@@ -31,7 +31,7 @@ import pandas as pd
 from sigma_des.api import Results
 from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.broker import Broker, BrokerAddress, parse_broker, wait_port
+from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_broker, wait_port
 from sigma_des.live.loop import Client
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
@@ -184,7 +184,7 @@ def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
         stack.callback(log.close)
         p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
                              stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                             env=env, start_new_session=True)  # Ctrl-C: we stop them
+                             env=env, preexec_fn=child_setup)  # Ctrl-C: we stop them
         stack.callback(_reap, p)
         procs.append(p)
     return procs

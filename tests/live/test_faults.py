@@ -73,6 +73,13 @@ def test_host_killed_lockstep_stalls_bides_excludes() -> None:
     assert ts["aligned_frame"][-1] > ts["aligned_frame"][np.searchsorted(ts["t"], 1.0)] + 20
 
 
+def _alive(pid: int) -> bool:
+    try:
+        return "zombie" not in Path(f"/proc/{pid}/status").read_text().lower()
+    except OSError:
+        return False
+
+
 def _children(pid: int) -> list[int]:
     out = subprocess.run(["ps", "-e", "-o", "pid=,ppid="], capture_output=True, text=True).stdout
     return [int(a) for a, b in (ln.split() for ln in out.splitlines()) if int(b) == pid]
@@ -102,6 +109,27 @@ def test_ctrl_c_writes_partial_results_and_stops_everything(tmp_path: Path) -> N
     assert summ["interrupted"] is True and summ["mode"] == "live"
     assert (out / "messages.csv.gz").exists()
     time.sleep(0.5)
-    alive = [k for k in kids if Path(f"/proc/{k}").exists()
-             and "zombie" not in Path(f"/proc/{k}/status").read_text().lower()]
+    assert [k for k in kids if _alive(k)] == []
+
+
+def test_killed_sigma_des_takes_its_broker_and_hosts_along(tmp_path: Path) -> None:
+    sets = [a for s in LIVE_SETS[:2] for a in ("--set", s)] + ["--set", "duration=30"]
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    p = subprocess.Popen([sys.executable, "-m", "sigma_des.cli", "live", *sets, "--methods",
+                          "none"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        assert p.stderr is not None
+        assert "hosts ready, running" in p.stderr.readline().decode()
+        kids = _children(p.pid)
+        assert len(kids) == 3
+        p.kill()  # SIGKILL: no clean-up code runs; PR_SET_PDEATHSIG must
+        p.wait(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    deadline = time.monotonic() + 10.0
+    alive = kids
+    while alive and time.monotonic() < deadline:
+        time.sleep(0.1)
+        alive = [k for k in kids if _alive(k)]
     assert alive == []
