@@ -644,6 +644,9 @@ plots into `{outputs.name}/<study>/`; `--quick` runs a seconds-long smoke versio
                 + plots_line(name, pngs, outputs)
                 + "\n"
             )
+    from report_model_tuning import section as model_tuning_section
+
+    body.append(model_tuning_section(outputs))
     return "\n".join(body).rstrip() + "\n"
 
 

@@ -9,6 +9,8 @@ Commands:
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
   live     run the scenario live over a real Mosquitto broker (docs/LIVE.md).
   calibrate  fit DES parameters from a live run; writes a scenario TOML.
+  tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
+           see sigma_des/tuning); writes a fitted.toml for dynamics_params.
 
 Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
 a message naming the key and what is allowed.
@@ -72,12 +74,20 @@ def _parser() -> argparse.ArgumentParser:
 
     add_live_parser(sub, scenario_args)
     add_calibrate_parser(sub)
+
+    from sigma_des.tuning.cli import add_parser as add_tune_parser
+
+    add_tune_parser(sub)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
+    if args.command == "tune":
+        from sigma_des.tuning.cli import run as run_tune
+
+        return run_tune(args)
     try:
         if args.command == "calibrate":
             from sigma_des.live.cli import run_calibrate

@@ -85,6 +85,9 @@ class Scenario:
         payload_bits: state payload size (the paper: 150 bits).
         trigger_payload_bits: trigger payload size.
         dynamics: ``pointmass``, ``quadrotor``, ``fixedwing`` or ``jsbsim:<model>``.
+        dynamics_params: fitted parameter file of ``sigma-des tune`` (TOML; see
+            sigma_des/tuning/fitted.py) applied to the ``quadrotor`` / ``fixedwing``
+            preset; empty = the preset as shipped. The hash covers the path only.
         engine: ``cohort`` (messages in a compiled core; features it does not
             reproduce fall back to the per-message engine per method) or ``events``
             (the per-message SimPy engine, the executable specification). Both give
@@ -107,6 +110,7 @@ class Scenario:
     payload_bits: int = 150
     trigger_payload_bits: int = 64
     dynamics: str = "quadrotor"
+    dynamics_params: str = ""
     engine: str = "cohort"
     methods: tuple[str, ...] = METHODS
     history_frames: int = 512
@@ -155,6 +159,15 @@ class Scenario:
             "dynamics",
             f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
         )
+        if self.dynamics_params:
+            from sigma_des.tuning.fitted import fitted_params
+
+            require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
+                    f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
+            try:
+                fitted_params(self.dynamics_params, self.dynamics)
+            except ConfigError as e:
+                raise ConfigError("dynamics_params", str(e)) from None
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
         )

@@ -19,18 +19,21 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["dtw", "dtw_normalised"]
+__all__ = ["dtw", "dtw_normalised", "dtw_rows"]
 
 
 @njit(cache=True)
-def _dtw(a: np.ndarray, b: np.ndarray) -> float:
+def _dtw_banded(a: np.ndarray, b: np.ndarray, band: int) -> float:
+    """Exact DTW restricted to the Sakoe–Chiba band ``|i - j| <= band`` (cells outside: inf)."""
     n, m = a.shape[0], b.shape[0]
     prev = np.full(m + 1, np.inf)
     cur = np.full(m + 1, np.inf)
     prev[0] = 0.0
     for i in range(1, n + 1):
-        cur[0] = np.inf
-        for j in range(1, m + 1):
+        cur[:] = np.inf
+        lo = max(1, i - band)
+        hi = min(m, i + band)
+        for j in range(lo, hi + 1):
             d = 0.0
             for k in range(a.shape[1]):
                 e = a[i - 1, k] - b[j - 1, k]
@@ -43,6 +46,12 @@ def _dtw(a: np.ndarray, b: np.ndarray) -> float:
             cur[j] = math.sqrt(d) + best
         prev, cur = cur, prev
     return float(prev[m])
+
+
+@njit(cache=True)
+def _dtw(a: np.ndarray, b: np.ndarray) -> float:
+    # Unconstrained: a band wider than both series reaches every cell.
+    return _dtw_banded(a, b, max(a.shape[0], b.shape[0]))
 
 
 def dtw(a: ArrayLike, b: ArrayLike) -> float | NDArray[np.float64]:
@@ -67,3 +76,29 @@ def dtw_normalised(d: float | NDArray[np.float64], period: float,
     if period <= 0 or duration <= 0:
         raise ValueError("dtw_normalised: period and duration must be > 0")
     return d * period / duration
+
+
+@njit(cache=True)
+def _dtw_rows(a: np.ndarray, b: np.ndarray, band: int, out: np.ndarray) -> None:
+    for r in range(a.shape[0]):
+        out[r] = _dtw(a[r], b[r]) if band < 0 else _dtw_banded(a[r], b[r], band)
+
+
+def dtw_rows(a: ArrayLike, b: ArrayLike, band: int = -1) -> NDArray[np.float64]:
+    """Row-wise DTW of ``(R, T, d)`` and ``(R, T', d)`` stacks: one compiled call, ``(R,)``.
+
+    Row ``r`` equals ``dtw(a[r], b[r])`` exactly (the same recursion); used to score a
+    whole GA population at once (sigma_des/tuning). ``band >= 0`` restricts the
+    alignment to the Sakoe–Chiba band ``|i - j| <= band`` (still exact within it;
+    ``band = 0`` is the plain sum of point distances); ``-1`` is unconstrained.
+    """
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if a.ndim != 3 or b.ndim != 3 or a.shape[0] != b.shape[0] or a.shape[2] != b.shape[2]:
+        raise ValueError(f"dtw_rows: shapes {a.shape} and {b.shape} are not (R, T, d) alike")
+    if band >= 0 and abs(a.shape[1] - b.shape[1]) > band:
+        raise ValueError(f"dtw_rows: band {band} cannot reach the end of lengths "
+                         f"{a.shape[1]} and {b.shape[1]}")
+    out = np.empty(a.shape[0])
+    _dtw_rows(a, b, int(band), out)
+    return out
