@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--modes", default="per-node,bundle")
     p.add_argument("--duration", type=float, default=5.0)
     p.add_argument("--no-commands", action="store_true", help="commands.enabled = false")
-    p.add_argument("--quick", action="store_true", help="N = 4 on 2 hosts, 1 s, BiDES")
+    p.add_argument("--quick", action="store_true", help="N = 4 on 2 hosts, 1 s, BiDES, bundle mode")
     p.add_argument("--out", default="/work/out/bench_live")
     a = p.parse_args(argv)
     nodes = [int(x) for x in a.nodes.split(",")]
@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     modes = a.modes.split(",")
     hosts, duration = a.hosts, a.duration
     if a.quick:
-        nodes, hosts, duration, methods = [4], 2, 1.0, ["bides"]
+        nodes, hosts, duration, methods, modes = [4], 2, 1.0, ["bides"], ["bundle"]
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -109,14 +109,14 @@ def _markdown(rows: list[dict[str, Any]], load_avg: dict[str, float]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the study; write the outputs into ``--out``."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="N = 4..6, 1.5 s, two methods")
+    p.add_argument("--quick", action="store_true", help="N = 4..6, 1 s, two methods")
     p.add_argument("--out", default="/work/out/live_vs_des")
     p.add_argument("--duration", type=float, default=5.0)
     a = p.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    dur = 1.5 if a.quick else a.duration
-    common = [f"duration={dur}", f"warmup={0.3 if a.quick else 1.0}"]
+    dur = 1.0 if a.quick else a.duration
+    common = [f"duration={dur}", f"warmup={0.2 if a.quick else 1.0}"]
     methods = ["none", "bides"] if a.quick else list(METHODS)
     cal_sets = (["nodes=4", "hosts=2"] if a.quick else ["nodes=20", "hosts=4"]) + common
     targets = ({"n6": ["nodes=6", "hosts=2"]} if a.quick else {
