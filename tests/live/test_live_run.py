@@ -125,3 +125,59 @@ def test_external_broker_with_credentials(tmp_path: Path,
         assert main([*base, "--password", addr.password, "--out", str(tmp_path)]) == 0
     summ = json.loads((tmp_path / "summary.json").read_text())
     assert summ["methods"]["none"]["latency_state_mean"] > 0
+
+
+class _FakeRun:
+    """Records calls to the recorder contract's per-method writer (sigma_des.record)."""
+
+    def __init__(self) -> None:
+        self.calls: dict[str, list[dict[str, object]]] = {}
+
+    def __getattr__(self, kind: str) -> object:
+        if kind not in ("trigger", "state", "command", "snapshot", "render"):
+            raise AttributeError(kind)
+        return lambda **kw: self.calls.setdefault(kind, []).append(kw)
+
+
+class _FakeRecorder:
+    last: _FakeRecorder | None = None
+
+    def __init__(self, path: str, scenario: dict[str, object], mode: str) -> None:
+        self.path, self.scenario, self.mode = path, scenario, mode
+        self.runs: dict[str, tuple[str, _FakeRun]] = {}
+        _FakeRecorder.last = self
+
+    def __enter__(self) -> _FakeRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+    def run(self, method: str, mode: str = "des") -> _FakeRun:
+        r = _FakeRun()
+        self.runs[method] = (mode, r)
+        return r
+
+
+def test_record_call_sites_follow_the_recorder_contract() -> None:
+    from sigma_des.live.messages import record_messages
+    from sigma_des.live.runner import LiveOptions, run_live
+
+    sc = load(None, LIVE_SETS + ["fidelity.enabled=false"])
+    res, msgs, kept = run_live(sc, ["bides"], LiveOptions(record=True))
+    record_messages(_FakeRecorder, "x.mcap", res, msgs, kept)
+    rec = _FakeRecorder.last
+    assert rec is not None and rec.mode == "full" and rec.scenario["nodes"] == 4
+    mode, run = rec.runs["bides"]
+    assert mode == "live"
+    c = run.calls
+    trig = msgs[(msgs["kind"] == "trigger")]
+    assert len(c["trigger"]) == 2 * len(trig)  # one per node of the receiving host (2 each)
+    assert len(c["state"]) == int((msgs["kind"] == "state").sum())
+    st = c["state"][0]
+    assert set(st) == {"node", "frame", "t_send", "t_recv", "pos", "vel", "att"}
+    assert len(st["pos"]) == len(st["vel"]) == len(st["att"]) == 3  # type: ignore[arg-type]
+    assert c["command"] and len(c["command"][0]["values"]) == 4  # type: ignore[arg-type]
+    snap = c["snapshot"][0]
+    assert snap["pos"].shape == (4, 3)  # type: ignore[attr-defined]
+    assert len(c["render"]) > 0 and c["render"][0]["aoi"].shape == (4,)  # type: ignore[attr-defined]
