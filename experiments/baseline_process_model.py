@@ -289,6 +289,7 @@ class ProcessModel:
     def aligner(self) -> Proc:
         """Alignment ticks (method none): show each node's newest received state."""
         tick = 0
+        yield self._ptimeout(self.sc.align_phase / self.sc.f_align, P_ALIGN)
         while True:
             t = self.env.now
             if self.dirty:
@@ -303,11 +304,12 @@ class ProcessModel:
                         self.shown_frame[i] = self.recv_frame[i]
                         self.shown_obs[i] = self.recv_obs[i]
             tick += 1
-            yield self._ptimeout(tick / self.sc.f_align - t, P_ALIGN)
+            yield self._ptimeout((tick + self.sc.align_phase) / self.sc.f_align - t, P_ALIGN)
 
     def renderer(self) -> Proc:
         """Render ticks: sample AoI, frame spread and position error of the shown snapshot."""
         tick = 0
+        yield self._ptimeout(self.sc.render_phase / self.sc.f_render, P_RENDER)
         while True:
             t = self.env.now
             if t >= self.w0:
@@ -324,7 +326,7 @@ class ProcessModel:
                 else:
                     self.spread.append(0)
             tick += 1
-            yield self._ptimeout(tick / self.sc.f_render - t, P_RENDER)
+            yield self._ptimeout((tick + self.sc.render_phase) / self.sc.f_render - t, P_RENDER)
 
     def _aoi_update(self, t: float, i: int, g: float) -> None:
         old = self._aoi_gen[i]
@@ -478,7 +480,7 @@ class ProcessModel:
         links = self.up + self.down
         m["throughput_mbps"] = sum(ld.bytes for ld in links) * 8 / window / 1e6
         m["packets_per_s"] = sum(ld.packets for ld in links) / window
-        m["messages_per_s"] = self.messages / window
+        m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["snapshot_rate_hz"] = self.snapshots / window
         m["spread_mean"] = float(np.mean(self.spread)) if self.spread else math.nan

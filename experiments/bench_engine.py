@@ -85,7 +85,7 @@ COMPARED: tuple[tuple[str, str], ...] = (
     ("aoi_peak_mean", "ms"),
     ("trigger_rate_hz", ""),
     ("throughput_mbps", ""),
-    ("messages_per_s", ""),
+    ("deliveries_per_s", ""),
     ("snapshot_rate_hz", ""),
     ("spread_mean", ""),
     ("pos_err_mean", "m"),

@@ -43,6 +43,7 @@ import numpy as np
 import sigma_des
 from sigma_des.api import Results, compare
 from sigma_des.config import Scenario, config_hash, from_dict, parse_set, to_dict
+from sigma_des.plots import rate_series  # noqa: F401 - re-exported for the studies
 
 __all__ = [
     "CSV_COLUMNS",
@@ -346,31 +347,6 @@ def run_study(
 
 
 # ------------------------------------------------------------------ derived metrics
-
-
-def rate_series(
-    t: np.ndarray, frames: np.ndarray, window: float = 0.25
-) -> tuple[np.ndarray, np.ndarray]:
-    """Advance rate of a frame counter (frames/s) over sliding windows of ``window`` s.
-
-    Args:
-        t: sample times (s), increasing.
-        frames: the counter at those times (e.g. the aligned frame).
-        window: window length (s).
-
-    Returns:
-        ``(t_mid, rate)``: window end times and frames advanced per second in it.
-    """
-    t = np.asarray(t, dtype=float)
-    f = np.asarray(frames, dtype=float)
-    if t.size < 2:
-        return np.empty(0), np.empty(0)
-    dt = float(np.median(np.diff(t)))
-    step = max(1, round(window / dt)) if dt > 0 else 1
-    if t.size <= step:
-        step = t.size - 1
-    rate = (f[step:] - f[:-step]) / (t[step:] - t[:-step])
-    return t[step:], rate
 
 
 def derived_metrics(ts: dict[str, Any], m: dict[str, float]) -> dict[str, float]:

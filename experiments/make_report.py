@@ -142,7 +142,11 @@ samples (render tick × node).
   {num(b.get("aoi_mean"), 1)} ± {num(b.get("aoi_std"), 1)} ms and keeps the full
   {num(b.get("snapshot_rate_hz"), 0)} Hz snapshot rate; HLC waits for causal stability
   and pays for it ({num(h.get("aoi_mean"), 1)} ms). Our AoI is of the same order as
-  the paper's 8.7 ± 1.7 ms.
+  the paper's 8.7 ± 1.7 ms; render ticks sample it
+  {num((sc.get("render_phase", 0.0) - sc.get("align_phase", 0.0)) % 1.0, 2)} of an alignment
+  period after each alignment tick (time average {num(b.get("aoi_time_avg"), 1)} ms; the
+  sawtooth's bottom lies {num(500.0 / float(sc["f_align"]), 1)} ms below the time average;
+  docs/MODEL.md, Metrics).
 * *Lock-Step does not collapse here.* In our model Lock-Step reaches
   {num(ls.get("aoi_mean"), 1)} ms at {sc["nodes"]} nodes, not the paper's 62 ± 15 ms: the
   paper's baseline is a different system (Gazebo with FastDDS, whose per-step

@@ -15,19 +15,21 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
+from sigma_des.budget import check_memory
 from sigma_des.config import METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import fidelity
+from sigma_des.outputs import check_out_dir, write_files
 
 __all__ = ["Results", "compare", "ideal_run", "run_method"]
 
@@ -72,43 +74,47 @@ class Results:
         """One metric of one method."""
         return self.methods[method][name]
 
-    def rows(self, include_wall: bool = True) -> list[dict[str, Any]]:
-        """Tidy rows: one per method × metric, carrying seed, config hash and version."""
-        base = {"seed": self.scenario.seed, "config_hash": self.config_hash, "version": __version__}
+    def rows(self, include_wall: bool = False) -> list[dict[str, Any]]:
+        """Tidy rows: one per method × metric, carrying seed, config hash and version.
+
+        Args:
+            include_wall: also add the run-cost rows of :meth:`wall_rows` (they vary
+                from run to run, so the deterministic table leaves them out).
+        """
         out: list[dict[str, Any]] = []
         for method, ms in self.methods.items():
-            for name, value in ms.items():
-                out.append(
-                    {
-                        **base,
-                        "method": method,
-                        "metric": name,
-                        "value": value,
-                        "unit": METRIC_UNITS.get(name, ""),
-                    }
-                )
-            for name, value in self.links_mbps[method].items():
-                out.append(
-                    {
-                        **base,
-                        "method": method,
-                        "metric": f"link_mbps.{name}",
-                        "value": value,
-                        "unit": "Mbps",
-                    }
-                )
+            out += self._tidy(method, ms, METRIC_UNITS)
+            out += self._tidy(method, self.links_mbps[method], {}, "link_mbps.", "Mbps")
             if include_wall:
-                for name, value in self.wall[method].items():
-                    out.append(
-                        {
-                            **base,
-                            "method": method,
-                            "metric": name,
-                            "value": value,
-                            "unit": WALL_METRICS[name],
-                        }
-                    )
+                out += self._tidy(method, self.wall[method], WALL_METRICS)
         return out
+
+    def wall_rows(self) -> list[dict[str, Any]]:
+        """Tidy rows of the simulator's own cost (wall time, events/s, peak RSS)."""
+        out: list[dict[str, Any]] = []
+        for method in self.methods:
+            out += self._tidy(method, self.wall[method], WALL_METRICS)
+        return out
+
+    def _tidy(
+        self,
+        method: str,
+        values: dict[str, float],
+        units: dict[str, str],
+        prefix: str = "",
+        unit: str = "",
+    ) -> list[dict[str, Any]]:
+        base = {"seed": self.scenario.seed, "config_hash": self.config_hash, "version": __version__}
+        return [
+            {
+                **base,
+                "method": method,
+                "metric": prefix + name,
+                "value": value,
+                "unit": units.get(name, unit),
+            }
+            for name, value in values.items()
+        ]
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary; wall-time figures are under ``wall`` only."""
@@ -189,17 +195,30 @@ class Results:
         return "\n".join(lines)
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
-        """Write ``results.csv`` (tidy) and ``summary.json`` into ``out_dir``."""
-        d = Path(out_dir)
-        d.mkdir(parents=True, exist_ok=True)
-        csv_path = d / "results.csv"
-        with csv_path.open("w", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=TIDY_COLUMNS)
-            w.writeheader()
-            for r in self.rows():
-                w.writerow(r)
-        json_path = d / "summary.json"
-        json_path.write_text(json.dumps(self.summary(), indent=2, sort_keys=True) + "\n")
+        """Write ``results.csv`` (tidy, deterministic), ``wall.csv`` (run cost) and
+        ``summary.json`` into ``out_dir``, all or none (temporary names, then renames).
+
+        Raises:
+            ConfigError: ``out_dir`` is not a writable directory or a write failed.
+        """
+        d = check_out_dir(out_dir)
+
+        def tidy(rows: list[dict[str, Any]]) -> Callable[[IO[str]], None]:
+            def write(fh: IO[str]) -> None:
+                w = csv.DictWriter(fh, fieldnames=TIDY_COLUMNS)
+                w.writeheader()
+                w.writerows(rows)
+
+            return write
+
+        def summary(fh: IO[str]) -> None:
+            fh.write(json.dumps(self.summary(), indent=2, sort_keys=True) + "\n")
+
+        csv_path, _wall, json_path = write_files(
+            d,
+            {"results.csv": tidy(self.rows()), "wall.csv": tidy(self.wall_rows()),
+             "summary.json": summary},
+        )
         return csv_path, json_path
 
 
@@ -263,6 +282,7 @@ def compare(
     methods: Iterable[str] | None = None,
     progress: bool = True,
     jobs: int = 1,
+    force: bool = False,
 ) -> Results:
     """Run every method on the same scenario and seed (identical random draws).
 
@@ -273,14 +293,17 @@ def compare(
         progress: show a progress bar on stderr for runs longer than ~2 s.
         jobs: run up to this many methods at once in worker processes (results are
             identical; only the wall-time figures change).
+        force: run even when the memory estimate exceeds the available memory.
 
     Raises:
-        ConfigError: ``jobs`` < 1 or an unknown method.
+        ConfigError: ``jobs`` < 1, an unknown method, or (key ``memory``) the run's
+            memory estimate exceeds the available memory (see :mod:`sigma_des.budget`).
     """
     if jobs < 1:
         raise ConfigError("jobs", f"must be >= 1, got {jobs}")
     ms: Sequence[str] = tuple(methods) if methods is not None else sc.methods
     sc = replace(sc, methods=tuple(ms))  # validates the names
+    check_memory(sc, min(jobs, len(ms)), force)
     res = Results(sc)
     bar = None
     if progress:

@@ -23,8 +23,9 @@ import sys
 from collections.abc import Sequence
 
 from sigma_des import __version__
-from sigma_des.config import METHODS, load, to_toml
+from sigma_des.config import METHODS, NODES_PER_HOST, load, to_toml
 from sigma_des.errors import ConfigError
+from sigma_des.outputs import check_out_dir
 
 __all__ = ["main"]
 
@@ -54,9 +55,16 @@ def _parser() -> argparse.ArgumentParser:
         help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
     )
     c.add_argument(
-        "--out", default=None, metavar="DIR", help="write results.csv and summary.json here"
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="write results.csv, wall.csv, summary.json and plots here",
     )
     c.add_argument("--no-progress", action="store_true", help="no progress bar")
+    c.add_argument("--no-plots", action="store_true",
+                   help="with --out: do not draw the PNG plots next to the tables")
+    c.add_argument("--force", action="store_true",
+                   help="run even if the memory estimate exceeds the available memory")
     c.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="run up to N methods at once in worker processes (default 1; "
                    "results are identical)")
@@ -99,7 +107,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
             return run_live_command(args, sc)
         if args.command == "config":
-            sys.stdout.write(to_toml(sc))
+            sys.stdout.write(
+                f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts "
+                f"({NODES_PER_HOST} nodes each); here that is hosts = {sc.hosts}\n"
+                + to_toml(sc)
+            )
             return 0
         if args.command == "sweep":
             from sigma_des.sweep.cli import run_sweep_command
@@ -115,15 +127,32 @@ def main(argv: Sequence[str] | None = None) -> int:
                     raise ConfigError(
                         "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
                     )
-        res = compare(sc, methods, progress=not args.no_progress, jobs=args.jobs)
+        if args.out:  # a bad output location must not cost the whole run
+            check_out_dir(args.out)
+        res = compare(
+            sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force
+        )
+        print(res.table())
+        if args.out:
+            csv_path, json_path = res.write(args.out)
+            print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
+            if not args.no_plots:
+                _plots(res, args.out)
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2
-    print(res.table())
-    if args.out:
-        csv_path, json_path = res.write(args.out)
-        print(f"wrote {csv_path} and {json_path}")
     return 0
+
+
+def _plots(res: object, out: str) -> None:
+    """Draw the comparison's plots into ``out`` (a one-line note without matplotlib)."""
+    from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+
+    if not have_matplotlib():
+        print(MISSING_NOTE)
+        return
+    paths = write_plots(res, out)  # type: ignore[arg-type]
+    print(f"plots: {', '.join(p.name for p in paths)}")
 
 
 if __name__ == "__main__":

@@ -51,6 +51,7 @@ __all__ = [
     "LinkSpec",
     "LockstepSpec",
     "METHODS",
+    "NODES_PER_HOST",
     "NetSpec",
     "Scenario",
     "config_hash",
@@ -60,6 +61,15 @@ __all__ = [
     "to_dict",
     "to_toml",
 ]
+
+#: Nodes per host when ``hosts = 0`` (auto): the paper's 20 aircraft per PC.
+NODES_PER_HOST = 20
+#: Largest trigger, alignment and render rate (Hz): a 0.1 ms physics step.
+MAX_RATE_HZ = 10_000.0
+#: Longest simulated duration (s): one day.
+MAX_DURATION_S = 86_400.0
+#: Largest ``history_frames``.
+MAX_HISTORY_FRAMES = 100_000
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
@@ -75,12 +85,23 @@ class Scenario:
         seed: root seed of all random streams.
         nodes: number of physics nodes (aircraft).
         hosts: number of physics hosts; nodes are placed on them by ``placement``.
+            0 (the default) means ``ceil(nodes / NODES_PER_HOST)`` hosts, the paper's
+            20 aircraft per PC, so any ``nodes`` works without setting ``hosts``.
         cores_per_host: CPU cores per host shared by its nodes.
         placement: ``block`` (consecutive nodes share a host) or ``round_robin``.
-        f_trig: nominal trigger frequency (Hz); the physics step is ``1/f_trig``.
+        f_trig: nominal trigger frequency (Hz), at most 10 kHz; the physics step is
+            ``1/f_trig``. ``f_align`` and ``f_render`` have the same bound.
         f_align: alignment ticks per second at the server.
         f_render: render ticks per second; AoI and consistency are sampled here.
-        duration: simulated time (s).
+        align_phase: alignment tick j is at ``(j + align_phase) / f_align``: the
+            server's loop runs on its own clock, not in step with the triggers. The
+            default 0.1 puts the command ticks (every 3rd, 20 Hz) 1.67 ms after a
+            trigger, while that frame's states are arriving; phase 0 would make every
+            command tick coincide with a trigger instant (a tie, not a deployment).
+        render_phase: render tick j is at ``(j + render_phase) / f_render``; the
+            default 0.6 samples half an alignment period after each alignment tick,
+            so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
+        duration: simulated time (s), at most 86400 (one day).
         warmup: metrics ignore everything before this time (s).
         payload_bits: state payload size (the paper: 150 bits).
         trigger_payload_bits: trigger payload size.
@@ -93,18 +114,20 @@ class Scenario:
             (the per-message SimPy engine, the executable specification). Both give
             identical results, so the engine is not part of the config hash.
         methods: alignment methods to run side by side.
-        history_frames: true states kept per node for consistency metrics.
+        history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
     """
 
     seed: int = 1
     nodes: int = 200
-    hosts: int = 10
+    hosts: int = 0
     cores_per_host: int = 8
     placement: str = "block"
     f_trig: float = 100.0
     f_align: float = 60.0
     f_render: float = 60.0
+    align_phase: float = 0.1
+    render_phase: float = 0.6
     duration: float = 10.0
     warmup: float = 1.0
     payload_bits: int = 150
@@ -129,10 +152,16 @@ class Scenario:
     def __post_init__(self) -> None:
         require(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
         require(1 <= self.nodes <= 1_000_000, "nodes", f"must be in 1..1000000, got {self.nodes}")
+        # auto placement: the paper's 20 nodes per host; ``hosts_auto`` (not a field)
+        # remembers it, so a sweep point that changes ``nodes`` places them anew
+        object.__setattr__(self, "hosts_auto", self.hosts == 0)
+        if self.hosts == 0:
+            object.__setattr__(self, "hosts", math.ceil(self.nodes / NODES_PER_HOST))
         require(
             1 <= self.hosts <= self.nodes,
             "hosts",
-            f"must be in 1..nodes ({self.nodes}), got {self.hosts}",
+            f"must be 0 (auto: ceil(nodes/{NODES_PER_HOST})) or in 1..nodes ({self.nodes}), "
+            f"got {self.hosts}",
         )
         require(
             self.cores_per_host >= 1, "cores_per_host", f"must be >= 1, got {self.cores_per_host}"
@@ -143,6 +172,17 @@ class Scenario:
             f"must be 'block' or 'round_robin', got {self.placement!r}",
         )
         require_positive(self, "f_trig", "f_align", "f_render", "duration", "stall_threshold")
+        for key in ("f_trig", "f_align", "f_render"):
+            v = getattr(self, key)
+            require(v <= MAX_RATE_HZ, key, f"must be in (0, {MAX_RATE_HZ:g}] Hz, got {v}")
+        require(
+            self.duration <= MAX_DURATION_S,
+            "duration",
+            f"must be in (0, {MAX_DURATION_S:g}] s, got {self.duration}",
+        )
+        for key in ("align_phase", "render_phase"):
+            v = getattr(self, key)
+            require(0.0 <= v < 1.0, key, f"must be in [0, 1) (a fraction of a tick), got {v}")
         require(
             0 <= self.warmup < self.duration,
             "warmup",
@@ -176,7 +216,9 @@ class Scenario:
             require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
         require(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
         require(
-            self.history_frames >= 16, "history_frames", f"must be >= 16, got {self.history_frames}"
+            16 <= self.history_frames <= MAX_HISTORY_FRAMES,
+            "history_frames",
+            f"must be in 16..{MAX_HISTORY_FRAMES}, got {self.history_frames}",
         )
         require(
             self.bides.f_trig_min <= self.f_trig,
@@ -331,6 +373,24 @@ def _apply(data: dict[str, Any], key: str, value: Any) -> None:
     cur[parts[-1]] = value
 
 
+def _read_toml(p: Path) -> dict[str, Any]:
+    """The TOML table in scenario file ``p``; every file error is a ConfigError."""
+    if p.is_dir():
+        raise ConfigError(str(p), "is a directory, not a scenario file (a TOML file)")
+    try:
+        return tomllib.loads(p.read_bytes().decode("utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(str(p), "scenario file not found") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(
+            str(p), f"not a text (UTF-8 TOML) file: undecodable byte at offset {e.start}"
+        ) from None
+    except OSError as e:
+        raise ConfigError(str(p), f"cannot read scenario file: {e.strerror or e}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(str(p), f"not valid TOML: {e}") from None
+
+
 def load(
     path: str | Path | None = None, overrides: typing.Iterable[str] = (), **values: Any
 ) -> Scenario:
@@ -346,13 +406,7 @@ def load(
     """
     data: dict[str, Any] = {}
     if path is not None:
-        p = Path(path)
-        try:
-            data = tomllib.loads(p.read_text())
-        except FileNotFoundError:
-            raise ConfigError(str(p), "scenario file not found") from None
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError(str(p), f"not valid TOML: {e}") from None
+        data = _read_toml(Path(path))
     for item in overrides:
         k, v = parse_set(item)
         _apply(data, k, v)

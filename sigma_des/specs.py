@@ -16,6 +16,9 @@ from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossSpec
 
+#: Largest ``net.max_retries``.
+MAX_RETRIES = 100
+
 __all__ = [
     "BidesSpec",
     "BrokerSpec",
@@ -46,10 +49,16 @@ def require_positive(obj: Any, *names: str) -> None:
 
 
 def require_nonneg(obj: Any, *names: str) -> None:
-    """Each named field of ``obj`` must be >= 0."""
+    """Each named field of ``obj`` must be a finite number >= 0."""
     for n in names:
         v = getattr(obj, n)
-        require(v >= 0, n, f"must be >= 0, got {v}")
+        require(v >= 0 and math.isfinite(v), n, f"must be a finite number >= 0, got {v}")
+
+
+def require_in(obj: Any, name: str, lo: float, hi: float, unit: str = "") -> None:
+    """Field ``name`` of ``obj`` must lie in ``[lo, hi]`` (finite)."""
+    v = getattr(obj, name)
+    require(lo <= v <= hi, name, f"must be in [{lo:g}, {hi:g}]{unit}, got {v}")
 
 
 @dataclass(frozen=True)
@@ -81,7 +90,8 @@ class NetSpec:
         qos: MQTT QoS, 0 or 1.
         rto: stream transport: retransmission timeout of a lost segment (s).
         qos1_timeout: datagram + QoS 1: resend with DUP if no PUBACK after this (s).
-        max_retries: resends of one packet before giving up (stream and QoS 1).
+        max_retries: resends of one packet before giving up (stream and QoS 1),
+            0..``MAX_RETRIES`` (100).
         tcpip_bytes: TCP/IP header bytes per packet.
         ethernet_bytes: Ethernet framing bytes per packet (header, FCS, preamble, gap).
         topic_bytes: MQTT topic length in bytes.
@@ -106,7 +116,9 @@ class NetSpec:
         )
         require(self.qos in (0, 1), "qos", f"must be 0 or 1, got {self.qos}")
         require_positive(self, "rto", "qos1_timeout")
-        require_nonneg(self, "max_retries", "tcpip_bytes", "ethernet_bytes")
+        require_nonneg(self, "tcpip_bytes", "ethernet_bytes")
+        # every resend is an event: beyond a few dozen a packet is long given up in practice
+        require_in(self, "max_retries", 0, MAX_RETRIES)
         require(
             1 <= self.topic_bytes <= 65535,
             "topic_bytes",
@@ -259,6 +271,10 @@ class FidelitySpec:
 
 
 FAULT_KINDS = ("crash", "slow", "degrade", "drop")
+#: Largest ``slow`` fault factor (a step 1000 times slower is a stopped node).
+MAX_SLOW_FACTOR = 1000.0
+#: Largest ``degrade`` fault extra one-way delay (s).
+MAX_EXTRA_DELAY = 3600.0
 DROP_MESSAGES = ("trigger", "state", "command")
 
 
@@ -275,10 +291,10 @@ class FaultSpec:
             is the alignment tick number).
         node: target node of crash/slow/drop.
         host: target host of degrade.
-        start: start time (s).
+        start: start time (s), finite.
         end: end time (s); inf = until the end.
-        factor: slow-down factor (>= 1).
-        extra_delay: extra one-way delay (s).
+        factor: slow-down factor, 1..1000.
+        extra_delay: extra one-way delay (s), 0..3600.
         extra_loss: extra loss probability in [0, 1).
         message: ``drop``: ``trigger``, ``state`` or ``command``.
         frame: ``drop``: frame (or command tick) of the dropped message.
@@ -299,10 +315,12 @@ class FaultSpec:
         require(
             self.kind in FAULT_KINDS, "kind", f"must be one of {FAULT_KINDS}, got {self.kind!r}"
         )
-        require(self.start >= 0, "start", f"must be >= 0 s, got {self.start}")
+        require(
+            0 <= self.start < math.inf, "start", f"must be a finite time >= 0 s, got {self.start}"
+        )
         require(self.end > self.start, "end", f"must be > start ({self.start}), got {self.end}")
-        require(self.factor >= 1, "factor", f"must be >= 1, got {self.factor}")
-        require_nonneg(self, "extra_delay")
+        require_in(self, "factor", 1.0, MAX_SLOW_FACTOR)
+        require_in(self, "extra_delay", 0.0, MAX_EXTRA_DELAY, " s")
         require(0 <= self.extra_loss < 1, "extra_loss", f"must be in [0, 1), got {self.extra_loss}")
         require(
             self.message in DROP_MESSAGES,

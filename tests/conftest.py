@@ -18,6 +18,8 @@ TINY: dict[str, Any] = {
     "f_trig": 100.0,
     "f_align": 25.0,
     "f_render": 25.0,
+    "align_phase": 0.0,
+    "render_phase": 0.0,
     "duration": 1.0,
     "warmup": 0.2,
     "net": {

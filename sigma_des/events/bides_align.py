@@ -25,7 +25,12 @@ Decisions where DESIGN §3 leaves room (documented here and in the tests):
 
 * An excluded (lagging) node is EXTRAPOLATED: ``obs`` linearly extrapolated
   from its two newest buffered frames to ``F`` (a copy of the newest if it has
-  only one), ``gen_time`` and ``frame`` those of its newest state.
+  only one) and reported at ``frame`` ``F`` (DESIGN §3: the slot stands for the
+  aligned frame), ``gen_time`` that of its newest state (so its AoI stays honest).
+* So a shown state's ``frame`` differs from ``F`` only for a hole shown as a
+  single buffered neighbour (held older state, or with ``hole_fill`` the oldest
+  newer state when every older one has left the ring): the only cases of a
+  non-zero frame spread.
 * MISSING rows have ``frame = -1``, ``gen_time = NaN`` and ``obs = NaN``.
 """
 
@@ -259,7 +264,7 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
                 o_old = ob[i, s_old, c] if two else o_new
                 obs[i, c] = o_new + w * (o_new - o_old)
             gen[i] = gt[i, s_new]
-            frame[i] = f1
+            frame[i] = F
             flag[i] = EXTRAPOLATED
             continue
         s_exact = -1

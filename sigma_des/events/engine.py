@@ -153,9 +153,22 @@ class MethodRun:
         self.collector.rate_change(self.kernel.now, f_trig)
 
     def barrier_done(self, frame: int) -> None:
-        """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``)."""
-        t_k = self.trig_time[frame % self.H]
-        self.kernel.at(max(self.kernel.now, t_k + 1.0 / self.f_trig), self._issue, priority=TRIGGER)
+        """Lock-Step: schedule trigger ``frame+1`` (not sooner than 1/f_trig after ``frame``).
+
+        The earliest time comes from the trigger grid ``t0 + (k - k0) / f`` (by
+        multiplication, so it never drifts); a barrier that completes later than that
+        issues the trigger at once and restarts the grid there.
+        """
+        k = frame + 1
+        t0, k0, f = self._base
+        if self.f_trig != f:  # the rate changed: count periods from trigger ``frame``
+            t0, k0, f = self._base = (float(self.trig_time[frame % self.H]), frame, self.f_trig)
+        t = t0 + (k - k0) / f
+        now = self.kernel.now
+        if t < now:  # the barrier was late: trigger now, count periods from here
+            t = now
+            self._base = (now, k, f)
+        self.kernel.at(t, self._issue, priority=TRIGGER)
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
@@ -354,7 +367,7 @@ class MethodRun:
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
-        self.kernel.at(self.align_tick / self.sc.f_align, self._align, priority=ALIGN)
+        self.kernel.at(self._align_time(self.align_tick), self._align, priority=ALIGN)
 
     def _send_commands(self, t: float) -> None:
         al = self.aligner
@@ -396,7 +409,15 @@ class MethodRun:
             ref,
         )
         self.render_tick += 1
-        self.kernel.at(self.render_tick / self.sc.f_render, self._render, priority=RENDER)
+        self.kernel.at(self._render_time(self.render_tick), self._render, priority=RENDER)
+
+    def _align_time(self, j: int) -> float:
+        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (multiplied, no drift)."""
+        return (j + self.sc.align_phase) / self.sc.f_align
+
+    def _render_time(self, j: int) -> float:
+        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
+        return (j + self.sc.render_phase) / self.sc.f_render
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at ``fidelity.log_rate`` Hz of physics time, so far."""
@@ -410,11 +431,11 @@ class MethodRun:
     # ------------------------------------------------------------ run
 
     def start(self) -> None:
-        """Schedule the first trigger, alignment tick and render tick at t = 0."""
+        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases)."""
         k = self.kernel
         k.at(0.0, self._issue, priority=TRIGGER)
-        k.at(0.0, self._align, priority=ALIGN)
-        k.at(0.0, self._render, priority=RENDER)
+        k.at(self._align_time(0), self._align, priority=ALIGN)
+        k.at(self._render_time(0), self._render, priority=RENDER)
 
     def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
         """Run to ``duration`` and return the collector's results."""

@@ -37,7 +37,7 @@ METRIC_UNITS: dict[str, str] = {
     "throughput_mbps": "Mbps",
     "throughput_max_link_mbps": "Mbps",
     "packets_per_s": "1/s",
-    "messages_per_s": "1/s",
+    "deliveries_per_s": "1/s",
     "trigger_rate_hz": "Hz",
     "f_trig_final_hz": "Hz",
     "f_trig_min_hz": "Hz",
@@ -51,6 +51,7 @@ METRIC_UNITS: dict[str, str] = {
     "pos_err_max": "m",
     "filled_frac": "1",
     "extrapolated_frac": "1",
+    "off_frame_frac": "1",
     "duplicates": "count",
     "retransmissions": "count",
     "gave_up": "count",
@@ -109,7 +110,7 @@ class Collector:
         self._aoi_samples: list[NDArray[np.float64]] = []
         self._spread: list[int] = []
         self._pos_err: list[NDArray[np.float64]] = []
-        self._flag_counts = [0, 0, 0]  # shown, filled, extrapolated
+        self._flag_counts = [0, 0, 0, 0]  # shown, filled, extrapolated, off the ref frame
         self.ts: dict[str, list[float]] = {
             k: []
             for k in (
@@ -201,6 +202,8 @@ class Collector:
         self._flag_counts[0] += int(valid.sum())
         self._flag_counts[1] += int(np.count_nonzero(flag == FILLED))
         self._flag_counts[2] += int(np.count_nonzero(flag == EXTRAPOLATED))
+        if ref >= 0:
+            self._flag_counts[3] += int(np.count_nonzero(frame[valid] != ref))
         ts = self.ts
         ts["t"].append(t)
         ts["aoi_mean"].append(float(ages.mean()) if ages.size else math.nan)
@@ -234,7 +237,7 @@ class Collector:
         m["throughput_mbps"] = total_bytes * 8 / window / 1e6
         m["throughput_max_link_mbps"] = max(ld.bytes for ld in links) * 8 / window / 1e6
         m["packets_per_s"] = sum(ld.packets for ld in links) / window
-        m["messages_per_s"] = self.messages / window
+        m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["f_trig_final_hz"] = run.f_trig
         m["f_trig_min_hz"] = self.f_trig_min
@@ -256,6 +259,7 @@ class Collector:
         shown = max(1, self._flag_counts[0])
         m["filled_frac"] = self._flag_counts[1] / shown
         m["extrapolated_frac"] = self._flag_counts[2] / shown
+        m["off_frame_frac"] = self._flag_counts[3] / shown
         m["duplicates"] = self.duplicates
         m["retransmissions"] = net.retransmissions
         m["gave_up"] = net.gave_up

@@ -79,7 +79,17 @@ def load_samples(path: str) -> NDArray[np.float64]:
         mtime = os.stat(full).st_mtime_ns
     except OSError as exc:
         raise ConfigError("file", f"empirical sample file not found: {path!r} ({exc})") from exc
-    return _load_cached(full, mtime)
+    if os.path.isdir(full):
+        raise ConfigError("file", f"{path!r} is a directory, not a sample file")
+    try:
+        return _load_cached(full, mtime)
+    except UnicodeDecodeError as e:
+        raise ConfigError(
+            "file", f"{path!r} is not a text file (undecodable byte at offset {e.start}); "
+            "expected one sample in seconds per line"
+        ) from None
+    except OSError as e:
+        raise ConfigError("file", f"cannot read {path!r}: {e.strerror or e}") from None
 
 
 @lru_cache(maxsize=64)

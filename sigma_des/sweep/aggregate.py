@@ -17,12 +17,12 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-__all__ = ["AGG_COLUMNS", "aggregate_rows", "cell", "t975", "write_csv"]
+__all__ = ["AGG_COLUMNS", "aggregate_rows", "cell", "csv_writer", "t975", "write_csv"]
 
 #: Statistic columns of an aggregate row (after the group columns).
 AGG_COLUMNS: tuple[str, ...] = ("n", "mean", "std", "ci95")
@@ -93,13 +93,24 @@ def aggregate_rows(
     return out
 
 
+def csv_writer(
+    rows: Iterable[Mapping[str, Any]], columns: Sequence[str]
+) -> Callable[[IO[str]], None]:
+    """A writer of ``rows`` as CSV in the given column order (lists/tables as JSON)."""
+
+    def write(fh: IO[str]) -> None:
+        w = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({c: cell(r.get(c, "")) for c in columns})
+
+    return write
+
+
 def write_csv(rows: Iterable[Mapping[str, Any]], path: str | Path, columns: Sequence[str]) -> Path:
     """Write ``rows`` as CSV with the given column order (lists/tables as JSON)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     with p.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(columns), extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({c: cell(r.get(c, "")) for c in columns})
+        csv_writer(rows, columns)(fh)
     return p

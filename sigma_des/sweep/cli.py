@@ -68,6 +68,8 @@ def add_sweep_args(sp: argparse.ArgumentParser) -> None:
         "--retry-failed", action="store_true", help="run again the runs stored as failed"
     )
     sp.add_argument("--dry-run", action="store_true", help="validate and print the plan only")
+    sp.add_argument("--force", action="store_true",
+                    help="run even if the memory estimate exceeds the available memory")
     sp.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -78,6 +80,10 @@ def run_sweep_command(args: argparse.Namespace, base: Scenario) -> int:
         ConfigError: invalid grid, method or seed (before any work).
     """
     grid = parse_grid_args(args.grid)
+    if args.out:  # a bad output location must not cost the whole sweep
+        from sigma_des.outputs import check_out_dir
+
+        check_out_dir(args.out)
     store = Path(args.store) if args.store else None
     if store is None:
         store = Path(args.out) / "sweep.sqlite" if args.out else Path("sweep.sqlite")
@@ -87,6 +93,11 @@ def run_sweep_command(args: argparse.Namespace, base: Scenario) -> int:
         raise ConfigError("--workers", f"must be >= 1, got {args.workers}")
     with Sweep(base, grid, args.methods, args.seeds, store) as sw:
         pending = sw.pending(args.retry_failed)
+        if pending and not args.force:  # the largest run, once per worker at a time
+            from sigma_des.budget import check_memory, estimate_bytes
+
+            big = max(pending, key=lambda t: estimate_bytes(t.scenario)).scenario
+            check_memory(big, 1 if args.in_process else args.workers)
         workers = 1 if args.in_process else args.workers
         print(f"sweep: {sw.describe()}")
         print(

@@ -11,6 +11,8 @@ started here is shut down.
 from __future__ import annotations
 
 import logging
+import signal
+import threading
 import traceback
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -57,11 +59,13 @@ def executor(client: Any, n_workers: int) -> Iterator[Submit]:
 
     def submit(fn: TaskFn, tasks: Sequence[Task]) -> Iterator[tuple[Task, dict[str, Any]]]:
         owner = {}
+        batch = []
         for i, t in enumerate(tasks):
             fut = dc.submit(execute, fn, t.scenario, t.method, pure=False, priority=len(tasks) - i)
             owner[fut.key] = t
-            futures.append(fut)
-        for fut in as_completed(futures):
+            batch.append(fut)
+        futures.extend(batch)  # cancelled on exit if still running
+        for fut in as_completed(batch):
             t = owner[fut.key]
             if fut.status == "finished":
                 yield t, fut.result()
@@ -82,11 +86,30 @@ def executor(client: Any, n_workers: int) -> Iterator[Submit]:
             cluster.close()
 
 
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while worker processes start, so they inherit the disposition.
+
+    Ctrl-C reaches every process of the terminal's group; the workers then stay
+    quiet (no ``KeyboardInterrupt`` traceback each) while the client, which still
+    handles it, cancels the runs and shuts the cluster down. Python installs its
+    ``KeyboardInterrupt`` handler only where SIGINT is not ignored at start-up.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def local_cluster(n_workers: int) -> Any:
     """A LocalCluster bound to 127.0.0.1 only: processes, one thread each, no dashboard."""
     from dask.distributed import LocalCluster
 
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), _sigint_ignored():
         # the scheduler's small HTTP endpoint falls back to a free loopback port
         warnings.filterwarnings("ignore", message="Port .* is already in use")
         return LocalCluster(

@@ -98,6 +98,20 @@ def parse_grid_args(items: Iterable[str]) -> dict[str, list[Any]]:
 _RANGE = re.compile(r"^\s*(\d+)\s*\.\.\s*(\d+)\s*$")
 
 
+#: Most seeds one sweep may run (each is a run per point and method).
+MAX_SEEDS = 100_000
+
+
+def _seed_range(first: int, last: int) -> range:
+    """Seeds ``first..last``, refused before it is built if there are too many."""
+    if last - first + 1 > MAX_SEEDS:
+        raise ConfigError(
+            "seeds", f"at most {MAX_SEEDS} seeds per sweep, got {first}..{last} "
+            f"({last - first + 1})"
+        )
+    return range(first, last + 1)
+
+
 def parse_seeds(text: str | int | Sequence[int]) -> list[int]:
     """Seeds from ``"5"`` (= 1..5), ``"1,2,3"``, ``"3..7"`` (inclusive) or a list.
 
@@ -108,17 +122,19 @@ def parse_seeds(text: str | int | Sequence[int]) -> list[int]:
     if isinstance(text, bool):
         raise ConfigError("seeds", f"must be a count or a list of integers, got {text!r}")
     if isinstance(text, int):
-        seeds = list(range(1, text + 1))
+        seeds = list(_seed_range(1, text))
     elif isinstance(text, str):
         s = text.strip()
         m = _RANGE.match(s)
         try:
             if m:
-                seeds = list(range(int(m.group(1)), int(m.group(2)) + 1))
+                seeds = list(_seed_range(int(m.group(1)), int(m.group(2))))
             elif "," in s:
                 seeds = [int(x) for x in s.split(",") if x.strip()]
             else:
-                seeds = list(range(1, int(s) + 1))
+                seeds = list(_seed_range(1, int(s)))
+        except ConfigError:
+            raise
         except ValueError:
             raise ConfigError(
                 "seeds", f"must be N (= 1..N), a..b or a comma list of integers, got {text!r}"
@@ -127,6 +143,8 @@ def parse_seeds(text: str | int | Sequence[int]) -> list[int]:
         seeds = list(text)
     if not seeds:
         raise ConfigError("seeds", f"names no seed: {text!r}")
+    if len(seeds) > MAX_SEEDS:
+        raise ConfigError("seeds", f"at most {MAX_SEEDS} seeds per sweep, got {len(seeds)}")
     for s_ in seeds:
         if isinstance(s_, bool) or not isinstance(s_, int) or not 0 <= s_ < 2**63:
             raise ConfigError("seeds", f"every seed must be an integer in 0..2^63-1, got {s_!r}")
@@ -194,8 +212,8 @@ def _check_key(key: str) -> None:
     if not isinstance(key, str) or not key:
         raise ConfigError(str(key), "a grid key must be a non-empty dotted string")
     if key in RESERVED_KEYS:
-        arg = "--seeds" if key == "seed" else "--methods"
-        raise ConfigError(key, f"cannot be a grid axis; use {arg} (Sweep(..., {key}s=...))")
+        arg, param = ("--seeds", "seeds") if key == "seed" else ("--methods", "methods")
+        raise ConfigError(key, f"cannot be a grid axis; use {arg} (Sweep(..., {param}=...))")
 
 
 def format_point(point: Mapping[str, Any]) -> str:
@@ -212,6 +230,8 @@ def apply_point(base: Scenario, point: Mapping[str, Any]) -> Scenario:
         ConfigError: unknown key, wrong type or out-of-range value, naming the key.
     """
     data = to_dict(base)
+    if getattr(base, "hosts_auto", False):
+        data["hosts"] = 0  # placed anew from the point's nodes (unless it sets hosts)
     for key, value in point.items():
         parts = key.split(".")
         cur: dict[str, Any] = data

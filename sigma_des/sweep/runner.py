@@ -19,7 +19,10 @@ the sweep goes on; rerunning skips every stored run (failed ones too, unless
 
 from __future__ import annotations
 
+import os
+import socket
 import time
+import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,7 +30,8 @@ from typing import Any
 
 from sigma_des.config import Scenario, to_dict
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
-from sigma_des.sweep.aggregate import aggregate_rows, write_csv
+from sigma_des.outputs import check_out_dir, write_files
+from sigma_des.sweep.aggregate import aggregate_rows, csv_writer
 from sigma_des.sweep.executors import executor
 from sigma_des.sweep.grid import (
     Grid,
@@ -57,6 +61,7 @@ class RunReport:
         failed: of those, failed (stored with their error).
         wall_s: wall time of this call.
         failures: (key, last line of the error) of every failed run of the sweep.
+        elsewhere: (key, ``host:pid``) of runs left to another live sweep on the store.
     """
 
     total: int = 0
@@ -67,6 +72,7 @@ class RunReport:
     failed: int = 0
     wall_s: float = 0.0
     failures: list[tuple[RunKey, str]] = field(default_factory=list)
+    elsewhere: list[tuple[RunKey, str]] = field(default_factory=list)
 
     def text(self) -> str:
         """One-paragraph human summary."""
@@ -76,6 +82,12 @@ class RunReport:
         )
         if self.failed_before:
             s += f"; {self.failed_before} failed earlier and not retried (use --retry-failed)"
+        if self.elsewhere:
+            who = sorted({w for _k, w in self.elsewhere})
+            s += (
+                f"; {len(self.elsewhere)} being run by another sweep on this store "
+                f"({', '.join(who)}): rerun this command when it is done to include them"
+            )
         for key, err in self.failures:
             s += f"\n  FAILED {key[2]} seed={key[1]} config={key[0]}: {err}"
         return s
@@ -115,6 +127,7 @@ class Sweep:
         self.scenarios = validate_points(base, self.points)
         self.task = task
         self.store = ResultStore(store)
+        self._stored_configs: set[str] = set()
         self._tasks = [
             Task(i, p, replace(sc, seed=seed, methods=(m,)), m)
             for i, (p, sc) in enumerate(zip(self.points, self.scenarios, strict=True))
@@ -183,41 +196,67 @@ class Sweep:
         keys = list(dict.fromkeys(t.key for t in self._tasks))
         todo = self.pending(retry_failed)
         todo.sort(key=lambda t: -t.cost)  # longest first: shorter makespan
-        rep = RunReport(total=len(keys), submitted=len(todo))
+        rep = RunReport(total=len(keys))
         rep.done_before = sum(1 for k in keys if st.get(k) == "ok")
         rep.failed_before = 0 if retry_failed else sum(1 for k in keys if st.get(k) == "failed")
-        stored_configs: set[str] = set()
+        inprocess = client == "inprocess" or not todo
+        # claim a few runs at a time, so concurrent sweeps on this store share the work
+        chunk = 1 if inprocess else 4 * max(1, n_workers)
+        owner = f"{socket.gethostname()}:{os.getpid()}:{uuid.uuid4().hex[:8]}"
+        self._tried: set[RunKey] = set()
         bar = None
         try:
-            with executor("inprocess" if not todo else client, n_workers) as submit:
+            with executor("inprocess" if inprocess else client, n_workers) as submit:
                 bar = self._bar(todo) if progress and todo else None  # once connected
-                for task, payload in submit(self.task, todo):
-                    h = task.key[0]
-                    if h not in stored_configs:
-                        self.store.put_config(h, _scenario_record(task.scenario))
-                        stored_configs.add(h)
-                    self.store.put(task.key, payload["status"], payload)
-                    if payload["status"] == "ok":
-                        rep.ok += 1
-                    else:
-                        rep.failed += 1
-                    if bar is not None:
-                        bar.set_postfix_str(
-                            f"runs {rep.ok + rep.failed}/{len(todo)}, failed {rep.failed}",
-                            refresh=False,
-                        )
-                        bar.update(task.cost)
-                    if on_record is not None:
-                        on_record(task, payload)
+                while True:
+                    batch = self._claim(todo, owner, chunk, retry_failed)
+                    if not batch:
+                        break
+                    rep.submitted += len(batch)
+                    for task, payload in submit(self.task, batch):
+                        self._store(task, payload, rep, bar, len(todo))
+                        if on_record is not None:
+                            on_record(task, payload)
         finally:
+            self.store.release(owner)
             if bar is not None:
                 bar.close()
+        rep.elsewhere = self.store.leased([t.key for t in todo], owner)
         rep.wall_s = time.perf_counter() - t0
         rep.failures = [
             ((r["config_hash"], r["seed"], r["method"]), _last_line(r["error"]))
             for r in self.failed()
         ]
         return rep
+
+    def _claim(
+        self, todo: list[Task], owner: str, chunk: int, retry_failed: bool
+    ) -> list[Task]:
+        """Claim (lease) the next up to ``chunk`` unclaimed runs of ``todo``."""
+        by_key = {t.key: t for t in todo if t.key not in self._tried}
+        lease_s = max(600.0, 20.0 * max((t.cost for t in todo), default=0.0))
+        got = self.store.claim(list(by_key), owner, lease_s, chunk, retry_failed)
+        self._tried.update(got)  # a run is tried once per call, even if it fails again
+        return [by_key[k] for k in got]
+
+    def _store(
+        self, task: Task, payload: dict[str, Any], rep: RunReport, bar: Any, n: int
+    ) -> None:
+        """Store one result (and its scenario, once) and count it."""
+        h = task.key[0]
+        if h not in self._stored_configs:
+            self.store.put_config(h, _scenario_record(task.scenario))
+            self._stored_configs.add(h)
+        self.store.put(task.key, payload["status"], payload)
+        if payload["status"] == "ok":
+            rep.ok += 1
+        else:
+            rep.failed += 1
+        if bar is not None:
+            bar.set_postfix_str(
+                f"runs {rep.ok + rep.failed}/{n}, failed {rep.failed}", refresh=False
+            )
+            bar.update(task.cost)
 
     def _bar(self, todo: Sequence[Task]) -> Any:
         from tqdm import tqdm
@@ -282,10 +321,20 @@ class Sweep:
         return [*self.keys, "config_hash", "method", "metric", "unit", "n", "mean", "std", "ci95"]
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
-        """Write ``runs.csv`` (tidy per-run rows) and ``aggregate.csv`` into ``out_dir``."""
-        d = Path(out_dir)
-        runs = write_csv(self.rows(), d / "runs.csv", self.row_columns())
-        agg = write_csv(self.aggregate(), d / "aggregate.csv", self.aggregate_columns())
+        """Write ``runs.csv`` (tidy per-run rows) and ``aggregate.csv`` (deterministic:
+        no wall-time figures) and ``wall.csv`` (the per-run wall-time rows) into ``out_dir``."""
+        d = check_out_dir(out_dir)
+        wall = [r for r in self.rows() if r["metric"] in WALL_METRICS]
+        runs, agg, _wall = write_files(
+            d,
+            {
+                "runs.csv": csv_writer(self.rows(include_wall=False), self.row_columns()),
+                "aggregate.csv": csv_writer(
+                    self.aggregate(include_wall=False), self.aggregate_columns()
+                ),
+                "wall.csv": csv_writer(wall, self.row_columns()),
+            },
+        )
         return runs, agg
 
     def describe(self) -> str:

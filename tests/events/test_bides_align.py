@@ -73,7 +73,7 @@ def test_lag_exclusion_and_extrapolation() -> None:
     np.testing.assert_array_equal(r.flag, [EXACT, EXACT, EXTRAPOLATED])
     # 1.5 + (1.5 - 1.0) * (9 - 5) / (5 - 4) = 3.5
     np.testing.assert_array_equal(r.obs[2], [3.5, 3.5])
-    assert r.frame[2] == 5 and r.gen_time[2] == 2.05
+    assert r.frame[2] == 9 and r.gen_time[2] == 2.05  # shown at F (issue 9.3)
     # theta_lag large enough (5) or None: node 2 holds everyone back
     for theta in (5, None):
         r = align(buf, theta_lag=theta, hole_fill=True)
@@ -89,7 +89,7 @@ def test_excluded_node_with_single_state_is_copied() -> None:
     _fill(buf, 1, [3])
     r = align(buf, theta_lag=4, hole_fill=False)
     assert r.aligned_frame == 20
-    assert (r.flag[1], r.frame[1], r.obs[1, 0]) == (EXTRAPOLATED, 3, 3.0)
+    assert (r.flag[1], r.frame[1], r.obs[1, 0]) == (EXTRAPOLATED, 20, 3.0)
 
 
 def test_aligned_frame_never_decreases() -> None:
@@ -196,7 +196,7 @@ def _reference(buf: RingBuffers, theta_lag: int | None, hole_fill: bool, prev: i
                 o = o1 + (o1 - st[f0][1]) * (F - f1) / (f1 - f0)
             else:
                 o = o1
-            res.frame[i], res.gen_time[i], res.obs[i], res.flag[i] = f1, g1, o, EXTRAPOLATED
+            res.frame[i], res.gen_time[i], res.obs[i], res.flag[i] = F, g1, o, EXTRAPOLATED
             continue
         if F in st:
             res.frame[i], (res.gen_time[i], res.obs[i]), res.flag[i] = F, st[F], EXACT
@@ -349,7 +349,7 @@ def _numpy_align(buf: RingBuffers, theta_lag: int | None, hole_fill: bool,
         w = ((F - f1) / (f1 - f0))[:, None]
         obs[idx] = o_new + w * (o_new - o_old)
         gen[idx] = buf.gen_time[idx, s_new[idx]]
-        frame[idx] = f1
+        frame[idx] = F
         flag[idx] = EXTRAPOLATED
 
     return AlignResult(aligned_frame=F, frame=frame, gen_time=gen, obs=obs, flag=flag)

@@ -45,7 +45,7 @@ METRIC_COLUMNS = [
     "aoi_peak_mean_ms",
     "trigger_rate_hz",
     "throughput_mbps",
-    "messages_per_s",
+    "deliveries_per_s",
     "snapshot_rate_hz",
     "spread_mean",
     "pos_err_mean_m",
@@ -147,7 +147,7 @@ def test_quick_run_writes_tables_and_csv_and_engines_agree(tmp_path: Path) -> No
         for col in (
             "trigger_rate_hz",
             "throughput_mbps",
-            "messages_per_s",
+            "deliveries_per_s",
             "snapshot_rate_hz",
             "spread_mean",
         ):
@@ -269,7 +269,7 @@ def test_random_latencies_overload_and_reordering_match_engine(qos: int) -> None
         "trigger_rate_hz",
         "throughput_mbps",
         "packets_per_s",
-        "messages_per_s",
+        "deliveries_per_s",
         "snapshot_rate_hz",
         "spread_mean",
         "pos_err_mean",

@@ -111,3 +111,15 @@ def test_mm1_fcfs_closed_form(rho: float, max_rel_se: float) -> None:
     # Peak AoI of M/M/1 FCFS: 1/lambda + 1/(mu - lambda)
     assert out["peak_count"] == n - 1000  # updates at t >= t_start (depart[1000] on)
     assert out["peak_mean"] == pytest.approx(1 / lam + 1 / (mu - lam), rel=0.03)
+
+
+def test_deliveries_per_s_counts_each_receiver_once() -> None:
+    """Issue 9.4: the tiny scenario (3 nodes, 100 Hz, no commands, no loss) delivers
+    every trigger to 3 nodes and every state to the server: 300 + 300 per second."""
+    from sigma_des import compare
+    from tests.conftest import tiny
+
+    for engine in ("events", "cohort"):
+        m = compare(tiny(engine=engine), ["none"], progress=False).methods["none"]
+        assert m["deliveries_per_s"] == 600.0
+        assert "messages_per_s" not in m

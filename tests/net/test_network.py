@@ -115,9 +115,9 @@ def test_qos1_datagram_duplicates_are_counted_not_double_counted() -> None:
     m = res.methods["none"]
     assert m["duplicates"] > 0
     assert m["retransmissions"] > 0
-    # unique messages: at most one trigger and one state per node and frame, and one
+    # first deliveries: at most one trigger and one state per node and frame, and one
     # command per node every 3rd alignment tick (60 Hz / 3)
-    assert m["messages_per_s"] <= 6 * 100 + 6 * 100 + 6 * 20 + 1
+    assert m["deliveries_per_s"] <= 6 * 100 + 6 * 100 + 6 * 20 + 1
 
 
 def test_duplicate_delivery_changes_no_metric() -> None:

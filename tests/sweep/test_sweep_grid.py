@@ -125,5 +125,13 @@ def test_cli_sweep_in_process_writes_tables_and_resumes(
         agg = list(csv.DictReader(fh))
     assert list(agg[0])[-4:] == ["n", "mean", "std", "ci95"]
     assert {r["n"] for r in agg if r["metric"] == "aoi_mean"} == {"2"}
+    # run-cost figures live in wall.csv only (issue 9.12)
+    assert not {r["metric"] for r in rows + agg} & {"wall_s", "events_per_s", "peak_rss_mb"}
+    with (out / "wall.csv").open() as fh:
+        wall = list(csv.DictReader(fh))
+    assert {r["metric"] for r in wall} == {
+        "wall_s", "events", "events_per_s", "peak_rss_mb", "speed_x_realtime"
+    }
+    assert len(wall) == 4 * 5
     assert main(argv) == 0
     assert "4 already done, 0 run now" in capsys.readouterr().out

@@ -1,0 +1,96 @@
+"""Output directories and atomic file writes shared by ``compare`` and ``sweep``.
+
+An output location is checked *before* a run (so a bad ``--out`` costs nothing),
+and a set of files is written under temporary names and renamed into place only
+once every one of them was written, so a failed write never leaves a
+``results.csv`` without the ``summary.json`` that belongs to it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+from typing import IO
+
+from sigma_des.errors import ConfigError
+
+__all__ = ["check_out_dir", "write_files"]
+
+#: A writer fills one open text file.
+Writer = Callable[[IO[str]], None]
+
+
+def check_out_dir(path: str | Path, key: str = "--out") -> Path:
+    """Make sure ``path`` is (or can become) a writable directory; create it.
+
+    Args:
+        path: the output directory.
+        key: the option or key named in the error message.
+
+    Returns:
+        The directory, created if it did not exist.
+
+    Raises:
+        ConfigError: ``path`` is a file, lies under a file, or cannot be written.
+    """
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise ConfigError(key, f"{d} is an existing file, not a directory")
+    for parent in d.parents:
+        if parent.exists() and not parent.is_dir():
+            raise ConfigError(key, f"{d} lies under {parent}, which is a file")
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=d, prefix=".probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise ConfigError(key, f"cannot write to directory {d}: {e.strerror or e}") from None
+    return d
+
+
+@contextlib.contextmanager
+def _temporaries(d: Path) -> Iterator[list[Path]]:
+    made: list[Path] = []
+    try:
+        yield made
+    except BaseException:
+        for p in made:
+            with contextlib.suppress(OSError):
+                p.unlink()
+        raise
+
+
+def write_files(out_dir: str | Path, files: Mapping[str, Writer]) -> list[Path]:
+    """Write every file of ``files`` into ``out_dir``, all or none.
+
+    Each file is written to a temporary name in the same directory; only when all
+    were written are they renamed to their final names (``os.replace`` is atomic).
+
+    Args:
+        out_dir: an existing, writable directory (see :func:`check_out_dir`).
+        files: final file name -> function writing its content.
+
+    Returns:
+        The final paths, in the order of ``files``.
+
+    Raises:
+        ConfigError: a file could not be written (nothing of this call is left behind).
+    """
+    d = Path(out_dir)
+    finals = [d / name for name in files]
+    try:
+        with _temporaries(d) as tmps:
+            for name, writer in files.items():
+                fd, tmp_name = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".tmp")
+                tmps.append(Path(tmp_name))
+                with os.fdopen(fd, "w", newline="") as fh:
+                    writer(fh)
+            for tmp, final in zip(tmps, finals, strict=True):
+                os.replace(tmp, final)
+    except OSError as e:
+        raise ConfigError("--out", f"cannot write {d}: {e.strerror or e}") from None
+    return finals

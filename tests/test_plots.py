@@ -1,0 +1,51 @@
+"""compare --out draws the comparison's plots; --no-plots skips them (issue 9.13)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sigma_des.plots as plots
+from sigma_des.cli import main
+
+SETS = ["--set", "nodes=3", "--set", "duration=1.0", "--set", "warmup=0.2",
+        "--set", "dynamics=pointmass", "--set", "fidelity.enabled=false", "--no-progress",
+        "--methods", "none,bides"]
+
+
+def test_compare_out_writes_the_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "o"
+    assert main(["compare", *SETS, "--out", str(out)]) == 0
+    assert "plots: aoi_dist.png, aoi_time.png, trigger_rate.png, spread.png" in (
+        capsys.readouterr().out
+    )
+    for name in plots.PLOTS:
+        data = (out / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [*plots.PLOTS, "results.csv", "summary.json", "wall.csv"]
+    )  # no temporary left behind
+
+
+def test_no_plots_and_missing_matplotlib(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    a = tmp_path / "a"
+    assert main(["compare", *SETS, "--out", str(a), "--no-plots"]) == 0
+    assert not any(p.suffix == ".png" for p in a.iterdir())
+    monkeypatch.setattr(plots, "have_matplotlib", lambda: False)
+    b = tmp_path / "b"
+    assert main(["compare", *SETS, "--out", str(b)]) == 0
+    out = capsys.readouterr().out
+    assert plots.MISSING_NOTE in out
+    assert (b / "results.csv").exists() and not any(p.suffix == ".png" for p in b.iterdir())
+
+
+def test_rate_series_exact() -> None:
+    """A counter advancing 1 per 10 ms, sampled every 40 ms: 100/s in every window."""
+    t = np.arange(0, 1.0, 0.04)
+    t_end, rate = plots.rate_series(t, t * 100.0, window=0.2)
+    assert t_end[0] == t[5] and np.allclose(rate, 100.0)
+    assert plots.rate_series(np.array([0.0]), np.array([1.0]))[0].size == 0
