@@ -42,6 +42,7 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
                    help="nodes publish right after their real step (no drawn step_time)")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="write results.csv, summary.json and messages.csv.gz here")
+    p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="record every message to an MCAP file (sigma_des.record)")
 
@@ -86,6 +87,10 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             raise ConfigError("--record", "needs sigma_des.record (the MCAP recorder), which "
                               "this installation does not have") from None
         rec_cls = Recorder
+    if args.out:  # a bad output location must not cost the whole run
+        from sigma_des.outputs import check_out_dir
+
+        check_out_dir(args.out)
     opts = LiveOptions(broker=args.broker, username=args.username, password=args.password,
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
@@ -108,7 +113,15 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
 
         csv_path, json_path = res.write(args.out)
         mpath = write_messages(msgs, Path(args.out))
-        print(f"wrote {csv_path}, {json_path} and {mpath}")
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path} and {mpath}")
+        if not args.no_plots:
+            from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+
+            if have_matplotlib():
+                paths = write_plots(res, args.out)
+                print(f"plots: {', '.join(p.name for p in paths)}")
+            else:
+                print(MISSING_NOTE)
     if rec_cls is not None:
         from sigma_des.live.messages import record_messages
 

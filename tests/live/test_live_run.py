@@ -30,6 +30,9 @@ def test_writes_compares_files_with_mode_live(live_dir: Path) -> None:
     assert set(summ["methods"]) == {"none", "lockstep", "hlc", "bides"}
     rows = pd.read_csv(live_dir / "results.csv")
     assert set(rows["method"]) == {"none", "lockstep", "hlc", "bides"}
+    # the same files as compare: the run-cost table and the plots too
+    assert set(pd.read_csv(live_dir / "wall.csv")["metric"]) >= {"wall_s"}
+    assert (live_dir / "aoi_time.png").stat().st_size > 1000
     for m, ms in summ["methods"].items():
         assert ms["latency_state_mean"] > 0, m
         assert ms["aoi_mean"] > 0, m
@@ -105,6 +108,14 @@ def test_bad_input_exits_2_naming_the_key(args: list[str], needle: str,
     assert main(["live", "--set", "duration=0.5", "--set", "warmup=0.1", *args]) == 2
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err
+
+
+def test_out_on_a_file_exits_2_before_running(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert main(["live", "--set", "duration=0.5", "--set", "warmup=0.1", "--out", str(f)]) == 2
+    assert "--out" in capsys.readouterr().err
 
 
 def test_calibrate_bad_source_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
