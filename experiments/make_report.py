@@ -648,6 +648,9 @@ plots into `{outputs.name}/<study>/`; `--quick` runs a seconds-long smoke versio
                 + plots_line(name, pngs, outputs)
                 + "\n"
             )
+    from report_interpolation import section as interpolation_section  # issue 12
+
+    body.append(interpolation_section(outputs))
     from report_model_tuning import section as model_tuning_section
 
     body.append(model_tuning_section(outputs))

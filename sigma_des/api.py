@@ -251,6 +251,7 @@ def run_method(
     method: str,
     progress: Callable[[float], None] | None = None,
     ideal: NDArray[np.float64] | None = None,
+    record: str | Path | None = None,
 ) -> dict[str, Any]:
     """Run one method on ``sc`` and return its raw result dict.
 
@@ -260,11 +261,19 @@ def run_method(
         progress: called with the simulated time after every simulated second.
         ideal: ideal-run positions for the fidelity metrics (computed when needed and
             ``sc.fidelity.enabled``).
+        record: record this method's run to this MCAP file (``sc.record`` settings).
     """
     if method not in METHODS:
         raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
+    tap = None
+    if record is not None:
+        from sigma_des.record.tap import RecordTap
+
+        def tap() -> RecordTap:
+            return RecordTap(record, to_dict(sc), method, sc.record)
+
     run, out, engine = execute(
-        sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress
+        sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress, tap
     )
     out["engine"] = engine
     if sc.fidelity.enabled:
@@ -282,6 +291,7 @@ def compare(
     methods: Iterable[str] | None = None,
     progress: bool = True,
     jobs: int = 1,
+    record: str | Path | None = None,
     force: bool = False,
 ) -> Results:
     """Run every method on the same scenario and seed (identical random draws).
@@ -293,6 +303,8 @@ def compare(
         progress: show a progress bar on stderr for runs longer than ~2 s.
         jobs: run up to this many methods at once in worker processes (results are
             identical; only the wall-time figures change).
+        record: also record every method's run into this MCAP file (replaced if it
+            exists; settings from ``sc.record``; see :mod:`sigma_des.record`).
         force: run even when the memory estimate exceeds the available memory.
 
     Raises:
@@ -318,11 +330,12 @@ def compare(
         )
     ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
     outs: dict[str, dict[str, Any]] = {}
+    parts = _record_parts(record, ms)
     if jobs > 1 and len(ms) > 1:
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
         with ProcessPoolExecutor(max_workers=min(jobs, len(ms))) as pool:
-            futures = {pool.submit(run_method, sc, m, None, ideal): m for m in ms}
+            futures = {pool.submit(run_method, sc, m, None, ideal, parts.get(m)): m for m in ms}
             for fut in as_completed(futures):
                 outs[futures[fut]] = fut.result()
                 if bar is not None:
@@ -339,7 +352,7 @@ def compare(
 
             if bar is not None:
                 bar.set_postfix_str(m)
-            outs[m] = run_method(sc, m, tick, ideal)
+            outs[m] = run_method(sc, m, tick, ideal, parts.get(m))
     for m in ms:  # the caller's order, whatever order the workers finished in
         out = outs[m]
         res.methods[m] = out["metrics"]
@@ -351,4 +364,37 @@ def compare(
             res.fidelity[m] = out["fidelity"]
     if bar is not None:
         bar.close()
+    if record is not None:
+        _join_parts(sc, Path(record), [parts[m] for m in ms])
     return res
+
+
+def _record_parts(record: str | Path | None, ms: Sequence[str]) -> dict[str, Path]:
+    """Per-method part files next to ``record`` (joined into it after the runs)."""
+    if record is None:
+        return {}
+    p = Path(record)
+    return {m: p.with_name(f".{p.name}.{m}.part") for m in ms}
+
+
+def _join_parts(sc: Scenario, out: Path, parts: list[Path]) -> None:
+    """Join the per-method recordings into ``out`` (one method: the file is renamed)."""
+    from sigma_des.record.writer import Recorder
+
+    if len(parts) == 1:
+        parts[0].replace(out)
+        return
+    r = sc.record
+    with Recorder(
+        out,
+        scenario=to_dict(sc),
+        mode=r.mode,
+        deadband_pos=r.deadband_pos,
+        deadband_vel=r.deadband_vel,
+        deadband_att=r.deadband_att,
+        keyframe_every=r.keyframe_every,
+    ) as rec:
+        for part in parts:
+            rec.copy_from(part)
+    for part in parts:
+        part.unlink()

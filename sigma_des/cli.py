@@ -9,6 +9,8 @@ Commands:
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
   live     run the scenario live over a real Mosquitto broker (docs/LIVE.md).
   calibrate  fit DES parameters from a live run; writes a scenario TOML.
+  replay   rebuild the trajectories of a recording (compare --record) at any
+           rate with a chosen interpolant; writes a tidy CSV.
   tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
            see sigma_des/tuning); writes a fitted.toml for dynamics_params.
 
@@ -68,6 +70,8 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--jobs", type=int, default=1, metavar="N",
                    help="run up to N methods at once in worker processes (default 1; "
                    "results are identical)")
+    c.add_argument("--record", default=None, metavar="FILE.mcap",
+                   help="also record every run to this MCAP file (settings: record.*)")
 
     g = sub.add_parser("config", help="print the resolved scenario as TOML")
     scenario_args(g)
@@ -77,6 +81,9 @@ def _parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
     scenario_args(s)
     add_sweep_args(s)
+    from sigma_des.replay.cli import add_replay_parser
+
+    add_replay_parser(sub)
 
     from sigma_des.live.cli import add_calibrate_parser, add_live_parser
 
@@ -92,6 +99,10 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
     args = _parser().parse_args(argv)
+    if args.command == "replay":
+        from sigma_des.replay.cli import run_replay
+
+        return run_replay(args)
     if args.command == "tune":
         from sigma_des.tuning.cli import run as run_tune
 
@@ -129,8 +140,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                     )
         if args.out:  # a bad output location must not cost the whole run
             check_out_dir(args.out)
+        if args.record is not None:
+            from sigma_des.record.cli import check_record_path
+
+            check_record_path(args.record)
         res = compare(
-            sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force
+            sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force,
+            record=args.record,
         )
         print(res.table())
         if args.out:

@@ -36,6 +36,7 @@ from sigma_des.specs import (
     LinkSpec,
     LockstepSpec,
     NetSpec,
+    RecordSpec,
     require,
     require_positive,
 )
@@ -53,6 +54,7 @@ __all__ = [
     "METHODS",
     "NODES_PER_HOST",
     "NetSpec",
+    "RecordSpec",
     "Scenario",
     "config_hash",
     "from_dict",
@@ -116,6 +118,7 @@ class Scenario:
         methods: alignment methods to run side by side.
         history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
+        record: how ``--record`` stores runs (not part of the config hash).
     """
 
     seed: int = 1
@@ -147,6 +150,7 @@ class Scenario:
     bides: BidesSpec = field(default_factory=BidesSpec)
     commands: CommandSpec = field(default_factory=CommandSpec)
     fidelity: FidelitySpec = field(default_factory=FidelitySpec)
+    record: RecordSpec = field(default_factory=RecordSpec)
     faults: tuple[FaultSpec, ...] = ()
 
     def __post_init__(self) -> None:
@@ -338,11 +342,12 @@ def to_toml(s: Scenario) -> str:
 
 
 def config_hash(s: Scenario) -> str:
-    """Stable 12-hex-digit hash of everything but the seed, the methods and the engine."""
+    """Stable 12-hex-digit hash of all but the seed, the methods, the engine and ``record``."""
     d = to_dict(s)
     d.pop("seed")
     d.pop("methods")
     d.pop("engine")
+    d.pop("record")
     blob = json.dumps(d, sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:12]
 

@@ -32,6 +32,7 @@ __all__ = [
     "LinkSpec",
     "LockstepSpec",
     "NetSpec",
+    "RecordSpec",
 ]
 
 
@@ -333,3 +334,42 @@ class FaultSpec:
             require(self.node >= 0, "node", f"a {self.kind} fault needs node >= 0")
         else:
             require(self.host >= 0, "host", "a degrade fault needs host >= 0")
+
+
+RECORD_MODES = ("full", "incremental")
+
+
+@dataclass(frozen=True)
+class RecordSpec:
+    """How ``--record`` stores a run in MCAP (see :mod:`sigma_des.record`).
+
+    Recording never changes a result, so this section is not part of the config hash.
+
+    Attributes:
+        mode: ``full`` (every state) or ``incremental`` (per-node deltas; states inside
+            the dead-band are not stored; periodic keyframes).
+        deadband_pos: incremental: a state is stored when its position is further than
+            this from the dead-reckoned one (previous stored position + velocity × time), m.
+        deadband_vel: incremental: ... or its velocity changed by more than this, m/s.
+        deadband_att: incremental: ... or an Euler angle changed by more than this, rad.
+        keyframe_every: incremental: frames between a node's absolute (key) states.
+    """
+
+    mode: str = "full"
+    deadband_pos: float = 0.05
+    deadband_vel: float = 0.1
+    deadband_att: float = 0.02
+    keyframe_every: int = 100
+
+    def __post_init__(self) -> None:
+        require(
+            self.mode in RECORD_MODES, "mode", f"must be one of {RECORD_MODES}, got {self.mode!r}"
+        )
+        for k in ("deadband_pos", "deadband_vel", "deadband_att"):
+            v = getattr(self, k)
+            require(math.isfinite(v) and v >= 0, k, f"must be a finite number >= 0, got {v}")
+        require(
+            1 <= self.keyframe_every <= 1_000_000,
+            "keyframe_every",
+            f"must be in 1..1000000 frames, got {self.keyframe_every}",
+        )

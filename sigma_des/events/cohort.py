@@ -88,6 +88,7 @@ def execute(
     dynamics: Callable[[], DynamicsModel],
     behaviour: Callable[[], Behaviour | None],
     progress: Callable[[float], None] | None = None,
+    tap: Callable[[], Any] | None = None,
 ) -> tuple[MethodRun, dict[str, Any], dict[str, str]]:
     """Run ``method`` on the engine ``sc.engine`` asks for, falling back when needed.
 
@@ -97,19 +98,34 @@ def execute(
         dynamics: makes the dynamics model (called again for a mid-run fallback).
         behaviour: makes a fresh behaviour (behaviours may keep state).
         progress: called with the simulated time after every simulated second.
+        tap: makes a fresh recording tap for each attempt (a mid-run fallback starts
+            the recording again); the tap is closed when its attempt ends.
 
     Returns:
         The finished run, its result dict and ``{"requested", "used", "fallback"}``.
     """
     run, why = make_run(sc, method, dynamics(), behaviour())
     try:
-        out = run.run(progress)
+        out = _attempt(run, progress, tap)
     except CohortFallback as exc:  # met mid-run: redo the whole run per message
         why = str(exc)
         run = MethodRun(sc, method, dynamics(), behaviour())
-        out = run.run(progress)
+        out = _attempt(run, progress, tap)
     used = "events" if why or sc.engine == "events" else "cohort"
     return run, out, {"requested": sc.engine, "used": used, "fallback": why}
+
+
+def _attempt(
+    run: MethodRun, progress: Callable[[float], None] | None, tap: Callable[[], Any] | None
+) -> dict[str, Any]:
+    """One run attempt, recorded through a fresh tap when ``tap`` is given."""
+    if tap is None:
+        return run.run(progress)
+    run.tap = tap()
+    try:
+        return run.run(progress)
+    finally:
+        run.tap.close()
 
 
 _Sampler = Callable[[int, int], NDArray[np.float64]]
@@ -321,6 +337,8 @@ class CohortRun(MethodRun):
         self._ensure_space(2)
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
         J.publish_trigger(self.S, k, self.kernel.now, hl, hc)
+        if self.tap is not None:  # the core keeps no per-node trigger deliveries: the issue
+            self.tap.trigger(-1, k, self.kernel.now, math.nan)
 
     def _send_command_batch(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
@@ -333,6 +351,9 @@ class CohortRun(MethodRun):
         J.publish_commands(
             self.S, tick, stamp, nodes.astype(np.int64), rows, self.kernel.now
         )
+        if self.tap is not None:  # the core keeps no per-node command deliveries: the sends
+            t = self.kernel.now
+            self.tap.commands(nodes, tick, t, np.full(nodes.size, math.nan), rows[nodes])
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         index = frame * 64 + min(retry, 63)
@@ -421,6 +442,8 @@ class CohortRun(MethodRun):
             self.aligner.on_states(
                 of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
             )
+            if self.tap is not None:
+                self.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH])
             iv[CS.I_OUT] = 0
         for k in range(3):
             m = int(iv[CS.I_LAT + k])

@@ -136,6 +136,8 @@ class MethodRun:
         self._base: tuple[float, int, float] = (0.0, 0, sc.f_trig)
         self._prev_gen = np.full(n, np.nan)
         self.wall_seconds = 0.0
+        #: recording tap (``sigma_des.record.tap.RecordTap``), set before ``run``; None: off
+        self.tap: Any = None
 
     # ------------------------------------------------------------ ServerContext
 
@@ -236,6 +238,8 @@ class MethodRun:
     ) -> None:
         t = self.kernel.now
         self.collector.delivered(kind, subject, index, t_pub, t)
+        if self.tap is not None:
+            self._tap_delivery(client, kind, subject, index, payload, t_pub, t)
         if client == self.server:
             frame, gen, obs, stamp = payload
             self.aligner.on_state(t, subject, frame, gen, obs, stamp)
@@ -251,6 +255,28 @@ class MethodRun:
             self._on_command(client, *payload)
         elif kind == REREQUEST:
             self._on_rerequest(client, payload, index)
+
+    def _tap_delivery(
+        self,
+        client: int,
+        kind: int,
+        subject: int,
+        index: int,
+        payload: Any,
+        t_pub: float,
+        t: float,
+    ) -> None:
+        """Hand one delivery (duplicates included) to the recording tap."""
+        if client == self.server:
+            frame, gen, obs, _stamp = payload
+            self.tap.states(
+                np.array([t]), np.array([subject]), np.array([frame]), np.array([gen]),
+                obs[None, :],
+            )
+        elif kind == K_TRIGGER:
+            self.tap.trigger(client, int(payload[0]), t_pub, t)
+        elif kind == COMMAND:
+            self.tap.commands(np.array([client]), index, t_pub, np.array([t]), payload[1][None, :])
 
     def _on_trigger(self, i: int, k: int) -> None:
         if k <= self.node_req[i]:
@@ -364,6 +390,8 @@ class MethodRun:
             self._prev_gen = gen.copy()
         if al.new_snapshot:
             self.collector.snapshot(t)
+            if self.tap is not None:
+                self.tap.snapshot(t, al.aligned_frame, al.shown_frame, al.shown_obs)
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
@@ -408,6 +436,8 @@ class MethodRun:
             self.latest_trigger,
             ref,
         )
+        if self.tap is not None:
+            self.tap.render(t, al.shown_gen)
         self.render_tick += 1
         self.kernel.at(self._render_time(self.render_tick), self._render, priority=RENDER)
 

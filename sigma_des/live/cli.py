@@ -44,7 +44,8 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
                    help="write results.csv, summary.json and messages.csv.gz here")
     p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
-                   help="record every message to an MCAP file (sigma_des.record)")
+                   help="record every message to an MCAP file (sigma_des.record; "
+                   "settings: record.*)")
 
 
 def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -79,13 +80,13 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         raise ConfigError("--broker-port", "is for our own broker; it cannot go with --broker")
     rec_cls = None
     if args.record is not None:
-        if not args.record.endswith(".mcap"):
-            raise ConfigError("--record", f"must name a .mcap file, got {args.record!r}")
         try:
-            from sigma_des.record import Recorder  # the recorder subpackage (issue 12)
+            from sigma_des.record import Recorder
+            from sigma_des.record.cli import check_record_path
         except ImportError:
-            raise ConfigError("--record", "needs sigma_des.record (the MCAP recorder), which "
-                              "this installation does not have") from None
+            raise ConfigError("--record", "needs the MCAP recorder's packages: "
+                              "pip install 'sigma-des[record]'") from None
+        check_record_path(args.record)
         rec_cls = Recorder
     if args.out:  # a bad output location must not cost the whole run
         from sigma_des.outputs import check_out_dir

@@ -90,7 +90,10 @@ def record_messages(recorder_cls: Any, path: str, res: Any, msgs: pd.DataFrame,
     """
     sc = res.scenario
     host_of = np.asarray(sc.host_of)
-    with recorder_cls(path, scenario=to_dict(sc), mode="full") as rec:
+    r = sc.record
+    with recorder_cls(path, scenario=to_dict(sc), mode=r.mode, deadband_pos=r.deadband_pos,
+                      deadband_vel=r.deadband_vel, deadband_att=r.deadband_att,
+                      keyframe_every=r.keyframe_every) as rec:
         for method in res.methods:
             run = rec.run(method, mode="live")
             m = msgs[msgs["method"] == method]

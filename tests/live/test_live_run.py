@@ -99,7 +99,7 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
         (["--set", 'faults=[{kind="drop", node=0, frame=3, message="state"}]'],
          "faults[0].kind: live mode runs 'crash' and 'slow'"),
         (["--set", "nodes=0"], "nodes: must be in"),
-        (["--record", "x.txt"], "--record: must name a .mcap file"),
+        (["--record", "x.txt"], "--record: x.txt: the file name must end in .mcap"),
         (["--broker-port", "0"], "--broker-port: must be in 1..65535"),
     ],
 )
@@ -153,7 +153,8 @@ class _FakeRun:
 class _FakeRecorder:
     last: _FakeRecorder | None = None
 
-    def __init__(self, path: str, scenario: dict[str, object], mode: str) -> None:
+    def __init__(self, path: str, scenario: dict[str, object], mode: str,
+                 **settings: object) -> None:
         self.path, self.scenario, self.mode = path, scenario, mode
         self.runs: dict[str, tuple[str, _FakeRun]] = {}
         _FakeRecorder.last = self
@@ -192,3 +193,25 @@ def test_record_call_sites_follow_the_recorder_contract() -> None:
     snap = c["snapshot"][0]
     assert snap["pos"].shape == (4, 3)  # type: ignore[attr-defined]
     assert len(c["render"]) > 0 and c["render"][0]["aoi"].shape == (4,)  # type: ignore[attr-defined]
+
+
+def test_live_record_reads_back_every_channel(tmp_path: Path) -> None:
+    from sigma_des.record import read_table
+
+    rec = tmp_path / "live.mcap"
+    sets = [a for s in LIVE_SETS for a in ("--set", s)]
+    assert main(["live", *sets, "--methods", "bides", "--out", str(tmp_path / "o"),
+                 "--record", str(rec)]) == 0
+    t = read_table(rec)
+    msgs = pd.read_csv(tmp_path / "o" / "messages.csv.gz")
+    counts = t.groupby("kind").size().to_dict()
+    assert set(counts) == {"trigger", "state", "command", "snapshot", "render"}
+    assert counts["trigger"] == 2 * int((msgs["kind"] == "trigger").sum())  # per node
+    assert counts["state"] == int((msgs["kind"] == "state").sum())
+    # commands are recorded as sent (with the host's receive time when it got them)
+    assert counts["command"] >= int((msgs["kind"] == "command").sum()) > 0
+    st = t[t["kind"] == "state"]
+    assert (st["t_recv"] >= st["t_send"]).all() and set(st["method"]) == {"bides"}
+    # calibration also reads a recording (the scenario from its metadata)
+    assert main(["calibrate", str(rec), "--out", str(tmp_path / "cal.toml")]) == 0
+    assert load(str(tmp_path / "cal.toml")).nodes == 4

@@ -1,0 +1,30 @@
+"""Recording runs to MCAP and reading them back (the replay memory's storage).
+
+The writer (:class:`Recorder`) makes one channel per method and message kind with
+JSON schemas a standard viewer decodes (aligned snapshots as Foxglove's
+``foxglove.PosesInFrame``); the reader returns tidy tables (:func:`read_table`) and
+per-node states (:func:`read_states`). ``mode="incremental"`` stores states as
+per-node deltas with a dead-band and keyframes (:mod:`sigma_des.record.delta`).
+"""
+
+from sigma_des.record.reader import (
+    RecordError,
+    Recording,
+    StateTable,
+    open_recording,
+    read_states,
+    read_table,
+)
+from sigma_des.record.writer import RECORD_MODES, MethodRecorder, Recorder
+
+__all__ = [
+    "MethodRecorder",
+    "RECORD_MODES",
+    "RecordError",
+    "Recorder",
+    "Recording",
+    "StateTable",
+    "open_recording",
+    "read_states",
+    "read_table",
+]
