@@ -9,7 +9,7 @@ import pytest
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import Broker, BrokerAddress, free_port, parse_broker, wait_port
 from sigma_des.live.loop import Client
-from tests.live.conftest import needs_mosquitto
+from tests.live.live_helpers import needs_mosquitto
 
 
 def _connect(addr: BrokerAddress) -> Client:

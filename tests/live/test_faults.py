@@ -18,7 +18,7 @@ from sigma_des.live.loop import Client
 from sigma_des.live.runner import LiveOptions, run_live
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics, encode_state, encode_trigger
-from tests.live.conftest import LIVE_SETS, live_scenario, needs_mosquitto
+from tests.live.live_helpers import LIVE_SETS, live_scenario, needs_mosquitto
 
 pytestmark = needs_mosquitto
 

@@ -11,7 +11,7 @@ import pytest
 
 from sigma_des.cli import main
 from sigma_des.config import load
-from tests.live.conftest import LIVE_SETS, needs_mosquitto
+from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto
 

@@ -1,8 +1,7 @@
-"""Live tests need the mosquitto executable; they skip (saying why) only when it is absent."""
+"""Helpers of the live tests: they need the mosquitto executable and skip (saying why)
+only when it is absent; the small live scenario."""
 
 from __future__ import annotations
-
-from typing import Any
 
 import pytest
 
@@ -21,8 +20,3 @@ LIVE_SETS = ["nodes=4", "hosts=2", "duration=1.5", "warmup=0.3"]
 def live_scenario(*extra: str) -> Scenario:
     """The small live scenario with ``extra`` overrides."""
     return load(None, LIVE_SETS + list(extra))
-
-
-@pytest.fixture
-def small() -> Any:
-    return live_scenario
