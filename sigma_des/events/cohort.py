@@ -32,7 +32,7 @@ from sigma_des.config import Scenario
 from sigma_des.events import cohort_jit as J
 from sigma_des.events import cohort_state as CS
 from sigma_des.events.aligners import OBS_WIDTH
-from sigma_des.events.engine import _ROLLBACK, _STEP, MethodRun
+from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.hlc import Stamp
 from sigma_des.net.draws import DrawCache
 
@@ -472,6 +472,25 @@ class CohortRun(MethodRun):
         if progress is not None:
             progress(dur)
         self._write_back()
+
+    def advance_until(self, stop: Callable[[], bool]) -> int:
+        """:meth:`MethodRun.advance_until` with messages run by the compiled core."""
+        env = self.kernel.env
+        dur = self.sc.duration
+        while True:
+            if stop():
+                return PAUSED
+            tc = env.peek()
+            last = tc >= dur
+            if self._messages(dur if last else tc, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            self._flush()
+            if last:
+                self._write_back()
+                return END
+            if self.pending_state is None and self._head_is_issue():
+                return TRIGGER_DUE
+            env.step()
 
     def _write_back(self) -> None:
         """Copy the core's counters into the objects the collector reads."""

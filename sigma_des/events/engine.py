@@ -40,10 +40,15 @@ from sigma_des.net.network import COMMAND, REPUBLISH, REREQUEST, STATE, Network
 from sigma_des.net.network import TRIGGER as K_TRIGGER
 from sigma_des.rng import RandomStreams
 
-__all__ = ["MethodRun"]
+__all__ = ["MethodRun", "PAUSED", "TRIGGER_DUE", "END"]
 
 _STEP = 0
 _ROLLBACK = 1
+
+#: Stop codes of :meth:`MethodRun.advance_until` (the stepping hook of ``sigma_des.env``).
+PAUSED = 0
+TRIGGER_DUE = 1
+END = 2
 
 
 class MethodRun:
@@ -136,6 +141,9 @@ class MethodRun:
         self._base: tuple[float, int, float] = (0.0, 0, sc.f_trig)
         self._prev_gen = np.full(n, np.nan)
         self.wall_seconds = 0.0
+        #: the state of the next trigger's frame, computed outside (batched physics of
+        #: ``sigma_des.env``); None: :meth:`_issue` steps the swarm itself
+        self.pending_state: NDArray[np.float64] | None = None
         #: recording tap (``sigma_des.record.tap.RecordTap``), set before ``run``; None: off
         self.tap: Any = None
 
@@ -203,7 +211,12 @@ class MethodRun:
         self.frame_dt[slot] = dt
         self.phys_t += dt
         self.phys_hist[slot] = self.phys_t
-        self.state = self.dyn.step(self.state, self.cmd, dt, k, self._nodes)
+        pending = self.pending_state
+        if pending is None:
+            self.state = self.dyn.step(self.state, self.cmd, dt, k, self._nodes)
+        else:  # stepped outside with the very same (state, cmd, dt, k): see advance_until
+            self.pending_state = None
+            self.state = pending
         if self.ckpt.shape[0]:
             self.ckpt[slot] = self.state
         self.obs_hist[slot] = self.dyn.observe(self.state)
@@ -487,6 +500,39 @@ class MethodRun:
             gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
         return self.collector.finish(self)
+
+    def next_trigger(self) -> tuple[int, float]:
+        """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""
+        return self.latest_trigger + 1, 1.0 / self.f_trig
+
+    def _head_is_issue(self) -> bool:
+        q = self.kernel.env._queue  # type: ignore[attr-defined]
+        return bool(q) and getattr(q[0][3], "fn", None) == self._issue
+
+    def advance_until(self, stop: Callable[[], bool]) -> int:
+        """Process events one by one until ``stop()`` holds, a trigger is due, or the end.
+
+        The stepping hook of ``sigma_des.env`` (call :meth:`start` first). Returns
+        ``PAUSED`` when ``stop()`` became true after an event (e.g. a behaviour that
+        only captured the view at a command tick: the caller then publishes commands
+        with :meth:`_send_command_batch` at the same simulated time, exactly as if the
+        behaviour had returned them); ``TRIGGER_DUE`` when the next event is a trigger
+        issue and :attr:`pending_state` is None: every message at or before its time
+        has been processed, so ``self.cmd`` is final and the caller may step
+        ``(self.state, self.cmd, *self.next_trigger())`` itself (batched with other
+        runs), set :attr:`pending_state` and call again; ``END`` when the next event
+        is at or after ``duration``. Processing order is that of :meth:`run`.
+        """
+        env = self.kernel.env
+        dur = self.sc.duration
+        while True:
+            if stop():
+                return PAUSED
+            if env.peek() >= dur:
+                return END
+            if self.pending_state is None and self._head_is_issue():
+                return TRIGGER_DUE
+            env.step()
 
     def _advance(self, progress: Callable[[float], None] | None) -> None:
         """Process every event at a time ``< duration`` (nothing at exactly ``duration``).

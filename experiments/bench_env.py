@@ -1,0 +1,141 @@
+"""Agent-steps per second of the vectorised swarm env, per method, and memory per scene.
+
+The formation task with 11 nodes (a scripted leader and 10 learning agents), the
+env's default scenario otherwise (point mass, 50 Hz triggers, 20 Hz alignment, a
+decision every 2nd tick = 5 physics frames per decision, datagram QoS 0, cohort
+engine), for 1, 10 and 500 scenes and each alignment method. An agent-step is one
+agent's decision: ``scenes x 10`` per env step. Times are the thread's CPU time
+(``time.thread_time``, one core), the best of ``--reps`` batches of ``--steps``
+steps after a reset (reset excluded). ``--variant const`` also runs every case with
+a constant compute time (no per-frame random draws). Memory per scene: Python heap
+allocated by ``reset`` (tracemalloc) of a batch of ``--mem-scenes`` scenes / scenes.
+For reference, the same scenario run on its own by the simulator (no env; the
+built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
+
+Usage: ``python experiments/bench_env.py [--quick] [--out /work/out/env]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import os
+import time
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from sigma_des import __version__  # noqa: E402
+from sigma_des.config import METHODS  # noqa: E402
+from sigma_des.env import SwarmVec  # noqa: E402
+
+AGENTS = 10
+VARIANTS = {"default": {}, "const": {"compute.step_time": 0.002}}
+
+
+def make(method: str, scenes: int, variant: str) -> SwarmVec:
+    """The benchmarked env."""
+    scenario = {"nodes": AGENTS + 1, **VARIANTS[variant]}
+    return SwarmVec(method=method, n_scenes=scenes, scenario=scenario, max_steps=10_000)
+
+
+def speed(method: str, scenes: int, variant: str, steps: int, reps: int) -> dict[str, Any]:
+    """Agent-steps/s (CPU time, best batch) of one case."""
+    env = make(method, scenes, variant)
+    env.reset(seed=1)
+    actions = np.zeros((scenes, AGENTS, 3))
+    actions[..., 0] = 0.5  # fly north at 10 m/s: the leader's start
+    best = float("inf")
+    for _ in range(reps):
+        t = time.thread_time()
+        for _ in range(steps):
+            env.step(actions)
+        best = min(best, time.thread_time() - t)
+    return {"method": method, "scenes": scenes, "variant": variant, "steps": steps,
+            "agent_steps_per_s": scenes * AGENTS * steps / best,
+            "ms_per_scene_step": best / (scenes * steps) * 1e3}
+
+
+def plain(method: str, decisions: int) -> dict[str, Any]:
+    """The same scenario run on its own (behaviour ``follow``, no env): ms per decision."""
+    from dataclasses import replace
+
+    from sigma_des.events.cohort import make_run
+    from sigma_des.factory import make_behaviour, make_dynamics
+
+    env = make(method, 1, "default")
+    period = env.sc.commands.every / env.sc.f_align
+    sc = replace(env.sc, duration=decisions * period,
+                 commands=replace(env.sc.commands, behaviour="follow"))
+    run, _ = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+    t = time.thread_time()
+    run.run()
+    dt = time.thread_time() - t
+    return {"method": method, "decisions": decisions, "ms_per_decision": dt / decisions * 1e3}
+
+
+def memory(method: str, scenes: int) -> float:
+    """Python heap bytes per scene allocated by ``reset`` (tracemalloc)."""
+    env = make(method, scenes, "default")
+    tracemalloc.start()
+    before = tracemalloc.get_traced_memory()[0]
+    env.reset(seed=1)
+    after = tracemalloc.get_traced_memory()[0]
+    tracemalloc.stop()
+    return (after - before) / scenes
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark, print the table, write CSV and JSON."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="1 and 2 scenes, few steps")
+    ap.add_argument("--steps", type=int, default=10)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--mem-scenes", type=int, default=50)
+    ap.add_argument("--variant", choices=["default", "const", "both"], default="both")
+    ap.add_argument("--out", default="out/env")
+    args = ap.parse_args(argv)
+    sizes = (1, 2) if args.quick else (1, 10, 500)
+    steps = 2 if args.quick else args.steps
+    reps = 1 if args.quick else args.reps
+    mem_scenes = 2 if args.quick else args.mem_scenes
+    variants = ["default", "const"] if args.variant == "both" else [args.variant]
+    make("none", 1, "default").reset(seed=1)  # compile/warm the kernels outside the timing
+    rows = []
+    for variant in variants:
+        for scenes in sizes:
+            for method in METHODS:
+                r = speed(method, scenes, variant, steps if scenes < 500 else max(2, steps // 2),
+                          reps)
+                rows.append(r)
+                print(f"{variant:8s} {method:9s} {scenes:4d} scenes: "
+                      f"{r['agent_steps_per_s']:9.0f} agent-steps/s "
+                      f"({r['ms_per_scene_step']:.3f} ms per scene-step)", flush=True)
+    plains = [plain(m, 20 if args.quick else 500) for m in METHODS]
+    for p in plains:
+        print(f"plain run {p['method']:9s}: {p['ms_per_decision']:.3f} ms per decision period "
+              "(the simulator alone, same scenario, built-in behaviour)", flush=True)
+    mem = {m: memory(m, mem_scenes) for m in METHODS}
+    for m, b in mem.items():
+        print(f"memory per scene ({m}): {b / 1024:.1f} KiB", flush=True)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with (out / "bench.csv").open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=[*rows[0], "version"])
+        w.writeheader()
+        for r in rows:
+            w.writerow({**r, "version": __version__})
+    (out / "bench.json").write_text(json.dumps(
+        {"version": __version__, "agents": AGENTS, "rows": rows, "plain": plains,
+         "memory_bytes_per_scene": mem, "mem_scenes": mem_scenes, "quick": args.quick},
+        indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,13 @@
+"""Multi-agent learning over the distributed loop (PettingZoo and vectorised envs).
+
+``SwarmEnv`` is a PettingZoo ``ParallelEnv`` of one scene; ``SwarmVec`` the
+batched array API over many isolated scenes with physics batched across them;
+``SwarmVectorEnv`` its Gymnasium vector adapter. Tasks, observations, actions and
+rewards: :mod:`sigma_des.env.tasks`; details and figures: ``docs/ENV.md``.
+"""
+
+from sigma_des.env.parallel import SwarmEnv
+from sigma_des.env.tasks import TASKS, FormationTask, GoalTask
+from sigma_des.env.vector import SwarmVec, SwarmVectorEnv
+
+__all__ = ["SwarmEnv", "SwarmVec", "SwarmVectorEnv", "TASKS", "FormationTask", "GoalTask"]

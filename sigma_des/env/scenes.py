@@ -1,0 +1,200 @@
+"""Isolated scenes over the distributed loop, with physics batched across scenes.
+
+A :class:`Scene` is one run of the simulator (:class:`~sigma_des.events.engine.MethodRun`
+or the cohort engine, picked as in ``sigma-des compare``) whose behaviour only
+*captures* the aligned view at each command tick: the run pauses there, the
+learner decides, and the decisions are published as commands at the same
+simulated time — exactly what a behaviour returning them would have done (see
+``MethodRun.advance_until``). Each scene has its own kernel, broker, links,
+aligner, collector and random streams; its scenario seed is a counter-based
+function of ``(root seed, scene index, episode)``, so a scene's episodes never
+depend on how many scenes run beside it.
+
+:class:`SceneBatch` drives many scenes: every scene is advanced to its next
+trigger issue (all messages before it processed, so its command rows are final),
+then the physics of every waiting scene is stepped in one call of the dynamics
+model per distinct ``(frame, dt)`` (rows are independent, so this is bit-identical
+to each scene stepping alone), and the scenes go on, until each has paused at its
+next command tick or reached the end of its scenario.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.agents.base import DynamicsModel, SwarmView
+from sigma_des.config import Scenario
+from sigma_des.env.tasks import Task
+from sigma_des.events.cohort import make_run
+from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.rng import RandomStreams, mix
+
+__all__ = ["Scene", "SceneBatch", "scene_seed"]
+
+Array = NDArray[np.float64]
+_SEED_KEY = np.uint64(0x5CE7E5EED0000001)
+
+
+def scene_seed(root: int, scene: int, episode: int) -> int:
+    """The scenario seed of ``episode`` of ``scene`` under ``root`` (63-bit)."""
+    key = mix(_SEED_KEY, int(root) & 0x7FFFFFFFFFFFFFFF, scene, episode)
+    return int(key[0] >> np.uint64(1))
+
+
+class _Capture:
+    """A behaviour that records the view of each command tick and sends nothing."""
+
+    name = "env"
+
+    def __init__(self) -> None:
+        self.view: SwarmView | None = None
+
+    def commands(self, view: SwarmView, dynamics: DynamicsModel) -> Array:
+        self.view = view
+        return np.full((view.obs.shape[0], dynamics.command_dim), np.nan)
+
+
+class _Placed:
+    """The shared dynamics model with the task's fixed initial state."""
+
+    def __init__(self, dyn: DynamicsModel, initial: Array) -> None:
+        self._dyn = dyn
+        self._initial = initial
+        self.name = dyn.name
+        self.state_dim = dyn.state_dim
+        self.command_dim = dyn.command_dim
+
+    def initial_state(self, n: int) -> Array:
+        return self._initial.copy()
+
+    def __getattr__(self, item: str) -> Any:
+        return getattr(self._dyn, item)
+
+
+class Scene:
+    """One isolated episode of the distributed loop (see module docstring).
+
+    Args:
+        sc: the scenario of this episode (its seed already derived).
+        method: alignment method.
+        dyn: the dynamics model (shared by all scenes: models are pure).
+        task: the task.
+    """
+
+    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task) -> None:
+        self.capture = _Capture()
+        initial = task.initial_state(dyn, sc.nodes)
+        self.run: MethodRun = make_run(sc, method, _Placed(dyn, initial), self.capture)[0]  # type: ignore[arg-type]
+        self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
+                               dyn.observe(initial))
+        self.done = False
+        self.ended = False
+        self.tick = -1
+        self.run.start()
+
+    @property
+    def view(self) -> SwarmView:
+        """The aligned view of the current command tick."""
+        assert self.capture.view is not None
+        return self.capture.view
+
+    def captured(self) -> bool:
+        """True once the current command tick's view has been captured."""
+        return self.capture.view is not None
+
+    def publish(self, nodes: NDArray[np.int64], cmds: Array) -> None:
+        """Send the command rows of ``nodes`` (stamped with the shown frame) and resume."""
+        view = self.view
+        if nodes.size:
+            self.run._send_command_batch(self.tick, view.aligned_frame, nodes, cmds)
+        self.capture.view = None
+
+    def truth(self) -> Array:
+        """True ``(n, 12)`` published-state columns at the latest issued frame."""
+        return self.run.dyn.observe(self.run.state)
+
+    def now(self) -> float:
+        """Simulated time (s)."""
+        return self.run.kernel.now
+
+
+class SceneBatch:
+    """``n_scenes`` isolated scenes stepped together (see module docstring).
+
+    Args:
+        sc: the scenario (its ``seed`` is replaced per scene and episode).
+        method: alignment method.
+        dyn: the dynamics model.
+        task: the task.
+        n_scenes: number of scenes.
+        scene_ids: the identity of each scene in its seed (default ``0..n_scenes-1``);
+            scenes with the same id replay the same episodes (common random numbers).
+    """
+
+    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
+                 n_scenes: int, scene_ids: list[int] | None = None) -> None:
+        self.sc = sc
+        self.method = method
+        self.dyn = dyn
+        self.task = task
+        self.n_scenes = n_scenes
+        self.ids = list(range(n_scenes)) if scene_ids is None else [int(i) for i in scene_ids]
+        if len(self.ids) != n_scenes:
+            raise ValueError(f"scene_ids: needs {n_scenes} ids, got {len(self.ids)}")
+        self.root = sc.seed
+        self.episode = [0] * n_scenes
+        self.scenes: list[Scene] = []
+
+    def reset(self, root: int | None) -> None:
+        """Restart every scene (episode 0 under ``root`` if given, else the next episode)."""
+        if root is not None:
+            self.root = int(root)
+            self.episode = [0] * self.n_scenes
+        elif self.scenes:
+            self.episode = [e + 1 for e in self.episode]
+        self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+        self.advance(self.scenes)
+
+    def reset_scene(self, s: int) -> None:
+        """Restart scene ``s`` at its next episode."""
+        self.episode[s] += 1
+        self.scenes[s] = self._fresh(s)
+        self.advance([self.scenes[s]])
+
+    def _fresh(self, s: int) -> Scene:
+        sc = replace(self.sc, seed=scene_seed(self.root, self.ids[s], self.episode[s]))
+        return Scene(sc, self.method, self.dyn, self.task)
+
+    def advance(self, scenes: list[Scene]) -> None:
+        """Run ``scenes`` to their next command tick (or end), physics batched."""
+        todo = [s for s in scenes if not s.ended]
+        while todo:
+            due: list[Scene] = []
+            for s in todo:
+                code = s.run.advance_until(s.captured)
+                if code == TRIGGER_DUE:
+                    due.append(s)
+                elif code == PAUSED:
+                    s.tick = s.run.align_tick - 1
+                elif code == END:
+                    s.ended = True
+            self._step_physics(due)
+            todo = due
+
+    def _step_physics(self, due: list[Scene]) -> None:
+        groups: dict[tuple[int, float], list[Scene]] = {}
+        for s in due:
+            groups.setdefault(s.run.next_trigger(), []).append(s)
+        for (k, dt), group in groups.items():
+            runs = [s.run for s in group]
+            state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
+            cmd = np.concatenate([r.cmd for r in runs]) if len(runs) > 1 else runs[0].cmd
+            nodes = np.concatenate([r._nodes for r in runs])
+            new = self.dyn.step(state, cmd, dt, k, nodes)
+            n = self.sc.nodes
+            for j, r in enumerate(runs):
+                r.pending_state = new[j * n : (j + 1) * n]

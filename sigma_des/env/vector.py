@@ -1,0 +1,238 @@
+"""Vectorised swarm env: ``n_scenes`` isolated scenes x agents, as batched arrays.
+
+:class:`SwarmVec` is the batched array API: ``reset(seed)`` returns observations
+``(n_scenes, n_agents, obs_dim)`` float32 and an info dict of ``(n_scenes,
+n_agents)`` arrays; ``step(actions)`` takes ``(n_scenes, n_agents, 3)`` actions in
+[-1, 1] and returns observations, rewards ``(S, A)``, terminations and truncations
+``(S, A)`` bool and infos. A scene whose episode ended is reset on the *next* step
+(Gymnasium's ``next-step`` autoreset: that step ignores its actions and returns its
+first observation with zero reward). Episode ends are per scene: a collision or a
+divergence of any agent terminates the scene's agents; ``max_steps`` (or the end
+of the scenario) truncates them.
+
+:class:`SwarmVectorEnv` adapts it to Gymnasium's :class:`~gymnasium.vector.VectorEnv`
+with one sub-environment per (scene, agent) pair, scene-major (SuperSuit's
+convention for parameter-shared multi-agent training): ``num_envs = S * A``.
+
+Infos: ``aoi`` (s, age of the agent's own shown state: now - its generation
+time; NaN before any), ``frame`` (frame of the shown own state), ``error`` (true
+slot or goal error, m), ``t`` (simulated time, per scene), ``episode`` (per scene).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.agents.base import SwarmView
+from sigma_des.env.options import EnvOptions, build_scenario
+from sigma_des.env.scenes import Scene, SceneBatch
+from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task
+from sigma_des.factory import make_dynamics
+
+__all__ = ["SwarmVec", "SwarmVectorEnv", "check_actions"]
+
+Array = NDArray[np.float64]
+
+
+def check_actions(actions: Any, shape: tuple[int, ...], names: list[str]) -> Array:
+    """``actions`` as float64 if valid, else a ValueError naming the agent and field.
+
+    Args:
+        actions: the batch of actions, shape ``shape`` ending in ``ACTION_DIM``.
+        shape: the required shape.
+        names: one name per row of the flattened leading axes (for messages).
+    """
+    a = np.asarray(actions)
+    if a.shape != shape:
+        raise ValueError(f"actions: shape must be {shape}, got {a.shape}")
+    if not np.issubdtype(a.dtype, np.floating):
+        raise ValueError(f"actions: dtype must be floating point, got {a.dtype}")
+    flat = a.reshape(-1, ACTION_DIM).astype(np.float64)
+    bad = ~np.isfinite(flat)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise ValueError(f"{names[r]}: action[{c}] is {flat[r, c]} (must be finite)")
+    out = np.abs(flat) > 1.0
+    if out.any():
+        r, c = np.argwhere(out)[0]
+        raise ValueError(f"{names[r]}: action[{c}] = {flat[r, c]} outside the action "
+                         "space [-1, 1]")
+    return flat.reshape(shape)
+
+
+class SwarmVec:
+    """Batched array API over ``n_scenes`` scenes (see module docstring).
+
+    Args:
+        task: ``formation`` or ``goal``.
+        method: alignment method.
+        n_scenes: number of isolated scenes.
+        scenario: scenario overrides (dotted keys -> values), see ``options``.
+        task_params: task parameters (fields of the task class).
+        max_steps: decisions per episode.
+        perfect_info: observe the true state instead of the aligned view.
+        seed: root seed (overrides ``scenario['seed']`` if given).
+        autoreset: reset finished scenes on the next step (else stepping one is an error).
+        scene_ids: identity of each scene in its seed (default ``0..n_scenes-1``):
+            scenes sharing an id replay the same episodes (common random numbers).
+
+    Raises:
+        ConfigError: (a ValueError) an unknown task, key or out-of-range option.
+    """
+
+    def __init__(self, task: str = "formation", method: str = "bides", n_scenes: int = 1,
+                 scenario: Mapping[str, Any] | None = None,
+                 task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
+                 perfect_info: bool = False, seed: int | None = None,
+                 autoreset: bool = True, scene_ids: list[int] | None = None) -> None:
+        self.opts = EnvOptions(task, method, max_steps, perfect_info, n_scenes)
+        self.task = make_task(task, dict(task_params or {}))
+        self.sc = build_scenario(self.opts, scenario)
+        self.dyn = make_dynamics(self.sc)
+        self.agent_nodes = self.task.agents(self.sc.nodes)
+        if not self.agent_nodes:
+            raise ValueError(f"nodes: the {task} task needs at least 2 nodes")
+        self.n_scenes = n_scenes
+        self.n_agents = len(self.agent_nodes)
+        self.obs_dim = self.task.obs_dim
+        self.autoreset = autoreset
+        self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes, scene_ids)
+        self._seed = self.sc.seed if seed is None else int(seed)
+        self.steps = np.zeros(n_scenes, dtype=np.int64)
+        self.done = np.ones(n_scenes, dtype=bool)
+        self._started = False
+        self._names = [f"scene {s} node_{i}" for s in range(n_scenes) for i in self.agent_nodes]
+
+    # ------------------------------------------------------------ API
+    def reset(self, seed: int | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Restart every scene: episode 0 under ``seed``, else each scene's next episode."""
+        root = seed if seed is not None else (None if self._started else self._seed)
+        self.batch.reset(root)
+        self._started = True
+        self.steps[:] = 0
+        self.done[:] = False
+        obs = np.stack([self._observe(s) for s in self.batch.scenes])
+        return obs, self._infos(None)
+
+    def step(self, actions: Any) -> tuple[NDArray[np.float32], Array, NDArray[np.bool_],
+                                          NDArray[np.bool_], dict[str, Any]]:
+        """One decision of every scene's agents (see module docstring)."""
+        if not self._started:
+            raise RuntimeError("step() before reset(): call reset() first")
+        a = check_actions(actions, (self.n_scenes, self.n_agents, ACTION_DIM), self._names)
+        if self.done.any() and not self.autoreset:
+            s = int(np.flatnonzero(self.done)[0])
+            raise RuntimeError(f"scene {s}: the episode is finished; call reset()")
+        scenes = self.batch.scenes
+        restart = np.flatnonzero(self.done)
+        live = [s for s in range(self.n_scenes) if not self.done[s]]
+        for s in live:
+            sc = scenes[s]
+            if sc.ended:  # nothing was ever shown before the scenario's end: truncated below
+                continue
+            view = self._view(sc)
+            nodes, cmds = self.task.commands(a[s], view, sc.ep, sc.now(), self.agent_nodes,
+                                             self.dyn)
+            sc.publish(nodes, cmds)
+        for s in restart.tolist():
+            self.batch.episode[s] += 1
+            scenes[s] = self.batch._fresh(s)
+        self.batch.advance([scenes[s] for s in range(self.n_scenes)])
+        S, A = self.n_scenes, self.n_agents
+        rew = np.zeros((S, A))
+        term = np.zeros((S, A), dtype=bool)
+        trunc = np.zeros((S, A), dtype=bool)
+        err = np.full((S, A), np.nan)
+        for s in live:
+            sc = scenes[s]
+            r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
+            rew[s], err[s] = r, e
+            self.steps[s] += 1
+            term[s] = bool(fail.any())
+            trunc[s] = not term[s, 0] and (self.steps[s] >= self.opts.max_steps or sc.ended)
+        self.steps[restart] = 0
+        self.done[:] = term[:, 0] | trunc[:, 0]
+        obs = np.stack([self._observe(sc) for sc in scenes])
+        return obs, rew, term, trunc, self._infos(err)
+
+    # ------------------------------------------------------------ helpers
+    def _view(self, sc: Scene) -> SwarmView:
+        if not self.opts.perfect_info:
+            return sc.view
+        run = sc.run
+        n = self.sc.nodes
+        k = run.latest_trigger
+        return SwarmView(obs=sc.truth(), frame=np.full(n, k, dtype=np.int64),
+                         valid=np.ones(n, dtype=bool), aligned_frame=k)
+
+    def _observe(self, sc: Scene) -> NDArray[np.float32]:
+        if sc.ended:
+            return np.zeros((self.n_agents, self.obs_dim), dtype=np.float32)
+        return self.task.observe(self._view(sc), sc.ep, sc.now(), self.agent_nodes)
+
+    def _infos(self, err: Array | None) -> dict[str, Any]:
+        S, A = self.n_scenes, self.n_agents
+        aoi = np.full((S, A), np.nan)
+        frame = np.full((S, A), -1, dtype=np.int64)
+        t = np.zeros(S)
+        for s, sc in enumerate(self.batch.scenes):
+            t[s] = sc.now()
+            if sc.captured():
+                gen = sc.run.aligner.shown_gen[self.agent_nodes]
+                aoi[s] = t[s] - gen
+                frame[s] = sc.view.frame[self.agent_nodes]
+        return {"aoi": aoi, "frame": frame, "t": t,
+                "error": err if err is not None else np.full((S, A), np.nan),
+                "episode": np.array(self.batch.episode, dtype=np.int64)}
+
+
+class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
+    """Gymnasium vector adapter: one sub-env per (scene, agent), scene-major.
+
+    Args:
+        **kwargs: the arguments of :class:`SwarmVec`.
+    """
+
+    metadata = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+
+    def __init__(self, **kwargs: Any) -> None:
+        self.vec = SwarmVec(**kwargs)
+        v = self.vec
+        self.num_envs = v.n_scenes * v.n_agents
+        self.single_observation_space = gymnasium.spaces.Box(
+            -OBS_CLIP, OBS_CLIP, (v.obs_dim,), dtype=np.float32)
+        self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, (ACTION_DIM,),
+                                                        dtype=np.float32)
+        self.observation_space = gymnasium.vector.utils.batch_space(
+            self.single_observation_space, self.num_envs)
+        self.action_space = gymnasium.vector.utils.batch_space(
+            self.single_action_space, self.num_envs)
+
+    def _flat_infos(self, infos: dict[str, Any]) -> dict[str, Any]:
+        A = self.vec.n_agents
+        return {k: (np.repeat(v, A) if v.ndim == 1 else v.reshape(-1)) for k, v in infos.items()}
+
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every scene (``options`` must be empty: the env takes none per reset)."""
+        if options:
+            raise ValueError(f"options: unknown reset options {sorted(options)}; "
+                             "configure the env at construction")
+        obs, infos = self.vec.reset(seed)
+        return obs.reshape(self.num_envs, -1), self._flat_infos(infos)
+
+    def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
+        """Step with ``(num_envs, 3)`` actions."""
+        v = self.vec
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs, ACTION_DIM):
+            raise ValueError(f"actions: shape must be {(self.num_envs, ACTION_DIM)}, "
+                             f"got {a.shape}")
+        obs, r, te, tr, infos = v.step(a.reshape(v.n_scenes, v.n_agents, ACTION_DIM))
+        return (obs.reshape(self.num_envs, -1), r.reshape(-1), te.reshape(-1), tr.reshape(-1),
+                self._flat_infos(infos))

@@ -1,0 +1,25 @@
+"""experiments/bench_env.py: smoke run at tiny scale (no timing asserted)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import bench_env  # noqa: E402
+
+from sigma_des.config import METHODS  # noqa: E402
+
+
+def test_quick_run_writes_every_case(tmp_path: Path) -> None:
+    assert bench_env.main(["--quick", "--variant", "default", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "bench.json").read_text())
+    cases = {(r["method"], r["scenes"]) for r in data["rows"]}
+    assert cases == {(m, s) for m in METHODS for s in (1, 2)}
+    assert all(r["agent_steps_per_s"] > 0 for r in data["rows"])
+    # a scene holds at least its history rings: 64 frames x 11 nodes x 12 float64
+    assert all(b > 64 * 11 * 12 * 8 for b in data["memory_bytes_per_scene"].values())
+    assert (tmp_path / "bench.csv").read_text().count("\n") == len(data["rows"]) + 1

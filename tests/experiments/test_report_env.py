@@ -1,0 +1,35 @@
+"""experiments/report_env.py turns quick env outputs into docs/ENV.md text."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import bench_env  # noqa: E402
+import report_env  # noqa: E402
+import train_formation  # noqa: E402
+
+
+def test_report_from_quick_outputs(tmp_path: Path) -> None:
+    assert "no `bench.json`" in report_env.build(tmp_path)  # missing outputs are said
+    bench_env.main(["--quick", "--variant", "default", "--out", str(tmp_path)])
+    train_formation.main(["--quick", "--out", str(tmp_path / "train")])
+    summary = json.loads((tmp_path / "train" / "summary.json").read_text())
+    summary["args"]["seed"] = 5
+    (tmp_path / "train_seed5").mkdir()
+    (tmp_path / "train_seed5" / "summary.json").write_text(json.dumps(summary))
+    doc = tmp_path / "ENV.md"
+    assert report_env.main(["--outputs", str(tmp_path), "--doc", str(doc)]) == 0
+    text = doc.read_text()
+    assert "| 2 scenes × 10 agents |" in text and "Memory per scene" in text
+    assert text.count("| untrained | ") == 2 and "| perfect | delay |" in text
+    assert "Under delay, the policy trained under delay scores" in text
+    ev = {(r["trained"], r["evaluated"]): r["fitness"] for r in summary["eval"]}
+    # the further run's row: its seed, delay condition, budget and 2 x 2 evaluation
+    assert f"| `train_seed5` | 5 | 150 ms, 10% | 3 × 6 × 1 × 3 | {ev[('delay', 'delay')]:.3f} |" \
+        in text
+    assert "of these 1 further runs" in text
