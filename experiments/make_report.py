@@ -149,8 +149,8 @@ samples (render tick × node).
   docs/MODEL.md, Metrics).
 * *Lock-Step does not collapse here.* In our model Lock-Step reaches
   {num(ls.get("aoi_mean"), 1)} ms at {sc["nodes"]} nodes, not the paper's 62 ± 15 ms: the
-  paper's baseline is a different system (Gazebo with FastDDS, whose per-step
-  synchronisation and discovery costs we do not model); our barrier costs one round
+  paper's baseline is a different system (Gazebo with FastDDS; Lock-Step over our DDS
+  model is in the peer-architectures section); over MQTT our barrier costs one round
   trip through a lightly loaded broker on a LAN with no loss and 0.8 ms steps, so
   the barrier completes well within the 10 ms frame. Lock-Step degrades in our model
   when rounds get slow — loss, stragglers, crashes (see the latency-tolerance and
@@ -571,8 +571,8 @@ def sec_sweep(s: dict[str, Any]) -> str:
         "per host, LAN latency, the default broker). Lock-Step's barrier costs one broker "
         "round trip per frame, which only becomes expensive when rounds get slow (a "
         f"saturating broker, loss, stragglers): {verdict}, whereas the paper's "
-        "Gazebo/FastDDS baseline is unstable beyond ~100 nodes for reasons (its own "
-        "synchronisation and transport stack) that we do not model."
+        "Gazebo/FastDDS baseline is unstable beyond ~100 nodes for reasons in its own "
+        "transport stack (Lock-Step over our DDS model: the peer-architectures section)."
     )
     return "\n\n".join(out)
 
@@ -654,6 +654,9 @@ plots into `{outputs.name}/<study>/`; `--quick` runs a seconds-long smoke versio
     from report_model_tuning import section as model_tuning_section
 
     body.append(model_tuning_section(outputs))
+    from report_peer import section as peer_section
+
+    body.append(peer_section(outputs))
     return "\n".join(body).rstrip() + "\n"
 
 

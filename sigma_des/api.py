@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from sigma_des import __version__
 from sigma_des.agents.ideal import fly
 from sigma_des.budget import check_memory
-from sigma_des.config import METHODS, Scenario, config_hash, to_dict
+from sigma_des.config import ALL_METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -263,8 +263,8 @@ def run_method(
             ``sc.fidelity.enabled``).
         record: record this method's run to this MCAP file (``sc.record`` settings).
     """
-    if method not in METHODS:
-        raise ConfigError("methods", f"unknown method {method!r}; allowed: {METHODS}")
+    if method not in ALL_METHODS:
+        raise ConfigError("methods", f"unknown method {method!r}; allowed: {ALL_METHODS}")
     tap = None
     if record is not None:
         from sigma_des.record.tap import RecordTap

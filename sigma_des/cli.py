@@ -25,7 +25,7 @@ import sys
 from collections.abc import Sequence
 
 from sigma_des import __version__
-from sigma_des.config import METHODS, NODES_PER_HOST, load, to_toml
+from sigma_des.config import ALL_METHODS, NODES_PER_HOST, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.outputs import check_out_dir
 
@@ -54,7 +54,7 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument(
         "--methods",
         default=None,
-        help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
+        help=f"comma-separated subset of {','.join(ALL_METHODS)} (default: scenario's)",
     )
     c.add_argument(
         "--out",
@@ -134,9 +134,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.methods is not None:
             methods = [m.strip() for m in args.methods.split(",") if m.strip()]
             for m in methods:
-                if m not in METHODS:
+                if m not in ALL_METHODS:
                     raise ConfigError(
-                        "--methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}"
+                        "--methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}"
                     )
         if args.out:  # a bad output location must not cost the whole run
             check_out_dir(args.out)

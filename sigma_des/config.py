@@ -25,6 +25,7 @@ import tomli_w
 from sigma_des.errors import ConfigError
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
+from sigma_des.peer_specs import DdsSpec, RpcSpec
 from sigma_des.specs import (
     BidesSpec,
     BrokerSpec,
@@ -51,6 +52,7 @@ __all__ = [
     "HLCSpec",
     "LinkSpec",
     "LockstepSpec",
+    "ALL_METHODS",
     "METHODS",
     "NODES_PER_HOST",
     "NetSpec",
@@ -75,6 +77,10 @@ MAX_HISTORY_FRAMES = 100_000
 
 #: Alignment methods, in their canonical order.
 METHODS: tuple[str, ...] = ("none", "lockstep", "hlc", "bides")
+#: Methods modelling the peer simulators' architectures (not run unless asked for).
+PEER_METHODS: tuple[str, ...] = ("rpc",)
+#: Every method a scenario may name.
+ALL_METHODS: tuple[str, ...] = METHODS + PEER_METHODS
 ENGINES: tuple[str, ...] = ("cohort", "events")
 DYNAMICS_BUILTIN: tuple[str, ...] = ("pointmass", "quadrotor", "fixedwing")
 
@@ -115,7 +121,8 @@ class Scenario:
             reproduce fall back to the per-message engine per method) or ``events``
             (the per-message SimPy engine, the executable specification). Both give
             identical results, so the engine is not part of the config hash.
-        methods: alignment methods to run side by side.
+        methods: alignment methods to run side by side (default: the four of
+            :data:`METHODS`; ``rpc`` of :data:`PEER_METHODS` only when named).
         history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
         record: how ``--record`` stores runs (not part of the config hash).
@@ -150,6 +157,8 @@ class Scenario:
     bides: BidesSpec = field(default_factory=BidesSpec)
     commands: CommandSpec = field(default_factory=CommandSpec)
     fidelity: FidelitySpec = field(default_factory=FidelitySpec)
+    dds: DdsSpec = field(default_factory=DdsSpec)
+    rpc: RpcSpec = field(default_factory=RpcSpec)
     record: RecordSpec = field(default_factory=RecordSpec)
     faults: tuple[FaultSpec, ...] = ()
 
@@ -215,9 +224,9 @@ class Scenario:
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
         )
-        require(len(self.methods) > 0, "methods", f"must name at least one of {METHODS}")
+        require(len(self.methods) > 0, "methods", f"must name at least one of {ALL_METHODS}")
         for m in self.methods:
-            require(m in METHODS, "methods", f"unknown method {m!r}; allowed: {METHODS}")
+            require(m in ALL_METHODS, "methods", f"unknown method {m!r}; allowed: {ALL_METHODS}")
         require(len(set(self.methods)) == len(self.methods), "methods", "lists a method twice")
         require(
             16 <= self.history_frames <= MAX_HISTORY_FRAMES,

@@ -96,6 +96,9 @@ class NetSpec:
         tcpip_bytes: TCP/IP header bytes per packet.
         ethernet_bytes: Ethernet framing bytes per packet (header, FCS, preamble, gap).
         topic_bytes: MQTT topic length in bytes.
+        middleware: ``mqtt`` (a broker relays every message) or ``dds`` (brokerless
+            DDS/RTPS over UDP, parameters in ``[dds]``; needs ``transport =
+            "datagram"`` and ``qos = 0``: RTPS brings its own reliability).
     """
 
     host_link: LinkSpec = field(default_factory=LinkSpec)
@@ -108,8 +111,24 @@ class NetSpec:
     tcpip_bytes: int = 40
     ethernet_bytes: int = 38
     topic_bytes: int = 8
+    middleware: str = "mqtt"
 
     def __post_init__(self) -> None:
+        require(
+            self.middleware in ("mqtt", "dds"),
+            "middleware",
+            f"must be 'mqtt' or 'dds', got {self.middleware!r}",
+        )
+        if self.middleware == "dds":
+            require(
+                self.transport == "datagram",
+                "transport",
+                "middleware 'dds' runs RTPS over UDP: must be 'datagram', got "
+                f"{self.transport!r}",
+            )
+            require(
+                self.qos == 0, "qos", f"is MQTT's: with middleware 'dds' must be 0, got {self.qos}"
+            )
         require(
             self.transport in ("datagram", "stream"),
             "transport",

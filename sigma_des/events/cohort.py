@@ -49,7 +49,8 @@ def unsupported(sc: Scenario, method: str) -> str | None:
     These features fall back to the per-message engine for the whole run: drop and
     degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
     datagrams (resends and PUBACK hops), and the stream transport on a link with
-    loss or random latency (in-order hold-back and retransmission).
+    loss or random latency (in-order hold-back and retransmission); the DDS
+    middleware and the ``rpc`` method (issue 16: per-message models only).
     """
     why: list[str] = []
     kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
@@ -67,6 +68,10 @@ def unsupported(sc: Scenario, method: str) -> str | None:
             why.append(f"{name}: stream transport with loss or random latency")
     if net.transport == "datagram" and net.qos == 1:
         why.append("QoS 1 over datagram (resends, PUBACK hops)")
+    if net.middleware == "dds":
+        why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
+    if method == "rpc":
+        why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
     return "; ".join(why) if why else None
 
 

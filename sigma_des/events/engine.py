@@ -32,9 +32,11 @@ from sigma_des.config import Scenario
 from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
 from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.events.kernel import ALIGN, RENDER, TRIGGER, Kernel
+from sigma_des.events.rpc import RpcAligner
 from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.fidelity import TrajectoryLog
 from sigma_des.net.clocks import NodeClocks
+from sigma_des.net.dds import make_network
 from sigma_des.net.draws import DrawCache
 from sigma_des.net.network import COMMAND, REPUBLISH, REREQUEST, STATE, Network
 from sigma_des.net.network import TRIGGER as K_TRIGGER
@@ -44,6 +46,8 @@ __all__ = ["MethodRun", "PAUSED", "TRIGGER_DUE", "END"]
 
 _STEP = 0
 _ROLLBACK = 1
+#: Methods whose next trigger waits for the current frame (no periodic triggers).
+BARRIER_METHODS = ("lockstep", "rpc")
 
 #: Stop codes of :meth:`MethodRun.advance_until` (the stepping hook of ``sigma_des.env``).
 PAUSED = 0
@@ -56,7 +60,7 @@ class MethodRun:
 
     Args:
         sc: the scenario.
-        method: ``none``, ``lockstep``, ``hlc`` or ``bides``.
+        method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the vectorised dynamics model.
         behaviour: behaviour producing commands (None: no commands).
     """
@@ -69,7 +73,7 @@ class MethodRun:
         n = self.n = sc.nodes
         self.kernel = Kernel()
         self.streams = RandomStreams(sc.seed)
-        self.net = Network(self.kernel, sc, self.streams, self._deliver, sc.warmup)
+        self.net: Network = make_network(self.kernel, sc, self.streams, self._deliver, sc.warmup)
         self.server = n
         self.all_nodes = list(range(n))
         self._nodes = np.arange(n, dtype=np.int64)
@@ -133,7 +137,8 @@ class MethodRun:
         self.hlc = [HLC() for _ in range(n)] if self.use_hlc else []
         self.server_hlc = HLC()
         # server
-        self.aligner: Aligner = ALIGNERS[method](n, sc, self)
+        aligner_cls = RpcAligner if method == "rpc" else ALIGNERS[method]
+        self.aligner: Aligner = aligner_cls(n, sc, self)
         self.collector = Collector(sc, method, self.net)
         self.align_tick = 0
         self.render_tick = 0
@@ -192,6 +197,18 @@ class MethodRun:
             (node,),
         )
 
+    def rpc_call(self, node: int, frame: int) -> None:
+        """RPC: send ``node`` the request for ``frame`` (trigger ``frame`` to that node only)."""
+        self.net.publish(
+            self.server,
+            K_TRIGGER,
+            self.server,
+            frame,
+            (frame, None),
+            self.sc.trigger_payload_bits,
+            (node,),
+        )
+
     # ------------------------------------------------------------ trigger source
 
     def _local(self, node: int, t: float) -> float:
@@ -225,8 +242,9 @@ class MethodRun:
         self.collector.trigger(t, k, dt)
         self.aligner.on_trigger(k, t)
         stamp = self.server_hlc.send(t) if self.use_hlc else None
-        self._send_trigger(k, stamp)
-        if self.method != "lockstep":
+        if self.method != "rpc":  # RPC: the aligner sends each vehicle its request
+            self._send_trigger(k, stamp)
+        if self.method not in BARRIER_METHODS:
             if self.f_trig != self._base[2]:  # the rate changed: count periods from here
                 self._base = (t, k, self.f_trig)
             t0, k0, f = self._base

@@ -12,7 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from sigma_des.config import METHODS, Scenario
+from sigma_des.config import ALL_METHODS, Scenario
 from sigma_des.sweep.grid import parse_grid_args
 from sigma_des.sweep.runner import Sweep
 
@@ -32,7 +32,7 @@ def add_sweep_args(sp: argparse.ArgumentParser) -> None:
     sp.add_argument(
         "--methods",
         default=None,
-        help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)",
+        help=f"comma-separated subset of {','.join(ALL_METHODS)} (default: scenario's)",
     )
     sp.add_argument(
         "--seeds",

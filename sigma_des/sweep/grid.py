@@ -16,7 +16,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from sigma_des.config import METHODS, Scenario, from_dict, parse_set, to_dict
+from sigma_des.config import ALL_METHODS, METHODS, Scenario, from_dict, parse_set, to_dict
 from sigma_des.errors import ConfigError
 
 __all__ = [
@@ -164,8 +164,8 @@ def parse_methods(methods: str | Iterable[str]) -> list[str]:
     if not ms:
         raise ConfigError("methods", f"must name at least one of {', '.join(METHODS)}")
     for m in ms:
-        if m not in METHODS:
-            raise ConfigError("methods", f"unknown method {m!r}; allowed: {', '.join(METHODS)}")
+        if m not in ALL_METHODS:
+            raise ConfigError("methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}")
     if len(set(ms)) != len(ms):
         raise ConfigError("methods", f"lists a method twice: {ms}")
     return ms
