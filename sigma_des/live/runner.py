@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from sigma_des.api import Results
-from sigma_des.config import Scenario, to_dict
+from sigma_des.config import METHODS, Scenario, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_broker, wait_port
 from sigma_des.live.loop import Client
@@ -89,6 +89,12 @@ class LiveOptions:
 
 def check_live(sc: Scenario) -> None:
     """Reject what live mode cannot do, naming the key."""
+    for m in sc.methods:
+        if m not in METHODS:
+            raise ConfigError("methods", f"live mode runs {', '.join(METHODS)}, not {m!r}")
+    if getattr(sc.net, "middleware", "mqtt") != "mqtt":
+        raise ConfigError("net.middleware", "live mode runs over MQTT (Mosquitto): must be "
+                          f"'mqtt', got {sc.net.middleware!r}")
     for i, f in enumerate(sc.faults):
         if f.kind not in ("crash", "slow"):
             raise ConfigError(f"faults[{i}].kind", f"live mode runs 'crash' and 'slow' faults, "
