@@ -50,6 +50,9 @@ class Results:
         fidelity: per method, formation error per logged sample (``t``, ``formation_err``).
         engines: per method, the engine ``requested`` and ``used`` and why it fell back
             to the per-message engine (``fallback``, empty if it did not).
+        mode: ``des`` (simulated) or ``live`` (``sigma_des.live``: real processes and broker).
+        live: live mode only: per method, its live counters (rejected messages, reconnects, …).
+        interrupted: live mode only: the run was stopped early (Ctrl-C); results are partial.
     """
 
     scenario: Scenario
@@ -59,6 +62,9 @@ class Results:
     timeseries: dict[str, dict[str, Any]] = field(default_factory=dict)
     fidelity: dict[str, dict[str, Any]] = field(default_factory=dict)
     engines: dict[str, dict[str, str]] = field(default_factory=dict)
+    mode: str = "des"
+    live: dict[str, dict[str, Any]] = field(default_factory=dict)
+    interrupted: bool = False
 
     @property
     def config_hash(self) -> str:
@@ -113,8 +119,13 @@ class Results:
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary; wall-time figures are under ``wall`` only."""
+        extra: dict[str, Any] = {}
+        if self.mode == "live":
+            extra = {"live": self.live, "interrupted": self.interrupted}
         return _json_safe(
             {
+                **extra,
+                "mode": self.mode,
                 "version": __version__,
                 "seed": self.scenario.seed,
                 "config_hash": self.config_hash,

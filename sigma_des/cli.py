@@ -7,6 +7,8 @@ Commands:
   sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
            by default), resumable through a SQLite results store; writes
            runs.csv and aggregate.csv (see docs/SWEEPS.md).
+  live     run the scenario live over a real Mosquitto broker (docs/LIVE.md).
+  calibrate  fit DES parameters from a live run; writes a scenario TOML.
   replay   rebuild the trajectories of a recording (compare --record) at any
            rate with a chosen interpolant; writes a tidy CSV.
   warmup   compile the numba kernels into numba's cache (once, after installing;
@@ -85,6 +87,11 @@ def _parser() -> argparse.ArgumentParser:
 
     add_replay_parser(sub)
 
+    from sigma_des.live.cli import add_calibrate_parser, add_live_parser
+
+    add_live_parser(sub, scenario_args)
+    add_calibrate_parser(sub)
+
     from sigma_des.tuning.cli import add_parser as add_tune_parser
 
     add_tune_parser(sub)
@@ -111,7 +118,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return run_warmup(args)
     try:
+        if args.command == "calibrate":
+            from sigma_des.live.cli import run_calibrate
+
+            return run_calibrate(args)
         sc = load(args.scenario, args.sets)
+        if args.command == "live":
+            from sigma_des.live.cli import run_live_command
+
+            return run_live_command(args, sc)
         if args.command == "config":
             sys.stdout.write(
                 f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts "

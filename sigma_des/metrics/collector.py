@@ -67,6 +67,14 @@ METRIC_UNITS: dict[str, str] = {
     "formation_err_mean": "m",
     "formation_err_max": "m",
     "dtw_r": "m",
+    # live mode only (sigma_des.live): messages dropped as malformed / on unknown topics,
+    # client reconnects, node x frame states of the window that never arrived, states
+    # that arrived after the run
+    "rejected": "count",
+    "unknown_topic": "count",
+    "reconnects": "count",
+    "missed_frac": "1",
+    "late": "count",
 }
 #: Metrics that measure the simulator itself (vary run to run; kept apart).
 WALL_METRICS: dict[str, str] = {

@@ -1,0 +1,102 @@
+#!/usr/bin/env python
+"""Benchmark live mode on this machine: how many nodes at 100 Hz, QoS 1, per method.
+
+For each node count N (``--nodes``), each method (``--methods``) and each message
+mode (``per-node``: one PUBLISH per node state and per command; ``bundle``: a
+host's states of one loop turn and the server's commands per host as one PUBLISH
+each), one live run of ``--duration`` s on our own Mosquitto (no client
+impairment, nodes publish right after their real step) is made, and printed:
+missed frames (fraction of node x frame states of the window that never reached
+the server), mean and p99 state latency, mean AoI, achieved trigger and snapshot
+rates, Mbps, and the 1-minute load average before and after the run (the machine
+is shared: read every figure next to its load). The goal of issue 11 is N >= 100 at
+100 Hz (achieved trigger rate >= 99 Hz), QoS 1, < 1 % missed frames and mean
+state latency < 5 ms; a row ``meets_goal`` or not. Nothing here asserts on timing.
+
+    python experiments/bench_live.py                        # N = 20..200, 4 methods, 2 modes
+    python experiments/bench_live.py --quick --out /tmp/bl    # N = 4, 1 s (the tests' smoke run)
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import sys
+from pathlib import Path
+
+from sigma_des.config import METHODS, load
+from sigma_des.live.runner import LiveOptions, run_live
+
+COLUMNS = ("nodes", "hosts", "method", "mode", "missed_frac", "latency_state_mean",
+           "latency_state_p99", "aoi_mean", "trigger_rate_hz", "snapshot_rate_hz",
+           "throughput_mbps", "load_before", "load_after", "meets_goal")
+
+
+def meets_goal(nodes: int, trigger_rate_hz: float, missed_frac: float,
+               latency_state_mean: float) -> bool:
+    """N >= 100 sustained at 100 Hz (achieved trigger rate >= 99 Hz), < 1 % missed
+    frames and mean state latency < 5 ms."""
+    return (nodes >= 100 and trigger_rate_hz >= 99.0 and missed_frac < 0.01
+            and latency_state_mean < 5.0)
+
+
+def _one(n: int, hosts: int, method: str, bundle: bool, duration: float,
+         commands: bool) -> dict[str, object]:
+    sc = load(None, [f"nodes={n}", f"hosts={hosts}", f"duration={duration}",
+                     f"warmup={min(1.0, duration / 4)}", "fidelity.enabled=false",
+                     "net.qos=1", f"commands.enabled={'true' if commands else 'false'}"])
+    before = os.getloadavg()[0]
+    res, _msgs, _ = run_live(sc, [method], LiveOptions(impair=False, step_delay=False,
+                                                        bundle=bundle))
+    after = os.getloadavg()[0]
+    m = res.methods[method]
+    row: dict[str, object] = {"nodes": n, "hosts": hosts, "method": method,
+                              "mode": "bundle" if bundle else "per-node",
+                              "load_before": round(before, 2), "load_after": round(after, 2)}
+    for k in COLUMNS[4:11]:
+        row[k] = round(float(m[k]), 4)
+    row["meets_goal"] = meets_goal(n, m["trigger_rate_hz"], m["missed_frac"],
+                                   m["latency_state_mean"])
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the grid, print one line per run, write ``bench_live.csv`` into ``--out``."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--nodes", default="20,50,100,200")
+    p.add_argument("--hosts", type=int, default=4)
+    p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--modes", default="per-node,bundle")
+    p.add_argument("--duration", type=float, default=5.0)
+    p.add_argument("--no-commands", action="store_true", help="commands.enabled = false")
+    p.add_argument("--quick", action="store_true", help="N = 4 on 2 hosts, 1 s, BiDES, bundle mode")
+    p.add_argument("--out", default="/work/out/bench_live")
+    a = p.parse_args(argv)
+    nodes = [int(x) for x in a.nodes.split(",")]
+    methods = a.methods.split(",")
+    modes = a.modes.split(",")
+    hosts, duration = a.hosts, a.duration
+    if a.quick:
+        nodes, hosts, duration, methods, modes = [4], 2, 1.0, ["bides"], ["bundle"]
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    print("  ".join(COLUMNS), flush=True)
+    for n in nodes:
+        for mode in modes:
+            for method in methods:
+                row = _one(n, min(hosts, n), method, mode == "bundle", duration,
+                           not a.no_commands)
+                rows.append(row)
+                print("  ".join(str(row[c]) for c in COLUMNS), flush=True)
+    with (out / "bench_live.csv").open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=COLUMNS)
+        w.writeheader()
+        w.writerows(rows)
+    print(f"wrote {out / 'bench_live.csv'}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

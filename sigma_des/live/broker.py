@@ -1,0 +1,269 @@
+"""A private Mosquitto broker per live run: config, credentials, start, stop.
+
+:class:`Broker` writes a generated ``mosquitto.conf`` (loopback listener on a free
+port, ``allow_anonymous false``, a password file with one per-run user, no
+persistence, ``set_tcp_nodelay true``) into a temporary directory, starts
+``mosquitto -c`` and waits until the port accepts connections. It is a context
+manager: the process is terminated (then killed) on exit, whatever happened.
+The password file uses Mosquitto 2's PBKDF2-SHA512 format (``$7$``), so
+``mosquitto_passwd`` is not needed.
+"""
+
+from __future__ import annotations
+
+import base64
+import ctypes
+import hashlib
+import os
+import pwd
+import secrets
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+from sigma_des.errors import ConfigError
+
+__all__ = [
+    "Broker",
+    "BrokerAddress",
+    "INSTALL_HINT",
+    "child_setup",
+    "find_mosquitto",
+    "free_port",
+    "parse_broker",
+    "password_line",
+    "wait_port",
+]
+
+INSTALL_HINT = (
+    "mosquitto not found; install the OS package, e.g. `sudo apt-get install mosquitto` "
+    "(Debian/Ubuntu), `brew install mosquitto` (macOS) or `dnf install mosquitto`, "
+    "or pass --broker HOST:PORT of a running broker"
+)
+_SEARCH = ("/usr/sbin/mosquitto", "/usr/local/sbin/mosquitto", "/opt/homebrew/sbin/mosquitto")
+
+
+@dataclass(frozen=True)
+class BrokerAddress:
+    """Where and as whom the live clients connect.
+
+    Attributes:
+        host: broker host (a loopback address for a broker we start).
+        port: TCP port.
+        username: MQTT user name ('' for none).
+        password: MQTT password ('' for none).
+    """
+
+    host: str
+    port: int
+    username: str = ""
+    password: str = ""
+
+
+def child_setup() -> None:
+    """``preexec_fn`` of our children: a session of their own (the terminal's Ctrl-C
+    reaches only us; we stop them) and, on Linux, SIGTERM when we die, so nothing
+    outlives a killed ``sigma-des``."""
+    os.setsid()
+    try:
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
+def find_mosquitto() -> str | None:
+    """Path of the ``mosquitto`` executable (PATH, then the usual sbin folders)."""
+    found = shutil.which("mosquitto")
+    if found:
+        return found
+    for p in _SEARCH:
+        if os.access(p, os.X_OK):
+            return p
+    return None
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that was free on ``host`` a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def wait_port(host: str, port: int, timeout: float) -> bool:
+    """True once ``host:port`` accepts a TCP connection (polled, bounded by ``timeout``)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, port), timeout=0.2):
+                return True
+        except OSError:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+
+
+def parse_broker(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` -> (host, port).
+
+    Raises:
+        ConfigError: naming ``--broker`` if the text is not ``HOST:PORT`` with a port in 1..65535.
+    """
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ConfigError("--broker", f"must be HOST:PORT with a port in 1..65535, got {text!r}")
+    return host, int(port)
+
+
+def password_line(username: str, password: str, salt: bytes | None = None) -> str:
+    """One Mosquitto 2 password-file line: ``user:$7$101$<salt b64>$<PBKDF2-SHA512 b64>``."""
+    salt = secrets.token_bytes(12) if salt is None else salt
+    iterations = 101
+    digest = hashlib.pbkdf2_hmac("sha512", password.encode(), salt, iterations)
+    b64 = base64.b64encode
+    return f"{username}:$7${iterations}${b64(salt).decode()}${b64(digest).decode()}"
+
+
+class Broker:
+    """A Mosquitto process of our own on a loopback port (a context manager).
+
+    Args:
+        port: TCP port (default: a free one).
+        max_inflight: ``max_inflight_messages`` per client (QoS 1 window; 0 = unlimited).
+        executable: path of ``mosquitto`` (default: :func:`find_mosquitto`).
+
+    Raises:
+        ConfigError: ``mosquitto`` missing (the message says how to install it), or
+            the broker did not come up (e.g. ``--broker-port`` in use).
+    """
+
+    def __init__(self, port: int | None = None, max_inflight: int = 0,
+                 executable: str | None = None) -> None:
+        exe = executable or find_mosquitto()
+        if exe is None:
+            raise ConfigError("mosquitto", INSTALL_HINT)
+        self.exe = exe
+        self.port = port if port is not None else free_port()
+        self.max_inflight = max_inflight
+        self.username = "sd-" + secrets.token_hex(4)
+        self.password = secrets.token_urlsafe(18)
+        self.proc: subprocess.Popen[bytes] | None = None
+        self._dir: tempfile.TemporaryDirectory[str] | None = None
+
+    @property
+    def address(self) -> BrokerAddress:
+        """Where clients connect, with the per-run credentials."""
+        return BrokerAddress("127.0.0.1", self.port, self.username, self.password)
+
+    def config_text(self, passwd_path: str, log_path: str) -> str:
+        """The generated ``mosquitto.conf``."""
+        return "\n".join(
+            [
+                # run as whoever starts it: as root, mosquitto would otherwise drop to
+                # the 'mosquitto' user, which cannot read our 0600 password file
+                f"user {pwd.getpwuid(os.geteuid()).pw_name}",
+                f"listener {self.port} 127.0.0.1",
+                "allow_anonymous false",
+                f"password_file {passwd_path}",
+                "persistence false",
+                "set_tcp_nodelay true",
+                f"max_inflight_messages {self.max_inflight}",
+                "max_queued_messages 100000",
+                f"log_dest file {log_path}",
+                "log_type error",
+                "log_type warning",
+                "",
+            ]
+        )
+
+    def start(self) -> BrokerAddress:
+        """Write the config, start Mosquitto and wait (<= 5 s) for its port."""
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind(("127.0.0.1", self.port))
+            except OSError as e:
+                raise ConfigError("--broker-port",
+                                  f"127.0.0.1:{self.port} is in use ({e.strerror})") from None
+        self._dir = tempfile.TemporaryDirectory(prefix="sigma-des-mqtt-")
+        d = Path(self._dir.name)
+        passwd = d / "passwd"
+        passwd.write_text(password_line(self.username, self.password) + "\n")
+        passwd.chmod(0o600)
+        conf = d / "mosquitto.conf"
+        conf.write_text(self.config_text(str(passwd), str(d / "mosquitto.log")))
+        self.proc = subprocess.Popen(
+            [self.exe, "-c", str(conf)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            preexec_fn=child_setup,  # Ctrl-C reaches us only; we stop the broker ourselves
+        )
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
+                raw = self.proc.stderr.read() if self.proc.stderr else b""
+                err = raw.decode(errors="replace")
+                log = d / "mosquitto.log"
+                err += log.read_text(errors="replace") if log.exists() else ""
+                self.stop()
+                raise ConfigError(
+                    "--broker-port",
+                    f"mosquitto exited at start on 127.0.0.1:{self.port} (port in use?): "
+                    f"{err.strip()[-300:]}",
+                )
+            if wait_port("127.0.0.1", self.port, 0.05):
+                return self.address
+        self.stop()
+        raise ConfigError("--broker-port", f"mosquitto did not listen on port {self.port} in 5 s")
+
+    def kill(self) -> None:
+        """Kill the broker at once (fault injection: a broker crash)."""
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(timeout=5)
+
+    def restart(self) -> None:
+        """Start the broker again on the same port with the same credentials."""
+        assert self._dir is not None
+        d = Path(self._dir.name)
+        self.proc = subprocess.Popen(
+            [self.exe, "-c", str(d / "mosquitto.conf")],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            preexec_fn=child_setup,
+        )
+        wait_port("127.0.0.1", self.port, 5.0)
+
+    def stop(self) -> None:
+        """Terminate (then kill) the process and remove its files; safe to call twice."""
+        p = self.proc
+        if p is not None and p.poll() is None:
+            p.terminate()
+            try:
+                p.wait(timeout=3)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=3)
+        if p is not None and p.stderr is not None:
+            p.stderr.close()
+        self.proc = None
+        if self._dir is not None:
+            self._dir.cleanup()
+            self._dir = None
+
+    def __enter__(self) -> BrokerAddress:
+        return self.start()
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.stop()

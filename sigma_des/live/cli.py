@@ -1,0 +1,147 @@
+"""The ``sigma-des live`` and ``sigma-des calibrate`` subcommands.
+
+``live`` runs the scenario over a real Mosquitto broker (ours, started on a free
+loopback port, unless ``--broker``), prints ``compare``'s table and with ``--out``
+writes ``results.csv``, ``summary.json`` (``"mode": "live"``) and
+``messages.csv.gz`` (one row per message: kind, host, node, frame, t_send,
+t_recv, …). ``calibrate`` fits DES parameters from such a directory (or an MCAP
+recording) and writes a scenario TOML that ``compare`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from sigma_des.config import METHODS, Scenario
+from sigma_des.errors import ConfigError
+
+__all__ = ["add_calibrate_parser", "add_live_parser", "run_calibrate", "run_live_command"]
+
+
+def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> None:  # type: ignore[type-arg]
+    """Register ``live`` (``scenario_args`` adds the scenario and ``--set`` arguments)."""
+    p = sub.add_parser("live", help="run the scenario live over a real Mosquitto broker")
+    scenario_args(p)  # type: ignore[operator]
+    p.add_argument("--methods", default=None,
+                   help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)")
+    p.add_argument("--broker", default=None, metavar="HOST:PORT",
+                   help="use a running broker (default: start our own Mosquitto on 127.0.0.1)")
+    p.add_argument("--username", default="", help="MQTT user for --broker")
+    p.add_argument("--password", default="", help="MQTT password for --broker")
+    p.add_argument("--broker-port", type=int, default=None, metavar="PORT",
+                   help="port of our own broker (default: a free one)")
+    p.add_argument("--max-inflight", type=int, default=0, metavar="N",
+                   help="QoS 1 in-flight window per client (default 0: unlimited)")
+    p.add_argument("--bundle", action="store_true",
+                   help="a host sends the states its nodes finish together as one PUBLISH")
+    p.add_argument("--no-impair", action="store_true",
+                   help="do not apply the scenario's link latency/loss in the clients")
+    p.add_argument("--no-step-delay", action="store_true",
+                   help="nodes publish right after their real step (no drawn step_time)")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="write results.csv, summary.json and messages.csv.gz here")
+    p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
+    p.add_argument("--record", default=None, metavar="FILE.mcap",
+                   help="record every message to an MCAP file (sigma_des.record; "
+                   "settings: record.*)")
+
+
+def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``calibrate``."""
+    p = sub.add_parser("calibrate", help="fit DES parameters from a live run")
+    p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
+    p.add_argument("--out", default=None, metavar="SCENARIO.toml",
+                   help="write the calibrated scenario here (default: print it)")
+
+
+def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
+    """Run ``live``; ConfigError propagates to the caller (exit 2)."""
+    try:
+        import paho.mqtt  # noqa: F401
+    except ImportError:
+        raise ConfigError("live", "needs paho-mqtt 2: pip install 'sigma-des[live]'") from None
+    from sigma_des.live.broker import parse_broker
+    from sigma_des.live.runner import LiveOptions, run_live
+
+    methods = None
+    if args.methods is not None:
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        for m in methods:
+            if m not in METHODS:
+                allowed = ", ".join(METHODS)
+                raise ConfigError("--methods", f"unknown method {m!r}; allowed: {allowed}")
+    if args.broker is not None:
+        parse_broker(args.broker)
+    if args.broker_port is not None and not 1 <= args.broker_port <= 65535:
+        raise ConfigError("--broker-port", f"must be in 1..65535, got {args.broker_port}")
+    if args.broker is not None and args.broker_port is not None:
+        raise ConfigError("--broker-port", "is for our own broker; it cannot go with --broker")
+    rec_cls = None
+    if args.record is not None:
+        try:
+            from sigma_des.record import Recorder
+            from sigma_des.record.cli import check_record_path
+        except ImportError:
+            raise ConfigError("--record", "needs the MCAP recorder's packages: "
+                              "pip install 'sigma-des[record]'") from None
+        check_record_path(args.record)
+        rec_cls = Recorder
+    if args.out:  # a bad output location must not cost the whole run
+        from sigma_des.outputs import check_out_dir
+
+        check_out_dir(args.out)
+    opts = LiveOptions(broker=args.broker, username=args.username, password=args.password,
+                       broker_port=args.broker_port, impair=not args.no_impair,
+                       step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
+                       bundle=args.bundle,
+                       record=rec_cls is not None)
+    try:
+        res, msgs, kept = run_live(sc, methods, opts, progress=True)
+    except KeyboardInterrupt:
+        print("sigma-des: interrupted before any method finished; broker and hosts stopped",
+              file=sys.stderr)
+        return 130
+    except (RuntimeError, ConnectionError) as e:
+        print(f"sigma-des: live run failed: {e}", file=sys.stderr)
+        return 1
+    print(res.table())
+    if res.interrupted:
+        print("interrupted: partial results", file=sys.stderr)
+    if args.out:
+        from sigma_des.live.messages import write_messages
+
+        csv_path, json_path = res.write(args.out)
+        mpath = write_messages(msgs, Path(args.out))
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path} and {mpath}")
+        if not args.no_plots:
+            from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+
+            if have_matplotlib():
+                paths = write_plots(res, args.out)
+                print(f"plots: {', '.join(p.name for p in paths)}")
+            else:
+                print(MISSING_NOTE)
+    if rec_cls is not None:
+        from sigma_des.live.messages import record_messages
+
+        record_messages(rec_cls, args.record, res, msgs, kept)
+        print(f"recorded {args.record}")
+    return 130 if res.interrupted else 0
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    """Run ``calibrate``; ConfigError propagates (exit 2)."""
+    from sigma_des.live.calibrate import calibrate, calibrated_toml
+
+    sc, report = calibrate(Path(args.source), Path(args.out).parent if args.out else None)
+    text = calibrated_toml(sc, report)
+    if args.out:
+        Path(args.out).write_text(text)
+        print(f"wrote {args.out}")
+        for k, v in report.items():
+            print(f"  {k} = {v}")
+    else:
+        sys.stdout.write(text)
+    return 0

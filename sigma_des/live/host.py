@@ -1,0 +1,470 @@
+"""A live physics host: one OS process, one MQTT client, the nodes placed on it.
+
+On every trigger the host steps all its nodes' aircraft to the trigger's frame with
+the scenario's dynamics model (catching up over lost triggers), for real; then
+each node's publish is scheduled like the DES schedules its compute: the node's
+drawn ``compute.step_time`` (optional) on ``cores_per_host`` FCFS cores, a
+node busy with an earlier frame computing the newest requested frame next.
+Commands apply at frame boundaries (the newest one received before the
+trigger); BiDES time warp re-simulates a node from the command's frame. Crash
+and slow faults act on the node as in the DES. Run as
+``python -m sigma_des.live.host CONFIG.json``; the runner writes that file.
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import math
+import os
+import sys
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.config import Scenario, from_dict
+from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.factory import make_dynamics
+from sigma_des.live.broker import BrokerAddress
+from sigma_des.live.ledger import Ledger
+from sigma_des.live.loop import Client, Loop
+from sigma_des.live.shim import DOWN, UP, Impairment
+from sigma_des.live.wire import (
+    COMMAND,
+    MAX_BUNDLE,
+    REREQUEST,
+    STATE,
+    TRIGGER,
+    Topics,
+    WireError,
+    decode_command,
+    decode_rerequest,
+    decode_trigger,
+    encode_state,
+)
+from sigma_des.net.clocks import NodeClocks
+from sigma_des.rng import RandomStreams
+
+__all__ = ["Host", "main"]
+
+_STEP, _ROLLBACK = 0, 1
+
+
+class Host:
+    """The nodes of one physics host, driven by MQTT messages.
+
+    Args:
+        sc: the scenario.
+        method: the alignment method of this run.
+        host: this host's index.
+        cfg: live options (``qos``, ``impair``, ``step_delay``, ``max_inflight``).
+    """
+
+    def __init__(self, sc: Scenario, method: str, host: int, cfg: dict[str, Any],
+                 topics: Topics, addr: BrokerAddress, t0: float) -> None:
+        self.sc = sc
+        self.method = method
+        self.h = host
+        self.qos = int(cfg["qos"])
+        self.step_delay = bool(cfg["step_delay"])
+        self.bundle = bool(cfg.get("bundle", False))
+        self._pending: list[tuple[bytes, int, int]] = []
+        self.topics = topics
+        self.loop = Loop(t0)
+        n = sc.nodes
+        self.nodes = np.flatnonzero(np.asarray(sc.host_of) == host).astype(np.int64)
+        self.local = {int(g): j for j, g in enumerate(self.nodes)}
+        m = self.m = self.nodes.size
+        self.dyn = make_dynamics(sc)
+        full = self.dyn.initial_state(n)
+        self.initial = full[self.nodes].copy()
+        self.state = self.initial.copy()
+        self.cmd = self.dyn.default_command(full)[self.nodes].copy()
+        self.cmd_stamp = np.full(m, -1, dtype=np.int64)
+        H = self.H = sc.history_frames
+        self.frame = -1
+        self.frame_dt = np.zeros(H)
+        self.obs_hist = np.zeros((H, m, 12))
+        self.slot_frame = np.full(H, -1, dtype=np.int64)
+        self.phys_hist = np.zeros(H)
+        self.phys_t = 0.0
+        self.track: list[tuple[int, float, NDArray[np.float64]]] = []
+        self.warp = method == "bides" and sc.bides.time_warp
+        self.ckpt = np.zeros((H if self.warp else 0, m, self.state.shape[1]))
+        self.node_frame = [-1] * m
+        self.node_req = [-1] * m
+        self.node_target = [-1] * m
+        self.node_busy = [False] * m
+        self.node_trig_t = [0.0] * m
+        self.rb_steps = [0] * m
+        self.last_pub: list[tuple[int, float, float, Stamp | None] | None] = [None] * m
+        self.cores = [0.0] * sc.cores_per_host
+        streams = RandomStreams(sc.seed)
+        self.step_stream = streams.stream("compute")
+        self.use_hlc = method == "hlc"
+        self.clocks = NodeClocks(sc.clocks, streams.stream("clocks"), n)
+        self.hlc = [HLC() for _ in range(m)] if self.use_hlc else []
+        self.crash_at = [math.inf] * m
+        self.slow: dict[int, list[tuple[float, float, float]]] = {}
+        for f in sc.faults:
+            if f.kind in ("crash", "slow") and f.node in self.local:
+                j = self.local[f.node]
+                if f.kind == "crash":
+                    self.crash_at[j] = min(self.crash_at[j], f.start)
+                else:
+                    self.slow.setdefault(j, []).append((f.start, f.end, f.factor))
+        self.impair = Impairment(sc.net.host_link, sc.net, streams, host, bool(cfg["impair"]))
+        self.ledger = Ledger(sc, f"host{host}")
+        self.rows: list[tuple[Any, ...]] = []
+        self.rollbacks = 0
+        self.resim_steps = 0
+        self.history_misses = 0
+        self.step_real_s = 0.0
+        self.steps = 0
+        self.rejected = 0
+        self.stop_requested = False
+        self.started = False
+        subs = [(topics.trig, self.qos), (topics.host_down(host), self.qos), (topics.ctl, 1)]
+        self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
+                             int(cfg["max_inflight"]))
+
+    # ------------------------------------------------------------ messages
+
+    def _on_message(self, topic: str, payload: bytes) -> None:
+        self.loop.post(self._arrive, topic, payload, self.loop.now())
+
+    def _arrive(self, topic: str, payload: bytes, t: float) -> None:
+        tp = self.topics
+        try:
+            if topic == tp.trig:
+                frame, t_send, dt, hl, hc = decode_trigger(payload)
+                self._deliver(t, TRIGGER, self.sc.nodes, frame, t_send, len(topic), len(payload),
+                              self._on_trigger, frame, t_send, dt, hl, hc)
+            elif topic == tp.cmd(self.h):
+                self._commands(t, topic, payload)
+            elif topic == tp.rereq(self.h):
+                node, frame, retry, t_send = decode_rerequest(payload)
+                j = self._local_index(node)
+                self._deliver(t, REREQUEST, node, frame * 64 + min(retry, 63), t_send, len(topic),
+                              len(payload), self._on_rerequest, j, frame)
+            elif topic == tp.ctl:
+                self._control(payload)
+            else:
+                self.rejected += 1
+        except WireError:
+            self.rejected += 1
+
+    def _commands(self, t: float, topic: str, payload: bytes) -> None:
+        """One command, or (``--bundle``) a whole number of same-size command records."""
+        width = self.cmd.shape[1]
+        size = 23 + 8 * width
+        if len(payload) % size or len(payload) // size > MAX_BUNDLE:
+            raise WireError(f"command: {len(payload)} bytes is not a multiple of {size}")
+        recs = []
+        for r in range(len(payload) // size):
+            node, stamp, tick, t_send, vals = decode_command(payload[r * size:(r + 1) * size],
+                                                             width)
+            recs.append((self._local_index(node), stamp, tick, t_send, vals))
+        if not recs:
+            raise WireError("command: empty")
+        self._deliver(t, COMMAND, int(self.nodes[recs[0][0]]), recs[0][2], recs[0][3],
+                      len(topic), len(payload), self._on_commands, recs)
+
+    def _on_commands(self, t: float, recs: list[tuple[Any, ...]]) -> None:
+        for rec in recs:
+            self._on_command(t, *rec)
+
+    def _control(self, payload: bytes) -> None:
+        """``go:<t0>`` sets the run's time origin (monotonic seconds); ``stop`` ends the run."""
+        if payload.startswith(b"go:"):
+            t0 = float(payload[3:])
+            if not math.isfinite(t0):
+                raise WireError("control: bad t0")
+            self.loop.t0 = t0
+            self.started = True
+        elif payload == b"stop":
+            self.stop_requested = True
+            self.loop.stop()
+        else:
+            raise WireError("control: unknown command")
+
+    def _local_index(self, node: int) -> int:
+        j = self.local.get(node)
+        if j is None:
+            raise WireError(f"node {node} is not on host {self.h}")
+        return j
+
+    def _deliver(self, t: float, kind: int, subject: int, index: int, t_send: float,
+                 topic_len: int, size: int, fn: Any, *args: Any) -> None:
+        self.ledger.received(t_send, topic_len, size, self.qos)
+        d = self.impair.delay(t, DOWN, kind, subject, index)
+        if math.isinf(d):
+            return
+        if d > 0:
+            self.loop.call_at(t + d, self._release, fn, args)
+        else:
+            fn(t, *args)
+
+    def _release(self, fn: Any, args: tuple[Any, ...]) -> None:
+        fn(self.loop.now(), *args)
+
+    def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
+                 index: int) -> None:
+        d = self.impair.delay(t, UP, kind, subject, index)
+        if math.isinf(d):
+            return
+        self.ledger.sent(t, len(topic), len(payload), self.qos)
+        if d > 0:
+            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
+        else:
+            self.client.publish(topic, payload, self.qos)
+
+    # ------------------------------------------------------------ physics
+
+    def _on_trigger(self, t: float, k: int, t_send: float, dt: float, hl: float,
+                    hc: int) -> None:
+        self.rows.append(("trigger", self.h, -1, k, t_send, t, math.nan, math.nan, 0.0))
+        if self.use_hlc:
+            stamp = Stamp(hl, hc)
+            for j in range(self.m):
+                self.hlc[j].receive(self._local_time(j, t), stamp)
+        if k > self.frame:
+            w0 = time.perf_counter()
+            for f in range(self.frame + 1, k + 1):
+                self._step(f, dt)
+            self.step_real_s += time.perf_counter() - w0
+        for j in range(self.m):
+            if k > self.node_req[j] and t < self.crash_at[j]:
+                self.node_req[j] = k
+                self.node_trig_t[j] = t
+                if not self.node_busy[j]:
+                    self._start_job(j)
+
+    def _step(self, f: int, dt: float) -> None:
+        slot = f % self.H
+        self._log_slot(slot)
+        self.frame_dt[slot] = dt
+        self.phys_t += dt
+        self.phys_hist[slot] = self.phys_t
+        self.slot_frame[slot] = f
+        self.state = self.dyn.step(self.state, self.cmd, dt, f, self.nodes)
+        if self.warp:
+            self.ckpt[slot] = self.state
+        self.obs_hist[slot] = self.dyn.observe(self.state)
+        self.frame = f
+        self.steps += 1
+
+    def _log_slot(self, slot: int) -> None:
+        """Log the true positions of the frame leaving ``slot`` (it can no longer be
+        rolled back), for the fidelity metrics, as the DES engine does."""
+        f = int(self.slot_frame[slot])
+        if f >= 0:
+            self.track.append((f, float(self.phys_hist[slot]),
+                               self.obs_hist[slot, :, 9:12].copy()))
+
+    def track_arrays(self) -> dict[str, NDArray[Any]]:
+        """Every logged frame (frames still in the ring flushed), in frame order."""
+        first = max(0, self.frame - self.H + 1)
+        for f in range(first, self.frame + 1):
+            self._log_slot(f % self.H)
+            self.slot_frame[f % self.H] = -1
+        fr = np.array([x[0] for x in self.track], dtype=np.int64)
+        t = np.array([x[1] for x in self.track], dtype=np.float64)
+        pos = (np.stack([x[2] for x in self.track]) if self.track
+               else np.zeros((0, self.m, 3)))
+        return {"track_frames": fr, "track_t": t, "track_pos": pos, "nodes": self.nodes}
+
+    def _local_time(self, j: int, t: float) -> float:
+        return float(self.clocks.local_time(int(self.nodes[j]), t))
+
+    def _cost(self, j: int, target: int) -> float:
+        if not self.step_delay:
+            return 0.0
+        node = int(self.nodes[j])
+        step = self.sc.compute.step_time
+        frames = np.arange(self.node_frame[j] + 1, target + 1)
+        cost = float(step.sample(self.step_stream, _STEP, node, frames, 0).sum())
+        if self.rb_steps[j]:
+            cost += float(step.sample(self.step_stream, _ROLLBACK, node, target,
+                                      np.arange(self.rb_steps[j])).sum())
+        return cost
+
+    def _start_job(self, j: int) -> None:
+        now = self.loop.now()
+        target = self.node_req[j]
+        cost = self._cost(j, target)
+        self.rb_steps[j] = 0
+        for a, b, factor in self.slow.get(j, ()):
+            if a <= now < b:
+                cost *= factor
+        free = heapq.heappop(self.cores)
+        start = max(now, free)
+        heapq.heappush(self.cores, start + cost)
+        self.node_busy[j] = True
+        self.node_target[j] = target
+        if start + cost > now:
+            self.loop.call_at(start + cost, self._complete, j, target, cost)
+        else:
+            self._complete(j, target, cost)
+
+    def _complete(self, j: int, target: int, cost: float) -> None:
+        t = self.loop.now()
+        self.node_busy[j] = False
+        if t >= self.crash_at[j]:
+            return
+        if target > self.node_frame[j]:
+            self.node_frame[j] = target
+            if target <= self.frame - self.H:
+                self.history_misses += 1
+            obs = self.obs_hist[target % self.H, j]
+            stamp = self.hlc[j].send(self._local_time(j, t)) if self.use_hlc else None
+            self.last_pub[j] = (target, t, 0.0, stamp)
+            self._send_state(j, target, t, t, stamp, obs, False)
+            self.rows.append(("state_pub", self.h, int(self.nodes[j]), target, t, math.nan,
+                              self.node_trig_t[j], cost, 0.0))
+        if self.node_req[j] > self.node_frame[j] or self.rb_steps[j]:
+            self._start_job(j)
+
+    def _send_state(self, j: int, frame: int, t_gen: float, t: float, stamp: Stamp | None,
+                    obs: NDArray[np.float64], republish: bool) -> None:
+        hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
+        node = int(self.nodes[j])
+        payload = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
+        if not self.bundle:
+            self._publish(self.topics.state(self.h), payload, t, STATE, node, frame)
+            return
+        if not self._pending:
+            self.loop.call_at(t, self._flush)  # after the current handler, before the inbox
+        self._pending.append((payload, node, frame))
+
+    def _flush(self) -> None:
+        """``--bundle``: publish the states of this loop turn as one message."""
+        pend, self._pending = self._pending, []
+        if pend:
+            t = self.loop.now()
+            self._publish(self.topics.state(self.h), b"".join(p for p, _n, _f in pend), t,
+                          STATE, pend[0][1], pend[0][2])
+
+    def _on_rerequest(self, t: float, j: int, frame: int) -> None:
+        if t >= self.crash_at[j]:
+            return
+        last = self.last_pub[j]
+        if self.node_frame[j] >= frame and last is not None and last[0] == frame:
+            obs = self.obs_hist[frame % self.H, j]
+            self._send_state(j, frame, last[1], t, last[3], obs, True)
+        elif self.node_req[j] < frame:
+            self.node_req[j] = frame
+            self.node_trig_t[j] = t
+            if not self.node_busy[j]:
+                self._start_job(j)
+
+    def _on_command(self, t: float, j: int, stamp: int, tick: int, t_send: float,
+                    row: NDArray[np.float64]) -> None:
+        self.rows.append(("command", self.h, int(self.nodes[j]), tick, t_send, t, math.nan,
+                          math.nan, 0.0))
+        if t >= self.crash_at[j] or stamp < self.cmd_stamp[j]:
+            return
+        self.cmd_stamp[j] = stamp
+        self.cmd[j] = row
+        b = self.sc.bides
+        if not self.warp or stamp < 0:
+            return
+        current = self.node_target[j] if self.node_busy[j] else self.node_frame[j]
+        if current - stamp > b.theta_warp:
+            self._rollback(j, stamp, current, row)
+
+    def _rollback(self, j: int, c: int, current: int, row: NDArray[np.float64]) -> None:
+        """Re-simulate node ``j`` from frame ``c`` with command ``row`` (time warp)."""
+        c = max(c, self.frame - self.H + 2, 0)
+        s = (self.initial[j] if c == 0 else self.ckpt[(c - 1) % self.H, j])[None, :].copy()
+        node = self.nodes[j : j + 1]
+        for f in range(c, self.frame + 1):
+            slot = f % self.H
+            s = self.dyn.step(s, row[None, :], float(self.frame_dt[slot]), f, node)
+            self.ckpt[slot, j] = s[0]
+            self.obs_hist[slot, j] = self.dyn.observe(s)[0]
+        self.state[j] = s[0]
+        steps = max(0, current - c + 1)
+        self.rollbacks += 1
+        self.resim_steps += steps
+        self.rb_steps[j] += steps
+        if not self.node_busy[j]:
+            self._start_job(j)
+
+    # ------------------------------------------------------------ run
+
+    def announce(self) -> None:
+        """Publish ``ready`` every 0.2 s until ``go`` (the server may subscribe after us)."""
+        if self.started:
+            return
+        self.client.publish(self.topics.ready(self.h), b"1", 1)
+        self.loop.call_at(self.loop.now() + 0.2, self.announce)
+
+    def warm_up(self) -> None:
+        """Call every compiled kernel once (numba loads its cache lazily on first call)."""
+        dt = 1.0 / self.sc.f_trig
+        s = self.dyn.step(self.state.copy(), self.cmd, dt, 0, self.nodes)
+        self.dyn.observe(s)
+        if self.m:
+            one = self.dyn.step(self.state[:1].copy(), self.cmd[:1], dt, 0, self.nodes[:1])
+            self.dyn.observe(one)
+
+    def stats(self) -> dict[str, Any]:
+        """End-of-run counters sent to the server."""
+        return {
+            "host": self.h,
+            "links": self.ledger.as_dict(),
+            "rollbacks": self.rollbacks,
+            "resim_steps": self.resim_steps,
+            "history_misses": self.history_misses,
+            "rejected": self.rejected,
+            "lost": self.impair.lost,
+            "gave_up": self.impair.gave_up,
+            "connects": self.client.connects,
+            "disconnects": self.client.disconnects,
+            "steps": self.steps,
+            "step_real_s": self.step_real_s,
+        }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of a host process: ``python -m sigma_des.live.host CONFIG.json``.
+
+    The process serves the runs listed in the config (one per method) one after
+    the other: for each, a fresh :class:`Host` on the run's topics announces itself
+    ready, runs until ``stop`` (bounded by duration + ``linger`` s), reports its
+    counters and writes its rows.
+    """
+    args = sys.argv[1:] if argv is None else argv
+    cfg = json.loads(open(args[0]).read())
+    sc = from_dict(Scenario, cfg["scenario"])
+    addr = BrokerAddress(**cfg["broker"])
+    h = int(cfg["host"])
+    for i, (method, run) in enumerate(cfg["runs"]):
+        topics = Topics(run)
+        host = Host(sc, method, h, cfg, topics, addr, time.monotonic())
+        if i == 0:
+            host.warm_up()
+        host.client.start(timeout=10.0)
+        host.announce()
+        host.loop.run(until=sc.duration + float(cfg.get("linger", 120.0)))
+        host.client.publish(topics.stats(h), json.dumps(host.stats()).encode(), 1)
+        _write_rows(cfg["rows_path"].format(run=run), host.rows, host.track_arrays())
+        time.sleep(0.1)  # let paho flush the stats message
+        host.client.stop()
+    return 0
+
+
+def _write_rows(path: str, rows: list[tuple[Any, ...]], track: dict[str, NDArray[Any]]) -> None:
+    arr = np.array([r[1:] for r in rows], dtype=np.float64).reshape(-1, 8)
+    kinds = np.array([r[0] for r in rows], dtype="U10")
+    tmp = path + ".part.npz"
+    np.savez(tmp, kinds=kinds, values=arr, track_frames=track["track_frames"],
+             track_t=track["track_t"], track_pos=track["track_pos"], nodes=track["nodes"])
+    os.replace(tmp, path)  # the runner waits for the file: it must appear complete
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,182 @@
+"""The event loop every live process runs, and its paho-mqtt client.
+
+A :class:`Loop` is single-threaded: timers (a heap) and an inbox fed by paho's
+network thread. Every message is stamped with its receive time in the network
+thread (``on_message``) and handled on the loop thread, so the alignment code
+never runs concurrently with itself. Times are seconds since the run's start
+``t0`` on ``time.monotonic()`` (one clock for every process on one machine).
+
+:class:`Client` wraps ``paho.mqtt.client.Client`` (``CallbackAPIVersion.VERSION2``,
+MQTT 3.1.1): TCP_NODELAY on its socket (no Nagle batching), a configurable QoS 1
+in-flight window, resubscription on every (re)connect and reconnect with
+exponential backoff (paho's ``reconnect_delay_set``).
+"""
+
+from __future__ import annotations
+
+import heapq
+import queue
+import socket
+import time
+from collections.abc import Callable
+from typing import Any
+
+import paho.mqtt.client as mqtt
+
+from sigma_des.live.broker import BrokerAddress
+
+__all__ = ["Client", "Loop"]
+
+
+class Loop:
+    """Timers plus an inbox, run on one thread.
+
+    Args:
+        t0: ``time.monotonic()`` at the run's start.
+    """
+
+    def __init__(self, t0: float) -> None:
+        self.t0 = t0
+        self._heap: list[tuple[float, int, Callable[..., Any], tuple[Any, ...]]] = []
+        self._seq = 0
+        self.inbox: queue.SimpleQueue[tuple[Callable[..., Any], tuple[Any, ...]]] = (
+            queue.SimpleQueue()
+        )
+        self.stopped = False
+        self.handled = 0
+
+    def now(self) -> float:
+        """Seconds since the run's start."""
+        return time.monotonic() - self.t0
+
+    def call_at(self, t: float, fn: Callable[..., Any], *args: Any) -> None:
+        """Run ``fn(*args)`` on the loop thread at time ``t`` (loop thread only)."""
+        self._seq += 1
+        heapq.heappush(self._heap, (t, self._seq, fn, args))
+
+    def post(self, fn: Callable[..., Any], *args: Any) -> None:
+        """Run ``fn(*args)`` on the loop thread soon (thread-safe)."""
+        self.inbox.put((fn, args))
+
+    def stop(self) -> None:
+        """Leave :meth:`run` after the current handler."""
+        self.stopped = True
+
+    def run(self, until: float) -> None:
+        """Process timers and inbox until :meth:`stop` or time ``until`` (s since t0)."""
+        heap = self._heap
+        inbox = self.inbox
+        while not self.stopped:
+            now = self.now()
+            if now >= until:
+                return
+            while heap and heap[0][0] <= now and not self.stopped:
+                _t, _s, fn, args = heapq.heappop(heap)
+                fn(*args)
+            wait = min(until, heap[0][0] if heap else until) - self.now()
+            try:
+                fn, args = inbox.get(timeout=min(0.05, max(wait, 0.0)))
+            except queue.Empty:
+                continue
+            fn(*args)
+            self.handled += 1
+            for _ in range(256):  # drain what is there before looking at timers again
+                try:
+                    fn, args = inbox.get_nowait()
+                except queue.Empty:
+                    break
+                fn(*args)
+                self.handled += 1
+
+
+class Client:
+    """One paho-mqtt client of a live process.
+
+    Args:
+        addr: broker address and credentials.
+        client_id: MQTT client id.
+        subscriptions: ``(topic, qos)`` pairs, (re)subscribed on every connect.
+        on_message: called in paho's thread with ``(topic, payload)``.
+        max_inflight: QoS 1 messages in flight before paho queues (0 = unlimited).
+    """
+
+    def __init__(
+        self,
+        addr: BrokerAddress,
+        client_id: str,
+        subscriptions: list[tuple[str, int]],
+        on_message: Callable[[str, bytes], None],
+        max_inflight: int = 0,
+    ) -> None:
+        c = mqtt.Client(
+            mqtt.CallbackAPIVersion.VERSION2,
+            client_id=client_id,
+            protocol=mqtt.MQTTv311,
+            clean_session=True,
+        )
+        if addr.username:
+            c.username_pw_set(addr.username, addr.password)
+        c.max_inflight_messages_set(max_inflight if max_inflight > 0 else 65535)
+        c.max_queued_messages_set(0)
+        c.reconnect_delay_set(min_delay=1, max_delay=2)
+        self.addr = addr
+        self.subscriptions = subscriptions
+        self.connects = 0
+        self.disconnects = 0
+        self.refused: str = ""
+        self._handler = on_message
+        c.on_socket_open = self._nodelay
+        c.on_connect = self._on_connect
+        c.on_disconnect = self._on_disconnect
+        c.on_message = self._on_message
+        self.mqtt = c
+
+    @staticmethod
+    def _nodelay(client: mqtt.Client, userdata: Any, sock: Any) -> None:
+        if isinstance(sock, socket.socket):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+    def _on_connect(self, client: mqtt.Client, userdata: Any, flags: Any, rc: Any,
+                    props: Any) -> None:
+        if rc.is_failure:
+            self.refused = str(rc)
+            return
+        self.connects += 1
+        if self.subscriptions:
+            client.subscribe(self.subscriptions)
+
+    def _on_disconnect(self, client: mqtt.Client, userdata: Any, flags: Any, rc: Any,
+                       props: Any) -> None:
+        self.disconnects += 1
+
+    def _on_message(self, client: mqtt.Client, userdata: Any, msg: mqtt.MQTTMessage) -> None:
+        self._handler(msg.topic, bytes(msg.payload))
+
+    def start(self, timeout: float = 5.0) -> None:
+        """Connect and start paho's network thread; wait (bounded) for the CONNACK.
+
+        Raises:
+            ConnectionError: refused (e.g. wrong credentials) or no answer in ``timeout``.
+        """
+        self.mqtt.connect(self.addr.host, self.addr.port, keepalive=5)
+        self.mqtt.loop_start()
+        deadline = time.monotonic() + timeout
+        while self.connects == 0 and time.monotonic() < deadline:
+            if self.refused:
+                break
+            time.sleep(0.005)
+        if self.connects == 0:
+            self.stop()
+            why = self.refused or f"no CONNACK in {timeout} s"
+            raise ConnectionError(f"MQTT connect to {self.addr.host}:{self.addr.port}: {why}")
+
+    def publish(self, topic: str, payload: bytes, qos: int) -> None:
+        """Publish (thread-safe; while disconnected paho queues QoS 1 messages)."""
+        self.mqtt.publish(topic, payload, qos=qos)
+
+    def stop(self) -> None:
+        """Disconnect and stop the network thread."""
+        try:
+            self.mqtt.disconnect()
+        finally:
+            self.mqtt.loop_stop()

@@ -1,0 +1,371 @@
+"""Run a scenario live, one method after another, and return ``compare``'s Results.
+
+Per method: a fresh run token (its own topics), the alignment server in this
+process, one ``python -m sigma_des.live.host`` process per scenario host, a
+``go`` with the shared time origin once every host is subscribed, ``duration``
+seconds of real time, ``stop``, the hosts' counters, and the per-message rows of
+every process merged into one timestamp table (``messages.csv.gz``). The broker
+is our own Mosquitto (started once for all methods) unless ``broker`` names one.
+Every child process and the broker are stopped on the way out, also on errors and
+Ctrl-C (then the partial results of the interrupted method are kept).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sigma_des.api import Results
+from sigma_des.config import METHODS, Scenario, to_dict
+from sigma_des.errors import ConfigError
+from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_broker, wait_port
+from sigma_des.live.loop import Client
+from sigma_des.live.server import LiveServer
+from sigma_des.live.wire import Topics
+
+__all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
+
+MESSAGE_COLUMNS = ("method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig",
+                   "cost", "republish")
+LIVE_METRICS = ("rejected", "unknown_topic", "reconnects", "missed_frac", "late")
+
+
+@dataclass(frozen=True)
+class LiveOptions:
+    """Live-only settings (not part of the scenario).
+
+    Attributes:
+        broker: ``HOST:PORT`` of a running broker; None: start our own Mosquitto.
+        username: MQTT user for an external broker.
+        password: MQTT password for an external broker.
+        broker_port: port for our own broker (None: a free one).
+        impair: apply the scenario's link latency/loss in the clients.
+        step_delay: add the scenario's drawn ``compute.step_time`` to each node's real step.
+        max_inflight: QoS 1 in-flight window per client (0: unlimited).
+        bundle: a host sends the states its nodes finish in one loop turn as one PUBLISH.
+        kill_broker_at: fault injection: kill our broker at this time (s) ...
+        broker_down_s: ... and start it again this long after.
+        kill_host_at: fault injection: ``(host, t)``: kill that host process at ``t``.
+        ready_timeout: seconds to wait for the host processes to subscribe.
+        record: keep what ``live --record`` writes (states' poses, snapshots, renders).
+        hook: called as ``hook(addr, topics, server)`` right after the first trigger is
+            scheduled (tests use it to start a rogue client).
+    """
+
+    broker: str | None = None
+    username: str = ""
+    password: str = ""
+    broker_port: int | None = None
+    impair: bool = True
+    step_delay: bool = True
+    max_inflight: int = 0
+    bundle: bool = False
+    kill_broker_at: float | None = None
+    broker_down_s: float = 0.5
+    kill_host_at: tuple[int, float] | None = None
+    ready_timeout: float = 60.0
+    record: bool = False
+    hook: Callable[[BrokerAddress, Topics, LiveServer], None] | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_inflight < 0:
+            raise ConfigError("--max-inflight", f"must be >= 0, got {self.max_inflight}")
+        if self.broker is not None and self.kill_broker_at is not None:
+            raise ConfigError("kill_broker_at", "needs our own broker (no --broker)")
+
+
+def check_live(sc: Scenario) -> None:
+    """Reject what live mode cannot do, naming the key."""
+    for m in sc.methods:
+        if m not in METHODS:
+            raise ConfigError("methods", f"live mode runs {', '.join(METHODS)}, not {m!r}")
+    if getattr(sc.net, "middleware", "mqtt") != "mqtt":
+        raise ConfigError("net.middleware", "live mode runs over MQTT (Mosquitto): must be "
+                          f"'mqtt', got {sc.net.middleware!r}")
+    for i, f in enumerate(sc.faults):
+        if f.kind not in ("crash", "slow"):
+            raise ConfigError(f"faults[{i}].kind", f"live mode runs 'crash' and 'slow' faults, "
+                              f"not {f.kind!r}")
+    if sc.dynamics.startswith("jsbsim:"):
+        raise ConfigError("dynamics", "live mode runs the built-in models (pointmass, "
+                          "quadrotor, fixedwing), not JSBSim")
+
+
+def run_live(sc: Scenario, methods: list[str] | None = None,
+             opts: LiveOptions | None = None,
+             progress: bool = False
+             ) -> tuple[Results, pd.DataFrame, dict[str, dict[str, list[Any]]]]:
+    """Run ``methods`` live on ``sc``.
+
+    Returns:
+        The Results (as ``compare``'s, ``mode = "live"``), the message table and, per
+        method, what the server kept for a recording (empty unless ``opts.record``).
+
+    Raises:
+        ConfigError: unknown method, unsupported keys, mosquitto missing, broker
+            unreachable or its port in use.
+    """
+    opts = opts or LiveOptions()
+    ms = tuple(methods) if methods is not None else sc.methods
+    sc = replace(sc, methods=ms)
+    check_live(sc)
+    res = Results(sc)
+    res.mode = "live"
+    tables: list[pd.DataFrame] = []
+    kept: dict[str, dict[str, list[Any]]] = {}
+    with ExitStack() as stack:
+        broker: Broker | None = None
+        if opts.broker is None:
+            broker = Broker(port=opts.broker_port, max_inflight=opts.max_inflight)
+            addr = broker.start()
+            stack.callback(broker.stop)
+        else:
+            host, port = parse_broker(opts.broker)
+            if not wait_port(host, port, 2.0):
+                raise ConfigError("--broker", f"nothing accepts connections at {host}:{port}")
+            addr = BrokerAddress(host, port, opts.username, opts.password)
+        keep = os.environ.get("SIGMA_DES_LIVE_KEEP")  # keep the hosts' logs for debugging
+        d = Path(keep) if keep else Path(stack.enter_context(
+            tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
+        d.mkdir(parents=True, exist_ok=True)
+        runs = [(m, secrets.token_hex(4) + m) for m in ms]
+        procs = _spawn_hosts(sc, runs, addr, opts, d, stack)
+        for m, run in runs:
+            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d,
+                                                  progress)
+            kept[m] = out.pop("kept")
+            res.methods[m] = out["metrics"]
+            res.wall[m] = out["wall"]
+            res.links_mbps[m] = out["links_mbps"]
+            res.timeseries[m] = out["timeseries"]
+            res.engines[m] = {"requested": "live", "used": "live", "fallback": ""}
+            res.live[m] = out["live"]
+            if "fidelity" in out:
+                res.fidelity[m] = out["fidelity"]
+            tables.append(table)
+            if interrupted:
+                res.interrupted = True
+                break
+    msgs = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame(
+        columns=list(MESSAGE_COLUMNS))
+    return res, msgs, kept
+
+
+def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
+                 opts: LiveOptions, d: Path, stack: ExitStack) -> list[subprocess.Popen[bytes]]:
+    """One process per host, serving every run (method) in turn."""
+    env = dict(os.environ)
+    here = str(Path(__file__).resolve().parents[2])
+    env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    procs = []
+    for h in range(sc.hosts):
+        cfg = {
+            "scenario": to_dict(sc),
+            "runs": runs,
+            "host": h,
+            "broker": addr.__dict__,
+            "qos": sc.net.qos,
+            "impair": opts.impair,
+            "step_delay": opts.step_delay,
+            "max_inflight": opts.max_inflight,
+            "bundle": opts.bundle,
+            "rows_path": str(d / ("rows_{run}" + f"_h{h}.npz")),
+        }
+        path = d / f"host{h}.json"
+        path.write_text(json.dumps(cfg, default=float))
+        log = open(d / f"host{h}.log", "wb")
+        stack.callback(log.close)
+        p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
+                             stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                             env=env, preexec_fn=child_setup)  # Ctrl-C: we stop them
+        stack.callback(_reap, p)
+        procs.append(p)
+    return procs
+
+
+def _reap(p: subprocess.Popen[bytes]) -> None:
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(timeout=3)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(timeout=3)
+
+
+def _pump(srv: LiveServer, seconds: float) -> None:
+    srv.loop.stopped = False
+    srv.loop.run(until=srv.loop.now() + seconds)
+
+
+def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected: int,
+                timeout: float, d: Path) -> None:
+    deadline = time.monotonic() + timeout
+    while len(srv.ready) < expected:
+        for h, p in enumerate(procs):
+            if p.poll() is not None and p.returncode != -9:
+                log = (d / f"host{h}.log").read_text(errors="replace")[-800:]
+                raise RuntimeError(f"live host {h} exited at start (status {p.returncode}):\n{log}")
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"live hosts not ready after {timeout} s: {sorted(srv.ready)}")
+        _pump(srv, 0.05)
+
+
+def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveOptions,
+                broker: Broker | None, procs: list[subprocess.Popen[bytes]], d: Path,
+                progress: bool) -> tuple[dict[str, Any], pd.DataFrame, bool]:
+    topics = Topics(run)
+    interrupted = False
+    with ExitStack() as stack:
+        def factory(subs: list[tuple[str, int]], cb: Any) -> Client:
+            return Client(addr, f"{run}-srv", subs, cb, opts.max_inflight)
+
+        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record,
+                         opts.bundle)
+        try:
+            srv.client.start(timeout=5.0)
+        except ConnectionError as e:
+            raise ConfigError("--broker", str(e)) from None
+        stack.callback(srv.client.stop)
+        srv.warm_up()
+        live = [p for p in procs if p.poll() is None]
+        _wait_ready(srv, procs, len(live), opts.ready_timeout, d)
+        t0 = time.monotonic() + 0.3
+        srv.client.publish(topics.ctl, f"go:{t0!r}".encode(), 1)
+        while time.monotonic() < t0:
+            _pump(srv, 0.02)
+        _inject(srv, opts, broker, procs)
+        if progress:
+            print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
+                  file=sys.stderr, flush=True)
+        w0 = time.perf_counter()
+        srv.start(t0)
+        if opts.hook is not None:
+            opts.hook(addr, topics, srv)
+        try:
+            srv.loop.run(until=sc.duration)
+        except KeyboardInterrupt:
+            interrupted = True
+        srv.wall_seconds = time.perf_counter() - w0
+        srv.running = False
+        srv.client.publish(topics.ctl, b"stop", 1)
+        alive = [h for h, p in enumerate(procs) if p.poll() is None]
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline and not set(alive) <= set(srv.stats):
+            _pump(srv, 0.05)
+        for h in alive:  # the rows file follows the stats message
+            f = d / f"rows_{run}_h{h}.npz"
+            while time.monotonic() < deadline and not f.exists():
+                time.sleep(0.01)
+        out = srv.finish()
+        table = _messages(run, m, srv, d, sc.hosts)
+        if sc.fidelity.enabled:
+            _fidelity(out, sc, srv, d, run)
+    out["kept"] = srv.kept
+    out["live"] = _live_info(srv, procs, table, sc)
+    out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
+    return out, table, interrupted
+
+
+def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:
+    """Formation error and DTW against the ideal run, from the hosts' true positions.
+
+    The hosts log every frame's true positions (as the DES engine does); frames that
+    every host logged are sampled at ``fidelity.log_rate`` Hz of physics time. A host
+    that did not report (killed) leaves the metrics NaN.
+    """
+    from sigma_des.api import ideal_run
+    from sigma_des.metrics.fidelity import TrajectoryLog, fidelity
+
+    n = sc.nodes
+    tracks = []
+    for h in range(sc.hosts):
+        p = d / f"rows_{run}_h{h}.npz"
+        if not p.exists():
+            return
+        with np.load(p) as z:
+            tracks.append((z["nodes"], z["track_frames"], z["track_t"], z["track_pos"]))
+    common = set(tracks[0][1].tolist())
+    for tr in tracks[1:]:
+        common &= set(tr[1].tolist())
+    frames = np.array(sorted(common), dtype=np.int64)
+    if frames.size < 2:
+        return
+    pos = np.zeros((frames.size, n, 3))
+    t = np.zeros(frames.size)
+    for nodes, fr, tt, pp in tracks:
+        idx = np.searchsorted(fr, frames)
+        pos[:, nodes] = pp[idx]
+        t = tt[idx]
+    log = TrajectoryLog(sc.fidelity.log_rate, srv.dyn.observe(srv.dyn.initial_state(n))[:, 9:12])
+    for k in range(frames.size):
+        log.add(float(t[k]), pos[k])
+    times, traj = log.arrays()
+    fid, err = fidelity(traj, ideal_run(sc)[1], 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
+    out["metrics"].update(fid)
+    out["fidelity"] = {"t": times[: len(err)], "formation_err": err}
+
+
+def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,
+            procs: list[subprocess.Popen[bytes]]) -> None:
+    if opts.kill_broker_at is not None and broker is not None:
+        srv.loop.call_at(opts.kill_broker_at, broker.kill)
+        srv.loop.call_at(opts.kill_broker_at + opts.broker_down_s, broker.restart)
+    if opts.kill_host_at is not None:
+        h, t = opts.kill_host_at
+        srv.loop.call_at(t, procs[h].kill)
+
+
+def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int) -> pd.DataFrame:
+    kinds: list[np.ndarray] = [np.array([r[0] for r in srv.rows], dtype="U12")]
+    vals: list[np.ndarray] = [np.array([r[1:] for r in srv.rows], dtype=np.float64).reshape(-1, 8)]
+    for h in range(hosts):
+        p = d / f"rows_{run}_h{h}.npz"
+        if p.exists():
+            with np.load(p) as z:
+                kinds.append(z["kinds"].astype("U12"))
+                vals.append(z["values"])
+    v = np.concatenate(vals)
+    df = pd.DataFrame(v, columns=list(MESSAGE_COLUMNS[2:]))
+    df.insert(0, "kind", np.concatenate(kinds))
+    df.insert(0, "method", m)
+    for c in ("host", "node", "frame"):
+        df[c] = df[c].astype(np.int64)
+    df["republish"] = df["republish"].astype(bool)
+    return df.sort_values(["kind", "frame", "node"], kind="stable").reset_index(drop=True)
+
+
+def _live_info(srv: LiveServer, procs: list[subprocess.Popen[bytes]], table: pd.DataFrame,
+               sc: Scenario) -> dict[str, Any]:
+    st = srv.stats
+    states = table[(table["kind"] == "state") & ~table["republish"]]
+    trig = table[table["kind"] == "trigger_sent"]
+    win = trig[(trig["t_send"] >= sc.warmup) & (trig["t_send"] < sc.duration)]
+    frames = set(win["frame"].tolist())
+    got = states[states["frame"].isin(frames)].drop_duplicates(["node", "frame"])
+    expected = len(frames) * sc.nodes
+    return {
+        "rejected": srv.rejected + sum(int(s.get("rejected", 0)) for s in st.values()),
+        "unknown_topic": srv.unknown_topic,
+        "reconnects": max(0, srv.client.connects - 1)
+        + sum(max(0, int(s.get("connects", 1)) - 1) for s in st.values()),
+        "missed_frac": 1.0 - len(got) / expected if expected else float("nan"),
+        "late": srv.late,
+        "hosts_reported": sorted(st),
+        "hosts_killed": [h for h, p in enumerate(procs) if p.returncode == -9],
+        "step_real_ms": 1000.0 * sum(float(s.get("step_real_s", 0)) for s in st.values())
+        / max(1, sum(int(s.get("steps", 0)) for s in st.values())),
+    }

@@ -1,0 +1,58 @@
+"""Wire-byte ledger (hand-computed frames) and the fan-out slope fit (exact line)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sigma_des import Scenario
+from sigma_des.live.calibrate import delivery_floor, fanout_slope, host_share
+from sigma_des.live.ledger import Ledger
+
+
+def test_ledger_counts_framing_and_pubacks_in_the_window() -> None:
+    led = Ledger(Scenario(nodes=2, hosts=1, duration=2.0, warmup=1.0), "host0")
+    led.sent(1.5, topic_len=20, size=85, qos=1)
+    led.sent(0.5, topic_len=20, size=85, qos=1)  # before the window: not counted
+    led.received(1.2, topic_len=10, size=33, qos=0)
+    # PUBLISH = 1 + 1 + (2 + 20 + 2 + 85) = 111; + TCP/IP 40 + Ethernet 38 = 189
+    # PUBACK = 4 + 40 -> padded to 46, + 38 = 84; QoS 0 trigger 1+1+(2+10+33)=47 +78 = 125
+    assert led.as_dict() == {"host0.up": [189, 1], "host0.down": [84 + 125, 2]}
+
+
+def test_fanout_slope_recovers_an_exact_line() -> None:
+    rows = []
+    for f in range(5):
+        for pos in range(4):
+            rows.append({"frame": f, "t_send": f * 0.01,
+                         "t_recv": f * 0.01 + 0.001 + 0.0002 * pos})
+    a, b = fanout_slope(pd.DataFrame(rows).sample(frac=1.0, random_state=0))
+    assert a == pytest.approx(0.001, abs=1e-12)
+    assert b == pytest.approx(0.0002, abs=1e-12)
+    one = pd.DataFrame([{"frame": 0, "t_send": 0.0, "t_recv": 0.003}])
+    assert fanout_slope(one) == (pytest.approx(0.003), 0.0)
+
+
+def test_delivery_floor_is_the_low_quantile_of_consecutive_gaps() -> None:
+    rows = []
+    for f in range(40):  # 3 receivers: gaps 0.0001 exactly, plus a late wake-up on 1 in 4
+        late = 0.002 if f % 4 == 0 else 0.0
+        for pos in range(3):
+            rows.append({"frame": f, "t_recv": f * 0.01 + 0.0001 * pos + (late if pos else 0)})
+    df = pd.DataFrame(rows)
+    assert delivery_floor(df) == pytest.approx(0.0001, abs=1e-12)
+    gaps = np.array([0.0021] * 10 + [0.0001] * 70)
+    assert delivery_floor(df, q=0.99) == pytest.approx(np.quantile(gaps, 0.99))
+    assert delivery_floor(df.iloc[:1]) == 0.0
+
+
+def test_host_share_separates_common_and_individual_delays() -> None:
+    # host 0 frame f: common delay f*1ms, nodes add +-0.5 ms: between var 1.25e-6 (f=0..3
+    # -> means 0,1,2,3 ms), within var 0.25e-6; share = 1.25 / 1.5
+    rows = [{"host": 0, "frame": f, "cost": f * 1e-3 + d} for f in range(4)
+            for d in (-0.5e-3, 0.5e-3)]
+    assert host_share(pd.DataFrame(rows)) == pytest.approx(1.25 / 1.5)
+    same = pd.DataFrame([{"host": 0, "frame": f, "cost": f * 1e-3} for f in range(4)] * 2)
+    assert host_share(same) == pytest.approx(1.0)
+    assert np.isnan(host_share(same.iloc[:1]))

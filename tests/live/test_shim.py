@@ -1,0 +1,48 @@
+"""Client impairment shim: delays and loss decisions are the link spec's, draw for draw."""
+
+from __future__ import annotations
+
+import math
+
+from sigma_des.live.shim import DOWN, UP, Impairment
+from sigma_des.net.latency import Dist
+from sigma_des.net.loss import LossProcess, LossSpec
+from sigma_des.rng import RandomStreams
+from sigma_des.specs import LinkSpec, NetSpec
+
+
+def test_disabled_or_zero_link_adds_nothing() -> None:
+    st = RandomStreams(1)
+    link = LinkSpec(latency=Dist(dist="constant", value=0.004), loss=LossSpec(p=0.5))
+    assert Impairment(link, NetSpec(), st, 0, enabled=False).delay(0.0, UP, 2, 0, 0) == 0.0
+    zero = LinkSpec(latency=Dist(dist="constant", value=0.0))
+    assert Impairment(zero, NetSpec(), st, 0).delay(0.0, UP, 2, 0, 0) == 0.0
+
+
+def test_constant_latency_and_stream_order() -> None:
+    link = LinkSpec(latency=Dist(dist="uniform", low=0.001, high=0.009))
+    imp = Impairment(link, NetSpec(transport="stream"), RandomStreams(3), 1)
+    release = [t + imp.delay(t, DOWN, 2, 0, k) for k, t in enumerate([0.0, 0.0001, 0.0002])]
+    assert release == sorted(release)  # stream transport keeps order
+    dg = Impairment(LinkSpec(latency=Dist(dist="constant", value=0.003)),
+                    NetSpec(transport="datagram"), RandomStreams(3), 1)
+    assert dg.delay(1.0, UP, 2, 5, 7) == 0.003
+
+
+def test_loss_follows_the_link_loss_process() -> None:
+    spec = LossSpec(p=0.3)
+    link = LinkSpec(latency=Dist(dist="constant", value=0.002), loss=spec)
+    streams = RandomStreams(9)
+    ref = LossProcess(spec, RandomStreams(9).stream("live.loss"), 2)
+    drop = Impairment(link, NetSpec(transport="datagram", qos=0), streams, 2)
+    resend = Impairment(link, NetSpec(transport="datagram", qos=1, qos1_timeout=0.05,
+                                      max_retries=5), RandomStreams(9), 2)
+    for k in range(200):
+        lost = [bool(ref.lost(0.0, UP, 2, 0, k, a)[0]) for a in range(6)]
+        d0 = drop.delay(0.0, UP, 2, 0, k)
+        assert (d0 == math.inf) == lost[0]
+        n_lost = next((a for a, x in enumerate(lost) if not x), 6)
+        d1 = resend.delay(0.0, UP, 2, 0, k)
+        expect = math.inf if n_lost == 6 else 0.002 + 0.05 * n_lost
+        assert d1 == expect or abs(d1 - expect) < 1e-12
+    assert drop.lost > 0 and resend.lost >= drop.lost
