@@ -30,7 +30,7 @@ from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
 from sigma_des.live.ledger import Ledger
 from sigma_des.live.loop import Client, Loop
-from sigma_des.live.shim import DOWN, UP, Impairment
+from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
 from sigma_des.live.wire import (
     COMMAND,
     MAX_BUNDLE,
@@ -52,7 +52,7 @@ __all__ = ["Host", "main"]
 _STEP, _ROLLBACK = 0, 1
 
 
-class Host:
+class Host(ImpairedSender):
     """The nodes of one physics host, driven by MQTT messages.
 
     Args:
@@ -209,17 +209,6 @@ class Host:
 
     def _release(self, fn: Any, args: tuple[Any, ...]) -> None:
         fn(self.loop.now(), *args)
-
-    def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
-                 index: int) -> None:
-        d = self.impair.delay(t, UP, kind, subject, index)
-        if math.isinf(d):
-            return
-        self.ledger.sent(t, len(topic), len(payload), self.qos)
-        if d > 0:
-            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
-        else:
-            self.client.publish(topic, payload, self.qos)
 
     # ------------------------------------------------------------ physics
 

@@ -26,7 +26,7 @@ from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.live.ledger import Ledger
 from sigma_des.live.loop import Client, Loop
-from sigma_des.live.shim import DOWN, UP, Impairment
+from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
 from sigma_des.live.wire import (
     COMMAND,
     MAX_BUNDLE,
@@ -101,7 +101,7 @@ class _Scratch:
         pass
 
 
-class LiveServer:
+class LiveServer(ImpairedSender):
     """One method's alignment server over MQTT.
 
     Args:
@@ -190,17 +190,6 @@ class LiveServer:
                       frame * 64 + min(retry, 63))
 
     # ------------------------------------------------------------ sending
-
-    def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
-                 index: int) -> None:
-        d = self.impair.delay(t, UP, kind, subject, index)
-        if math.isinf(d):
-            return
-        self.ledger.sent(t, len(topic), len(payload), self.qos)
-        if d > 0:
-            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
-        else:
-            self.client.publish(topic, payload, self.qos)
 
     def _issue(self) -> None:
         t = self.now()

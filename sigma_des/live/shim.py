@@ -21,12 +21,17 @@ e.g. ``tc qdisc add dev lo root netem delay 5ms 1ms loss 10%`` (then run with
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from sigma_des.net.loss import LossProcess
 from sigma_des.rng import RandomStreams
 from sigma_des.specs import LinkSpec, NetSpec
 
-__all__ = ["Impairment", "UP", "DOWN"]
+if TYPE_CHECKING:  # only for annotations: the shim itself needs no MQTT client
+    from sigma_des.live.ledger import Ledger
+    from sigma_des.live.loop import Client, Loop
+
+__all__ = ["Impairment", "ImpairedSender", "UP", "DOWN"]
 
 UP, DOWN = 0, 1
 
@@ -93,3 +98,29 @@ class Impairment:
             self._last[direction] = release
             d = release - t
         return d
+
+
+class ImpairedSender:
+    """Mixin of the live processes that publish through their access link's shim.
+
+    The host and the server both send this way: the message is dropped if the shim
+    loses it for good, counted in the wire-byte ledger, and published after the
+    drawn one-way delay (at once when there is none).
+    """
+
+    loop: Loop
+    client: Client
+    impair: Impairment
+    ledger: Ledger
+    qos: int
+
+    def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
+                 index: int) -> None:
+        d = self.impair.delay(t, UP, kind, subject, index)
+        if math.isinf(d):
+            return
+        self.ledger.sent(t, len(topic), len(payload), self.qos)
+        if d > 0:
+            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
+        else:
+            self.client.publish(topic, payload, self.qos)
