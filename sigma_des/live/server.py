@@ -5,7 +5,8 @@ driven by real messages and the wall clock: it runs the simulator's own aligner
 (``ALIGNERS[method]``), behaviour and :class:`~sigma_des.metrics.collector.Collector`
 on measured timestamps. Triggers follow the DES rule ``T_k = t0 + (k - k0) / f``
 (rebased when BiDES changes the rate; Lock-Step waits for its barrier);
-alignment and render ticks run at ``k / f_align`` and ``k / f_render``.
+alignment and render ticks run at ``(k + align_phase) / f_align`` and
+``(k + render_phase) / f_render``, as in the DES.
 Anything malformed or on an unknown topic is counted and dropped.
 """
 
@@ -178,9 +179,22 @@ class LiveServer(ImpairedSender):
         self.collector.rate_change(self.now(), f_trig)
 
     def barrier_done(self, frame: int) -> None:
-        """Lock-Step: trigger ``frame + 1`` no sooner than ``1/f_trig`` after ``frame``."""
-        t_k = self.trig_time[frame]
-        self.loop.call_at(max(self.now(), t_k + 1.0 / self.f_trig), self._issue)
+        """Lock-Step: trigger ``frame + 1`` no sooner than ``1/f_trig`` after ``frame``.
+
+        As in the DES, the earliest time is on the grid ``t0 + (k - k0) / f`` (never a
+        running sum); a barrier that completes later triggers at once and restarts the
+        grid there.
+        """
+        k = frame + 1
+        t0, k0, f = self._base
+        if self.f_trig != f:
+            t0, k0, f = self._base = (self.trig_time[frame], frame, self.f_trig)
+        t = t0 + (k - k0) / f
+        now = self.now()
+        if t < now:
+            t = now
+            self._base = (now, k, f)
+        self.loop.call_at(t, self._issue)
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
@@ -302,7 +316,7 @@ class LiveServer(ImpairedSender):
         if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
             self._send_commands(t)
         self.align_tick += 1
-        self.loop.call_at(self.align_tick / self.sc.f_align, self._align)
+        self.loop.call_at(self._align_time(self.align_tick), self._align)
 
     def _send_commands(self, t: float) -> None:
         al = self.aligner
@@ -339,7 +353,7 @@ class LiveServer(ImpairedSender):
         if self.record:
             self.kept["renders"].append((t, t - al.shown_gen))
         self.render_tick += 1
-        self.loop.call_at(self.render_tick / self.sc.f_render, self._render)
+        self.loop.call_at(self._render_time(self.render_tick), self._render)
 
     # ------------------------------------------------------------ run
 
@@ -362,8 +376,16 @@ class LiveServer(ImpairedSender):
         self.loop.t0 = t0
         self.running = True
         self.loop.call_at(0.0, self._issue)
-        self.loop.call_at(0.0, self._align)
-        self.loop.call_at(0.0, self._render)
+        self.loop.call_at(self._align_time(0), self._align)
+        self.loop.call_at(self._render_time(0), self._render)
+
+    def _align_time(self, j: int) -> float:
+        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (the DES's tick grid)."""
+        return (j + self.sc.align_phase) / self.sc.f_align
+
+    def _render_time(self, j: int) -> float:
+        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
+        return (j + self.sc.render_phase) / self.sc.f_render
 
     def finish(self) -> dict[str, Any]:
         """The collector's results, with the hosts' counters folded in."""
