@@ -49,3 +49,12 @@ def test_rate_series_exact() -> None:
     t_end, rate = plots.rate_series(t, t * 100.0, window=0.2)
     assert t_end[0] == t[5] and np.allclose(rate, 100.0)
     assert plots.rate_series(np.array([0.0]), np.array([1.0]))[0].size == 0
+
+
+def test_moving_average_exact() -> None:
+    """Centred window of 3, NaN ignored, shorter windows at the ends."""
+    x = np.array([1.0, 2.0, np.nan, 4.0, 6.0])
+    got = plots.moving_average(x, 3)
+    assert got.tolist() == [1.5, 1.5, 3.0, 5.0, 5.0]
+    assert plots.moving_average(x, 1)[1] == 2.0
+    assert np.isnan(plots.moving_average(np.array([np.nan, np.nan]), 2)).all()
