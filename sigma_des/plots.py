@@ -93,7 +93,8 @@ def moving_average(x: NDArray[np.float64], n: int) -> NDArray[np.float64]:
 
     Near the ends the window holds fewer samples; a window with no finite sample is NaN.
     """
-    if n <= 1 or x.size == 0:
+    n = min(n, x.size)  # np.convolve's "same" is as long as the longer input
+    if n <= 1:
         return x.astype(float)
     ok = np.isfinite(x)
     k = np.ones(n)

@@ -58,3 +58,9 @@ def test_moving_average_exact() -> None:
     assert got.tolist() == [1.5, 1.5, 3.0, 5.0, 5.0]
     assert plots.moving_average(x, 1)[1] == 2.0
     assert np.isnan(plots.moving_average(np.array([np.nan, np.nan]), 2)).all()
+
+
+def test_moving_average_keeps_a_short_series_length() -> None:
+    """A series shorter than the window (a run stopped early) keeps its own length."""
+    got = plots.moving_average(np.array([1.0, 2.0, 3.0]), 12)
+    assert got.tolist() == [1.5, 2.0, 2.5]  # the window shrinks to the 3 samples

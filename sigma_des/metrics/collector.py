@@ -284,5 +284,18 @@ class Collector:
             "metrics": m,
             "wall": wall,
             "links_mbps": links_mbps,
-            "timeseries": {k: np.asarray(v) for k, v in self.ts.items()},
+            "timeseries": whole_ticks(self.ts),
         }
+
+
+def whole_ticks(ts: dict[str, list[Any]]) -> dict[str, NDArray[Any]]:
+    """The per-render-tick series as arrays, cut to the ticks every series has.
+
+    A run stopped in the middle of a render tick (Ctrl-C in live mode raises
+    ``KeyboardInterrupt`` between two appends) leaves some series one sample
+    longer than others; plots and tables need whole ticks. A complete run's
+    series all have the same length, so nothing is cut.
+    """
+    n = min((len(v) for v in ts.values()), default=0)
+    return {k: np.asarray(v[:n]) for k, v in ts.items()}
+
