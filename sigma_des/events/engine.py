@@ -144,7 +144,6 @@ class MethodRun:
         self.render_tick = 0
         # periodic triggers: T_k = t0 + (k - k0) / f, rebased when the rate changes
         self._base: tuple[float, int, float] = (0.0, 0, sc.f_trig)
-        self._prev_gen = np.full(n, np.nan)
         self.wall_seconds = 0.0
         #: the state of the next trigger's frame, computed outside (batched physics of
         #: ``sigma_des.env``); None: :meth:`_issue` steps the swarm itself
@@ -414,11 +413,7 @@ class MethodRun:
         t = self.kernel.now
         al = self.aligner
         al.align(t)
-        gen = al.shown_gen
-        changed = np.flatnonzero(~np.isnan(gen) & ~(gen == self._prev_gen))
-        if changed.size:
-            self.collector.aoi_update(t, changed, gen[changed])
-            self._prev_gen = gen.copy()
+        self.collector.shown(t, al.shown_gen)
         if al.new_snapshot:
             self.collector.snapshot(t)
             if self.tap is not None:

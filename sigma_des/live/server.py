@@ -142,7 +142,6 @@ class LiveServer(ImpairedSender):
                                  impair)
         self.align_tick = 0
         self.render_tick = 0
-        self._prev_gen = np.full(n, np.nan)
         self.record = record
         self.bundle = bundle
         self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
@@ -302,11 +301,7 @@ class LiveServer(ImpairedSender):
             return
         al = self.aligner
         al.align(t)
-        gen = al.shown_gen
-        changed = np.flatnonzero(~np.isnan(gen) & ~(gen == self._prev_gen))
-        if changed.size:
-            self.collector.aoi_update(t, changed, gen[changed])
-            self._prev_gen = gen.copy()
+        self.collector.shown(t, al.shown_gen)
         if al.new_snapshot:
             self.collector.snapshot(t)
             if self.record:

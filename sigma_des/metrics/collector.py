@@ -96,6 +96,7 @@ class Collector:
         self.w0 = sc.warmup
         n = sc.nodes
         self.aoi = AoITracker(n, sc.warmup)
+        self._shown_gen = np.full(n, np.nan)  # generation times shown after the last tick
         H = sc.history_frames
         # per kind, the newest index seen per (subject, index % H): made on first use, so
         # a run that never calls delivered() (the cohort engine) never holds them
@@ -170,6 +171,17 @@ class Collector:
     def aoi_update(self, t: float, nodes: NDArray[np.int64], gens: NDArray[np.float64]) -> None:
         """The consumer starts showing new states of ``nodes``."""
         self.aoi.update(t, nodes, gens)
+
+    def shown(self, t: float, gen: NDArray[np.float64]) -> None:
+        """The consumer shows states generated at ``gen`` (NaN: none yet) from tick ``t`` on.
+
+        Only the nodes whose shown state changed since the previous tick start a new AoI
+        sawtooth (:meth:`aoi_update`); every engine and the live server call this.
+        """
+        changed = np.flatnonzero(~np.isnan(gen) & ~(gen == self._shown_gen))
+        if changed.size:
+            self.aoi_update(t, changed, gen[changed])
+            self._shown_gen = gen.copy()
 
     def snapshot(self, t: float) -> None:
         """A new aligned snapshot appeared at ``t``."""
