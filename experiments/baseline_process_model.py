@@ -51,10 +51,10 @@ from numpy.typing import NDArray
 from simpy.events import EventPriority
 
 from sigma_des.config import Scenario
+from sigma_des.core.rng import RandomStreams
 from sigma_des.factory import make_dynamics
 from sigma_des.net.latency import Dist
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
-from sigma_des.rng import RandomStreams
 
 __all__ = ["ProcessModel", "PTimeout", "Unsupported", "check_supported", "run_baseline"]
 

@@ -32,7 +32,7 @@ def test_method_order_does_not_change_results() -> None:
 
 
 def test_draws_do_not_depend_on_request_order() -> None:
-    from sigma_des.rng import RandomStreams
+    from sigma_des.core.rng import RandomStreams
 
     s = RandomStreams(7).stream("lat.host.up")
     forward = [float(s.uniform(2, i, 5, 0)[0]) for i in range(10)]

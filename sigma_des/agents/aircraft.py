@@ -35,8 +35,8 @@ from sigma_des.agents.kernel import step_kernel
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.presets import preset
 from sigma_des.agents.wind import WindConfig
+from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
-from sigma_des.rng import RandomStreams
 
 __all__ = ["GeneralAircraft", "COMMAND_NAMES", "ACTUATOR_NAMES", "observe_state"]
 

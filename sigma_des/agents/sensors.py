@@ -31,12 +31,12 @@ from numpy.typing import NDArray
 from sigma_des.agents import layout as L
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.atmosphere import isa_scalar
-from sigma_des.agents.counter_rng import absorb, normal_at
 from sigma_des.agents.forces import forces_moments
 from sigma_des.agents.rigid_body import rotmat, to_body, to_ned
 from sigma_des.agents.wind import mean_wind
+from sigma_des.core.counter_rng import absorb, normal_at
+from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
-from sigma_des.rng import RandomStreams
 
 __all__ = ["SENSOR_FIELDS", "ChannelNoise", "SensorConfig", "Sensors"]
 
@@ -186,7 +186,7 @@ class Sensors:
     def calibration(self, nodes: NDArray[np.int64]) -> NDArray[np.float64]:
         """Per-unit constants ``(n, 56)``: bias (16), scale error (16), vibration phases.
 
-        Drawn with :class:`sigma_des.rng.Stream` keyed by (node, channel), so a node
+        Drawn with :class:`sigma_des.core.rng.Stream` keyed by (node, channel), so a node
         keeps its calibration error whatever batch it is read in; cached for the
         last ``nodes`` array seen.
         """

@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
-from sigma_des.agents.counter_rng import absorb, normal_at
+from sigma_des.core.counter_rng import absorb, normal_at
 from sigma_des.errors import ConfigError
 
 __all__ = ["WindConfig", "mean_wind", "dryden_scales", "turbulence_update"]

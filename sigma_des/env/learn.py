@@ -13,7 +13,7 @@ numbers). Fitness = mean reward per agent-step over ``max_steps`` steps; a scene
 that terminates early scores its remaining agent-steps at ``-task.div^2`` (the
 clipped worst error cost), so ending an episode never pays.
 
-Sampling uses the counter-based streams of :mod:`sigma_des.rng` (no global RNG).
+Sampling uses the counter-based streams of :mod:`sigma_des.core.rng` (no global RNG).
 """
 
 from __future__ import annotations
@@ -26,10 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtri
 
+from sigma_des.core.rng import Stream
 from sigma_des.env.tasks import ACTION_DIM
 from sigma_des.env.vector import SwarmVec
 from sigma_des.errors import ConfigError
-from sigma_des.rng import Stream
 
 __all__ = ["CEMConfig", "act", "rollout", "train", "evaluate"]
 

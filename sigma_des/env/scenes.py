@@ -28,10 +28,10 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
-from sigma_des.rng import RandomStreams, mix
 
 __all__ = ["Scene", "SceneBatch", "scene_seed"]
 

@@ -53,8 +53,8 @@ from numpy.typing import NDArray
 from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.agents.behaviours import to_command
 from sigma_des.agents.formation import formation_slots
+from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
-from sigma_des.rng import Stream
 
 __all__ = ["TASKS", "Task", "FormationTask", "GoalTask", "make_task", "ACTION_DIM"]
 

@@ -29,12 +29,12 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.config import Scenario
+from sigma_des.core.draws import DrawCache
 from sigma_des.events import cohort_jit as J
 from sigma_des.events import cohort_state as CS
 from sigma_des.events.aligners import OBS_WIDTH
 from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.hlc import Stamp
-from sigma_des.net.draws import DrawCache
 
 __all__ = ["CohortFallback", "CohortRun", "execute", "make_run", "unsupported"]
 

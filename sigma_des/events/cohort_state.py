@@ -17,6 +17,8 @@ from typing import Any, TypeVar
 
 from numba import njit
 
+from sigma_des.net.kinds import Kind
+
 _F = TypeVar("_F", bound=Callable[..., Any])
 
 #: Compiled without numba's reference counting: every array is borrowed from the
@@ -30,8 +32,8 @@ EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
 # exit codes of advance()
 OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
 
-# message kinds (as in sigma_des.net.network)
-K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = 1, 2, 3, 4, 5
+# message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
+K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
 
 # positions in the state tuple S
 HT, HE, HS, EVI, EVF, FREE, II, FF, QQ, GG = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9

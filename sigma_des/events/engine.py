@@ -29,18 +29,19 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.base import Behaviour, DynamicsModel, SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.draws import DrawCache
+from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
 from sigma_des.events.hlc import HLC, Stamp
-from sigma_des.events.kernel import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.events.rpc import RpcAligner
 from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.fidelity import TrajectoryLog
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
-from sigma_des.net.draws import DrawCache
-from sigma_des.net.network import COMMAND, REPUBLISH, REREQUEST, STATE, Network
-from sigma_des.net.network import TRIGGER as K_TRIGGER
-from sigma_des.rng import RandomStreams
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE
+from sigma_des.net.kinds import TRIGGER as K_TRIGGER
+from sigma_des.net.network import Network
 
 __all__ = ["MethodRun", "PAUSED", "TRIGGER_DUE", "END"]
 

@@ -27,12 +27,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
+from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
 from sigma_des.events.aligners import _RECORD_BYTES, OBS_WIDTH, Aligner, ServerContext
 from sigma_des.events.bides_align import EXACT, MISSING
 from sigma_des.events.hlc import Stamp
 from sigma_des.net.links import dist_cache
-from sigma_des.rng import RandomStreams
 
 __all__ = ["RpcAligner", "RpcContext"]
 

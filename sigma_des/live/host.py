@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.config import Scenario, from_dict
+from sigma_des.core.rng import RandomStreams
 from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
@@ -45,7 +46,6 @@ from sigma_des.live.wire import (
     encode_state,
 )
 from sigma_des.net.clocks import NodeClocks
-from sigma_des.rng import RandomStreams
 
 __all__ = ["Host", "main"]
 

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.base import SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.rng import RandomStreams
 from sigma_des.events.aligners import ALIGNERS, Aligner
 from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -43,7 +44,6 @@ from sigma_des.live.wire import (
     encode_trigger,
 )
 from sigma_des.metrics.collector import Collector
-from sigma_des.rng import RandomStreams
 
 __all__ = ["LiveNet", "LiveServer"]
 

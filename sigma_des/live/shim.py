@@ -23,8 +23,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from sigma_des.core.rng import RandomStreams
 from sigma_des.net.loss import LossProcess
-from sigma_des.rng import RandomStreams
 from sigma_des.specs import LinkSpec, NetSpec
 
 if TYPE_CHECKING:  # only for annotations: the shim itself needs no MQTT client

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
-from sigma_des.rng import Stream
 
 __all__ = ["ClockSpec", "NodeClocks"]
 

@@ -42,11 +42,11 @@ from collections.abc import Sequence
 from typing import Any
 
 from sigma_des.config import Scenario
-from sigma_des.events.kernel import Kernel
+from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import Kernel
 from sigma_des.net.links import dist_cache
 from sigma_des.net.network import Deliver, Network
 from sigma_des.net.wire import frame_bytes, payload_bytes
-from sigma_des.rng import RandomStreams
 
 __all__ = [
     "DdsNetwork",

@@ -1,7 +1,7 @@
 """Base-latency distributions of a network hop (DESIGN §2).
 
 A :class:`Dist` is a frozen, validated configuration value that samples
-non-negative delays in seconds from a counter-based :class:`~sigma_des.rng.Stream`.
+non-negative delays in seconds from a counter-based :class:`~sigma_des.core.rng.Stream`.
 Sampling is vectorised: the integer ids (entity, message index, attempt, …) may be
 numpy arrays that broadcast together, and a scalar call returns exactly the
 element of the corresponding array call (both go through the same ufuncs).
@@ -34,8 +34,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import ndtr
 
+from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
-from sigma_des.rng import Stream
 
 __all__ = ["DIST_NAMES", "Dist", "dist_from", "load_samples"]
 

@@ -23,11 +23,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
-from sigma_des.events.kernel import Kernel
-from sigma_des.net.draws import DrawCache, Sampler
+from sigma_des.core.draws import DrawCache, Sampler
+from sigma_des.core.rng import RandomStreams, Stream
+from sigma_des.core.sim import Kernel
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
-from sigma_des.rng import RandomStreams, Stream
 
 __all__ = ["Links", "dist_cache"]
 

@@ -21,31 +21,13 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from sigma_des.config import Scenario
-from sigma_des.events.kernel import Kernel
+from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import Kernel
+from sigma_des.net.kinds import ACK, COMMAND, STATE, TRIGGER
 from sigma_des.net.links import Links, dist_cache
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
-from sigma_des.rng import RandomStreams
 
-__all__ = [
-    "ACK",
-    "COMMAND",
-    "KIND_NAMES",
-    "REPUBLISH",
-    "REREQUEST",
-    "STATE",
-    "TRIGGER",
-    "Network",
-]
-
-TRIGGER, STATE, COMMAND, REREQUEST, REPUBLISH = 1, 2, 3, 4, 5
-KIND_NAMES = {
-    TRIGGER: "trigger",
-    STATE: "state",
-    COMMAND: "command",
-    REREQUEST: "rerequest",
-    REPUBLISH: "republish",
-}
-ACK = 16  # added to a message kind for its PUBACK's draws
+__all__ = ["Network"]
 
 Deliver = Callable[[int, int, int, int, Any, float], None]
 

@@ -15,10 +15,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.agents.base import Behaviour, DynamicsModel, SwarmView
+from sigma_des.core.rng import RandomStreams
 from sigma_des.record.tap import obs_to_ned
 from sigma_des.replay.interpolate import interpolate
 from sigma_des.replay.window import WindowRule
-from sigma_des.rng import RandomStreams
 
 __all__ = ["Flight", "Noise", "dense_flight", "score", "sparse_log"]
 

@@ -34,8 +34,8 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.wind import WindConfig
+from sigma_des.core.rng import RandomStreams, Stream
 from sigma_des.errors import ConfigError
-from sigma_des.rng import RandomStreams, Stream
 from sigma_des.tuning.fitness import FitnessSpec, fitness
 from sigma_des.tuning.flightlog import FlightLog, resample
 from sigma_des.tuning.replay import Windows, param_matrix, replay_batch, windows

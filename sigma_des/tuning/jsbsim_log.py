@@ -25,7 +25,7 @@ import math
 import numpy as np
 
 from sigma_des.agents.jsbsim_node import JSBSimModel
-from sigma_des.rng import RandomStreams
+from sigma_des.core.rng import RandomStreams
 from sigma_des.tuning.flightlog import FlightLog
 from sigma_des.tuning.synth import Noise, manoeuvre
 

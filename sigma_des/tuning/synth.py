@@ -21,7 +21,7 @@ from sigma_des.agents import layout as L
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.wind import WindConfig
-from sigma_des.rng import RandomStreams
+from sigma_des.core.rng import RandomStreams
 from sigma_des.tuning.flightlog import FlightLog
 
 __all__ = ["Noise", "fly", "manoeuvre"]

@@ -9,10 +9,10 @@ import pytest
 
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.atmosphere import gravity, isa, isa_scalar
-from sigma_des.agents.counter_rng import normals, uniform3
 from sigma_des.agents.wind import WindConfig, dryden_scales
+from sigma_des.core.counter_rng import normals, uniform3
+from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
-from sigma_des.rng import RandomStreams
 
 
 @pytest.mark.parametrize(("h", "rho", "t", "p"), [

@@ -9,8 +9,8 @@ import pytest
 
 from sigma_des.agents.base import SwarmView
 from sigma_des.agents.pointmass import PointMass
+from sigma_des.core.rng import Stream
 from sigma_des.env.tasks import FormationTask, GoalTask, make_task
-from sigma_des.rng import Stream
 
 D = 15.0
 S = D * math.sqrt(0.5)  # slot offsets of a 45-degree V: (-S, +S) rank 1, (-S, -S) rank 2

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import math
 
+from sigma_des.core.rng import RandomStreams
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess, LossSpec
-from sigma_des.rng import RandomStreams
 from sigma_des.specs import LinkSpec, NetSpec
 
 

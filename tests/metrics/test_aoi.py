@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from sigma_des.core.rng import Stream
 from sigma_des.metrics.aoi import AoITracker
-from sigma_des.rng import Stream
 
 
 def test_hand_computed_sawtooth() -> None:

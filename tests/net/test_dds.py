@@ -213,7 +213,7 @@ def test_same_seed_same_results_with_random_costs_and_loss() -> None:
 
 def _deliveries(depth: int) -> tuple[MethodRun, list[tuple[int, float, float]]]:
     """Method none, one node; the state of frame 40 is lost on the server's link."""
-    from sigma_des.net.network import STATE
+    from sigma_des.net.kinds import STATE
 
     sc = tiny(methods=["none"], nodes=1, hosts=1, **{
         **DDS, "dds.heartbeat_period": 0.1, "dds.history_depth": depth,

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist, dist_from, load_samples
-from sigma_des.rng import Stream
 
 S = Stream(7, "latency")
 IDS = np.arange(1000)

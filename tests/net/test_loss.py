@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
 from sigma_des.net.loss import LossProcess, LossSpec
-from sigma_des.rng import Stream
 
 S = Stream(3, "loss")
 LINK = 4

@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from sigma_des import Scenario, load
-from sigma_des.events.kernel import Kernel
-from sigma_des.net.network import STATE, Network
-from sigma_des.rng import RandomStreams
+from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import Kernel
+from sigma_des.net.kinds import STATE
+from sigma_des.net.network import Network
 
 
 def _net(sc: Scenario) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:

@@ -1,6 +1,6 @@
-"""Counter-based random numbers inside numba kernels, bit-compatible with sigma_des.rng.
+"""Counter-based random numbers inside numba kernels, bit-compatible with sigma_des.core.rng.
 
-The kernels cannot call :class:`sigma_des.rng.Stream` (it is numpy code), so this
+The kernels cannot call :class:`sigma_des.core.rng.Stream` (it is numpy code), so this
 module re-implements its SplitMix64 mixing for scalars: ``uniform3(key, a, b, c)``
 equals ``Stream.uniform(a, b, c)`` bit for bit when ``key`` is that stream's
 ``key`` (tested). Normals map that uniform through Acklam's inverse normal CDF,

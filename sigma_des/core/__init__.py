@@ -1,0 +1,9 @@
+"""The ground floor: what every layer above may use and which uses nothing of them.
+
+- :mod:`sigma_des.core.sim` — the thin SimPy glue (plain callbacks with priorities);
+- :mod:`sigma_des.core.rng` — counter-based random streams keyed by stable names;
+- :mod:`sigma_des.core.counter_rng` — the same numbers inside numba kernels;
+- :mod:`sigma_des.core.draws` — the lazy vectorised cache of per-message draws.
+
+Nothing here imports any other part of sigma_des.
+"""
