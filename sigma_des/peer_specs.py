@@ -28,8 +28,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from sigma_des.core.validate import require, require_nonneg, require_positive
 from sigma_des.net.latency import Dist
-from sigma_des.specs import require, require_nonneg, require_positive
 
 __all__ = ["DdsSpec", "RpcSpec", "MIDDLEWARES"]
 
