@@ -46,16 +46,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import common  # noqa: E402
-import numpy as np  # noqa: E402
-
-import sigma_des  # noqa: E402
-from sigma_des import Scenario  # noqa: E402
-from sigma_des.events.aligners import OBS_WIDTH, HLCAligner, LockstepAligner  # noqa: E402
-from sigma_des.events.bides_align import RingBuffers, align  # noqa: E402
-from sigma_des.events.hlc import Stamp  # noqa: E402
+import sigma_des
+from sigma_des import Scenario, studies
+from sigma_des.events.aligners import OBS_WIDTH, HLCAligner, LockstepAligner
+from sigma_des.events.bides_align import RingBuffers, align
+from sigma_des.events.hlc import Stamp
 
 NAME = "alignment_cost"
 K = 30
@@ -243,13 +240,13 @@ WHAT = {
 
 def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
     """Cost vs n, log-log: median with a p95 whisker, the paper's bound and O(n)."""
-    plt = common.plot_setup(fast)
+    plt = studies.plot_setup(fast)
     fig, axs = plt.subplots(1, 2, figsize=(13, 5), sharey=True)
     for ax, part in zip(axs, ("align", "ingest"), strict=True):
         for method in BENCHES:
             med = np.array([table[str(n)][method][f"{part}_median_ms"] for n in ns])
             p95 = np.array([table[str(n)][method][f"{part}_p95_ms"] for n in ns])
-            c = common.COLORS[method]
+            c = studies.COLORS[method]
             ax.plot(ns, med, "o-", color=c, label=f"{method}: {WHAT[(method, part)]}")
             ax.vlines(ns, med, p95, color=c, alpha=0.6)
         ref = np.array(ns, dtype=float)
@@ -280,12 +277,12 @@ def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
     axs[0].set_title("Alignment step")
     axs[1].set_title("Receiving the states (per frame / per tick)")
     fig.suptitle(f"Cost of alignment as implemented (k = {K}, Python {platform.python_version()})")
-    common.save(fig, out, "cost_vs_n.png")
+    studies.save(fig, out, "cost_vs_n.png")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Time every method at every n and write the outputs."""
-    args = common.finish_args(common.study_parser(NAME, __doc__, "1").parse_args(argv))
+    args = studies.finish_args(studies.study_parser(NAME, __doc__, "1").parse_args(argv))
     ns = [100, 300, 1000] if args.quick else [100, 300, 1000, 3000, 10000]
     budget = 0.1 if args.quick else 2.0
     out = Path(args.out)
@@ -343,13 +340,13 @@ def main(argv: list[str] | None = None) -> int:
         n: {m: {k: float(np.median(v)) for k, v in c.items()} for m, c in d.items()}
         for n, d in table.items()
     }
-    common.write_rows(out, rows)
+    studies.write_rows(out, rows)
     plot(out, agg, ns, args.quick)
-    common.write_summary(
+    studies.write_summary(
         out,
         {
             "study": NAME,
-            "command": common.command_line(NAME),
+            "command": studies.command_line(NAME),
             "quick": bool(args.quick),
             "seeds": list(args.seeds),
             "version": sigma_des.__version__,

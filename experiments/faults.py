@@ -32,24 +32,23 @@ from __future__ import annotations
 
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import common  # noqa: E402
-import numpy as np  # noqa: E402
+from sigma_des import studies
+from sigma_des.plots import rate_series
 
 NAME = "faults"
 NODE = 7
 HOST = 1
 EVICT = 0.2
 SPECS = [
-    common.MethodSpec("none", "none"),
-    common.MethodSpec("lockstep", "lockstep"),
-    common.MethodSpec("lockstep_evict", "lockstep", (f"lockstep.eviction_timeout={EVICT}",)),
-    common.MethodSpec("hlc", "hlc"),
-    common.MethodSpec("bides", "bides"),
+    studies.MethodSpec("none", "none"),
+    studies.MethodSpec("lockstep", "lockstep"),
+    studies.MethodSpec("lockstep_evict", "lockstep", (f"lockstep.eviction_timeout={EVICT}",)),
+    studies.MethodSpec("hlc", "hlc"),
+    studies.MethodSpec("bides", "bides"),
 ]
 
 
@@ -129,9 +128,9 @@ def window_stats(ts: dict[str, Any], a: float, b: float) -> dict[str, float]:
     return out
 
 
-def plots(study: common.Study, windows: dict[str, tuple[float, float]]) -> None:
+def plots(study: studies.Study, windows: dict[str, tuple[float, float]]) -> None:
     """AoI and aligned frame rate over time per variant; before/during/after bars."""
-    plt = common.plot_setup(study.args.quick)
+    plt = studies.plot_setup(study.args.quick)
     out = study.args.out
     variants = list(study.variants)
     seed = study.args.seeds[0]
@@ -141,9 +140,9 @@ def plots(study: common.Study, windows: dict[str, tuple[float, float]]) -> None:
         ax_aoi, ax_rate = axs[row]
         for lab in study.labels(v):
             ts = study.runs(v, lab)[0].timeseries
-            c = common.COLORS.get(lab)
+            c = studies.COLORS.get(lab)
             ax_aoi.plot(ts["t"], np.asarray(ts["aoi_mean"]) * 1000.0, color=c, lw=1, label=lab)
-            t, rate = common.rate_series(ts["t"], ts["aligned_frame"], window=0.25)
+            t, rate = rate_series(ts["t"], ts["aligned_frame"], window=0.25)
             ax_rate.plot(t, rate, color=c, lw=1, label=f"{lab}: aligned frames/s")
             if lab == "bides":
                 ax_rate.step(
@@ -165,7 +164,7 @@ def plots(study: common.Study, windows: dict[str, tuple[float, float]]) -> None:
         ax_rate.set_title(f"{v}: aligned frame rate and BiDES trigger rate")
         ax_aoi.legend(loc="upper left", ncols=3, fontsize=7)
         ax_rate.legend(loc="lower left", ncols=2, fontsize=7)
-    common.save(fig, out, "faults_timeseries.png")
+    studies.save(fig, out, "faults_timeseries.png")
 
     fig, axs = plt.subplots(2, len(variants), figsize=(5 * len(variants), 7), squeeze=False)
     phases = ("before", "during", "after")
@@ -191,7 +190,7 @@ def plots(study: common.Study, windows: dict[str, tuple[float, float]]) -> None:
             if row == 0:
                 ax.set_yscale("log")
             ax.legend(fontsize=7)
-    common.save(fig, out, "faults_windows.png")
+    studies.save(fig, out, "faults_windows.png")
 
 
 TABLE = (
@@ -209,12 +208,12 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = common.finish_args(common.study_parser(NAME, __doc__).parse_args(argv))
+    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
     base = base_overrides(args.quick)
     fo = fault_overrides(args.quick)
-    variants = {v: common.load_scenario(None, [*base, *ov]) for v, (ov, _) in fo.items()}
+    variants = {v: studies.load_scenario(None, [*base, *ov]) for v, (ov, _) in fo.items()}
     specs = {v: SPECS for v in fo}
-    study = common.run_study(NAME, args, variants, specs)
+    study = studies.run_study(NAME, args, variants, specs)
     windows = {v: w for v, (_, w) in fo.items()}
     study.extra["windows"] = {
         v: {
@@ -230,11 +229,11 @@ def main(argv: list[str] | None = None) -> int:
     }
     study.extra["fault_window_s"] = windows
     study.extra["target"] = {"node": NODE, "host": HOST, "eviction_timeout_s": EVICT}
-    common.write_study(study)
+    studies.write_study(study)
     plots(study, windows)
-    common.update_plots(study)
+    studies.update_plot_list(study.args.out)
     for v in study.variants:
-        print(common.text_table(study, v, TABLE))
+        print(studies.variant_table(study, v, TABLE))
     print(f"wrote {args.out}")
     return 0
 

@@ -86,27 +86,24 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
+from numpy.typing import NDArray
 
-import common  # noqa: E402
-import numpy as np  # noqa: E402
-from numpy.typing import NDArray  # noqa: E402
-
-import sigma_des  # noqa: E402
-from sigma_des import load  # noqa: E402
-from sigma_des.agents import layout as L  # noqa: E402
-from sigma_des.agents.dtw import dtw, dtw_normalised  # noqa: E402
-from sigma_des.agents.formation import (  # noqa: E402
+import sigma_des
+from sigma_des import load, studies
+from sigma_des.agents import layout as L
+from sigma_des.agents.dtw import dtw, dtw_normalised
+from sigma_des.agents.formation import (
     formation_behaviour,
     formation_rule,
     formation_slots,
 )
-from sigma_des.agents.ideal import fly  # noqa: E402
-from sigma_des.config import Scenario, config_hash, to_dict  # noqa: E402
-from sigma_des.events.cohort import execute  # noqa: E402
-from sigma_des.factory import make_behaviour, make_dynamics  # noqa: E402
-from sigma_des.metrics.collector import METRIC_UNITS  # noqa: E402
-from sigma_des.metrics.fidelity import fidelity  # noqa: E402
+from sigma_des.agents.ideal import fly
+from sigma_des.config import Scenario, config_hash, to_dict
+from sigma_des.events.cohort import execute
+from sigma_des.factory import make_behaviour, make_dynamics
+from sigma_des.metrics.collector import METRIC_UNITS
+from sigma_des.metrics.fidelity import fidelity
 
 Array = NDArray[np.float64]
 
@@ -129,7 +126,7 @@ NETWORKS: dict[str, tuple[Path | None, tuple[str, ...]]] = {
 }
 TURN_DEG = 15.0
 TURN_START_DEG = 1.0
-COLORS = {**common.COLORS, IDEAL: "#000000"}
+COLORS = {**studies.COLORS, IDEAL: "#000000"}
 UNITS = {"conv_h_s": "s", "conv_v_s": "s", "conv_h_s_mean": "s", "conv_h_s_max": "s",
          "conv_v_s_mean": "s", "conv_v_s_max": "s", "converged_h_frac": "",
          "converged_v_frac": "", "window_s": "s", "flight_s": "s", "slot_h_mean_m": "m",
@@ -162,7 +159,7 @@ def scenario(network: str, duration: float, seed: int) -> Scenario:
     """The scenario of one network, flight duration and seed."""
     path, extra = NETWORKS[network]
     warm = min(1.0, 0.2 * duration)
-    return load(path, [*common.known(COMMON), *extra, f"duration={duration}", f"warmup={warm}",
+    return load(path, [*studies.known(COMMON), *extra, f"duration={duration}", f"warmup={warm}",
                        f"seed={seed}"])
 
 
@@ -391,7 +388,7 @@ def write_outputs(args: argparse.Namespace, runs: list[dict[str, Any]], params: 
     sc = runs[0]["scenario"]
     summary = {
         "study": NAME,
-        "command": common.command_line(NAME),
+        "command": studies.command_line(NAME),
         "quick": bool(args.quick),
         "seeds": [r["seed"] for r in runs],
         "version": sigma_des.__version__,
@@ -411,7 +408,7 @@ def write_outputs(args: argparse.Namespace, runs: list[dict[str, Any]], params: 
         "plots": [],
         "wall": {"total_s": wall_s, "per_seed": [r["wall"] for r in runs]},
     }
-    common.write_summary(out, summary)
+    studies.write_summary(out, summary)
 
 
 def fmt(x: float, spec: str = ".1f") -> str:
@@ -438,7 +435,7 @@ def table(methods: dict[str, dict[str, float]]) -> str:
 
 def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
     """trajectories.png, convergence.png, formation_error.png (first seed)."""
-    plt = common.plot_setup(args.quick)
+    plt = studies.plot_setup(args.quick)
     out = Path(args.out)
     labels = [IDEAL, *METHODS]
     seed = r["seed"]
@@ -458,7 +455,7 @@ def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
     axs[0].set_ylabel("north (m)")
     axs[0].legend(loc="best", fontsize=7)
     fig.suptitle(f"Trajectories, {args.network} network, seed {seed} (dot = end)")
-    common.save(fig, out, "trajectories.png")
+    studies.save(fig, out, "trajectories.png")
 
     fig, axs = plt.subplots(2, len(labels), figsize=(3.6 * len(labels), 6.2), sharex=True,
                             sharey="row")
@@ -483,7 +480,7 @@ def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
                 ax.set_xlabel("flight time (s)")
     axs[0, 0].legend(loc="upper right", fontsize=6)
     fig.suptitle(f"Convergence to the V slots, {args.network} network, seed {seed}")
-    common.save(fig, out, "convergence.png")
+    studies.save(fig, out, "convergence.png")
 
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.2))
     for lab in METHODS:
@@ -512,14 +509,14 @@ def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
     axs[2].set_title("Trajectory DTW to the ideal run (mean over nodes)")
     for xi, y in zip(x, ys, strict=True):
         axs[2].annotate(f"{y:.3g}", (xi, y), ha="center", va="bottom", fontsize=8)
-    common.save(fig, out, "formation_error.png")
+    studies.save(fig, out, "formation_error.png")
 
 
 # ------------------------------------------------------------------ main
 
 
 def parser() -> argparse.ArgumentParser:
-    p = common.study_parser(NAME, __doc__, default_seeds="1,2,3")
+    p = studies.study_parser(NAME, __doc__, default_seeds="1,2,3")
     p.add_argument("--network", choices=tuple(NETWORKS), default="lossy",
                    help="network between hosts and broker (default: lossy)")
     p.add_argument("--duration", type=float, default=None,
@@ -542,7 +539,7 @@ def parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = common.finish_args(parser().parse_args(argv))
+    args = studies.finish_args(parser().parse_args(argv))
     if args.duration is None:
         args.duration = 6.0 if args.quick else 150.0
     if args.offset is None:
@@ -557,7 +554,7 @@ def main(argv: list[str] | None = None) -> int:
     wall = time.perf_counter() - t0
     write_outputs(args, runs, params, wall)
     plots(args, runs[0])
-    common.update_plot_list(Path(args.out))
+    studies.update_plot_list(Path(args.out))
     import json
     print(json.loads((Path(args.out) / "summary.json").read_text())["table"])
     print(f"wrote {args.out} ({wall:.1f} s)")

@@ -33,10 +33,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import common  # noqa: E402
-import numpy as np  # noqa: E402
+from sigma_des import studies
+from sigma_des.plots import rate_series
 
 NAME = "latency_tolerance"
 METHODS = ("none", "lockstep", "hlc", "bides")
@@ -58,29 +58,29 @@ def overrides(quick: bool) -> list[str]:
     return ["duration=2.0", "warmup=0.5"] if quick else []
 
 
-def plots(study: common.Study) -> None:
+def plots(study: studies.Study) -> None:
     """AoI over time and distribution, flicker (displacement), frame rates."""
-    plt = common.plot_setup(study.args.quick)
+    plt = studies.plot_setup(study.args.quick)
     out = study.args.out
     variants = list(study.variants)
     seed = study.args.seeds[0]
 
     fig, axs = plt.subplots(len(variants), 1, figsize=(11, 3.8 * len(variants)))
     for ax, v in zip(np.atleast_1d(axs), variants, strict=True):
-        common.plot_aoi_time(ax, study, v)
+        studies.plot_aoi_time(ax, study, v)
         ax.set_yscale("log")
         ax.set_title(f"AoI over time — {v} transport (seed {seed}; band: max over nodes)")
-    common.save(fig, out, "aoi_over_time.png")
+    studies.save(fig, out, "aoi_over_time.png")
 
     fig, axs = plt.subplots(1, len(variants), figsize=(6 * len(variants), 4.5))
     for ax, v in zip(np.atleast_1d(axs), variants, strict=True):
-        common.plot_aoi_dist(ax, study, v)
+        studies.plot_aoi_dist(ax, study, v)
         ax.set_yscale("log")
-        ax.axhline(70, color=common.COLORS["hlc"], ls="--", lw=0.8, label="paper HLC 70 ms")
-        ax.axhline(38, color=common.COLORS["bides"], ls="--", lw=0.8, label="paper BiDES 38 ms")
+        ax.axhline(70, color=studies.COLORS["hlc"], ls="--", lw=0.8, label="paper HLC 70 ms")
+        ax.axhline(38, color=studies.COLORS["bides"], ls="--", lw=0.8, label="paper BiDES 38 ms")
         ax.legend(loc="upper left", fontsize=7)
         ax.set_title(f"AoI distribution — {v} transport")
-    common.save(fig, out, "aoi_distribution.png")
+    studies.save(fig, out, "aoi_distribution.png")
 
     fig, axs = plt.subplots(2, 2, figsize=(13, 8))
     for col, v in enumerate(variants[:2]):
@@ -88,7 +88,7 @@ def plots(study: common.Study) -> None:
         for lab in study.labels(v):
             ts = study.runs(v, lab)[0].timeseries
             disp = np.asarray(ts["spread"], float) / np.asarray(ts["f_trig"], float) * 1000.0
-            ax.plot(ts["t"], disp, color=common.COLORS.get(lab), lw=0.8, label=lab)
+            ax.plot(ts["t"], disp, color=studies.COLORS.get(lab), lw=0.8, label=lab)
         ax.axhspan(30, 90, color="k", alpha=0.06, label="paper: 30–90 ms without alignment")
         ax.set_xlabel("simulated time (s)")
         ax.set_ylabel("displacement in shown swarm (ms)")
@@ -104,31 +104,31 @@ def plots(study: common.Study) -> None:
                 ys,
                 width=0.4,
                 label=f"position error {name}",
-                color=[common.COLORS.get(lab) for lab in labels],
+                color=[studies.COLORS.get(lab) for lab in labels],
                 alpha=1.0 if name == "mean" else 0.45,
             )
         ax.set_xticks(x, labels)
         ax.set_ylabel("shown vs true position at the snapshot frame (m)")
         ax.set_title(f"Positional flicker — {v} (left: mean, right: max)")
-    common.save(fig, out, "flicker.png")
+    studies.save(fig, out, "flicker.png")
 
     fig, axs = plt.subplots(2, 2, figsize=(13, 8))
     for col, v in enumerate(variants[:2]):
         ax = axs[0, col]
         for lab in study.labels(v):
             ts = study.runs(v, lab)[0].timeseries
-            t, rate = common.rate_series(ts["t"], ts["aligned_frame"], window=1.0)
-            ax.plot(t, rate, color=common.COLORS.get(lab), lw=1, label=lab)
+            t, rate = rate_series(ts["t"], ts["aligned_frame"], window=1.0)
+            ax.plot(t, rate, color=studies.COLORS.get(lab), lw=1, label=lab)
         ax.axhline(20, color="k", ls="--", lw=0.8, label="paper BiDES 20 Hz")
         ax.set_xlabel("simulated time (s)")
         ax.set_ylabel("aligned frames advanced per second (1 s windows)")
         ax.set_title(f"Aligned frame rate over time — {v} (seed {seed})")
         ax.legend(loc="upper right", ncols=3)
         ax = axs[1, col]
-        common.bar_metric(ax, study, v, "snapshot_rate_hz")
+        studies.bar_metric(ax, study, v, "snapshot_rate_hz")
         ax.set_ylabel("new snapshots shown per second (Hz)")
         ax.set_title(f"Rendered snapshot rate (render at 30 Hz) — {v}")
-    common.save(fig, out, "frame_rate.png")
+    studies.save(fig, out, "frame_rate.png")
 
 
 TABLE = (
@@ -148,18 +148,18 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = common.finish_args(common.study_parser(NAME, __doc__).parse_args(argv))
+    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
     variants = {
-        v: common.load_scenario(SCENARIO, [*ov, *PINNED, *overrides(args.quick)])
+        v: studies.load_scenario(SCENARIO, [*ov, *PINNED, *overrides(args.quick)])
         for v, ov in VARIANTS.items()
     }
-    specs = {v: [common.MethodSpec(m, m) for m in METHODS] for v in VARIANTS}
-    study = common.run_study(NAME, args, variants, specs)
-    common.write_study(study, PAPER)
+    specs = {v: [studies.MethodSpec(m, m) for m in METHODS] for v in VARIANTS}
+    study = studies.run_study(NAME, args, variants, specs)
+    studies.write_study(study, PAPER)
     plots(study)
-    common.update_plots(study)
+    studies.update_plot_list(study.args.out)
     for v in study.variants:
-        print(common.text_table(study, v, TABLE))
+        print(studies.variant_table(study, v, TABLE))
     print(f"wrote {args.out}")
     return 0
 

@@ -36,13 +36,9 @@ Outputs (``--out``): ``results.csv``, ``timeseries.csv``, ``summary.json`` (with
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import common  # noqa: E402
+from sigma_des import studies
 
 NAME = "peer_architectures"
 NODES = (20, 40, 60, 100, 150, 200, 300)
@@ -56,11 +52,11 @@ DDS = ("net.middleware='dds'", "net.transport='datagram'", "net.qos=0",
 RPC = ("broker.publish_service=0.0", "broker.delivery_service=0.0", "net.qos=0",
        "trigger_payload_bits=320", "payload_bits=4800")
 LABELS = (
-    common.MethodSpec("bides_mqtt", "bides"),
-    common.MethodSpec("lockstep_mqtt", "lockstep"),
-    common.MethodSpec("lockstep_dds", "lockstep", DDS),
-    common.MethodSpec("lockstep_dds_noscan", "lockstep", (*DDS, "dds.executor_per_entity=0.0")),
-    common.MethodSpec("rpc", "rpc", RPC),
+    studies.MethodSpec("bides_mqtt", "bides"),
+    studies.MethodSpec("lockstep_mqtt", "lockstep"),
+    studies.MethodSpec("lockstep_dds", "lockstep", DDS),
+    studies.MethodSpec("lockstep_dds_noscan", "lockstep", (*DDS, "dds.executor_per_entity=0.0")),
+    studies.MethodSpec("rpc", "rpc", RPC),
 )
 PAPER = {
     "gazebo_aoi_ms": {"60": "12", "200": "62 ± 15"},
@@ -87,7 +83,7 @@ def unstable(m: dict[str, float], f_trig: float) -> bool:
     return m["trigger_rate_hz"] < RATE_FLOOR * f_trig or m["stalls"] > 0
 
 
-def figures(study: common.Study) -> dict[str, Any]:
+def figures(study: studies.Study) -> dict[str, Any]:
     """Per label: per N the mean (over seeds) of the reported metrics; unstable N."""
     table: dict[str, dict[int, dict[str, float]]] = {}
     first_unstable: dict[str, int | None] = {}
@@ -111,9 +107,9 @@ def figures(study: common.Study) -> dict[str, Any]:
             "instability": f"trigger_rate < {RATE_FLOOR} x f_trig, or any stall"}
 
 
-def plots(study: common.Study, fig: dict[str, Any]) -> None:
+def plots(study: studies.Study, fig: dict[str, Any]) -> None:
     """AoI (mean ± std, p99) and achieved frame rate against N, with the paper's points."""
-    plt = common.plot_setup(study.args.quick)
+    plt = studies.plot_setup(study.args.quick)
     out = study.args.out
     table = fig["table"]
     f, axs = plt.subplots(1, 2, figsize=(13, 4.8))
@@ -146,7 +142,7 @@ def plots(study: common.Study, fig: dict[str, Any]) -> None:
     axs[1].set_ylabel("achieved frame (trigger) rate (Hz)")
     axs[1].legend(fontsize=7)
     axs[1].set_title("achieved frame rate vs swarm size")
-    common.save(f, out, "aoi_vs_n.png")
+    studies.save(f, out, "aoi_vs_n.png")
     f2, ax = plt.subplots(figsize=(6.5, 4.5))
     for label, rows in table.items():
         ns = list(rows)
@@ -155,7 +151,7 @@ def plots(study: common.Study, fig: dict[str, Any]) -> None:
     ax.set_xlabel("physics nodes N")
     ax.set_ylabel("state latency, publish → server (ms; log)")
     ax.legend(fontsize=7)
-    common.save(f2, out, "rate_vs_n.png")
+    studies.save(f2, out, "rate_vs_n.png")
 
 
 def text(fig: dict[str, Any]) -> str:
@@ -175,17 +171,17 @@ def text(fig: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = common.finish_args(
-        common.study_parser(NAME, __doc__, default_seeds="1,2").parse_args(argv))
+    args = studies.finish_args(
+        studies.study_parser(NAME, __doc__, default_seeds="1,2").parse_args(argv))
     ns = QUICK_NODES if args.quick else NODES
-    variants = {f"n{n}": common.load_scenario(None, overrides(n, args.quick)) for n in ns}
+    variants = {f"n{n}": studies.load_scenario(None, overrides(n, args.quick)) for n in ns}
     specs = {v: list(LABELS) for v in variants}
-    study = common.run_study(NAME, args, variants, specs)
+    study = studies.run_study(NAME, args, variants, specs)
     fig = figures(study)
     study.extra = fig
-    common.write_study(study, PAPER)
+    studies.write_study(study, PAPER)
     plots(study, fig)
-    common.update_plots(study)
+    studies.update_plot_list(study.args.out)
     print(text(fig))
     print(f"wrote {args.out}")
     return 0

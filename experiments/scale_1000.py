@@ -25,13 +25,12 @@ Outputs (``--out``, default ``out/scale_1000``): ``results.csv``, ``timeseries.c
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
 
-import common  # noqa: E402
-import numpy as np  # noqa: E402
+from sigma_des import studies
+from sigma_des.plots import rate_series
 
 NAME = "scale_1000"
 METHODS = ("none", "lockstep", "hlc", "bides")
@@ -78,9 +77,9 @@ def broker_capacity(sc: Any) -> dict[str, float]:
     }
 
 
-def plots(study: common.Study) -> None:
+def plots(study: studies.Study) -> None:
     """Throughput/AoI/broker bars, the trigger rate over time and AoI over time."""
-    plt = common.plot_setup(study.args.quick)
+    plt = studies.plot_setup(study.args.quick)
     out = study.args.out
     sc = study.variants["default"]
     tag = f"{sc.nodes} nodes on {sc.hosts} hosts, QoS {sc.net.qos}, nominal {sc.f_trig:g} Hz"
@@ -94,7 +93,7 @@ def plots(study: common.Study) -> None:
         ("f_trig_settled_hz", 1.0, "trigger rate in force, last quarter (Hz)"),
     ]
     for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
-        common.bar_metric(ax, study, "default", metric, scale)
+        studies.bar_metric(ax, study, "default", metric, scale)
         ax.set_ylabel(ylabel)
         ax.set_title(metric)
     axs.flat[0].axhline(PAPER["throughput_mbps"], color="k", ls="--", lw=1, label="paper 208.4")
@@ -104,20 +103,20 @@ def plots(study: common.Study) -> None:
     axs.flat[5].axhline(50.0, color="k", ls="--", lw=1, label="paper 50 Hz")
     axs.flat[5].legend(loc="lower right")
     fig.suptitle(f"Scale study: {tag}")
-    common.save(fig, out, "metrics.png")
+    studies.save(fig, out, "metrics.png")
 
     fig, axs = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     for lab in study.labels("default"):
         r = study.runs("default", lab)[0]
         ts = r.timeseries
-        t, rate = common.rate_series(ts["t"], ts["latest_trigger"], window=0.5)
-        axs[1].plot(t, rate, color=common.COLORS.get(lab), lw=1, label=lab)
+        t, rate = rate_series(ts["t"], ts["latest_trigger"], window=0.5)
+        axs[1].plot(t, rate, color=studies.COLORS.get(lab), lw=1, label=lab)
         if lab == "bides":
             axs[0].step(
                 ts["t"],
                 ts["f_trig"],
                 where="post",
-                color=common.COLORS["bides"],
+                color=studies.COLORS["bides"],
                 label="bides (50 hosts, default broker)",
             )
     if "fast_broker" in study.variants:
@@ -129,7 +128,7 @@ def plots(study: common.Study) -> None:
             color="#98df8a",
             label="bides, 4× faster broker",
         )
-        t, rate = common.rate_series(r.timeseries["t"], r.timeseries["latest_trigger"], 0.5)
+        t, rate = rate_series(r.timeseries["t"], r.timeseries["latest_trigger"], 0.5)
         axs[1].plot(t, rate, color="#98df8a", lw=1, label="bides, 4× faster broker")
     cap = study.extra["broker"]["default"]["max_trigger_hz"]
     for ax in axs:
@@ -142,13 +141,13 @@ def plots(study: common.Study) -> None:
     axs[1].set_title("Achieved trigger rate per method")
     for ax in axs:
         ax.legend(loc="lower right", ncols=2)
-    common.save(fig, out, "trigger_rate.png")
+    studies.save(fig, out, "trigger_rate.png")
 
     fig, ax = plt.subplots(figsize=(11, 4.5))
-    common.plot_aoi_time(ax, study, "default")
+    studies.plot_aoi_time(ax, study, "default")
     ax.set_yscale("log")
     ax.set_title(f"AoI over time (seed {study.args.seeds[0]}; band: max over nodes) — {tag}")
-    common.save(fig, out, "aoi_over_time.png")
+    studies.save(fig, out, "aoi_over_time.png")
 
 
 TABLE = (
@@ -165,18 +164,18 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    parser = common.study_parser(NAME, __doc__, default_seeds="1")
-    args = common.finish_args(parser.parse_args(argv))
+    parser = studies.study_parser(NAME, __doc__, default_seeds="1")
+    args = studies.finish_args(parser.parse_args(argv))
     ov = overrides(args.quick)
     variants = {
-        "default": common.load_scenario(None, ov),
-        "fast_broker": common.load_scenario(None, [*ov, *FAST_BROKER]),
+        "default": studies.load_scenario(None, ov),
+        "fast_broker": studies.load_scenario(None, [*ov, *FAST_BROKER]),
     }
     specs = {
-        "default": [common.MethodSpec(m, m) for m in METHODS],
-        "fast_broker": [common.MethodSpec("bides", "bides")],
+        "default": [studies.MethodSpec(m, m) for m in METHODS],
+        "fast_broker": [studies.MethodSpec("bides", "bides")],
     }
-    study = common.run_study(NAME, args, variants, specs)
+    study = studies.run_study(NAME, args, variants, specs)
     study.extra["broker"] = {v: broker_capacity(sc) for v, sc in study.variants.items()}
     f_ts = [np.asarray(r.timeseries["f_trig"]) for r in study.runs("default", "bides")]
     study.extra["bides_f_trig_last_quarter"] = {
@@ -184,11 +183,11 @@ def main(argv: list[str] | None = None) -> int:
         "min": float(np.min([x[int(0.75 * x.size) :].min() for x in f_ts])),
         "max": float(np.max([x[int(0.75 * x.size) :].max() for x in f_ts])),
     }
-    common.write_study(study, PAPER)
+    studies.write_study(study, PAPER)
     plots(study)
-    common.update_plots(study)
+    studies.update_plot_list(study.args.out)
     for v in study.variants:
-        print(common.text_table(study, v, TABLE))
+        print(studies.variant_table(study, v, TABLE))
     print("broker:", study.extra["broker"])
     print(f"wrote {args.out}")
     return 0

@@ -23,11 +23,8 @@ Outputs (``--out``, default ``out/scale_200``): ``results.csv``, ``timeseries.cs
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import common  # noqa: E402
+from sigma_des import studies
 
 NAME = "scale_200"
 METHODS = ("none", "lockstep", "hlc", "bides")
@@ -60,9 +57,9 @@ def overrides(quick: bool) -> list[str]:
     return [*base, "nodes=200", "duration=60.0", "warmup=2.0"]
 
 
-def plots(study: common.Study) -> None:
+def plots(study: studies.Study) -> None:
     """Bar charts of the headline metrics, the AoI distribution and AoI over time."""
-    plt = common.plot_setup(study.args.quick)
+    plt = studies.plot_setup(study.args.quick)
     out = study.args.out
     sc = study.variants["default"]
     tag = f"{sc.nodes} nodes, {sc.hosts} hosts, QoS {sc.net.qos}, {sc.f_trig:g} Hz"
@@ -76,7 +73,7 @@ def plots(study: common.Study) -> None:
         ("trigger_rate_hz", 1.0, "achieved trigger rate (Hz)"),
     ]
     for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
-        common.bar_metric(ax, study, "default", metric, scale)
+        studies.bar_metric(ax, study, "default", metric, scale)
         ax.set_ylabel(ylabel)
         ax.set_title(metric)
     # AoI std within the run as whiskers on the AoI panel
@@ -88,29 +85,29 @@ def plots(study: common.Study) -> None:
         ax.errorbar(i + 0.2, m, yerr=s, fmt="o", color="k", ms=3, capsize=3)
     ax.set_title("aoi_mean (black: ± AoI std over samples)")
     fig.suptitle(f"Scale study: {tag}")
-    common.save(fig, out, "metrics.png")
+    studies.save(fig, out, "metrics.png")
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
-    common.plot_aoi_dist(ax, study, "default")
+    studies.plot_aoi_dist(ax, study, "default")
     ax.set_title(f"AoI distribution (violins: per-render-tick mean AoI) — {tag}")
-    common.save(fig, out, "aoi_distribution.png")
+    studies.save(fig, out, "aoi_distribution.png")
 
     fig, ax = plt.subplots(figsize=(11, 4.5))
-    common.plot_aoi_time(ax, study, "default")
+    studies.plot_aoi_time(ax, study, "default")
     ax.set_title(f"AoI over time (seed {study.args.seeds[0]}; band: max over nodes) — {tag}")
-    common.save(fig, out, "aoi_over_time.png")
+    studies.save(fig, out, "aoi_over_time.png")
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = common.finish_args(common.study_parser(NAME, __doc__).parse_args(argv))
-    variants = {"default": common.load_scenario(None, overrides(args.quick))}
-    specs = {"default": [common.MethodSpec(m, m) for m in METHODS]}
-    study = common.run_study(NAME, args, variants, specs)
-    common.write_study(study, PAPER)
+    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
+    variants = {"default": studies.load_scenario(None, overrides(args.quick))}
+    specs = {"default": [studies.MethodSpec(m, m) for m in METHODS]}
+    study = studies.run_study(NAME, args, variants, specs)
+    studies.write_study(study, PAPER)
     plots(study)
-    common.update_plots(study)
-    print(common.text_table(study, "default", TABLE))
+    studies.update_plot_list(study.args.out)
+    print(studies.variant_table(study, "default", TABLE))
     print(f"wrote {args.out}")
     return 0
 

@@ -21,19 +21,15 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from common import plot_setup, save  # noqa: E402
-
-from sigma_des import __version__  # noqa: E402
-from sigma_des.env.learn import CEMConfig, evaluate, train  # noqa: E402
+from sigma_des import __version__
+from sigma_des.env.learn import CEMConfig, evaluate, train
+from sigma_des.studies import plot_setup, save
 
 DELAY = {"net.host_link.latency": {"dist": "normal", "mean": 0.15, "std": 0.03},
          "net.host_link.loss": {"p": 0.1}}

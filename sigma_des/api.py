@@ -341,24 +341,22 @@ def compare(
     outs: dict[str, dict[str, Any]] = {}
     parts = _record_parts(record, ms)
     if jobs > 1 and len(ms) > 1:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from sigma_des.sweep.local import local_pool
 
-        with ProcessPoolExecutor(max_workers=min(jobs, len(ms))) as pool:
+        with local_pool(min(jobs, len(ms))) as submit:
             if cache_dir() is None:
                 ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
-                futures = {pool.submit(run_method, sc, m, None, ideal, parts.get(m)): m
-                           for m in ms}
+                done = submit(run_method, [(sc, m, None, ideal, parts.get(m)) for m in ms])
             else:
                 # the workers read the ideal run from the cache once they need it (after
                 # their simulation); meanwhile this process flies and stores it
-                futures = {pool.submit(run_method, sc, m, None, None, parts.get(m)): m
-                           for m in ms}
+                done = submit(run_method, [(sc, m, None, None, parts.get(m)) for m in ms])
                 if sc.fidelity.enabled:
                     ideal_run(sc)
-            for fut in as_completed(futures):
-                outs[futures[fut]] = fut.result()
+            for i, out in done:
+                outs[ms[i]] = out
                 if bar is not None:
-                    bar.set_postfix_str(futures[fut])
+                    bar.set_postfix_str(ms[i])
                     bar.update(sc.duration)
     else:
         ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None

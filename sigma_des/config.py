@@ -62,8 +62,10 @@ __all__ = [
     "from_dict",
     "load",
     "parse_set",
+    "set_key",
     "to_dict",
     "to_toml",
+    "with_overrides",
 ]
 
 #: Nodes per host when ``hosts = 0`` (auto): the paper's 20 aircraft per PC.
@@ -376,11 +378,18 @@ def parse_set(item: str) -> tuple[str, Any]:
     return key, value
 
 
-def _apply(data: dict[str, Any], key: str, value: Any) -> None:
+def set_key(data: dict[str, Any], key: str, value: Any) -> None:
+    """Set dotted ``key`` in the nested scenario table ``data`` (sub-tables made as needed).
+
+    Raises:
+        ConfigError: a prefix of ``key`` names a value that is not a table.
+    """
     parts = key.split(".")
     cur = data
     for i, p in enumerate(parts[:-1]):
-        nxt = cur.setdefault(p, {})
+        nxt = cur.get(p)
+        if nxt is None:
+            nxt = cur[p] = {}
         if not isinstance(nxt, dict):
             raise ConfigError(".".join(parts[: i + 1]), "is not a table; cannot set a sub-key")
         cur = nxt
@@ -423,7 +432,22 @@ def load(
         data = _read_toml(Path(path))
     for item in overrides:
         k, v = parse_set(item)
-        _apply(data, k, v)
+        set_key(data, k, v)
     for k, v in values.items():
-        _apply(data, k, v)
+        set_key(data, k, v)
     return from_dict(Scenario, data)
+
+
+def with_overrides(sc: Scenario, overrides: typing.Iterable[str]) -> Scenario:
+    """``sc`` with further ``key=value`` overrides (read and validated like ``--set``).
+
+    Raises:
+        ConfigError: a malformed override, unknown key, wrong type or out-of-range value.
+    """
+    items = tuple(overrides)
+    if not items:
+        return sc
+    data = to_dict(sc)
+    for item in items:
+        set_key(data, *parse_set(item))
+    return from_dict(Scenario, data)  # type: ignore[no-any-return]

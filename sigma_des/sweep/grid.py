@@ -16,7 +16,15 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from sigma_des.config import ALL_METHODS, METHODS, Scenario, from_dict, parse_set, to_dict
+from sigma_des.config import (
+    ALL_METHODS,
+    METHODS,
+    Scenario,
+    from_dict,
+    parse_set,
+    set_key,
+    to_dict,
+)
 from sigma_des.errors import ConfigError
 
 __all__ = [
@@ -233,16 +241,7 @@ def apply_point(base: Scenario, point: Mapping[str, Any]) -> Scenario:
     if getattr(base, "hosts_auto", False):
         data["hosts"] = 0  # placed anew from the point's nodes (unless it sets hosts)
     for key, value in point.items():
-        parts = key.split(".")
-        cur: dict[str, Any] = data
-        for i, part in enumerate(parts[:-1]):
-            nxt = cur.get(part)
-            if nxt is None:
-                nxt = cur[part] = {}
-            if not isinstance(nxt, dict):
-                raise ConfigError(".".join(parts[: i + 1]), "is not a table; cannot set a sub-key")
-            cur = nxt
-        cur[parts[-1]] = value
+        set_key(data, key, value)
     return from_dict(Scenario, data)  # type: ignore[no-any-return]
 
 

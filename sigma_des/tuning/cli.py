@@ -17,7 +17,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from sigma_des.config import _apply, from_dict, parse_set
+from sigma_des.config import from_dict, parse_set, set_key
 from sigma_des.errors import ConfigError
 
 __all__ = ["add_parser", "run", "load_spec"]
@@ -56,7 +56,7 @@ def load_spec(config: str | None, sets: list[str]) -> Any:
         k, v = parse_set(item)
         if not k.startswith("tune."):
             raise ConfigError(k, "only tune.<key> can be set here")
-        _apply(data, k, v)
+        set_key(data, k, v)
     tune = data.get("tune", {})
     if not isinstance(tune, dict):
         raise ConfigError("tune", "must be a table")

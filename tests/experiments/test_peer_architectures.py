@@ -18,7 +18,8 @@ sys.path.insert(0, str(EXP))
 
 import peer_architectures as study  # noqa: E402
 import report_peer  # noqa: E402
-from common import with_overrides  # noqa: E402
+
+from sigma_des.config import with_overrides  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -183,11 +183,8 @@ def test_report_without_outputs(tmp_path: Path) -> None:
 
 
 def test_seed_lists() -> None:
-    sys.path.insert(0, str(EXP))
-    try:
-        import common
-    finally:
-        sys.path.remove(str(EXP))
+    from sigma_des import studies as common
+
     assert common.parse_seeds("1,2,3") == [1, 2, 3]
     assert common.parse_seeds("1-3,7,2") == [1, 2, 3, 7]
     with pytest.raises(Exception, match="bad seed list"):

@@ -1,0 +1,74 @@
+"""The paper studies' shared code: run many scenarios, derive, aggregate, write, plot.
+
+The scripts in ``experiments/`` hold only their scenarios and plots; everything they
+share lives here:
+
+* :mod:`~sigma_des.studies.args` — the common command line (``--quick``, ``--seeds``…);
+* :mod:`~sigma_des.studies.model` — :class:`MethodSpec`, :class:`RunRecord`, :class:`Study`;
+* :mod:`~sigma_des.studies.run` — :func:`run_study` on the local executor
+  (:mod:`sigma_des.sweep.local`);
+* :mod:`~sigma_des.studies.derived` — metrics derived from the render-tick series;
+* :mod:`~sigma_des.studies.output` — ``results.csv``, ``timeseries.csv``, ``summary.json``;
+* :mod:`~sigma_des.studies.plots` — colours, bars, AoI panels (matplotlib, Agg);
+* :mod:`~sigma_des.studies.tables` — the one table formatter (text and Markdown).
+"""
+
+from sigma_des.studies.args import command_line, finish_args, parse_seeds, study_parser
+from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics
+from sigma_des.studies.model import MethodSpec, RunRecord, Study
+from sigma_des.studies.output import (
+    CSV_COLUMNS,
+    TS_KEYS,
+    aggregate,
+    json_ready,
+    tidy_rows,
+    update_plot_list,
+    write_rows,
+    write_study,
+    write_summary,
+)
+from sigma_des.studies.plots import (
+    COLORS,
+    bar_metric,
+    plot_aoi_dist,
+    plot_aoi_time,
+    plot_setup,
+    save,
+)
+from sigma_des.studies.run import known, load_scenario, run_case, run_study, scenario_for
+from sigma_des.studies.tables import md_table, text_table, variant_table
+
+__all__ = [
+    "COLORS",
+    "CSV_COLUMNS",
+    "DERIVED_UNITS",
+    "MethodSpec",
+    "RunRecord",
+    "Study",
+    "TS_KEYS",
+    "aggregate",
+    "bar_metric",
+    "command_line",
+    "derived_metrics",
+    "finish_args",
+    "json_ready",
+    "known",
+    "load_scenario",
+    "md_table",
+    "parse_seeds",
+    "plot_aoi_dist",
+    "plot_aoi_time",
+    "plot_setup",
+    "run_case",
+    "run_study",
+    "save",
+    "scenario_for",
+    "study_parser",
+    "text_table",
+    "tidy_rows",
+    "update_plot_list",
+    "variant_table",
+    "write_rows",
+    "write_study",
+    "write_summary",
+]
