@@ -10,7 +10,7 @@ peak RSS is per case, single-threaded):
   (``engine="events"``, impl ``events``);
 * on the *restricted* scenario (commands off; transport stream without loss,
   QoS 1, no faults: the defaults), method ``none``: ``cohort``, ``events`` and the
-  baseline (``baseline_process_model.ProcessModel``: one SimPy process per
+  baseline (``sigma_des.reference.process_model.ProcessModel``: one SimPy process per
   message, ``simpy.Resource`` broker/links/cores) on the very same scenario and
   seed;
 
@@ -51,7 +51,6 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import multiprocessing as mp
 import os
 import platform
 import subprocess
@@ -60,9 +59,9 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from sigma_des.sweep.local import run_all
+
 HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
 
 #: Physics nodes per host (the paper: 20 aircraft per PC).
 NODES_PER_HOST = 20
@@ -235,7 +234,7 @@ def _simulate(impl: str, method: str, sc: Any) -> Sim:
         used = "events" if fallback or impl == "events" else "cohort"
         return Sim(wall, int(run.kernel.events), dict(out["metrics"]), used, fallback, cpu)
     if impl == "baseline":
-        from baseline_process_model import ProcessModel, check_supported
+        from sigma_des.reference.process_model import ProcessModel, check_supported
 
         check_supported(sc, method)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -289,7 +288,7 @@ PRELOAD = [
     "sigma_des.events.cohort",
     "sigma_des.factory",
     "sigma_des.agents.registry",
-    "baseline_process_model",
+    "sigma_des.reference.process_model",
 ]
 
 
@@ -303,11 +302,9 @@ def run_fresh(
     import per case; ``spawn`` starts a new interpreter per case. Either way the
     case's peak RSS includes the interpreter and the imported packages.
     """
-    ctx = mp.get_context(start_method)
-    if start_method == "forkserver":
-        ctx.set_forkserver_preload(PRELOAD)
-    with ctx.Pool(1, maxtasksperchild=1) as pool:
-        return pool.apply(run_case, (impl, method, overrides, cpu))  # type: ignore[no-any-return]
+    calls = [(impl, method, overrides, cpu)]
+    [out] = run_all(run_case, calls, 1, start_method, fresh=True, preload=PRELOAD)
+    return out  # type: ignore[no-any-return]
 
 
 # ---------------------------------------------------------------- planning
@@ -747,9 +744,8 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[dict[str, Any]] = []
     notes: list[str] = []
     if a.baseline:
-        from baseline_process_model import Unsupported, check_supported
-
         from sigma_des.config import load
+        from sigma_des.reference.process_model import Unsupported, check_supported
 
         try:
             check_supported(load(overrides=overrides_for(10, a.duration, True, a.set)))

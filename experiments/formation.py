@@ -104,6 +104,7 @@ from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS
 from sigma_des.metrics.fidelity import fidelity
+from sigma_des.metrics.trajectory import convergence_time, slot_distances, window_end
 
 Array = NDArray[np.float64]
 
@@ -202,62 +203,20 @@ def start_state(dynamics: Any, mode: str, offset_h: float, offset_v: float) -> A
 # ------------------------------------------------------------------ metrics
 
 
-def slot_distances(t: Array, pos: Array) -> tuple[Array, Array, Array]:
-    """Horizontal and vertical distance of every node to its slot, and the leader course.
-
-    Args:
-        t: ``(T,)`` sample times.
-        pos: ``(T, n, 3)`` true positions (north, east, altitude).
-
-    Returns:
-        ``(dh (T, n), dv (T, n), course (T,))``; the leader's entries are 0.
-    """
-    lead = pos[:, LEADER, :2]
-    vel = np.gradient(lead, t, axis=0) if len(t) > 1 else np.zeros_like(lead)
-    course = np.arctan2(vel[:, 1], vel[:, 0])
-    theta = math.radians(PAPER["theta_deg"])
-    dh = np.empty(pos.shape[:2])
-    obs = np.zeros((pos.shape[1], 12))
-    for k in range(len(t)):
-        obs[:, 9:12] = pos[k]
-        obs[LEADER, 5] = course[k]
-        slots = formation_slots(obs, LEADER, PAPER["d"], theta)
-        dh[k] = np.hypot(pos[k, :, 0] - slots[:, 0], pos[k, :, 1] - slots[:, 1])
-    dv = np.abs(pos[:, :, 2] - pos[:, LEADER, 2][:, None])
-    return dh, dv, course
-
-
-def window_end(t: Array, course: Array) -> float:
-    """End of the convergence window: the leader's first turn, or the end of the flight."""
-    if len(t) < 2:
-        return float(t[-1]) if len(t) else 0.0
-    c0 = course[min(len(course) - 1, 3)]                 # initial course (skip edge samples)
-    dev = np.abs((course - c0 + np.pi) % (2 * np.pi) - np.pi)
-    off = np.nonzero((dev > math.radians(TURN_DEG)) & (t > 1.0))[0]
-    if not off.size:
-        return float(t[-1])
-    # Back to where that turn began (course within TURN_START_DEG of the initial one):
-    # the slots start to swing as soon as the leader banks.
-    calm = np.nonzero(dev[: off[0]] <= math.radians(TURN_START_DEG))[0]
-    return float(t[calm[-1]]) if calm.size else float(t[off[0]])
-
-
-def convergence_time(t: Array, d: Array, threshold: float, t_end: float) -> float:
-    """First time after which ``d`` stays below ``threshold`` up to ``t_end`` (NaN: never)."""
-    inside = t <= t_end + 1e-9
-    tt, dd = t[inside], d[inside]
-    if tt.size == 0 or dd[-1] >= threshold:
-        return math.nan
-    above = np.nonzero(dd >= threshold)[0]
-    return float(tt[0]) if above.size == 0 else float(tt[above[-1] + 1])
+def slots_at(pos: Array, course: float) -> Array:
+    """The paper's V-formation slots given the positions and the leader's course."""
+    obs = np.zeros((pos.shape[0], 12))
+    obs[:, 9:12] = pos
+    obs[LEADER, 5] = course
+    return formation_slots(obs, LEADER, PAPER["d"], math.radians(PAPER["theta_deg"]))
 
 
 def flight_metrics(t: Array, pos: Array, ideal: Array, args: argparse.Namespace
                    ) -> tuple[dict[str, float], dict[str, Array]]:
     """Convergence, slot distances, formation error and DTW of one flight (module doc)."""
     m: dict[str, float] = {}
-    dh, dv, course = slot_distances(t, pos)
-    t_end = window_end(t, course)
+    dh, dv, course = slot_distances(t, pos, LEADER, slots_at)
+    t_end = window_end(t, course, TURN_DEG, TURN_START_DEG)
     foll = [k for k in range(pos.shape[1]) if k != LEADER]
     ch = [convergence_time(t, dh[:, k], args.h_threshold, t_end) for k in foll]
     cv = [convergence_time(t, dv[:, k], args.v_threshold, t_end) for k in foll]

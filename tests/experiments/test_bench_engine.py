@@ -1,6 +1,6 @@
 """experiments/bench_engine.py and its process-per-message SimPy baseline.
 
-The baseline (experiments/baseline_process_model.py) is an independent
+The baseline (sigma_des/reference/process_model.py) is an independent
 implementation of the model (one SimPy process per message, simpy.Resource for
 the broker, the links and the host cores), so agreement with the engines is a
 real cross-check; the cohort and the per-message ("events") engine must agree
@@ -20,6 +20,7 @@ import pytest
 
 from sigma_des.api import run_method
 from sigma_des.config import load
+from sigma_des.reference.process_model import ProcessModel, Unsupported, check_supported
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPERIMENTS = ROOT / "experiments"
@@ -27,7 +28,6 @@ BENCH = EXPERIMENTS / "bench_engine.py"
 sys.path.insert(0, str(EXPERIMENTS))
 
 import bench_engine  # noqa: E402
-from baseline_process_model import ProcessModel, Unsupported, check_supported  # noqa: E402
 
 # The engine books a broker service's end as start + (publish + Σ deliveries) but its
 # deliveries leave at start + publish + d0 + d1 …; the two floats differ in the last bits

@@ -1,9 +1,10 @@
 """An idiomatic one-process-per-message SimPy model of the sigma_des loop.
 
 This is the *baseline* of ``experiments/bench_engine.py``: an independent
-re-implementation of the model contract (DESIGN §1–2) for a restricted scenario
-class, written the textbook SimPy way, so that the engine's speed can be compared
-with it and its metrics cross-checked against it:
+re-implementation of the model contract (``docs/MODEL.md``, "Components and message
+flow" and "Network") for a restricted scenario class, written the textbook SimPy
+way, so that the engine's speed can be compared with it and its metrics
+cross-checked against it:
 
 * every message is a process (``env.process``): one per PUBLISH (uplink hop,
   broker service, fan-out), one per delivery (downlink hop, in-order release,
