@@ -1,4 +1,4 @@
-"""experiments/bench_engine.py and its process-per-message SimPy baseline.
+"""experiments/bench_engine.py (sigma_des/studies/engine_bench.py) and its SimPy baseline.
 
 The baseline (sigma_des/reference/process_model.py) is an independent
 implementation of the model (one SimPy process per message, simpy.Resource for
@@ -21,13 +21,11 @@ import pytest
 from sigma_des.api import run_method
 from sigma_des.config import load
 from sigma_des.reference.process_model import ProcessModel, Unsupported, check_supported
+from sigma_des.studies import engine_bench as bench_engine
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPERIMENTS = ROOT / "experiments"
 BENCH = EXPERIMENTS / "bench_engine.py"
-sys.path.insert(0, str(EXPERIMENTS))
-
-import bench_engine  # noqa: E402
 
 # The engine books a broker service's end as start + (publish + Σ deliveries) but its
 # deliveries leave at start + publish + d0 + d1 …; the two floats differ in the last bits

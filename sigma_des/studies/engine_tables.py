@@ -1,0 +1,156 @@
+"""The engine benchmark's printed tables (speed, speed-up, metric checks, cohort vs baseline)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from sigma_des.studies.engine_bench import BASELINE_RTOL, COMPARED, Check, col
+from sigma_des.studies.tables import text_table
+
+__all__ = ["check_table", "metric_table", "speed_table", "speedup_table"]
+
+
+def _fmt(x: Any, spec: str) -> str:
+    if x == "" or x is None:
+        return "-"
+    return format(x, spec)
+
+
+def speed_table(rows: list[dict[str, Any]]) -> str:
+    """One line per case (cohort twins marked ``cohort~``)."""
+    head = [
+        "N",
+        "scenario",
+        "method",
+        "impl",
+        "engine used",
+        "sim s",
+        "s/s",
+        "xRT",
+        "cpu s/s",
+        "xRT cpu",
+        "ev/s",
+        "RSS MB",
+    ]
+    lines = [head]
+    for r in rows:
+        lines.append(
+            [
+                str(r["n"]),
+                r["scenario"],
+                r["method"],
+                r["impl"] + ("~" if r["role"] == "twin" else ""),
+                r["engine_used"],
+                _fmt(r["sim_s"], "g"),
+                _fmt(r["wall_per_sim_s"], ".3f"),
+                _fmt(r["x_realtime"], ".2f"),
+                _fmt(r["cpu_per_sim_s"], ".3f"),
+                _fmt(r["x_realtime_cpu"], ".2f"),
+                _fmt(r["events_per_s"], ",.0f"),
+                _fmt(r["peak_rss_mb"], ".0f"),
+            ]
+        )
+    return text_table(lines)
+
+
+def speedup_table(rows: list[dict[str, Any]]) -> str:
+    """One line per (N, scenario, method): cohort/events, cohort/baseline, events/baseline.
+
+    ``cohort ran as`` is the engine the cohort case really used (``events`` after a
+    fallback, where cohort/events compares the per-message engine with itself).
+    """
+    lines = [
+        [
+            "N",
+            "scenario",
+            "method",
+            "cohort ran as",
+            "cohort/events",
+            "cohort/baseline",
+            "events/baseline",
+        ]
+    ]
+    for r in rows:
+        if r["impl"] != "cohort" or r["role"] != "main":
+            continue
+        ev = next(
+            (
+                x
+                for x in rows
+                if (x["n"], x["method"], x["scenario"], x["impl"], x["role"])
+                == (r["n"], r["method"], r["scenario"], "events", "main")
+            ),
+            None,
+        )
+        lines.append(
+            [
+                str(r["n"]),
+                r["scenario"],
+                r["method"],
+                r["engine_used"],
+                _fmt(r["ratio_vs_events"], ".2f"),
+                _fmt(r["ratio_vs_baseline"], ".2f"),
+                _fmt(ev["ratio_vs_baseline"] if ev else "", ".2f"),
+            ]
+        )
+    return text_table(lines)
+
+
+def check_table(checks: list[Check]) -> str:
+    """One line per metric comparison."""
+    lines = [["N", "scenario", "method", "compared", "sim s", "max rel diff", "in", "verdict"]]
+    for c in checks:
+        if c.other == "events":
+            verdict = "identical" if c.ok else "DIFFERENT"
+        else:
+            verdict = f"<= {BASELINE_RTOL:.0e}" if c.ok else f"DIFFERENT (> {BASELINE_RTOL:.0e})"
+        lines.append(
+            [
+                str(c.n),
+                c.scenario,
+                c.method,
+                f"cohort vs {c.other}",
+                f"{c.sim_s:g}",
+                f"{c.diff:.1e}",
+                c.metric or "-",
+                verdict,
+            ]
+        )
+    return text_table(lines)
+
+
+def metric_table(rows: list[dict[str, Any]]) -> str:
+    """One line per N: cohort (method none) vs baseline on the restricted scenario."""
+    pairs: list[tuple[dict[str, Any], dict[str, Any]]] = []
+    for b in rows:
+        if b["impl"] != "baseline":
+            continue
+        for c in rows:
+            if (c["impl"], c["scenario"], c["n"], c["sim_s"]) == (
+                "cohort",
+                "restricted",
+                b["n"],
+                b["sim_s"],
+            ):
+                pairs.append((c, b))
+                break
+    show = (
+        "latency_state_mean",
+        "latency_state_p99",
+        "aoi_mean",
+        "trigger_rate_hz",
+        "throughput_mbps",
+    )
+    head = ["N", "sim s"]
+    for name in show:
+        head += [f"{name} cohort", "base"]
+    head += ["max rel diff", "in"]
+    lines = [head]
+    for c, b in pairs:
+        line = [str(b["n"]), f"{b['sim_s']:g}"]
+        for name in show:
+            key = col(name, dict(COMPARED)[name])
+            line += [f"{c[key]:.6f}", f"{b[key]:.6f}"]
+        line += [f"{b['max_rel_diff']:.1e}", b["max_rel_diff_metric"] or "-"]
+        lines.append(line)
+    return text_table(lines)
