@@ -208,7 +208,7 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv)
     base = base_overrides(args.quick)
     fo = fault_overrides(args.quick)
     variants = {v: studies.load_scenario(None, [*base, *ov]) for v, (ov, _) in fo.items()}
@@ -229,14 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     study.extra["fault_window_s"] = windows
     study.extra["target"] = {"node": NODE, "host": HOST, "eviction_timeout_s": EVICT}
-    studies.write_study(study)
-    plots(study, windows)
-    studies.update_plot_list(study.args.out)
-    for v in study.variants:
-        print(studies.variant_table(study, v, TABLE))
-    print(f"wrote {args.out}")
-    return 0
-
+    return studies.finish(study, lambda st: plots(st, windows), None, TABLE)
 
 def _nanmean(x: np.ndarray) -> float:
     ok = x[~np.isnan(x)]

@@ -36,7 +36,6 @@ from pathlib import Path
 import numpy as np
 
 from sigma_des import studies
-from sigma_des.plots import rate_series
 
 NAME = "latency_tolerance"
 METHODS = ("none", "lockstep", "hlc", "bides")
@@ -115,10 +114,7 @@ def plots(study: studies.Study) -> None:
     fig, axs = plt.subplots(2, 2, figsize=(13, 8))
     for col, v in enumerate(variants[:2]):
         ax = axs[0, col]
-        for lab in study.labels(v):
-            ts = study.runs(v, lab)[0].timeseries
-            t, rate = rate_series(ts["t"], ts["aligned_frame"], window=1.0)
-            ax.plot(t, rate, color=studies.COLORS.get(lab), lw=1, label=lab)
+        studies.plot_rate(ax, study, v, "aligned_frame", 1.0)
         ax.axhline(20, color="k", ls="--", lw=0.8, label="paper BiDES 20 Hz")
         ax.set_xlabel("simulated time (s)")
         ax.set_ylabel("aligned frames advanced per second (1 s windows)")
@@ -148,21 +144,13 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv)
     variants = {
         v: studies.load_scenario(SCENARIO, [*ov, *PINNED, *overrides(args.quick)])
         for v, ov in VARIANTS.items()
     }
     specs = {v: [studies.MethodSpec(m, m) for m in METHODS] for v in VARIANTS}
-    study = studies.run_study(NAME, args, variants, specs)
-    studies.write_study(study, PAPER)
-    plots(study)
-    studies.update_plot_list(study.args.out)
-    for v in study.variants:
-        print(studies.variant_table(study, v, TABLE))
-    print(f"wrote {args.out}")
-    return 0
-
+    return studies.finish(studies.run_study(NAME, args, variants, specs), plots, PAPER, TABLE)
 
 if __name__ == "__main__":
     sys.exit(main())

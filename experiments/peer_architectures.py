@@ -171,21 +171,14 @@ def text(fig: dict[str, Any]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = studies.finish_args(
-        studies.study_parser(NAME, __doc__, default_seeds="1,2").parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv, default_seeds="1,2")
     ns = QUICK_NODES if args.quick else NODES
     variants = {f"n{n}": studies.load_scenario(None, overrides(n, args.quick)) for n in ns}
     specs = {v: list(LABELS) for v in variants}
     study = studies.run_study(NAME, args, variants, specs)
     fig = figures(study)
     study.extra = fig
-    studies.write_study(study, PAPER)
-    plots(study, fig)
-    studies.update_plot_list(study.args.out)
-    print(text(fig))
-    print(f"wrote {args.out}")
-    return 0
-
+    return studies.finish(study, lambda st: plots(st, fig), PAPER, notes=[text(fig)])
 
 if __name__ == "__main__":
     raise SystemExit(main())

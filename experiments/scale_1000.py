@@ -92,10 +92,7 @@ def plots(study: studies.Study) -> None:
         ("trigger_rate_hz", 1.0, "achieved trigger rate (Hz)"),
         ("f_trig_settled_hz", 1.0, "trigger rate in force, last quarter (Hz)"),
     ]
-    for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
-        studies.bar_metric(ax, study, "default", metric, scale)
-        ax.set_ylabel(ylabel)
-        ax.set_title(metric)
+    studies.bar_panels(axs, study, "default", panels)
     axs.flat[0].axhline(PAPER["throughput_mbps"], color="k", ls="--", lw=1, label="paper 208.4")
     axs.flat[0].legend(loc="lower right")
     axs.flat[1].axhline(19.0, color="k", ls="--", lw=1, label="paper 19 ms")
@@ -164,8 +161,7 @@ TABLE = (
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    parser = studies.study_parser(NAME, __doc__, default_seeds="1")
-    args = studies.finish_args(parser.parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv, default_seeds="1")
     ov = overrides(args.quick)
     variants = {
         "default": studies.load_scenario(None, ov),
@@ -183,15 +179,8 @@ def main(argv: list[str] | None = None) -> int:
         "min": float(np.min([x[int(0.75 * x.size) :].min() for x in f_ts])),
         "max": float(np.max([x[int(0.75 * x.size) :].max() for x in f_ts])),
     }
-    studies.write_study(study, PAPER)
-    plots(study)
-    studies.update_plot_list(study.args.out)
-    for v in study.variants:
-        print(studies.variant_table(study, v, TABLE))
-    print("broker:", study.extra["broker"])
-    print(f"wrote {args.out}")
-    return 0
-
+    notes = [f"broker: {study.extra['broker']}"]
+    return studies.finish(study, plots, PAPER, TABLE, notes)
 
 if __name__ == "__main__":
     sys.exit(main())

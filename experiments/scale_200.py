@@ -72,10 +72,7 @@ def plots(study: studies.Study) -> None:
         ("snapshot_rate_hz", 1.0, "new aligned snapshots (Hz)"),
         ("trigger_rate_hz", 1.0, "achieved trigger rate (Hz)"),
     ]
-    for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
-        studies.bar_metric(ax, study, "default", metric, scale)
-        ax.set_ylabel(ylabel)
-        ax.set_title(metric)
+    studies.bar_panels(axs, study, "default", panels)
     # AoI std within the run as whiskers on the AoI panel
     ax = axs.flat[1]
     labels = study.labels("default")
@@ -100,17 +97,10 @@ def plots(study: studies.Study) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the study and write its outputs."""
-    args = studies.finish_args(studies.study_parser(NAME, __doc__).parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv)
     variants = {"default": studies.load_scenario(None, overrides(args.quick))}
     specs = {"default": [studies.MethodSpec(m, m) for m in METHODS]}
-    study = studies.run_study(NAME, args, variants, specs)
-    studies.write_study(study, PAPER)
-    plots(study)
-    studies.update_plot_list(study.args.out)
-    print(studies.variant_table(study, "default", TABLE))
-    print(f"wrote {args.out}")
-    return 0
-
+    return studies.finish(studies.run_study(NAME, args, variants, specs), plots, PAPER, TABLE)
 
 TABLE = (
     ("latency_state_mean", "lat ms"),

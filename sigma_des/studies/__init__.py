@@ -13,13 +13,20 @@ share lives here:
 * :mod:`~sigma_des.studies.tables` — the one table formatter (text and Markdown).
 """
 
-from sigma_des.studies.args import command_line, finish_args, parse_seeds, study_parser
+from sigma_des.studies.args import (
+    command_line,
+    finish_args,
+    parse_args,
+    parse_seeds,
+    study_parser,
+)
 from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics
 from sigma_des.studies.model import MethodSpec, RunRecord, Study
 from sigma_des.studies.output import (
     CSV_COLUMNS,
     TS_KEYS,
     aggregate,
+    finish,
     json_ready,
     tidy_rows,
     update_plot_list,
@@ -30,8 +37,10 @@ from sigma_des.studies.output import (
 from sigma_des.studies.plots import (
     COLORS,
     bar_metric,
+    bar_panels,
     plot_aoi_dist,
     plot_aoi_time,
+    plot_rate,
     plot_setup,
     save,
 )
@@ -48,16 +57,20 @@ __all__ = [
     "TS_KEYS",
     "aggregate",
     "bar_metric",
+    "bar_panels",
     "command_line",
     "derived_metrics",
+    "finish",
     "finish_args",
     "json_ready",
     "known",
     "load_scenario",
     "md_table",
+    "parse_args",
     "parse_seeds",
     "plot_aoi_dist",
     "plot_aoi_time",
+    "plot_rate",
     "plot_setup",
     "run_case",
     "run_study",

@@ -12,7 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
-__all__ = ["command_line", "finish_args", "parse_seeds", "study_parser"]
+__all__ = ["command_line", "finish_args", "parse_args", "parse_seeds", "study_parser"]
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -85,6 +85,13 @@ def finish_args(args: argparse.Namespace) -> argparse.Namespace:
     if args.jobs < 1:
         raise SystemExit("--jobs must be >= 1")
     return args
+
+
+def parse_args(
+    name: str, doc: str | None, argv: list[str] | None, default_seeds: str = "1,2,3"
+) -> argparse.Namespace:
+    """Parse a study script's command line (:func:`study_parser`, :func:`finish_args`)."""
+    return finish_args(study_parser(name, doc, default_seeds).parse_args(argv))
 
 
 def command_line(name: str) -> str:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ from sigma_des.config import to_dict
 from sigma_des.studies.args import command_line
 from sigma_des.studies.derived import DERIVED_UNITS
 from sigma_des.studies.model import RunRecord, Study
+from sigma_des.studies.tables import variant_table
 
 __all__ = [
     "CSV_COLUMNS",
@@ -34,6 +35,7 @@ __all__ = [
     "json_ready",
     "tidy_rows",
     "update_plot_list",
+    "finish",
     "write_rows",
     "write_study",
     "write_summary",
@@ -202,3 +204,31 @@ def update_plot_list(out: Path) -> None:
     data = json.loads(path.read_text())
     data["plots"] = sorted(p.name for p in Path(out).glob("*.png"))
     path.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+
+
+def finish(
+    study: Study,
+    plots: Callable[[Study], None],
+    paper: dict[str, Any] | None = None,
+    table: Sequence[tuple[str, str]] = (),
+    notes: Sequence[str] = (),
+) -> int:
+    """Write the study's outputs and plots, print its tables; the script's exit status (0).
+
+    Args:
+        study: what ran.
+        plots: draws the study's PNG files into ``study.args.out``.
+        paper: the paper's reference figures (stored in ``summary.json``).
+        table: ``(metric, header)`` columns printed per variant (none: no table).
+        notes: further lines printed after the tables.
+    """
+    write_study(study, paper)
+    plots(study)
+    update_plot_list(study.args.out)
+    if table:
+        for v in study.variants:
+            print(variant_table(study, v, table))
+    for line in notes:
+        print(line)
+    print(f"wrote {study.args.out}")
+    return 0

@@ -14,9 +14,19 @@ from typing import Any
 
 import numpy as np
 
+from sigma_des.plots import rate_series
 from sigma_des.studies.model import Study
 
-__all__ = ["COLORS", "bar_metric", "plot_aoi_dist", "plot_aoi_time", "plot_setup", "save"]
+__all__ = [
+    "COLORS",
+    "bar_metric",
+    "bar_panels",
+    "plot_aoi_dist",
+    "plot_aoi_time",
+    "plot_rate",
+    "plot_setup",
+    "save",
+]
 
 #: One colour per method label, the same in every plot.
 COLORS: dict[str, str] = {
@@ -148,3 +158,23 @@ def plot_aoi_dist(ax: Any, study: Study, variant: str, labels: Sequence[str] | N
     ax.set_xticks(pos, labels)
     ax.set_ylabel("AoI (ms)")
     ax.legend(loc="upper left")
+
+
+def bar_panels(
+    axs: Any, study: Study, variant: str, panels: Sequence[tuple[str, float, str]]
+) -> None:
+    """One :func:`bar_metric` panel per ``(metric, scale, ylabel)``, titled by the metric."""
+    for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
+        bar_metric(ax, study, variant, metric, scale)
+        ax.set_ylabel(ylabel)
+        ax.set_title(metric)
+
+
+def plot_rate(
+    ax: Any, study: Study, variant: str, key: str, window: float, lw: float = 1.0
+) -> None:
+    """Per label (first seed): the advance rate of series ``key`` in ``window``-s windows."""
+    for lab in study.labels(variant):
+        ts = study.runs(variant, lab)[0].timeseries
+        t, rate = rate_series(ts["t"], ts[key], window=window)
+        ax.plot(t, rate, color=COLORS.get(lab), lw=lw, label=lab)
