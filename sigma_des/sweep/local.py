@@ -54,15 +54,18 @@ def local_pool(
     Args:
         jobs: the most calls running at once (1 and not ``fresh``: in this process).
         start_method: the ``multiprocessing`` start method of the workers
-            (``spawn``, ``forkserver``, ``fork``; None: the platform's default).
-        fresh: run every call in a new worker process.
+            (``spawn``, ``forkserver``, ``fork``; None: the platform's default, or
+            ``forkserver`` when ``fresh``).
+        fresh: run every call in a new worker process (not with ``fork``).
         preload: modules a ``forkserver`` imports once before forking the workers.
 
     Raises:
-        ValueError: ``jobs`` < 1.
+        ValueError: ``jobs`` < 1, or ``fresh`` with the ``fork`` start method.
     """
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
+    if fresh and start_method is None:
+        start_method = "forkserver"
     if jobs == 1 and not fresh:
         yield _inprocess
         return

@@ -1,0 +1,44 @@
+"""sweep/local.py: the one local executor (in-process, process pool, fresh process per call)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from sigma_des.sweep.local import local_pool, run_all
+
+
+def test_in_process_keeps_call_order_and_runs_here() -> None:
+    assert run_all(divmod, [(7, 2), (9, 4), (1, 1)]) == [(3, 1), (2, 1), (1, 0)]
+    assert run_all(os.getpid, [(), ()]) == [os.getpid()] * 2
+
+
+def test_pool_returns_results_in_call_order() -> None:
+    calls = [(n, 3) for n in range(10)]
+    assert run_all(divmod, calls, jobs=2) == [divmod(n, 3) for n in range(10)]
+
+
+def test_submit_yields_every_index_once() -> None:
+    with local_pool(2) as submit:
+        got = dict(submit(pow, [(2, 3), (3, 2), (5, 0)]))
+    assert got == {0: 8, 1: 9, 2: 1}
+
+
+def test_fresh_runs_every_call_in_a_new_process() -> None:
+    pids = run_all(os.getpid, [(), (), ()], jobs=1, fresh=True)
+    assert len(set(pids)) == 3
+    assert os.getpid() not in pids
+
+
+def test_a_failing_call_raises_in_the_caller() -> None:
+    with pytest.raises(ValueError, match="invalid literal"):
+        run_all(int, [("12",), ("x",)], jobs=2)
+    with pytest.raises(ValueError, match="invalid literal"):
+        run_all(int, [("x",)])
+
+
+def test_jobs_below_one_is_an_error() -> None:
+    with pytest.raises(ValueError, match="jobs must be >= 1"):
+        with local_pool(0):
+            pass
