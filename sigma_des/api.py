@@ -338,8 +338,29 @@ def compare(
             leave=False,
             desc="sigma-des",
         )
-    outs: dict[str, dict[str, Any]] = {}
     parts = _record_parts(record, ms)
+    outs = _run_methods(sc, ms, jobs, parts, bar)
+    for m in ms:  # the caller's order, whatever order the workers finished in
+        out = outs[m]
+        res.methods[m] = out["metrics"]
+        res.wall[m] = out["wall"]
+        res.links_mbps[m] = out["links_mbps"]
+        res.timeseries[m] = out["timeseries"]
+        res.engines[m] = out["engine"]
+        if "fidelity" in out:
+            res.fidelity[m] = out["fidelity"]
+    if bar is not None:
+        bar.close()
+    if record is not None:
+        _join_parts(sc, Path(record), [parts[m] for m in ms])
+    return res
+
+
+def _run_methods(
+    sc: Scenario, ms: Sequence[str], jobs: int, parts: dict[str, Path], bar: Any
+) -> dict[str, dict[str, Any]]:
+    """Every method's raw result: here in turn, or on ``jobs`` workers of the local executor."""
+    outs: dict[str, dict[str, Any]] = {}
     if jobs > 1 and len(ms) > 1:
         from sigma_des.sweep.local import local_pool
 
@@ -371,20 +392,7 @@ def compare(
             if bar is not None:
                 bar.set_postfix_str(m)
             outs[m] = run_method(sc, m, tick, ideal, parts.get(m))
-    for m in ms:  # the caller's order, whatever order the workers finished in
-        out = outs[m]
-        res.methods[m] = out["metrics"]
-        res.wall[m] = out["wall"]
-        res.links_mbps[m] = out["links_mbps"]
-        res.timeseries[m] = out["timeseries"]
-        res.engines[m] = out["engine"]
-        if "fidelity" in out:
-            res.fidelity[m] = out["fidelity"]
-    if bar is not None:
-        bar.close()
-    if record is not None:
-        _join_parts(sc, Path(record), [parts[m] for m in ms])
-    return res
+    return outs
 
 
 def _record_parts(record: str | Path | None, ms: Sequence[str]) -> dict[str, Path]:
