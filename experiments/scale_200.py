@@ -7,7 +7,8 @@ Reported per method: state latency, AoI (mean ± std and its distribution), the
 alignment server's buffer memory, wire throughput and the achieved frame rates,
 plus AoI over time.
 
-Paper (DESIGN §7): BiDES latency 3.5 ms, AoI 8.7 ± 1.7 ms, < 650 MB per host,
+Paper (docs/MODEL.md, "Reference figures from the paper"):
+BiDES latency 3.5 ms, AoI 8.7 ± 1.7 ms, < 650 MB per host,
 rendering > 60 Hz; the Lock-Step baseline (Gazebo/FastDDS) 62 ± 15 ms at 200 nodes.
 
 Examples::
