@@ -281,9 +281,49 @@ def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
     studies.save(fig, out, "cost_vs_n.png")
 
 
+def record(
+    times: dict[str, np.ndarray], cell: dict[str, list[float]], n: int, seed: int,
+    method: str, chash: str,
+) -> list[dict[str, Any]]:
+    """Median, p95 and repeats of each timed part into ``cell``; their tidy rows; a line."""
+    rows: list[dict[str, Any]] = []
+    for part, xs in times.items():
+        ms = xs * 1000.0
+        vals = {
+            f"{part}_median_ms": float(np.median(ms)),
+            f"{part}_p95_ms": float(np.percentile(ms, 95)),
+            f"{part}_reps": float(ms.size),
+        }
+        for k, v in vals.items():
+            cell.setdefault(k, []).append(v)
+            rows.append(
+                {
+                    "study": NAME,
+                    "variant": f"n={n}",
+                    "seed": seed,
+                    "config_hash": chash,
+                    "version": sigma_des.__version__,
+                    "method": method,
+                    "metric": k,
+                    "value": v,
+                    "unit": "count" if k.endswith("reps") else "ms",
+                }
+            )
+    print(
+        f"n={n:6d} {method:9s} "
+        + "  ".join(
+            f"{p}: median {np.median(x) * 1e3:8.3f} ms p95 "
+            f"{np.percentile(x, 95) * 1e3:8.3f} ms"
+            for p, x in times.items()
+        ),
+        flush=True,
+    )
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     """Time every method at every n and write the outputs."""
-    args = studies.finish_args(studies.study_parser(NAME, __doc__, "1").parse_args(argv))
+    args = studies.parse_args(NAME, __doc__, argv, "1")
     ns = [100, 300, 1000] if args.quick else [100, 300, 1000, 3000, 10000]
     budget = 0.1 if args.quick else 2.0
     out = Path(args.out)
@@ -304,38 +344,8 @@ def main(argv: list[str] | None = None) -> int:
         for n in ns:
             for method, bench in BENCHES.items():
                 times = bench(n, seed, budget)
-                for part, xs in times.items():
-                    ms = xs * 1000.0
-                    vals = {
-                        f"{part}_median_ms": float(np.median(ms)),
-                        f"{part}_p95_ms": float(np.percentile(ms, 95)),
-                        f"{part}_reps": float(ms.size),
-                    }
-                    cell = table.setdefault(str(n), {}).setdefault(method, {})
-                    for k, v in vals.items():
-                        cell.setdefault(k, []).append(v)
-                        rows.append(
-                            {
-                                "study": NAME,
-                                "variant": f"n={n}",
-                                "seed": seed,
-                                "config_hash": chash,
-                                "version": sigma_des.__version__,
-                                "method": method,
-                                "metric": k,
-                                "value": v,
-                                "unit": "count" if k.endswith("reps") else "ms",
-                            }
-                        )
-                print(
-                    f"n={n:6d} {method:9s} "
-                    + "  ".join(
-                        f"{p}: median {np.median(x) * 1e3:8.3f} ms p95 "
-                        f"{np.percentile(x, 95) * 1e3:8.3f} ms"
-                        for p, x in times.items()
-                    ),
-                    flush=True,
-                )
+                cell = table.setdefault(str(n), {}).setdefault(method, {})
+                rows += record(times, cell, n, seed, method, chash)
     # several seeds: the median over seeds of each figure
     agg = {
         n: {m: {k: float(np.median(v)) for k, v in c.items()} for m, c in d.items()}
