@@ -36,15 +36,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from sigma_des.config import METHODS, load
+from sigma_des.config import METHODS, NODES_PER_HOST, load
 from sigma_des.errors import ConfigError
+from sigma_des.studies import json_ready
 from sigma_des.sweep import Sweep
 
 #: Node counts of the full sweep and of ``--quick``.
 FULL_NODES: tuple[int, ...] = (10, 20, 50, 100, 200, 500, 1000)
 QUICK_NODES: tuple[int, ...] = (10, 20)
-#: Physics nodes per host (the paper: 20 aircraft per PC).
-NODES_PER_HOST = 20
 #: Lock-Step "degrades" where its mean AoI exceeds BiDES's by more than this factor.
 DEGRADE_FACTOR = 1.5
 
@@ -240,7 +239,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "figures": {m: {str(n): v for n, v in d.items()} for m, d in fig.items()},
     }
     (out / "summary.json").write_text(
-        json.dumps(_clean(summary), indent=2, sort_keys=True, allow_nan=False) + "\n"
+        json.dumps(json_ready(summary), indent=2, sort_keys=True, allow_nan=False) + "\n"
     )
     print(_table(fig))
     if "lockstep" in fig and "bides" in fig:
@@ -248,17 +247,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"lock-step degrades (AoI > {DEGRADE_FACTOR:g} × BiDES's): {where}")
     print(f"wrote {runs_csv}, {agg_csv}, {out / 'summary.json'}, " + ", ".join(map(str, pngs)))
     return 1 if rep.failures else 0
-
-
-def _clean(x: Any) -> Any:
-    """JSON-safe copy: NaN → null, ±inf → "inf"/"-inf"."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    return x
 
 
 if __name__ == "__main__":

@@ -38,10 +38,13 @@ class Templates:
         """Read templates from ``folder``."""
         self.folder = Path(folder)
 
+    def text(self, name: str) -> str:
+        """Template ``<name>.md`` as it is (no fields; its final newline dropped)."""
+        return (self.folder / f"{name}.md").read_text(encoding="utf-8").removesuffix("\n")
+
     def fill(self, name: str, **fields: Any) -> str:
         """Template ``<name>.md`` (its final newline dropped) with ``fields`` filled in."""
-        text = (self.folder / f"{name}.md").read_text(encoding="utf-8").removesuffix("\n")
-        return text.format(**fields)
+        return self.text(name).format(**fields)
 
 
 def num(x: Any, nd: int = 1) -> str:
