@@ -57,6 +57,7 @@ from sigma_des.agents import layout as L
 from sigma_des.agents.dtw import dtw, dtw_normalised
 from sigma_des.agents.formation import formation_behaviour, formation_rule, formation_slots
 from sigma_des.agents.ideal import fly
+from sigma_des.api import TIDY_COLUMNS
 from sigma_des.config import Scenario, config_hash, to_dict
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -87,8 +88,7 @@ UNITS = {"conv_h_s": "s", "conv_v_s": "s", "conv_h_s_mean": "s", "conv_h_s_max":
          "slot_v_mean_m": "m", "slot_h_final_m": "m", "slot_v_final_m": "m",
          "formation_err_mean": "m", "formation_err_max": "m", "dtw_r": "m", "dtw_m": "m",
          "sim_duration_s": "s"}
-CSV_COLUMNS = ("study", "network", "seed", "config_hash", "version", "method", "metric", "value",
-               "unit")
+CSV_COLUMNS = ("study", "network", *TIDY_COLUMNS)
 
 
 

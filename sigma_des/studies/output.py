@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 import sigma_des
+from sigma_des.api import TIDY_COLUMNS
 from sigma_des.config import to_dict
 from sigma_des.studies.args import command_line
 from sigma_des.studies.derived import DERIVED_UNITS
@@ -41,18 +42,9 @@ __all__ = [
     "write_summary",
 ]
 
-#: Columns of every study's ``results.csv``.
-CSV_COLUMNS = (
-    "study",
-    "variant",
-    "seed",
-    "config_hash",
-    "version",
-    "method",
-    "metric",
-    "value",
-    "unit",
-)
+#: Columns of every study's ``results.csv``: the study and variant, then a tidy
+#: :meth:`~sigma_des.api.Results.rows` row.
+CSV_COLUMNS = ("study", "variant", *TIDY_COLUMNS)
 #: Columns of ``timeseries.csv`` after the identifying ones.
 TS_KEYS = ("t", "aoi_mean", "aoi_max", "spread", "f_trig", "latest_trigger", "aligned_frame")
 
