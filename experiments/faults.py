@@ -30,9 +30,7 @@ Outputs (``--out``, default ``out/faults``): ``results.csv``, ``timeseries.csv``
 
 from __future__ import annotations
 
-import math
 import sys
-from typing import Any
 
 import numpy as np
 
@@ -95,37 +93,6 @@ def fault_overrides(quick: bool) -> dict[str, tuple[list[str], tuple[float, floa
             (s, tm["degrade_end"]),
         ),
     }
-
-
-def window_stats(ts: dict[str, Any], a: float, b: float) -> dict[str, float]:
-    """AoI and aligned-frame rate before ``a``, in ``[a, b)`` and after ``b``.
-
-    Also ``recovery_s``: time after ``b`` until the per-tick mean AoI is back within
-    1.5× its pre-fault median (NaN if it never is, or the fault lasts to the end).
-    """
-    t = np.asarray(ts["t"], dtype=float)
-    aoi = np.asarray(ts["aoi_mean"], dtype=float) * 1000.0
-    fr = np.asarray(ts["aligned_frame"], dtype=float)
-    out: dict[str, float] = {}
-    for name, sel in (
-        ("before", t < a),
-        ("during", (t >= a) & (t < b)),
-        ("after", t >= b + 0.5),
-    ):
-        tt, ff = t[sel], fr[sel]
-        x = aoi[sel]
-        x = x[~np.isnan(x)]
-        out[f"aoi_{name}_ms"] = float(x.mean()) if x.size else math.nan
-        out[f"aoi_max_{name}_ms"] = float(x.max()) if x.size else math.nan
-        rate = (ff[-1] - ff[0]) / (tt[-1] - tt[0]) if tt.size > 1 else math.nan
-        out[f"aligned_rate_{name}_hz"] = float(rate)
-    pre = aoi[(t < a) & ~np.isnan(aoi)]
-    out["recovery_s"] = math.nan
-    if pre.size and b < t[-1]:
-        ok = (t >= b) & (aoi <= 1.5 * np.median(pre))
-        if ok.any():
-            out["recovery_s"] = float(t[np.argmax(ok)] - b)
-    return out
 
 
 def plots(study: studies.Study, windows: dict[str, tuple[float, float]]) -> None:
@@ -217,12 +184,9 @@ def main(argv: list[str] | None = None) -> int:
     windows = {v: w for v, (_, w) in fo.items()}
     study.extra["windows"] = {
         v: {
-            lab: {
-                k: _nanmean(x)
-                for k, x in _stack(
-                    [window_stats(r.timeseries, *windows[v]) for r in study.runs(v, lab)]
-                ).items()
-            }
+            lab: studies.seed_means(
+                [studies.window_stats(r.timeseries, *windows[v]) for r in study.runs(v, lab)]
+            )
             for lab in study.labels(v)
         }
         for v in study.variants
@@ -231,13 +195,6 @@ def main(argv: list[str] | None = None) -> int:
     study.extra["target"] = {"node": NODE, "host": HOST, "eviction_timeout_s": EVICT}
     return studies.finish(study, lambda st: plots(st, windows), None, TABLE)
 
-def _nanmean(x: np.ndarray) -> float:
-    ok = x[~np.isnan(x)]
-    return float(ok.mean()) if ok.size else math.nan
-
-
-def _stack(dicts: list[dict[str, float]]) -> dict[str, np.ndarray]:
-    return {k: np.array([d[k] for d in dicts], dtype=float) for k in dicts[0]}
 
 
 if __name__ == "__main__":

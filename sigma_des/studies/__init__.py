@@ -20,7 +20,7 @@ from sigma_des.studies.args import (
     parse_seeds,
     study_parser,
 )
-from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics
+from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics, seed_means, window_stats
 from sigma_des.studies.model import MethodSpec, RunRecord, Study
 from sigma_des.studies.output import (
     CSV_COLUMNS,
@@ -76,11 +76,13 @@ __all__ = [
     "run_study",
     "save",
     "scenario_for",
+    "seed_means",
     "study_parser",
     "text_table",
     "tidy_rows",
     "update_plot_list",
     "variant_table",
+    "window_stats",
     "write_rows",
     "write_study",
     "write_summary",

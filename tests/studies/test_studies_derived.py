@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics
+from sigma_des.studies.derived import DERIVED_UNITS, derived_metrics, seed_means, window_stats
 
 
 def test_derived_metrics_of_a_hand_made_series() -> None:
@@ -35,3 +35,26 @@ def test_derived_metrics_of_a_hand_made_series() -> None:
 def test_an_empty_series_gives_nan_for_every_metric() -> None:
     empty = {k: np.empty(0) for k in ("t", "f_trig", "spread", "aligned_frame", "aoi_mean")}
     assert all(math.isnan(v) for v in derived_metrics(empty, {}).values())
+
+
+def test_window_stats_before_during_after_and_recovery() -> None:
+    ts = {
+        "t": np.arange(7, dtype=float),
+        "aoi_mean": np.array([0.01, 0.01, 0.05, 0.05, 0.03, 0.01, 0.01]),
+        "aligned_frame": np.array([0.0, 10.0, 10.0, 10.0, 20.0, 30.0, 40.0]),
+    }
+    w = window_stats(ts, 2.0, 4.0)
+    assert w["aoi_before_ms"] == pytest.approx(10.0) and w["aoi_during_ms"] == pytest.approx(50.0)
+    assert w["aoi_after_ms"] == pytest.approx(10.0)  # "after" starts 0.5 s after the window
+    assert w["aoi_max_during_ms"] == pytest.approx(50.0)
+    assert (w["aligned_rate_before_hz"], w["aligned_rate_during_hz"]) == (10.0, 0.0)
+    assert w["aligned_rate_after_hz"] == 10.0
+    # back within 1.5 x the pre-fault median (10 ms) first at t = 5: 1 s after the window
+    assert w["recovery_s"] == 1.0
+    assert math.isnan(window_stats(ts, 2.0, 6.0)["recovery_s"])  # fault lasts to the end
+
+
+def test_seed_means_leave_nan_out() -> None:
+    got = seed_means([{"a": 1.0, "b": math.nan}, {"a": 3.0, "b": math.nan}, {"a": 5.0, "b": 2.0}])
+    assert got == {"a": 3.0, "b": 2.0}
+    assert math.isnan(seed_means([{"a": math.nan}])["a"])
