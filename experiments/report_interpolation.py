@@ -11,6 +11,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from sigma_des.studies.tables import md_table
+
 METHODS = ("linear", "cubic", "pchip", "akima", "hermite-dw")
 LABEL = {"linear": "linear", "cubic": "cubic", "pchip": "PCHIP", "akima": "Akima",
          "hermite-dw": "ours (hermite-dw)"}
@@ -57,21 +59,17 @@ def render(s: dict[str, Any]) -> str:
         beats.append(f"{a}: {'yes' if ok else 'no'}")
     out.append("\nOurs beats Akima on mean and RMSE at the headline rate: " + "; ".join(beats)
                + ".\n")
-    out.append("Mean error (m) against the log rate, noisy logs (`error_vs_rate.png`):\n")
     rates = [str(r) for r in s["rates_hz"]]
-    out.append("| aircraft | method | " + " | ".join(f"{float(r):g} Hz" for r in rates) + " |")
-    out.append("|---|---|" + "---|" * len(rates))
-    for a in s["aircraft"]:
-        for m in METHODS:
-            out.append(f"| {a} | {LABEL[m]} | "
-                       + " | ".join(_f(res[a]["noisy"][r][m]["mean"]) for r in rates) + " |")
-    out.append("\nSame, noise-free logs (clean): mean error (m):\n")
-    out.append("| aircraft | method | " + " | ".join(f"{float(r):g} Hz" for r in rates) + " |")
-    out.append("|---|---|" + "---|" * len(rates))
-    for a in s["aircraft"]:
-        for m in METHODS:
-            out.append(f"| {a} | {LABEL[m]} | "
-                       + " | ".join(_f(res[a]["clean"][r][m]["mean"]) for r in rates) + " |")
+    for noise, title in (
+        ("noisy", "Mean error (m) against the log rate, noisy logs (`error_vs_rate.png`):\n"),
+        ("clean", "\nSame, noise-free logs (clean): mean error (m):\n"),
+    ):
+        out.append(title)
+        out.append(md_table(
+            ["aircraft", "method", *(f"{float(r):g} Hz" for r in rates)],
+            [[a, LABEL[m], *(_f(res[a][noise][r][m]["mean"]) for r in rates)]
+             for a in s["aircraft"] for m in METHODS],
+        ))
     labs = sorted({k[len("ablation:"):] for a in s["aircraft"]
                    for k in res[a]["noisy"][head] if k.startswith("ablation:")},
                   key=lambda x: (int(x.split("-w")[1]), x))
