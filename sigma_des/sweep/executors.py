@@ -1,11 +1,14 @@
-"""Where a sweep's tasks run: in this process, or on Dask (local cluster or remote).
+"""Where a sweep's tasks run: in this process, on local processes, or on Dask.
 
 :func:`executor` is a context manager yielding ``submit(fn, tasks)``, an iterator of
 ``(task, payload)`` pairs in completion order. With Dask every task is one future
 of :func:`~sigma_des.sweep.tasks.execute`; results come back through
 ``as_completed`` to the client, the only process that writes the results store.
 On exit (also on an interrupt) unfinished futures are cancelled and a cluster
-started here is shut down.
+started here is shut down. ``client="processes"`` runs the tasks on a pool of local
+worker processes without Dask (:mod:`sigma_des.sweep.local`, the executor that
+``compare --jobs`` and the studies use); a worker that dies takes the sweep down with
+it there (Dask records it as a failed run instead).
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from sigma_des import __version__
+from sigma_des.sweep.local import local_pool
 from sigma_des.sweep.tasks import Task, TaskFn, execute
 
 __all__ = ["Submit", "executor", "local_cluster", "run_inprocess"]
@@ -39,6 +43,17 @@ def executor(client: Any, n_workers: int) -> Iterator[Submit]:
     """Yield a ``submit(fn, tasks)`` that yields (task, payload) as tasks complete."""
     if client == "inprocess":
         yield run_inprocess
+        return
+    if client == "processes":
+        with local_pool(max(1, n_workers)) as run:
+
+            def submit_local(
+                fn: TaskFn, tasks: Sequence[Task]
+            ) -> Iterator[tuple[Task, dict[str, Any]]]:
+                for i, payload in run(execute, [(fn, t.scenario, t.method) for t in tasks]):
+                    yield tasks[i], payload
+
+            yield submit_local
         return
     from dask.distributed import Client, as_completed
 

@@ -180,9 +180,10 @@ class Sweep:
         Args:
             client: ``None`` or ``"local"`` (a new Dask ``LocalCluster`` on 127.0.0.1
                 with ``n_workers`` single-threaded worker processes), a scheduler
-                address (``"tcp://host:8786"``), a ``distributed.Client``, or
+                address (``"tcp://host:8786"``), a ``distributed.Client``,
+                ``"processes"`` (``n_workers`` local worker processes, no Dask) or
                 ``"inprocess"`` (run here, one after another; no Dask).
-            n_workers: workers of the ``LocalCluster``.
+            n_workers: workers of the ``LocalCluster`` (or of ``"processes"``).
             progress: show a progress bar with ETA on stderr.
             retry_failed: run the stored failed runs again.
             on_record: called with (task, payload) after each result is stored.

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import pytest
 
+from sigma_des import load
+from sigma_des.sweep import Sweep, run_task
 from sigma_des.sweep.local import local_pool, run_all
 
 
@@ -42,3 +45,17 @@ def test_jobs_below_one_is_an_error() -> None:
     with pytest.raises(ValueError, match="jobs must be >= 1"):
         with local_pool(0):
             pass
+
+
+def test_a_sweep_on_local_processes_stores_what_in_process_stores(tmp_path: Path) -> None:
+    base = load(None, ["hosts=1", "duration=0.3", "warmup=0.1"])
+    got = {}
+    for client in ("inprocess", "processes"):
+        with Sweep(base, {"nodes": [2, 3]}, ["none", "bides"], 2, tmp_path / f"{client}.sqlite",
+                   task=run_task) as sw:
+            rep = sw.run(client=client, n_workers=2, progress=False)
+            assert (rep.submitted, rep.ok, rep.failed) == (8, 8, 0)
+            got[client] = {(r["point"]["nodes"], r["seed"], r["method"]): r["metrics"]
+                           for r in sw.results()}
+    assert len(got["processes"]) == 8
+    assert got["processes"] == got["inprocess"]
