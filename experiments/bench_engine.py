@@ -1,40 +1,11 @@
 #!/usr/bin/env python
 """Benchmark the cohort engine, the per-message engine and a process-per-message SimPy model.
 
-For every node count N this measures, each case in a fresh child process (so
-peak RSS is per case, single-threaded):
-
-* on the *full* scenario (commands on, default settings), for each method of
-  ``--methods``: the cohort engine (``engine="cohort"``, impl ``cohort``) and the
-  per-message SimPy engine that is the executable specification
-  (``engine="events"``, impl ``events``);
-* on the *restricted* scenario (commands off; transport stream without loss,
-  QoS 1, no faults: the defaults), method ``none``: ``cohort``, ``events`` and the
-  baseline (``sigma_des.reference.process_model.ProcessModel``: one SimPy process per
-  message, ``simpy.Resource`` broker/links/cores) on the very same scenario and
-  seed;
-
-and reports wall seconds per simulated second, times real time, events per
-wall second (engines: kernel events, the cohort core's message events included;
-baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
-the engine really used (the cohort engine falls back to the per-message engine
-for features it does not reproduce, see ``sigma_des.events.cohort.unsupported``,
-or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
-cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
-per simulated second).
-
-The per-message engine and the baseline are slow at large N, so at
-N >= ``--large-n`` (1000) they simulate ``min(duration, --events-cap)`` and
-``min(duration, --baseline-cap)`` (2 s each), and above ``--baseline-max-n``
-(1000) the baseline is skipped with a note.
-
-It also checks the metrics: cohort and events must be bit-identical on every
-metric (max relative difference exactly 0), cohort and baseline must agree to
-:data:`BASELINE_RTOL` on :data:`COMPARED` (two independent implementations of the
-same model with the same keyed random draws; see docs/BENCHMARKS.md). Metrics
-are only compared between runs of the same simulated duration: where
-``--events-cap`` or ``--baseline-cap`` shortens a run, a cohort *twin* of that
-duration is run as well. The exit status is 1 if a check fails.
+Every case runs in a fresh child process (peak RSS per case, single-threaded); the
+cases, the metric checks (cohort vs events bit-identical, cohort vs baseline within
+``BASELINE_RTOL``) and the caps at large N are described in
+:mod:`sigma_des.studies.engine_bench` and ``docs/BENCHMARKS.md``. The exit status is 1
+if a check fails.
 
 Examples::
 

@@ -7,6 +7,41 @@ what it runs: :func:`plan` (the cases of one N), :func:`run_fresh` (one case in 
 fresh child process on the local executor, :mod:`sigma_des.sweep.local`, so peak RSS
 is per case), :func:`make_row` (one CSV row) and :func:`annotate` (speed-up ratios
 and the metric checks). See ``docs/BENCHMARKS.md``.
+
+For every node count N this measures, each case in a fresh child process (so
+peak RSS is per case, single-threaded):
+
+* on the *full* scenario (commands on, default settings), for each method of
+  ``--methods``: the cohort engine (``engine="cohort"``, impl ``cohort``) and the
+  per-message SimPy engine that is the executable specification
+  (``engine="events"``, impl ``events``);
+* on the *restricted* scenario (commands off; transport stream without loss,
+  QoS 1, no faults: the defaults), method ``none``: ``cohort``, ``events`` and the
+  baseline (``sigma_des.reference.process_model.ProcessModel``: one SimPy process per
+  message, ``simpy.Resource`` broker/links/cores) on the very same scenario and
+  seed;
+
+and reports wall seconds per simulated second, times real time, events per
+wall second (engines: kernel events, the cohort core's message events included;
+baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
+the engine really used (the cohort engine falls back to the per-message engine
+for features it does not reproduce, see ``sigma_des.events.cohort.unsupported``,
+or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
+cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
+per simulated second).
+
+The per-message engine and the baseline are slow at large N, so at
+N >= ``--large-n`` (1000) they simulate ``min(duration, --events-cap)`` and
+``min(duration, --baseline-cap)`` (2 s each), and above ``--baseline-max-n``
+(1000) the baseline is skipped with a note.
+
+It also checks the metrics: cohort and events must be bit-identical on every
+metric (max relative difference exactly 0), cohort and baseline must agree to
+:data:`BASELINE_RTOL` on :data:`COMPARED` (two independent implementations of the
+same model with the same keyed random draws; see docs/BENCHMARKS.md). Metrics
+are only compared between runs of the same simulated duration: where
+``--events-cap`` or ``--baseline-cap`` shortens a run, a cohort *twin* of that
+duration is run as well. The exit status is 1 if a check fails.
 """
 
 from __future__ import annotations
