@@ -24,19 +24,26 @@ import tomli_w
 
 from sigma_des.errors import ConfigError
 from sigma_des.net.clocks import ClockSpec
+from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.latency import Dist
-from sigma_des.peer_specs import DdsSpec, RpcSpec
+from sigma_des.net.spec import (
+    BrokerSpec,
+    DdsSpec,
+    LinkDegrade,
+    LinkSpec,
+    NetSetup,
+    NetSpec,
+    Topology,
+)
+from sigma_des.peer_specs import RpcSpec
 from sigma_des.specs import (
     BidesSpec,
-    BrokerSpec,
     CommandSpec,
     ComputeSpec,
     FaultSpec,
     FidelitySpec,
     HLCSpec,
-    LinkSpec,
     LockstepSpec,
-    NetSpec,
     RecordSpec,
     require,
     require_positive,
@@ -259,6 +266,32 @@ class Scenario:
             per = math.ceil(self.nodes / self.hosts)
             return [i // per for i in range(self.nodes)]
         return [i % self.hosts for i in range(self.nodes)]
+
+    @property
+    def topology(self) -> Topology:
+        """The net layer's view of the placement: nodes, hosts and each node's host."""
+        return Topology(self.nodes, self.hosts, tuple(self.host_of))
+
+    def net_setup(self) -> NetSetup:
+        """Everything the net layer takes from this scenario (its specs, topology,
+        metrics window ``[warmup, duration)``, ``degrade`` and ``drop`` faults)."""
+        kinds = {"trigger": TRIGGER, "state": STATE, "command": COMMAND}
+        return NetSetup(
+            net=self.net,
+            broker=self.broker,
+            dds=self.dds,
+            topology=self.topology,
+            warmup=self.warmup,
+            end=self.duration,
+            degrades=tuple(
+                LinkDegrade(f.host, f.start, f.end, f.extra_delay, f.extra_loss)
+                for f in self.faults
+                if f.kind == "degrade"
+            ),
+            drops=frozenset(
+                (kinds[f.message], f.node, f.frame) for f in self.faults if f.kind == "drop"
+            ),
+        )
 
 
 # ---------------------------------------------------------------- loading
