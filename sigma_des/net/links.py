@@ -32,13 +32,13 @@ from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
 from sigma_des.net.spec import NetSetup
 
-__all__ = ["Links", "dist_cache"]
+__all__ = ["LinkDir", "Links", "dist_cache"]
 
 #: A stream segment: (client, up, kind, subject, index, wire bytes).
 _Packet = tuple[int, bool, int, int, int, int]
 
 
-class _LinkDir:
+class LinkDir:
     """One direction of one access link: FIFO serialization and byte counts."""
 
     __slots__ = ("busy", "bits_per_s", "sec_per_byte", "bytes", "packets", "name")
@@ -88,13 +88,13 @@ class Links:
         # link index per client: hosts 0..H-1, the server's link is H
         self.link_of = topo.link_of
         nsub = self.n + 1
-        self.up: list[_LinkDir] = []
-        self.down: list[_LinkDir] = []
+        self.up: list[LinkDir] = []
+        self.down: list[LinkDir] = []
         for h in range(hosts + 1):
             spec = net.host_link if h < hosts else net.server_link
             name = f"host{h}" if h < hosts else "server"
-            self.up.append(_LinkDir(f"{name}.up", spec.bandwidth_mbps))
-            self.down.append(_LinkDir(f"{name}.down", spec.bandwidth_mbps))
+            self.up.append(LinkDir(f"{name}.up", spec.bandwidth_mbps))
+            self.down.append(LinkDir(f"{name}.down", spec.bandwidth_mbps))
         self._lat: dict[tuple[bool, bool], DrawCache] = {}
         self._u: dict[tuple[bool, bool], DrawCache] = {}
         self._loss: dict[tuple[bool, bool, int], LossProcess] = {}
@@ -293,7 +293,7 @@ class Links:
             if item is not None:
                 item[0](*item[1])
 
-    def links(self) -> list[_LinkDir]:
+    def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""
         return self.up + self.down
 
@@ -315,6 +315,8 @@ class Links:
 
 
 def dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCache:
+    """Draws of ``dist`` for ``n`` subjects from the stream ``name``, keyed by
+    ``(kind, subject, index, attempt)`` (a constant distribution needs no draws)."""
     st = streams.stream(name)
     const = dist.value if dist.dist == "constant" else None
     return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const)

@@ -118,26 +118,44 @@ class Network(Links):
         t_pub: float,
     ) -> None:
         t = self.k.env.now
-        nbytes = self.wire_bytes(bits)
-        arr, lost = self._transmit(
+        if self._send_publish(
             client,
             True,
             kind,
             subject,
             index,
             attempt,
-            nbytes,
+            bits,
             t,
             self._broker_receive,
             (client, kind, subject, index, payload, bits, subs, attempt, t_pub, t),
-        )
-        if self.datagram and self.qos1 and (lost or arr > t + self.timeout):
+        ):
             self._schedule_resend(
                 t + self.timeout,
                 attempt,
                 self._publish_try,
                 (client, kind, subject, index, payload, bits, subs, attempt + 1, t_pub),
             )
+
+    def _send_publish(
+        self,
+        client: int,
+        up: bool,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        bits: int,
+        t: float,
+        on_arrive: Callable[..., None],
+        args: tuple[Any, ...],
+    ) -> bool:
+        """Send one PUBLISH on ``client``'s link at ``t`` (``on_arrive(*args)`` at its
+        arrival); True if the sender's QoS 1 timer fires (datagram: lost or late)."""
+        arr, lost = self._transmit(
+            client, up, kind, subject, index, attempt, self.wire_bytes(bits), t, on_arrive, args
+        )
+        return self.datagram and self.qos1 and (lost or arr > t + self.timeout)
 
     def _schedule_resend(
         self, when: float, attempt: int, fn: Callable[..., None], args: tuple[Any, ...]
@@ -211,20 +229,18 @@ class Network(Links):
         t_depart: float,
     ) -> None:
         """Broker → subscriber hop leaving the broker at ``t_depart``."""
-        nbytes = self.wire_bytes(bits)
-        arr, lost = self._transmit(
+        if self._send_publish(
             sub,
             False,
             kind,
             subject,
             index,
             attempt,
-            nbytes,
+            bits,
             t_depart,
             self._client_receive,
             (sub, kind, subject, index, payload, bits, attempt, t_pub, t_depart),
-        )
-        if self.datagram and self.qos1 and (lost or arr > t_depart + self.timeout):
+        ):
             self._schedule_resend(
                 t_depart + self.timeout,
                 attempt,
