@@ -1,4 +1,4 @@
-"""The scenario: one validated, frozen configuration for a whole run (DESIGN §1–3).
+"""The scenario: one validated, frozen configuration for a whole run (docs/MODEL.md).
 
 Every default lives here (or in the net-layer spec classes it embeds). A scenario
 is loaded from TOML and/or ``--set key=value`` overrides through :func:`load`;
@@ -214,20 +214,7 @@ class Scenario:
             "trigger_payload_bits",
             f"must be >= 0, got {self.trigger_payload_bits}",
         )
-        require(
-            self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
-            "dynamics",
-            f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
-        )
-        if self.dynamics_params:
-            from sigma_des.tuning.fitted import fitted_params
-
-            require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
-                    f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
-            try:
-                fitted_params(self.dynamics_params, self.dynamics)
-            except ConfigError as e:
-                raise ConfigError("dynamics_params", str(e)) from None
+        self._check_dynamics()
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
         )
@@ -245,6 +232,27 @@ class Scenario:
             "bides.f_trig_min",
             f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}",
         )
+        self._check_faults()
+
+    def _check_dynamics(self) -> None:
+        """``dynamics`` names a model; ``dynamics_params`` a fit of it."""
+        require(
+            self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
+            "dynamics",
+            f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
+        )
+        if self.dynamics_params:
+            from sigma_des.tuning.fitted import fitted_params
+
+            require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
+                    f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
+            try:
+                fitted_params(self.dynamics_params, self.dynamics)
+            except ConfigError as e:
+                raise ConfigError("dynamics_params", str(e)) from None
+
+    def _check_faults(self) -> None:
+        """Every fault names an existing node (crash, slow, drop) or host (degrade)."""
         for i, f in enumerate(self.faults):
             if f.kind in ("crash", "slow", "drop"):
                 require(
