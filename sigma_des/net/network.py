@@ -152,7 +152,7 @@ class Network(Links):
     ) -> bool:
         """Send one PUBLISH on ``client``'s link at ``t`` (``on_arrive(*args)`` at its
         arrival); True if the sender's QoS 1 timer fires (datagram: lost or late)."""
-        arr, lost = self._transmit(
+        arr, lost = self.transmit(
             client, up, kind, subject, index, attempt, self.wire_bytes(bits), t, on_arrive, args
         )
         return self.datagram and self.qos1 and (lost or arr > t + self.timeout)
@@ -185,7 +185,7 @@ class Network(Links):
         t_ack, departs = self.broker.serve_publish(now, kind, subject, index, attempt, dsubj)
         # PUBACK back to the publisher
         if self.qos1 and not self.datagram:
-            self._count(client, False, self._ack_b, t_ack)
+            self.count_packet(client, False, self._ack_b, t_ack)
         elif self.qos1 and self._ack_late(
             client, False, kind, subject, index, attempt, t_ack, t_sent, now
         ):
@@ -213,7 +213,7 @@ class Network(Links):
         """Send a datagram PUBACK on ``client``'s link at ``t`` for a PUBLISH sent at
         ``t_sent`` and received ``now``; True if the sender's QoS 1 timer fires first
         (the PUBACK is lost or late, and the timer was still running at ``now``)."""
-        a_arr, a_lost = self._hop(client, up, kind + ACK, subject, index, attempt, self._ack_b, t)
+        a_arr, a_lost = self.hop(client, up, kind + ACK, subject, index, attempt, self._ack_b, t)
         return now <= t_sent + self.timeout and (a_lost or a_arr > t_sent + self.timeout)
 
     def _deliver_try(
@@ -276,7 +276,7 @@ class Network(Links):
     ) -> None:
         now = self.k.env.now
         if self.qos1 and not self.datagram:
-            self._count(sub, True, self._ack_b, now)
+            self.count_packet(sub, True, self._ack_b, now)
         elif self.qos1 and self._ack_late(
             sub, True, kind, subject, index, attempt, now, t_depart, now
         ):
