@@ -23,19 +23,18 @@ from typing import Any
 import tomli_w
 
 from sigma_des.errors import ConfigError
+from sigma_des.events.align.spec import AlignParams, BidesSpec, HLCSpec, LockstepSpec, RpcSpec
+from sigma_des.metrics.collector import CollectorSpec
+from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
-from sigma_des.peer_specs import DdsSpec, RpcSpec
+from sigma_des.peer_specs import DdsSpec
 from sigma_des.specs import (
-    BidesSpec,
     BrokerSpec,
     CommandSpec,
     ComputeSpec,
     FaultSpec,
-    FidelitySpec,
-    HLCSpec,
     LinkSpec,
-    LockstepSpec,
     NetSpec,
     RecordSpec,
     require,
@@ -259,6 +258,29 @@ class Scenario:
             per = math.ceil(self.nodes / self.hosts)
             return [i // per for i in range(self.nodes)]
         return [i % self.hosts for i in range(self.nodes)]
+
+    def align_params(self) -> AlignParams:
+        """What the alignment method is built from (its spec and a few scalars)."""
+        return AlignParams(
+            f_trig=self.f_trig,
+            seed=self.seed,
+            middleware=self.net.middleware,
+            lockstep=self.lockstep,
+            hlc=self.hlc,
+            bides=self.bides,
+            rpc=self.rpc,
+        )
+
+    def collector_spec(self) -> CollectorSpec:
+        """What the metrics collector needs of the scenario."""
+        return CollectorSpec(
+            nodes=self.nodes,
+            warmup=self.warmup,
+            duration=self.duration,
+            f_trig=self.f_trig,
+            history_frames=self.history_frames,
+            stall_threshold=self.stall_threshold,
+        )
 
 
 # ---------------------------------------------------------------- loading

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from sigma_des.core.validate import require, require_nonneg, require_positive
 from sigma_des.net.latency import Dist
 
-__all__ = ["DdsSpec", "RpcSpec", "MIDDLEWARES"]
+__all__ = ["DdsSpec", "MIDDLEWARES"]
 
 #: ``net.middleware`` choices: an MQTT broker, or brokerless DDS/RTPS.
 MIDDLEWARES: tuple[str, ...] = ("mqtt", "dds")
@@ -111,36 +111,3 @@ class DdsSpec:
         for name in ("spdp_bytes", "sedp_bytes"):
             v = getattr(self, name)
             require(1 <= v <= 65507, name, f"must be in 1..65507 (one UDP datagram), got {v}")
-
-
-@dataclass(frozen=True)
-class RpcSpec:
-    """AirSim-style synchronous RPC: the server calls every vehicle each frame.
-
-    One frame: the server sends a request (a trigger) to each vehicle, at most
-    ``in_flight`` calls outstanding (0 = one per vehicle, all at once, as
-    independent blocking clients); each vehicle steps and responds with its state;
-    the server's game thread handles each response (``call_time``), then renders
-    the frame (``render_time`` + ``render_per_vehicle`` × N); the next frame starts
-    when the render is done, not sooner than ``1/f_trig`` after the previous one.
-    Rendering and the calls share that one thread, so render load delays physics.
-
-    Attributes:
-        in_flight: most calls outstanding at once (0 = one per vehicle) [AIRSIM:
-            a msgpack-rpc client's ``call`` blocks, so one outstanding call per client].
-        call_time: game-thread time per handled call (API dispatch, msgpack
-            serialization of the vehicle state); estimate (s).
-        render_time: render time of a frame at zero vehicles; estimate for an Unreal
-            scene at ~60-100 fps (s).
-        render_per_vehicle: extra render time per vehicle drawn; estimate (s).
-    """
-
-    in_flight: int = 0
-    call_time: Dist = field(default_factory=lambda: Dist(dist="constant", value=0.0003))
-    render_time: Dist = field(
-        default_factory=lambda: Dist(dist="lognormal", mean=0.008, std=0.003)
-    )
-    render_per_vehicle: float = 0.0002
-
-    def __post_init__(self) -> None:
-        require_nonneg(self, "in_flight", "render_per_vehicle")

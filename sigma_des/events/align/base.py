@@ -1,40 +1,41 @@
-"""The four alignment methods (DESIGN §3) behind one small interface.
+"""What every alignment method shares: the server context, the batch interface, the snapshot.
 
-An aligner lives at the alignment server. The engine hands it every delivered
-state (:meth:`Aligner.on_state`), tells it when a trigger is issued
-(:meth:`Aligner.on_trigger`) and, at every alignment tick, asks it to refresh
-the snapshot it shows (:meth:`Aligner.align`): per node the frame, generation
-time, published state and a flag. Methods that steer the trigger (Lock-Step's
-barrier, BiDES's adaptive rate) do so through the :class:`ServerContext` the
-engine passes in. Pick one by name from :data:`ALIGNERS`.
+An aligner lives at the alignment server (docs/MODEL.md, "Alignment methods"). The
+engine hands it the delivered states in batches (:meth:`Aligner.on_states`; a single
+state is a batch of one, :func:`one_state`), tells it when a trigger is issued
+(:meth:`Aligner.on_trigger`) and, at every alignment tick, asks it to refresh the
+snapshot it shows (:meth:`Aligner.align`): per node the frame, generation time,
+published state and a flag. Methods that steer the trigger (Lock-Step's barrier,
+BiDES's adaptive rate) do so through the :class:`ServerContext` the engine passes in.
+At the end it reports what it measured (:meth:`Aligner.report`).
 """
 
 from __future__ import annotations
 
-import typing
-from typing import Any, Protocol
+import math
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
-from sigma_des.events.bides_align import EXACT, EXTRAPOLATED, MISSING, RingBuffers, align
-from sigma_des.events.hlc import BatchStabilityBuffer, StabilityBuffer, Stamp
+from sigma_des.core.flags import MISSING
+from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.metrics.reports import AlignerReport
 
 __all__ = [
-    "ALIGNERS",
     "Aligner",
-    "BidesAligner",
-    "HLCAligner",
-    "LockstepAligner",
-    "NoneAligner",
-    "ServerContext",
     "OBS_WIDTH",
+    "RECORD_BYTES",
+    "ServerContext",
+    "StateBatch",
+    "newest_rows",
+    "one_state",
 ]
 
+#: Columns of a published state.
 OBS_WIDTH = 12
-_Record = tuple[int, float, NDArray[np.float64]]  # (frame, generation time, obs)
-_RECORD_BYTES = OBS_WIDTH * 8 + 8 + 8  # obs + frame + generation time
+#: Bytes of one buffered state record: obs + frame + generation time.
+RECORD_BYTES = OBS_WIDTH * 8 + 8 + 8
 
 
 def newest_rows(
@@ -54,6 +55,51 @@ def newest_rows(
     first[1:] = nodes[order[1:]] != nodes[order[:-1]]
     best = order[first]
     return best[frames[best] > current[nodes[best]]]
+
+
+class StateBatch(NamedTuple):
+    """Arguments of :meth:`Aligner.on_states` for one delivered state (see :func:`one_state`)."""
+
+    t: NDArray[np.float64]
+    nodes: NDArray[np.int64]
+    frames: NDArray[np.int64]
+    gens: NDArray[np.float64]
+    obs: NDArray[np.float64]
+    hlc_l: NDArray[np.float64]
+    hlc_c: NDArray[np.int64]
+
+
+def one_state(
+    t: float,
+    node: int,
+    frame: int,
+    gen: float,
+    obs: NDArray[np.float64],
+    stamp: Stamp | None = None,
+) -> StateBatch:
+    """A single delivered state as a batch of one (the per-message engines' path).
+
+    Args:
+        t: arrival time.
+        node: sender.
+        frame: the state's frame.
+        gen: its generation time.
+        obs: ``(OBS_WIDTH,)`` the published state.
+        stamp: its HLC stamp (HLC only; None: ``l = NaN, c = 0``).
+
+    Returns:
+        The batch, to be passed as ``aligner.on_states(*batch)``.
+    """
+    l_, c = (math.nan, 0) if stamp is None else (stamp.l, stamp.c)
+    return StateBatch(
+        np.array([t]),
+        np.array([node], dtype=np.int64),
+        np.array([frame], dtype=np.int64),
+        np.array([gen]),
+        np.asarray(obs, dtype=np.float64).reshape(1, -1),
+        np.array([l_]),
+        np.array([c], dtype=np.int64),
+    )
 
 
 class ServerContext(Protocol):
@@ -84,7 +130,11 @@ class ServerContext(Protocol):
 
 
 class Aligner:
-    """Base class: the shown snapshot and no-op hooks.
+    """Base class: the shown snapshot, no-op hooks and the memory peak.
+
+    Args:
+        n: number of nodes.
+        ctx: the engine's side of the server.
 
     Attributes:
         shown_frame: frame of the state shown per node (-1: none).
@@ -93,13 +143,13 @@ class Aligner:
         flag: per node EXACT/FILLED/EXTRAPOLATED/MISSING.
         aligned_frame: the snapshot's reference frame (-1 before any).
         new_snapshot: set by :meth:`align` when the snapshot advanced.
+        peak_bytes: most bytes buffered at an alignment tick so far.
     """
 
     name = "base"
 
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
+    def __init__(self, n: int, ctx: ServerContext) -> None:
         self.n = n
-        self.sc = sc
         self.ctx = ctx
         self.shown_frame = np.full(n, -1, dtype=np.int64)
         self.shown_gen = np.full(n, np.nan)
@@ -112,18 +162,6 @@ class Aligner:
     def on_trigger(self, frame: int, t: float) -> None:
         """A trigger for ``frame`` was issued at ``t``."""
 
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
-        """A state of ``node`` for ``frame`` (generated at ``gen``) arrived at ``t``."""
-        raise NotImplementedError
-
     def on_states(
         self,
         t: NDArray[np.float64],
@@ -134,15 +172,18 @@ class Aligner:
         hlc_l: NDArray[np.float64],
         hlc_c: NDArray[np.int64],
     ) -> None:
-        """A batch of :meth:`on_state` calls, in arrival order (the cohort engine's path).
+        """States arrived, in arrival order: row ``j`` of ``nodes[j]`` for ``frames[j]``.
 
-        Subclasses override it with a vectorised equivalent; ``hlc_l``/``hlc_c`` are
-        the stamps' parts (meaningful for HLC only).
+        Args:
+            t: ``(m,)`` arrival times (non-decreasing).
+            nodes: ``(m,)`` senders.
+            frames: ``(m,)`` the states' frames.
+            gens: ``(m,)`` their generation times.
+            obs: ``(m, OBS_WIDTH)`` the published states.
+            hlc_l: ``(m,)`` HLC stamps' logical parts (meaningful for HLC only).
+            hlc_c: ``(m,)`` HLC stamps' counters (meaningful for HLC only).
         """
-        for j in range(nodes.size):
-            self.on_state(
-                float(t[j]), int(nodes[j]), int(frames[j]), float(gens[j]), obs[j].copy(), None
-            )
+        raise NotImplementedError
 
     def align(self, t: float) -> None:
         """Refresh the shown snapshot (alignment tick)."""
@@ -150,359 +191,12 @@ class Aligner:
 
     def memory_bytes(self) -> int:
         """Bytes of state buffered by the alignment server now."""
-        return self.n * _RECORD_BYTES
+        return self.n * RECORD_BYTES
 
-    def _note_memory(self) -> None:
+    def note_memory(self) -> None:
+        """Fold the current buffer size into :attr:`peak_bytes` (once per alignment tick)."""
         self.peak_bytes = max(self.peak_bytes, self.memory_bytes())
 
-
-class NoneAligner(Aligner):
-    """No alignment: each node's newest received state, whatever its frame."""
-
-    name = "none"
-
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
-        super().__init__(n, sc, ctx)
-        self._frame = np.full(n, -1, dtype=np.int64)
-        self._gen = np.full(n, np.nan)
-        self._obs = np.full((n, OBS_WIDTH), np.nan)
-        self._dirty = False
-
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
-        if frame > self._frame[node]:
-            self._frame[node] = frame
-            self._gen[node] = gen
-            self._obs[node] = obs
-            self._dirty = True
-
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
-        win = newest_rows(nodes, frames, self._frame)
-        if win.size:
-            nd = nodes[win]
-            self._frame[nd] = frames[win]
-            self._gen[nd] = gens[win]
-            self._obs[nd] = obs[win]
-            self._dirty = True
-
-    def align(self, t: float) -> None:
-        self.new_snapshot = self._dirty
-        if self._dirty:
-            self.shown_frame[:] = self._frame
-            self.shown_gen[:] = self._gen
-            self.shown_obs[:] = self._obs
-            self.flag[:] = np.where(self._frame >= 0, EXACT, MISSING)
-            self.aligned_frame = int(self._frame.max())
-            self._dirty = False
-        self._note_memory()
-
-
-class LockstepAligner(Aligner):
-    """Central barrier: trigger k+1 only after every live node's state of frame k."""
-
-    name = "lockstep"
-
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
-        super().__init__(n, sc, ctx)
-        self.live = np.ones(n, dtype=np.bool_)
-        self.current = -1
-        self.complete = True
-        self._got = np.zeros(n, dtype=np.bool_)
-        self._gen = np.full(n, np.nan)
-        self._obs = np.full((n, OBS_WIDTH), np.nan)
-        self._done_frame = -1
-        self._done_gen = np.full(n, np.nan)
-        self._done_obs = np.full((n, OBS_WIDTH), np.nan)
-        self._done_has = np.zeros(n, dtype=np.bool_)
-        self._dirty = False
-        self.evicted = 0
-        self.rejoined = 0
-        self.rerequests = 0
-        self._missing = 0
-
-    def on_trigger(self, frame: int, t: float) -> None:
-        self.current = frame
-        self.complete = False
-        self._got[:] = False
-        self._missing = int(self.live.sum())  # a counter: O(1) per arrival, not O(n)
-        spec = self.sc.lockstep
-        self.ctx.call_at(t + spec.retry_timeout, self._retry, frame, 1)
-        if spec.eviction_timeout > 0:
-            self.ctx.call_at(t + spec.eviction_timeout, self._evict, frame)
-
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
-        if not self.live[node] and frame == self.current:
-            # an evicted node that has caught up (delivers the newest frame) rejoins; it
-            # counts from this frame if the barrier still waits, else from the next one
-            self.live[node] = True
-            self.rejoined += 1
-            self._missing += 1
-        if frame != self.current or self.complete or self._got[node]:
-            return
-        self._missing -= 1
-        self._got[node] = True
-        self._gen[node] = gen
-        self._obs[node] = obs
-        self._check_complete()
-
-    def _check_complete(self) -> None:
-        if self.complete or self._missing > 0:
-            return
-        self.complete = True
-        got = self._got
-        self._done_frame = self.current
-        self._done_gen[got] = self._gen[got]
-        self._done_obs[got] = self._obs[got]
-        self._done_has |= got
-        self._dirty = True
-        self.ctx.barrier_done(self.current)
-
-    def _retry(self, frame: int, retry: int) -> None:
-        if frame != self.current or self.complete:
-            return
-        missing = np.flatnonzero(self.live & ~self._got)
-        for node in missing.tolist():
-            self.rerequests += 1
-            self.ctx.rerequest(node, frame, retry)
-        self.ctx.call_at(
-            self.ctx.now() + self.sc.lockstep.retry_timeout, self._retry, frame, retry + 1
-        )
-
-    def _evict(self, frame: int) -> None:
-        if frame != self.current or self.complete:
-            return
-        missing = self.live & ~self._got
-        self.evicted += int(missing.sum())
-        self.live &= ~missing
-        self._missing = 0
-        self._check_complete()
-
-    def align(self, t: float) -> None:
-        self.new_snapshot = self._dirty
-        if self._dirty:
-            has = self._done_has
-            fresh = has & self.live
-            self.shown_gen[has] = self._done_gen[has]
-            self.shown_obs[has] = self._done_obs[has]
-            # the shown frame of an evicted node stays at its last completed frame
-            self.shown_frame[fresh] = self._done_frame
-            self.flag[:] = np.where(fresh, EXACT, np.where(has, EXTRAPOLATED, MISSING))
-            self.aligned_frame = self._done_frame
-            self._dirty = False
-        self._note_memory()
-
-    def memory_bytes(self) -> int:
-        return 2 * self.n * _RECORD_BYTES
-
-
-class HLCAligner(Aligner):
-    """Hybrid logical clocks: states shown in HLC order once causally stable."""
-
-    name = "hlc"
-
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
-        super().__init__(n, sc, ctx)
-        self.buffer: StabilityBuffer | BatchStabilityBuffer = StabilityBuffer(n)
-        self._heard = np.zeros(n)
-        self._live = np.ones(n, dtype=np.bool_)
-
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
-        assert stamp is not None, "HLC states must carry a stamp"
-        if not isinstance(self.buffer, StabilityBuffer):
-            raise RuntimeError("an HLC aligner takes either single states or batches")
-        self.buffer.add(node, stamp, (frame, gen, obs))
-        self._heard[node] = t
-        if not self._live[node]:
-            self._live[node] = True
-            self.buffer.set_live(node, True)
-
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
-        buf = self.buffer
-        if not isinstance(buf, BatchStabilityBuffer):
-            if len(buf) or buf._has.any():
-                raise RuntimeError("an HLC aligner takes either single states or batches")
-            self.buffer = buf = BatchStabilityBuffer(self.n, OBS_WIDTH)
-            buf._live[:] = self._live
-        buf.add_many(nodes, hlc_l, hlc_c, frames, gens, obs)
-        # arrival times never decrease, so the newest per node is the largest
-        np.maximum.at(self._heard, nodes, t)
-        back = np.unique(nodes[~self._live[nodes]])
-        for node in back.tolist():
-            self._live[node] = True
-            buf.set_live(node, True)
-
-    def align(self, t: float) -> None:
-        timeout = self.sc.hlc.liveness_timeout
-        if timeout > 0:
-            dead = self._live & (self._heard < t - timeout)
-            for node in np.flatnonzero(dead).tolist():
-                self._live[node] = False
-                self.buffer.set_live(node, False)
-        self._note_memory()
-        if isinstance(self.buffer, BatchStabilityBuffer):
-            self._release_batch()
-            return
-        changed = False
-        for _stamp, node, item in self.buffer.release():
-            frame, gen, obs = typing.cast(_Record, item)
-            if frame > self.shown_frame[node]:
-                self.shown_frame[node] = frame
-                self.shown_gen[node] = gen
-                self.shown_obs[node] = obs
-                self.flag[node] = EXACT
-                changed = True
-        self.new_snapshot = changed
-        if changed:
-            self.aligned_frame = int(self.shown_frame.max())
-
-    def _release_batch(self) -> None:
-        """The release loop of :meth:`align`, vectorised (same result, same order rule)."""
-        assert isinstance(self.buffer, BatchStabilityBuffer)
-        nodes, frames, gens, obs = self.buffer.release_arrays()
-        changed = False
-        if nodes.size:
-            win = newest_rows(nodes, frames, self.shown_frame)
-            if win.size:
-                nd = nodes[win]
-                self.shown_frame[nd] = frames[win]
-                self.shown_gen[nd] = gens[win]
-                self.shown_obs[nd] = obs[win]
-                self.flag[nd] = EXACT
-                changed = True
-        self.new_snapshot = changed
-        if changed:
-            self.aligned_frame = int(self.shown_frame.max())
-
-    def memory_bytes(self) -> int:
-        return (len(self.buffer) + self.n) * (_RECORD_BYTES + 16)
-
-
-class BidesAligner(Aligner):
-    """BiDES: Algorithm 1 over ring buffers, lag exclusion, adaptive trigger rate."""
-
-    name = "bides"
-
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
-        super().__init__(n, sc, ctx)
-        self.spec = sc.bides
-        self.ring = RingBuffers(n, self.spec.ring_size, OBS_WIDTH)
-        self._hi = 0
-        self._lo = 0
-        self.rate_changes = 0
-        self.filled = 0
-        self.extrapolated = 0
-        self.shown_count = 0
-
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
-        self.ring.insert(node, frame, gen, obs)
-
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
-        self.ring.insert_many(nodes, frames, gens, obs)
-
-    def align(self, t: float) -> None:
-        spec = self.spec
-        res = align(
-            self.ring,
-            theta_lag=spec.theta_lag if spec.lag_exclusion else None,
-            hole_fill=spec.hole_fill,
-            prev_frame=self.aligned_frame,
-        )
-        self.new_snapshot = res.aligned_frame > self.aligned_frame
-        self.aligned_frame = res.aligned_frame
-        self.shown_frame = res.frame
-        self.shown_gen = res.gen_time
-        self.shown_obs = res.obs
-        self.flag = res.flag
-        self._note_memory()
-        if spec.adaptation and self.aligned_frame >= 0:
-            self._adapt(self.ctx.latest_trigger - self.aligned_frame)
-
-    def _adapt(self, lag: int) -> None:
-        spec = self.spec
-        ctx = self.ctx
-        if lag > spec.lag_high:
-            self._hi += 1
-            self._lo = 0
-            if self._hi >= spec.hold_down and ctx.f_trig > spec.f_trig_min:
-                ctx.set_rate(max(spec.f_trig_min, ctx.f_trig * spec.rate_down))
-                self.rate_changes += 1
-                self._hi = 0
-        elif lag < spec.lag_low:
-            self._lo += 1
-            self._hi = 0
-            if self._lo >= spec.hold_up and ctx.f_trig < self.sc.f_trig:
-                ctx.set_rate(min(self.sc.f_trig, ctx.f_trig * spec.rate_up))
-                self.rate_changes += 1
-                self._lo = 0
-        else:
-            self._hi = 0
-            self._lo = 0
-
-    def memory_bytes(self) -> int:
-        return int(self.ring.nbytes)
-
-
-ALIGNERS: dict[str, type[Aligner]] = {
-    "none": NoneAligner,
-    "lockstep": LockstepAligner,
-    "hlc": HLCAligner,
-    "bides": BidesAligner,
-}
+    def report(self) -> AlignerReport:
+        """What this method measured over the run."""
+        return AlignerReport(peak_bytes=self.peak_bytes)
