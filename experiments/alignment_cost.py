@@ -181,7 +181,7 @@ def bench_hlc(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
             base = f / F_TRIG
             for i in range(n):
                 g = base + jitter[i]
-                al.on_states(*one_state(g, i, f, g, obs, Stamp(g, 0)))
+                al.on_states(one_state(g, i, f, g, obs, Stamp(g, 0)))
 
     def tick() -> None:
         state["tick"] += 1
@@ -222,7 +222,7 @@ def bench_lockstep(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
         t0 = time.perf_counter()
         al.on_trigger(f, t)
         for i in order:
-            al.on_states(*one_state(t, i, f, t, obs))
+            al.on_states(one_state(t, i, f, t, obs))
         t1 = time.perf_counter()
         al.align(t)
         t2 = time.perf_counter()

@@ -32,7 +32,7 @@ from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
 from sigma_des.events import cohort_jit as J
 from sigma_des.events import cohort_state as CS
-from sigma_des.events.align.base import OBS_WIDTH
+from sigma_des.events.align.base import OBS_WIDTH, StateBatch
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
 
@@ -444,9 +444,9 @@ class CohortRun(MethodRun):
         if o:
             oi = S[CS.OUT_I][:o]
             of = S[CS.OUT_F][:o]
-            self.aligner.on_states(
+            self.aligner.on_states(StateBatch(
                 of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
-            )
+            ))
             if self.tap is not None:
                 self.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH])
             iv[CS.I_OUT] = 0

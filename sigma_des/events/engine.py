@@ -273,7 +273,7 @@ class MethodRun:
             self._tap_delivery(client, kind, subject, index, payload, t_pub, t)
         if client == self.server:
             frame, gen, obs, stamp = payload
-            self.aligner.on_states(*one_state(t, subject, frame, gen, obs, stamp))
+            self.aligner.on_states(one_state(t, subject, frame, gen, obs, stamp))
             return
         if t >= self.crash_at[client]:
             return

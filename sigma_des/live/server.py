@@ -293,7 +293,7 @@ class LiveServer(ImpairedSender):
             self.kept["states"].append((node, frame, t_send, t))
             self.kept["obs"].append(obs.tolist())
         stamp = Stamp(hl, hc) if self.use_hlc else None
-        self.aligner.on_states(*one_state(t, node, frame, t_gen, obs, stamp))
+        self.aligner.on_states(one_state(t, node, frame, t_gen, obs, stamp))
 
     # ------------------------------------------------------------ ticks
 
@@ -361,7 +361,7 @@ class LiveServer(ImpairedSender):
         obs = self.dyn.observe(st)
         scratch = make_aligner(self.method, self.n, _Scratch(sc.f_trig), sc.align_params())
         for i in range(self.n):
-            scratch.on_states(*one_state(0.0, i, 0, 0.0, obs[i],
+            scratch.on_states(one_state(0.0, i, 0, 0.0, obs[i],
                                          Stamp(0.0, 0) if self.use_hlc else None))
         scratch.align(0.0)
         if self.behaviour is not None:

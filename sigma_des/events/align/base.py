@@ -1,11 +1,11 @@
 """What every alignment method shares: the server context, the batch interface, the snapshot.
 
 An aligner lives at the alignment server (docs/MODEL.md, "Alignment methods"). The
-engine hands it the delivered states in batches (:meth:`Aligner.on_states`; a single
-state is a batch of one, :func:`one_state`), tells it when a trigger is issued
-(:meth:`Aligner.on_trigger`) and, at every alignment tick, asks it to refresh the
-snapshot it shows (:meth:`Aligner.align`): per node the frame, generation time,
-published state and a flag. Methods that steer the trigger (Lock-Step's barrier,
+engine hands it the delivered states in batches (:meth:`Aligner.on_states` with a
+:class:`StateBatch`; a single state is a batch of one, :func:`one_state`), tells it
+when a trigger is issued (:meth:`Aligner.on_trigger`) and, at every alignment tick,
+asks it to refresh the snapshot it shows (:meth:`Aligner.align`): per node the frame,
+generation time, published state and a flag. Methods that steer the trigger (Lock-Step's barrier,
 BiDES's adaptive rate) do so through the :class:`ServerContext` the engine passes in.
 At the end it reports what it measured (:meth:`Aligner.report`).
 """
@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.flags import MISSING
-from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.events.align.hlc_clock import Released, Stamp
 from sigma_des.metrics.reports import AlignerReport
 
 __all__ = [
@@ -30,6 +30,7 @@ __all__ = [
     "StateBatch",
     "newest_rows",
     "one_state",
+    "take_newest",
 ]
 
 #: Columns of a published state.
@@ -57,8 +58,41 @@ def newest_rows(
     return best[frames[best] > current[nodes[best]]]
 
 
+def take_newest(
+    frame: NDArray[np.int64],
+    gen: NDArray[np.float64],
+    obs: NDArray[np.float64],
+    rows: StateBatch | Released,
+) -> NDArray[np.int64]:
+    """Per node, take the rows' newest state into ``frame``/``gen``/``obs`` if it is newer.
+
+    The rule of :func:`newest_rows` (the first row of a node's highest frame, if that
+    beats ``frame[node]``), applied in place.
+
+    Returns:
+        The nodes whose entry changed.
+    """
+    win = newest_rows(rows.nodes, rows.frames, frame)
+    nd = rows.nodes[win]
+    if win.size:
+        frame[nd] = rows.frames[win]
+        gen[nd] = rows.gens[win]
+        obs[nd] = rows.obs[win]
+    return nd
+
+
 class StateBatch(NamedTuple):
-    """Arguments of :meth:`Aligner.on_states` for one delivered state (see :func:`one_state`)."""
+    """Delivered states, row ``j`` the ``j``-th arrival: what :meth:`Aligner.on_states` takes.
+
+    Attributes:
+        t: ``(m,)`` arrival times (non-decreasing).
+        nodes: ``(m,)`` senders.
+        frames: ``(m,)`` the states' frames.
+        gens: ``(m,)`` their generation times.
+        obs: ``(m, OBS_WIDTH)`` the published states.
+        hlc_l: ``(m,)`` HLC stamps' logical parts (meaningful for HLC only).
+        hlc_c: ``(m,)`` HLC stamps' counters (meaningful for HLC only).
+    """
 
     t: NDArray[np.float64]
     nodes: NDArray[np.int64]
@@ -88,7 +122,7 @@ def one_state(
         stamp: its HLC stamp (HLC only; None: ``l = NaN, c = 0``).
 
     Returns:
-        The batch, to be passed as ``aligner.on_states(*batch)``.
+        The batch of one, for :meth:`Aligner.on_states`.
     """
     l_, c = (math.nan, 0) if stamp is None else (stamp.l, stamp.c)
     return StateBatch(
@@ -162,26 +196,11 @@ class Aligner:
     def on_trigger(self, frame: int, t: float) -> None:
         """A trigger for ``frame`` was issued at ``t``."""
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
-        """States arrived, in arrival order: row ``j`` of ``nodes[j]`` for ``frames[j]``.
+    def on_states(self, batch: StateBatch) -> None:
+        """States arrived: ``batch`` row ``j`` is ``batch.nodes[j]``'s state of ``batch.frames[j]``.
 
-        Args:
-            t: ``(m,)`` arrival times (non-decreasing).
-            nodes: ``(m,)`` senders.
-            frames: ``(m,)`` the states' frames.
-            gens: ``(m,)`` their generation times.
-            obs: ``(m, OBS_WIDTH)`` the published states.
-            hlc_l: ``(m,)`` HLC stamps' logical parts (meaningful for HLC only).
-            hlc_c: ``(m,)`` HLC stamps' counters (meaningful for HLC only).
+        Rows are in arrival order (``batch.t`` non-decreasing); ``hlc_l``/``hlc_c`` are
+        meaningful for HLC only.
         """
         raise NotImplementedError
 

@@ -10,10 +10,7 @@ is the engine's part.
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
-
-from sigma_des.events.align.base import OBS_WIDTH, Aligner, ServerContext
+from sigma_des.events.align.base import OBS_WIDTH, Aligner, ServerContext, StateBatch
 from sigma_des.events.align.ring import RingBuffers, align
 from sigma_des.events.align.spec import AlignParams, BidesSpec
 
@@ -46,18 +43,9 @@ class BidesAligner(Aligner):
         """The registry's constructor: ``params.bides`` and the nominal ``f_trig``."""
         return cls(n, params.bides, ctx, params.f_trig)
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
         """Store the states in the ring buffers."""
-        self.ring.insert(nodes, frames, gens, obs)
+        self.ring.insert(batch.nodes, batch.frames, batch.gens, batch.obs)
 
     def align(self, t: float) -> None:
         """Algorithm 1, then one step of the rate adaptation."""

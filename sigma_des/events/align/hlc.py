@@ -10,7 +10,6 @@ until it is heard from again.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from sigma_des.core.flags import EXACT
 from sigma_des.events.align.base import (
@@ -18,7 +17,8 @@ from sigma_des.events.align.base import (
     RECORD_BYTES,
     Aligner,
     ServerContext,
-    newest_rows,
+    StateBatch,
+    take_newest,
 )
 from sigma_des.events.align.hlc_clock import StabilityBuffer
 from sigma_des.events.align.spec import AlignParams, HLCSpec
@@ -49,21 +49,13 @@ class HLCAligner(Aligner):
         """The registry's constructor: ``params.hlc``."""
         return cls(n, params.hlc, ctx)
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
         """Buffer the stamped states; a node heard from again is live again."""
         buf = self.buffer
-        buf.add(nodes, hlc_l, hlc_c, frames, gens, obs)
+        nodes = batch.nodes
+        buf.add(nodes, batch.hlc_l, batch.hlc_c, batch.frames, batch.gens, batch.obs)
         # arrival times never decrease, so the newest per node is the largest
-        np.maximum.at(self._heard, nodes, t)
+        np.maximum.at(self._heard, nodes, batch.t)
         back = np.unique(nodes[~self._live[nodes]])
         for node in back.tolist():
             self._live[node] = True
@@ -78,17 +70,9 @@ class HLCAligner(Aligner):
                 self._live[node] = False
                 self.buffer.set_live(node, False)
         self.note_memory()
-        rel = self.buffer.release()
-        changed = False
-        if rel.nodes.size:
-            win = newest_rows(rel.nodes, rel.frames, self.shown_frame)
-            if win.size:
-                nd = rel.nodes[win]
-                self.shown_frame[nd] = rel.frames[win]
-                self.shown_gen[nd] = rel.gens[win]
-                self.shown_obs[nd] = rel.obs[win]
-                self.flag[nd] = EXACT
-                changed = True
+        nd = take_newest(self.shown_frame, self.shown_gen, self.shown_obs, self.buffer.release())
+        self.flag[nd] = EXACT
+        changed = nd.size > 0
         self.new_snapshot = changed
         if changed:
             self.aligned_frame = int(self.shown_frame.max())

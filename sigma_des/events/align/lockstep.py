@@ -13,7 +13,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, MISSING
-from sigma_des.events.align.base import OBS_WIDTH, RECORD_BYTES, Aligner, ServerContext
+from sigma_des.events.align.base import (
+    OBS_WIDTH,
+    RECORD_BYTES,
+    Aligner,
+    ServerContext,
+    StateBatch,
+)
 from sigma_des.events.align.spec import AlignParams, LockstepSpec
 from sigma_des.metrics.reports import AlignerReport
 
@@ -73,19 +79,11 @@ class LockstepAligner(Aligner):
         if spec.eviction_timeout > 0:
             self.ctx.call_at(t + spec.eviction_timeout, self._evict, frame)
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
         """Count the barrier's states row by row (a row may complete it mid-batch)."""
+        nodes, frames, gens = batch.nodes, batch.frames, batch.gens
         for j in range(nodes.size):
-            self._one(int(nodes[j]), int(frames[j]), float(gens[j]), obs[j])
+            self._one(int(nodes[j]), int(frames[j]), float(gens[j]), batch.obs[j])
 
     def _one(self, node: int, frame: int, gen: float, obs: NDArray[np.float64]) -> None:
         if not self.live[node] and frame == self.current:

@@ -8,10 +8,15 @@ highest of those.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from sigma_des.core.flags import EXACT, MISSING
-from sigma_des.events.align.base import OBS_WIDTH, Aligner, ServerContext, newest_rows
+from sigma_des.events.align.base import (
+    OBS_WIDTH,
+    Aligner,
+    ServerContext,
+    StateBatch,
+    take_newest,
+)
 from sigma_des.events.align.spec import AlignParams
 
 __all__ = ["NoneAligner"]
@@ -39,23 +44,9 @@ class NoneAligner(Aligner):
         """The registry's constructor (needs no parameters)."""
         return cls(n, ctx)
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
         """Keep, per node, the batch's first state of its highest frame if that beats its own."""
-        win = newest_rows(nodes, frames, self._frame)
-        if win.size:
-            nd = nodes[win]
-            self._frame[nd] = frames[win]
-            self._gen[nd] = gens[win]
-            self._obs[nd] = obs[win]
+        if take_newest(self._frame, self._gen, self._obs, batch).size:
             self._dirty = True
 
     def align(self, t: float) -> None:

@@ -29,7 +29,13 @@ from numpy.typing import NDArray
 from sigma_des.core.flags import EXACT, MISSING
 from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
-from sigma_des.events.align.base import OBS_WIDTH, RECORD_BYTES, Aligner, ServerContext
+from sigma_des.events.align.base import (
+    OBS_WIDTH,
+    RECORD_BYTES,
+    Aligner,
+    ServerContext,
+    StateBatch,
+)
 from sigma_des.events.align.spec import AlignParams, RpcSpec
 
 __all__ = ["RpcAligner", "RpcContext"]
@@ -114,19 +120,11 @@ class RpcAligner(Aligner):
         self.calls += 1
         self.rctx.rpc_call(node, frame)
 
-    def on_states(
-        self,
-        t: NDArray[np.float64],
-        nodes: NDArray[np.int64],
-        frames: NDArray[np.int64],
-        gens: NDArray[np.float64],
-        obs: NDArray[np.float64],
-        hlc_l: NDArray[np.float64],
-        hlc_c: NDArray[np.int64],
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
         """Queue each response of the current frame on the game thread, in order."""
+        t, nodes, frames, gens = batch.t, batch.nodes, batch.frames, batch.gens
         for j in range(nodes.size):
-            self._one(float(t[j]), int(nodes[j]), int(frames[j]), float(gens[j]), obs[j])
+            self._one(float(t[j]), int(nodes[j]), int(frames[j]), float(gens[j]), batch.obs[j])
 
     def _one(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64]) -> None:
         if frame != self.current or self._got[node]:
