@@ -26,7 +26,7 @@ Metrics (per method and for the ideal run):
   run (:func:`sigma_des.metrics.fidelity.fidelity`, the engine's definition);
 * ``dtw_r`` — DTW distance of each node's trajectory to its ideal trajectory,
   normalised as the paper does, ``r = D·T/s`` (``T`` = 1/30 s, ``s`` = the flight
-  time covered; :func:`sigma_des.agents.dtw.dtw_normalised`), mean over the 5
+  time covered; :func:`sigma_des.metrics.dtw.dtw_normalised`), mean over the 5
   nodes; ``dtw_r.node<i>`` per node; 0 for the ideal run against itself;
 * ``flight_s`` — physics time covered. Lock-Step under heavy loss advances
   physics far slower than real time (its barrier waits for every lost trigger
@@ -54,7 +54,6 @@ from numpy.typing import NDArray
 
 import sigma_des
 from sigma_des.agents import layout as L
-from sigma_des.agents.dtw import dtw, dtw_normalised
 from sigma_des.agents.formation import formation_behaviour, formation_rule, formation_slots
 from sigma_des.agents.ideal import fly
 from sigma_des.api import TIDY_COLUMNS
@@ -62,6 +61,7 @@ from sigma_des.config import Scenario, config_hash, to_dict
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS
+from sigma_des.metrics.dtw import dtw, dtw_normalised
 from sigma_des.metrics.fidelity import fidelity
 from sigma_des.metrics.trajectory import convergence_time, slot_distances, window_end
 from sigma_des.studies.args import command_line
