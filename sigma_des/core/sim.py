@@ -61,6 +61,14 @@ class Kernel:
         # same tuple as Environment.schedule(), pushed directly: this is the hot path
         heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))  # type: ignore[misc]
 
+    def jump_to(self, t: float) -> None:
+        """Set the clock to ``t`` between two events (a backend that ran events itself).
+
+        The compiled message core processes messages outside SimPy; when it stops at
+        a message's time, the control code that follows must see that time.
+        """
+        self.env._now = t  # type: ignore[attr-defined]
+
     def run(self, until: float) -> None:
         """Process events up to (and including those at) time ``until``."""
         self.env.run(until=until)

@@ -33,7 +33,9 @@ from sigma_des.core.draws import DrawCache
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
+from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.jobs import job_cost
 from sigma_des.events.rpc import RpcAligner
 from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.fidelity import TrajectoryLog
@@ -45,8 +47,6 @@ from sigma_des.net.network import Network
 
 __all__ = ["MethodRun", "PAUSED", "TRIGGER_DUE", "END"]
 
-_STEP = 0
-_ROLLBACK = 1
 #: Methods whose next trigger waits for the current frame (no periodic triggers).
 BARRIER_METHODS = ("lockstep", "rpc")
 
@@ -64,10 +64,19 @@ class MethodRun:
         method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the vectorised dynamics model.
         behaviour: behaviour producing commands (None: no commands).
+        compiled: process messages in the compiled core
+            (:class:`~sigma_des.events.fast.driver.CompiledCore`) instead of as
+            SimPy events; raises ``CohortFallback`` if the scenario needs a feature
+            the core does not reproduce.
     """
 
     def __init__(
-        self, sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+        self,
+        sc: Scenario,
+        method: str,
+        dynamics: DynamicsModel,
+        behaviour: Behaviour | None,
+        compiled: bool = False,
     ) -> None:
         self.sc = sc
         self.method = method
@@ -151,6 +160,11 @@ class MethodRun:
         self.pending_state: NDArray[np.float64] | None = None
         #: recording tap (``sigma_des.record.tap.RecordTap``), set before ``run``; None: off
         self.tap: Any = None
+        #: the compiled message core (None: messages are SimPy events)
+        self.fast: CompiledCore | None = None
+        if compiled:
+            self.cmd = np.ascontiguousarray(self.cmd, dtype=np.float64)
+            self.fast = CompiledCore(self)
 
     # ------------------------------------------------------------ ServerContext
 
@@ -187,6 +201,9 @@ class MethodRun:
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
+        if self.fast is not None:
+            self.fast.publish_rerequest(node, frame, retry)
+            return
         self.net.publish(
             self.server,
             REREQUEST,
@@ -251,7 +268,10 @@ class MethodRun:
             self.kernel.at(t0 + (k + 1 - k0) / f, self._issue, priority=TRIGGER)
 
     def _send_trigger(self, k: int, stamp: Stamp | None) -> None:
-        """Publish trigger ``k`` to every node (a hook the cohort engine overrides)."""
+        """Publish trigger ``k`` to every node."""
+        if self.fast is not None:
+            self.fast.publish_trigger(k, stamp)
+            return
         self.net.publish(
             self.server,
             K_TRIGGER,
@@ -326,17 +346,11 @@ class MethodRun:
     def _start_job(self, i: int) -> None:
         now = self.kernel.now
         target = self.node_req[i]
-        cost = 0.0
-        for f in range(self.node_frame[i] + 1, target + 1):
-            cost += self.step_time.get(_STEP, i, f, 0)
         rb = self.rb_steps[i]
-        if rb:
-            for j in range(rb):
-                cost += self.step_time.get(_ROLLBACK, i, target, j)
-            self.rb_steps[i] = 0
-        for a, b, factor in self.slow.get(i, ()):
-            if a <= now < b:
-                cost *= factor
+        self.rb_steps[i] = 0
+        cost = job_cost(
+            self.step_time, self.slow.get(i, ()), i, self.node_frame[i] + 1, target, rb, now
+        )
         cores = self.cores[self.host_of[i]]
         free = heapq.heappop(cores)
         start = now if now > free else free
@@ -374,9 +388,9 @@ class MethodRun:
         current = self.node_target[i] if self.node_busy[i] else self.node_frame[i]
         if current - stamp_frame <= b.theta_warp:
             return
-        self._rollback(i, stamp_frame, current, row)
+        self.rollback(i, stamp_frame, current, row)
 
-    def _rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
+    def rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
         """Re-simulate node ``i`` from frame ``c`` with command ``row`` (time warp)."""
         oldest = max(0, self.latest_trigger - self.H + 2)
         c = max(c, oldest)
@@ -404,6 +418,13 @@ class MethodRun:
         steps = max(0, current - c + 1)
         self.rollbacks += 1
         self.resim_steps += steps
+        self._add_resim(i, steps)
+
+    def _add_resim(self, i: int, steps: int) -> None:
+        """Node ``i`` owes ``steps`` re-simulated steps; it starts a job if idle."""
+        if self.fast is not None:
+            self.fast.add_resim(i, steps)
+            return
         self.rb_steps[i] += steps
         if not self.node_busy[i]:
             self._start_job(i)
@@ -441,6 +462,9 @@ class MethodRun:
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
+        if self.fast is not None:
+            self.fast.publish_commands(tick, stamp, nodes, cmds)
+            return
         bits = self.sc.commands.payload_bits
         for i in nodes.tolist():
             self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
@@ -537,6 +561,8 @@ class MethodRun:
         runs), set :attr:`pending_state` and call again; ``END`` when the next event
         is at or after ``duration``. Processing order is that of :meth:`run`.
         """
+        if self.fast is not None:
+            return self._advance_until_compiled(stop, self.fast)
         env = self.kernel.env
         dur = self.sc.duration
         while True:
@@ -554,6 +580,9 @@ class MethodRun:
         The strict bound is part of the model: which events a run covers must not
         depend on how an engine breaks ties at the end time.
         """
+        if self.fast is not None:
+            self._advance_compiled(progress, self.fast)
+            return
         k = self.kernel
         env = k.env
         dur = self.sc.duration
@@ -569,3 +598,47 @@ class MethodRun:
                     env.step()
             if progress is not None:
                 progress(t)
+
+    # ------------------------------------------------------------ compiled messages
+
+    def _advance_compiled(
+        self, progress: Callable[[float], None] | None, fast: CompiledCore
+    ) -> None:
+        """:meth:`_advance` with messages run by ``fast`` before each control event."""
+        env = self.kernel.env
+        dur = self.sc.duration
+        next_p = 1.0
+        while True:
+            tc = env.peek()
+            last = tc >= dur
+            bound = dur if last else tc
+            if fast.advance_to(bound, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            if progress is not None:
+                while next_p < dur and next_p <= bound:
+                    progress(next_p)
+                    next_p += 1.0
+            if last:
+                break
+            env.step()
+        if progress is not None:
+            progress(dur)
+        fast.write_back()
+
+    def _advance_until_compiled(self, stop: Callable[[], bool], fast: CompiledCore) -> int:
+        """:meth:`advance_until` with messages run by ``fast`` before each control event."""
+        env = self.kernel.env
+        dur = self.sc.duration
+        while True:
+            if stop():
+                return PAUSED
+            tc = env.peek()
+            last = tc >= dur
+            if fast.advance_to(dur if last else tc, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            if last:
+                fast.write_back()
+                return END
+            if self.pending_state is None and self._head_is_issue():
+                return TRIGGER_DUE
+            env.step()

@@ -1,532 +1,377 @@
-"""The cohort engine: frame-level control in SimPy, messages in a compiled core.
+"""The compiled message core as a backend of the engine (docs/MODEL.md, "Engines").
 
-:class:`CohortRun` is a :class:`~sigma_des.events.engine.MethodRun` whose
-messages (trigger fan-out, node computation, state fan-in, commands) never
-become SimPy events. SimPy keeps the frame-level and control events — trigger
-issue with the whole-swarm physics step, alignment ticks (with adaptation and
-commands) and render ticks. Before each control event at time ``t`` the driver
-runs the compiled message core (:mod:`sigma_des.events.cohort_jit`) through every
-message event at or before ``t`` (messages come first at equal times, as in the
-specification), then hands the batch of state deliveries to the aligner in one
-vectorised call, and the latency samples to the collector.
+:class:`CompiledCore` processes the messages of a
+:class:`~sigma_des.events.engine.MethodRun` — trigger fan-out, node computation,
+state fan-in, commands — without making them SimPy events. The engine keeps the
+frame-level and control events (trigger issue with the whole-swarm physics step,
+alignment ticks with adaptation and commands, render ticks) and composes the
+core through a narrow interface: it publishes triggers, commands and
+re-requests (:meth:`~CompiledCore.publish_trigger`, ...), owes a node re-simulated
+steps after a rollback (:meth:`~CompiledCore.add_resim`), and before each
+control event at time ``t`` runs the core to ``t``
+(:meth:`~CompiledCore.advance_to`: messages come first at equal times, as in the
+specification), which hands the batch of state deliveries to the aligner in one
+vectorised call and the latency samples to the collector. At the end
+:meth:`~CompiledCore.write_back` copies the core's counters into the objects the
+collector reads.
 
 Exactness: the compiled core makes the same floating point operations in the
 same order as the per-message engine and reads the same counter-based draws, so
-result tables are identical on the same seed. Features whose per-message
-behaviour is not reproduced by the core are listed by :func:`unsupported`; for
-them :func:`run` falls back to the per-message engine for the whole run and
-says why.
+result tables are identical on the same seed.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
-from sigma_des.events import cohort_jit as J
-from sigma_des.events import cohort_state as CS
-from sigma_des.events.aligners import OBS_WIDTH
-from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.core.sim import Kernel
+from sigma_des.events.aligners import OBS_WIDTH, Aligner
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast import loop
+from sigma_des.events.fast.support import CohortFallback, unsupported
+from sigma_des.events.fast.tables import DrawTables, network_sources
 from sigma_des.events.hlc import Stamp
+from sigma_des.events.jobs import job_cost
+from sigma_des.metrics.collector import Collector
+from sigma_des.net.clocks import NodeClocks
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.network import Network
 
-__all__ = ["CohortFallback", "CohortRun", "execute", "make_run", "unsupported"]
-
-
-class CohortFallback(RuntimeError):
-    """The cohort core met something it cannot reproduce exactly (run per message)."""
-
-
-def unsupported(sc: Scenario, method: str) -> str | None:
-    """Why ``method`` on ``sc`` cannot run on the cohort core (None: it can).
-
-    These features fall back to the per-message engine for the whole run: drop and
-    degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
-    datagrams (resends and PUBACK hops), and the stream transport on a link with
-    loss or random latency (in-order hold-back and retransmission); the DDS
-    middleware and the ``rpc`` method (issue 16: per-message models only).
-    """
-    why: list[str] = []
-    kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
-    if kinds:
-        why.append(f"faults of kind {', '.join(kinds)}")
-    if sc.clocks.ntp_period > 0:
-        why.append("NTP-corrected clocks")
-    net = sc.net
-    for name, link in (("host_link", net.host_link), ("server_link", net.server_link)):
-        if link.loss.model != "bernoulli":
-            why.append(f"{name}: Gilbert-Elliott loss")
-        elif net.transport == "stream" and (
-            link.latency.dist != "constant" or link.loss.p > 0.0
-        ):
-            why.append(f"{name}: stream transport with loss or random latency")
-    if net.transport == "datagram" and net.qos == 1:
-        why.append("QoS 1 over datagram (resends, PUBACK hops)")
-    if net.middleware == "dds":
-        why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
-    if method == "rpc":
-        why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
-    return "; ".join(why) if why else None
-
-
-def make_run(
-    sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
-) -> tuple[MethodRun, str]:
-    """The run object for ``sc.engine`` and the fallback reason ("" if none)."""
-    if sc.engine == "cohort":
-        why = unsupported(sc, method)
-        if why is None:
-            return CohortRun(sc, method, dynamics, behaviour), ""
-        return MethodRun(sc, method, dynamics, behaviour), why
-    return MethodRun(sc, method, dynamics, behaviour), ""
-
-
-def execute(
-    sc: Scenario,
-    method: str,
-    dynamics: Callable[[], DynamicsModel],
-    behaviour: Callable[[], Behaviour | None],
-    progress: Callable[[float], None] | None = None,
-    tap: Callable[[], Any] | None = None,
-) -> tuple[MethodRun, dict[str, Any], dict[str, str]]:
-    """Run ``method`` on the engine ``sc.engine`` asks for, falling back when needed.
-
-    Args:
-        sc: the scenario.
-        method: alignment method.
-        dynamics: makes the dynamics model (called again for a mid-run fallback).
-        behaviour: makes a fresh behaviour (behaviours may keep state).
-        progress: called with the simulated time after every simulated second.
-        tap: makes a fresh recording tap for each attempt (a mid-run fallback starts
-            the recording again); the tap is closed when its attempt ends.
-
-    Returns:
-        The finished run, its result dict and ``{"requested", "used", "fallback"}``.
-    """
-    run, why = make_run(sc, method, dynamics(), behaviour())
-    try:
-        out = _attempt(run, progress, tap)
-    except CohortFallback as exc:  # met mid-run: redo the whole run per message
-        why = str(exc)
-        run = MethodRun(sc, method, dynamics(), behaviour())
-        out = _attempt(run, progress, tap)
-    used = "events" if why or sc.engine == "events" else "cohort"
-    return run, out, {"requested": sc.engine, "used": used, "fallback": why}
-
-
-def _attempt(
-    run: MethodRun, progress: Callable[[float], None] | None, tap: Callable[[], Any] | None
-) -> dict[str, Any]:
-    """One run attempt, recorded through a fresh tap when ``tap`` is given."""
-    if tap is None:
-        return run.run(progress)
-    run.tap = tap()
-    try:
-        return run.run(progress)
-    finally:
-        run.tap.close()
-
-
-_Sampler = Callable[[int, int], NDArray[np.float64]]
+__all__ = ["SLACK", "CompiledCore", "Host"]
 
 #: Spare capacity of the core's event table and delivery buffers beyond what one
 #: frame needs; they grow (or are flushed) on demand, so this changes speed only.
 SLACK = 256
 
 
-class CohortRun(MethodRun):
-    """One scenario under one method, messages processed by the compiled core.
+class Host(Protocol):
+    """What the compiled core reads and calls of the engine that composes it."""
+
+    sc: Scenario
+    method: str
+    n: int
+    H: int
+    kernel: Kernel
+    net: Network
+    aligner: Aligner
+    collector: Collector
+    clocks: NodeClocks
+    step_time: DrawCache
+    host_of: list[int]
+    crash_at: list[float]
+    slow: dict[int, list[tuple[float, float, float]]]
+    slot_frame: NDArray[np.int64]
+    obs_hist: NDArray[np.float64]
+    cmd: NDArray[np.float64]
+    history_misses: int
+    tap: Any
+
+    def rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
+        """Re-simulate node ``i`` from frame ``c`` with command ``row`` (time warp)."""
+
+
+class CompiledCore:
+    """The messages of one run, processed by the compiled loop.
 
     Args:
-        sc: the scenario (must be supported: see :func:`unsupported`).
-        method: ``none``, ``hlc`` or ``bides``.
-        dynamics: the vectorised dynamics model.
-        behaviour: behaviour producing commands (None: no commands).
+        host: the engine composing this core (its physics ring and command array
+            are shared with the core, read and written in place).
 
     Raises:
         CohortFallback: the scenario uses a feature the core does not reproduce.
     """
 
-    def __init__(
-        self, sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
-    ) -> None:
-        why = unsupported(sc, method)
+    def __init__(self, host: Host) -> None:
+        sc = host.sc
+        why = unsupported(sc, host.method)
         if why is not None:
             raise CohortFallback(why)
-        super().__init__(sc, method, dynamics, behaviour)
-        n = self.n
-        net = self.net
-        self.cmd = np.ascontiguousarray(self.cmd, dtype=np.float64)
+        self.host = host
         self._t_event = 0.0
-        R = sc.history_frames
-        W = OBS_WIDTH
-        M = int(self.cmd.shape[1])
-        cap = 4 * (n + 1) + SLACK
-        iv = np.zeros(CS.I_LEN, dtype=np.int64)
-        iv[CS.I_FREE] = cap
-        fv = np.zeros(CS.F_LEN)
-        q = np.zeros(CS.Q_LEN, dtype=np.int64)
-        q[CS.Q_N] = n
-        q[CS.Q_H] = self.H
-        q[CS.Q_HLC] = int(self.use_hlc)
-        q[CS.Q_WARP] = int(method == "bides" and sc.bides.time_warp)
-        q[CS.Q_THETA] = sc.bides.theta_warp
-        q[CS.Q_QOS1S] = int(net.qos1 and not net.datagram)
-        q[CS.Q_ACK] = net.ack_bytes
-        q[CS.Q_W] = W
-        q[CS.Q_M] = M
-        q[CS.Q_LOCK] = int(method == "lockstep")
-        g = np.array([sc.warmup, sc.duration])
-        nl = sc.hosts + 1
-        spb = np.zeros((2, nl))
-        for h in range(nl):
-            spb[1, h] = net.up[h].sec_per_byte
-            spb[0, h] = net.down[h].sec_per_byte
-        # draw tables: a row of all subjects per (source, kind, index), filled by Python
-        cmap = np.full((CS.N_SOURCES, 6), -1, dtype=np.int64)
-        cval = np.zeros(CS.N_SOURCES)
-        self._fills: dict[int, list[tuple[int, _Sampler]]] = {k: [] for k in range(6)}
-        p_loss = np.array([sc.net.host_link.loss.p, sc.net.server_link.loss.p])
-        combos: list[tuple[int, int, DrawCache]] = []
-        for cls, is_server in ((0, False), (1, True)):
-            # server → broker: trigger, command, re-request; node → broker: (re)published
-            # state; the downlinks carry them on to their receivers
-            kinds_up = (1, 3, 4) if is_server else (2, 5)
-            kinds_down = (2, 5) if is_server else (1, 3, 4)
-            for up, kinds in ((1, kinds_up), (0, kinds_down)):
-                src = CS.lat_source(cls, up)
-                lat = net._lat[is_server, bool(up)]
-                for k in kinds:
-                    combos.append((src, k, lat))
-                    if p_loss[cls] > 0.0:
-                        combos.append((CS.U_OFFSET + src, k, net._u[is_server, bool(up)]))
-        for k in (1, 2, 3, 4, 5):
-            combos.append((CS.SVC_PUB, k, net._svc_pub))
-            combos.append((CS.SVC_DEL, k, net._svc_del))
-        combos.append((CS.STEP, 0, self.step_time))
-        nc = 0
-        for src, k, cache in combos:
-            if cache.constant is not None:
-                cval[src] = cache.constant
-                continue
-            cmap[src, k] = nc
-            sampler_kind = _STEP if src == CS.STEP else k
-            self._fills[k].append((nc, _vector_of(cache, sampler_kind)))
-            nc += 1
-        self._dval = np.zeros((max(nc, 1), R, n + 1))
-        self._dtag = np.full((max(nc, 1), R), -1, dtype=np.int64)
-        wb = np.zeros(6, dtype=np.int64)
-        wb[1] = net.wire_bytes(sc.trigger_payload_bits)
-        wb[2] = net.wire_bytes(sc.payload_bits)
-        wb[3] = net.wire_bytes(sc.commands.payload_bits)
-        wb[4] = net.wire_bytes(sc.trigger_payload_bits)
-        wb[5] = net.wire_bytes(sc.payload_bits)
-        nd = np.zeros((CS.N_ROWS, n), dtype=np.int64)
-        nd[[CS.N_FRAME, CS.N_REQ, CS.N_TARGET, CS.N_CSTAMP]] = -1
-        self._nd = nd
-        # Python-side views used by MethodRun._rollback
-        self.rb_steps = nd[CS.N_RB]  # type: ignore[assignment]
-        self.node_busy = nd[CS.N_BUSY]  # type: ignore[assignment]
-        crash = np.array(self.crash_at, dtype=np.float64)
+        self._lockstep = host.method == "lockstep"
+        p_loss = (sc.net.host_link.loss.p, sc.net.server_link.loss.p)
+        sources = network_sources(host.net, p_loss)
+        sources.append((L.STEP, 0, host.step_time))
+        self.tables = DrawTables(sources, sc.history_frames, host.n + 1)
+        self.S = L.allocate(self._dims(), self._given(p_loss))
+
+    # ------------------------------------------------------------ layout
+
+    def _dims(self) -> dict[str, int]:
+        h = self.host
+        n, sc = h.n, h.sc
+        pay = L.EF_PAY + max(OBS_WIDTH, int(h.cmd.shape[1]))
+        lockstep = self._lockstep
+        return {
+            "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": sc.hosts + 1,
+            "hosts": sc.hosts, "cores": sc.cores_per_host, "tables": self.tables.tables,
+            "H": h.H, "W": OBS_WIDTH, "M": int(h.cmd.shape[1]), "pay": pay,
+            "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
+            "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.slow.values())),
+            # duplicate check of re-requests and republished states (Lock-Step only)
+            "seen_n": n + 1 if lockstep else 1, "seen_h": sc.history_frames if lockstep else 1,
+        }
+
+    def _params(self) -> NDArray[np.int64]:
+        h = self.host
+        sc, net = h.sc, h.net
+        q = np.zeros(L.Q_LEN, dtype=np.int64)
+        q[L.Q_N] = h.n
+        q[L.Q_H] = h.H
+        q[L.Q_HLC] = int(h.method == "hlc")
+        q[L.Q_WARP] = int(h.method == "bides" and sc.bides.time_warp)
+        q[L.Q_THETA] = sc.bides.theta_warp
+        q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
+        q[L.Q_ACK] = net.ack_bytes
+        q[L.Q_W] = OBS_WIDTH
+        q[L.Q_M] = int(h.cmd.shape[1])
+        q[L.Q_LOCK] = int(self._lockstep)
+        return q
+
+    def _links(self) -> dict[str, NDArray[Any]]:
+        """Access links and message sizes (what Network holds per link and kind)."""
+        h = self.host
+        sc, net = h.sc, h.net
+        spb = np.zeros((2, sc.hosts + 1))
+        for k in range(sc.hosts + 1):
+            spb[1, k] = net.up[k].sec_per_byte
+            spb[0, k] = net.down[k].sec_per_byte
+        wb = np.zeros(L.N_KINDS, dtype=np.int64)
+        bits = {TRIGGER: sc.trigger_payload_bits, STATE: sc.payload_bits,
+                COMMAND: sc.commands.payload_bits, REREQUEST: sc.trigger_payload_bits,
+                REPUBLISH: sc.payload_bits}
+        for kind, b in bits.items():
+            wb[kind] = net.wire_bytes(b)
+        return {"link_spb": spb, "link_of": np.array(net.link_of, dtype=np.int64),
+                "wire_bytes": wb}
+
+    def _nodes(self) -> dict[str, NDArray[Any]]:
+        """Node rows, hosts, faults and clocks."""
+        h = self.host
+        n = h.n
+        nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
+        nd[[L.N_FRAME, L.N_REQ, L.N_TARGET, L.N_CSTAMP]] = -1
         ptr = np.zeros(n + 1, dtype=np.int64)
         rows: list[tuple[float, float, float]] = []
         for i in range(n):
-            rows.extend(self.slow.get(i, ()))
+            rows.extend(h.slow.get(i, ()))
             ptr[i + 1] = len(rows)
-        slow = np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64)
-        cores = np.zeros((sc.hosts, sc.cores_per_host))
-        out_cap = 2 * (n + 1) + SLACK
-        lat_cap = 4 * (n + 1) + SLACK
-        P = max(W, M)
-        fields: list[Any] = [None] * CS.N_FIELDS
-        fields[CS.HT] = np.zeros(cap)
-        fields[CS.HE] = np.zeros(cap, dtype=np.int64)
-        fields[CS.HS] = np.zeros(0, dtype=np.int64)  # unused: keys hold the slot
-        fields[CS.EVI] = np.zeros((cap, CS.E_COLS), dtype=np.int64)
-        fields[CS.EVF] = np.zeros((cap, CS.EF_PAY + P))
-        fields[CS.FREE] = np.arange(cap, dtype=np.int64)[::-1].copy()
-        fields[CS.II] = iv
-        fields[CS.FF] = fv
-        fields[CS.QQ] = q
-        fields[CS.GG] = g
-        fields[CS.LBUSY] = np.zeros((2, nl))
-        fields[CS.LCNT] = np.zeros((2, 2, nl), dtype=np.int64)
-        fields[CS.LSPB] = spb
-        fields[CS.LINK_OF] = np.array(net.link_of, dtype=np.int64)
-        fields[CS.CMAP] = cmap
-        fields[CS.CVAL] = cval
-        fields[CS.DVAL] = self._dval
-        fields[CS.DTAG] = self._dtag
-        fields[CS.PLOSS] = p_loss
-        fields[CS.WB] = wb
-        fields[CS.ND] = nd
-        fields[CS.HOST_OF] = np.array(self.host_of, dtype=np.int64)
-        fields[CS.CRASH] = crash
-        fields[CS.SLOW_PTR] = ptr
-        fields[CS.SLOW] = slow
-        fields[CS.CORES] = cores
-        fields[CS.HLC_L] = np.full(n, -math.inf)
-        fields[CS.HLC_C] = np.zeros(n, dtype=np.int64)
-        fields[CS.OFF] = np.array(self._offset, dtype=np.float64)
-        fields[CS.DRIFT] = np.array(self._drift, dtype=np.float64)
-        fields[CS.SLOT_FRAME] = self.slot_frame
-        fields[CS.OBS_HIST] = self.obs_hist
-        fields[CS.CMD] = self.cmd
-        fields[CS.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
-        fields[CS.OUT_F] = np.zeros((out_cap, 3 + W))
-        fields[CS.LAT_BUF] = np.zeros((3, lat_cap))
         last_i = np.zeros((n, 2), dtype=np.int64)
         last_i[:, 0] = -1
-        fields[CS.LAST_I] = last_i
-        fields[CS.LAST_F] = np.zeros((n, 2 + W))
-        fields[CS.LS] = np.zeros((2, n), dtype=np.int64)
-        # duplicate check of re-requests and republished states (Lock-Step only)
-        seen_shape = (2, n + 1, sc.history_frames) if method == "lockstep" else (2, 1, 1)
-        fields[CS.SEEN] = np.full(seen_shape, -1, dtype=np.int64)
-        self._lockstep = method == "lockstep"
-        self._fields = fields
-        self.S = tuple(fields)
+        drift = (h.clocks.drift_ppm * 1e-6).tolist()  # the engine's arithmetic, exactly
+        return {
+            "node": nd, "host_of": np.array(h.host_of, dtype=np.int64),
+            "crash": np.array(h.crash_at, dtype=np.float64), "slow_ptr": ptr,
+            "slow": np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64),
+            "clock_off": np.array(h.clocks.offset.tolist(), dtype=np.float64),
+            "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
+        }
 
-    # ------------------------------------------------------------ draw tables
+    def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
+        h = self.host
+        sc = h.sc
+        cap = 4 * (h.n + 1) + SLACK
+        tb = self.tables
+        return {
+            "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
+            "iparams": self._params(), "fparams": np.array([sc.warmup, sc.duration]),
+            "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
+            "draw_tag": tb.tags, "p_loss": np.array(p_loss),
+            "slot_frame": h.slot_frame, "obs_hist": h.obs_hist, "cmd": h.cmd,
+            **self._links(), **self._nodes(),
+        }
 
-    def _fill(self, kind: int, index: int) -> None:
-        """Make the draw rows of ``(kind, index)`` present (a pure function of the key)."""
-        R = self._dtag.shape[1]
-        r = index % R
-        for c, sample in self._fills[kind]:
-            if self._dtag[c, r] != index:
-                v = sample(index, 0)
-                self._dval[c, r, : v.size] = v
-                self._dtag[c, r] = index
-
-    # ------------------------------------------------------------ space
-
-    def _ensure_space(self, k: int) -> None:
-        iv = self.S[CS.II]
-        if iv[CS.I_FREE] >= k + self.n + 4:
+    def ensure_space(self, k: int) -> None:
+        """Grow the event table unless ``k`` slots (plus a fan-out) are free."""
+        S = self.S
+        iv = S.ints
+        if iv[L.I_FREE] >= k + self.host.n + 4:
             return
-        f = self._fields
-        old = f[CS.HT].size
+        old = S.heap_t.size
         new = 2 * old + k
-        if new > CS.MAX_SLOTS:
-            raise CohortFallback(f"more than {CS.MAX_SLOTS} messages in flight")
-        for pos in (CS.HT, CS.HE):
-            a = np.zeros(new, dtype=f[pos].dtype)
-            a[:old] = f[pos]
-            f[pos] = a
-        for pos in (CS.EVI, CS.EVF):
-            a = np.zeros((new,) + f[pos].shape[1:], dtype=f[pos].dtype)
-            a[:old] = f[pos]
-            f[pos] = a
-        nfree = int(iv[CS.I_FREE])
+        if new > L.MAX_SLOTS:
+            raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
+        grown: dict[str, NDArray[Any]] = {}
+        for name in ("heap_t", "heap_k", "ev_int", "ev_float"):
+            a = getattr(S, name)
+            b = np.zeros((new,) + a.shape[1:], dtype=a.dtype)
+            b[:old] = a
+            grown[name] = b
+        nfree = int(iv[L.I_FREE])
         free = np.zeros(new, dtype=np.int64)
-        free[:nfree] = f[CS.FREE][:nfree]
+        free[:nfree] = S.free[:nfree]
         extra = np.arange(new - 1, old - 1, -1, dtype=np.int64)
         free[nfree : nfree + extra.size] = extra
-        f[CS.FREE] = free
-        iv[CS.I_FREE] = nfree + extra.size
-        self.S = tuple(f)
+        iv[L.I_FREE] = nfree + extra.size
+        self.S = S._replace(free=free, **grown)
 
-    # ------------------------------------------------------------ MethodRun hooks
+    # ------------------------------------------------------------ publishes
 
-    def _send_trigger(self, k: int, stamp: Stamp | None) -> None:
-        self._fill(1, k)
-        self._fill(2, k)
-        self._fill(0, k)
-        self._ensure_space(2)
+    def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
+        """The server publishes trigger ``k`` to every node, now."""
+        tb = self.tables
+        tb.fill(TRIGGER, k)
+        tb.fill(STATE, k)
+        tb.fill(0, k)  # compute
+        self.ensure_space(2)
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
-        J.publish_trigger(self.S, k, self.kernel.now, hl, hc)
-        if self.tap is not None:  # the core keeps no per-node trigger deliveries: the issue
-            self.tap.trigger(-1, k, self.kernel.now, math.nan)
+        now = self.host.kernel.now
+        loop.publish_trigger(self.S, k, now, hl, hc)
+        tap = self.host.tap
+        if tap is not None:  # the core keeps no per-node trigger deliveries: the issue
+            tap.trigger(-1, k, now, math.nan)
 
-    def _send_command_batch(
+    def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
+        """The server publishes ``cmds[i]`` (stamped ``stamp``) to each node ``i``, now."""
         if nodes.size == 0:
             return
-        self._fill(3, tick)
-        self._ensure_space(nodes.size + 2)
+        self.tables.fill(COMMAND, tick)
+        self.ensure_space(nodes.size + 2)
         rows = np.ascontiguousarray(cmds, dtype=np.float64)
-        J.publish_commands(
-            self.S, tick, stamp, nodes.astype(np.int64), rows, self.kernel.now
-        )
-        if self.tap is not None:  # the core keeps no per-node command deliveries: the sends
-            t = self.kernel.now
-            self.tap.commands(nodes, tick, t, np.full(nodes.size, math.nan), rows[nodes])
+        now = self.host.kernel.now
+        loop.publish_commands(self.S, tick, stamp, nodes.astype(np.int64), rows, now)
+        tap = self.host.tap
+        if tap is not None:  # the core keeps no per-node command deliveries: the sends
+            tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
 
-    def rerequest(self, node: int, frame: int, retry: int) -> None:
+    def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
+        """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
         index = frame * 64 + min(retry, 63)
-        self._fill(4, index)
-        self._fill(5, index)
-        self._ensure_space(2)
-        J.publish_rerequest(self.S, node, frame, index, self.kernel.now)
+        self.tables.fill(REREQUEST, index)
+        self.tables.fill(REPUBLISH, index)
+        self.ensure_space(2)
+        loop.publish_rerequest(self.S, node, frame, index, self.host.kernel.now)
+
+    # ------------------------------------------------------------ nodes
+
+    def add_resim(self, i: int, steps: int) -> None:
+        """Node ``i`` owes ``steps`` re-simulated steps (a rollback); start it if idle."""
+        nd = self.S.node
+        nd[L.N_RB, i] += steps
+        if not nd[L.N_BUSY, i]:
+            self._start_job(i)
 
     def _start_job(self, i: int) -> None:
-        """A job start that needs Python (rollback draws): same arithmetic as the core."""
+        """A job start that needs Python (rollback draws): :func:`job_cost`, as the spec."""
         now = self._t_event
-        nd = self._nd
-        target = int(nd[CS.N_REQ, i])
-        cost = 0.0
-        for f in range(int(nd[CS.N_FRAME, i]) + 1, target + 1):
-            cost += self.step_time.get(_STEP, i, f, 0)
-        rb = int(nd[CS.N_RB, i])
-        if rb:
-            for j in range(rb):
-                cost += self.step_time.get(_ROLLBACK, i, target, j)
-            nd[CS.N_RB, i] = 0
-        for a, b, factor in self.slow.get(i, ()):
-            if a <= now < b:
-                cost *= factor
-        self._ensure_space(2)
-        J.reserve(self.S, i, target, cost, now)
+        nd = self.S.node
+        target = int(nd[L.N_REQ, i])
+        rb = int(nd[L.N_RB, i])
+        nd[L.N_RB, i] = 0
+        h = self.host
+        cost = job_cost(h.step_time, h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1,
+                        target, rb, now)
+        self.ensure_space(2)
+        loop.reserve(self.S, i, target, cost, now)
 
-    # ------------------------------------------------------------ driver
+    # ------------------------------------------------------------ running
 
     def _sync_barrier(self) -> None:
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
-        al: Any = self.aligner
+        al: Any = self.host.aligner
         S = self.S
-        S[CS.LS][0] = al._got
-        S[CS.LS][1] = al.live
-        iv = S[CS.II]
-        iv[CS.I_LCUR] = al.current
-        iv[CS.I_LMISS] = al._missing
-        iv[CS.I_LCOMP] = int(al.complete)
+        S.barrier[0] = al._got
+        S.barrier[1] = al.live
+        iv = S.ints
+        iv[L.I_LCUR] = al.current
+        iv[L.I_LMISS] = al._missing
+        iv[L.I_LCOMP] = int(al.complete)
 
-    def _messages(self, bound: float, strict: bool) -> bool:
-        """Run the message core to ``bound``, serving its requests for Python.
+    def advance_to(self, bound: float, strict: bool) -> bool:
+        """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
+
+        Serves the loop's requests for Python on the way (rollbacks, job starts with
+        rollback draws, buffer flushes, table growth).
 
         Returns:
             True if it stopped early because a Lock-Step barrier completed (the next
             trigger may now come before ``bound``); False when it reached ``bound``.
+
+        Raises:
+            CohortFallback: a message needed a draw older than ``history_frames``.
         """
         while True:
             if self._lockstep:
-                self._flush()
+                self.drain()
                 self._sync_barrier()
-            code = J.advance(self.S, bound, strict)
-            if code == CS.OK:
+            code = loop.advance(self.S, bound, strict)
+            if code == L.OK:
+                self.drain()
                 return False
-            if code == CS.BARRIER:
+            S = self.S
+            if code == L.BARRIER:
                 # the aligner sees the completing state at its own arrival time
-                self.kernel.env._now = float(self.S[CS.FF][CS.F_PT])
-                self._flush()
+                self.host.kernel.jump_to(float(S.floats[L.F_PT]))
+                self.drain()
                 return True
-            if code == CS.NEED_SPACE:
-                self._ensure_space(self.n + 8)
-            elif code == CS.NEED_FLUSH:
-                self._flush()
-            elif code == CS.NEED_START:
-                self._t_event = float(self.S[CS.FF][CS.F_PT])
-                self._start_job(int(self.S[CS.II][CS.I_PNODE]))
-            elif code == CS.NEED_ROLLBACK:
-                iv = self.S[CS.II]
-                i = int(iv[CS.I_PNODE])
-                self._t_event = float(self.S[CS.FF][CS.F_PT])
-                self._rollback(i, int(iv[CS.I_PA]), int(iv[CS.I_PB]), self.cmd[i].copy())
+            if code == L.NEED_SPACE:
+                self.ensure_space(self.host.n + 8)
+            elif code == L.NEED_FLUSH:
+                self.drain()
+            elif code in (L.NEED_START, L.NEED_ROLLBACK):
+                self._t_event = float(S.floats[L.F_PT])
+                i = int(S.ints[L.I_PNODE])
+                if code == L.NEED_START:
+                    self._start_job(i)
+                else:
+                    a, b = int(S.ints[L.I_PA]), int(S.ints[L.I_PB])
+                    self.host.rollback(i, a, b, self.host.cmd[i].copy())
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "
-                    f"({self.sc.history_frames}) frames"
+                    f"({self.host.sc.history_frames}) frames"
                 )
 
-    def _flush(self) -> None:
+    def drain(self) -> None:
         """Hand buffered state deliveries to the aligner, latencies to the collector."""
         S = self.S
-        iv = S[CS.II]
-        o = int(iv[CS.I_OUT])
+        h = self.host
+        iv = S.ints
+        o = int(iv[L.I_OUT])
         if o:
-            oi = S[CS.OUT_I][:o]
-            of = S[CS.OUT_F][:o]
-            self.aligner.on_states(
-                of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
-            )
-            if self.tap is not None:
-                self.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH])
-            iv[CS.I_OUT] = 0
+            oi = S.out_int[:o]
+            of = S.out_float[:o]
+            obs = of[:, 3 : 3 + OBS_WIDTH]
+            h.aligner.on_states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            if h.tap is not None:
+                h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
+            iv[L.I_OUT] = 0
         for k in range(3):
-            m = int(iv[CS.I_LAT + k])
+            m = int(iv[L.I_LAT + k])
             if m:
-                self.collector.delivered_batch(k + 1, S[CS.LAT_BUF][k, :m].copy(), 0)
-                iv[CS.I_LAT + k] = 0
+                h.collector.delivered_batch(k + 1, S.lat_buf[k, :m].copy(), 0)
+                iv[L.I_LAT + k] = 0
 
-    def _advance(self, progress: Callable[[float], None] | None) -> None:
-        env = self.kernel.env
-        dur = self.sc.duration
-        next_p = 1.0
-        while True:
-            tc = env.peek()
-            last = tc >= dur
-            bound = dur if last else tc
-            if self._messages(bound, last):
-                continue  # a barrier completed: a trigger may now come before tc
-            self._flush()
-            if progress is not None:
-                while next_p < dur and next_p <= bound:
-                    progress(next_p)
-                    next_p += 1.0
-            if last:
-                break
-            env.step()
-        if progress is not None:
-            progress(dur)
-        self._write_back()
-
-    def advance_until(self, stop: Callable[[], bool]) -> int:
-        """:meth:`MethodRun.advance_until` with messages run by the compiled core."""
-        env = self.kernel.env
-        dur = self.sc.duration
-        while True:
-            if stop():
-                return PAUSED
-            tc = env.peek()
-            last = tc >= dur
-            if self._messages(dur if last else tc, last):
-                continue  # a barrier completed: a trigger may now come before tc
-            self._flush()
-            if last:
-                self._write_back()
-                return END
-            if self.pending_state is None and self._head_is_issue():
-                return TRIGGER_DUE
-            env.step()
-
-    def _write_back(self) -> None:
+    def write_back(self) -> None:
         """Copy the core's counters into the objects the collector reads."""
         S = self.S
-        net = self.net
-        cnt = S[CS.LCNT]
-        busy = S[CS.LBUSY]
-        for h in range(self.sc.hosts + 1):
-            net.up[h].bytes = int(cnt[1, 0, h])
-            net.up[h].packets = int(cnt[1, 1, h])
-            net.up[h].busy = float(busy[1, h])
-            net.down[h].bytes = int(cnt[0, 0, h])
-            net.down[h].packets = int(cnt[0, 1, h])
-            net.down[h].busy = float(busy[0, h])
-        fv = S[CS.FF]
-        iv = S[CS.II]
-        net.broker_busy = float(fv[CS.F_BUSY])
-        net.broker_work = float(fv[CS.F_WORK])
-        net.broker_max_wait = float(fv[CS.F_MAXWAIT])
-        self.history_misses += int(iv[CS.I_HMISS])
-        self.collector.delivered_batch(1, np.empty(0), int(iv[CS.I_MSGS]))
-        self.collector.duplicates += int(iv[CS.I_DUPS])
-        iv[CS.I_DUPS] = 0
-        self.kernel.events += int(iv[CS.I_NEV])
-        iv[CS.I_MSGS] = 0
-        iv[CS.I_HMISS] = 0
-        iv[CS.I_NEV] = 0
-
-
-def _vector_of(cache: DrawCache, kind: int) -> _Sampler:
-    def sample(index: int, attempt: int) -> NDArray[np.float64]:
-        return cache.vector(kind, index, attempt)
-
-    return sample
+        h = self.host
+        net = h.net
+        cnt = S.link_count
+        busy = S.link_busy
+        for k in range(h.sc.hosts + 1):
+            net.up[k].bytes = int(cnt[1, 0, k])
+            net.up[k].packets = int(cnt[1, 1, k])
+            net.up[k].busy = float(busy[1, k])
+            net.down[k].bytes = int(cnt[0, 0, k])
+            net.down[k].packets = int(cnt[0, 1, k])
+            net.down[k].busy = float(busy[0, k])
+        fv = S.floats
+        iv = S.ints
+        net.broker_busy = float(fv[L.F_BUSY])
+        net.broker_work = float(fv[L.F_WORK])
+        net.broker_max_wait = float(fv[L.F_MAXWAIT])
+        h.history_misses += int(iv[L.I_HMISS])
+        h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
+        h.collector.duplicates += int(iv[L.I_DUPS])
+        h.kernel.events += int(iv[L.I_NEV])
+        for slot in (L.I_DUPS, L.I_MSGS, L.I_HMISS, L.I_NEV):
+            iv[slot] = 0

@@ -1,14 +1,13 @@
-"""Layout and primitives of the cohort engine's compiled message core (numba).
+"""Primitives of the compiled message core: heap, event slots, draws, link hops.
 
-All state of the core lives in one tuple ``S`` of numpy arrays; this module names
-the positions in it (and in its scalar, parameter, node and event arrays) and holds
-the primitives the handlers in :mod:`sigma_des.events.cohort_jit` build on: the
-binary heap of ``(time, sequence)`` keys, the event-slot free list, the draw-table
-lookup and one hop over an access link (FIFO serialization, latency, loss) — each
-the same floating point operations, in the same order, as
-:mod:`sigma_des.net.network`.
+The handlers (:mod:`~sigma_des.events.fast.broker`,
+:mod:`~sigma_des.events.fast.node`, :mod:`~sigma_des.events.fast.server`) build on
+these: the binary heap of ``(time, sequence)`` keys, the event-slot free list, the
+draw-table lookup and one hop over an access link (FIFO serialization, latency,
+loss) — each the same floating point operations, in the same order, as
+:mod:`sigma_des.net.network`. The state ``S`` is a
+:data:`~sigma_des.events.fast.layout.State`.
 """
-
 
 from __future__ import annotations
 
@@ -17,7 +16,25 @@ from typing import Any, TypeVar
 
 from numba import njit
 
-from sigma_des.net.kinds import Kind
+from sigma_des.events.fast.layout import (
+    E_INDEX,
+    E_KIND,
+    E_SUBJ,
+    E_TYPE,
+    E_WHO,
+    EV_BROKER,
+    G_END,
+    G_WARMUP,
+    I_EID,
+    I_ERR,
+    I_FREE,
+    I_HEAP,
+    I_NEV,
+    Q_N,
+    SLOT_BITS,
+    SLOT_MASK,
+    U_OFFSET,
+)
 
 _F = TypeVar("_F", bound=Callable[..., Any])
 
@@ -27,65 +44,17 @@ _F = TypeVar("_F", bound=Callable[..., Any])
 jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 
 
-# event types
-EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
-# exit codes of advance()
-OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
-
-# message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
-K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
-
-# positions in the state tuple S
-HT, HE, HS, EVI, EVF, FREE, II, FF, QQ, GG = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
-LBUSY, LCNT, LSPB, LINK_OF = 10, 11, 12, 13
-CMAP, CVAL, DVAL, DTAG, PLOSS, WB = 14, 15, 16, 17, 18, 19
-ND, HOST_OF, CRASH, SLOW_PTR, SLOW, CORES = 20, 21, 22, 23, 24, 25
-HLC_L, HLC_C, OFF, DRIFT = 26, 27, 28, 29
-SLOT_FRAME, OBS_HIST, CMD = 30, 31, 32
-OUT_I, OUT_F, LAT_BUF = 33, 34, 35
-LAST_I, LAST_F, LS = 36, 37, 38
-SEEN = 39  # Lock-Step: newest index seen per (re-request/republish, subject, index % H)
-N_FIELDS = 40
-# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
-SLOT_BITS = 24
-SLOT_MASK = (1 << SLOT_BITS) - 1
-MAX_SLOTS = 1 << SLOT_BITS
-
-# int scalars S[II]
-I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
-I_LAT = 12  # three counters: trigger, state, command latencies buffered
-I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
-I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
-I_LEN = 19
-# float scalars S[FF]
-F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
-F_LEN = 4
-# int parameters S[QQ]
-Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
-Q_LEN = 10
-# float parameters S[GG]
-G_WARMUP, G_END = 0, 1
-G_LEN = 2
-# node integer rows S[ND]
-N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
-N_ROWS = 6
-# event int columns S[EVI]: type, client/receiver, kind, subject, index, aux (HLC c or
-# command stamp), frame (of a state, republished state or re-request)
-E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
-E_COLS = 7
-# event float columns S[EVF]: t_publish, t_depart, HLC l, generation time, payload...
-EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
-# draw sources: latency and loss uniforms per (link class, direction), broker, compute
-LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
-U_OFFSET = 4
-SVC_PUB, SVC_DEL, STEP = 8, 9, 10
-N_SOURCES = 11
-
-
 @jit
 def lat_source(cls: int, up: int) -> int:
     """Latency source of link class ``cls`` (0 host, 1 server) and direction ``up``."""
     return 2 * (1 - cls) + (1 - up)
+
+
+@jit
+def in_window(S, t):  # type: ignore[no-untyped-def]
+    """Whether ``t`` lies in the measurement window ``[warmup, end)``."""
+    g = S.fparams
+    return g[G_WARMUP] <= t and t < g[G_END]
 
 
 # ---------------------------------------------------------------- heap and slots
@@ -93,9 +62,9 @@ def lat_source(cls: int, up: int) -> int:
 
 @jit
 def push(S, t, slot):  # type: ignore[no-untyped-def]
-    ht = S[HT]
-    hk = S[HE]
-    iv = S[II]
+    ht = S.heap_t
+    hk = S.heap_k
+    iv = S.ints
     e = iv[I_EID]
     iv[I_EID] = e + 1
     iv[I_NEV] += 1
@@ -116,9 +85,9 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
 
 @jit
 def pop(S):  # type: ignore[no-untyped-def]
-    ht = S[HT]
-    hk = S[HE]
-    iv = S[II]
+    ht = S.heap_t
+    hk = S.heap_k
+    iv = S.ints
     n = iv[I_HEAP] - 1
     iv[I_HEAP] = n
     top = hk[0] & SLOT_MASK
@@ -145,16 +114,27 @@ def pop(S):  # type: ignore[no-untyped-def]
 
 @jit
 def alloc(S):  # type: ignore[no-untyped-def]
-    iv = S[II]
+    iv = S.ints
     iv[I_FREE] -= 1
-    return S[FREE][iv[I_FREE]]
+    return S.free[iv[I_FREE]]
 
 
 @jit
 def release(S, slot):  # type: ignore[no-untyped-def]
-    iv = S[II]
-    S[FREE][iv[I_FREE]] = slot
+    iv = S.ints
+    S.free[iv[I_FREE]] = slot
     iv[I_FREE] += 1
+
+
+@jit
+def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped-def]
+    """Write an event's type, receiver and message key into ``slot``."""
+    evi = S.ev_int
+    evi[slot, E_TYPE] = typ
+    evi[slot, E_WHO] = who
+    evi[slot, E_KIND] = kind
+    evi[slot, E_SUBJ] = subject
+    evi[slot, E_INDEX] = index
 
 
 # ---------------------------------------------------------------- draws and links
@@ -162,15 +142,15 @@ def release(S, slot):  # type: ignore[no-untyped-def]
 
 @jit
 def draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
-    c = S[CMAP][src, kind]
+    c = S.draw_map[src, kind]
     if c < 0:
-        return S[CVAL][src]
-    tag = S[DTAG]
+        return S.draw_const[src]
+    tag = S.draw_tag
     r = index % tag.shape[1]
     if tag[c, r] != index:
-        S[II][I_ERR] = 1
+        S.ints[I_ERR] = 1
         return 0.0
-    return S[DVAL][c, r, subj]
+    return S.draw_val[c, r, subj]
 
 
 @jit
@@ -180,43 +160,46 @@ def count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
     Returns:
         The time the last bit leaves.
     """
-    link = S[LINK_OF][client]
-    lb = S[LBUSY]
+    link = S.link_of[client]
+    lb = S.link_busy
     busy = lb[up, link]
-    done = (t if t > busy else busy) + nbytes * S[LSPB][up, link]
+    done = (t if t > busy else busy) + nbytes * S.link_spb[up, link]
     lb[up, link] = done
-    g = S[GG]
-    if g[G_WARMUP] <= t and t < g[G_END]:
-        S[LCNT][up, 0, link] += nbytes
-        S[LCNT][up, 1, link] += 1
+    if in_window(S, t):
+        S.link_count[up, 0, link] += nbytes
+        S.link_count[up, 1, link] += 1
     return done
 
 
 @jit
-def hop(S, client, up, kind, subj, index, nbytes, t):  # type: ignore[no-untyped-def]
-    """Network._hop: FIFO serialization + latency; returns (arrival, lost)."""
-    done = count(S, client, up, nbytes, t)
-    cls = 1 if client == S[QQ][Q_N] else 0
+def hop(S, slot, t):  # type: ignore[no-untyped-def]
+    """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
+
+    FIFO serialization on the receiver's (down) or sender's (up) link, latency and
+    loss; a lost message frees its slot.
+    """
+    evi = S.ev_int
+    client = evi[slot, E_WHO]
+    kind = evi[slot, E_KIND]
+    subj = evi[slot, E_SUBJ]
+    index = evi[slot, E_INDEX]
+    up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
+    done = count(S, client, up, S.wire_bytes[kind], t)
+    cls = 1 if client == S.iparams[Q_N] else 0
     src = lat_source(cls, up)
     lat = draw(S, src, kind, subj, index)
-    p = S[PLOSS][cls]
+    p = S.p_loss[cls]
     lost = False
     if p > 0.0:
         lost = draw(S, U_OFFSET + src, kind, subj, index) < p
-    return done + lat, lost
+    if lost:
+        release(S, slot)
+    else:
+        push(S, done + lat, slot)
 
 
 @jit
 def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
     """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
-    evi = S[EVI]
-    evi[slot, E_TYPE] = EV_BROKER
-    evi[slot, E_WHO] = client
-    evi[slot, E_KIND] = kind
-    evi[slot, E_SUBJ] = subject
-    evi[slot, E_INDEX] = index
-    arr, lost = hop(S, client, 1, kind, subject, index, S[WB][kind], t)
-    if lost:
-        release(S, slot)
-    else:
-        push(S, arr, slot)
+    address(S, slot, EV_BROKER, client, kind, subject, index)
+    hop(S, slot, t)
