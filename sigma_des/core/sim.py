@@ -64,3 +64,28 @@ class Kernel:
     def run(self, until: float) -> None:
         """Process events up to (and including those at) time ``until``."""
         self.env.run(until=until)
+
+    def peek(self) -> float:
+        """Time of the next event (``inf`` when none is scheduled)."""
+        return float(self.env.peek())
+
+    def step(self) -> None:
+        """Process the next event."""
+        self.env.step()
+
+    def head_is(self, fn: Callable[..., Any]) -> bool:
+        """True if the next event is a :class:`Call` of ``fn``."""
+        q = self.env._queue  # type: ignore[attr-defined]
+        return bool(q) and getattr(q[0][3], "fn", None) == fn
+
+    def set_now(self, t: float) -> None:
+        """Move the clock to ``t`` between two events (an engine that runs messages
+        outside the queue, e.g. the compiled message core, catching the clock up).
+
+        Raises:
+            ValueError: ``t`` is before now or after the next queued event.
+        """
+        env = self.env
+        if t < env._now or t > env.peek():
+            raise ValueError(f"cannot move the clock to t={t} (now={env._now}, next={env.peek()})")
+        env._now = t

@@ -27,14 +27,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events import cohort_jit as J
 from sigma_des.events import cohort_state as CS
 from sigma_des.events.aligners import OBS_WIDTH
-from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.hlc import Stamp
+from sigma_des.events.node import STEP_DRAW, job_cost
 
 __all__ = ["CohortFallback", "CohortRun", "execute", "make_run", "unsupported"]
 
@@ -162,7 +163,7 @@ class CohortRun(MethodRun):
         super().__init__(sc, method, dynamics, behaviour)
         n = self.n
         net = self.net
-        self.cmd = np.ascontiguousarray(self.cmd, dtype=np.float64)
+        self.nodes.cmd = np.ascontiguousarray(self.nodes.cmd, dtype=np.float64)
         self._t_event = 0.0
         R = sc.history_frames
         W = OBS_WIDTH
@@ -173,8 +174,8 @@ class CohortRun(MethodRun):
         fv = np.zeros(CS.F_LEN)
         q = np.zeros(CS.Q_LEN, dtype=np.int64)
         q[CS.Q_N] = n
-        q[CS.Q_H] = self.H
-        q[CS.Q_HLC] = int(self.use_hlc)
+        q[CS.Q_H] = R
+        q[CS.Q_HLC] = int(method == "hlc")
         q[CS.Q_WARP] = int(method == "bides" and sc.bides.time_warp)
         q[CS.Q_THETA] = sc.bides.theta_warp
         q[CS.Q_QOS1S] = int(net.qos1 and not net.datagram)
@@ -209,14 +210,14 @@ class CohortRun(MethodRun):
         for k in (1, 2, 3, 4, 5):
             combos.append((CS.SVC_PUB, k, net._svc_pub))
             combos.append((CS.SVC_DEL, k, net._svc_del))
-        combos.append((CS.STEP, 0, self.step_time))
+        combos.append((CS.STEP, 0, self.nodes.step_time))
         nc = 0
         for src, k, cache in combos:
             if cache.constant is not None:
                 cval[src] = cache.constant
                 continue
             cmap[src, k] = nc
-            sampler_kind = _STEP if src == CS.STEP else k
+            sampler_kind = STEP_DRAW if src == CS.STEP else k
             self._fills[k].append((nc, _vector_of(cache, sampler_kind)))
             nc += 1
         self._dval = np.zeros((max(nc, 1), R, n + 1))
@@ -230,14 +231,11 @@ class CohortRun(MethodRun):
         nd = np.zeros((CS.N_ROWS, n), dtype=np.int64)
         nd[[CS.N_FRAME, CS.N_REQ, CS.N_TARGET, CS.N_CSTAMP]] = -1
         self._nd = nd
-        # Python-side views used by MethodRun._rollback
-        self.rb_steps = nd[CS.N_RB]  # type: ignore[assignment]
-        self.node_busy = nd[CS.N_BUSY]  # type: ignore[assignment]
-        crash = np.array(self.crash_at, dtype=np.float64)
+        crash = np.array(self.nodes.crash_at, dtype=np.float64)
         ptr = np.zeros(n + 1, dtype=np.int64)
         rows: list[tuple[float, float, float]] = []
         for i in range(n):
-            rows.extend(self.slow.get(i, ()))
+            rows.extend(self.nodes.slow.get(i, ()))
             ptr[i + 1] = len(rows)
         slow = np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64)
         cores = np.zeros((sc.hosts, sc.cores_per_host))
@@ -266,18 +264,18 @@ class CohortRun(MethodRun):
         fields[CS.PLOSS] = p_loss
         fields[CS.WB] = wb
         fields[CS.ND] = nd
-        fields[CS.HOST_OF] = np.array(self.host_of, dtype=np.int64)
+        fields[CS.HOST_OF] = np.array(self.nodes.host_of, dtype=np.int64)
         fields[CS.CRASH] = crash
         fields[CS.SLOW_PTR] = ptr
         fields[CS.SLOW] = slow
         fields[CS.CORES] = cores
         fields[CS.HLC_L] = np.full(n, -math.inf)
         fields[CS.HLC_C] = np.zeros(n, dtype=np.int64)
-        fields[CS.OFF] = np.array(self._offset, dtype=np.float64)
-        fields[CS.DRIFT] = np.array(self._drift, dtype=np.float64)
-        fields[CS.SLOT_FRAME] = self.slot_frame
-        fields[CS.OBS_HIST] = self.obs_hist
-        fields[CS.CMD] = self.cmd
+        fields[CS.OFF] = np.array(self.nodes.offset, dtype=np.float64)
+        fields[CS.DRIFT] = np.array(self.nodes.drift, dtype=np.float64)
+        fields[CS.SLOT_FRAME] = self.truth.slot_frame
+        fields[CS.OBS_HIST] = self.truth.obs_hist
+        fields[CS.CMD] = self.nodes.cmd
         fields[CS.OUT_I] = np.zeros((out_cap, 3), dtype=np.int64)
         fields[CS.OUT_F] = np.zeros((out_cap, 3 + W))
         fields[CS.LAT_BUF] = np.zeros((3, lat_cap))
@@ -335,7 +333,7 @@ class CohortRun(MethodRun):
 
     # ------------------------------------------------------------ MethodRun hooks
 
-    def _send_trigger(self, k: int, stamp: Stamp | None) -> None:
+    def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
         self._fill(1, k)
         self._fill(2, k)
         self._fill(0, k)
@@ -345,7 +343,7 @@ class CohortRun(MethodRun):
         if self.tap is not None:  # the core keeps no per-node trigger deliveries: the issue
             self.tap.trigger(-1, k, self.kernel.now, math.nan)
 
-    def _send_command_batch(
+    def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         if nodes.size == 0:
@@ -372,19 +370,21 @@ class CohortRun(MethodRun):
         now = self._t_event
         nd = self._nd
         target = int(nd[CS.N_REQ, i])
-        cost = 0.0
-        for f in range(int(nd[CS.N_FRAME, i]) + 1, target + 1):
-            cost += self.step_time.get(_STEP, i, f, 0)
-        rb = int(nd[CS.N_RB, i])
-        if rb:
-            for j in range(rb):
-                cost += self.step_time.get(_ROLLBACK, i, target, j)
-            nd[CS.N_RB, i] = 0
-        for a, b, factor in self.slow.get(i, ()):
-            if a <= now < b:
-                cost *= factor
+        nodes = self.nodes
+        cost = job_cost(
+            nodes.step_time, nodes.slow.get(i, ()), i, int(nd[CS.N_FRAME, i]), target,
+            int(nd[CS.N_RB, i]), now,
+        )
+        nd[CS.N_RB, i] = 0
         self._ensure_space(2)
         J.reserve(self.S, i, target, cost, now)
+
+    def _rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
+        """A time-warp rollback the core asked for: re-simulate, owe the steps, start."""
+        nd = self._nd
+        nd[CS.N_RB, i] += self.truth.rollback(i, c, current, row)
+        if not nd[CS.N_BUSY, i]:
+            self._start_job(i)
 
     # ------------------------------------------------------------ driver
 
@@ -415,7 +415,7 @@ class CohortRun(MethodRun):
                 return False
             if code == CS.BARRIER:
                 # the aligner sees the completing state at its own arrival time
-                self.kernel.env._now = float(self.S[CS.FF][CS.F_PT])
+                self.kernel.set_now(float(self.S[CS.FF][CS.F_PT]))
                 self._flush()
                 return True
             if code == CS.NEED_SPACE:
@@ -456,7 +456,7 @@ class CohortRun(MethodRun):
                 self.collector.delivered_batch(k + 1, S[CS.LAT_BUF][k, :m].copy(), 0)
                 iv[CS.I_LAT + k] = 0
 
-    def _advance(self, progress: Callable[[float], None] | None) -> None:
+    def advance(self, progress: Callable[[float], None] | None) -> None:
         env = self.kernel.env
         dur = self.sc.duration
         next_p = 1.0
@@ -493,7 +493,7 @@ class CohortRun(MethodRun):
             if last:
                 self._write_back()
                 return END
-            if self.pending_state is None and self._head_is_issue():
+            if self.trigger_due():
                 return TRIGGER_DUE
             env.step()
 
@@ -515,7 +515,7 @@ class CohortRun(MethodRun):
         net.broker_busy = float(fv[CS.F_BUSY])
         net.broker_work = float(fv[CS.F_WORK])
         net.broker_max_wait = float(fv[CS.F_MAXWAIT])
-        self.history_misses += int(iv[CS.I_HMISS])
+        self.nodes.history_misses += int(iv[CS.I_HMISS])
         self.collector.delivered_batch(1, np.empty(0), int(iv[CS.I_MSGS]))
         self.collector.duplicates += int(iv[CS.I_DUPS])
         iv[CS.I_DUPS] = 0
