@@ -217,8 +217,9 @@ def _simulate(impl: str, method: str, sc: Any) -> Sim:
     import time
 
     if impl in ENGINES:
-        from sigma_des.events.cohort import CohortFallback, make_run
+        from sigma_des.events.cohort import make_run
         from sigma_des.events.engine import MethodRun
+        from sigma_des.events.fast.support import CohortFallback
         from sigma_des.factory import make_behaviour, make_dynamics
 
         if sc.engine != impl:

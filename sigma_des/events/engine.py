@@ -34,6 +34,7 @@ from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.events.aligners import ALIGNERS, Aligner
+from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.rpc import RpcAligner
@@ -62,6 +63,10 @@ class MethodRun:
         method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the vectorised dynamics model.
         behaviour: behaviour producing commands (None: no commands).
+        compiled: process messages in the compiled core
+            (:class:`~sigma_des.events.fast.driver.CompiledCore`) instead of as
+            SimPy events; raises ``CohortFallback`` if the scenario needs a feature
+            the core does not reproduce.
 
     Attributes:
         trigger: the trigger source.
@@ -74,10 +79,16 @@ class MethodRun:
             (batched physics of ``sigma_des.env``); None: the issue steps the swarm.
         tap: recording tap (``sigma_des.record.tap.RecordTap``), set before ``run``;
             None: off.
+        fast: the compiled message core (None: messages are SimPy events).
     """
 
     def __init__(
-        self, sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+        self,
+        sc: Scenario,
+        method: str,
+        dynamics: DynamicsModel,
+        behaviour: Behaviour | None,
+        compiled: bool = False,
     ) -> None:
         spec = self.spec = sc.run_spec()
         self.sc = sc
@@ -110,6 +121,10 @@ class MethodRun:
         self.wall_seconds = 0.0
         self.pending_state: NDArray[np.float64] | None = None
         self.tap: Any = None
+        self.fast: CompiledCore | None = None
+        if compiled:  # the core reads and writes the command rows in place
+            self.nodes.cmd = np.ascontiguousarray(self.nodes.cmd, dtype=np.float64)
+            self.fast = CompiledCore(self)
 
     def make_nodes(self, warp: bool) -> PhysicsNodes:
         """The physics nodes of this run (their step-time draws: stream ``compute``)."""
@@ -197,6 +212,9 @@ class MethodRun:
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
+        if self.fast is not None:
+            self.fast.publish_rerequest(node, frame, retry)
+            return
         self.net.publish(
             self.server,
             REREQUEST,
@@ -231,6 +249,9 @@ class MethodRun:
 
     def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
         """Publish trigger ``k`` to every node (the message core's trigger fan-out)."""
+        if self.fast is not None:
+            self.fast.publish_trigger(k, stamp)
+            return
         self.net.publish(
             self.server,
             K_TRIGGER,
@@ -314,6 +335,9 @@ class MethodRun:
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
+        if self.fast is not None:
+            self.fast.publish_commands(tick, stamp, nodes, cmds)
+            return
         bits = self.spec.commands.payload_bits
         for i in nodes.tolist():
             self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
@@ -402,6 +426,8 @@ class MethodRun:
         runs), set :attr:`pending_state` and call again; ``END`` when the next event
         is at or after ``duration``. Processing order is that of :meth:`run`.
         """
+        if self.fast is not None:
+            return self.advance_until_compiled(stop, self.fast)
         k = self.kernel
         dur = self.spec.duration
         while True:
@@ -419,6 +445,9 @@ class MethodRun:
         The strict bound is part of the model: which events a run covers must not
         depend on how an engine breaks ties at the end time.
         """
+        if self.fast is not None:
+            self.advance_compiled(progress, self.fast)
+            return
         k = self.kernel
         dur = self.spec.duration
         t = 0.0
@@ -433,3 +462,47 @@ class MethodRun:
                     k.step()
             if progress is not None:
                 progress(t)
+
+    # ------------------------------------------------------------ compiled messages
+
+    def advance_compiled(
+        self, progress: Callable[[float], None] | None, fast: CompiledCore
+    ) -> None:
+        """:meth:`advance` with messages run by ``fast`` before each control event."""
+        k = self.kernel
+        dur = self.spec.duration
+        next_p = 1.0
+        while True:
+            tc = k.peek()
+            last = tc >= dur
+            bound = dur if last else tc
+            if fast.advance_to(bound, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            if progress is not None:
+                while next_p < dur and next_p <= bound:
+                    progress(next_p)
+                    next_p += 1.0
+            if last:
+                break
+            k.step()
+        if progress is not None:
+            progress(dur)
+        fast.write_back()
+
+    def advance_until_compiled(self, stop: Callable[[], bool], fast: CompiledCore) -> int:
+        """:meth:`advance_until` with messages run by ``fast`` before each control event."""
+        k = self.kernel
+        dur = self.spec.duration
+        while True:
+            if stop():
+                return PAUSED
+            tc = k.peek()
+            last = tc >= dur
+            if fast.advance_to(dur if last else tc, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            if last:
+                fast.write_back()
+                return END
+            if self.trigger_due():
+                return TRIGGER_DUE
+            k.step()

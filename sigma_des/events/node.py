@@ -10,7 +10,8 @@ trigger that arrives while the node is busy is remembered and the next job
 catches up to it (triggers coalesce). A ``crash`` fault silences the node for
 good. Commands replace the node's command row (an older-stamped one is
 ignored); under BiDES time warp a command stamped too far behind rolls the node
-back. Lock-Step re-requests are answered by republishing the last state.
+back. The cost of a job is :func:`~sigma_des.events.jobs.job_cost` (shared with
+the compiled core). Lock-Step re-requests are answered by republishing the last state.
 """
 
 from __future__ import annotations
@@ -26,16 +27,13 @@ from numpy.typing import NDArray
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.sim import Kernel
 from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.jobs import job_cost
 from sigma_des.events.spec import FaultSpec
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 
-__all__ = ["ROLLBACK_DRAW", "STEP_DRAW", "PhysicsNodes", "crash_times", "job_cost", "slow_windows"]
-
-#: Draw kinds of the ``compute`` stream: a frame's step, a rollback's re-simulated step.
-STEP_DRAW = 0
-ROLLBACK_DRAW = 1
+__all__ = ["PhysicsNodes", "crash_times", "slow_windows"]
 
 #: A ``slow`` fault window: (start, end, factor).
 SlowWindow = tuple[float, float, float]
@@ -59,32 +57,6 @@ def slow_windows(faults: Sequence[FaultSpec]) -> dict[int, list[SlowWindow]]:
         if f.kind == "slow":
             slow.setdefault(f.node, []).append((f.start, f.end, f.factor))
     return slow
-
-
-def job_cost(
-    step_time: DrawCache,
-    slow: Sequence[SlowWindow],
-    i: int,
-    frame: int,
-    target: int,
-    rb: int,
-    now: float,
-) -> float:
-    """Compute time of node ``i``'s job from ``frame`` to ``target`` starting at ``now``.
-
-    One ``step_time`` draw per frame ``frame+1 .. target``, then ``rb`` re-simulation
-    draws (keyed by ``target``), the sum times the factor of every ``slow`` window
-    holding ``now`` (in this order: both engines make the same operations).
-    """
-    cost = 0.0
-    for f in range(frame + 1, target + 1):
-        cost += step_time.get(STEP_DRAW, i, f, 0)
-    for j in range(rb):
-        cost += step_time.get(ROLLBACK_DRAW, i, target, j)
-    for a, b, factor in slow:
-        if a <= now < b:
-            cost *= factor
-    return cost
 
 
 class PhysicsNodes:
@@ -200,7 +172,8 @@ class PhysicsNodes:
         now = self.kernel.now
         target = self.req[i]
         cost = job_cost(
-            self.step_time, self.slow.get(i, ()), i, self.frame[i], target, self.rb_steps[i], now
+            self.step_time, self.slow.get(i, ()), i, self.frame[i] + 1, target, self.rb_steps[i],
+            now,
         )
         self.rb_steps[i] = 0
         cores = self.cores[self.host_of[i]]
