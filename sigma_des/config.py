@@ -23,15 +23,13 @@ from typing import Any
 import tomli_w
 
 from sigma_des.errors import ConfigError
+from sigma_des.events.spec import CommandSpec, ComputeSpec, FaultSpec, RunSpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
 from sigma_des.peer_specs import DdsSpec, RpcSpec
 from sigma_des.specs import (
     BidesSpec,
     BrokerSpec,
-    CommandSpec,
-    ComputeSpec,
-    FaultSpec,
     FidelitySpec,
     HLCSpec,
     LinkSpec,
@@ -259,6 +257,35 @@ class Scenario:
             per = math.ceil(self.nodes / self.hosts)
             return [i // per for i in range(self.nodes)]
         return [i % self.hosts for i in range(self.nodes)]
+
+    def run_spec(self) -> RunSpec:
+        """The engine's view of this scenario (:class:`~sigma_des.events.spec.RunSpec`)."""
+        return RunSpec(
+            seed=self.seed,
+            nodes=self.nodes,
+            hosts=self.hosts,
+            cores_per_host=self.cores_per_host,
+            host_of=tuple(self.host_of),
+            f_trig=self.f_trig,
+            f_align=self.f_align,
+            f_render=self.f_render,
+            align_phase=self.align_phase,
+            render_phase=self.render_phase,
+            duration=self.duration,
+            warmup=self.warmup,
+            payload_bits=self.payload_bits,
+            trigger_payload_bits=self.trigger_payload_bits,
+            history_frames=self.history_frames,
+            stall_threshold=self.stall_threshold,
+            engine=self.engine,
+            compute=self.compute,
+            commands=self.commands,
+            faults=self.faults,
+            clocks=self.clocks,
+            time_warp=self.bides.time_warp,
+            theta_warp=self.bides.theta_warp,
+            log_rate=self.fidelity.log_rate,
+        )
 
 
 # ---------------------------------------------------------------- loading

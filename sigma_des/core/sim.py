@@ -72,3 +72,16 @@ class Kernel:
     def run(self, until: float) -> None:
         """Process events up to (and including those at) time ``until``."""
         self.env.run(until=until)
+
+    def peek(self) -> float:
+        """Time of the next event (``inf`` when none is scheduled)."""
+        return float(self.env.peek())
+
+    def step(self) -> None:
+        """Process the next event."""
+        self.env.step()
+
+    def head_is(self, fn: Callable[..., Any]) -> bool:
+        """True if the next event is a :class:`Call` of ``fn``."""
+        q = self.env._queue  # type: ignore[attr-defined]
+        return bool(q) and getattr(q[0][3], "fn", None) == fn

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
@@ -110,7 +110,7 @@ class Scene:
         """Send the command rows of ``nodes`` (stamped with the shown frame) and resume."""
         view = self.view
         if nodes.size:
-            self.run._send_command_batch(self.tick, view.aligned_frame, nodes, cmds)
+            self.run.publish_commands(self.tick, view.aligned_frame, nodes, cmds)
         self.capture.view = None
 
     def truth(self) -> Array:
@@ -193,7 +193,7 @@ class SceneBatch:
             runs = [s.run for s in group]
             state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
             cmd = np.concatenate([r.cmd for r in runs]) if len(runs) > 1 else runs[0].cmd
-            nodes = np.concatenate([r._nodes for r in runs])
+            nodes = np.concatenate([r.truth.nodes for r in runs])
             new = self.dyn.step(state, cmd, dt, k, nodes)
             n = self.sc.nodes
             for j, r in enumerate(runs):

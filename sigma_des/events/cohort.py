@@ -14,8 +14,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.config import Scenario
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast.support import CohortFallback, unsupported
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -45,13 +45,13 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
             break
         if code == TRIGGER_DUE:
             k, dt = run.next_trigger()
-            run.pending_state = dyn.step(run.state, run.cmd, dt, k, run._nodes)
+            run.pending_state = dyn.step(run.state, run.cmd, dt, k, run.truth.nodes)
             outside += 1
             continue
         assert code == PAUSED and cap.view is not None
         cmds = real.commands(cap.view, run.dyn)
         ok = np.flatnonzero(~np.isnan(cmds).all(axis=1))
-        run._send_command_batch(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
+        run.publish_commands(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
         cap.view = None
         pauses += 1
     return run, run.collector.finish(run), pauses, outside

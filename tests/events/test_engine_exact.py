@@ -101,8 +101,8 @@ def test_lockstep_lost_state_waits_exactly_one_retry_timeout() -> None:
     run = MethodRun(sc, "lockstep", make_dynamics(sc), make_behaviour(sc))
     run.run()
     H = sc.history_frames
-    t50 = run.trig_time[50 % H]
-    t51 = run.trig_time[51 % H]
+    t50 = run.trigger.trig_time[50 % H]
+    t51 = run.trigger.trig_time[51 % H]
     assert t50 == pytest.approx(0.5, abs=1e-12)
     # re-request (server up + host 1 down), node 2 republishes at once (host 1 up +
     # server down; nothing else queued then)
@@ -110,7 +110,7 @@ def test_lockstep_lost_state_waits_exactly_one_retry_timeout() -> None:
     assert t51 == pytest.approx(expected, abs=1e-12)
     assert run.aligner.rerequests == 1  # type: ignore[attr-defined]
     # later frames keep the 10 ms period from the new phase
-    assert run.trig_time[52 % H] - t51 == pytest.approx(0.010, abs=1e-12)
+    assert run.trigger.trig_time[52 % H] - t51 == pytest.approx(0.010, abs=1e-12)
 
 
 def test_lockstep_eviction_unblocks_a_crashed_node() -> None:
@@ -147,7 +147,10 @@ def test_lockstep_evicted_straggler_rejoins() -> None:
     assert bool(al.live.all())  # type: ignore[attr-defined]
     # after the slow window the barrier runs at the full rate again
     k, H = run.latest_trigger, sc.history_frames
-    assert run.trig_time[k % H] - run.trig_time[(k - 1) % H] == pytest.approx(0.010, abs=1e-12)
+    assert (
+        run.trigger.trig_time[k % H] - run.trigger.trig_time[(k - 1) % H]
+        == pytest.approx(0.010, abs=1e-12)
+    )
     assert m["evicted"] == al.evicted  # type: ignore[attr-defined]
 
 
@@ -161,5 +164,5 @@ def test_f_trig_min_counts_a_rate_set_before_the_window() -> None:
     run.start()
     run.kernel.run(0.1)
     run.set_rate(50.0)  # lowered before the metrics window opens, and kept
-    run._advance(None)
+    run.advance(None)
     assert run.collector.finish(run)["metrics"]["f_trig_min_hz"] == 50.0

@@ -40,7 +40,7 @@ def _run(**over: object) -> MethodRun:
 
 def _periods(run: MethodRun) -> list[float]:
     H = run.sc.history_frames
-    return [run.trig_time[(k + 1) % H] - run.trig_time[k % H] for k in range(5, 30)]
+    return [run.trigger.trig_time[(k + 1) % H] - run.trigger.trig_time[k % H] for k in range(5, 30)]
 
 
 def test_sequential_calls_frame_time_exact() -> None:

@@ -43,4 +43,4 @@ def test_lockstep_trigger_times_are_multiplied(engine: str) -> None:
     sc = tiny(engine=engine, history_frames=64)
     run, _, _ = _run(sc, "lockstep")
     k = np.arange(run.latest_trigger - 63, run.latest_trigger + 1)
-    np.testing.assert_array_equal(run.trig_time[k % run.H], k / 100.0)
+    np.testing.assert_array_equal(run.trigger.trig_time[k % run.trigger.H], k / 100.0)

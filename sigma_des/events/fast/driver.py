@@ -29,7 +29,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
-from sigma_des.core.draws import DrawCache
 from sigma_des.core.sim import Kernel
 from sigma_des.events.aligners import OBS_WIDTH, Aligner
 from sigma_des.events.fast import layout as L
@@ -38,8 +37,9 @@ from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
 from sigma_des.events.hlc import Stamp
 from sigma_des.events.jobs import job_cost
+from sigma_des.events.node import PhysicsNodes
+from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
-from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 from sigma_des.net.network import Network
 
@@ -56,24 +56,13 @@ class Host(Protocol):
     sc: Scenario
     method: str
     n: int
-    H: int
     kernel: Kernel
     net: Network
     aligner: Aligner
     collector: Collector
-    clocks: NodeClocks
-    step_time: DrawCache
-    host_of: list[int]
-    crash_at: list[float]
-    slow: dict[int, list[tuple[float, float, float]]]
-    slot_frame: NDArray[np.int64]
-    obs_hist: NDArray[np.float64]
-    cmd: NDArray[np.float64]
-    history_misses: int
+    nodes: PhysicsNodes
+    truth: SwarmTruth
     tap: Any
-
-    def rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> None:
-        """Re-simulate node ``i`` from frame ``c`` with command ``row`` (time warp)."""
 
 
 class CompiledCore:
@@ -97,7 +86,7 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         p_loss = (sc.net.host_link.loss.p, sc.net.server_link.loss.p)
         sources = network_sources(host.net, p_loss)
-        sources.append((L.STEP, 0, host.step_time))
+        sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, sc.history_frames, host.n + 1)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
@@ -106,14 +95,15 @@ class CompiledCore:
     def _dims(self) -> dict[str, int]:
         h = self.host
         n, sc = h.n, h.sc
-        pay = L.EF_PAY + max(OBS_WIDTH, int(h.cmd.shape[1]))
+        M = int(h.nodes.cmd.shape[1])
+        pay = L.EF_PAY + max(OBS_WIDTH, M)
         lockstep = self._lockstep
         return {
             "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": sc.hosts + 1,
             "hosts": sc.hosts, "cores": sc.cores_per_host, "tables": self.tables.tables,
-            "H": h.H, "W": OBS_WIDTH, "M": int(h.cmd.shape[1]), "pay": pay,
+            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
-            "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.slow.values())),
+            "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step only)
             "seen_n": n + 1 if lockstep else 1, "seen_h": sc.history_frames if lockstep else 1,
         }
@@ -123,14 +113,14 @@ class CompiledCore:
         sc, net = h.sc, h.net
         q = np.zeros(L.Q_LEN, dtype=np.int64)
         q[L.Q_N] = h.n
-        q[L.Q_H] = h.H
+        q[L.Q_H] = h.truth.H
         q[L.Q_HLC] = int(h.method == "hlc")
         q[L.Q_WARP] = int(h.method == "bides" and sc.bides.time_warp)
         q[L.Q_THETA] = sc.bides.theta_warp
         q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
         q[L.Q_ACK] = net.ack_bytes
         q[L.Q_W] = OBS_WIDTH
-        q[L.Q_M] = int(h.cmd.shape[1])
+        q[L.Q_M] = int(h.nodes.cmd.shape[1])
         q[L.Q_LOCK] = int(self._lockstep)
         return q
 
@@ -153,8 +143,8 @@ class CompiledCore:
 
     def _nodes(self) -> dict[str, NDArray[Any]]:
         """Node rows, hosts, faults and clocks."""
-        h = self.host
-        n = h.n
+        h = self.host.nodes
+        n = self.host.n
         nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
         nd[[L.N_FRAME, L.N_REQ, L.N_TARGET, L.N_CSTAMP]] = -1
         ptr = np.zeros(n + 1, dtype=np.int64)
@@ -183,7 +173,7 @@ class CompiledCore:
             "iparams": self._params(), "fparams": np.array([sc.warmup, sc.duration]),
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
-            "slot_frame": h.slot_frame, "obs_hist": h.obs_hist, "cmd": h.cmd,
+            "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
             **self._links(), **self._nodes(),
         }
 
@@ -266,7 +256,7 @@ class CompiledCore:
         target = int(nd[L.N_REQ, i])
         rb = int(nd[L.N_RB, i])
         nd[L.N_RB, i] = 0
-        h = self.host
+        h = self.host.nodes
         cost = job_cost(h.step_time, h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1,
                         target, rb, now)
         self.ensure_space(2)
@@ -323,7 +313,8 @@ class CompiledCore:
                     self._start_job(i)
                 else:
                     a, b = int(S.ints[L.I_PA]), int(S.ints[L.I_PB])
-                    self.host.rollback(i, a, b, self.host.cmd[i].copy())
+                    h = self.host
+                    self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "
@@ -369,7 +360,7 @@ class CompiledCore:
         net.broker_busy = float(fv[L.F_BUSY])
         net.broker_work = float(fv[L.F_WORK])
         net.broker_max_wait = float(fv[L.F_MAXWAIT])
-        h.history_misses += int(iv[L.I_HMISS])
+        h.nodes.history_misses += int(iv[L.I_HMISS])
         h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
         h.collector.duplicates += int(iv[L.I_DUPS])
         h.kernel.events += int(iv[L.I_NEV])
