@@ -89,6 +89,8 @@ def test_a_run_state_follows_the_declaration() -> None:
     assert S.node.shape == (L.N_ROWS, 3) and S.clock_off.shape == (3,)
     assert S.link_of.shape == (4,) and S.cores.shape == (2, 4)
     # the engine's physics ring and commands are the core's, in place
-    assert S.obs_hist is run.obs_hist and S.slot_frame is run.slot_frame and S.cmd is run.cmd
+    truth = run.truth
+    assert S.obs_hist is truth.obs_hist and S.slot_frame is truth.slot_frame
+    assert S.cmd is run.nodes.cmd
     assert S.iparams[L.Q_N] == 3 and S.iparams[L.Q_WARP] == 1 and S.iparams[L.Q_LOCK] == 0
     assert S.free.tolist() == list(range(S.heap_t.size))[::-1]
