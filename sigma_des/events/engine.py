@@ -96,7 +96,7 @@ class MethodRun:
         n = self.n = spec.nodes
         self.kernel = Kernel()
         self.streams = RandomStreams(spec.seed)
-        self.net: Network = make_network(self.kernel, sc, self.streams, self.deliver, spec.warmup)
+        self.net: Network = make_network(self.kernel, spec.net, self.streams, self.deliver)
         self.server = n
         self.all_nodes = list(range(n))
         self.dyn = dynamics

@@ -357,9 +357,9 @@ class CompiledCore:
             net.down[k].busy = float(busy[0, k])
         fv = S.floats
         iv = S.ints
-        net.broker_busy = float(fv[L.F_BUSY])
-        net.broker_work = float(fv[L.F_WORK])
-        net.broker_max_wait = float(fv[L.F_MAXWAIT])
+        net.broker.busy = float(fv[L.F_BUSY])
+        net.broker.work = float(fv[L.F_WORK])
+        net.broker.max_wait = float(fv[L.F_MAXWAIT])
         h.nodes.history_misses += int(iv[L.I_HMISS])
         h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
         h.collector.duplicates += int(iv[L.I_DUPS])
