@@ -30,12 +30,12 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
 from sigma_des.core.sim import Kernel
-from sigma_des.events.aligners import OBS_WIDTH, Aligner
+from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
+from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
-from sigma_des.events.hlc import Stamp
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.truth import SwarmTruth
@@ -268,11 +268,11 @@ class CompiledCore:
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
         al: Any = self.host.aligner
         S = self.S
-        S.barrier[0] = al._got
+        S.barrier[0] = al.got
         S.barrier[1] = al.live
         iv = S.ints
         iv[L.I_LCUR] = al.current
-        iv[L.I_LMISS] = al._missing
+        iv[L.I_LMISS] = al.missing
         iv[L.I_LCOMP] = int(al.complete)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
@@ -331,7 +331,9 @@ class CompiledCore:
             oi = S.out_int[:o]
             of = S.out_float[:o]
             obs = of[:, 3 : 3 + OBS_WIDTH]
-            h.aligner.on_states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            h.aligner.on_states(
+                StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            )
             if h.tap is not None:
                 h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
             iv[L.I_OUT] = 0
