@@ -28,7 +28,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams
@@ -38,6 +37,7 @@ from sigma_des.events.align.base import Aligner, one_state
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.node import PhysicsNodes
+from sigma_des.events.spec import RunSpec
 from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
@@ -60,7 +60,7 @@ class MethodRun:
     """One scenario under one alignment method: the components, wired.
 
     Args:
-        sc: the scenario.
+        spec: the run spec (``Scenario.run_spec()``).
         method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the vectorised dynamics model.
         behaviour: behaviour producing commands (None: no commands).
@@ -85,14 +85,13 @@ class MethodRun:
 
     def __init__(
         self,
-        sc: Scenario,
+        spec: RunSpec,
         method: str,
         dynamics: DynamicsModel,
         behaviour: Behaviour | None,
         compiled: bool = False,
     ) -> None:
-        spec = self.spec = sc.run_spec()
-        self.sc = sc
+        self.spec = spec
         self.method = method
         n = self.n = spec.nodes
         self.kernel = Kernel()

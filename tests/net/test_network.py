@@ -127,7 +127,7 @@ def test_duplicate_delivery_changes_no_metric() -> None:
     from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = Scenario(nodes=3, hosts=1, duration=0.5, warmup=0.0)
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     obs = np.zeros(12)
     run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
     lat = list(run.collector._lat["state"])

@@ -28,7 +28,6 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
 from sigma_des.events.align.hlc_clock import Stamp
@@ -38,6 +37,7 @@ from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.node import PhysicsNodes
+from sigma_des.events.spec import RunSpec
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
@@ -53,7 +53,7 @@ SLACK = 256
 class Host(Protocol):
     """What the compiled core reads and calls of the engine that composes it."""
 
-    sc: Scenario
+    spec: RunSpec
     method: str
     n: int
     kernel: Kernel
@@ -77,14 +77,14 @@ class CompiledCore:
     """
 
     def __init__(self, host: Host) -> None:
-        sc = host.sc
+        sc = host.spec
         why = unsupported(sc, host.method)
         if why is not None:
             raise CohortFallback(why)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
-        p_loss = (sc.net.host_link.loss.p, sc.net.server_link.loss.p)
+        p_loss = (sc.net.net.host_link.loss.p, sc.net.net.server_link.loss.p)
         sources = network_sources(host.net, p_loss)
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, sc.history_frames, host.n + 1)
@@ -94,7 +94,7 @@ class CompiledCore:
 
     def _dims(self) -> dict[str, int]:
         h = self.host
-        n, sc = h.n, h.sc
+        n, sc = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
         pay = L.EF_PAY + max(OBS_WIDTH, M)
         lockstep = self._lockstep
@@ -110,13 +110,13 @@ class CompiledCore:
 
     def _params(self) -> NDArray[np.int64]:
         h = self.host
-        sc, net = h.sc, h.net
+        sc, net = h.spec, h.net
         q = np.zeros(L.Q_LEN, dtype=np.int64)
         q[L.Q_N] = h.n
         q[L.Q_H] = h.truth.H
         q[L.Q_HLC] = int(h.method == "hlc")
-        q[L.Q_WARP] = int(h.method == "bides" and sc.bides.time_warp)
-        q[L.Q_THETA] = sc.bides.theta_warp
+        q[L.Q_WARP] = int(h.method == "bides" and sc.time_warp)
+        q[L.Q_THETA] = sc.theta_warp
         q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
         q[L.Q_ACK] = net.ack_bytes
         q[L.Q_W] = OBS_WIDTH
@@ -127,7 +127,7 @@ class CompiledCore:
     def _links(self) -> dict[str, NDArray[Any]]:
         """Access links and message sizes (what Network holds per link and kind)."""
         h = self.host
-        sc, net = h.sc, h.net
+        sc, net = h.spec, h.net
         spb = np.zeros((2, sc.hosts + 1))
         for k in range(sc.hosts + 1):
             spb[1, k] = net.up[k].sec_per_byte
@@ -165,7 +165,7 @@ class CompiledCore:
 
     def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
         h = self.host
-        sc = h.sc
+        sc = h.spec
         cap = 4 * (h.n + 1) + SLACK
         tb = self.tables
         return {
@@ -318,7 +318,7 @@ class CompiledCore:
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "
-                    f"({self.host.sc.history_frames}) frames"
+                    f"({self.host.spec.history_frames}) frames"
                 )
 
     def drain(self) -> None:
@@ -350,7 +350,7 @@ class CompiledCore:
         net = h.net
         cnt = S.link_count
         busy = S.link_busy
-        for k in range(h.sc.hosts + 1):
+        for k in range(h.spec.hosts + 1):
             net.up[k].bytes = int(cnt[1, 0, k])
             net.up[k].packets = int(cnt[1, 1, k])
             net.up[k].busy = float(busy[1, k])
