@@ -225,12 +225,12 @@ def _simulate(impl: str, method: str, sc: Any) -> Sim:
         if sc.engine != impl:
             raise ValueError(f"impl {impl!r} but scenario engine {sc.engine!r}")
         t0, c0 = time.perf_counter(), time.process_time()
-        run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+        run, fallback = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
         try:
             out = run.run()
         except CohortFallback as exc:
             fallback = str(exc) or "CohortFallback"
-            run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+            run = MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
             out = run.run()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         used = "events" if fallback or impl == "events" else "cohort"

@@ -88,7 +88,8 @@ class Scene:
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task) -> None:
         self.capture = _Capture()
         initial = task.initial_state(dyn, sc.nodes)
-        self.run: MethodRun = make_run(sc, method, _Placed(dyn, initial), self.capture)[0]  # type: ignore[arg-type]
+        placed = _Placed(dyn, initial)
+        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture)[0]  # type: ignore[arg-type]
         self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
                                dyn.observe(initial))
         self.done = False

@@ -14,16 +14,16 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from sigma_des.config import Scenario
 from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast.support import CohortFallback, unsupported
+from sigma_des.events.spec import RunSpec
 
 __all__ = ["execute", "make_run"]
 
 
 def make_run(
-    sc: Scenario, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+    sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
 ) -> tuple[MethodRun, str]:
     """The run object for ``sc.engine`` and the fallback reason ("" if none)."""
     if sc.engine == "cohort":
@@ -35,7 +35,7 @@ def make_run(
 
 
 def execute(
-    sc: Scenario,
+    sc: RunSpec,
     method: str,
     dynamics: Callable[[], DynamicsModel],
     behaviour: Callable[[], Behaviour | None],
@@ -45,7 +45,7 @@ def execute(
     """Run ``method`` on the engine ``sc.engine`` asks for, falling back when needed.
 
     Args:
-        sc: the scenario.
+        sc: the run spec (``Scenario.run_spec()``).
         method: alignment method.
         dynamics: makes the dynamics model (called again for a mid-run fallback).
         behaviour: makes a fresh behaviour (behaviours may keep state).

@@ -28,19 +28,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
-from sigma_des.events.aligners import ALIGNERS, Aligner
+from sigma_des.events.align import make_aligner
+from sigma_des.events.align.base import Aligner, one_state
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.fast.driver import CompiledCore
-from sigma_des.events.hlc import HLC, Stamp
 from sigma_des.events.node import PhysicsNodes
-from sigma_des.events.rpc import RpcAligner
+from sigma_des.events.spec import RunSpec
 from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
 from sigma_des.net.kinds import COMMAND, REREQUEST
@@ -59,7 +60,7 @@ class MethodRun:
     """One scenario under one alignment method: the components, wired.
 
     Args:
-        sc: the scenario.
+        spec: the run spec (``Scenario.run_spec()``).
         method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the vectorised dynamics model.
         behaviour: behaviour producing commands (None: no commands).
@@ -84,19 +85,18 @@ class MethodRun:
 
     def __init__(
         self,
-        sc: Scenario,
+        spec: RunSpec,
         method: str,
         dynamics: DynamicsModel,
         behaviour: Behaviour | None,
         compiled: bool = False,
     ) -> None:
-        spec = self.spec = sc.run_spec()
-        self.sc = sc
+        self.spec = spec
         self.method = method
         n = self.n = spec.nodes
         self.kernel = Kernel()
         self.streams = RandomStreams(spec.seed)
-        self.net: Network = make_network(self.kernel, sc, self.streams, self.deliver, spec.warmup)
+        self.net: Network = make_network(self.kernel, spec.net, self.streams, self.deliver)
         self.server = n
         self.all_nodes = list(range(n))
         self.dyn = dynamics
@@ -113,9 +113,8 @@ class MethodRun:
             HLC() if method == "hlc" else None,
         )
         self.nodes = self.make_nodes(warp)
-        aligner_cls = RpcAligner if method == "rpc" else ALIGNERS[method]
-        self.aligner: Aligner = aligner_cls(n, sc, self)
-        self.collector = Collector(sc, method, self.net)
+        self.aligner: Aligner = make_aligner(method, n, self, spec.align)
+        self.collector = Collector(spec.collect, method)
         self.align_tick = 0
         self.render_tick = 0
         self.wall_seconds = 0.0
@@ -274,7 +273,7 @@ class MethodRun:
             self.tap_delivery(client, kind, subject, index, payload, t_pub, t)
         if client == self.server:
             frame, gen, obs, stamp = payload
-            self.aligner.on_state(t, subject, frame, gen, obs, stamp)
+            self.aligner.on_states(one_state(t, subject, frame, gen, obs, stamp))
             return
         self.nodes.deliver(client, kind, index, payload, t)
 
@@ -402,7 +401,19 @@ class MethodRun:
                 gc.enable()
             gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
-        return self.collector.finish(self)
+        return self.finish()
+
+    def finish(self) -> dict[str, Any]:
+        """The collector's results, from the run's, the aligner's and the network's reports."""
+        run = RunReport(
+            f_trig=self.f_trig,
+            rollbacks=self.rollbacks,
+            resim_steps=self.resim_steps,
+            history_misses=self.history_misses,
+            wall_seconds=self.wall_seconds,
+            events=self.kernel.events,
+        )
+        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))
 
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""

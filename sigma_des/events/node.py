@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.sim import Kernel
-from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.spec import FaultSpec
 from sigma_des.events.truth import SwarmTruth

@@ -17,8 +17,11 @@ import math
 from dataclasses import dataclass, field
 
 from sigma_des.core.validate import require, require_in, require_positive
+from sigma_des.events.align.spec import AlignParams
+from sigma_des.metrics.collector import CollectorSpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
+from sigma_des.net.spec import NetSetup
 
 __all__ = [
     "CommandSpec",
@@ -146,6 +149,9 @@ class RunSpec:
         trigger_payload_bits: trigger (and re-request) payload size.
         history_frames: frames kept in the truth ring and the draw tables.
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
+        net: what the net layer takes (its specs, topology, window, link faults).
+        align: what the alignment method is built from.
+        collect: what the metrics collector takes.
         engine: ``cohort`` or ``events``.
         compute: per-node computation.
         commands: behaviour commands.
@@ -172,6 +178,9 @@ class RunSpec:
     trigger_payload_bits: int
     history_frames: int
     stall_threshold: float
+    net: NetSetup
+    align: AlignParams
+    collect: CollectorSpec
     engine: str = "cohort"
     compute: ComputeSpec = field(default_factory=ComputeSpec)
     commands: CommandSpec = field(default_factory=CommandSpec)

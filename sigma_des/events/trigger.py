@@ -21,7 +21,7 @@ from collections.abc import Callable
 import numpy as np
 
 from sigma_des.core.sim import TRIGGER, Kernel
-from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 
 __all__ = ["BARRIER_METHODS", "TriggerSource"]
 

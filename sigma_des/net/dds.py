@@ -1,6 +1,7 @@
 """Brokerless DDS/RTPS publish/subscribe over the modelled links (``net.middleware = "dds"``).
 
-The model (parameters and sources in :mod:`sigma_des.peer_specs`, docs/MODEL.md):
+The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/MODEL.md,
+"Peer architectures"):
 
 * **Participants.** Every physics node and the server is one DDS participant with
   one middleware thread, a FIFO server for all of that participant's sends and
@@ -41,11 +42,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from sigma_des.config import Scenario
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.links import dist_cache
 from sigma_des.net.network import Deliver, Network
+from sigma_des.net.spec import NetSetup
 from sigma_des.net.wire import frame_bytes, payload_bytes
 
 __all__ = [
@@ -91,12 +92,19 @@ def acknack_bytes() -> int:
 
 
 def make_network(
-    kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
+    kernel: Kernel, setup: NetSetup, streams: RandomStreams, deliver: Deliver
 ) -> Network:
-    """The network of ``sc.net.middleware``: an MQTT broker, or brokerless DDS."""
-    if sc.net.middleware == "dds":
-        return DdsNetwork(kernel, sc, streams, deliver, warmup)
-    return Network(kernel, sc, streams, deliver, warmup)
+    """The network of ``setup.net.middleware``: an MQTT broker, or brokerless DDS.
+
+    Args:
+        kernel: the SimPy glue.
+        setup: the net's specs, topology, metrics window and link faults.
+        streams: root random streams.
+        deliver: called at every application-level arrival (see :class:`Network`).
+    """
+    if setup.net.middleware == "dds":
+        return DdsNetwork(kernel, setup, streams, deliver)
+    return Network(kernel, setup, streams, deliver)
 
 
 class DdsNetwork(Network):
@@ -108,10 +116,10 @@ class DdsNetwork(Network):
     """
 
     def __init__(
-        self, kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
+        self, kernel: Kernel, setup: NetSetup, streams: RandomStreams, deliver: Deliver
     ) -> None:
-        super().__init__(kernel, sc, streams, deliver, warmup)
-        d = self.spec = sc.dds
+        super().__init__(kernel, setup, streams, deliver)
+        d = self.spec = setup.dds
         n = self.n
         nsub = n + 1
         self._w_cost = dist_cache(nsub, d.writer_cost, streams, "dds.writer")
@@ -120,7 +128,7 @@ class DdsNetwork(Network):
         ent = [d.endpoints + 2] * n + [d.endpoints + n]
         self.entities = ent
         self._dispatch = [d.executor_per_entity * e for e in ent]
-        eth, udp = sc.net.ethernet_bytes, d.udpip_bytes
+        eth, udp = setup.net.ethernet_bytes, d.udpip_bytes
         self._frame = lambda b: frame_bytes(b, udp, eth)  # noqa: E731
         self._hb_b = self._frame(heartbeat_bytes())
         self._an_b = self._frame(acknack_bytes())

@@ -36,7 +36,7 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
     cap = _Capture()
     real = make_behaviour(sc)
     dyn = make_dynamics(sc)
-    run, _ = make_run(sc, method, make_dynamics(sc), cap)
+    run, _ = make_run(sc.run_spec(), method, make_dynamics(sc), cap)
     run.start()
     pauses = outside = 0
     while True:
@@ -54,7 +54,7 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
         run.publish_commands(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
         cap.view = None
         pauses += 1
-    return run, run.collector.finish(run), pauses, outside
+    return run, run.finish(), pauses, outside
 
 
 @pytest.mark.parametrize("engine", ["events", "cohort"])
@@ -65,7 +65,7 @@ def test_driven_run_equals_the_run(engine: str, method: str) -> None:
                 "commands.every": 2, "net.host_link.latency": 0.004}),
         engine=engine,
     )
-    ref_run, _ = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+    ref_run, _ = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
     ref = ref_run.run()
     run, out, pauses, outside = _driven(sc, method)
     assert pauses >= 10  # commands were really injected from outside

@@ -16,7 +16,7 @@ from sigma_des.factory import make_behaviour, make_dynamics
 
 def _run(sc, method: str = "bides") -> MethodRun:  # type: ignore[no-untyped-def]
     """The run on the cohort engine when it supports ``sc`` (it is exact), else per message."""
-    run, _why = make_run(replace(sc, engine="cohort"), method, make_dynamics(sc),
+    run, _why = make_run(replace(sc, engine="cohort").run_spec(), method, make_dynamics(sc),
                          make_behaviour(sc))
     return run
 
@@ -72,7 +72,8 @@ def test_adaptation_off_keeps_rate() -> None:
 def test_rollback_resimulates_exactly_the_expected_frames() -> None:
     # no behaviour runs, so the hand-delivered command is the node's newest
     sc = tiny(**{"bides.theta_warp": 5})
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
+    # pokes its internals
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     run.start()
     run.kernel.run(0.5)
     i = 0
@@ -99,7 +100,8 @@ def test_rollback_resimulates_exactly_the_expected_frames() -> None:
 
 def test_no_rollback_within_theta_warp() -> None:
     sc = tiny(**{"bides.theta_warp": 5})
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
+    # pokes its internals
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     run.start()
     run.kernel.run(0.5)
     current = run.nodes.busy[0] and run.nodes.target[0] or run.nodes.frame[0]

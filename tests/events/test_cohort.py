@@ -127,8 +127,8 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
     )
     for method in ("none", "bides"):
         run_both(sc, method)
-    run = MethodRun(replace(sc, engine="cohort"), "none", make_dynamics(sc), make_behaviour(sc),
-                    compiled=True)
+    run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
+                    make_behaviour(sc), compiled=True)
     assert run.fast is not None
     cap0 = run.fast.S.heap_t.size
     run.run()
@@ -158,12 +158,12 @@ def test_unsupported_features_fall_back_and_say_why(
     over: dict[str, Any], method: str, why: str
 ) -> None:
     sc = tiny(**over)
-    assert why in (unsupported(sc, method) or "")
+    assert why in (unsupported(sc.run_spec(), method) or "")
     _ev, co = run_both(sc, method)
     assert co["engine"]["used"] == "events"
     assert why in co["engine"]["fallback"]
     with pytest.raises(CohortFallback, match=why):
-        MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc), compiled=True)
+        MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc), compiled=True)
 
 
 def test_lockstep_eviction_rejoin_and_republish_identical() -> None:

@@ -24,7 +24,7 @@ ISSUE = [
 
 
 def _run(sc, method):  # type: ignore[no-untyped-def]
-    return execute(sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc))
+    return execute(sc.run_spec(), method, lambda: make_dynamics(sc), lambda: make_behaviour(sc))
 
 
 @pytest.mark.parametrize("engine", ["events", "cohort"])

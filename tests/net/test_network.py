@@ -24,7 +24,8 @@ def _net(sc: Scenario) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
                 t_pub: float) -> None:
         got.append((client, subject, index, t_pub, k.now))
 
-    return k, Network(k, sc, RandomStreams(sc.seed), deliver, 0.0), got
+    setup = replace(sc.net_setup(), warmup=0.0)
+    return k, Network(k, setup, RandomStreams(sc.seed), deliver), got
 
 
 def _drive(k: Kernel, net: Network, times: np.ndarray, node: int = 0) -> None:
@@ -126,7 +127,7 @@ def test_duplicate_delivery_changes_no_metric() -> None:
     from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = Scenario(nodes=3, hosts=1, duration=0.5, warmup=0.0)
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     obs = np.zeros(12)
     run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
     lat = list(run.collector._lat["state"])

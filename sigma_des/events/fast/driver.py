@@ -28,14 +28,13 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
 from sigma_des.core.sim import Kernel
-from sigma_des.events.aligners import OBS_WIDTH, Aligner
+from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
+from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
-from sigma_des.events.hlc import Stamp
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
@@ -54,7 +53,6 @@ SLACK = 256
 class Host(Protocol):
     """What the compiled core reads and calls of the engine that composes it."""
 
-    sc: Scenario
     spec: RunSpec
     method: str
     n: int
@@ -79,17 +77,18 @@ class CompiledCore:
     """
 
     def __init__(self, host: Host) -> None:
-        sc = host.sc
-        why = unsupported(sc, host.method)
+        spec = host.spec
+        why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
-        p_loss = (sc.net.host_link.loss.p, sc.net.server_link.loss.p)
+        links = spec.net.net
+        p_loss = (links.host_link.loss.p, links.server_link.loss.p)
         sources = network_sources(host.net, p_loss)
         sources.append((L.STEP, 0, host.nodes.step_time))
-        self.tables = DrawTables(sources, host.spec.history_frames, host.n + 1)
+        self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
     # ------------------------------------------------------------ layout
@@ -270,11 +269,11 @@ class CompiledCore:
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
         al: Any = self.host.aligner
         S = self.S
-        S.barrier[0] = al._got
+        S.barrier[0] = al.got
         S.barrier[1] = al.live
         iv = S.ints
         iv[L.I_LCUR] = al.current
-        iv[L.I_LMISS] = al._missing
+        iv[L.I_LMISS] = al.missing
         iv[L.I_LCOMP] = int(al.complete)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
@@ -333,7 +332,9 @@ class CompiledCore:
             oi = S.out_int[:o]
             of = S.out_float[:o]
             obs = of[:, 3 : 3 + OBS_WIDTH]
-            h.aligner.on_states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            h.aligner.on_states(
+                StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            )
             if h.tap is not None:
                 h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
             iv[L.I_OUT] = 0
@@ -359,9 +360,9 @@ class CompiledCore:
             net.down[k].busy = float(busy[0, k])
         fv = S.floats
         iv = S.ints
-        net.broker_busy = float(fv[L.F_BUSY])
-        net.broker_work = float(fv[L.F_WORK])
-        net.broker_max_wait = float(fv[L.F_MAXWAIT])
+        net.broker.busy = float(fv[L.F_BUSY])
+        net.broker.work = float(fv[L.F_WORK])
+        net.broker.max_wait = float(fv[L.F_MAXWAIT])
         h.nodes.history_misses += int(iv[L.I_HMISS])
         h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
         h.collector.duplicates += int(iv[L.I_DUPS])

@@ -7,7 +7,7 @@ whole run and says why (docs/MODEL.md, "Engines").
 
 from __future__ import annotations
 
-from sigma_des.config import Scenario
+from sigma_des.events.spec import RunSpec
 
 __all__ = ["CohortFallback", "unsupported"]
 
@@ -16,8 +16,8 @@ class CohortFallback(RuntimeError):
     """The cohort core met something it cannot reproduce exactly (run per message)."""
 
 
-def unsupported(sc: Scenario, method: str) -> str | None:
-    """Why ``method`` on ``sc`` cannot run on the cohort core (None: it can).
+def unsupported(sc: RunSpec, method: str) -> str | None:
+    """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: drop and
     degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
@@ -31,7 +31,7 @@ def unsupported(sc: Scenario, method: str) -> str | None:
         why.append(f"faults of kind {', '.join(kinds)}")
     if sc.clocks.ntp_period > 0:
         why.append("NTP-corrected clocks")
-    net = sc.net
+    net = sc.net.net
     for name, link in (("host_link", net.host_link), ("server_link", net.server_link)):
         if link.loss.model != "bernoulli":
             why.append(f"{name}: Gilbert-Elliott loss")

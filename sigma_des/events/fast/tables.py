@@ -58,14 +58,14 @@ def network_sources(net: Network, p_loss: tuple[float, float]) -> list[Source]:
         kinds_down = from_nodes if is_server else from_server
         for up, kinds in ((1, kinds_up), (0, kinds_down)):
             src = lat_source(cls, up)
-            lat = net._lat[is_server, bool(up)]
+            lat = net.latency_draws(is_server, bool(up))
             for k in kinds:
                 out.append((src, k, lat))
                 if p_loss[cls] > 0.0:
-                    out.append((U_OFFSET + src, k, net._u[is_server, bool(up)]))
+                    out.append((U_OFFSET + src, k, net.loss_draws(is_server, bool(up))))
     for k in (K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB):
-        out.append((SVC_PUB, k, net._svc_pub))
-        out.append((SVC_DEL, k, net._svc_del))
+        out.append((SVC_PUB, k, net.broker.publish_draws))
+        out.append((SVC_DEL, k, net.broker.delivery_draws))
     return out
 
 
