@@ -18,7 +18,7 @@ and reports wall seconds per simulated second, times real time, events per
 wall second (engines: kernel events, the cohort core's message events included;
 baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
 the engine really used (the cohort engine falls back to the per-message engine
-for features it does not reproduce, see ``sigma_des.events.cohort.unsupported``,
+for features it does not reproduce, see ``sigma_des.events.fast.support.unsupported``,
 or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
 cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
 per simulated second).

@@ -1,4 +1,4 @@
-"""The broker in the compiled message core (docs/MODEL.md, "Network and broker").
+"""The broker in the compiled message core (docs/MODEL.md, "Network").
 
 One FIFO server (the Lindley recursion, one departure after another): a PUBLISH
 takes its publish service, then each matching subscriber its delivery service,
@@ -13,7 +13,6 @@ from sigma_des.events.fast.layout import (
     E_FRAME,
     E_INDEX,
     E_KIND,
-    E_SUBJ,
     E_WHO,
     EF_TDEP,
     EV_CLIENT,
@@ -30,7 +29,16 @@ from sigma_des.events.fast.layout import (
     SVC_DEL,
     SVC_PUB,
 )
-from sigma_des.events.fast.primitives import address, alloc, count, draw, hop, in_window, jit
+from sigma_des.events.fast.primitives import (
+    address,
+    alloc,
+    count,
+    draw,
+    hop,
+    in_window,
+    jit,
+    key_of,
+)
 
 __all__ = ["broker"]
 
@@ -62,20 +70,17 @@ def _work(S, a, b):  # type: ignore[no-untyped-def]
 @jit
 def broker(S, s, now):  # type: ignore[no-untyped-def]
     """The PUBLISH in slot ``s`` reaches the broker at ``now``."""
-    evi = S.ev_int
+    kind, subject, index = key_of(S, s)
     ff = S.floats
     q = S.iparams
     n = q[Q_N]
-    kind = evi[s, E_KIND]
-    subject = evi[s, E_SUBJ]
-    index = evi[s, E_INDEX]
     s_pub = draw(S, SVC_PUB, kind, subject, index)
     busy = ff[F_BUSY]
     start = now if now > busy else busy
     if in_window(S, now):
         ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
     if q[Q_QOS1S]:
-        count(S, evi[s, E_WHO], 0, q[Q_ACK], start + s_pub)
+        count(S, S.ev_int[s, E_WHO], 0, q[Q_ACK], start + s_pub)
     d = start + s_pub
     if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
         for sub in range(n):

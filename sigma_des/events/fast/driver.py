@@ -77,46 +77,47 @@ class CompiledCore:
     """
 
     def __init__(self, host: Host) -> None:
-        sc = host.spec
-        why = unsupported(sc, host.method)
+        spec = host.spec
+        why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
-        p_loss = (sc.net.net.host_link.loss.p, sc.net.net.server_link.loss.p)
+        links = spec.net.net
+        p_loss = (links.host_link.loss.p, links.server_link.loss.p)
         sources = network_sources(host.net, p_loss)
         sources.append((L.STEP, 0, host.nodes.step_time))
-        self.tables = DrawTables(sources, sc.history_frames, host.n + 1)
+        self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
     # ------------------------------------------------------------ layout
 
     def _dims(self) -> dict[str, int]:
         h = self.host
-        n, sc = h.n, h.spec
+        n, spec = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
         pay = L.EF_PAY + max(OBS_WIDTH, M)
         lockstep = self._lockstep
         return {
-            "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": sc.hosts + 1,
-            "hosts": sc.hosts, "cores": sc.cores_per_host, "tables": self.tables.tables,
+            "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": spec.hosts + 1,
+            "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
             "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step only)
-            "seen_n": n + 1 if lockstep else 1, "seen_h": sc.history_frames if lockstep else 1,
+            "seen_n": n + 1 if lockstep else 1, "seen_h": spec.history_frames if lockstep else 1,
         }
 
     def _params(self) -> NDArray[np.int64]:
         h = self.host
-        sc, net = h.spec, h.net
+        spec, net = h.spec, h.net
         q = np.zeros(L.Q_LEN, dtype=np.int64)
         q[L.Q_N] = h.n
         q[L.Q_H] = h.truth.H
         q[L.Q_HLC] = int(h.method == "hlc")
-        q[L.Q_WARP] = int(h.method == "bides" and sc.time_warp)
-        q[L.Q_THETA] = sc.theta_warp
+        q[L.Q_WARP] = int(h.method == "bides" and spec.time_warp)
+        q[L.Q_THETA] = spec.theta_warp
         q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
         q[L.Q_ACK] = net.ack_bytes
         q[L.Q_W] = OBS_WIDTH
@@ -127,15 +128,15 @@ class CompiledCore:
     def _links(self) -> dict[str, NDArray[Any]]:
         """Access links and message sizes (what Network holds per link and kind)."""
         h = self.host
-        sc, net = h.spec, h.net
-        spb = np.zeros((2, sc.hosts + 1))
-        for k in range(sc.hosts + 1):
+        spec, net = h.spec, h.net
+        spb = np.zeros((2, spec.hosts + 1))
+        for k in range(spec.hosts + 1):
             spb[1, k] = net.up[k].sec_per_byte
             spb[0, k] = net.down[k].sec_per_byte
         wb = np.zeros(L.N_KINDS, dtype=np.int64)
-        bits = {TRIGGER: sc.trigger_payload_bits, STATE: sc.payload_bits,
-                COMMAND: sc.commands.payload_bits, REREQUEST: sc.trigger_payload_bits,
-                REPUBLISH: sc.payload_bits}
+        bits = {TRIGGER: spec.trigger_payload_bits, STATE: spec.payload_bits,
+                COMMAND: spec.commands.payload_bits, REREQUEST: spec.trigger_payload_bits,
+                REPUBLISH: spec.payload_bits}
         for kind, b in bits.items():
             wb[kind] = net.wire_bytes(b)
         return {"link_spb": spb, "link_of": np.array(net.link_of, dtype=np.int64),
@@ -165,12 +166,12 @@ class CompiledCore:
 
     def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
         h = self.host
-        sc = h.spec
+        spec = h.spec
         cap = 4 * (h.n + 1) + SLACK
         tb = self.tables
         return {
             "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
-            "iparams": self._params(), "fparams": np.array([sc.warmup, sc.duration]),
+            "iparams": self._params(), "fparams": np.array([spec.warmup, spec.duration]),
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,

@@ -61,6 +61,18 @@ def in_window(S, t):  # type: ignore[no-untyped-def]
 
 
 @jit
+def precedes(t1, k1, t2, k2):  # type: ignore[no-untyped-def]
+    """Whether event ``(t1, k1)`` comes first: earlier, or as early and sooner made."""
+    return t1 < t2 or (t1 == t2 and k1 < k2)
+
+
+@jit
+def _put(ht, hk, i, t, key):  # type: ignore[no-untyped-def]
+    ht[i] = t
+    hk[i] = key
+
+
+@jit
 def push(S, t, slot):  # type: ignore[no-untyped-def]
     ht = S.heap_t
     hk = S.heap_k
@@ -73,14 +85,11 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
     iv[I_HEAP] = i + 1
     while i > 0:
         p = (i - 1) >> 1
-        if t < ht[p] or (t == ht[p] and key < hk[p]):
-            ht[i] = ht[p]
-            hk[i] = hk[p]
-            i = p
-        else:
+        if not precedes(t, key, ht[p], hk[p]):
             break
-    ht[i] = t
-    hk[i] = key
+        _put(ht, hk, i, ht[p], hk[p])
+        i = p
+    _put(ht, hk, i, t, key)
 
 
 @jit
@@ -99,16 +108,13 @@ def pop(S):  # type: ignore[no-untyped-def]
             c = 2 * i + 1
             if c >= n:
                 break
-            if c + 1 < n and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and hk[c + 1] < hk[c])):
+            if c + 1 < n and precedes(ht[c + 1], hk[c + 1], ht[c], hk[c]):
                 c += 1
-            if ht[c] < t or (ht[c] == t and hk[c] < key):
-                ht[i] = ht[c]
-                hk[i] = hk[c]
-                i = c
-            else:
+            if not precedes(ht[c], hk[c], t, key):
                 break
-        ht[i] = t
-        hk[i] = key
+            _put(ht, hk, i, ht[c], hk[c])
+            i = c
+        _put(ht, hk, i, t, key)
     return top
 
 
@@ -124,6 +130,13 @@ def release(S, slot):  # type: ignore[no-untyped-def]
     iv = S.ints
     S.free[iv[I_FREE]] = slot
     iv[I_FREE] += 1
+
+
+@jit
+def key_of(S, slot):  # type: ignore[no-untyped-def]
+    """The message key ``(kind, subject, index)`` of the event in ``slot``."""
+    evi = S.ev_int
+    return evi[slot, E_KIND], evi[slot, E_SUBJ], evi[slot, E_INDEX]
 
 
 @jit
@@ -180,9 +193,7 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     """
     evi = S.ev_int
     client = evi[slot, E_WHO]
-    kind = evi[slot, E_KIND]
-    subj = evi[slot, E_SUBJ]
-    index = evi[slot, E_INDEX]
+    kind, subj, index = key_of(S, slot)
     up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
     done = count(S, client, up, S.wire_bytes[kind], t)
     cls = 1 if client == S.iparams[Q_N] else 0

@@ -1,0 +1,96 @@
+"""The compiled core's state layout is generated from its one declaration."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast.driver import CompiledCore
+from sigma_des.factory import make_behaviour, make_dynamics
+from tests.conftest import tiny
+
+DIMS = {
+    "cap": 5, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
+    "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
+    "slow": 1, "seen_n": 1, "seen_h": 1,
+}
+
+
+def _given() -> dict[str, np.ndarray]:
+    return {
+        f.name: np.zeros(L.shape_of(f, DIMS), dtype=f.dtype)
+        for f in L.FIELDS
+        if f.fill is None
+    }
+
+
+def test_state_fields_are_the_declaration_in_order() -> None:
+    names = [f.name for f in L.FIELDS]
+    assert list(L.State._fields) == names
+    assert len(set(names)) == len(names) == 39
+
+
+def test_allocate_makes_every_declared_array() -> None:
+    S = L.allocate(DIMS, _given())
+    for f in L.FIELDS:
+        a = getattr(S, f.name)
+        assert a.dtype == f.dtype and a.flags.c_contiguous, f.name
+        assert a.shape == L.shape_of(f, DIMS), f.name
+    assert S.ev_float.shape == (5, 17)
+    assert S.link_count.shape == (2, 2, 3)
+    assert S.hlc_l.tolist() == [-np.inf] * 3
+    assert (S.seen == -1).all() and (S.ev_int == 0).all()
+
+
+def test_given_arrays_are_shared_not_copied() -> None:
+    given = _given()
+    S = L.allocate(DIMS, given)
+    assert S.cmd is given["cmd"] and S.obs_hist is given["obs_hist"]
+
+
+@pytest.mark.parametrize(
+    ("name", "array", "match"),
+    [
+        ("cmd", np.zeros((3, 4)), r"'cmd': float64\(3, 4\) given, float64\(3, 3\)"),
+        ("node", np.zeros((6, 3)), r"'node': float64\(6, 3\) given, int64\(6, 3\)"),
+        ("obs_hist", np.zeros((8, 12, 3)).transpose(0, 2, 1), "C-contiguous"),
+    ],
+)
+def test_a_given_array_unlike_its_declaration_is_refused(
+    name: str, array: np.ndarray, match: str
+) -> None:
+    given = _given()
+    given[name] = array
+    with pytest.raises(ValueError, match=match):
+        L.allocate(DIMS, given)
+
+
+def test_missing_or_unexpected_arrays_are_refused() -> None:
+    given = _given()
+    del given["slow"]
+    with pytest.raises(ValueError, match="'slow': no array given"):
+        L.allocate(DIMS, given)
+    given = _given()
+    given["heap_t"] = np.zeros(5)
+    with pytest.raises(ValueError, match=r"fields with a fill: \['heap_t'\]"):
+        L.allocate(DIMS, given)
+
+
+def test_a_run_state_follows_the_declaration() -> None:
+    sc = replace(tiny(**{"commands.enabled": True}), engine="cohort")
+    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    core = run.fast
+    assert isinstance(core, CompiledCore)
+    S = core.S
+    assert S.node.shape == (L.N_ROWS, 3) and S.clock_off.shape == (3,)
+    assert S.link_of.shape == (4,) and S.cores.shape == (2, 4)
+    # the engine's physics ring and commands are the core's, in place
+    truth = run.truth
+    assert S.obs_hist is truth.obs_hist and S.slot_frame is truth.slot_frame
+    assert S.cmd is run.nodes.cmd
+    assert S.iparams[L.Q_N] == 3 and S.iparams[L.Q_WARP] == 1 and S.iparams[L.Q_LOCK] == 0
+    assert S.free.tolist() == list(range(S.heap_t.size))[::-1]
