@@ -269,35 +269,15 @@ class Scenario:
         return [i % self.hosts for i in range(self.nodes)]
 
     def run_spec(self) -> RunSpec:
-        """The engine's view of this scenario (:class:`~sigma_des.events.spec.RunSpec`)."""
+        """The engine's view of this scenario (:class:`~sigma_des.events.spec.RunSpec`):
+        the fields both share by name, the placement, and the layers' own specs."""
+        own = ("host_of", "net")
+        same = {f.name: getattr(self, f.name) for f in dataclasses.fields(RunSpec)
+                if f.name in self.__dataclass_fields__ and f.name not in own}
         return RunSpec(
-            seed=self.seed,
-            nodes=self.nodes,
-            hosts=self.hosts,
-            cores_per_host=self.cores_per_host,
-            host_of=tuple(self.host_of),
-            f_trig=self.f_trig,
-            f_align=self.f_align,
-            f_render=self.f_render,
-            align_phase=self.align_phase,
-            render_phase=self.render_phase,
-            duration=self.duration,
-            warmup=self.warmup,
-            payload_bits=self.payload_bits,
-            trigger_payload_bits=self.trigger_payload_bits,
-            history_frames=self.history_frames,
-            stall_threshold=self.stall_threshold,
-            net=self.net_setup(),
-            align=self.align_params(),
-            collect=self.collector_spec(),
-            engine=self.engine,
-            compute=self.compute,
-            commands=self.commands,
-            faults=self.faults,
-            clocks=self.clocks,
-            time_warp=self.bides.time_warp,
-            theta_warp=self.bides.theta_warp,
-            log_rate=self.fidelity.log_rate,
+            host_of=tuple(self.host_of), net=self.net_setup(), align=self.align_params(),
+            collect=self.collector_spec(), time_warp=self.bides.time_warp,
+            theta_warp=self.bides.theta_warp, log_rate=self.fidelity.log_rate, **same,
         )
 
     @property

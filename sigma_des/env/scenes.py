@@ -193,7 +193,8 @@ class SceneBatch:
         for (k, dt), group in groups.items():
             runs = [s.run for s in group]
             state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
-            cmd = np.concatenate([r.cmd for r in runs]) if len(runs) > 1 else runs[0].cmd
+            cmds = [r.nodes.cmd for r in runs]
+            cmd = np.concatenate(cmds) if len(runs) > 1 else cmds[0]
             nodes = np.concatenate([r.truth.nodes for r in runs])
             new = self.dyn.step(state, cmd, dt, k, nodes)
             n = self.sc.nodes

@@ -170,26 +170,6 @@ class MethodRun:
         """True state of the swarm at the latest frame."""
         return self.truth.state
 
-    @property
-    def cmd(self) -> NDArray[np.float64]:
-        """Command rows in force at the nodes."""
-        return self.nodes.cmd
-
-    @property
-    def rollbacks(self) -> int:
-        """Time-warp rollbacks so far."""
-        return self.truth.rollbacks
-
-    @property
-    def resim_steps(self) -> int:
-        """Frames re-simulated by rollbacks so far."""
-        return self.truth.resim_steps
-
-    @property
-    def history_misses(self) -> int:
-        """States published of a frame no longer held in the truth ring."""
-        return self.nodes.history_misses
-
     # ------------------------------------------------------------ ServerContext
 
     def now(self) -> float:
@@ -270,7 +250,7 @@ class MethodRun:
         t = self.kernel.now
         self.collector.delivered(kind, subject, index, t_pub, t)
         if self.tap is not None:
-            self.tap_delivery(client, kind, subject, index, payload, t_pub, t)
+            self.tap_delivery(client, kind, subject, index, payload, t_pub)
         if client == self.server:
             frame, gen, obs, stamp = payload
             self.aligner.on_states(one_state(t, subject, frame, gen, obs, stamp))
@@ -278,16 +258,10 @@ class MethodRun:
         self.nodes.deliver(client, kind, index, payload, t)
 
     def tap_delivery(
-        self,
-        client: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        t_pub: float,
-        t: float,
+        self, client: int, kind: int, subject: int, index: int, payload: Any, t_pub: float
     ) -> None:
-        """Hand one delivery (duplicates included) to the recording tap."""
+        """Hand one delivery (duplicates included), now, to the recording tap."""
+        t = self.kernel.now
         if client == self.server:
             frame, gen, obs, _stamp = payload
             self.tap.states(
@@ -407,9 +381,9 @@ class MethodRun:
         """The collector's results, from the run's, the aligner's and the network's reports."""
         run = RunReport(
             f_trig=self.f_trig,
-            rollbacks=self.rollbacks,
-            resim_steps=self.resim_steps,
-            history_misses=self.history_misses,
+            rollbacks=self.truth.rollbacks,
+            resim_steps=self.truth.resim_steps,
+            history_misses=self.nodes.history_misses,
             wall_seconds=self.wall_seconds,
             events=self.kernel.events,
         )
@@ -432,8 +406,8 @@ class MethodRun:
         with :meth:`publish_commands` at the same simulated time, exactly as if the
         behaviour had returned them); ``TRIGGER_DUE`` when the next event is a trigger
         issue and :attr:`pending_state` is None: every message at or before its time
-        has been processed, so ``self.cmd`` is final and the caller may step
-        ``(self.state, self.cmd, *self.next_trigger())`` itself (batched with other
+        has been processed, so ``self.nodes.cmd`` is final and the caller may step
+        ``(self.state, self.nodes.cmd, *self.next_trigger())`` itself (batched with other
         runs), set :attr:`pending_state` and call again; ``END`` when the next event
         is at or after ``duration``. Processing order is that of :meth:`run`.
         """

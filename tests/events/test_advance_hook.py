@@ -45,7 +45,7 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
             break
         if code == TRIGGER_DUE:
             k, dt = run.next_trigger()
-            run.pending_state = dyn.step(run.state, run.cmd, dt, k, run.truth.nodes)
+            run.pending_state = dyn.step(run.state, run.nodes.cmd, dt, k, run.truth.nodes)
             outside += 1
             continue
         assert code == PAUSED and cap.view is not None

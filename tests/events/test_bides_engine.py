@@ -84,8 +84,8 @@ def test_rollback_resimulates_exactly_the_expected_frames() -> None:
     prev = run.truth.ckpt[(c - 1) % H, i].copy()
     row = np.array([3.0, -4.0, 0.5])
     run.nodes.on_command(i, c, row)
-    assert run.rollbacks == 1
-    assert run.resim_steps == current - c + 1 == 21
+    assert run.truth.rollbacks == 1
+    assert run.truth.resim_steps == current - c + 1 == 21
     # the truth of node 0 is re-simulated from its checkpoint with the new command
     dyn = PointMass()
     s = prev[None, :]
@@ -106,7 +106,7 @@ def test_no_rollback_within_theta_warp() -> None:
     run.kernel.run(0.5)
     current = run.nodes.busy[0] and run.nodes.target[0] or run.nodes.frame[0]
     run.nodes.on_command(0, current - 5, np.array([1.0, 0.0, 0.0]))
-    assert run.rollbacks == 0
+    assert run.truth.rollbacks == 0
 
 
 @pytest.mark.parametrize(("theta", "expect"), [(1000, False), (2, True)])

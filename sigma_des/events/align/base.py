@@ -72,6 +72,15 @@ def take_newest(
     Returns:
         The nodes whose entry changed.
     """
+    if rows.nodes.size == 1:  # a single state: the same rule without sorting
+        node = int(rows.nodes[0])
+        f = int(rows.frames[0])
+        if f <= frame[node]:
+            return rows.nodes[:0]
+        frame[node] = f
+        gen[node] = rows.gens[0]
+        obs[node] = rows.obs[0]
+        return rows.nodes
     win = newest_rows(rows.nodes, rows.frames, frame)
     nd = rows.nodes[win]
     if win.size:
@@ -125,14 +134,11 @@ def one_state(
         The batch of one, for :meth:`Aligner.on_states`.
     """
     l_, c = (math.nan, 0) if stamp is None else (stamp.l, stamp.c)
+    f = np.array([t, gen, l_])  # two allocations, seven views: cheap per message
+    i = np.array([node, frame, c], dtype=np.int64)
     return StateBatch(
-        np.array([t]),
-        np.array([node], dtype=np.int64),
-        np.array([frame], dtype=np.int64),
-        np.array([gen]),
-        np.asarray(obs, dtype=np.float64).reshape(1, -1),
-        np.array([l_]),
-        np.array([c], dtype=np.int64),
+        f[0:1], i[0:1], i[1:2], f[1:2], np.asarray(obs, dtype=np.float64).reshape(1, -1),
+        f[2:3], i[2:3],
     )
 
 

@@ -55,9 +55,14 @@ class HLCAligner(Aligner):
         nodes = batch.nodes
         buf.add(nodes, batch.hlc_l, batch.hlc_c, batch.frames, batch.gens, batch.obs)
         # arrival times never decrease, so the newest per node is the largest
-        np.maximum.at(self._heard, nodes, batch.t)
-        back = np.unique(nodes[~self._live[nodes]])
-        for node in back.tolist():
+        if nodes.size == 1:  # a single state: the same update without ufunc.at / unique
+            i = int(nodes[0])
+            self._heard[i] = max(self._heard[i], batch.t[0])
+            back = [] if self._live[i] else [i]
+        else:
+            np.maximum.at(self._heard, nodes, batch.t)
+            back = np.unique(nodes[~self._live[nodes]]).tolist()
+        for node in back:
             self._live[node] = True
             buf.set_live(node, True)
 

@@ -152,16 +152,17 @@ class StabilityBuffer:
         m = nodes.size
         if m == 0:
             return
-        if nodes.min() < 0 or nodes.max() >= self.n:
+        if m == 1:  # a single state: the same update on scalars
+            self._add_one(int(nodes[0]), float(l[0]), int(c[0]), int(frames[0]), float(gens[0]),
+                          obs[0])
+            return
+        order = np.lexsort((c, l, nodes))  # per node, the lexicographically largest last
+        last = np.ones(m, dtype=np.bool_)
+        last[:-1] = nodes[order[:-1]] != nodes[order[1:]]
+        top = order[last]
+        nd, tl, tc = nodes[top], l[top], c[top]
+        if nd.min() < 0 or nd.max() >= self.n:
             raise IndexError(f"node must be in [0, {self.n}), got {nodes.tolist()}")
-        if m == 1:
-            nd, tl, tc = nodes[:1], l[:1], c[:1]
-        else:
-            order = np.lexsort((c, l, nodes))  # per node, the lexicographically largest last
-            last = np.ones(m, dtype=np.bool_)
-            last[:-1] = nodes[order[:-1]] != nodes[order[1:]]
-            top = order[last]
-            nd, tl, tc = nodes[top], l[top], c[top]
         cl, cc = self._max_l[nd], self._max_c[nd]
         newer = ~self._has[nd] | (tl > cl) | ((tl == cl) & (tc > cc))
         self._max_l[nd[newer]] = tl[newer]
@@ -183,6 +184,32 @@ class StabilityBuffer:
         self._m = hi
         self._next += m
         self.peak = max(self.peak, hi)
+
+    def _add_one(
+        self, node: int, l: float, c: int, frame: int, gen: float,  # noqa: E741
+        obs: NDArray[np.float64],
+    ) -> None:
+        """:meth:`add` of one row (same rule, same row layout)."""
+        if not 0 <= node < self.n:
+            raise IndexError(f"node must be in [0, {self.n}), got {node}")
+        if not self._has[node] or l > self._max_l[node] or (
+            l == self._max_l[node] and c > self._max_c[node]
+        ):
+            self._max_l[node] = l
+            self._max_c[node] = c
+        self._has[node] = True
+        j = self._m
+        assert self._rows is not None
+        if j == self._rows[0].size:
+            self._alloc(2 * j)
+        assert self._rows is not None
+        rl, rc, rn, rs, rf, rg, ro = self._rows
+        rl[j], rc[j], rn[j], rs[j], rf[j], rg[j] = l, c, node, self._next, frame, gen
+        ro[j] = obs
+        self._m = j + 1
+        self._next += 1
+        if self._m > self.peak:
+            self.peak = self._m
 
     def set_live(self, node: int, live: bool) -> None:
         """Mark ``node`` live (it blocks the bound) or dead (it does not)."""

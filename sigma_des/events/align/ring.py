@@ -115,6 +115,10 @@ class RingBuffers:
         Raises:
             ValueError: a frame is negative.
         """
+        fr1 = np.asarray(frames)
+        if fr1.size == 1:  # a single state (the per-message engines): no compiled call
+            return np.array([self._insert_one(int(np.asarray(nodes).item()), int(fr1.item()),
+                                              float(np.asarray(gen_times).item()), obs)])
         nd = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
         fr = np.ascontiguousarray(frames, dtype=np.int64).ravel()
         gt = np.ascontiguousarray(np.broadcast_to(np.asarray(gen_times, dtype=np.float64),
@@ -126,6 +130,20 @@ class RingBuffers:
         accepted = np.zeros(nd.size, dtype=np.bool_)
         _insert_rows(self.frame, self.gen_time, self.obs, self.latest, nd, fr, gt, ob, accepted)
         return accepted
+
+    def _insert_one(self, node: int, frame: int, gen_time: float, obs: ArrayLike) -> bool:
+        """The rule of :meth:`insert` for one row, in Python (cheaper than a compiled call)."""
+        if frame < 0:
+            raise ValueError("frames must be >= 0")
+        slot = frame % self.k
+        if self.frame[node, slot] >= frame:
+            return False
+        self.frame[node, slot] = frame
+        self.gen_time[node, slot] = gen_time
+        self.obs[node, slot] = np.reshape(obs, self.width)
+        if frame > self.latest[node]:
+            self.latest[node] = frame
+        return True
 
     @property
     def nbytes(self) -> int:
