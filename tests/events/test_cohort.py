@@ -130,9 +130,9 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
     run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
                     make_behaviour(sc), compiled=True)
     assert run.fast is not None
-    cap0 = run.fast.S.heap_t.size
+    cap0 = run.fast.array("heap_t").size
     run.run()
-    assert run.fast.S.heap_t.size > cap0  # the event table grew
+    assert run.fast.array("heap_t").size > cap0  # the event table grew
 
 
 @pytest.mark.parametrize(

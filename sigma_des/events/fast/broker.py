@@ -16,11 +16,16 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EF_TDEP,
     EV_CLIENT,
+    EV_FLOAT,
+    EV_INT,
     F_BUSY,
     F_MAXWAIT,
     F_WORK,
+    FLOATS,
+    FPARAMS,
     G_END,
     G_WARMUP,
+    IPARAMS,
     K_REPUB,
     K_STATE,
     Q_ACK,
@@ -47,8 +52,8 @@ __all__ = ["broker"]
 def _deliver(S, src, sub, subject, d):  # type: ignore[no-untyped-def]
     """A copy of the PUBLISH in ``src`` leaves the broker at ``d`` for ``sub``."""
     slot = alloc(S)
-    evf = S.ev_float
-    evi = S.ev_int
+    evf = S[EV_FLOAT]
+    evi = S[EV_INT]
     for j in range(evf.shape[1]):
         evf[slot, j] = evf[src, j]
     evf[slot, EF_TDEP] = d
@@ -60,19 +65,19 @@ def _deliver(S, src, sub, subject, d):  # type: ignore[no-untyped-def]
 
 @jit
 def _work(S, a, b):  # type: ignore[no-untyped-def]
-    g = S.fparams
+    g = S[FPARAMS]
     lo = a if a > g[G_WARMUP] else g[G_WARMUP]
     hi = b if b < g[G_END] else g[G_END]
     if hi > lo:
-        S.floats[F_WORK] += hi - lo
+        S[FLOATS][F_WORK] += hi - lo
 
 
 @jit
 def broker(S, s, now):  # type: ignore[no-untyped-def]
     """The PUBLISH in slot ``s`` reaches the broker at ``now``."""
     kind, subject, index = key_of(S, s)
-    ff = S.floats
-    q = S.iparams
+    ff = S[FLOATS]
+    q = S[IPARAMS]
     n = q[Q_N]
     s_pub = draw(S, SVC_PUB, kind, subject, index)
     busy = ff[F_BUSY]
@@ -80,7 +85,7 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     if in_window(S, now):
         ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
     if q[Q_QOS1S]:
-        count(S, S.ev_int[s, E_WHO], 0, q[Q_ACK], start + s_pub)
+        count(S, S[EV_INT][s, E_WHO], 0, q[Q_ACK], start + s_pub)
     d = start + s_pub
     if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
         for sub in range(n):

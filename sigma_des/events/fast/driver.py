@@ -181,26 +181,31 @@ class CompiledCore:
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots (plus a fan-out) are free."""
         S = self.S
-        iv = S.ints
+        iv = S[L.INTS]
         if iv[L.I_FREE] >= k + self.host.n + 4:
             return
-        old = S.heap_t.size
+        old = S[L.HEAP_T].size
         new = 2 * old + k
         if new > L.MAX_SLOTS:
             raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
         grown: dict[str, NDArray[Any]] = {}
         for name in ("heap_t", "heap_k", "ev_int", "ev_float"):
-            a = getattr(S, name)
+            a = S[L.INDEX[name]]
             b = np.zeros((new,) + a.shape[1:], dtype=a.dtype)
             b[:old] = a
             grown[name] = b
         nfree = int(iv[L.I_FREE])
         free = np.zeros(new, dtype=np.int64)
-        free[:nfree] = S.free[:nfree]
+        free[:nfree] = S[L.FREE][:nfree]
         extra = np.arange(new - 1, old - 1, -1, dtype=np.int64)
         free[nfree : nfree + extra.size] = extra
         iv[L.I_FREE] = nfree + extra.size
-        self.S = S._replace(free=free, **grown)
+        grown["free"] = free
+        self.S = L.replaced(S, grown)
+
+    def array(self, name: str) -> NDArray[Any]:
+        """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
+        return self.S[L.INDEX[name]]
 
     # ------------------------------------------------------------ publishes
 
@@ -245,7 +250,7 @@ class CompiledCore:
 
     def add_resim(self, i: int, steps: int) -> None:
         """Node ``i`` owes ``steps`` re-simulated steps (a rollback); start it if idle."""
-        nd = self.S.node
+        nd = self.S[L.NODE]
         nd[L.N_RB, i] += steps
         if not nd[L.N_BUSY, i]:
             self._start_job(i)
@@ -253,7 +258,7 @@ class CompiledCore:
     def _start_job(self, i: int) -> None:
         """A job start that needs Python (rollback draws): :func:`job_cost`, as the spec."""
         now = self._t_event
-        nd = self.S.node
+        nd = self.S[L.NODE]
         target = int(nd[L.N_REQ, i])
         rb = int(nd[L.N_RB, i])
         nd[L.N_RB, i] = 0
@@ -269,9 +274,9 @@ class CompiledCore:
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
         al: Any = self.host.aligner
         S = self.S
-        S.barrier[0] = al.got
-        S.barrier[1] = al.live
-        iv = S.ints
+        S[L.LS_MIRROR][0] = al.got
+        S[L.LS_MIRROR][1] = al.live
+        iv = S[L.INTS]
         iv[L.I_LCUR] = al.current
         iv[L.I_LMISS] = al.missing
         iv[L.I_LCOMP] = int(al.complete)
@@ -300,7 +305,7 @@ class CompiledCore:
             S = self.S
             if code == L.BARRIER:
                 # the aligner sees the completing state at its own arrival time
-                self.host.kernel.jump_to(float(S.floats[L.F_PT]))
+                self.host.kernel.jump_to(float(S[L.FLOATS][L.F_PT]))
                 self.drain()
                 return True
             if code == L.NEED_SPACE:
@@ -308,12 +313,12 @@ class CompiledCore:
             elif code == L.NEED_FLUSH:
                 self.drain()
             elif code in (L.NEED_START, L.NEED_ROLLBACK):
-                self._t_event = float(S.floats[L.F_PT])
-                i = int(S.ints[L.I_PNODE])
+                self._t_event = float(S[L.FLOATS][L.F_PT])
+                i = int(S[L.INTS][L.I_PNODE])
                 if code == L.NEED_START:
                     self._start_job(i)
                 else:
-                    a, b = int(S.ints[L.I_PA]), int(S.ints[L.I_PB])
+                    a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
                     h = self.host
                     self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
             else:
@@ -326,11 +331,11 @@ class CompiledCore:
         """Hand buffered state deliveries to the aligner, latencies to the collector."""
         S = self.S
         h = self.host
-        iv = S.ints
+        iv = S[L.INTS]
         o = int(iv[L.I_OUT])
         if o:
-            oi = S.out_int[:o]
-            of = S.out_float[:o]
+            oi = S[L.OUT_INT][:o]
+            of = S[L.OUT_FLOAT][:o]
             obs = of[:, 3 : 3 + OBS_WIDTH]
             h.aligner.on_states(
                 StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
@@ -341,7 +346,7 @@ class CompiledCore:
         for k in range(3):
             m = int(iv[L.I_LAT + k])
             if m:
-                h.collector.delivered_batch(k + 1, S.lat_buf[k, :m].copy(), 0)
+                h.collector.delivered_batch(k + 1, S[L.LAT_BUF][k, :m].copy(), 0)
                 iv[L.I_LAT + k] = 0
 
     def write_back(self) -> None:
@@ -349,8 +354,8 @@ class CompiledCore:
         S = self.S
         h = self.host
         net = h.net
-        cnt = S.link_count
-        busy = S.link_busy
+        cnt = S[L.LINK_COUNT]
+        busy = S[L.LINK_BUSY]
         for k in range(h.spec.hosts + 1):
             net.up[k].bytes = int(cnt[1, 0, k])
             net.up[k].packets = int(cnt[1, 1, k])
@@ -358,8 +363,8 @@ class CompiledCore:
             net.down[k].bytes = int(cnt[0, 0, k])
             net.down[k].packets = int(cnt[0, 1, k])
             net.down[k].busy = float(busy[0, k])
-        fv = S.floats
-        iv = S.ints
+        fv = S[L.FLOATS]
+        iv = S[L.INTS]
         net.broker.busy = float(fv[L.F_BUSY])
         net.broker.work = float(fv[L.F_WORK])
         net.broker.max_wait = float(fv[L.F_MAXWAIT])

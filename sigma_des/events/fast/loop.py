@@ -9,7 +9,7 @@ floating point operations in the same order as the specification and numbers
 events in the same relative order, so simultaneous events are broken the same way
 and the results are bit-identical (docs/MODEL.md, "Engines").
 
-All state is one :data:`~sigma_des.events.fast.layout.State`, shared with the
+All state is one state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`), shared with the
 Python driver (:mod:`sigma_des.events.fast.driver`). :func:`advance` hands control
 back to Python, between two events, when something needs Python: a time-warp
 rollback (re-simulating physics), a job whose cost includes rollback draws, a full
@@ -34,18 +34,25 @@ from sigma_des.events.fast.layout import (
     EF_TPUB,
     EV_BROKER,
     EV_CLIENT,
+    EV_FLOAT,
+    EV_INT,
+    HEAP_T,
     I_ERR,
     I_FREE,
     I_HEAP,
     I_LAT,
     I_OUT,
     I_PEND,
+    INTS,
+    IPARAMS,
     K_COMMAND,
     K_REREQ,
     K_TRIGGER,
+    LAT_BUF,
     NEED_FLUSH,
     NEED_SPACE,
     OK,
+    OUT_INT,
     Q_ACK,
     Q_M,
     Q_N,
@@ -61,8 +68,8 @@ __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger"
 @jit
 def _client(S, s, now):  # type: ignore[no-untyped-def]
     """A delivery reaches its subscriber (Network._client_receive + deliver)."""
-    q = S.iparams
-    sub = S.ev_int[s, E_WHO]
+    q = S[IPARAMS]
+    sub = S[EV_INT][s, E_WHO]
     if q[Q_QOS1S]:
         count(S, sub, 1, q[Q_ACK], now)
     delivered(S, s, now)
@@ -76,24 +83,24 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
 def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
     """The server publishes trigger ``k`` at ``t`` (with its HLC stamp)."""
     ns = alloc(S)
-    S.ev_float[ns, EF_TPUB] = t
-    S.ev_float[ns, EF_L] = hlc_l
-    S.ev_int[ns, E_AUX] = hlc_c
-    n = S.iparams[Q_N]
+    S[EV_FLOAT][ns, EF_TPUB] = t
+    S[EV_FLOAT][ns, EF_L] = hlc_l
+    S[EV_INT][ns, E_AUX] = hlc_c
+    n = S[IPARAMS][Q_N]
     send_up(S, ns, n, K_TRIGGER, n, k, t)
 
 
 @jit
 def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped-def]
     """The server publishes ``rows[i]`` to each node ``i`` of ``nodes``, in order."""
-    n = S.iparams[Q_N]
-    m = S.iparams[Q_M]
+    n = S[IPARAMS][Q_N]
+    m = S[IPARAMS][Q_M]
     for i in nodes:
         ns = alloc(S)
-        S.ev_float[ns, EF_TPUB] = t
+        S[EV_FLOAT][ns, EF_TPUB] = t
         for j in range(m):
-            S.ev_float[ns, EF_PAY + j] = rows[i, j]
-        S.ev_int[ns, E_AUX] = stamp
+            S[EV_FLOAT][ns, EF_PAY + j] = rows[i, j]
+        S[EV_INT][ns, E_AUX] = stamp
         send_up(S, ns, n, K_COMMAND, i, tick, t)
 
 
@@ -101,18 +108,18 @@ def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped
 def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
     """Lock-Step: the server asks ``node`` again for its state of ``frame``."""
     ns = alloc(S)
-    S.ev_float[ns, EF_TPUB] = t
-    S.ev_int[ns, E_FRAME] = frame
-    send_up(S, ns, S.iparams[Q_N], K_REREQ, node, index, t)
+    S[EV_FLOAT][ns, EF_TPUB] = t
+    S[EV_INT][ns, E_FRAME] = frame
+    send_up(S, ns, S[IPARAMS][Q_N], K_REREQ, node, index, t)
 
 
 @jit
 def _full(S):  # type: ignore[no-untyped-def]
     """Whether a delivery buffer is full (Python must flush it)."""
-    iv = S.ints
-    lat_cap = S.lat_buf.shape[1]
+    iv = S[INTS]
+    lat_cap = S[LAT_BUF].shape[1]
     return (
-        iv[I_OUT] >= S.out_int.shape[0]
+        iv[I_OUT] >= S[OUT_INT].shape[0]
         or iv[I_LAT] >= lat_cap
         or iv[I_LAT + 1] >= lat_cap
         or iv[I_LAT + 2] >= lat_cap
@@ -126,9 +133,9 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     Returns:
         OK when done, else the reason Python must act before the next event.
     """
-    iv = S.ints
-    ht = S.heap_t
-    n = S.iparams[Q_N]
+    iv = S[INTS]
+    ht = S[HEAP_T]
+    n = S[IPARAMS][Q_N]
     while iv[I_HEAP] > 0:
         t = ht[0]
         if t > t_stop or (strict and t >= t_stop):
@@ -138,7 +145,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
         if _full(S):
             return NEED_FLUSH
         s = pop(S)
-        typ = S.ev_int[s, E_TYPE]
+        typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
         elif typ == EV_BROKER:

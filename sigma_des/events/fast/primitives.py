@@ -6,7 +6,7 @@ these: the binary heap of ``(time, sequence)`` keys, the event-slot free list, t
 draw-table lookup and one hop over an access link (FIFO serialization, latency,
 loss) — each the same floating point operations, in the same order, as
 :mod:`sigma_des.net.network`. The state ``S`` is a
-:data:`~sigma_des.events.fast.layout.State`.
+state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
 """
 
 from __future__ import annotations
@@ -17,23 +17,40 @@ from typing import Any, TypeVar
 from numba import njit
 
 from sigma_des.events.fast.layout import (
+    DRAW_CONST,
+    DRAW_MAP,
+    DRAW_TAG,
+    DRAW_VAL,
     E_INDEX,
     E_KIND,
     E_SUBJ,
     E_TYPE,
     E_WHO,
     EV_BROKER,
+    EV_INT,
+    FPARAMS,
+    FREE,
     G_END,
     G_WARMUP,
+    HEAP_K,
+    HEAP_T,
     I_EID,
     I_ERR,
     I_FREE,
     I_HEAP,
     I_NEV,
+    INTS,
+    IPARAMS,
+    LINK_BUSY,
+    LINK_COUNT,
+    LINK_OF,
+    LINK_SPB,
+    P_LOSS,
     Q_N,
     SLOT_BITS,
     SLOT_MASK,
     U_OFFSET,
+    WIRE_BYTES,
 )
 
 _F = TypeVar("_F", bound=Callable[..., Any])
@@ -53,7 +70,7 @@ def lat_source(cls: int, up: int) -> int:
 @jit
 def in_window(S, t):  # type: ignore[no-untyped-def]
     """Whether ``t`` lies in the measurement window ``[warmup, end)``."""
-    g = S.fparams
+    g = S[FPARAMS]
     return g[G_WARMUP] <= t and t < g[G_END]
 
 
@@ -74,9 +91,9 @@ def _put(ht, hk, i, t, key):  # type: ignore[no-untyped-def]
 
 @jit
 def push(S, t, slot):  # type: ignore[no-untyped-def]
-    ht = S.heap_t
-    hk = S.heap_k
-    iv = S.ints
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    iv = S[INTS]
     e = iv[I_EID]
     iv[I_EID] = e + 1
     iv[I_NEV] += 1
@@ -94,9 +111,9 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
 
 @jit
 def pop(S):  # type: ignore[no-untyped-def]
-    ht = S.heap_t
-    hk = S.heap_k
-    iv = S.ints
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    iv = S[INTS]
     n = iv[I_HEAP] - 1
     iv[I_HEAP] = n
     top = hk[0] & SLOT_MASK
@@ -120,29 +137,29 @@ def pop(S):  # type: ignore[no-untyped-def]
 
 @jit
 def alloc(S):  # type: ignore[no-untyped-def]
-    iv = S.ints
+    iv = S[INTS]
     iv[I_FREE] -= 1
-    return S.free[iv[I_FREE]]
+    return S[FREE][iv[I_FREE]]
 
 
 @jit
 def release(S, slot):  # type: ignore[no-untyped-def]
-    iv = S.ints
-    S.free[iv[I_FREE]] = slot
+    iv = S[INTS]
+    S[FREE][iv[I_FREE]] = slot
     iv[I_FREE] += 1
 
 
 @jit
 def key_of(S, slot):  # type: ignore[no-untyped-def]
     """The message key ``(kind, subject, index)`` of the event in ``slot``."""
-    evi = S.ev_int
+    evi = S[EV_INT]
     return evi[slot, E_KIND], evi[slot, E_SUBJ], evi[slot, E_INDEX]
 
 
 @jit
 def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped-def]
     """Write an event's type, receiver and message key into ``slot``."""
-    evi = S.ev_int
+    evi = S[EV_INT]
     evi[slot, E_TYPE] = typ
     evi[slot, E_WHO] = who
     evi[slot, E_KIND] = kind
@@ -155,15 +172,15 @@ def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped
 
 @jit
 def draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
-    c = S.draw_map[src, kind]
+    c = S[DRAW_MAP][src, kind]
     if c < 0:
-        return S.draw_const[src]
-    tag = S.draw_tag
+        return S[DRAW_CONST][src]
+    tag = S[DRAW_TAG]
     r = index % tag.shape[1]
     if tag[c, r] != index:
-        S.ints[I_ERR] = 1
+        S[INTS][I_ERR] = 1
         return 0.0
-    return S.draw_val[c, r, subj]
+    return S[DRAW_VAL][c, r, subj]
 
 
 @jit
@@ -173,14 +190,14 @@ def count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
     Returns:
         The time the last bit leaves.
     """
-    link = S.link_of[client]
-    lb = S.link_busy
+    link = S[LINK_OF][client]
+    lb = S[LINK_BUSY]
     busy = lb[up, link]
-    done = (t if t > busy else busy) + nbytes * S.link_spb[up, link]
+    done = (t if t > busy else busy) + nbytes * S[LINK_SPB][up, link]
     lb[up, link] = done
     if in_window(S, t):
-        S.link_count[up, 0, link] += nbytes
-        S.link_count[up, 1, link] += 1
+        S[LINK_COUNT][up, 0, link] += nbytes
+        S[LINK_COUNT][up, 1, link] += 1
     return done
 
 
@@ -191,15 +208,15 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     FIFO serialization on the receiver's (down) or sender's (up) link, latency and
     loss; a lost message frees its slot.
     """
-    evi = S.ev_int
+    evi = S[EV_INT]
     client = evi[slot, E_WHO]
     kind, subj, index = key_of(S, slot)
     up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
-    done = count(S, client, up, S.wire_bytes[kind], t)
-    cls = 1 if client == S.iparams[Q_N] else 0
+    done = count(S, client, up, S[WIRE_BYTES][kind], t)
+    cls = 1 if client == S[IPARAMS][Q_N] else 0
     src = lat_source(cls, up)
     lat = draw(S, src, kind, subj, index)
-    p = S.p_loss[cls]
+    p = S[P_LOSS][cls]
     lost = False
     if p > 0.0:
         lost = draw(S, U_OFFSET + src, kind, subj, index) < p

@@ -20,7 +20,11 @@ from sigma_des.events.fast.layout import (
     EF_L,
     EF_PAY,
     EF_TPUB,
+    EV_FLOAT,
+    EV_INT,
     F_PT,
+    FLOATS,
+    FPARAMS,
     G_WARMUP,
     I_DUPS,
     I_LAT,
@@ -30,10 +34,17 @@ from sigma_des.events.fast.layout import (
     I_MSGS,
     I_OUT,
     I_PEND,
+    INTS,
+    IPARAMS,
     K_REPUB,
     K_REREQ,
+    LAT_BUF,
+    LS_MIRROR,
+    OUT_FLOAT,
+    OUT_INT,
     Q_LOCK,
     Q_W,
+    SEEN,
 )
 from sigma_des.events.fast.primitives import jit
 
@@ -43,16 +54,16 @@ __all__ = ["at_server", "delivered"]
 @jit
 def delivered(S, s, now):  # type: ignore[no-untyped-def]
     """Collector.delivered for one arrival: duplicates, message count, latency."""
-    evi = S.ev_int
-    iv = S.ints
+    evi = S[EV_INT]
+    iv = S[INTS]
     kind = evi[s, E_KIND]
     index = evi[s, E_INDEX]
-    t_pub = S.ev_float[s, EF_TPUB]
+    t_pub = S[EV_FLOAT][s, EF_TPUB]
     # Collector.delivered: on this path only a re-request or republished state can come
     # twice (a retry index is capped at 63: frame * 64 + min(retry, 63))
     dup = False
     if kind >= K_REREQ:
-        seen = S.seen
+        seen = S[SEEN]
         row = kind - K_REREQ
         subject = evi[s, E_SUBJ]
         slot = index % seen.shape[2]
@@ -61,19 +72,19 @@ def delivered(S, s, now):  # type: ignore[no-untyped-def]
             iv[I_DUPS] += 1
         else:
             seen[row, subject, slot] = index
-    if not dup and t_pub >= S.fparams[G_WARMUP]:
+    if not dup and t_pub >= S[FPARAMS][G_WARMUP]:
         iv[I_MSGS] += 1
         if kind != K_REREQ:  # a republished state's latency counts as a state's
             lk = 1 if kind == K_REPUB else kind - 1
-            S.lat_buf[lk, iv[I_LAT + lk]] = now - t_pub
+            S[LAT_BUF][lk, iv[I_LAT + lk]] = now - t_pub
             iv[I_LAT + lk] += 1
 
 
 @jit
 def _barrier(S, subject, frame, now):  # type: ignore[no-untyped-def]
     """LockstepAligner.on_state's barrier count, mirrored."""
-    iv = S.ints
-    ls = S.barrier
+    iv = S[INTS]
+    ls = S[LS_MIRROR]
     if ls[1, subject] == 0 and frame == iv[I_LCUR]:
         ls[1, subject] = 1
         iv[I_LMISS] += 1
@@ -83,20 +94,20 @@ def _barrier(S, subject, frame, now):  # type: ignore[no-untyped-def]
         if iv[I_LMISS] <= 0:
             iv[I_LCOMP] = 1
             iv[I_PEND] = BARRIER
-            S.floats[F_PT] = now
+            S[FLOATS][F_PT] = now
 
 
 @jit
 def at_server(S, s, now):  # type: ignore[no-untyped-def]
     """A (re)published state reaches the server: buffer it for the aligner."""
-    evi = S.ev_int
-    evf = S.ev_float
-    iv = S.ints
+    evi = S[EV_INT]
+    evf = S[EV_FLOAT]
+    iv = S[INTS]
     subject = evi[s, E_SUBJ]
     o = iv[I_OUT]
     iv[I_OUT] = o + 1
-    oi = S.out_int
-    of = S.out_float
+    oi = S[OUT_INT]
+    of = S[OUT_FLOAT]
     frame = evi[s, E_FRAME]
     oi[o, 0] = subject
     oi[o, 1] = frame
@@ -104,7 +115,7 @@ def at_server(S, s, now):  # type: ignore[no-untyped-def]
     of[o, 0] = now
     of[o, 1] = evf[s, EF_GEN]
     of[o, 2] = evf[s, EF_L]
-    for j in range(S.iparams[Q_W]):
+    for j in range(S[IPARAMS][Q_W]):
         of[o, 3 + j] = evf[s, EF_PAY + j]
-    if S.iparams[Q_LOCK]:
+    if S[IPARAMS][Q_LOCK]:
         _barrier(S, subject, frame, now)

@@ -28,28 +28,38 @@ def _given() -> dict[str, np.ndarray]:
     }
 
 
-def test_state_fields_are_the_declaration_in_order() -> None:
+def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    assert list(L.State._fields) == names
     assert len(set(names)) == len(names) == 39
+    assert L.INDEX == {name: i for i, name in enumerate(names)}
+    # one module constant per field, its name in capitals, for the compiled code
+    assert [getattr(L, name.upper()) for name in names] == list(range(39))
+    assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
 
 
 def test_allocate_makes_every_declared_array() -> None:
     S = L.allocate(DIMS, _given())
     for f in L.FIELDS:
-        a = getattr(S, f.name)
+        a = S[L.INDEX[f.name]]
         assert a.dtype == f.dtype and a.flags.c_contiguous, f.name
         assert a.shape == L.shape_of(f, DIMS), f.name
-    assert S.ev_float.shape == (5, 17)
-    assert S.link_count.shape == (2, 2, 3)
-    assert S.hlc_l.tolist() == [-np.inf] * 3
-    assert (S.seen == -1).all() and (S.ev_int == 0).all()
+    assert S[L.EV_FLOAT].shape == (5, 17)
+    assert S[L.LINK_COUNT].shape == (2, 2, 3)
+    assert S[L.HLC_L].tolist() == [-np.inf] * 3
+    assert (S[L.SEEN] == -1).all() and (S[L.EV_INT] == 0).all()
+
+
+def test_replaced_swaps_named_arrays_only() -> None:
+    S = L.allocate(DIMS, _given())
+    new = np.zeros(10)
+    T = L.replaced(S, {"heap_t": new})
+    assert T[L.HEAP_T] is new and T[L.HEAP_K] is S[L.HEAP_K] and len(T) == len(S)
 
 
 def test_given_arrays_are_shared_not_copied() -> None:
     given = _given()
     S = L.allocate(DIMS, given)
-    assert S.cmd is given["cmd"] and S.obs_hist is given["obs_hist"]
+    assert S[L.CMD] is given["cmd"] and S[L.OBS_HIST] is given["obs_hist"]
 
 
 @pytest.mark.parametrize(
@@ -86,11 +96,12 @@ def test_a_run_state_follows_the_declaration() -> None:
     core = run.fast
     assert isinstance(core, CompiledCore)
     S = core.S
-    assert S.node.shape == (L.N_ROWS, 3) and S.clock_off.shape == (3,)
-    assert S.link_of.shape == (4,) and S.cores.shape == (2, 4)
+    assert S[L.NODE].shape == (L.N_ROWS, 3) and S[L.CLOCK_OFF].shape == (3,)
+    assert S[L.LINK_OF].shape == (4,) and S[L.CORES].shape == (2, 4)
     # the engine's physics ring and commands are the core's, in place
     truth = run.truth
-    assert S.obs_hist is truth.obs_hist and S.slot_frame is truth.slot_frame
-    assert S.cmd is run.nodes.cmd
-    assert S.iparams[L.Q_N] == 3 and S.iparams[L.Q_WARP] == 1 and S.iparams[L.Q_LOCK] == 0
-    assert S.free.tolist() == list(range(S.heap_t.size))[::-1]
+    assert S[L.OBS_HIST] is truth.obs_hist and S[L.SLOT_FRAME] is truth.slot_frame
+    assert S[L.CMD] is run.nodes.cmd
+    q = S[L.IPARAMS]
+    assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
+    assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
