@@ -172,7 +172,7 @@ class DdsNetwork(Network):
         nbytes: int, t: float, fn: Any, args: tuple[Any, ...],
     ) -> None:
         """One packet src → dst leaving ``src``'s thread at ``t``; ``fn(*args)`` on arrival."""
-        arr, lost = self._hop(src, True, kind, subj, index, attempt, nbytes, t)
+        arr, lost = self.hop(src, True, kind, subj, index, attempt, nbytes, t)
         self.k.at(arr, self._switch, dst, kind, subj, index, attempt, nbytes, lost, fn, args)
 
     def _switch(
@@ -182,7 +182,7 @@ class DdsNetwork(Network):
         if lost:  # the uplink lost it: nothing reaches the reader's link
             fn(False, *args)
             return
-        arr, lost2 = self._hop(dst, False, kind, subj, index, attempt, nbytes, self.k.now)
+        arr, lost2 = self.hop(dst, False, kind, subj, index, attempt, nbytes, self.k.now)
         if lost2:
             fn(False, *args)
         else:
@@ -225,7 +225,7 @@ class DdsNetwork(Network):
         if self.spec.multicast and len(subs) > 1:
             done = self._cpu(client, t, self._w_cost.get(kind, subject, index, 0))
             nbytes = self.wire_bytes(payload_bits, False)
-            arr, lost = self._hop(client, True, kind, subject, index, 0, nbytes, done)
+            arr, lost = self.hop(client, True, kind, subject, index, 0, nbytes, done)
             self.k.at(arr, self._fan_out, client, subs, msg, nbytes, lost, done)
             return
         for sub in subs:
@@ -241,7 +241,7 @@ class DdsNetwork(Network):
             if lost:
                 self._on_data(False, client, sub, msg, 0, t_sent)
                 continue
-            arr, lost2 = self._hop(sub, False, kind, ds, index, 0, nbytes, self.k.now)
+            arr, lost2 = self.hop(sub, False, kind, ds, index, 0, nbytes, self.k.now)
             if lost2:
                 self._on_data(False, client, sub, msg, 0, t_sent)
             else:
@@ -355,7 +355,7 @@ class DdsNetwork(Network):
         d = self.spec
         done = self._cpu(p, t, d.meta_cost)
         self._count_meta(t)
-        arr, lost = self._hop(p, True, _SPDP, p, i, 0, self._spdp_b, done)
+        arr, lost = self.hop(p, True, _SPDP, p, i, 0, self._spdp_b, done)
         if not lost:
             self.k.at(arr, self._spdp_copy, p, i)
         if i + 1 < d.spdp_initial_count:
@@ -377,7 +377,7 @@ class DdsNetwork(Network):
                 if link == self.link_of[p]:
                     seen[link] = (t, False)  # same host: the kernel loops it back
                 else:
-                    seen[link] = self._hop(q, False, _SPDP, p, i, 0, self._spdp_b, t)
+                    seen[link] = self.hop(q, False, _SPDP, p, i, 0, self._spdp_b, t)
             arr, lost = seen[link]
             if not lost:
                 self.k.at(arr, self._on_spdp, True, q, p)

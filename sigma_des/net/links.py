@@ -138,7 +138,7 @@ class Links:
 
     # ------------------------------------------------------------ one hop
 
-    def _hop(
+    def hop(
         self,
         client: int,
         up: bool,
@@ -177,7 +177,7 @@ class Links:
             lost = True
         return done + lat + extra, lost
 
-    def _count(self, client: int, up: bool, nbytes: int, t: float) -> None:
+    def count_packet(self, client: int, up: bool, nbytes: int, t: float) -> None:
         """Serialize and count a packet whose arrival does not matter (stream PUBACKs)."""
         ld = (self._ups if up else self._downs)[client]
         busy = ld.busy
@@ -204,7 +204,7 @@ class Links:
 
     # ------------------------------------------------------------ transport
 
-    def _transmit(
+    def transmit(
         self,
         client: int,
         up: bool,
@@ -219,7 +219,7 @@ class Links:
     ) -> tuple[float, bool]:
         """Send one packet with the configured transport; ``on_arrive(*args)`` runs
         at its application-level arrival. Returns (first-try arrival, first-try lost)."""
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
+        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
         if self.datagram or self._in_order[self._cls[client]][up]:
             # a stream on a lossless constant-latency link is already in order (FIFO
             # serialization + equal latency): the in-order bookkeeping would change nothing
@@ -279,7 +279,7 @@ class Links:
     ) -> None:
         t = self.k.env.now
         client, up, kind, subject, index, nbytes = pkt
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
+        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
         self._stream_try(conn, seq, pkt, attempt, t, arr, lost, on_arrive, args)
 
     @staticmethod

@@ -152,7 +152,7 @@ class Network(Links):
     ) -> bool:
         """Send one PUBLISH on ``client``'s link at ``t`` (``on_arrive(*args)`` at its
         arrival); True if the sender's QoS 1 timer fires (datagram: lost or late)."""
-        arr, lost = self._transmit(
+        arr, lost = self.transmit(
             client, up, kind, subject, index, attempt, self.wire_bytes(bits), t, on_arrive, args
         )
         return self.datagram and self.qos1 and (lost or arr > t + self.timeout)
@@ -184,11 +184,8 @@ class Network(Links):
         dsubj = [s if broadcast else subject for s in subs]
         t_ack, departs = self.broker.serve_publish(now, kind, subject, index, attempt, dsubj)
         # PUBACK back to the publisher
-        if self.qos1 and not self.datagram:
-            self._count(client, False, self._ack_b, t_ack)
-        elif self.qos1 and self._ack_late(
-            client, False, kind, subject, index, attempt, t_ack, t_sent, now
-        ):
+        if self.qos1 and self._puback(client, False, kind, subject, index, attempt, t_ack,
+                                      t_sent, now):
             self._schedule_resend(
                 t_sent + self.timeout,
                 attempt,
@@ -198,7 +195,7 @@ class Network(Links):
         for sub, ds, d in zip(subs, dsubj, departs, strict=True):
             self._deliver_try(sub, kind, ds, index, payload, bits, 0, t_pub, d)
 
-    def _ack_late(
+    def _puback(
         self,
         client: int,
         up: bool,
@@ -210,10 +207,14 @@ class Network(Links):
         t_sent: float,
         now: float,
     ) -> bool:
-        """Send a datagram PUBACK on ``client``'s link at ``t`` for a PUBLISH sent at
-        ``t_sent`` and received ``now``; True if the sender's QoS 1 timer fires first
-        (the PUBACK is lost or late, and the timer was still running at ``now``)."""
-        a_arr, a_lost = self._hop(client, up, kind + ACK, subject, index, attempt, self._ack_b, t)
+        """Send the PUBACK on ``client``'s link at ``t`` for a PUBLISH sent at ``t_sent``
+        and received ``now``; True if the sender's QoS 1 timer fires first (datagram:
+        the PUBACK is lost or late and the timer was still running at ``now``; over a
+        stream the PUBACK is only counted traffic)."""
+        if not self.datagram:
+            self.count_packet(client, up, self._ack_b, t)
+            return False
+        a_arr, a_lost = self.hop(client, up, kind + ACK, subject, index, attempt, self._ack_b, t)
         return now <= t_sent + self.timeout and (a_lost or a_arr > t_sent + self.timeout)
 
     def _deliver_try(
@@ -275,11 +276,8 @@ class Network(Links):
         t_depart: float,
     ) -> None:
         now = self.k.env.now
-        if self.qos1 and not self.datagram:
-            self._count(sub, True, self._ack_b, now)
-        elif self.qos1 and self._ack_late(
-            sub, True, kind, subject, index, attempt, now, t_depart, now
-        ):
+        if self.qos1 and self._puback(sub, True, kind, subject, index, attempt, now, t_depart,
+                                      now):
             self._schedule_resend(
                 t_depart + self.timeout,
                 attempt,
