@@ -36,17 +36,24 @@ class AlignerReport:
 class NetCounters(Protocol):
     """The public counters a network (simulated or live) exposes."""
 
-    retransmissions: int
-    gave_up: int
+    @property
+    def retransmissions(self) -> int:
+        """Packets sent again after a loss."""
+        ...
+
+    @property
+    def gave_up(self) -> int:
+        """Packets given up after the last retry."""
+        ...
 
     @property
     def broker_work(self) -> float:
-        """Broker service seconds in the metrics window (NaN: not observable)."""
+        """The broker's busy time (s)."""
         ...
 
     @property
     def broker_max_wait(self) -> float:
-        """Longest queueing delay at the broker (s; NaN: not observable)."""
+        """The longest wait of a PUBLISH before its broker service (s)."""
         ...
 
     def links(self) -> Sequence[Any]:

@@ -37,6 +37,7 @@ from sigma_des.events.align.base import (
     StateBatch,
 )
 from sigma_des.events.align.spec import AlignParams, RpcSpec
+from sigma_des.net.links import dist_cache
 
 __all__ = ["RpcAligner", "RpcContext"]
 
@@ -78,10 +79,6 @@ class RpcAligner(Aligner):
             )
         super().__init__(n, ctx)
         self.rctx = cast(RpcContext, ctx)
-        # imported here: net.links still imports the scenario module (which embeds this
-        # package's specs) until the net layer takes its own spec (issue 10, R1)
-        from sigma_des.net.links import dist_cache
-
         streams = RandomStreams(seed)
         self._call_t = dist_cache(n + 1, spec.call_time, streams, "rpc.call")
         self._render_t = dist_cache(n + 1, spec.render_time, streams, "rpc.render")

@@ -82,7 +82,7 @@ def delivered(S, s, now):  # type: ignore[no-untyped-def]
 
 @jit
 def _barrier(S, subject, frame, now):  # type: ignore[no-untyped-def]
-    """LockstepAligner.on_state's barrier count, mirrored."""
+    """LockstepAligner.on_states' barrier count, mirrored."""
     iv = S[INTS]
     ls = S[LS_MIRROR]
     if ls[1, subject] == 0 and frame == iv[I_LCUR]:
