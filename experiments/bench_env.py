@@ -72,7 +72,7 @@ def plain(method: str, decisions: int) -> dict[str, Any]:
     period = env.sc.commands.every / env.sc.f_align
     sc = replace(env.sc, duration=decisions * period,
                  commands=replace(env.sc.commands, behaviour="follow"))
-    run, _ = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+    run, _ = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
     t = time.thread_time()
     run.run()
     dt = time.thread_time() - t

@@ -48,9 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as e:
         print(f"profile_run: error: {e}", file=sys.stderr)
         return 2
-    run, _ = make_run(warm, a.method, make_dynamics(warm), make_behaviour(warm))
+    run, _ = make_run(warm.run_spec(), a.method, make_dynamics(warm), make_behaviour(warm))
     run.run()
-    run, fallback = make_run(sc, a.method, make_dynamics(sc), make_behaviour(sc))
+    run, fallback = make_run(sc.run_spec(), a.method, make_dynamics(sc), make_behaviour(sc))
     prof = cProfile.Profile(time.process_time)
     c = time.process_time()
     prof.enable()

@@ -283,7 +283,7 @@ def run_method(
             return RecordTap(record, to_dict(sc), method, sc.record)
 
     run, out, engine = execute(
-        sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress, tap
+        sc.run_spec(), method, lambda: make_dynamics(sc), lambda: make_behaviour(sc), progress, tap
     )
     out["engine"] = engine
     if sc.fidelity.enabled:

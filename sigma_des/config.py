@@ -25,6 +25,7 @@ import tomli_w
 from sigma_des.core.validate import require, require_positive
 from sigma_des.errors import ConfigError
 from sigma_des.events.align.spec import AlignParams, BidesSpec, HLCSpec, LockstepSpec, RpcSpec
+from sigma_des.events.spec import CommandSpec, ComputeSpec, FaultSpec, RunSpec
 from sigma_des.metrics.collector import CollectorSpec
 from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
@@ -39,12 +40,7 @@ from sigma_des.net.spec import (
     NetSpec,
     Topology,
 )
-from sigma_des.specs import (
-    CommandSpec,
-    ComputeSpec,
-    FaultSpec,
-    RecordSpec,
-)
+from sigma_des.specs import RecordSpec
 
 __all__ = [
     "BidesSpec",
@@ -273,6 +269,18 @@ class Scenario:
             per = math.ceil(self.nodes / self.hosts)
             return [i // per for i in range(self.nodes)]
         return [i % self.hosts for i in range(self.nodes)]
+
+    def run_spec(self) -> RunSpec:
+        """The engine's view of this scenario (:class:`~sigma_des.events.spec.RunSpec`):
+        the fields both share by name, the placement, and the layers' own specs."""
+        own = ("host_of", "net")
+        same = {f.name: getattr(self, f.name) for f in dataclasses.fields(RunSpec)
+                if f.name in self.__dataclass_fields__ and f.name not in own}
+        return RunSpec(
+            host_of=tuple(self.host_of), net=self.net_setup(), align=self.align_params(),
+            collect=self.collector_spec(), time_warp=self.bides.time_warp,
+            theta_warp=self.bides.theta_warp, log_rate=self.fidelity.log_rate, **same,
+        )
 
     @property
     def topology(self) -> Topology:

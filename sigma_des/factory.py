@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.agents.registry import make_behaviour as _make_behaviour
 from sigma_des.agents.registry import make_dynamics as _make_dynamics
 from sigma_des.config import Scenario
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.errors import ConfigError
 
 __all__ = ["make_dynamics", "make_behaviour"]

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.errors import ConfigError
 
 __all__ = ["Rule", "BehaviourSet", "to_command", "route_rule", "separation_rule",

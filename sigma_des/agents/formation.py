@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.agents.behaviours import BehaviourSet, Rule, route_rule, separation_rule
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.errors import ConfigError
 
 __all__ = ["formation_slots", "formation_rule", "formation_behaviour", "FormationRoute"]

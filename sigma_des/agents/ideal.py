@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import Behaviour, DynamicsModel, SwarmView
+from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 
 __all__ = ["fly"]
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from sigma_des.agents.base import Behaviour, DynamicsModel
 from sigma_des.agents.behaviours import BehaviourSet, route_rule, separation_rule
 from sigma_des.agents.cohesion import Cohesion
 from sigma_des.agents.formation import FormationRoute, formation_rule
 from sigma_des.agents.pointmass import PointMass
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.errors import ConfigError
 
 __all__ = ["DYNAMICS", "BEHAVIOURS", "make_dynamics", "make_behaviour"]

@@ -4,7 +4,8 @@
 - :mod:`sigma_des.core.rng` — counter-based random streams keyed by stable names;
 - :mod:`sigma_des.core.counter_rng` — the same numbers inside numba kernels;
 - :mod:`sigma_des.core.draws` — the lazy vectorised cache of per-message draws;
-- :mod:`sigma_des.core.validate` — validation helpers for the spec dataclasses.
+- :mod:`sigma_des.core.validate` — validation helpers for the spec dataclasses;
+- :mod:`sigma_des.core.models` — the dynamics-model and behaviour protocols and the swarm view.
 
 Nothing here imports any other part of sigma_des but :mod:`sigma_des.errors`.
 """

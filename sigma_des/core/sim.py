@@ -61,6 +61,27 @@ class Kernel:
         # same tuple as Environment.schedule(), pushed directly: this is the hot path
         heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))  # type: ignore[misc]
 
+    def jump_to(self, t: float) -> None:
+        """Set the clock to ``t`` between two events (a backend that ran events itself).
+
+        The compiled message core processes messages outside SimPy; when it stops at
+        a message's time, the control code that follows must see that time.
+        """
+        self.env._now = t  # type: ignore[attr-defined]
+
     def run(self, until: float) -> None:
         """Process events up to (and including those at) time ``until``."""
         self.env.run(until=until)
+
+    def peek(self) -> float:
+        """Time of the next event (``inf`` when none is scheduled)."""
+        return float(self.env.peek())
+
+    def step(self) -> None:
+        """Process the next event."""
+        self.env.step()
+
+    def head_is(self, fn: Callable[..., Any]) -> bool:
+        """True if the next event is a :class:`Call` of ``fn``."""
+        q = self.env._queue  # type: ignore[attr-defined]
+        return bool(q) and getattr(q[0][3], "fn", None) == fn

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
@@ -88,7 +88,8 @@ class Scene:
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task) -> None:
         self.capture = _Capture()
         initial = task.initial_state(dyn, sc.nodes)
-        self.run: MethodRun = make_run(sc, method, _Placed(dyn, initial), self.capture)[0]  # type: ignore[arg-type]
+        placed = _Placed(dyn, initial)
+        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture)[0]  # type: ignore[arg-type]
         self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
                                dyn.observe(initial))
         self.done = False
@@ -110,7 +111,7 @@ class Scene:
         """Send the command rows of ``nodes`` (stamped with the shown frame) and resume."""
         view = self.view
         if nodes.size:
-            self.run._send_command_batch(self.tick, view.aligned_frame, nodes, cmds)
+            self.run.publish_commands(self.tick, view.aligned_frame, nodes, cmds)
         self.capture.view = None
 
     def truth(self) -> Array:
@@ -192,8 +193,9 @@ class SceneBatch:
         for (k, dt), group in groups.items():
             runs = [s.run for s in group]
             state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
-            cmd = np.concatenate([r.cmd for r in runs]) if len(runs) > 1 else runs[0].cmd
-            nodes = np.concatenate([r._nodes for r in runs])
+            cmds = [r.nodes.cmd for r in runs]
+            cmd = np.concatenate(cmds) if len(runs) > 1 else cmds[0]
+            nodes = np.concatenate([r.truth.nodes for r in runs])
             new = self.dyn.step(state, cmd, dt, k, nodes)
             n = self.sc.nodes
             for j, r in enumerate(runs):

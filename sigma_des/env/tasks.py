@@ -1,7 +1,7 @@
 """Learning tasks of the swarm environment: observation, action, reward, termination.
 
 A task turns what the distributed loop delivers (the *aligned* swarm view of the
-alignment server, :class:`~sigma_des.agents.base.SwarmView`) into per-agent
+alignment server, :class:`~sigma_des.core.models.SwarmView`) into per-agent
 observations, the agents' actions into command rows that travel to the nodes, and
 the *true* swarm state (the physics at the latest frame) into rewards and
 terminations. Observations see the network; rewards see the truth.
@@ -50,9 +50,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
 from sigma_des.agents.behaviours import to_command
 from sigma_des.agents.formation import formation_slots
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
 

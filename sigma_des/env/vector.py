@@ -28,7 +28,7 @@ import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import SwarmView
+from sigma_des.core.models import SwarmView
 from sigma_des.env.options import EnvOptions, build_scenario
 from sigma_des.env.scenes import Scene, SceneBatch
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task

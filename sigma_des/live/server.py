@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import SwarmView
 from sigma_des.config import Scenario
+from sigma_des.core.models import SwarmView
 from sigma_des.core.rng import RandomStreams
 from sigma_des.events.align import make_aligner
 from sigma_des.events.align.base import Aligner, one_state

@@ -2,7 +2,7 @@
 
 An engine run with ``run.tap`` set calls the tap where messages are delivered,
 snapshots change and render ticks sample. The tap converts the published state
-rows (columns :data:`~sigma_des.agents.base.OBS_FIELDS`: body velocities, Euler
+rows (columns :data:`~sigma_des.core.models.OBS_FIELDS`: body velocities, Euler
 angles, body rates, north/east position, altitude up) to NED position, NED
 velocity and Euler angles, and writes them through a
 :class:`~sigma_des.record.writer.MethodRecorder`.

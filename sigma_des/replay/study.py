@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.base import Behaviour, DynamicsModel, SwarmView
+from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams
 from sigma_des.record.tap import obs_to_ned
 from sigma_des.replay.interpolate import interpolate

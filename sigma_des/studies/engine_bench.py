@@ -25,7 +25,7 @@ and reports wall seconds per simulated second, times real time, events per
 wall second (engines: kernel events, the cohort core's message events included;
 baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
 the engine really used (the cohort engine falls back to the per-message engine
-for features it does not reproduce, see ``sigma_des.events.cohort.unsupported``,
+for features it does not reproduce, see ``sigma_des.events.fast.support.unsupported``,
 or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
 cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
 per simulated second).
@@ -233,19 +233,20 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
     import time
 
     if impl in ENGINES:
-        from sigma_des.events.cohort import CohortFallback, make_run
+        from sigma_des.events.cohort import make_run
         from sigma_des.events.engine import MethodRun
+        from sigma_des.events.fast.support import CohortFallback
         from sigma_des.factory import make_behaviour, make_dynamics
 
         if sc.engine != impl:
             raise ValueError(f"impl {impl!r} but scenario engine {sc.engine!r}")
         t0, c0 = time.perf_counter(), time.process_time()
-        run, fallback = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+        run, fallback = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
         try:
             out = run.run()
         except CohortFallback as exc:
             fallback = str(exc) or "CohortFallback"
-            run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+            run = MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
             out = run.run()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         used = "events" if fallback or impl == "events" else "cohort"

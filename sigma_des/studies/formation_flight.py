@@ -206,7 +206,7 @@ def flight_metrics(t: Array, pos: Array, ideal: Array, args: argparse.Namespace
 def run_engine(sc: Scenario, method: str, dyn: Any) -> tuple[dict[str, Any], Array, Array]:
     """One method on ``sc`` (what :func:`sigma_des.api.run_method` does, keeping the
     trajectory): returns the engine's result dict and the ``(T,)``, ``(T, n, 3)`` log."""
-    run, out, engine = execute(sc, method, lambda: dyn, lambda: make_behaviour(sc))
+    run, out, engine = execute(sc.run_spec(), method, lambda: dyn, lambda: make_behaviour(sc))
     out["engine"] = engine
     t, pos = run.trajectory()
     return out, t, pos

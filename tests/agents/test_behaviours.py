@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from sigma_des.agents.aircraft import GeneralAircraft
-from sigma_des.agents.base import SwarmView
 from sigma_des.agents.behaviours import (
     BehaviourSet,
     Rule,
@@ -23,6 +22,7 @@ from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.pointmass import PointMass
 from sigma_des.agents.presets import preset, quadrotor_f450
 from sigma_des.agents.registry import BEHAVIOURS, DYNAMICS, make_behaviour, make_dynamics
+from sigma_des.core.models import SwarmView
 from sigma_des.errors import ConfigError
 from sigma_des.metrics.dtw import dtw, dtw_normalised
 

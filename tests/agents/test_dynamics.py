@@ -8,9 +8,9 @@ import pytest
 from sigma_des.agents import layout as L
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.atmosphere import gravity_scalar
-from sigma_des.agents.base import DynamicsModel
 from sigma_des.agents.rigid_body import rigid_body_substep, rotmat
 from sigma_des.agents.wind import WindConfig
+from sigma_des.core.models import DynamicsModel
 
 
 def _rotors_off(m: GeneralAircraft, n: int = 1) -> np.ndarray:

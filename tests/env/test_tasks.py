@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from sigma_des.agents.base import SwarmView
 from sigma_des.agents.pointmass import PointMass
+from sigma_des.core.models import SwarmView
 from sigma_des.core.rng import Stream
 from sigma_des.env.tasks import FormationTask, GoalTask, make_task
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sigma_des.agents.base import DynamicsModel, SwarmView
+from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -36,7 +36,7 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
     cap = _Capture()
     real = make_behaviour(sc)
     dyn = make_dynamics(sc)
-    run, _ = make_run(sc, method, make_dynamics(sc), cap)
+    run, _ = make_run(sc.run_spec(), method, make_dynamics(sc), cap)
     run.start()
     pauses = outside = 0
     while True:
@@ -45,13 +45,13 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
             break
         if code == TRIGGER_DUE:
             k, dt = run.next_trigger()
-            run.pending_state = dyn.step(run.state, run.cmd, dt, k, run._nodes)
+            run.pending_state = dyn.step(run.state, run.nodes.cmd, dt, k, run.truth.nodes)
             outside += 1
             continue
         assert code == PAUSED and cap.view is not None
         cmds = real.commands(cap.view, run.dyn)
         ok = np.flatnonzero(~np.isnan(cmds).all(axis=1))
-        run._send_command_batch(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
+        run.publish_commands(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
         cap.view = None
         pauses += 1
     return run, run.finish(), pauses, outside
@@ -65,7 +65,7 @@ def test_driven_run_equals_the_run(engine: str, method: str) -> None:
                 "commands.every": 2, "net.host_link.latency": 0.004}),
         engine=engine,
     )
-    ref_run, _ = make_run(sc, method, make_dynamics(sc), make_behaviour(sc))
+    ref_run, _ = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
     ref = ref_run.run()
     run, out, pauses, outside = _driven(sc, method)
     assert pauses >= 10  # commands were really injected from outside

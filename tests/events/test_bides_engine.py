@@ -16,7 +16,7 @@ from sigma_des.factory import make_behaviour, make_dynamics
 
 def _run(sc, method: str = "bides") -> MethodRun:  # type: ignore[no-untyped-def]
     """The run on the cohort engine when it supports ``sc`` (it is exact), else per message."""
-    run, _why = make_run(replace(sc, engine="cohort"), method, make_dynamics(sc),
+    run, _why = make_run(replace(sc, engine="cohort").run_spec(), method, make_dynamics(sc),
                          make_behaviour(sc))
     return run
 
@@ -72,39 +72,41 @@ def test_adaptation_off_keeps_rate() -> None:
 def test_rollback_resimulates_exactly_the_expected_frames() -> None:
     # no behaviour runs, so the hand-delivered command is the node's newest
     sc = tiny(**{"bides.theta_warp": 5})
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
+    # pokes its internals
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     run.start()
     run.kernel.run(0.5)
     i = 0
-    current = run.node_target[i] if run.node_busy[i] else run.node_frame[i]
+    current = run.nodes.target[i] if run.nodes.busy[i] else run.nodes.frame[i]
     c = current - 20
     before = run.state.copy()
     H = sc.history_frames
-    prev = run.ckpt[(c - 1) % H, i].copy()
+    prev = run.truth.ckpt[(c - 1) % H, i].copy()
     row = np.array([3.0, -4.0, 0.5])
-    run._on_command(i, c, row)
-    assert run.rollbacks == 1
-    assert run.resim_steps == current - c + 1 == 21
+    run.nodes.on_command(i, c, row)
+    assert run.truth.rollbacks == 1
+    assert run.truth.resim_steps == current - c + 1 == 21
     # the truth of node 0 is re-simulated from its checkpoint with the new command
     dyn = PointMass()
     s = prev[None, :]
     for f in range(c, run.latest_trigger + 1):
-        s = dyn.step(s, row[None, :], float(run.frame_dt[f % H]), f, np.array([i]))
-        assert np.array_equal(run.ckpt[f % H, i], s[0])
+        s = dyn.step(s, row[None, :], float(run.truth.frame_dt[f % H]), f, np.array([i]))
+        assert np.array_equal(run.truth.ckpt[f % H, i], s[0])
     assert np.array_equal(run.state[i], s[0])
     assert np.array_equal(run.state[1:], before[1:])  # nobody else moved
     # the re-simulation costs the node 21 step times before its next frame
-    assert run.node_busy[i]
+    assert run.nodes.busy[i]
 
 
 def test_no_rollback_within_theta_warp() -> None:
     sc = tiny(**{"bides.theta_warp": 5})
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))  # pokes its internals
+    # pokes its internals
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     run.start()
     run.kernel.run(0.5)
-    current = run.node_busy[0] and run.node_target[0] or run.node_frame[0]
-    run._on_command(0, current - 5, np.array([1.0, 0.0, 0.0]))
-    assert run.rollbacks == 0
+    current = run.nodes.busy[0] and run.nodes.target[0] or run.nodes.frame[0]
+    run.nodes.on_command(0, current - 5, np.array([1.0, 0.0, 0.0]))
+    assert run.truth.rollbacks == 0
 
 
 @pytest.mark.parametrize(("theta", "expect"), [(1000, False), (2, True)])

@@ -17,10 +17,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import sigma_des.events.cohort as cohort
+import sigma_des.events.fast.driver as driver
 from sigma_des import Scenario, load
 from sigma_des.api import ideal_run, run_method
-from sigma_des.events.cohort import CohortRun, unsupported
+from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 
@@ -115,7 +116,7 @@ def test_crash_slow_drift_and_qos1_stream_identical() -> None:
 
 def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> None:
     """With no spare capacity the core must grow its tables and flush mid-run."""
-    monkeypatch.setattr(cohort, "SLACK", 0)
+    monkeypatch.setattr(driver, "SLACK", 0)
     sc = tiny(
         nodes=6,
         **{
@@ -126,10 +127,12 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
     )
     for method in ("none", "bides"):
         run_both(sc, method)
-    run = CohortRun(replace(sc, engine="cohort"), "none", make_dynamics(sc), make_behaviour(sc))
-    cap0 = run.S[0].size
+    run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
+                    make_behaviour(sc), compiled=True)
+    assert run.fast is not None
+    cap0 = run.fast.array("heap_t").size
     run.run()
-    assert run.S[0].size > cap0  # the event table grew
+    assert run.fast.array("heap_t").size > cap0  # the event table grew
 
 
 @pytest.mark.parametrize(
@@ -155,12 +158,12 @@ def test_unsupported_features_fall_back_and_say_why(
     over: dict[str, Any], method: str, why: str
 ) -> None:
     sc = tiny(**over)
-    assert why in (unsupported(sc, method) or "")
+    assert why in (unsupported(sc.run_spec(), method) or "")
     _ev, co = run_both(sc, method)
     assert co["engine"]["used"] == "events"
     assert why in co["engine"]["fallback"]
-    with pytest.raises(cohort.CohortFallback, match=why):
-        CohortRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+    with pytest.raises(CohortFallback, match=why):
+        MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc), compiled=True)
 
 
 def test_lockstep_eviction_rejoin_and_republish_identical() -> None:

@@ -98,11 +98,11 @@ def test_lockstep_lost_state_waits_exactly_one_retry_timeout() -> None:
 
     sc = tiny(**{"net.transport": "datagram", "lockstep.retry_timeout": 0.03,
                  "faults": [{"kind": "drop", "message": "state", "node": 2, "frame": 50}]})
-    run = MethodRun(sc, "lockstep", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "lockstep", make_dynamics(sc), make_behaviour(sc))
     run.run()
     H = sc.history_frames
-    t50 = run.trig_time[50 % H]
-    t51 = run.trig_time[51 % H]
+    t50 = run.trigger.trig_time[50 % H]
+    t51 = run.trigger.trig_time[51 % H]
     assert t50 == pytest.approx(0.5, abs=1e-12)
     # re-request (server up + host 1 down), node 2 republishes at once (host 1 up +
     # server down; nothing else queued then)
@@ -110,7 +110,7 @@ def test_lockstep_lost_state_waits_exactly_one_retry_timeout() -> None:
     assert t51 == pytest.approx(expected, abs=1e-12)
     assert run.aligner.rerequests == 1  # type: ignore[attr-defined]
     # later frames keep the 10 ms period from the new phase
-    assert run.trig_time[52 % H] - t51 == pytest.approx(0.010, abs=1e-12)
+    assert run.trigger.trig_time[52 % H] - t51 == pytest.approx(0.010, abs=1e-12)
 
 
 def test_lockstep_eviction_unblocks_a_crashed_node() -> None:
@@ -119,12 +119,12 @@ def test_lockstep_eviction_unblocks_a_crashed_node() -> None:
 
     sc = tiny(**{"lockstep.eviction_timeout": 0.1,
                  "faults": [{"kind": "crash", "node": 1, "start": 0.3}]})
-    run = MethodRun(sc, "lockstep", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "lockstep", make_dynamics(sc), make_behaviour(sc))
     out = run.run()
     assert run.aligner.evicted == 1  # type: ignore[attr-defined]
     # without eviction the barrier would stall for good
     sc2 = tiny(**{"faults": [{"kind": "crash", "node": 1, "start": 0.3}]})
-    run2 = MethodRun(sc2, "lockstep", make_dynamics(sc2), make_behaviour(sc2))
+    run2 = MethodRun(sc2.run_spec(), "lockstep", make_dynamics(sc2), make_behaviour(sc2))
     out2 = run2.run()
     assert run2.latest_trigger < run.latest_trigger
     assert out2["metrics"]["stalls"] >= 1
@@ -139,7 +139,7 @@ def test_lockstep_evicted_straggler_rejoins() -> None:
     sc = tiny(**{"lockstep.eviction_timeout": 0.025,
                  "faults": [{"kind": "slow", "node": 1, "start": 0.3, "end": 0.5,
                              "factor": 20.0}]})
-    run = MethodRun(sc, "lockstep", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "lockstep", make_dynamics(sc), make_behaviour(sc))
     m = run.run()["metrics"]
     al = run.aligner
     assert al.evicted >= 1  # type: ignore[attr-defined]
@@ -147,7 +147,10 @@ def test_lockstep_evicted_straggler_rejoins() -> None:
     assert bool(al.live.all())  # type: ignore[attr-defined]
     # after the slow window the barrier runs at the full rate again
     k, H = run.latest_trigger, sc.history_frames
-    assert run.trig_time[k % H] - run.trig_time[(k - 1) % H] == pytest.approx(0.010, abs=1e-12)
+    assert (
+        run.trigger.trig_time[k % H] - run.trigger.trig_time[(k - 1) % H]
+        == pytest.approx(0.010, abs=1e-12)
+    )
     assert m["evicted"] == al.evicted  # type: ignore[attr-defined]
 
 
@@ -157,9 +160,9 @@ def test_f_trig_min_counts_a_rate_set_before_the_window() -> None:
     from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = tiny(**{"warmup": 0.5, "bides.adaptation": False})
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     run.start()
     run.kernel.run(0.1)
     run.set_rate(50.0)  # lowered before the metrics window opens, and kept
-    run._advance(None)
+    run.advance(None)
     assert run.finish()["metrics"]["f_trig_min_hz"] == 50.0

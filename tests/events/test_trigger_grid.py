@@ -24,7 +24,7 @@ ISSUE = [
 
 
 def _run(sc, method):  # type: ignore[no-untyped-def]
-    return execute(sc, method, lambda: make_dynamics(sc), lambda: make_behaviour(sc))
+    return execute(sc.run_spec(), method, lambda: make_dynamics(sc), lambda: make_behaviour(sc))
 
 
 @pytest.mark.parametrize("engine", ["events", "cohort"])
@@ -43,4 +43,4 @@ def test_lockstep_trigger_times_are_multiplied(engine: str) -> None:
     sc = tiny(engine=engine, history_frames=64)
     run, _, _ = _run(sc, "lockstep")
     k = np.arange(run.latest_trigger - 63, run.latest_trigger + 1)
-    np.testing.assert_array_equal(run.trig_time[k % run.H], k / 100.0)
+    np.testing.assert_array_equal(run.trigger.trig_time[k % run.trigger.H], k / 100.0)

@@ -17,7 +17,7 @@ def test_quick_profile_lists_the_message_core() -> None:
     assert "N=10 method=bides 0.3 s simulated" in out and "engine cohort" in out
     shares = [float(ln.split()[1].rstrip("%")) for ln in out.splitlines()[2:]]
     assert shares and all(0.0 <= s <= 100.0 for s in shares)
-    assert "advance (cohort_jit.py" in out and "_issue (engine.py" in out
+    assert "advance (loop.py" in out and " issue (trigger.py" in out
 
 
 def test_bad_override_exits_2() -> None:

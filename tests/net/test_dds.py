@@ -104,7 +104,7 @@ def test_multicast_trigger_is_one_send_copied_by_the_switch() -> None:
 
 def _run(method: str, **over: object) -> MethodRun:
     sc = tiny(methods=[method], **{**DDS, **over})
-    run = MethodRun(sc, method, make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
     run.run()
     return run
 
@@ -119,8 +119,8 @@ def test_lost_state_is_repaired_after_the_next_heartbeat() -> None:
             "dds.heartbeat_period": p, "lockstep.retry_timeout": 0.3,
             "faults": [{"kind": "drop", "message": "state", "node": 0, "frame": 10}],
         })
-    H = run.sc.history_frames
-    t50 = run.trig_time[10 % H]
+    H = run.spec.history_frames
+    t50 = run.trigger.trig_time[10 % H]
     assert t50 > 0.3
     # frame 10's state leaves node 0's thread at t_sent (its trigger: one unicast send)
     t_sent = t50 + CW + 2 * WT * TAU + LS + LH + (CR + X * (E + 2)) + C + CW
@@ -132,7 +132,7 @@ def test_lost_state_is_repaired_after_the_next_heartbeat() -> None:
     t += 2 * hb + LH + LS + M + hrd  # server reads it, waits, answers
     t += M + 2 * an + LS + LH + M + nrd  # ACKNACK back, node 0 waits, resends
     t += CW + 2 * WS * TAU + LH + LS + CR + X * (E + 1)  # DATA again, server reads it
-    assert run.trig_time[11 % H] == pytest.approx(t, abs=1e-12)
+    assert run.trigger.trig_time[11 % H] == pytest.approx(t, abs=1e-12)
     assert t - t50 < 0.3  # repaired before the barrier's re-request
     assert run.net.retransmissions == 1
     assert run.aligner.rerequests == 1  # type: ignore[attr-defined]  # frame 0 only
@@ -218,7 +218,7 @@ def _deliveries(depth: int) -> tuple[MethodRun, list[tuple[int, float, float]]]:
     sc = tiny(methods=["none"], nodes=1, hosts=1, **{
         **DDS, "dds.heartbeat_period": 0.1, "dds.history_depth": depth,
         "faults": [{"kind": "drop", "message": "state", "node": 0, "frame": 40}]})
-    run = MethodRun(sc, "none", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "none", make_dynamics(sc), make_behaviour(sc))
     got: list[tuple[int, float, float]] = []
     inner = run.net.deliver
 

@@ -127,12 +127,12 @@ def test_duplicate_delivery_changes_no_metric() -> None:
     from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = Scenario(nodes=3, hosts=1, duration=0.5, warmup=0.0)
-    run = MethodRun(sc, "bides", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     obs = np.zeros(12)
-    run._deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
+    run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
     lat = list(run.collector._lat["state"])
     ring = run.aligner.ring.frame.copy()  # type: ignore[attr-defined]
-    run._deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
+    run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
     assert run.collector.duplicates == 1
     assert run.collector._lat["state"] == lat
     assert np.array_equal(run.aligner.ring.frame, ring)  # type: ignore[attr-defined]

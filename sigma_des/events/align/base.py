@@ -145,8 +145,15 @@ def one_state(
 class ServerContext(Protocol):
     """What an aligner may ask of the engine (trigger source and scheduler)."""
 
-    latest_trigger: int
-    f_trig: float
+    @property
+    def latest_trigger(self) -> int:
+        """Index of the newest trigger issued."""
+        ...
+
+    @property
+    def f_trig(self) -> float:
+        """The current trigger rate (Hz)."""
+        ...
 
     def now(self) -> float:
         """Current simulated time."""

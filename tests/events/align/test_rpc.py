@@ -33,14 +33,14 @@ RPC = {"rpc.call_time": K, "rpc.render_time": R, "rpc.render_per_vehicle": V}
 
 def _run(**over: object) -> MethodRun:
     sc = tiny(methods=["rpc"], **{**RPC, **over})
-    run = MethodRun(sc, "rpc", make_dynamics(sc), make_behaviour(sc))
+    run = MethodRun(sc.run_spec(), "rpc", make_dynamics(sc), make_behaviour(sc))
     run.run()
     return run
 
 
 def _periods(run: MethodRun) -> list[float]:
-    H = run.sc.history_frames
-    return [run.trig_time[(k + 1) % H] - run.trig_time[k % H] for k in range(5, 30)]
+    H = run.spec.history_frames
+    return [run.trigger.trig_time[(k + 1) % H] - run.trigger.trig_time[k % H] for k in range(5, 30)]
 
 
 def test_sequential_calls_frame_time_exact() -> None:

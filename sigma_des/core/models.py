@@ -1,4 +1,8 @@
-"""Plug-in protocols of the agents layer: dynamics models and behaviours.
+"""Plug-in protocols of the simulation: dynamics models, behaviours and the swarm view.
+
+They live on the ground floor so that the engine (``sigma_des.events``) steps
+physics and asks for commands through them without knowing any aircraft; the
+agents layer (``sigma_des.agents``) implements them.
 
 The engine steps physics through :class:`DynamicsModel`, a *pure, vectorised*
 interface: the whole swarm's state is one ``(n, state_dim)`` float array, a step
@@ -8,7 +12,7 @@ makes checkpoints plain array copies and time-warp rollback a re-run of ``step``
 
 Commands are opaque ``(n, command_dim)`` float arrays whose meaning the dynamics
 model (its autopilot) and the behaviours agree on; the engine only stores and
-delivers them. Layers import downwards: this module knows nothing of networks.
+delivers them. Layers import downwards: this module imports nothing of sigma_des.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from numpy.typing import NDArray
 
 __all__ = ["OBS_FIELDS", "DynamicsModel", "Behaviour", "SwarmView"]
 
-#: Columns of the published state (DESIGN §4): body velocities, Euler angles,
+#: Columns of the published state (docs/MODEL.md, "Published state"): body velocities, Euler angles,
 #: body rates, north/east position and altitude (up), all SI units and radians.
 OBS_FIELDS: tuple[str, ...] = ("u", "v", "w", "phi", "theta", "psi", "p", "q", "r", "x", "y", "h")
 

@@ -1,0 +1,99 @@
+"""The broker in the compiled message core (docs/MODEL.md, "Network").
+
+One FIFO server (the Lindley recursion, one departure after another): a PUBLISH
+takes its publish service, then each matching subscriber its delivery service,
+and every delivery leaves over the subscriber's down link — the same operations,
+in the same order, as :mod:`sigma_des.net.network`.
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.layout import (
+    E_AUX,
+    E_FRAME,
+    E_INDEX,
+    E_KIND,
+    E_WHO,
+    EF_TDEP,
+    EV_CLIENT,
+    EV_FLOAT,
+    EV_INT,
+    F_BUSY,
+    F_MAXWAIT,
+    F_WORK,
+    FLOATS,
+    FPARAMS,
+    G_END,
+    G_WARMUP,
+    IPARAMS,
+    K_REPUB,
+    K_STATE,
+    Q_ACK,
+    Q_N,
+    Q_QOS1S,
+    SVC_DEL,
+    SVC_PUB,
+)
+from sigma_des.events.fast.primitives import (
+    address,
+    alloc,
+    count,
+    draw,
+    hop,
+    in_window,
+    jit,
+    key_of,
+)
+
+__all__ = ["broker"]
+
+
+@jit
+def _deliver(S, src, sub, subject, d):  # type: ignore[no-untyped-def]
+    """A copy of the PUBLISH in ``src`` leaves the broker at ``d`` for ``sub``."""
+    slot = alloc(S)
+    evf = S[EV_FLOAT]
+    evi = S[EV_INT]
+    for j in range(evf.shape[1]):
+        evf[slot, j] = evf[src, j]
+    evf[slot, EF_TDEP] = d
+    address(S, slot, EV_CLIENT, sub, evi[src, E_KIND], subject, evi[src, E_INDEX])
+    evi[slot, E_AUX] = evi[src, E_AUX]
+    evi[slot, E_FRAME] = evi[src, E_FRAME]
+    hop(S, slot, d)
+
+
+@jit
+def _work(S, a, b):  # type: ignore[no-untyped-def]
+    g = S[FPARAMS]
+    lo = a if a > g[G_WARMUP] else g[G_WARMUP]
+    hi = b if b < g[G_END] else g[G_END]
+    if hi > lo:
+        S[FLOATS][F_WORK] += hi - lo
+
+
+@jit
+def broker(S, s, now):  # type: ignore[no-untyped-def]
+    """The PUBLISH in slot ``s`` reaches the broker at ``now``."""
+    kind, subject, index = key_of(S, s)
+    ff = S[FLOATS]
+    q = S[IPARAMS]
+    n = q[Q_N]
+    s_pub = draw(S, SVC_PUB, kind, subject, index)
+    busy = ff[F_BUSY]
+    start = now if now > busy else busy
+    if in_window(S, now):
+        ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
+    if q[Q_QOS1S]:
+        count(S, S[EV_INT][s, E_WHO], 0, q[Q_ACK], start + s_pub)
+    d = start + s_pub
+    if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
+        for sub in range(n):
+            d += draw(S, SVC_DEL, kind, sub, index)
+            _deliver(S, s, sub, sub, d)
+    else:
+        sub = n if kind == K_STATE or kind == K_REPUB else subject
+        d += draw(S, SVC_DEL, kind, subject, index)
+        _deliver(S, s, sub, subject, d)
+    ff[F_BUSY] = d
+    _work(S, start, d)

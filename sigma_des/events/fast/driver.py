@@ -1,0 +1,376 @@
+"""The compiled message core as a backend of the engine (docs/MODEL.md, "Engines").
+
+:class:`CompiledCore` processes the messages of a
+:class:`~sigma_des.events.engine.MethodRun` — trigger fan-out, node computation,
+state fan-in, commands — without making them SimPy events. The engine keeps the
+frame-level and control events (trigger issue with the whole-swarm physics step,
+alignment ticks with adaptation and commands, render ticks) and composes the
+core through a narrow interface: it publishes triggers, commands and
+re-requests (:meth:`~CompiledCore.publish_trigger`, ...), owes a node re-simulated
+steps after a rollback (:meth:`~CompiledCore.add_resim`), and before each
+control event at time ``t`` runs the core to ``t``
+(:meth:`~CompiledCore.advance_to`: messages come first at equal times, as in the
+specification), which hands the batch of state deliveries to the aligner in one
+vectorised call and the latency samples to the collector. At the end
+:meth:`~CompiledCore.write_back` copies the core's counters into the objects the
+collector reads.
+
+Exactness: the compiled core makes the same floating point operations in the
+same order as the per-message engine and reads the same counter-based draws, so
+result tables are identical on the same seed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.core.sim import Kernel
+from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
+from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast import loop
+from sigma_des.events.fast.support import CohortFallback, unsupported
+from sigma_des.events.fast.tables import DrawTables, network_sources
+from sigma_des.events.jobs import job_cost
+from sigma_des.events.node import PhysicsNodes
+from sigma_des.events.spec import RunSpec
+from sigma_des.events.truth import SwarmTruth
+from sigma_des.metrics.collector import Collector
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.network import Network
+
+__all__ = ["SLACK", "CompiledCore", "Host"]
+
+#: Spare capacity of the core's event table and delivery buffers beyond what one
+#: frame needs; they grow (or are flushed) on demand, so this changes speed only.
+SLACK = 256
+
+
+class Host(Protocol):
+    """What the compiled core reads and calls of the engine that composes it."""
+
+    spec: RunSpec
+    method: str
+    n: int
+    kernel: Kernel
+    net: Network
+    aligner: Aligner
+    collector: Collector
+    nodes: PhysicsNodes
+    truth: SwarmTruth
+    tap: Any
+
+
+class CompiledCore:
+    """The messages of one run, processed by the compiled loop.
+
+    Args:
+        host: the engine composing this core (its physics ring and command array
+            are shared with the core, read and written in place).
+
+    Raises:
+        CohortFallback: the scenario uses a feature the core does not reproduce.
+    """
+
+    def __init__(self, host: Host) -> None:
+        spec = host.spec
+        why = unsupported(spec, host.method)
+        if why is not None:
+            raise CohortFallback(why)
+        self.host = host
+        self._t_event = 0.0
+        self._lockstep = host.method == "lockstep"
+        links = spec.net.net
+        p_loss = (links.host_link.loss.p, links.server_link.loss.p)
+        sources = network_sources(host.net, p_loss)
+        sources.append((L.STEP, 0, host.nodes.step_time))
+        self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
+        self.S = L.allocate(self._dims(), self._given(p_loss))
+
+    # ------------------------------------------------------------ layout
+
+    def _dims(self) -> dict[str, int]:
+        h = self.host
+        n, spec = h.n, h.spec
+        M = int(h.nodes.cmd.shape[1])
+        pay = L.EF_PAY + max(OBS_WIDTH, M)
+        lockstep = self._lockstep
+        return {
+            "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": spec.hosts + 1,
+            "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
+            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
+            "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
+            "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
+            # duplicate check of re-requests and republished states (Lock-Step only)
+            "seen_n": n + 1 if lockstep else 1, "seen_h": spec.history_frames if lockstep else 1,
+        }
+
+    def _params(self) -> NDArray[np.int64]:
+        h = self.host
+        spec, net = h.spec, h.net
+        q = np.zeros(L.Q_LEN, dtype=np.int64)
+        q[L.Q_N] = h.n
+        q[L.Q_H] = h.truth.H
+        q[L.Q_HLC] = int(h.method == "hlc")
+        q[L.Q_WARP] = int(h.method == "bides" and spec.time_warp)
+        q[L.Q_THETA] = spec.theta_warp
+        q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
+        q[L.Q_ACK] = net.ack_bytes
+        q[L.Q_W] = OBS_WIDTH
+        q[L.Q_M] = int(h.nodes.cmd.shape[1])
+        q[L.Q_LOCK] = int(self._lockstep)
+        return q
+
+    def _links(self) -> dict[str, NDArray[Any]]:
+        """Access links and message sizes (what Network holds per link and kind)."""
+        h = self.host
+        spec, net = h.spec, h.net
+        spb = np.zeros((2, spec.hosts + 1))
+        for k in range(spec.hosts + 1):
+            spb[1, k] = net.up[k].sec_per_byte
+            spb[0, k] = net.down[k].sec_per_byte
+        wb = np.zeros(L.N_KINDS, dtype=np.int64)
+        bits = {TRIGGER: spec.trigger_payload_bits, STATE: spec.payload_bits,
+                COMMAND: spec.commands.payload_bits, REREQUEST: spec.trigger_payload_bits,
+                REPUBLISH: spec.payload_bits}
+        for kind, b in bits.items():
+            wb[kind] = net.wire_bytes(b)
+        return {"link_spb": spb, "link_of": np.array(net.link_of, dtype=np.int64),
+                "wire_bytes": wb}
+
+    def _nodes(self) -> dict[str, NDArray[Any]]:
+        """Node rows, hosts, faults and clocks."""
+        h = self.host.nodes
+        n = self.host.n
+        nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
+        nd[[L.N_FRAME, L.N_REQ, L.N_TARGET, L.N_CSTAMP]] = -1
+        ptr = np.zeros(n + 1, dtype=np.int64)
+        rows: list[tuple[float, float, float]] = []
+        for i in range(n):
+            rows.extend(h.slow.get(i, ()))
+            ptr[i + 1] = len(rows)
+        last_i = np.zeros((n, 2), dtype=np.int64)
+        last_i[:, 0] = -1
+        drift = (h.clocks.drift_ppm * 1e-6).tolist()  # the engine's arithmetic, exactly
+        return {
+            "node": nd, "host_of": np.array(h.host_of, dtype=np.int64),
+            "crash": np.array(h.crash_at, dtype=np.float64), "slow_ptr": ptr,
+            "slow": np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64),
+            "clock_off": np.array(h.clocks.offset.tolist(), dtype=np.float64),
+            "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
+        }
+
+    def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
+        h = self.host
+        spec = h.spec
+        cap = 4 * (h.n + 1) + SLACK
+        tb = self.tables
+        return {
+            "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
+            "iparams": self._params(), "fparams": np.array([spec.warmup, spec.duration]),
+            "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
+            "draw_tag": tb.tags, "p_loss": np.array(p_loss),
+            "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
+            **self._links(), **self._nodes(),
+        }
+
+    def ensure_space(self, k: int) -> None:
+        """Grow the event table unless ``k`` slots (plus a fan-out) are free."""
+        S = self.S
+        iv = S[L.INTS]
+        if iv[L.I_FREE] >= k + self.host.n + 4:
+            return
+        old = S[L.HEAP_T].size
+        new = 2 * old + k
+        if new > L.MAX_SLOTS:
+            raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
+        grown: dict[str, NDArray[Any]] = {}
+        for name in ("heap_t", "heap_k", "ev_int", "ev_float"):
+            a = S[L.INDEX[name]]
+            b = np.zeros((new,) + a.shape[1:], dtype=a.dtype)
+            b[:old] = a
+            grown[name] = b
+        nfree = int(iv[L.I_FREE])
+        free = np.zeros(new, dtype=np.int64)
+        free[:nfree] = S[L.FREE][:nfree]
+        extra = np.arange(new - 1, old - 1, -1, dtype=np.int64)
+        free[nfree : nfree + extra.size] = extra
+        iv[L.I_FREE] = nfree + extra.size
+        grown["free"] = free
+        self.S = L.replaced(S, grown)
+
+    def array(self, name: str) -> NDArray[Any]:
+        """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
+        return self.S[L.INDEX[name]]
+
+    # ------------------------------------------------------------ publishes
+
+    def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
+        """The server publishes trigger ``k`` to every node, now."""
+        tb = self.tables
+        tb.fill(TRIGGER, k)
+        tb.fill(STATE, k)
+        tb.fill(0, k)  # compute
+        self.ensure_space(2)
+        hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
+        now = self.host.kernel.now
+        loop.publish_trigger(self.S, k, now, hl, hc)
+        tap = self.host.tap
+        if tap is not None:  # the core keeps no per-node trigger deliveries: the issue
+            tap.trigger(-1, k, now, math.nan)
+
+    def publish_commands(
+        self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
+    ) -> None:
+        """The server publishes ``cmds[i]`` (stamped ``stamp``) to each node ``i``, now."""
+        if nodes.size == 0:
+            return
+        self.tables.fill(COMMAND, tick)
+        self.ensure_space(nodes.size + 2)
+        rows = np.ascontiguousarray(cmds, dtype=np.float64)
+        now = self.host.kernel.now
+        loop.publish_commands(self.S, tick, stamp, nodes.astype(np.int64), rows, now)
+        tap = self.host.tap
+        if tap is not None:  # the core keeps no per-node command deliveries: the sends
+            tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
+
+    def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
+        """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
+        index = frame * 64 + min(retry, 63)
+        self.tables.fill(REREQUEST, index)
+        self.tables.fill(REPUBLISH, index)
+        self.ensure_space(2)
+        loop.publish_rerequest(self.S, node, frame, index, self.host.kernel.now)
+
+    # ------------------------------------------------------------ nodes
+
+    def add_resim(self, i: int, steps: int) -> None:
+        """Node ``i`` owes ``steps`` re-simulated steps (a rollback); start it if idle."""
+        nd = self.S[L.NODE]
+        nd[L.N_RB, i] += steps
+        if not nd[L.N_BUSY, i]:
+            self._start_job(i)
+
+    def _start_job(self, i: int) -> None:
+        """A job start that needs Python (rollback draws): :func:`job_cost`, as the spec."""
+        now = self._t_event
+        nd = self.S[L.NODE]
+        target = int(nd[L.N_REQ, i])
+        rb = int(nd[L.N_RB, i])
+        nd[L.N_RB, i] = 0
+        h = self.host.nodes
+        cost = job_cost(h.step_time, h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1,
+                        target, rb, now)
+        self.ensure_space(2)
+        loop.reserve(self.S, i, target, cost, now)
+
+    # ------------------------------------------------------------ running
+
+    def _sync_barrier(self) -> None:
+        """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
+        al: Any = self.host.aligner
+        S = self.S
+        S[L.LS_MIRROR][0] = al.got
+        S[L.LS_MIRROR][1] = al.live
+        iv = S[L.INTS]
+        iv[L.I_LCUR] = al.current
+        iv[L.I_LMISS] = al.missing
+        iv[L.I_LCOMP] = int(al.complete)
+
+    def advance_to(self, bound: float, strict: bool) -> bool:
+        """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
+
+        Serves the loop's requests for Python on the way (rollbacks, job starts with
+        rollback draws, buffer flushes, table growth).
+
+        Returns:
+            True if it stopped early because a Lock-Step barrier completed (the next
+            trigger may now come before ``bound``); False when it reached ``bound``.
+
+        Raises:
+            CohortFallback: a message needed a draw older than ``history_frames``.
+        """
+        while True:
+            if self._lockstep:
+                self.drain()
+                self._sync_barrier()
+            code = loop.advance(self.S, bound, strict)
+            if code == L.OK:
+                self.drain()
+                return False
+            S = self.S
+            if code == L.BARRIER:
+                # the aligner sees the completing state at its own arrival time
+                self.host.kernel.jump_to(float(S[L.FLOATS][L.F_PT]))
+                self.drain()
+                return True
+            if code == L.NEED_SPACE:
+                self.ensure_space(self.host.n + 8)
+            elif code == L.NEED_FLUSH:
+                self.drain()
+            elif code in (L.NEED_START, L.NEED_ROLLBACK):
+                self._t_event = float(S[L.FLOATS][L.F_PT])
+                i = int(S[L.INTS][L.I_PNODE])
+                if code == L.NEED_START:
+                    self._start_job(i)
+                else:
+                    a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
+                    h = self.host
+                    self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
+            else:
+                raise CohortFallback(
+                    "a message needed a random draw older than history_frames "
+                    f"({self.host.spec.history_frames}) frames"
+                )
+
+    def drain(self) -> None:
+        """Hand buffered state deliveries to the aligner, latencies to the collector."""
+        S = self.S
+        h = self.host
+        iv = S[L.INTS]
+        o = int(iv[L.I_OUT])
+        if o:
+            oi = S[L.OUT_INT][:o]
+            of = S[L.OUT_FLOAT][:o]
+            obs = of[:, 3 : 3 + OBS_WIDTH]
+            h.aligner.on_states(
+                StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
+            )
+            if h.tap is not None:
+                h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
+            iv[L.I_OUT] = 0
+        for k in range(3):
+            m = int(iv[L.I_LAT + k])
+            if m:
+                h.collector.delivered_batch(k + 1, S[L.LAT_BUF][k, :m].copy(), 0)
+                iv[L.I_LAT + k] = 0
+
+    def write_back(self) -> None:
+        """Copy the core's counters into the objects the collector reads."""
+        S = self.S
+        h = self.host
+        net = h.net
+        cnt = S[L.LINK_COUNT]
+        busy = S[L.LINK_BUSY]
+        for k in range(h.spec.hosts + 1):
+            net.up[k].bytes = int(cnt[1, 0, k])
+            net.up[k].packets = int(cnt[1, 1, k])
+            net.up[k].busy = float(busy[1, k])
+            net.down[k].bytes = int(cnt[0, 0, k])
+            net.down[k].packets = int(cnt[0, 1, k])
+            net.down[k].busy = float(busy[0, k])
+        fv = S[L.FLOATS]
+        iv = S[L.INTS]
+        net.broker.busy = float(fv[L.F_BUSY])
+        net.broker.work = float(fv[L.F_WORK])
+        net.broker.max_wait = float(fv[L.F_MAXWAIT])
+        h.nodes.history_misses += int(iv[L.I_HMISS])
+        h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
+        h.collector.duplicates += int(iv[L.I_DUPS])
+        h.kernel.events += int(iv[L.I_NEV])
+        for slot in (L.I_DUPS, L.I_MSGS, L.I_HMISS, L.I_NEV):
+            iv[slot] = 0

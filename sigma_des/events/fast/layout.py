@@ -1,0 +1,242 @@
+"""The compiled message core's state, declared once by name (docs/MODEL.md, "Engines").
+
+All state of the core is one tuple ``S`` of numpy arrays, built from the
+declaration :data:`FIELDS`: each :class:`Field` gives the array's name, dtype and
+shape (as names of dimensions resolved at allocation) and how it starts. The
+position of every field is generated from the declaration (:data:`INDEX` and one
+constant per field, its name in capitals: ``S[HEAP_T]``); numba folds these
+module-level integers into the compiled code, so an access is a static offset.
+A plain tuple, not a named one: numba types a plain tuple of arrays on each call
+in C (~4 us for this state), a named tuple in Python (~20 us), and the driver
+calls the loop thousands of times per run.
+
+Small arrays of scalars (counters, parameters, per-node rows, event columns) are
+indexed by the named integer constants below; numba folds module-level integers
+into the compiled code as constants.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.net.kinds import Kind
+
+__all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
+
+# event types
+EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
+# exit codes of advance()
+OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
+
+# message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
+K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
+#: message kinds + 1 (kind 0 is the compute source's key in the draw tables)
+N_KINDS = len(Kind) + 1
+
+# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
+SLOT_BITS = 24
+SLOT_MASK = (1 << SLOT_BITS) - 1
+MAX_SLOTS = 1 << SLOT_BITS
+
+# int scalars (S.ints)
+I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
+I_LAT = 12  # three counters: trigger, state, command latencies buffered
+I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
+I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
+I_LEN = 19
+# float scalars (S.floats)
+F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
+F_LEN = 4
+# int parameters (S.iparams)
+Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
+Q_LEN = 10
+# float parameters (S.fparams)
+G_WARMUP, G_END = 0, 1
+G_LEN = 2
+# node integer rows (S.node)
+N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
+N_ROWS = 6
+# event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
+# or command stamp), frame (of a state, republished state or re-request)
+E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
+E_COLS = 7
+# event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
+EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
+# draw sources: latency and loss uniforms per (link class, direction), broker, compute
+LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
+U_OFFSET = 4
+SVC_PUB, SVC_DEL, STEP = 8, 9, 10
+N_SOURCES = 11
+
+
+@dataclass(frozen=True)
+class Field:
+    """One array of the core's state.
+
+    Attributes:
+        name: the field's name (its constant is the name in capitals).
+        dtype: numpy dtype of the array.
+        shape: its dimensions, each a dimension name (resolved by :func:`allocate`)
+            or a fixed size.
+        fill: initial value of every element, or None: the driver supplies the
+            array (parameters, tables it fills, or arrays shared with the engine).
+        doc: what the array holds.
+    """
+
+    name: str
+    dtype: type[np.generic]
+    shape: tuple[str | int, ...]
+    fill: float | None
+    doc: str
+
+
+_f, _i = np.float64, np.int64
+
+#: The state of the compiled core, in order. Dimensions: ``cap`` event slots,
+#: ``n`` nodes, ``clients`` = n + 1 (the server is client n), ``links`` = hosts + 1
+#: access links, ``hosts``, ``cores``, ``tables`` draw-table rows, ``H`` history
+#: frames, ``W`` observation width, ``M`` command width, ``pay`` event float columns,
+#: ``out``/``lat`` delivery buffer capacities, ``slow`` slow-fault windows,
+#: ``seen_n``/``seen_h`` Lock-Step duplicate table.
+FIELDS: tuple[Field, ...] = (
+    Field("heap_t", _f, ("cap",), 0.0, "event heap: times"),
+    Field("heap_k", _i, ("cap",), 0.0, "event heap: keys (sequence << SLOT_BITS | slot)"),
+    Field("ev_int", _i, ("cap", E_COLS), 0.0, "event slots: int columns E_*"),
+    Field("ev_float", _f, ("cap", "pay"), 0.0, "event slots: float columns EF_* + payload"),
+    Field("free", _i, ("cap",), None, "free list of event slots"),
+    Field("ints", _i, (I_LEN,), 0.0, "int scalars I_*"),
+    Field("floats", _f, (F_LEN,), 0.0, "float scalars F_*"),
+    Field("iparams", _i, (Q_LEN,), None, "int parameters Q_*"),
+    Field("fparams", _f, (G_LEN,), None, "float parameters G_*"),
+    Field("link_busy", _f, (2, "links"), 0.0, "access links (down, up): busy until"),
+    Field("link_count", _i, (2, 2, "links"), 0.0, "(down, up) x (bytes, packets) in window"),
+    Field("link_spb", _f, (2, "links"), None, "(down, up): seconds per byte"),
+    Field("link_of", _i, ("clients",), None, "access link of each client"),
+    Field("draw_map", _i, (N_SOURCES, N_KINDS), None, "(source, kind) -> table row, -1 const"),
+    Field("draw_const", _f, (N_SOURCES,), None, "constant value of a source"),
+    Field("draw_val", _f, ("tables", "H", "clients"), None, "draw tables: values"),
+    Field("draw_tag", _i, ("tables", "H"), None, "draw tables: index held by each row"),
+    Field("p_loss", _f, (2,), None, "loss probability per link class (host, server)"),
+    Field("wire_bytes", _i, (N_KINDS,), None, "bytes on the wire per message kind"),
+    Field("node", _i, (N_ROWS, "n"), None, "node rows N_*"),
+    Field("host_of", _i, ("n",), None, "host of each node"),
+    Field("crash", _f, ("n",), None, "crash time of each node (inf: never)"),
+    Field("slow_ptr", _i, ("clients",), None, "slow-fault windows of node i: rows ptr[i]:ptr[i+1]"),
+    Field("slow", _f, ("slow", 3), None, "slow-fault windows (start, end, factor)"),
+    Field("cores", _f, ("hosts", "cores"), 0.0, "host cores: busy until"),
+    Field("hlc_l", _f, ("n",), -np.inf, "node HLC: l"),
+    Field("hlc_c", _i, ("n",), 0.0, "node HLC: c"),
+    Field("clock_off", _f, ("n",), None, "node clock offset"),
+    Field("clock_drift", _f, ("n",), None, "node clock drift (fraction)"),
+    Field("slot_frame", _i, ("H",), None, "engine's physics ring: frame of each slot"),
+    Field("obs_hist", _f, ("H", "n", "W"), None, "engine's physics ring: observations"),
+    Field("cmd", _f, ("n", "M"), None, "engine's current command of each node"),
+    Field("out_int", _i, ("out", 3), 0.0, "state deliveries: subject, frame, HLC c"),
+    Field("out_float", _f, ("out", "out_w"), 0.0, "state deliveries: t, gen, HLC l, obs"),
+    Field("lat_buf", _f, (3, "lat"), 0.0, "latencies of trigger, state, command deliveries"),
+    Field("last_int", _i, ("n", 2), None, "last published state: frame, HLC c"),
+    Field("last_float", _f, ("n", "last_w"), 0.0, "last published state: gen, HLC l, obs"),
+    Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
+    Field("seen", _i, (2, "seen_n", "seen_h"), -1.0, "Lock-Step: newest re-request/republish"),
+)
+
+#: Position of each field in the state tuple, generated from :data:`FIELDS`.
+INDEX: dict[str, int] = {f.name: i for i, f in enumerate(FIELDS)}
+# The positions by name, for the compiled code (numba folds these globals into constants,
+# so ``S[HEAP_T]`` is a static offset; a test checks them against the declaration).
+HEAP_T = INDEX["heap_t"]
+HEAP_K = INDEX["heap_k"]
+EV_INT = INDEX["ev_int"]
+EV_FLOAT = INDEX["ev_float"]
+FREE = INDEX["free"]
+INTS = INDEX["ints"]
+FLOATS = INDEX["floats"]
+IPARAMS = INDEX["iparams"]
+FPARAMS = INDEX["fparams"]
+LINK_BUSY = INDEX["link_busy"]
+LINK_COUNT = INDEX["link_count"]
+LINK_SPB = INDEX["link_spb"]
+LINK_OF = INDEX["link_of"]
+DRAW_MAP = INDEX["draw_map"]
+DRAW_CONST = INDEX["draw_const"]
+DRAW_VAL = INDEX["draw_val"]
+DRAW_TAG = INDEX["draw_tag"]
+P_LOSS = INDEX["p_loss"]
+WIRE_BYTES = INDEX["wire_bytes"]
+NODE = INDEX["node"]
+HOST_OF = INDEX["host_of"]
+CRASH = INDEX["crash"]
+SLOW_PTR = INDEX["slow_ptr"]
+SLOW = INDEX["slow"]
+CORES = INDEX["cores"]
+HLC_L = INDEX["hlc_l"]
+HLC_C = INDEX["hlc_c"]
+CLOCK_OFF = INDEX["clock_off"]
+CLOCK_DRIFT = INDEX["clock_drift"]
+SLOT_FRAME = INDEX["slot_frame"]
+OBS_HIST = INDEX["obs_hist"]
+CMD = INDEX["cmd"]
+OUT_INT = INDEX["out_int"]
+OUT_FLOAT = INDEX["out_float"]
+LAT_BUF = INDEX["lat_buf"]
+LAST_INT = INDEX["last_int"]
+LAST_FLOAT = INDEX["last_float"]
+LS_MIRROR = INDEX["ls_mirror"]
+SEEN = INDEX["seen"]
+
+
+def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:
+    """The shape of ``field`` with its dimension names resolved from ``dims``."""
+    return tuple(d if isinstance(d, int) else dims[d] for d in field.shape)
+
+
+def allocate(
+    dims: Mapping[str, int], given: Mapping[str, NDArray[Any]]
+) -> tuple[NDArray[Any], ...]:
+    """Build the state tuple: ``given`` arrays checked, the others made from their fill.
+
+    Args:
+        dims: the size of every dimension name the declaration uses.
+        given: the arrays of the fields whose ``fill`` is None (and no others).
+
+    Returns:
+        The state tuple.
+
+    Raises:
+        ValueError: a given array is missing, unexpected, or of the wrong dtype or
+            shape, or not C-contiguous (numba would copy or reject it).
+    """
+    extra = set(given) - {f.name for f in FIELDS if f.fill is None}
+    if extra:
+        raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
+    arrays: list[NDArray[Any]] = []
+    for f in FIELDS:
+        shape = shape_of(f, dims)
+        if f.fill is not None:
+            arrays.append(np.full(shape, f.fill, dtype=f.dtype))
+            continue
+        if f.name not in given:
+            raise ValueError(f"state field {f.name!r}: no array given")
+        a = given[f.name]
+        if a.dtype != f.dtype or a.shape != shape or not a.flags.c_contiguous:
+            raise ValueError(
+                f"state field {f.name!r}: {a.dtype}{a.shape} given, "
+                f"{np.dtype(f.dtype)}{shape} C-contiguous declared"
+            )
+        arrays.append(a)
+    return tuple(arrays)
+
+
+def replaced(
+    S: tuple[NDArray[Any], ...], new: Mapping[str, NDArray[Any]]
+) -> tuple[NDArray[Any], ...]:
+    """The state ``S`` with the arrays of the fields named in ``new`` replaced."""
+    out = list(S)
+    for name, a in new.items():
+        out[INDEX[name]] = a
+    return tuple(out)

@@ -1,0 +1,273 @@
+"""Physics nodes in the compiled message core (docs/MODEL.md, "Physics nodes").
+
+A node takes triggers, re-requests and commands; it computes on its host's
+earliest-free core (:func:`reserve`) and publishes its state when the job
+completes (:func:`done`); a newer command stamped far enough in the past asks
+Python for a time-warp rollback. Job cost is summed here only when it needs no
+rollback draws; otherwise the start is handed to Python, which computes it with
+:func:`sigma_des.events.jobs.job_cost` (the per-message engine's very function).
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.layout import (
+    CLOCK_DRIFT,
+    CLOCK_OFF,
+    CMD,
+    CORES,
+    CRASH,
+    E_AUX,
+    E_FRAME,
+    E_INDEX,
+    E_KIND,
+    E_WHO,
+    EF_GEN,
+    EF_L,
+    EF_PAY,
+    EF_TPUB,
+    EV_DONE,
+    EV_FLOAT,
+    EV_INT,
+    F_PT,
+    FLOATS,
+    HLC_C,
+    HLC_L,
+    HOST_OF,
+    I_HMISS,
+    I_PA,
+    I_PB,
+    I_PEND,
+    I_PNODE,
+    INTS,
+    IPARAMS,
+    K_COMMAND,
+    K_REPUB,
+    K_REREQ,
+    K_STATE,
+    K_TRIGGER,
+    LAST_FLOAT,
+    LAST_INT,
+    N_BUSY,
+    N_CSTAMP,
+    N_FRAME,
+    N_RB,
+    N_REQ,
+    N_TARGET,
+    NEED_ROLLBACK,
+    NEED_START,
+    NODE,
+    OBS_HIST,
+    Q_HLC,
+    Q_LOCK,
+    Q_M,
+    Q_THETA,
+    Q_W,
+    Q_WARP,
+    SLOT_FRAME,
+    SLOW,
+    SLOW_PTR,
+    STEP,
+)
+from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, send_up
+
+__all__ = ["at_node", "done", "reserve"]
+
+
+@jit
+def _local(S, i, t):  # type: ignore[no-untyped-def]
+    return t + S[CLOCK_OFF][i] + S[CLOCK_DRIFT][i] * t
+
+
+@jit
+def _hand_over(S, code, i, now):  # type: ignore[no-untyped-def]
+    """Stop the loop after this event: Python must act (``code``) for node ``i``."""
+    iv = S[INTS]
+    iv[I_PEND] = code
+    iv[I_PNODE] = i
+    S[FLOATS][F_PT] = now
+
+
+@jit
+def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
+    """Take the host's earliest-free core for ``cost`` seconds; schedule completion."""
+    row = S[CORES][S[HOST_OF][i]]
+    m = 0
+    for j in range(1, row.shape[0]):
+        if row[j] < row[m]:
+            m = j
+    free = row[m]
+    start = now if now > free else free
+    row[m] = start + cost
+    nd = S[NODE]
+    nd[N_BUSY, i] = 1
+    nd[N_TARGET, i] = target
+    slot = alloc(S)
+    address(S, slot, EV_DONE, i, 0, i, target)
+    push(S, start + cost, slot)
+
+
+@jit
+def _start_job(S, i, now):  # type: ignore[no-untyped-def]
+    nd = S[NODE]
+    if nd[N_RB, i] != 0:  # rollback draws are Python's: hand the start over
+        _hand_over(S, NEED_START, i, now)
+        return
+    target = nd[N_REQ, i]
+    cost = 0.0
+    for f in range(nd[N_FRAME, i] + 1, target + 1):
+        cost += draw(S, STEP, 0, i, f)
+    ptr = S[SLOW_PTR]
+    slow = S[SLOW]
+    for j in range(ptr[i], ptr[i + 1]):
+        if slow[j, 0] <= now and now < slow[j, 1]:
+            cost *= slow[j, 2]
+    reserve(S, i, target, cost, now)
+
+
+@jit
+def _request(S, i, frame, now):  # type: ignore[no-untyped-def]
+    """MethodRun._on_trigger: ask node ``i`` for ``frame`` (starts it if idle)."""
+    nd = S[NODE]
+    if frame > nd[N_REQ, i]:
+        nd[N_REQ, i] = frame
+        if nd[N_BUSY, i] == 0:
+            _start_job(S, i, now)
+
+
+@jit
+def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
+    """Node ``i`` publishes its state of frame ``target`` (kept for re-requests)."""
+    h = S[SLOT_FRAME].shape[0]
+    sl = target % h
+    if S[SLOT_FRAME][sl] != target:
+        S[INTS][I_HMISS] += 1
+    ns = alloc(S)
+    evf = S[EV_FLOAT]
+    evi = S[EV_INT]
+    w = S[IPARAMS][Q_W]
+    evf[ns, EF_TPUB] = now
+    evf[ns, EF_GEN] = now
+    oh = S[OBS_HIST]
+    for j in range(w):
+        evf[ns, EF_PAY + j] = oh[sl, i, j]
+    if S[IPARAMS][Q_HLC]:  # HLC.send at the node's local time
+        pt = _local(S, i, now)
+        hl = S[HLC_L]
+        old = hl[i]
+        new = pt if pt > old else old
+        S[HLC_C][i] = S[HLC_C][i] + 1 if new == old else 0
+        hl[i] = new
+        evf[ns, EF_L] = new
+        evi[ns, E_AUX] = S[HLC_C][i]
+    evi[ns, E_FRAME] = target
+    if S[IPARAMS][Q_LOCK]:  # kept for re-requests (MethodRun.last_pub)
+        li = S[LAST_INT]
+        lf = S[LAST_FLOAT]
+        li[i, 0] = target
+        li[i, 1] = evi[ns, E_AUX]
+        lf[i, 0] = now
+        lf[i, 1] = evf[ns, EF_L]
+        for j in range(w):
+            lf[i, 2 + j] = evf[ns, EF_PAY + j]
+    send_up(S, ns, i, K_STATE, i, target, now)
+
+
+@jit
+def done(S, s, now):  # type: ignore[no-untyped-def]
+    """The job in event slot ``s`` completes at ``now`` (MethodRun._complete)."""
+    nd = S[NODE]
+    i = S[EV_INT][s, E_WHO]
+    target = S[EV_INT][s, E_INDEX]
+    nd[N_BUSY, i] = 0
+    if now >= S[CRASH][i]:
+        return
+    if target > nd[N_FRAME, i]:
+        nd[N_FRAME, i] = target
+        _publish_state(S, i, target, now)
+    if nd[N_REQ, i] > nd[N_FRAME, i] or nd[N_RB, i] != 0:
+        _start_job(S, i, now)
+
+
+@jit
+def _hlc_receive(S, i, now, ml, mc):  # type: ignore[no-untyped-def]
+    """HLC.receive of stamp ``(ml, mc)`` at node ``i``'s local time."""
+    pt = _local(S, i, now)
+    hl = S[HLC_L]
+    hc = S[HLC_C]
+    old = hl[i]
+    new = old
+    if ml > new:
+        new = ml
+    if pt > new:
+        new = pt
+    if new == old and new == ml:
+        hc[i] = max(hc[i], mc) + 1
+    elif new == old:
+        hc[i] += 1
+    elif new == ml:
+        hc[i] = mc + 1
+    else:
+        hc[i] = 0
+    hl[i] = new
+
+
+@jit
+def _rerequest(S, s, i, now):  # type: ignore[no-untyped-def]
+    """MethodRun._on_rerequest: republish the kept state, or ask for the frame."""
+    evi = S[EV_INT]
+    evf = S[EV_FLOAT]
+    frame = evi[s, E_FRAME]
+    li = S[LAST_INT]
+    if S[NODE][N_FRAME, i] >= frame and li[i, 0] == frame:
+        ns = alloc(S)
+        lf = S[LAST_FLOAT]
+        evf[ns, EF_TPUB] = now
+        evf[ns, EF_GEN] = lf[i, 0]
+        evf[ns, EF_L] = lf[i, 1]
+        for j in range(S[IPARAMS][Q_W]):
+            evf[ns, EF_PAY + j] = lf[i, 2 + j]
+        evi[ns, E_AUX] = li[i, 1]
+        evi[ns, E_FRAME] = frame
+        send_up(S, ns, i, K_REPUB, i, evi[s, E_INDEX], now)
+    elif S[NODE][N_REQ, i] < frame:
+        _request(S, i, frame, now)
+
+
+@jit
+def _command(S, s, i, now):  # type: ignore[no-untyped-def]
+    """MethodRun._on_command: apply a newer command; far in the past, roll back."""
+    nd = S[NODE]
+    q = S[IPARAMS]
+    stamp = S[EV_INT][s, E_AUX]
+    if stamp < nd[N_CSTAMP, i]:
+        return  # an older command overtaken by a newer one
+    nd[N_CSTAMP, i] = stamp
+    cmd = S[CMD]
+    for j in range(q[Q_M]):
+        cmd[i, j] = S[EV_FLOAT][s, EF_PAY + j]
+    if not q[Q_WARP] or stamp < 0:
+        return
+    current = nd[N_TARGET, i] if nd[N_BUSY, i] else nd[N_FRAME, i]
+    if current - stamp <= q[Q_THETA]:
+        return
+    _hand_over(S, NEED_ROLLBACK, i, now)
+    S[INTS][I_PA] = stamp
+    S[INTS][I_PB] = current
+
+
+@jit
+def at_node(S, s, now):  # type: ignore[no-untyped-def]
+    """A trigger, re-request or command (slot ``s``) reaches its (live) node."""
+    evi = S[EV_INT]
+    i = evi[s, E_WHO]
+    kind = evi[s, E_KIND]
+    if now >= S[CRASH][i]:
+        return
+    if kind == K_TRIGGER:
+        if S[IPARAMS][Q_HLC]:
+            _hlc_receive(S, i, now, S[EV_FLOAT][s, EF_L], evi[s, E_AUX])
+        _request(S, i, evi[s, E_INDEX], now)
+    elif kind == K_COMMAND:
+        _command(S, s, i, now)
+    elif kind == K_REREQ:
+        _rerequest(S, s, i, now)

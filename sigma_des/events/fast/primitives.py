@@ -1,0 +1,233 @@
+"""Primitives of the compiled message core: heap, event slots, draws, link hops.
+
+The handlers (:mod:`~sigma_des.events.fast.broker`,
+:mod:`~sigma_des.events.fast.node`, :mod:`~sigma_des.events.fast.server`) build on
+these: the binary heap of ``(time, sequence)`` keys, the event-slot free list, the
+draw-table lookup and one hop over an access link (FIFO serialization, latency,
+loss) — each the same floating point operations, in the same order, as
+:mod:`sigma_des.net.network`. The state ``S`` is a
+state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from numba import njit
+
+from sigma_des.events.fast.layout import (
+    DRAW_CONST,
+    DRAW_MAP,
+    DRAW_TAG,
+    DRAW_VAL,
+    E_INDEX,
+    E_KIND,
+    E_SUBJ,
+    E_TYPE,
+    E_WHO,
+    EV_BROKER,
+    EV_INT,
+    FPARAMS,
+    FREE,
+    G_END,
+    G_WARMUP,
+    HEAP_K,
+    HEAP_T,
+    I_EID,
+    I_ERR,
+    I_FREE,
+    I_HEAP,
+    I_NEV,
+    INTS,
+    IPARAMS,
+    LINK_BUSY,
+    LINK_COUNT,
+    LINK_OF,
+    LINK_SPB,
+    P_LOSS,
+    Q_N,
+    SLOT_BITS,
+    SLOT_MASK,
+    U_OFFSET,
+    WIRE_BYTES,
+)
+
+_F = TypeVar("_F", bound=Callable[..., Any])
+
+#: Compiled without numba's reference counting: every array is borrowed from the
+#: driver and nothing is allocated, and NRT's atomic increments on each array access
+#: made the loop ~4x slower.
+jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+
+
+@jit
+def lat_source(cls: int, up: int) -> int:
+    """Latency source of link class ``cls`` (0 host, 1 server) and direction ``up``."""
+    return 2 * (1 - cls) + (1 - up)
+
+
+@jit
+def in_window(S, t):  # type: ignore[no-untyped-def]
+    """Whether ``t`` lies in the measurement window ``[warmup, end)``."""
+    g = S[FPARAMS]
+    return g[G_WARMUP] <= t and t < g[G_END]
+
+
+# ---------------------------------------------------------------- heap and slots
+
+
+@jit
+def precedes(t1, k1, t2, k2):  # type: ignore[no-untyped-def]
+    """Whether event ``(t1, k1)`` comes first: earlier, or as early and sooner made."""
+    return t1 < t2 or (t1 == t2 and k1 < k2)
+
+
+@jit
+def _put(ht, hk, i, t, key):  # type: ignore[no-untyped-def]
+    ht[i] = t
+    hk[i] = key
+
+
+@jit
+def push(S, t, slot):  # type: ignore[no-untyped-def]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    iv = S[INTS]
+    e = iv[I_EID]
+    iv[I_EID] = e + 1
+    iv[I_NEV] += 1
+    key = (e << SLOT_BITS) | slot  # sequence number first: it alone orders equal times
+    i = iv[I_HEAP]
+    iv[I_HEAP] = i + 1
+    while i > 0:
+        p = (i - 1) >> 1
+        if not precedes(t, key, ht[p], hk[p]):
+            break
+        _put(ht, hk, i, ht[p], hk[p])
+        i = p
+    _put(ht, hk, i, t, key)
+
+
+@jit
+def pop(S):  # type: ignore[no-untyped-def]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    iv = S[INTS]
+    n = iv[I_HEAP] - 1
+    iv[I_HEAP] = n
+    top = hk[0] & SLOT_MASK
+    if n > 0:
+        t = ht[n]
+        key = hk[n]
+        i = 0
+        while True:
+            c = 2 * i + 1
+            if c >= n:
+                break
+            if c + 1 < n and precedes(ht[c + 1], hk[c + 1], ht[c], hk[c]):
+                c += 1
+            if not precedes(ht[c], hk[c], t, key):
+                break
+            _put(ht, hk, i, ht[c], hk[c])
+            i = c
+        _put(ht, hk, i, t, key)
+    return top
+
+
+@jit
+def alloc(S):  # type: ignore[no-untyped-def]
+    iv = S[INTS]
+    iv[I_FREE] -= 1
+    return S[FREE][iv[I_FREE]]
+
+
+@jit
+def release(S, slot):  # type: ignore[no-untyped-def]
+    iv = S[INTS]
+    S[FREE][iv[I_FREE]] = slot
+    iv[I_FREE] += 1
+
+
+@jit
+def key_of(S, slot):  # type: ignore[no-untyped-def]
+    """The message key ``(kind, subject, index)`` of the event in ``slot``."""
+    evi = S[EV_INT]
+    return evi[slot, E_KIND], evi[slot, E_SUBJ], evi[slot, E_INDEX]
+
+
+@jit
+def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped-def]
+    """Write an event's type, receiver and message key into ``slot``."""
+    evi = S[EV_INT]
+    evi[slot, E_TYPE] = typ
+    evi[slot, E_WHO] = who
+    evi[slot, E_KIND] = kind
+    evi[slot, E_SUBJ] = subject
+    evi[slot, E_INDEX] = index
+
+
+# ---------------------------------------------------------------- draws and links
+
+
+@jit
+def draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
+    c = S[DRAW_MAP][src, kind]
+    if c < 0:
+        return S[DRAW_CONST][src]
+    tag = S[DRAW_TAG]
+    r = index % tag.shape[1]
+    if tag[c, r] != index:
+        S[INTS][I_ERR] = 1
+        return 0.0
+    return S[DRAW_VAL][c, r, subj]
+
+
+@jit
+def count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
+    """Network._count: FIFO serialization on the client's link, counted in the window.
+
+    Returns:
+        The time the last bit leaves.
+    """
+    link = S[LINK_OF][client]
+    lb = S[LINK_BUSY]
+    busy = lb[up, link]
+    done = (t if t > busy else busy) + nbytes * S[LINK_SPB][up, link]
+    lb[up, link] = done
+    if in_window(S, t):
+        S[LINK_COUNT][up, 0, link] += nbytes
+        S[LINK_COUNT][up, 1, link] += 1
+    return done
+
+
+@jit
+def hop(S, slot, t):  # type: ignore[no-untyped-def]
+    """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
+
+    FIFO serialization on the receiver's (down) or sender's (up) link, latency and
+    loss; a lost message frees its slot.
+    """
+    evi = S[EV_INT]
+    client = evi[slot, E_WHO]
+    kind, subj, index = key_of(S, slot)
+    up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
+    done = count(S, client, up, S[WIRE_BYTES][kind], t)
+    cls = 1 if client == S[IPARAMS][Q_N] else 0
+    src = lat_source(cls, up)
+    lat = draw(S, src, kind, subj, index)
+    p = S[P_LOSS][cls]
+    lost = False
+    if p > 0.0:
+        lost = draw(S, U_OFFSET + src, kind, subj, index) < p
+    if lost:
+        release(S, slot)
+    else:
+        push(S, done + lat, slot)
+
+
+@jit
+def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
+    """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
+    address(S, slot, EV_BROKER, client, kind, subject, index)
+    hop(S, slot, t)

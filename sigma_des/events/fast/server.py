@@ -1,0 +1,121 @@
+"""The alignment server's side of the compiled message core.
+
+Every delivery is counted as :meth:`sigma_des.metrics.collector.Collector.delivered`
+counts it (duplicates, messages, latencies, buffered for the collector); a state
+reaching the server is buffered for the aligner, and under Lock-Step the
+barrier's count is mirrored so the loop can stop when the barrier completes
+(docs/MODEL.md, "Alignment methods").
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.layout import (
+    BARRIER,
+    E_AUX,
+    E_FRAME,
+    E_INDEX,
+    E_KIND,
+    E_SUBJ,
+    EF_GEN,
+    EF_L,
+    EF_PAY,
+    EF_TPUB,
+    EV_FLOAT,
+    EV_INT,
+    F_PT,
+    FLOATS,
+    FPARAMS,
+    G_WARMUP,
+    I_DUPS,
+    I_LAT,
+    I_LCOMP,
+    I_LCUR,
+    I_LMISS,
+    I_MSGS,
+    I_OUT,
+    I_PEND,
+    INTS,
+    IPARAMS,
+    K_REPUB,
+    K_REREQ,
+    LAT_BUF,
+    LS_MIRROR,
+    OUT_FLOAT,
+    OUT_INT,
+    Q_LOCK,
+    Q_W,
+    SEEN,
+)
+from sigma_des.events.fast.primitives import jit
+
+__all__ = ["at_server", "delivered"]
+
+
+@jit
+def delivered(S, s, now):  # type: ignore[no-untyped-def]
+    """Collector.delivered for one arrival: duplicates, message count, latency."""
+    evi = S[EV_INT]
+    iv = S[INTS]
+    kind = evi[s, E_KIND]
+    index = evi[s, E_INDEX]
+    t_pub = S[EV_FLOAT][s, EF_TPUB]
+    # Collector.delivered: on this path only a re-request or republished state can come
+    # twice (a retry index is capped at 63: frame * 64 + min(retry, 63))
+    dup = False
+    if kind >= K_REREQ:
+        seen = S[SEEN]
+        row = kind - K_REREQ
+        subject = evi[s, E_SUBJ]
+        slot = index % seen.shape[2]
+        if seen[row, subject, slot] == index:
+            dup = True
+            iv[I_DUPS] += 1
+        else:
+            seen[row, subject, slot] = index
+    if not dup and t_pub >= S[FPARAMS][G_WARMUP]:
+        iv[I_MSGS] += 1
+        if kind != K_REREQ:  # a republished state's latency counts as a state's
+            lk = 1 if kind == K_REPUB else kind - 1
+            S[LAT_BUF][lk, iv[I_LAT + lk]] = now - t_pub
+            iv[I_LAT + lk] += 1
+
+
+@jit
+def _barrier(S, subject, frame, now):  # type: ignore[no-untyped-def]
+    """LockstepAligner.on_states' barrier count, mirrored."""
+    iv = S[INTS]
+    ls = S[LS_MIRROR]
+    if ls[1, subject] == 0 and frame == iv[I_LCUR]:
+        ls[1, subject] = 1
+        iv[I_LMISS] += 1
+    if frame == iv[I_LCUR] and iv[I_LCOMP] == 0 and ls[0, subject] == 0:
+        iv[I_LMISS] -= 1
+        ls[0, subject] = 1
+        if iv[I_LMISS] <= 0:
+            iv[I_LCOMP] = 1
+            iv[I_PEND] = BARRIER
+            S[FLOATS][F_PT] = now
+
+
+@jit
+def at_server(S, s, now):  # type: ignore[no-untyped-def]
+    """A (re)published state reaches the server: buffer it for the aligner."""
+    evi = S[EV_INT]
+    evf = S[EV_FLOAT]
+    iv = S[INTS]
+    subject = evi[s, E_SUBJ]
+    o = iv[I_OUT]
+    iv[I_OUT] = o + 1
+    oi = S[OUT_INT]
+    of = S[OUT_FLOAT]
+    frame = evi[s, E_FRAME]
+    oi[o, 0] = subject
+    oi[o, 1] = frame
+    oi[o, 2] = evi[s, E_AUX]
+    of[o, 0] = now
+    of[o, 1] = evf[s, EF_GEN]
+    of[o, 2] = evf[s, EF_L]
+    for j in range(S[IPARAMS][Q_W]):
+        of[o, 3 + j] = evf[s, EF_PAY + j]
+    if S[IPARAMS][Q_LOCK]:
+        _barrier(S, subject, frame, now)

@@ -1,0 +1,158 @@
+"""The physics truth: the whole swarm's true state per frame, its checkpoints and re-simulation.
+
+By the frame-boundary rule (docs/MODEL.md, "Physics nodes") the true state of
+every node at frame k is known when trigger k is issued, so the swarm is stepped
+then, in one vectorised call of the dynamics model. The truth keeps the last
+``history_frames`` frames in a ring: each frame's published-state rows (what a
+node publishes when it completes that frame), its step ``dt`` and physics time,
+and, for BiDES time warp, the state checkpoints a rollback re-simulates from.
+A frame enters the fidelity log (:class:`~sigma_des.metrics.fidelity.TrajectoryLog`)
+only when it leaves the ring and can no longer be rolled back.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.core.models import OBS_FIELDS, DynamicsModel
+from sigma_des.metrics.fidelity import TrajectoryLog
+
+__all__ = ["SwarmTruth"]
+
+#: Columns of the published state.
+OBS_COLUMNS = len(OBS_FIELDS)
+
+
+class SwarmTruth:
+    """The true swarm, frame by frame.
+
+    Args:
+        dynamics: the vectorised dynamics model.
+        n: number of nodes.
+        history_frames: length of the frame ring.
+        log_rate: rate (Hz of physics time) of the fidelity log.
+        checkpoints: keep state checkpoints (only time-warp rollbacks read them).
+
+    Attributes:
+        state: ``(n, state_dim)`` true state at the latest frame.
+        ckpt: state after frame ``f`` at ``f % H`` (empty without checkpoints).
+        obs_hist: published rows of frame ``f`` at ``f % H``.
+        slot_frame: the frame held at each ring slot (-1: none yet).
+        frame_dt: step ``dt`` of frame ``f`` at ``f % H``.
+        latest: the newest frame stepped (-1 before the first).
+        rollbacks: number of time-warp rollbacks.
+        resim_steps: frames re-simulated by them (node compute steps).
+    """
+
+    def __init__(
+        self, dynamics: DynamicsModel, n: int, history_frames: int, log_rate: float,
+        checkpoints: bool,
+    ) -> None:
+        H = self.H = history_frames
+        self.dyn = dynamics
+        self.nodes = np.arange(n, dtype=np.int64)
+        self.initial = dynamics.initial_state(n)
+        self.state = self.initial.copy()
+        self.ckpt = np.zeros(((H if checkpoints else 0),) + self.state.shape)
+        self.obs_hist = np.full((H, n, OBS_COLUMNS), np.nan)
+        self.slot_frame = np.full(H, -1, dtype=np.int64)
+        self.frame_dt = np.zeros(H)
+        self.latest = -1
+        self.phys_t = 0.0
+        self.phys_hist = np.zeros(H)
+        self.traj = TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12])
+        self.rollbacks = 0
+        self.resim_steps = 0
+
+    def step_frame(
+        self, k: int, dt: float, cmd: NDArray[np.float64], pending: NDArray[np.float64] | None
+    ) -> None:
+        """Step the swarm to frame ``k`` with the command rows ``cmd``.
+
+        Args:
+            k: the frame (the trigger being issued).
+            dt: its step (s).
+            cmd: ``(n, command_dim)`` commands in force at frame ``k``.
+            pending: the state of frame ``k`` already stepped outside with the very
+                same ``(state, cmd, dt, k)`` (batched physics of ``sigma_des.env``);
+                None: step here.
+        """
+        slot = k % self.H
+        if self.slot_frame[slot] >= 0:
+            self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
+        self.frame_dt[slot] = dt
+        self.phys_t += dt
+        self.phys_hist[slot] = self.phys_t
+        if pending is None:
+            self.state = self.dyn.step(self.state, cmd, dt, k, self.nodes)
+        else:
+            self.state = pending
+        if self.ckpt.shape[0]:
+            self.ckpt[slot] = self.state
+        self.obs_hist[slot] = self.dyn.observe(self.state)
+        self.slot_frame[slot] = k
+        self.latest = k
+
+    def held(self, frame: int) -> bool:
+        """True if the ring still holds ``frame``."""
+        return frame >= 0 and self.slot_frame[frame % self.H] == frame
+
+    def positions(self, frame: int) -> NDArray[np.float64] | None:
+        """True ``(n, 3)`` positions (x, y, h) of ``frame``, None if not held."""
+        if not self.held(frame):
+            return None
+        return self.obs_hist[frame % self.H, :, 9:12]
+
+    def rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> int:
+        """Re-simulate node ``i`` from frame ``c`` with command ``row`` (time warp).
+
+        Frames older than the ring are not re-simulated (``c`` is clamped to the
+        oldest frame whose previous checkpoint is held).
+
+        Args:
+            i: the node.
+            c: the frame the command applies from.
+            current: the node's own frame (the one it computes or last computed).
+            row: the command row.
+
+        Returns:
+            The compute steps the node's next job owes: ``current - c + 1`` (≥ 0).
+        """
+        H = self.H
+        latest = self.latest
+        c = max(c, max(0, latest - H + 2))
+        prev = self.initial[i] if c == 0 else self.ckpt[(c - 1) % H, i]
+        s = prev[None, :].copy()
+        step_frames = getattr(self.dyn, "step_frames", None)
+        if step_frames is not None and c <= latest:
+            # the same row steps, compiled in one call (identical to the loop below)
+            slots = np.arange(c, latest + 1) % H
+            states = step_frames(prev, row, self.frame_dt[slots], c, i)
+            self.ckpt[slots, i] = states
+            s = states[-1:]
+        else:
+            cmd = row[None, :]
+            node = np.array([i])
+            for f in range(c, latest + 1):
+                slot = f % H
+                s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
+                self.ckpt[slot, i] = s[0]
+        if c <= latest:
+            # one observe call for all re-simulated frames (rows are independent)
+            slots = np.arange(c, latest + 1) % H
+            self.obs_hist[slots, i] = self.dyn.observe(self.ckpt[slots, i])
+        self.state[i] = s[0]
+        steps = max(0, current - c + 1)
+        self.rollbacks += 1
+        self.resim_steps += steps
+        return steps
+
+    def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """True positions logged at the fidelity log rate (Hz of physics time), so far."""
+        log = self.traj
+        first = max(0, self.latest - self.H + 1)
+        for f in range(first, self.latest + 1):
+            slot = f % self.H
+            log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
+        return log.arrays()

@@ -1,0 +1,107 @@
+"""The compiled core's state layout is generated from its one declaration."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast.driver import CompiledCore
+from sigma_des.factory import make_behaviour, make_dynamics
+from tests.conftest import tiny
+
+DIMS = {
+    "cap": 5, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
+    "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
+    "slow": 1, "seen_n": 1, "seen_h": 1,
+}
+
+
+def _given() -> dict[str, np.ndarray]:
+    return {
+        f.name: np.zeros(L.shape_of(f, DIMS), dtype=f.dtype)
+        for f in L.FIELDS
+        if f.fill is None
+    }
+
+
+def test_positions_are_generated_from_the_declaration() -> None:
+    names = [f.name for f in L.FIELDS]
+    assert len(set(names)) == len(names) == 39
+    assert L.INDEX == {name: i for i, name in enumerate(names)}
+    # one module constant per field, its name in capitals, for the compiled code
+    assert [getattr(L, name.upper()) for name in names] == list(range(39))
+    assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
+
+
+def test_allocate_makes_every_declared_array() -> None:
+    S = L.allocate(DIMS, _given())
+    for f in L.FIELDS:
+        a = S[L.INDEX[f.name]]
+        assert a.dtype == f.dtype and a.flags.c_contiguous, f.name
+        assert a.shape == L.shape_of(f, DIMS), f.name
+    assert S[L.EV_FLOAT].shape == (5, 17)
+    assert S[L.LINK_COUNT].shape == (2, 2, 3)
+    assert S[L.HLC_L].tolist() == [-np.inf] * 3
+    assert (S[L.SEEN] == -1).all() and (S[L.EV_INT] == 0).all()
+
+
+def test_replaced_swaps_named_arrays_only() -> None:
+    S = L.allocate(DIMS, _given())
+    new = np.zeros(10)
+    T = L.replaced(S, {"heap_t": new})
+    assert T[L.HEAP_T] is new and T[L.HEAP_K] is S[L.HEAP_K] and len(T) == len(S)
+
+
+def test_given_arrays_are_shared_not_copied() -> None:
+    given = _given()
+    S = L.allocate(DIMS, given)
+    assert S[L.CMD] is given["cmd"] and S[L.OBS_HIST] is given["obs_hist"]
+
+
+@pytest.mark.parametrize(
+    ("name", "array", "match"),
+    [
+        ("cmd", np.zeros((3, 4)), r"'cmd': float64\(3, 4\) given, float64\(3, 3\)"),
+        ("node", np.zeros((6, 3)), r"'node': float64\(6, 3\) given, int64\(6, 3\)"),
+        ("obs_hist", np.zeros((8, 12, 3)).transpose(0, 2, 1), "C-contiguous"),
+    ],
+)
+def test_a_given_array_unlike_its_declaration_is_refused(
+    name: str, array: np.ndarray, match: str
+) -> None:
+    given = _given()
+    given[name] = array
+    with pytest.raises(ValueError, match=match):
+        L.allocate(DIMS, given)
+
+
+def test_missing_or_unexpected_arrays_are_refused() -> None:
+    given = _given()
+    del given["slow"]
+    with pytest.raises(ValueError, match="'slow': no array given"):
+        L.allocate(DIMS, given)
+    given = _given()
+    given["heap_t"] = np.zeros(5)
+    with pytest.raises(ValueError, match=r"fields with a fill: \['heap_t'\]"):
+        L.allocate(DIMS, given)
+
+
+def test_a_run_state_follows_the_declaration() -> None:
+    sc = replace(tiny(**{"commands.enabled": True}), engine="cohort")
+    run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    core = run.fast
+    assert isinstance(core, CompiledCore)
+    S = core.S
+    assert S[L.NODE].shape == (L.N_ROWS, 3) and S[L.CLOCK_OFF].shape == (3,)
+    assert S[L.LINK_OF].shape == (4,) and S[L.CORES].shape == (2, 4)
+    # the engine's physics ring and commands are the core's, in place
+    truth = run.truth
+    assert S[L.OBS_HIST] is truth.obs_hist and S[L.SLOT_FRAME] is truth.slot_frame
+    assert S[L.CMD] is run.nodes.cmd
+    q = S[L.IPARAMS]
+    assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
+    assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
