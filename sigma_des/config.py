@@ -14,7 +14,6 @@ import hashlib
 import json
 import math
 import tomllib
-import types
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,11 +25,11 @@ from sigma_des.core.validate import require, require_positive
 from sigma_des.errors import ConfigError
 from sigma_des.events.align.spec import AlignParams, BidesSpec, HLCSpec, LockstepSpec, RpcSpec
 from sigma_des.events.spec import CommandSpec, ComputeSpec, FaultSpec, RunSpec
+from sigma_des.loading import from_dict, plain
 from sigma_des.metrics.collector import CollectorSpec
 from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
-from sigma_des.net.latency import Dist
 from sigma_des.net.spec import (
     BrokerSpec,
     DdsSpec,
@@ -59,7 +58,6 @@ __all__ = [
     "RecordSpec",
     "Scenario",
     "config_hash",
-    "from_dict",
     "load",
     "parse_set",
     "set_key",
@@ -335,78 +333,9 @@ class Scenario:
 # ---------------------------------------------------------------- loading
 
 
-def _type_name(tp: Any) -> str:
-    return getattr(tp, "__name__", str(tp))
-
-
-def _convert(value: Any, tp: Any, key: str) -> Any:
-    origin = typing.get_origin(tp)
-    if dataclasses.is_dataclass(tp):
-        if tp is Dist and isinstance(value, int | float) and not isinstance(value, bool):
-            value = {"dist": "constant", "value": float(value)}
-        if not isinstance(value, dict):
-            raise ConfigError(key, f"must be a table ({_type_name(tp)}), got {value!r}")
-        return from_dict(typing.cast(type[Any], tp), value, key)
-    if origin is tuple:
-        (elem, _ellipsis) = typing.get_args(tp)
-        if isinstance(value, str) and elem is str:
-            value = [v.strip() for v in value.split(",") if v.strip()]
-        if not isinstance(value, list | tuple):
-            raise ConfigError(key, f"must be a list, got {value!r}")
-        return tuple(_convert(v, elem, f"{key}[{i}]") for i, v in enumerate(value))
-    if origin in (typing.Union, types.UnionType):
-        raise ConfigError(key, "internal: union types are not supported")
-    if tp is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(key, f"must be true or false, got {value!r}")
-        return value
-    if tp is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(key, f"must be an integer, got {value!r}")
-        return value
-    if tp is float:
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ConfigError(key, f"must be a number, got {value!r}")
-        return float(value)
-    if tp is str:
-        if not isinstance(value, str):
-            raise ConfigError(key, f"must be a string, got {value!r}")
-        return value
-    raise ConfigError(key, f"internal: unsupported type {tp!r}")
-
-
-def from_dict(cls: type[Any], data: dict[str, Any], prefix: str = "") -> Any:
-    """Build dataclass ``cls`` from nested dict ``data``, strictly.
-
-    Raises:
-        ConfigError: on an unknown key, a wrong type or an out-of-range value; the
-            error's key is the full dotted path.
-    """
-    hints = typing.get_type_hints(cls)
-    names = [f.name for f in dataclasses.fields(cls)]
-    kwargs: dict[str, Any] = {}
-    for k, v in data.items():
-        key = f"{prefix}.{k}" if prefix else k
-        if k not in names:
-            raise ConfigError(key, f"unknown key; allowed keys here: {', '.join(names)}")
-        kwargs[k] = _convert(v, hints[k], key)
-    try:
-        return cls(**kwargs)
-    except ConfigError as e:
-        raise e.under(prefix) if prefix else e from None
-
-
-def _plain(v: Any) -> Any:
-    if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        return {f.name: _plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
-    if isinstance(v, tuple | list):
-        return [_plain(x) for x in v]
-    return v
-
-
 def to_dict(s: Scenario) -> dict[str, Any]:
     """The scenario as plain nested dicts and lists."""
-    return dict(_plain(s))
+    return dict(plain(s))
 
 
 def to_toml(s: Scenario) -> str:

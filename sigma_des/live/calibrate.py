@@ -48,12 +48,13 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario, from_dict, load, to_toml
+from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.events.spec import ComputeSpec
 from sigma_des.factory import make_dynamics
 from sigma_des.live.messages import read_messages
 from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
+from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist
 from sigma_des.net.spec import BrokerSpec
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario, from_dict
+from sigma_des.config import Scenario
 from sigma_des.core.rng import RandomStreams
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.factory import make_dynamics
@@ -45,6 +45,7 @@ from sigma_des.live.wire import (
     decode_trigger,
     encode_state,
 )
+from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
 
 __all__ = ["Host", "main"]

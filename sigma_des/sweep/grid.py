@@ -20,12 +20,12 @@ from sigma_des.config import (
     ALL_METHODS,
     METHODS,
     Scenario,
-    from_dict,
     parse_set,
     set_key,
     to_dict,
 )
 from sigma_des.errors import ConfigError
+from sigma_des.loading import from_dict
 
 __all__ = [
     "Grid",

@@ -17,8 +17,9 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from sigma_des.config import from_dict, parse_set, set_key
+from sigma_des.config import parse_set, set_key
 from sigma_des.errors import ConfigError
+from sigma_des.loading import from_dict
 
 __all__ = ["add_parser", "run", "load_spec"]
 
