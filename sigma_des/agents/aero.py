@@ -21,7 +21,25 @@ from numba import njit
 from sigma_des.agents import layout as L
 from sigma_des.agents.approx import asin_fast, atan2_fast, sqrt
 
-__all__ = ["aero_forces"]
+__all__ = ["bluff_body_forces", "aero_forces"]
+
+
+@njit(cache=True, inline="always")
+def _drag_only(qs: float, cd0: float, vt: float, ur: float, vr: float, wr: float
+               ) -> tuple[float, float, float, float, float, float]:
+    f = -qs * cd0 / vt
+    return f * ur, f * vr, f * wr, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def bluff_body_forces(prm: np.ndarray, ur: float, vr: float, wr: float, rho: float
+                      ) -> tuple[float, float, float, float, float, float]:
+    """:func:`aero_forces` of a preset with zero span (``AERO_B == 0``): drag only, along -V."""
+    area, cd0 = prm[L.AERO_S], prm[L.CD0]
+    v2 = ur * ur + vr * vr + wr * wr
+    if v2 < 1e-4:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return _drag_only(0.5 * rho * v2 * area, cd0, sqrt(v2), ur, vr, wr)
 
 
 @njit(cache=True, inline="always")
@@ -55,9 +73,7 @@ def aero_forces(prm: np.ndarray, ur: float, vr: float, wr: float, p: float, q: f
     vt = sqrt(v2)
     qs = 0.5 * rho * v2 * area
     if b == 0.0:
-        # Bluff body (multirotor frame): drag only, along -V.
-        f = -qs * cd0 / vt
-        return f * ur, f * vr, f * wr, 0.0, 0.0, 0.0
+        return _drag_only(qs, cd0, vt, ur, vr, wr)
     # Polynomial atan2/asin (approx.py, 1e-5 rad): two libm calls per sub-step saved;
     # 1e-5 rad of alpha is 6e-5 in CL, far below the model's own accuracy.
     alpha = atan2_fast(wr, ur)

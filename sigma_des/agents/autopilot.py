@@ -58,11 +58,20 @@ def _clip(v: float, lo: float, hi: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def multirotor_prepare(prm: np.ndarray, cmd: np.ndarray, rm: tuple, pre: np.ndarray) -> None:
+def multirotor_prepare(prm: np.ndarray, cmd: tuple, rm: tuple, heading: tuple,
+                       tan_tilt: float, pre: np.ndarray) -> None:
     """Per-frame part of the cascade: velocity vector, yaw-rate and roll-override set-points.
 
     The yaw loop and the command geometry change slowly, so they are evaluated
     once per frame step and held over its sub-steps (saves trigonometry).
+
+    Args:
+        prm: aircraft parameter vector.
+        cmd: the resolved guidance command (no NaN in slots 0-2).
+        rm: rotation matrix.
+        heading: ``(cos, sin)`` of the heading (``(1, 0)`` when pointing straight up).
+        tan_tilt: ``tan`` of the tilt limit (a constant of the aircraft).
+        pre: the 8 set-points (written).
     """
     gb = L.GAIN_BASE
     tilt, vmax, rmax = prm[gb + 10], prm[gb + 12], prm[gb + 13]
@@ -74,9 +83,8 @@ def multirotor_prepare(prm: np.ndarray, cmd: np.ndarray, rm: tuple, pre: np.ndar
     psi = atan2_fast(rm[3], rm[0])
     pre[3] = _clip(prm[gb + 8] * wrap_pi(chi - psi), -rmax, rmax)
     pre[4] = math.tan(_clip(cmd[3], -tilt, tilt)) if cmd[3] == cmd[3] else math.nan
-    hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
-    pre[5], pre[6] = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
-    pre[7] = math.tan(tilt)
+    pre[5], pre[6] = heading
+    pre[7] = tan_tilt
 
 
 @njit(cache=True, inline="always")
@@ -167,7 +175,7 @@ def multirotor_autopilot(prm: np.ndarray, pre: tuple, rm: tuple, vn: float, ve: 
 
 
 @njit(cache=True, inline="always")
-def fixedwing_prepare(prm: np.ndarray, cmd: np.ndarray, vn: float, ve: float,
+def fixedwing_prepare(prm: np.ndarray, cmd: tuple, vn: float, ve: float,
                       pre: np.ndarray) -> None:
     """Per-frame part: airspeed and altitude set-points, course loop -> roll set-point."""
     gb = L.GAIN_BASE

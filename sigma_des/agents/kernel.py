@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
-from sigma_des.agents.aero import aero_forces
+from sigma_des.agents.aero import aero_forces, bluff_body_forces
 from sigma_des.agents.approx import atan2_fast, sqrt
 from sigma_des.agents.atmosphere import gravity_scalar, isa_scalar
 from sigma_des.agents.autopilot import (
@@ -45,7 +45,7 @@ __all__ = ["LANES", "step_kernel"]
 LANES = 32
 # Scratch columns after the state's: rotation matrix (9), NED ground velocity (3),
 # NED wind (3, held over the frame), body-axis wind (3), density, gravity, actuator
-# commands (7), autopilot set-points (8), body force and moment (6).
+# commands (7), autopilot set-points (8), body force and moment (6), one rotor speed.
 RM = L.STATE_DIM
 VEL = RM + 9
 WND = VEL + 3
@@ -55,7 +55,8 @@ GRAV = RHO + 1
 ACT = GRAV + 1
 PRE = ACT + 7
 FRC = PRE + 8
-NCOL = FRC + 6
+OMI = FRC + 6               # the speed of the rotor being summed (a copy)
+NCOL = OMI + 1
 
 
 @njit(cache=True)
@@ -83,12 +84,13 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
     x = np.empty(L.STATE_DIM)
     pre = np.zeros(8)
     w = np.empty(NCOL * LANES)
+    tan_tilt = math.tan(prm[L.GAIN_BASE + 10])
     for b0 in range(0, n, LANES):
         nb = min(LANES, n - b0)
         for k in range(nb):
             for j in range(L.STATE_DIM):
                 x[j] = state[b0 + k, j]
-            frame_row(w, k, x, b0 + k, command, act_cmd, dt, nodes, prm, key, pre)
+            frame_row(w, k, x, b0 + k, command, act_cmd, dt, nodes, prm, key, tan_tilt, pre)
         for _ in range(nsub):
             substep(w, nb, prm, h, am, asv)
         for k in range(nb):
@@ -99,10 +101,11 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
 @njit(cache=True)
 def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
               act_cmd: np.ndarray, dt: float, nodes: np.ndarray, prm: np.ndarray,
-              key: np.uint64, pre: np.ndarray) -> None:
+              key: np.uint64, tan_tilt: float, pre: np.ndarray) -> None:
     """The per-frame part of row ``i`` (state ``x``), stored in lane ``k`` of ``w``.
 
-    ``x`` gets the turbulence update; ``pre`` is scratch for the set-points.
+    ``x`` gets the turbulence update; ``pre`` is scratch for the set-points;
+    ``tan_tilt`` is the multirotor's ``tan`` of its tilt limit (a per-call constant).
     """
     kind = int(prm[L.AP_KIND])
     tp = prm[L.ENV_TURB_ON]
@@ -111,6 +114,9 @@ def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
     _, _, rho = isa_scalar(x[L.H])
     # Wind: mean (at this step's time and altitude) + turbulence in heading axes.
     wn, we, wd = mean_wind(prm, x[L.TIME], x[L.H])
+    # Heading (cos, sin): turns the turbulence to NED and the roll override.
+    hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
+    heading = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
     if tp > 0.0:
         # Update at the turbulence rate (wind.py): when this frame crosses one or
         # more multiples of the period tp, over exactly the periods crossed.
@@ -119,8 +125,7 @@ def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
         if e1 > e0:
             spd = sqrt((vn - wn) ** 2 + (ve - we) ** 2 + (vd - wd) ** 2)
             turbulence_update(x, prm, key, nodes[i], np.int64(e1), (e1 - e0) * tp, spd)
-        hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
-        ch, sh = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
+        ch, sh = heading
         wn += ch * x[L.TU] - sh * x[L.TV]
         we += sh * x[L.TU] + ch * x[L.TV]
         wd += x[L.TW]
@@ -131,7 +136,7 @@ def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
                c1 if c1 == c1 else atan2_fast(rm[3], rm[0]),
                c2 if c2 == c2 else x[L.H], command[i, 3])
         if kind == 1:
-            multirotor_prepare(prm, cmd, rm, pre)
+            multirotor_prepare(prm, cmd, rm, heading, tan_tilt, pre)
         else:
             fixedwing_prepare(prm, cmd, vn, ve, pre)
     else:
@@ -257,7 +262,20 @@ def _store_autopilot(w: np.ndarray, k: int, res: tuple) -> None:
 
 @njit(cache=True, error_model="numpy")
 def aero_lanes(w: np.ndarray, nb: int, prm: np.ndarray) -> None:
-    """Aerodynamic force and moment of every lane, into the force columns."""
+    """Aerodynamic force and moment of every lane, into the force columns.
+
+    The bluff-body / wing choice is made once for the block, outside the lane loop
+    (inside it the vectoriser would evaluate both and select).
+    """
+    if prm[L.AERO_B] == 0.0:
+        for k in range(nb):
+            f = bluff_body_forces(prm, w[L.U * LANES + k] - w[BW * LANES + k],
+                                  w[L.V * LANES + k] - w[(BW + 1) * LANES + k],
+                                  w[L.W * LANES + k] - w[(BW + 2) * LANES + k],
+                                  w[RHO * LANES + k])
+            _put3(w, FRC, k, f[0], f[1], f[2])
+            _put3(w, FRC + 3, k, f[3], f[4], f[5])
+        return
     for k in range(nb):
         f = aero_forces(prm, w[L.U * LANES + k] - w[BW * LANES + k],
                         w[L.V * LANES + k] - w[(BW + 1) * LANES + k],
@@ -272,14 +290,18 @@ def aero_lanes(w: np.ndarray, nb: int, prm: np.ndarray) -> None:
 @njit(cache=True, error_model="numpy")
 def rotor_lanes(w: np.ndarray, nb: int, prm: np.ndarray, i: int) -> None:
     """Add rotor ``i``'s force and moment to every lane's force columns."""
-    om = _column(w, L.OM0 + i)
     geo = rotor_geometry(prm, i)
+    # Copy the rotor's speeds to a fixed column: an offset known at compile time keeps
+    # the loop below free of run-time alias checks (which a view into w would fail).
+    om = (L.OM0 + i) * LANES
+    for k in range(nb):
+        w[OMI * LANES + k] = w[om + k]
     for k in range(nb):
         ur = w[L.U * LANES + k] - w[BW * LANES + k]
         vr = w[L.V * LANES + k] - w[(BW + 1) * LANES + k]
         wr = w[L.W * LANES + k] - w[(BW + 2) * LANES + k]
-        f = rotor_contribution(prm, geo, ur, vr, wr, ur * ur + vr * vr + wr * wr, om[k],
-                               w[RHO * LANES + k])
+        f = rotor_contribution(prm, geo, ur, vr, wr, ur * ur + vr * vr + wr * wr,
+                               w[OMI * LANES + k], w[RHO * LANES + k])
         fx, fy, fz = w[FRC * LANES + k], w[(FRC + 1) * LANES + k], w[(FRC + 2) * LANES + k]
         _put3(w, FRC, k, fx + f[0], fy + f[1], fz + f[2])
         lm, mm, nm = (w[(FRC + 3) * LANES + k], w[(FRC + 4) * LANES + k],
