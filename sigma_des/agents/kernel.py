@@ -36,7 +36,7 @@ from sigma_des.agents.autopilot import (
     multirotor_prepare,
 )
 from sigma_des.agents.forces import rotor_contribution, rotor_geometry
-from sigma_des.agents.rigid_body import rigid_body_update, rotmat, rotmat_q, to_body, to_ned
+from sigma_des.agents.rigid_body import rigid_body_update, rotmat_q, to_body, to_ned
 from sigma_des.agents.wind import mean_wind, turbulence_update
 
 __all__ = ["LANES", "step_kernel"]
@@ -45,7 +45,8 @@ __all__ = ["LANES", "step_kernel"]
 LANES = 32
 # Scratch columns after the state's: rotation matrix (9), NED ground velocity (3),
 # NED wind (3, held over the frame), body-axis wind (3), density, gravity, actuator
-# commands (7), autopilot set-points (8), body force and moment (6), one rotor speed.
+# commands (7), autopilot set-points (8), body force and moment (6), one rotor speed,
+# heading cosine and sine (2).
 RM = L.STATE_DIM
 VEL = RM + 9
 WND = VEL + 3
@@ -56,7 +57,8 @@ ACT = GRAV + 1
 PRE = ACT + 7
 FRC = PRE + 8
 OMI = FRC + 6               # the speed of the rotor being summed (a copy)
-NCOL = OMI + 1
+HDG = OMI + 1               # heading (cos, sin), per frame
+NCOL = HDG + 2
 
 
 @njit(cache=True)
@@ -81,16 +83,20 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
     h = dt / nsub
     am = 1.0 - math.exp(-h / prm[L.TAU_MOTOR])
     asv = 1.0 - math.exp(-h / prm[L.TAU_SERVO])
-    x = np.empty(L.STATE_DIM)
+    x = np.zeros(L.STATE_DIM)
     pre = np.zeros(8)
+    memo = np.full(3, np.nan)
     w = np.empty(NCOL * LANES)
     tan_tilt = math.tan(prm[L.GAIN_BASE + 10])
     for b0 in range(0, n, LANES):
         nb = min(LANES, n - b0)
         for k in range(nb):
             for j in range(L.STATE_DIM):
-                x[j] = state[b0 + k, j]
-            frame_row(w, k, x, b0 + k, command, act_cmd, dt, nodes, prm, key, tan_tilt, pre)
+                w[j * LANES + k] = state[b0 + k, j]
+        frame_lanes(w, nb)
+        for k in range(nb):
+            frame_row(w, k, b0 + k, command, act_cmd, dt, nodes, prm, key, tan_tilt, x, pre,
+                      memo)
         for _ in range(nsub):
             substep(w, nb, prm, h, am, asv)
         for k in range(nb):
@@ -98,43 +104,79 @@ def step_kernel(state: np.ndarray, command: np.ndarray, act_cmd: np.ndarray, dt:
                 out[b0 + k, j] = w[j * LANES + k]
 
 
-@njit(cache=True)
-def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
-              act_cmd: np.ndarray, dt: float, nodes: np.ndarray, prm: np.ndarray,
-              key: np.uint64, tan_tilt: float, pre: np.ndarray) -> None:
-    """The per-frame part of row ``i`` (state ``x``), stored in lane ``k`` of ``w``.
+@njit(cache=True, inline="always")
+def _turbulence_periods(memo: np.ndarray, t: float, dt: float, tp: float) -> tuple:
+    """Turbulence update indices ``floor(t / tp)``, ``floor((t + dt) / tp)`` (+ 1e-6).
 
-    ``x`` gets the turbulence update; ``pre`` is scratch for the set-points;
-    ``tan_tilt`` is the multirotor's ``tan`` of its tilt limit (a per-call constant).
+    Rows of a swarm share their time, so the last row's values are reused when ``t``
+    is the same (``memo = [t, e0, e1]``; NaN at first: never equal).
+    """
+    if t != memo[0]:
+        memo[0] = t
+        memo[1] = math.floor(t / tp + 1e-6)
+        memo[2] = math.floor((t + dt) / tp + 1e-6)
+    return memo[1], memo[2]
+
+
+@njit(cache=True, error_model="numpy")
+def frame_lanes(w: np.ndarray, nb: int) -> None:
+    """The per-frame kinematics of every lane: rotation matrix, NED velocity, heading."""
+    for k in range(nb):
+        rm = rotmat_q(w[L.Q0 * LANES + k], w[L.Q1 * LANES + k], w[L.Q2 * LANES + k],
+                      w[L.Q3 * LANES + k])
+        _put3(w, RM, k, rm[0], rm[1], rm[2])
+        _put3(w, RM + 3, k, rm[3], rm[4], rm[5])
+        _put3(w, RM + 6, k, rm[6], rm[7], rm[8])
+        vn, ve, vd = to_ned(rm, w[L.U * LANES + k], w[L.V * LANES + k], w[L.W * LANES + k])
+        _put3(w, VEL, k, vn, ve, vd)
+        # Heading (cos, sin): turns the turbulence to NED and the roll override.
+        hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
+        ok = hn > 1e-9
+        w[HDG * LANES + k] = rm[0] / hn if ok else 1.0
+        w[(HDG + 1) * LANES + k] = rm[3] / hn if ok else 0.0
+
+
+@njit(cache=True)
+def frame_row(w: np.ndarray, k: int, i: int, command: np.ndarray, act_cmd: np.ndarray,
+              dt: float, nodes: np.ndarray, prm: np.ndarray, key: np.uint64, tan_tilt: float,
+              x: np.ndarray, pre: np.ndarray, memo: np.ndarray) -> None:
+    """The per-frame part of row ``i``, whose state is lane ``k`` of ``w`` (updated there).
+
+    Reads the kinematics of :func:`frame_lanes`; ``tan_tilt`` is the multirotor's
+    ``tan`` of its tilt limit (a per-call constant); ``x`` (a state row), ``pre``
+    (set-points) and ``memo`` are scratch.
     """
     kind = int(prm[L.AP_KIND])
     tp = prm[L.ENV_TURB_ON]
-    rm = rotmat(x)
-    vn, ve, vd = to_ned(rm, x[L.U], x[L.V], x[L.W])
-    _, _, rho = isa_scalar(x[L.H])
+    hgt, t = w[L.H * LANES + k], w[L.TIME * LANES + k]
+    rm = _rm(w, k)
+    vn, ve, vd = w[VEL * LANES + k], w[(VEL + 1) * LANES + k], w[(VEL + 2) * LANES + k]
+    heading = (w[HDG * LANES + k], w[(HDG + 1) * LANES + k])
+    _, _, rho = isa_scalar(hgt)
     # Wind: mean (at this step's time and altitude) + turbulence in heading axes.
-    wn, we, wd = mean_wind(prm, x[L.TIME], x[L.H])
-    # Heading (cos, sin): turns the turbulence to NED and the roll override.
-    hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
-    heading = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
+    wn, we, wd = mean_wind(prm, t, hgt)
     if tp > 0.0:
         # Update at the turbulence rate (wind.py): when this frame crosses one or
         # more multiples of the period tp, over exactly the periods crossed.
-        e0 = math.floor(x[L.TIME] / tp + 1e-6)
-        e1 = math.floor((x[L.TIME] + dt) / tp + 1e-6)
+        e0, e1 = _turbulence_periods(memo, t, dt, tp)
         if e1 > e0:
             spd = sqrt((vn - wn) ** 2 + (ve - we) ** 2 + (vd - wd) ** 2)
+            x[L.H] = hgt
+            x[L.TU], x[L.TV], x[L.TW] = (w[L.TU * LANES + k], w[L.TV * LANES + k],
+                                         w[L.TW * LANES + k])
             turbulence_update(x, prm, key, nodes[i], np.int64(e1), (e1 - e0) * tp, spd)
+            _put3(w, L.TU, k, x[L.TU], x[L.TV], x[L.TW])
         ch, sh = heading
-        wn += ch * x[L.TU] - sh * x[L.TV]
-        we += sh * x[L.TU] + ch * x[L.TV]
-        wd += x[L.TW]
+        tu, tv = w[L.TU * LANES + k], w[L.TV * LANES + k]
+        wn += ch * tu - sh * tv
+        we += sh * tu + ch * tv
+        wd += w[L.TW * LANES + k]
     if kind != 0:
         # NaN in v / chi / h = keep the current value (resolved per step).
         c0, c1, c2 = command[i, 0], command[i, 1], command[i, 2]
         cmd = (c0 if c0 == c0 else sqrt(vn * vn + ve * ve),
                c1 if c1 == c1 else atan2_fast(rm[3], rm[0]),
-               c2 if c2 == c2 else x[L.H], command[i, 3])
+               c2 if c2 == c2 else hgt, command[i, 3])
         if kind == 1:
             multirotor_prepare(prm, cmd, rm, heading, tan_tilt, pre)
         else:
@@ -144,11 +186,9 @@ def frame_row(w: np.ndarray, k: int, x: np.ndarray, i: int, command: np.ndarray,
             w[(ACT + j) * LANES + k] = act_cmd[i, j]
     for j in range(8):
         w[(PRE + j) * LANES + k] = pre[j]
-    for j in range(L.STATE_DIM):
-        w[j * LANES + k] = x[j]
-    w[WND * LANES + k], w[(WND + 1) * LANES + k], w[(WND + 2) * LANES + k] = wn, we, wd
+    _put3(w, WND, k, wn, we, wd)
     w[RHO * LANES + k] = rho
-    w[GRAV * LANES + k] = gravity_scalar(x[L.H])
+    w[GRAV * LANES + k] = gravity_scalar(hgt)
 
 
 @njit(cache=True, error_model="numpy")
