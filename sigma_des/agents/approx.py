@@ -45,7 +45,7 @@ def _llvm_sqrt(typingctx: Any, x: Any) -> Any:
 @njit(cache=True, inline="always")
 def sqrt(v: float) -> float:
     """Correctly rounded square root (NaN below 0), vectorisable (module doc)."""
-    return _llvm_sqrt(v)
+    return _llvm_sqrt(v)  # type: ignore[call-arg]  # numba passes the typing context
 
 
 @njit(cache=True, inline="always")
