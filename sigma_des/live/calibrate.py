@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 
 from sigma_des.config import Scenario, from_dict, load, to_toml
 from sigma_des.errors import ConfigError
@@ -150,19 +151,8 @@ def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
     return Scenario(nodes=n, hosts=min(n, max(1, int(msgs.get("host", pd.Series([0])).max()) + 1)))
 
 
-def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, dict[str, Any]]:
-    """Fit a DES scenario to the live run at ``source``.
-
-    Args:
-        source: a ``sigma-des live --out`` directory (or MCAP file).
-        files_dir: where to write the empirical latency files (default: next to source).
-
-    Returns:
-        The calibrated scenario and a report of the fitted figures (seconds).
-
-    Raises:
-        ConfigError: naming the source if it holds too few messages to fit.
-    """
+def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame]:
+    """The base scenario, the messages in its run window and the (first-sent) states."""
     msgs = read_messages(source)
     base = _base_scenario(source, msgs)
     # an MCAP table (sigma_des.record.read_table) has the contract columns only
@@ -177,17 +167,15 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
     states = w[(w["kind"] == "state") & ~w["republish"].astype(bool)]
     if len(states) < 10:
         raise ConfigError(str(source), f"only {len(states)} states in the window; need >= 10")
-    # one row per receiving client (a recording repeats a host's receipt for its nodes)
-    trig = w[w["kind"] == "trigger"].drop_duplicates(["frame", "host", "t_recv"])
-    _, slope = fanout_slope(trig)
-    delivery = max(delivery_floor(trig), 0.0)
-    publish = base.broker.publish_service.mean_value()
-    lat = (states["t_recv"] - states["t_send"]).to_numpy()
-    hop = np.clip((lat - publish - delivery) / 2.0, 0.0, None)
-    queue = np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None)
-    queue = np.nan_to_num(queue)
+    return base, w, states
+
+
+def _write_latency_files(
+    d: Path, hop: NDArray[np.float64], queue: NDArray[np.float64]
+) -> tuple[Path, Path, bool]:
+    """Write the per-hop latency file (and the server-link one when the server's receive
+    queue is worth folding in); returns both paths and whether it was folded."""
     fold = float(queue.mean()) > 0.05 * float(hop.mean())
-    d = files_dir or (source if source.is_dir() else source.parent)
     d.mkdir(parents=True, exist_ok=True)
     hop_file = d / "hop_latency.txt"
     np.savetxt(hop_file, hop, fmt="%.9g")
@@ -195,9 +183,41 @@ def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, di
     if fold:
         srv_file = d / "server_latency.txt"
         np.savetxt(srv_file, hop + queue, fmt="%.9g")
+    return hop_file, srv_file, fold
+
+
+def _publish_costs(w: pd.DataFrame) -> pd.DataFrame:
+    """``state_pub`` rows with ``cost`` = publish minus trigger receipt (finite, >= 0)."""
     pub = w[w["kind"] == "state_pub"]
     pub = pub.assign(cost=pub["t_send"] - pub["t_trig"])
-    pub = pub[np.isfinite(pub["cost"]) & (pub["cost"] >= 0)]
+    return pub[np.isfinite(pub["cost"]) & (pub["cost"] >= 0)]
+
+
+def calibrate(source: Path, files_dir: Path | None = None) -> tuple[Scenario, dict[str, Any]]:
+    """Fit a DES scenario to the live run at ``source``.
+
+    Args:
+        source: a ``sigma-des live --out`` directory (or MCAP file).
+        files_dir: where to write the empirical latency files (default: next to source).
+
+    Returns:
+        The calibrated scenario and a report of the fitted figures (seconds).
+
+    Raises:
+        ConfigError: naming the source if it holds too few messages to fit.
+    """
+    base, w, states = _window(source)
+    # one row per receiving client (a recording repeats a host's receipt for its nodes)
+    trig = w[w["kind"] == "trigger"].drop_duplicates(["frame", "host", "t_recv"])
+    _, slope = fanout_slope(trig)
+    delivery = max(delivery_floor(trig), 0.0)
+    publish = base.broker.publish_service.mean_value()
+    lat = (states["t_recv"] - states["t_send"]).to_numpy()
+    hop = np.clip((lat - publish - delivery) / 2.0, 0.0, None)
+    queue = np.nan_to_num(np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None))
+    d = files_dir or (source if source.is_dir() else source.parent)
+    hop_file, srv_file, fold = _write_latency_files(d, hop, queue)
+    pub = _publish_costs(w)
     cost = pub["cost"].to_numpy()
     step_mean = float(cost.mean()) if cost.size else base.compute.step_time.mean_value()
     step_std = float(cost.std()) if cost.size > 1 else base.compute.step_time.std
