@@ -207,8 +207,11 @@ def substep(w: np.ndarray, nb: int, prm: np.ndarray, h: float, am: float, asv: f
     _lag_lanes(_column(w, L.DE), _column(w, ACT + 5), nb, asv)
     _lag_lanes(_column(w, L.DR), _column(w, ACT + 6), nb, asv)
     aero_lanes(w, nb, prm)
-    for j in range(nrot):
-        rotor_lanes(w, nb, prm, j)
+    if nrot == 4:
+        four_rotor_lanes(w, nb, prm)
+    else:
+        for j in range(nrot):
+            rotor_lanes(w, nb, prm, j)
     rigid_body_lanes(w, nb, prm, h)
 
 
@@ -347,6 +350,33 @@ def rotor_lanes(w: np.ndarray, nb: int, prm: np.ndarray, i: int) -> None:
         lm, mm, nm = (w[(FRC + 3) * LANES + k], w[(FRC + 4) * LANES + k],
                       w[(FRC + 5) * LANES + k])
         _put3(w, FRC + 3, k, lm + f[3], mm + f[4], nm + f[5])
+
+
+@njit(cache=True, inline="always")
+def _add6(a: tuple, b: tuple) -> tuple:
+    return a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3], a[4] + b[4], a[5] + b[5]
+
+
+@njit(cache=True, error_model="numpy")
+def four_rotor_lanes(w: np.ndarray, nb: int, prm: np.ndarray) -> None:
+    """:func:`rotor_lanes` of rotors 0..3 in one pass (force columns read and written once;
+    the sums are taken in the same order, so the bits are the same)."""
+    g0, g1 = rotor_geometry(prm, 0), rotor_geometry(prm, 1)
+    g2, g3 = rotor_geometry(prm, 2), rotor_geometry(prm, 3)
+    for k in range(nb):
+        ur = w[L.U * LANES + k] - w[BW * LANES + k]
+        vr = w[L.V * LANES + k] - w[(BW + 1) * LANES + k]
+        wr = w[L.W * LANES + k] - w[(BW + 2) * LANES + k]
+        v2 = ur * ur + vr * vr + wr * wr
+        rho = w[RHO * LANES + k]
+        f = (w[FRC * LANES + k], w[(FRC + 1) * LANES + k], w[(FRC + 2) * LANES + k],
+             w[(FRC + 3) * LANES + k], w[(FRC + 4) * LANES + k], w[(FRC + 5) * LANES + k])
+        f = _add6(f, rotor_contribution(prm, g0, ur, vr, wr, v2, w[L.OM0 * LANES + k], rho))
+        f = _add6(f, rotor_contribution(prm, g1, ur, vr, wr, v2, w[L.OM1 * LANES + k], rho))
+        f = _add6(f, rotor_contribution(prm, g2, ur, vr, wr, v2, w[L.OM2 * LANES + k], rho))
+        f = _add6(f, rotor_contribution(prm, g3, ur, vr, wr, v2, w[L.OM3 * LANES + k], rho))
+        _put3(w, FRC, k, f[0], f[1], f[2])
+        _put3(w, FRC + 3, k, f[3], f[4], f[5])
 
 
 @njit(cache=True, error_model="numpy")
