@@ -1,4 +1,4 @@
-"""The scenario: one validated, frozen configuration for a whole run (DESIGN §1–3).
+"""The scenario: one validated, frozen configuration for a whole run (docs/MODEL.md).
 
 Every default lives here (or in the net-layer spec classes it embeds). A scenario
 is loaded from TOML and/or ``--set key=value`` overrides through :func:`load`;
@@ -24,19 +24,26 @@ import tomli_w
 
 from sigma_des.errors import ConfigError
 from sigma_des.net.clocks import ClockSpec
+from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.latency import Dist
-from sigma_des.peer_specs import DdsSpec, RpcSpec
+from sigma_des.net.spec import (
+    BrokerSpec,
+    DdsSpec,
+    LinkDegrade,
+    LinkSpec,
+    NetSetup,
+    NetSpec,
+    Topology,
+)
+from sigma_des.peer_specs import RpcSpec
 from sigma_des.specs import (
     BidesSpec,
-    BrokerSpec,
     CommandSpec,
     ComputeSpec,
     FaultSpec,
     FidelitySpec,
     HLCSpec,
-    LinkSpec,
     LockstepSpec,
-    NetSpec,
     RecordSpec,
     require,
     require_positive,
@@ -207,20 +214,7 @@ class Scenario:
             "trigger_payload_bits",
             f"must be >= 0, got {self.trigger_payload_bits}",
         )
-        require(
-            self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
-            "dynamics",
-            f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
-        )
-        if self.dynamics_params:
-            from sigma_des.tuning.fitted import fitted_params
-
-            require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
-                    f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
-            try:
-                fitted_params(self.dynamics_params, self.dynamics)
-            except ConfigError as e:
-                raise ConfigError("dynamics_params", str(e)) from None
+        self._check_dynamics()
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"
         )
@@ -238,6 +232,27 @@ class Scenario:
             "bides.f_trig_min",
             f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}",
         )
+        self._check_faults()
+
+    def _check_dynamics(self) -> None:
+        """``dynamics`` names a model; ``dynamics_params`` a fit of it."""
+        require(
+            self.dynamics in DYNAMICS_BUILTIN or self.dynamics.startswith("jsbsim:"),
+            "dynamics",
+            f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
+        )
+        if self.dynamics_params:
+            from sigma_des.tuning.fitted import fitted_params
+
+            require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
+                    f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
+            try:
+                fitted_params(self.dynamics_params, self.dynamics)
+            except ConfigError as e:
+                raise ConfigError("dynamics_params", str(e)) from None
+
+    def _check_faults(self) -> None:
+        """Every fault names an existing node (crash, slow, drop) or host (degrade)."""
         for i, f in enumerate(self.faults):
             if f.kind in ("crash", "slow", "drop"):
                 require(
@@ -259,6 +274,32 @@ class Scenario:
             per = math.ceil(self.nodes / self.hosts)
             return [i // per for i in range(self.nodes)]
         return [i % self.hosts for i in range(self.nodes)]
+
+    @property
+    def topology(self) -> Topology:
+        """The net layer's view of the placement: nodes, hosts and each node's host."""
+        return Topology(self.nodes, self.hosts, tuple(self.host_of))
+
+    def net_setup(self) -> NetSetup:
+        """Everything the net layer takes from this scenario (its specs, topology,
+        metrics window ``[warmup, duration)``, ``degrade`` and ``drop`` faults)."""
+        kinds = {"trigger": TRIGGER, "state": STATE, "command": COMMAND}
+        return NetSetup(
+            net=self.net,
+            broker=self.broker,
+            dds=self.dds,
+            topology=self.topology,
+            warmup=self.warmup,
+            end=self.duration,
+            degrades=tuple(
+                LinkDegrade(f.host, f.start, f.end, f.extra_delay, f.extra_loss)
+                for f in self.faults
+                if f.kind == "degrade"
+            ),
+            drops=frozenset(
+                (kinds[f.message], f.node, f.frame) for f in self.faults if f.kind == "drop"
+            ),
+        )
 
 
 # ---------------------------------------------------------------- loading

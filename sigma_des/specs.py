@@ -1,6 +1,7 @@
 """Section specs of the scenario: frozen, validated dataclasses with their defaults.
 
-Each class is one TOML table of the scenario (``[net]``, ``[broker]``, ``[bides]``, …);
+Each class is one TOML table of the scenario (``[compute]``, ``[bides]``, …; the
+net layer's ``[net]``, ``[broker]`` and ``[dds]`` are in :mod:`sigma_des.net.spec`);
 :class:`sigma_des.config.Scenario` embeds them. Validation happens on construction and
 raises :class:`~sigma_des.errors.ConfigError` with the local field name (the loader
 prefixes the dotted path).
@@ -13,14 +14,9 @@ from dataclasses import dataclass, field
 
 from sigma_des.core.validate import require, require_in, require_nonneg, require_positive
 from sigma_des.net.latency import Dist
-from sigma_des.net.loss import LossSpec
-
-#: Largest ``net.max_retries``.
-MAX_RETRIES = 100
 
 __all__ = [
     "BidesSpec",
-    "BrokerSpec",
     "CommandSpec",
     "ComputeSpec",
     "DROP_MESSAGES",
@@ -28,103 +24,9 @@ __all__ = [
     "FaultSpec",
     "FidelitySpec",
     "HLCSpec",
-    "LinkSpec",
     "LockstepSpec",
-    "NetSpec",
     "RecordSpec",
 ]
-
-
-@dataclass(frozen=True)
-class LinkSpec:
-    """A host's access link to the broker (both directions alike).
-
-    Attributes:
-        latency: base one-way latency distribution of a packet on this link (s).
-        bandwidth_mbps: link rate; serialization = wire bits / rate, FIFO per direction.
-        loss: packet loss model of this link.
-    """
-
-    latency: Dist = field(default_factory=lambda: Dist(dist="constant", value=0.00025))
-    bandwidth_mbps: float = 1000.0
-    loss: LossSpec = field(default_factory=LossSpec)
-
-    def __post_init__(self) -> None:
-        require_positive(self, "bandwidth_mbps")
-
-
-@dataclass(frozen=True)
-class NetSpec:
-    """Network: per-link impairments, transport, MQTT QoS and framing overheads.
-
-    Attributes:
-        host_link: links of the physics hosts.
-        server_link: link of the server host (interface + alignment server + renderer).
-        transport: ``datagram`` (a lost packet is gone) or ``stream`` (TCP-like).
-        qos: MQTT QoS, 0 or 1.
-        rto: stream transport: retransmission timeout of a lost segment (s).
-        qos1_timeout: datagram + QoS 1: resend with DUP if no PUBACK after this (s).
-        max_retries: resends of one packet before giving up (stream and QoS 1),
-            0..``MAX_RETRIES`` (100).
-        tcpip_bytes: TCP/IP header bytes per packet.
-        ethernet_bytes: Ethernet framing bytes per packet (header, FCS, preamble, gap).
-        topic_bytes: MQTT topic length in bytes.
-        middleware: ``mqtt`` (a broker relays every message) or ``dds`` (brokerless
-            DDS/RTPS over UDP, parameters in ``[dds]``; needs ``transport =
-            "datagram"`` and ``qos = 0``: RTPS brings its own reliability).
-    """
-
-    host_link: LinkSpec = field(default_factory=LinkSpec)
-    server_link: LinkSpec = field(default_factory=LinkSpec)
-    transport: str = "stream"
-    qos: int = 1
-    rto: float = 0.2
-    qos1_timeout: float = 0.1
-    max_retries: int = 5
-    tcpip_bytes: int = 40
-    ethernet_bytes: int = 38
-    topic_bytes: int = 8
-    middleware: str = "mqtt"
-
-    def __post_init__(self) -> None:
-        require(
-            self.middleware in ("mqtt", "dds"),
-            "middleware",
-            f"must be 'mqtt' or 'dds', got {self.middleware!r}",
-        )
-        if self.middleware == "dds":
-            require(
-                self.transport == "datagram",
-                "transport",
-                "middleware 'dds' runs RTPS over UDP: must be 'datagram', got "
-                f"{self.transport!r}",
-            )
-            require(
-                self.qos == 0, "qos", f"is MQTT's: with middleware 'dds' must be 0, got {self.qos}"
-            )
-        require(
-            self.transport in ("datagram", "stream"),
-            "transport",
-            f"must be 'datagram' or 'stream', got {self.transport!r}",
-        )
-        require(self.qos in (0, 1), "qos", f"must be 0 or 1, got {self.qos}")
-        require_positive(self, "rto", "qos1_timeout")
-        require_nonneg(self, "tcpip_bytes", "ethernet_bytes")
-        # every resend is an event: beyond a few dozen a packet is long given up in practice
-        require_in(self, "max_retries", 0, MAX_RETRIES)
-        require(
-            1 <= self.topic_bytes <= 65535,
-            "topic_bytes",
-            f"must be in 1..65535, got {self.topic_bytes}",
-        )
-
-
-@dataclass(frozen=True)
-class BrokerSpec:
-    """Single-threaded MQTT broker: service time per inbound PUBLISH and per delivery."""
-
-    publish_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=4e-6))
-    delivery_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=3e-6))
 
 
 @dataclass(frozen=True)

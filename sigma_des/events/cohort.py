@@ -201,14 +201,14 @@ class CohortRun(MethodRun):
             kinds_down = (2, 5) if is_server else (1, 3, 4)
             for up, kinds in ((1, kinds_up), (0, kinds_down)):
                 src = CS.lat_source(cls, up)
-                lat = net._lat[is_server, bool(up)]
+                lat = net.latency_draws(is_server, bool(up))
                 for k in kinds:
                     combos.append((src, k, lat))
                     if p_loss[cls] > 0.0:
-                        combos.append((CS.U_OFFSET + src, k, net._u[is_server, bool(up)]))
+                        combos.append((CS.U_OFFSET + src, k, net.loss_draws(is_server, bool(up))))
         for k in (1, 2, 3, 4, 5):
-            combos.append((CS.SVC_PUB, k, net._svc_pub))
-            combos.append((CS.SVC_DEL, k, net._svc_del))
+            combos.append((CS.SVC_PUB, k, net.broker.publish_draws))
+            combos.append((CS.SVC_DEL, k, net.broker.delivery_draws))
         combos.append((CS.STEP, 0, self.step_time))
         nc = 0
         for src, k, cache in combos:
@@ -512,9 +512,9 @@ class CohortRun(MethodRun):
             net.down[h].busy = float(busy[0, h])
         fv = S[CS.FF]
         iv = S[CS.II]
-        net.broker_busy = float(fv[CS.F_BUSY])
-        net.broker_work = float(fv[CS.F_WORK])
-        net.broker_max_wait = float(fv[CS.F_MAXWAIT])
+        net.broker.busy = float(fv[CS.F_BUSY])
+        net.broker.work = float(fv[CS.F_WORK])
+        net.broker.max_wait = float(fv[CS.F_MAXWAIT])
         self.history_misses += int(iv[CS.I_HMISS])
         self.collector.delivered_batch(1, np.empty(0), int(iv[CS.I_MSGS]))
         self.collector.duplicates += int(iv[CS.I_DUPS])

@@ -74,7 +74,7 @@ class MethodRun:
         n = self.n = sc.nodes
         self.kernel = Kernel()
         self.streams = RandomStreams(sc.seed)
-        self.net: Network = make_network(self.kernel, sc, self.streams, self._deliver, sc.warmup)
+        self.net: Network = make_network(self.kernel, sc.net_setup(), self.streams, self._deliver)
         self.server = n
         self.all_nodes = list(range(n))
         self._nodes = np.arange(n, dtype=np.int64)

@@ -54,7 +54,8 @@ from sigma_des.factory import make_dynamics
 from sigma_des.live.messages import read_messages
 from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
 from sigma_des.net.latency import Dist
-from sigma_des.specs import BrokerSpec, ComputeSpec
+from sigma_des.net.spec import BrokerSpec
+from sigma_des.specs import ComputeSpec
 
 __all__ = ["calibrate", "calibrated_toml", "delivery_floor", "fanout_slope", "for_target"]
 

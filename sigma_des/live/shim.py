@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 
 from sigma_des.core.rng import RandomStreams
 from sigma_des.net.loss import LossProcess
-from sigma_des.specs import LinkSpec, NetSpec
+from sigma_des.net.spec import LinkSpec, NetSpec
 
 if TYPE_CHECKING:  # only for annotations: the shim itself needs no MQTT client
     from sigma_des.live.ledger import Ledger

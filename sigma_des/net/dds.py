@@ -1,6 +1,7 @@
 """Brokerless DDS/RTPS publish/subscribe over the modelled links (``net.middleware = "dds"``).
 
-The model (parameters and sources in :mod:`sigma_des.peer_specs`, docs/MODEL.md):
+The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/MODEL.md,
+"Peer architectures"):
 
 * **Participants.** Every physics node and the server is one DDS participant with
   one middleware thread, a FIFO server for all of that participant's sends and
@@ -41,11 +42,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from sigma_des.config import Scenario
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.links import dist_cache
 from sigma_des.net.network import Deliver, Network
+from sigma_des.net.spec import NetSetup
 from sigma_des.net.wire import frame_bytes, payload_bytes
 
 __all__ = [
@@ -91,12 +92,19 @@ def acknack_bytes() -> int:
 
 
 def make_network(
-    kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
+    kernel: Kernel, setup: NetSetup, streams: RandomStreams, deliver: Deliver
 ) -> Network:
-    """The network of ``sc.net.middleware``: an MQTT broker, or brokerless DDS."""
-    if sc.net.middleware == "dds":
-        return DdsNetwork(kernel, sc, streams, deliver, warmup)
-    return Network(kernel, sc, streams, deliver, warmup)
+    """The network of ``setup.net.middleware``: an MQTT broker, or brokerless DDS.
+
+    Args:
+        kernel: the SimPy glue.
+        setup: the net's specs, topology, metrics window and link faults.
+        streams: root random streams.
+        deliver: called at every application-level arrival (see :class:`Network`).
+    """
+    if setup.net.middleware == "dds":
+        return DdsNetwork(kernel, setup, streams, deliver)
+    return Network(kernel, setup, streams, deliver)
 
 
 class DdsNetwork(Network):
@@ -108,10 +116,10 @@ class DdsNetwork(Network):
     """
 
     def __init__(
-        self, kernel: Kernel, sc: Scenario, streams: RandomStreams, deliver: Deliver, warmup: float
+        self, kernel: Kernel, setup: NetSetup, streams: RandomStreams, deliver: Deliver
     ) -> None:
-        super().__init__(kernel, sc, streams, deliver, warmup)
-        d = self.spec = sc.dds
+        super().__init__(kernel, setup, streams, deliver)
+        d = self.spec = setup.dds
         n = self.n
         nsub = n + 1
         self._w_cost = dist_cache(nsub, d.writer_cost, streams, "dds.writer")
@@ -120,7 +128,7 @@ class DdsNetwork(Network):
         ent = [d.endpoints + 2] * n + [d.endpoints + n]
         self.entities = ent
         self._dispatch = [d.executor_per_entity * e for e in ent]
-        eth, udp = sc.net.ethernet_bytes, d.udpip_bytes
+        eth, udp = setup.net.ethernet_bytes, d.udpip_bytes
         self._frame = lambda b: frame_bytes(b, udp, eth)  # noqa: E731
         self._hb_b = self._frame(heartbeat_bytes())
         self._an_b = self._frame(acknack_bytes())
@@ -164,7 +172,7 @@ class DdsNetwork(Network):
         nbytes: int, t: float, fn: Any, args: tuple[Any, ...],
     ) -> None:
         """One packet src → dst leaving ``src``'s thread at ``t``; ``fn(*args)`` on arrival."""
-        arr, lost = self._hop(src, True, kind, subj, index, attempt, nbytes, t)
+        arr, lost = self.hop(src, True, kind, subj, index, attempt, nbytes, t)
         self.k.at(arr, self._switch, dst, kind, subj, index, attempt, nbytes, lost, fn, args)
 
     def _switch(
@@ -174,7 +182,7 @@ class DdsNetwork(Network):
         if lost:  # the uplink lost it: nothing reaches the reader's link
             fn(False, *args)
             return
-        arr, lost2 = self._hop(dst, False, kind, subj, index, attempt, nbytes, self.k.now)
+        arr, lost2 = self.hop(dst, False, kind, subj, index, attempt, nbytes, self.k.now)
         if lost2:
             fn(False, *args)
         else:
@@ -217,7 +225,7 @@ class DdsNetwork(Network):
         if self.spec.multicast and len(subs) > 1:
             done = self._cpu(client, t, self._w_cost.get(kind, subject, index, 0))
             nbytes = self.wire_bytes(payload_bits, False)
-            arr, lost = self._hop(client, True, kind, subject, index, 0, nbytes, done)
+            arr, lost = self.hop(client, True, kind, subject, index, 0, nbytes, done)
             self.k.at(arr, self._fan_out, client, subs, msg, nbytes, lost, done)
             return
         for sub in subs:
@@ -233,7 +241,7 @@ class DdsNetwork(Network):
             if lost:
                 self._on_data(False, client, sub, msg, 0, t_sent)
                 continue
-            arr, lost2 = self._hop(sub, False, kind, ds, index, 0, nbytes, self.k.now)
+            arr, lost2 = self.hop(sub, False, kind, ds, index, 0, nbytes, self.k.now)
             if lost2:
                 self._on_data(False, client, sub, msg, 0, t_sent)
             else:
@@ -347,7 +355,7 @@ class DdsNetwork(Network):
         d = self.spec
         done = self._cpu(p, t, d.meta_cost)
         self._count_meta(t)
-        arr, lost = self._hop(p, True, _SPDP, p, i, 0, self._spdp_b, done)
+        arr, lost = self.hop(p, True, _SPDP, p, i, 0, self._spdp_b, done)
         if not lost:
             self.k.at(arr, self._spdp_copy, p, i)
         if i + 1 < d.spdp_initial_count:
@@ -369,7 +377,7 @@ class DdsNetwork(Network):
                 if link == self.link_of[p]:
                     seen[link] = (t, False)  # same host: the kernel loops it back
                 else:
-                    seen[link] = self._hop(q, False, _SPDP, p, i, 0, self._spdp_b, t)
+                    seen[link] = self.hop(q, False, _SPDP, p, i, 0, self._spdp_b, t)
             arr, lost = seen[link]
             if not lost:
                 self.k.at(arr, self._on_spdp, True, q, p)

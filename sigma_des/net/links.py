@@ -1,4 +1,4 @@
-"""Access links and transports of the modelled network (DESIGN §2).
+"""Access links and transports of the modelled network (docs/MODEL.md, "Network").
 
 Every client (physics node ``0..n-1``, and the server ``n`` that hosts the
 interface, the alignment server and the renderer) reaches the broker over its
@@ -10,8 +10,11 @@ direction, so results do not depend on event order.
 
 Transports: ``datagram`` (a lost packet is gone) and ``stream`` (per-connection
 in-order delivery; a lost segment is resent after an RTO doubling on each try,
-holding back everything behind it). MQTT on top of this, and the broker, are in
-:mod:`sigma_des.net.network`.
+holding back everything behind it). MQTT on top of this is in
+:mod:`sigma_des.net.network`, the broker in :mod:`sigma_des.net.broker`.
+
+This module takes the net layer's own :class:`~sigma_des.net.spec.NetSetup`
+(specs, topology, metrics window, link faults), never the scenario.
 """
 
 from __future__ import annotations
@@ -22,17 +25,20 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache, Sampler
 from sigma_des.core.rng import RandomStreams, Stream
 from sigma_des.core.sim import Kernel
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
+from sigma_des.net.spec import NetSetup
 
-__all__ = ["Links", "dist_cache"]
+__all__ = ["LinkDir", "Links", "dist_cache"]
+
+#: A stream segment: (client, up, kind, subject, index, wire bytes).
+_Packet = tuple[int, bool, int, int, int, int]
 
 
-class _LinkDir:
+class LinkDir:
     """One direction of one access link: FIFO serialization and byte counts."""
 
     __slots__ = ("busy", "bits_per_s", "sec_per_byte", "bytes", "packets", "name")
@@ -62,41 +68,33 @@ class Links:
 
     Args:
         kernel: the SimPy glue.
-        sc: the scenario.
+        setup: the net's specs, topology, metrics window and link faults.
         streams: root random streams.
-        warmup: traffic before this time is not counted.
-        forced_drops: ``(kind, subject, index)`` of messages whose first transmission
-            on the broker-to-receiver hop is lost (``drop`` faults).
     """
 
-    def __init__(
-        self,
-        kernel: Kernel,
-        sc: Scenario,
-        streams: RandomStreams,
-        warmup: float,
-        forced_drops: set[tuple[int, int, int]],
-    ) -> None:
+    def __init__(self, kernel: Kernel, setup: NetSetup, streams: RandomStreams) -> None:
         self.k = kernel
-        self.sc = sc
-        self.n = sc.nodes
-        self.server = sc.nodes
-        self.warmup = warmup
-        self.end = sc.duration  # traffic leaving after the run is not counted
-        net = sc.net
+        self.setup = setup
+        topo = setup.topology
+        hosts = topo.hosts
+        self.n = topo.nodes
+        self.server = topo.server
+        self.warmup = setup.warmup
+        self.end = setup.end  # traffic leaving after the run is not counted
+        net = setup.net
         self.datagram = net.transport == "datagram"
         self.rto = net.rto
         self.max_retries = net.max_retries
         # link index per client: hosts 0..H-1, the server's link is H
-        self.link_of = np.array(sc.host_of + [sc.hosts], dtype=np.int64).tolist()
+        self.link_of = topo.link_of
         nsub = self.n + 1
-        self.up: list[_LinkDir] = []
-        self.down: list[_LinkDir] = []
-        for h in range(sc.hosts + 1):
-            spec = net.host_link if h < sc.hosts else net.server_link
-            name = f"host{h}" if h < sc.hosts else "server"
-            self.up.append(_LinkDir(f"{name}.up", spec.bandwidth_mbps))
-            self.down.append(_LinkDir(f"{name}.down", spec.bandwidth_mbps))
+        self.up: list[LinkDir] = []
+        self.down: list[LinkDir] = []
+        for h in range(hosts + 1):
+            spec = net.host_link if h < hosts else net.server_link
+            name = f"host{h}" if h < hosts else "server"
+            self.up.append(LinkDir(f"{name}.up", spec.bandwidth_mbps))
+            self.down.append(LinkDir(f"{name}.down", spec.bandwidth_mbps))
         self._lat: dict[tuple[bool, bool], DrawCache] = {}
         self._u: dict[tuple[bool, bool], DrawCache] = {}
         self._loss: dict[tuple[bool, bool, int], LossProcess] = {}
@@ -106,8 +104,8 @@ class Links:
                 self._lat[is_server, up] = dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
                 ust = streams.stream(f"lossu.{tag}")
                 self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust))
-                for h in range(sc.hosts + 1):
-                    if (h == sc.hosts) == is_server:
+                for h in range(hosts + 1):
+                    if (h == hosts) == is_server:
                         self._loss[is_server, up, h] = LossProcess(
                             spec.loss, streams.stream(f"ge.{tag}"), h
                         )
@@ -116,12 +114,11 @@ class Links:
         self.gave_up = 0
         # degrade faults per link: (start, end, extra_delay, extra_loss)
         self._degrade: dict[int, list[tuple[float, float, float, float]]] = {}
-        for f in sc.faults:
-            if f.kind == "degrade":
-                self._degrade.setdefault(f.host, []).append(
-                    (f.start, f.end, f.extra_delay, f.extra_loss)
-                )
-        self.forced_drops = forced_drops
+        for f in setup.degrades:
+            self._degrade.setdefault(f.host, []).append(
+                (f.start, f.end, f.extra_delay, f.extra_loss)
+            )
+        self.forced_drops = setup.drops
         self._ups = [self.up[h] for h in self.link_of]
         self._downs = [self.down[h] for h in self.link_of]
         self._cls = [0] * self.n + [1]
@@ -135,13 +132,13 @@ class Links:
         self._p_const: list[list[float | None]] = []
         for c, spec in ((False, net.host_link), (True, net.server_link)):
             dyn = spec.loss.model != "bernoulli" or (
-                bool(self._degrade) if not c else sc.hosts in self._degrade
+                bool(self._degrade) if not c else hosts in self._degrade
             )
             self._p_const.append([None if dyn else spec.loss.p] * 2)
 
     # ------------------------------------------------------------ one hop
 
-    def _hop(
+    def hop(
         self,
         client: int,
         up: bool,
@@ -180,7 +177,7 @@ class Links:
             lost = True
         return done + lat + extra, lost
 
-    def _count(self, client: int, up: bool, nbytes: int, t: float) -> None:
+    def count_packet(self, client: int, up: bool, nbytes: int, t: float) -> None:
         """Serialize and count a packet whose arrival does not matter (stream PUBACKs)."""
         ld = (self._ups if up else self._downs)[client]
         busy = ld.busy
@@ -207,7 +204,7 @@ class Links:
 
     # ------------------------------------------------------------ transport
 
-    def _transmit(
+    def transmit(
         self,
         client: int,
         up: bool,
@@ -222,7 +219,7 @@ class Links:
     ) -> tuple[float, bool]:
         """Send one packet with the configured transport; ``on_arrive(*args)`` runs
         at its application-level arrival. Returns (first-try arrival, first-try lost)."""
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
+        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
         if self.datagram or self._in_order[self._cls[client]][up]:
             # a stream on a lossless constant-latency link is already in order (FIFO
             # serialization + equal latency): the in-order bookkeeping would change nothing
@@ -234,41 +231,24 @@ class Links:
             conn = self._conns[client, up] = _Conn()
         seq = conn.next_seq
         conn.next_seq += 1
-        self._stream_try(
-            conn,
-            seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
-            attempt,
-            nbytes,
-            t,
-            arr,
-            lost,
-            on_arrive,
-            args,
-        )
+        pkt = (client, up, kind, subject, index, nbytes)
+        self._stream_try(conn, seq, pkt, attempt, t, arr, lost, on_arrive, args)
         return arr, lost
 
     def _stream_try(
         self,
         conn: _Conn,
         seq: int,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
+        pkt: _Packet,
         attempt: int,
-        nbytes: int,
         t: float,
         arr: float,
         lost: bool,
         on_arrive: Callable[..., None],
         args: tuple[Any, ...],
     ) -> None:
+        """Try ``attempt`` of stream segment ``seq`` sent at ``t``: in order on arrival,
+        or resent after the (doubling) RTO, or given up after ``max_retries``."""
         if not lost:
             self.k.at(arr, self._stream_arrive, conn, seq, on_arrive, args)
             return
@@ -282,13 +262,8 @@ class Links:
             self._stream_retry,
             conn,
             seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
+            pkt,
             attempt + 1,
-            nbytes,
             on_arrive,
             args,
         )
@@ -297,34 +272,15 @@ class Links:
         self,
         conn: _Conn,
         seq: int,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
+        pkt: _Packet,
         attempt: int,
-        nbytes: int,
         on_arrive: Callable[..., None],
         args: tuple[Any, ...],
     ) -> None:
-        t = self.k.env._now
-        arr, lost = self._hop(client, up, kind, subject, index, attempt, nbytes, t)
-        self._stream_try(
-            conn,
-            seq,
-            client,
-            up,
-            kind,
-            subject,
-            index,
-            attempt,
-            nbytes,
-            t,
-            arr,
-            lost,
-            on_arrive,
-            args,
-        )
+        t = self.k.env.now
+        client, up, kind, subject, index, nbytes = pkt
+        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
+        self._stream_try(conn, seq, pkt, attempt, t, arr, lost, on_arrive, args)
 
     @staticmethod
     def _stream_arrive(
@@ -337,12 +293,30 @@ class Links:
             if item is not None:
                 item[0](*item[1])
 
-    def links(self) -> list[_LinkDir]:
+    def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""
         return self.up + self.down
 
+    # ------------------------------------------------------------ draw tables
+
+    def latency_draws(self, is_server: bool, up: bool) -> DrawCache:
+        """Base-latency draws of the server's (or the hosts') link, one direction.
+
+        Read-only use (the compiled core fills its tables from it): drawing from it
+        is keyed by ``(kind, subject, index, attempt)``, so reading does not change
+        any result.
+        """
+        return self._lat[is_server, up]
+
+    def loss_draws(self, is_server: bool, up: bool) -> DrawCache:
+        """Uniform loss draws of the server's (or the hosts') link, one direction
+        (a packet is lost when its draw is below the loss probability)."""
+        return self._u[is_server, up]
+
 
 def dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCache:
+    """Draws of ``dist`` for ``n`` subjects from the stream ``name``, keyed by
+    ``(kind, subject, index, attempt)`` (a constant distribution needs no draws)."""
     st = streams.stream(name)
     const = dist.value if dist.dist == "constant" else None
     return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const)

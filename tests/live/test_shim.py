@@ -8,7 +8,7 @@ from sigma_des.core.rng import RandomStreams
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess, LossSpec
-from sigma_des.specs import LinkSpec, NetSpec
+from sigma_des.net.spec import LinkSpec, NetSpec
 
 
 def test_disabled_or_zero_link_adds_nothing() -> None:

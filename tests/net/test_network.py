@@ -24,7 +24,8 @@ def _net(sc: Scenario) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
                 t_pub: float) -> None:
         got.append((client, subject, index, t_pub, k.now))
 
-    return k, Network(k, sc, RandomStreams(sc.seed), deliver, 0.0), got
+    setup = replace(sc.net_setup(), warmup=0.0)
+    return k, Network(k, setup, RandomStreams(sc.seed), deliver), got
 
 
 def _drive(k: Kernel, net: Network, times: np.ndarray, node: int = 0) -> None:

@@ -1,0 +1,112 @@
+"""The MQTT broker: one FIFO server (docs/MODEL.md, "Network").
+
+An inbound PUBLISH costs ``publish_service`` plus one ``delivery_service`` per
+subscriber; delivery ``j`` leaves after the publish part and ``j+1`` delivery
+parts. The PUBACK to the publisher leaves after the publish part and costs the
+broker nothing. A QoS 1 redelivery is one more ``delivery_service``. Every
+service time is drawn by ``(kind, subject, index, attempt)`` from the streams
+``svc.publish`` and ``svc.delivery``, so results do not depend on event order.
+
+The broker only computes times: the client side (links, transports, QoS) is in
+:mod:`sigma_des.net.network`, which sends what the broker's times say.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from sigma_des.core.draws import DrawCache
+from sigma_des.core.rng import RandomStreams
+from sigma_des.net.links import dist_cache
+from sigma_des.net.spec import BrokerSpec
+
+__all__ = ["Broker"]
+
+
+class Broker:
+    """The single-threaded broker's service times, busy period and load counters.
+
+    Args:
+        spec: the broker's service-time distributions.
+        streams: root random streams.
+        clients: number of clients (nodes plus the server).
+        warmup: service before this time is not counted.
+        end: service at or after this time is not counted.
+
+    Attributes:
+        busy: time the server is free again (s).
+        work: service seconds inside the metrics window ``[warmup, end)``.
+        max_wait: longest wait of a PUBLISH arriving in the window before its service (s).
+        publish_draws: service-time draws of inbound PUBLISHes (read-only use).
+        delivery_draws: service-time draws of deliveries (read-only use).
+    """
+
+    def __init__(
+        self, spec: BrokerSpec, streams: RandomStreams, clients: int, warmup: float, end: float
+    ) -> None:
+        self.warmup = warmup
+        self.end = end
+        self.publish_draws: DrawCache = dist_cache(
+            clients, spec.publish_service, streams, "svc.publish"
+        )
+        self.delivery_draws: DrawCache = dist_cache(
+            clients, spec.delivery_service, streams, "svc.delivery"
+        )
+        self.busy = 0.0
+        self.work = 0.0
+        self.max_wait = 0.0
+
+    def serve_publish(
+        self,
+        now: float,
+        kind: int,
+        subject: int,
+        index: int,
+        attempt: int,
+        delivery_subjects: Sequence[int],
+    ) -> tuple[float, list[float]]:
+        """Serve a PUBLISH arriving ``now`` and its deliveries, in that order.
+
+        Args:
+            now: arrival time of the PUBLISH at the broker.
+            kind: message kind.
+            subject: the node the message is about.
+            index: frame (or tick) index.
+            attempt: transmission attempt of the PUBLISH.
+            delivery_subjects: draw subject of each delivery, in delivery order.
+
+        Returns:
+            (time the PUBACK leaves, departure time of each delivery)
+        """
+        s_pub = self.publish_draws.get(kind, subject, index, attempt)
+        s_del = [self.delivery_draws.get(kind, d, index, attempt) for d in delivery_subjects]
+        start = now if now > self.busy else self.busy
+        if self.warmup <= now < self.end:
+            self.max_wait = max(self.max_wait, start - now)
+        t_ack = start + s_pub
+        d = t_ack
+        departs = []
+        for sd in s_del:
+            d += sd
+            departs.append(d)
+        # free exactly when the last delivery leaves (same float as that departure)
+        self.busy = d
+        self._count_work(start, d)
+        return t_ack, departs
+
+    def serve_delivery(
+        self, now: float, kind: int, subject: int, index: int, attempt: int
+    ) -> float:
+        """Serve one redelivery (QoS 1 resend) asked for ``now``; its departure time."""
+        s_del = self.delivery_draws.get(kind, subject, index, attempt)
+        start = now if now > self.busy else self.busy
+        self.busy = start + s_del
+        self._count_work(start, start + s_del)
+        return start + s_del
+
+    def _count_work(self, a: float, b: float) -> None:
+        """Count busy time [a, b) inside the metrics window."""
+        lo = a if a > self.warmup else self.warmup
+        hi = b if b < self.end else self.end
+        if hi > lo:
+            self.work += hi - lo
