@@ -118,17 +118,24 @@ def _turbulence_periods(memo: np.ndarray, t: float, dt: float, tp: float) -> tup
     return memo[1], memo[2]
 
 
+@njit(cache=True, inline="always")
+def _store_kinematics(w: np.ndarray, k: int) -> tuple:
+    """Store lane ``k``'s rotation matrix and NED ground velocity; returns the matrix."""
+    rm = rotmat_q(w[L.Q0 * LANES + k], w[L.Q1 * LANES + k], w[L.Q2 * LANES + k],
+                  w[L.Q3 * LANES + k])
+    _put3(w, RM, k, rm[0], rm[1], rm[2])
+    _put3(w, RM + 3, k, rm[3], rm[4], rm[5])
+    _put3(w, RM + 6, k, rm[6], rm[7], rm[8])
+    vn, ve, vd = to_ned(rm, w[L.U * LANES + k], w[L.V * LANES + k], w[L.W * LANES + k])
+    _put3(w, VEL, k, vn, ve, vd)
+    return rm
+
+
 @njit(cache=True, error_model="numpy")
 def frame_lanes(w: np.ndarray, nb: int) -> None:
     """The per-frame kinematics of every lane: rotation matrix, NED velocity, heading."""
     for k in range(nb):
-        rm = rotmat_q(w[L.Q0 * LANES + k], w[L.Q1 * LANES + k], w[L.Q2 * LANES + k],
-                      w[L.Q3 * LANES + k])
-        _put3(w, RM, k, rm[0], rm[1], rm[2])
-        _put3(w, RM + 3, k, rm[3], rm[4], rm[5])
-        _put3(w, RM + 6, k, rm[6], rm[7], rm[8])
-        vn, ve, vd = to_ned(rm, w[L.U * LANES + k], w[L.V * LANES + k], w[L.W * LANES + k])
-        _put3(w, VEL, k, vn, ve, vd)
+        rm = _store_kinematics(w, k)
         # Heading (cos, sin): turns the turbulence to NED and the roll override.
         hn = sqrt(rm[0] * rm[0] + rm[3] * rm[3])
         ok = hn > 1e-9
@@ -256,13 +263,7 @@ def _pre(w: np.ndarray, k: int) -> tuple:
 def kinematics_lanes(w: np.ndarray, nb: int) -> None:
     """Rotation matrix, NED ground velocity and body-axis wind of every lane."""
     for k in range(nb):
-        rm = rotmat_q(w[L.Q0 * LANES + k], w[L.Q1 * LANES + k], w[L.Q2 * LANES + k],
-                      w[L.Q3 * LANES + k])
-        _put3(w, RM, k, rm[0], rm[1], rm[2])
-        _put3(w, RM + 3, k, rm[3], rm[4], rm[5])
-        _put3(w, RM + 6, k, rm[6], rm[7], rm[8])
-        vn, ve, vd = to_ned(rm, w[L.U * LANES + k], w[L.V * LANES + k], w[L.W * LANES + k])
-        _put3(w, VEL, k, vn, ve, vd)
+        rm = _store_kinematics(w, k)
         bx, by, bz = to_body(rm, w[WND * LANES + k], w[(WND + 1) * LANES + k],
                              w[(WND + 2) * LANES + k])
         _put3(w, BW, k, bx, by, bz)
