@@ -4,18 +4,18 @@
 Times, with ``time.perf_counter`` over repeats (median and p95), for n = 100, 300,
 1000, 3000, 10000 nodes:
 
-* ``bides`` — Algorithm 1 (:func:`sigma_des.events.bides_align.align`) over
-  :class:`~sigma_des.events.bides_align.RingBuffers` with k = 30, filled the way a
+* ``bides`` — Algorithm 1 (:func:`sigma_des.events.align.ring.align`) over
+  :class:`~sigma_des.events.align.ring.RingBuffers` with k = 30, filled the way a
   running swarm leaves them: each node's newest frame a few frames behind the
   swarm's newest (most 0–2 behind, some 3–5, ~2 % beyond Θ_lag = 3 and so
   excluded), ~5 % of the buffered frames lost (holes), hole filling and lag
   exclusion on — the configuration the engine runs;
 * ``hlc`` — one alignment tick of the HLC consumer
-  (:class:`~sigma_des.events.aligners.HLCAligner`): liveness check, stability
+  (:class:`~sigma_des.events.align.hlc.HLCAligner`): liveness check, stability
   bound, release of the causally stable states in HLC order, with the states of
   100/60 frames per node arriving between ticks (100 Hz physics, 60 Hz alignment);
 * ``lockstep`` — the Lock-Step barrier
-  (:class:`~sigma_des.events.aligners.LockstepAligner`): its alignment tick, and
+  (:class:`~sigma_des.events.align.lockstep.LockstepAligner`): its alignment tick, and
   the per-frame cost of receiving all n states (the barrier's completeness check
   runs on every arrival).
 
@@ -53,9 +53,11 @@ import numpy as np  # noqa: E402
 
 import sigma_des  # noqa: E402
 from sigma_des import Scenario  # noqa: E402
-from sigma_des.events.aligners import OBS_WIDTH, HLCAligner, LockstepAligner  # noqa: E402
-from sigma_des.events.bides_align import RingBuffers, align  # noqa: E402
-from sigma_des.events.hlc import Stamp  # noqa: E402
+from sigma_des.events.align.base import OBS_WIDTH, one_state  # noqa: E402
+from sigma_des.events.align.hlc import HLCAligner  # noqa: E402
+from sigma_des.events.align.hlc_clock import Stamp  # noqa: E402
+from sigma_des.events.align.lockstep import LockstepAligner  # noqa: E402
+from sigma_des.events.align.ring import RingBuffers, align  # noqa: E402
 
 NAME = "alignment_cost"
 K = 30
@@ -67,7 +69,7 @@ PAPER = {"bides_align_ms_at_1000": "< 8"}
 
 
 class StubContext:
-    """A minimal :class:`~sigma_des.events.aligners.ServerContext` (timers are dropped)."""
+    """A minimal :class:`~sigma_des.events.align.base.ServerContext` (timers are dropped)."""
 
     def __init__(self) -> None:
         self.latest_trigger = 0
@@ -113,7 +115,7 @@ def filled_rings(n: int, seed: int, top: int = 1000) -> tuple[RingBuffers, int]:
     gen = fr / F_TRIG + 0.002
     obs = rng.standard_normal((fr.size, OBS_WIDTH))
     buf = RingBuffers(n, K, OBS_WIDTH)
-    buf.insert_many(nodes, fr, gen, obs)
+    buf.insert(nodes, fr, gen, obs)
     return buf, top - 8
 
 
@@ -164,7 +166,7 @@ def _scenario(n: int) -> Scenario:
 def bench_hlc(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
     """HLC: per tick, the arrivals of 100/60 frames per node, then one alignment tick."""
     ctx = StubContext()
-    al = HLCAligner(n, _scenario(n), ctx)
+    al = HLCAligner(n, _scenario(n).hlc, ctx)
     rng = np.random.default_rng(seed)
     jitter = rng.uniform(0, 0.004, size=n).tolist()
     obs = np.zeros(OBS_WIDTH)
@@ -179,7 +181,7 @@ def bench_hlc(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
             base = f / F_TRIG
             for i in range(n):
                 g = base + jitter[i]
-                al.on_state(g, i, f, g, obs, Stamp(g, 0))
+                al.on_states(one_state(g, i, f, g, obs, Stamp(g, 0)))
 
     def tick() -> None:
         state["tick"] += 1
@@ -205,7 +207,7 @@ def bench_hlc(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
 def bench_lockstep(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
     """Lock-Step: one frame's n arrivals (barrier bookkeeping), then one alignment tick."""
     ctx = StubContext()
-    al = LockstepAligner(n, _scenario(n), ctx)
+    al = LockstepAligner(n, _scenario(n).lockstep, ctx)
     rng = np.random.default_rng(seed)
     order = rng.permutation(n).tolist()
     obs = np.zeros(OBS_WIDTH)
@@ -220,7 +222,7 @@ def bench_lockstep(n: int, seed: int, budget: float) -> dict[str, np.ndarray]:
         t0 = time.perf_counter()
         al.on_trigger(f, t)
         for i in order:
-            al.on_state(t, i, f, t, obs, None)
+            al.on_states(one_state(t, i, f, t, obs))
         t1 = time.perf_counter()
         al.align(t)
         t2 = time.perf_counter()

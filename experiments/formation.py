@@ -50,7 +50,7 @@ Metrics (per method and for the ideal run):
   run (:func:`sigma_des.metrics.fidelity.fidelity`, the engine's definition);
 * ``dtw_r`` — DTW distance of each node's trajectory to its ideal trajectory,
   normalised as the paper does, ``r = D·T/s`` (``T`` = 1/30 s, ``s`` = the flight
-  time covered; :func:`sigma_des.agents.dtw.dtw_normalised`), mean over the 5
+  time covered; :func:`sigma_des.metrics.dtw.dtw_normalised`), mean over the 5
   nodes; ``dtw_r.node<i>`` per node; 0 for the ideal run against itself;
 * ``flight_s`` — physics time covered. Lock-Step under heavy loss advances
   physics far slower than real time (its barrier waits for every lost trigger
@@ -95,7 +95,6 @@ from numpy.typing import NDArray  # noqa: E402
 import sigma_des  # noqa: E402
 from sigma_des import load  # noqa: E402
 from sigma_des.agents import layout as L  # noqa: E402
-from sigma_des.agents.dtw import dtw, dtw_normalised  # noqa: E402
 from sigma_des.agents.formation import (  # noqa: E402
     formation_behaviour,
     formation_rule,
@@ -106,6 +105,7 @@ from sigma_des.config import Scenario, config_hash, to_dict  # noqa: E402
 from sigma_des.events.cohort import execute  # noqa: E402
 from sigma_des.factory import make_behaviour, make_dynamics  # noqa: E402
 from sigma_des.metrics.collector import METRIC_UNITS  # noqa: E402
+from sigma_des.metrics.dtw import dtw, dtw_normalised  # noqa: E402
 from sigma_des.metrics.fidelity import fidelity  # noqa: E402
 
 Array = NDArray[np.float64]

@@ -407,7 +407,7 @@ def sec_cost(s: dict[str, Any]) -> str:
     b_big = cost[big].get("bides", {}).get("align_median_ms")
     return f"""**Paper.** Algorithm 1 with n = 1000 nodes and k = 30: < 8 ms.
 
-**Ours.** `sigma_des.events.bides_align.align` over `RingBuffers` with k = {p.get("k")},
+**Ours.** `sigma_des.events.align.ring.align` over `RingBuffers` with k = {p.get("k")},
 filled as a running swarm leaves them (most nodes 0–2 frames behind the newest, some
 3–5, ~2 % beyond Θ_lag = {p.get("theta_lag")} and excluded, {100 * p.get("hole_p", 0):g} %
 of buffered frames lost), hole filling and lag exclusion on; timed with

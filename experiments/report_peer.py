@@ -94,7 +94,8 @@ def section(outputs: Path) -> str:
         "draws: N physics nodes on 10 hosts, 100 Hz nominal, 150-bit states. Lock-Step over "
         "DDS models Gazebo on ROS 2 / Fast DDS (`scenarios/gazebo_lockstep_dds.toml`), RPC "
         "models AirSim (`scenarios/airsim_rpc.toml`); every parameter and its source is in "
-        "`sigma_des/peer_specs.py` and [`MODEL.md`](MODEL.md). *Unstable*: "
+        "`sigma_des/net/spec.py` (DDS), `sigma_des/events/align/spec.py` (RPC) and "
+        "[`MODEL.md`](MODEL.md). *Unstable*: "
         f"{extra['instability']} (a gap > 100 ms without a new snapshot). Means over seeds "
         f"{s['seeds']}{' (quick mode)' if s.get('quick') else ''}.")
     out += ["", "| architecture | N | AoI mean ± std (ms) | AoI p99 | state latency (ms) | "

@@ -22,7 +22,11 @@ from typing import Any
 
 import tomli_w
 
+from sigma_des.core.validate import require, require_positive
 from sigma_des.errors import ConfigError
+from sigma_des.events.align.spec import AlignParams, BidesSpec, HLCSpec, LockstepSpec, RpcSpec
+from sigma_des.metrics.collector import CollectorSpec
+from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.latency import Dist
@@ -35,18 +39,11 @@ from sigma_des.net.spec import (
     NetSpec,
     Topology,
 )
-from sigma_des.peer_specs import RpcSpec
 from sigma_des.specs import (
-    BidesSpec,
     CommandSpec,
     ComputeSpec,
     FaultSpec,
-    FidelitySpec,
-    HLCSpec,
-    LockstepSpec,
     RecordSpec,
-    require,
-    require_positive,
 )
 
 __all__ = [
@@ -299,6 +296,29 @@ class Scenario:
             drops=frozenset(
                 (kinds[f.message], f.node, f.frame) for f in self.faults if f.kind == "drop"
             ),
+        )
+
+    def align_params(self) -> AlignParams:
+        """What the alignment method is built from (its spec and a few scalars)."""
+        return AlignParams(
+            f_trig=self.f_trig,
+            seed=self.seed,
+            middleware=self.net.middleware,
+            lockstep=self.lockstep,
+            hlc=self.hlc,
+            bides=self.bides,
+            rpc=self.rpc,
+        )
+
+    def collector_spec(self) -> CollectorSpec:
+        """What the metrics collector needs of the scenario."""
+        return CollectorSpec(
+            nodes=self.nodes,
+            warmup=self.warmup,
+            duration=self.duration,
+            f_trig=self.f_trig,
+            history_frames=self.history_frames,
+            stall_threshold=self.stall_threshold,
         )
 
 

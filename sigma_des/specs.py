@@ -12,19 +12,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from sigma_des.core.validate import require, require_in, require_nonneg, require_positive
+from sigma_des.core.validate import require, require_in
 from sigma_des.net.latency import Dist
 
 __all__ = [
-    "BidesSpec",
     "CommandSpec",
     "ComputeSpec",
     "DROP_MESSAGES",
     "FAULT_KINDS",
     "FaultSpec",
-    "FidelitySpec",
-    "HLCSpec",
-    "LockstepSpec",
     "RecordSpec",
 ]
 
@@ -34,95 +30,6 @@ class ComputeSpec:
     """Per-node computation: one physics step's CPU time, contending for host cores."""
 
     step_time: Dist = field(default_factory=lambda: Dist(dist="lognormal", mean=0.0008, std=0.0002))
-
-
-@dataclass(frozen=True)
-class LockstepSpec:
-    """Lock-Step barrier parameters.
-
-    Attributes:
-        retry_timeout: after this long without a node's state of frame k, re-request it (s).
-        eviction_timeout: evict a node missing this long after trigger k (s); 0 = never.
-    """
-
-    retry_timeout: float = 0.05
-    eviction_timeout: float = 0.0
-
-    def __post_init__(self) -> None:
-        require_positive(self, "retry_timeout")
-        require_nonneg(self, "eviction_timeout")
-
-
-@dataclass(frozen=True)
-class HLCSpec:
-    """HLC consumer: a node silent this long is treated as dead (0 = never)."""
-
-    liveness_timeout: float = 0.5
-
-    def __post_init__(self) -> None:
-        require_nonneg(self, "liveness_timeout")
-
-
-@dataclass(frozen=True)
-class BidesSpec:
-    """BiDES parts and parameters (each part can be switched off).
-
-    Attributes:
-        ring_size: K, states kept per node by the alignment server.
-        hole_fill: fill a frame missing from a node's buffer from neighbouring frames.
-        lag_exclusion: leave out of the minimum nodes lagging more than ``theta_lag``.
-        theta_lag: Θ_lag in frames.
-        adaptation: adapt ``f_trig`` to the alignment lag.
-        lag_high: lower ``f_trig`` when (latest trigger − aligned frame) > this for
-            ``hold_down`` consecutive alignment ticks.
-        lag_low: raise it again when the lag < this for ``hold_up`` consecutive ticks.
-        rate_down: factor applied when lowering (0 < x < 1).
-        rate_up: factor applied when raising (> 1), capped at the nominal ``f_trig``.
-        f_trig_min: lowest trigger rate (Hz).
-        hold_down: consecutive ticks over ``lag_high`` before lowering.
-        hold_up: consecutive ticks under ``lag_low`` before raising.
-        time_warp: roll a node back when a command is more than ``theta_warp`` behind.
-        theta_warp: Θ_warp in frames.
-    """
-
-    ring_size: int = 30
-    hole_fill: bool = True
-    lag_exclusion: bool = True
-    theta_lag: int = 3
-    adaptation: bool = True
-    lag_high: int = 10
-    lag_low: int = 4
-    rate_down: float = 0.8
-    rate_up: float = 1.1
-    f_trig_min: float = 10.0
-    hold_down: int = 3
-    hold_up: int = 30
-    time_warp: bool = True
-    theta_warp: int = 10
-
-    def __post_init__(self) -> None:
-        require(
-            2 <= self.ring_size <= 100_000,
-            "ring_size",
-            f"must be in 2..100000, got {self.ring_size}",
-        )
-        require(self.theta_lag >= 1, "theta_lag", f"must be >= 1 frame, got {self.theta_lag}")
-        require(self.lag_high >= 1, "lag_high", f"must be >= 1 frame, got {self.lag_high}")
-        require(
-            0 <= self.lag_low <= self.lag_high,
-            "lag_low",
-            f"must be in 0..lag_high ({self.lag_high}), got {self.lag_low}",
-        )
-        require(0 < self.rate_down < 1, "rate_down", f"must be in (0, 1), got {self.rate_down}")
-        require(
-            self.rate_up > 1 and math.isfinite(self.rate_up),
-            "rate_up",
-            f"must be > 1, got {self.rate_up}",
-        )
-        require_positive(self, "f_trig_min")
-        require(self.hold_down >= 1, "hold_down", f"must be >= 1, got {self.hold_down}")
-        require(self.hold_up >= 1, "hold_up", f"must be >= 1, got {self.hold_up}")
-        require(self.theta_warp >= 0, "theta_warp", f"must be >= 0, got {self.theta_warp}")
 
 
 @dataclass(frozen=True)
@@ -144,25 +51,6 @@ class CommandSpec:
     def __post_init__(self) -> None:
         require(self.every >= 1, "every", f"must be >= 1, got {self.every}")
         require(self.payload_bits >= 0, "payload_bits", f"must be >= 0, got {self.payload_bits}")
-
-
-@dataclass(frozen=True)
-class FidelitySpec:
-    """Swarm fidelity against an ideal run (zero latency, perfect alignment).
-
-    Attributes:
-        enabled: fly the ideal run and compute formation error and DTW.
-        log_rate: trajectory sampling rate (Hz of physics time; the paper: 30 Hz).
-        dtw_nodes: DTW is averaged over at most this many evenly spread nodes.
-    """
-
-    enabled: bool = True
-    log_rate: float = 30.0
-    dtw_nodes: int = 50
-
-    def __post_init__(self) -> None:
-        require_positive(self, "log_rate")
-        require(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
 
 
 FAULT_KINDS = ("crash", "slow", "degrade", "drop")

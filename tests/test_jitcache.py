@@ -40,9 +40,9 @@ def test_import_without_any_writable_cache_location(tmp_path: Path) -> None:
     home.write_text("")
     code = (
         "import numpy as np, sigma_des, os\n"
-        "from sigma_des.events.bides_align import RingBuffers\n"
+        "from sigma_des.events.align.ring import RingBuffers\n"
         "b = RingBuffers(2, 4, 1)\n"
-        "print(b.insert_many([0, 1], [3, 5], [0.1, 0.2], [[1.0], [2.0]]).tolist())\n"
+        "print(b.insert([0, 1], [3, 5], [0.1, 0.2], [[1.0], [2.0]]).tolist())\n"
         "print(os.environ['NUMBA_CACHE_DIR'])\n"
         "print(sigma_des.__file__)\n"
     )

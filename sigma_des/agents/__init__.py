@@ -3,19 +3,18 @@
 Import stays light (the numba kernels load on first use); the registries and
 factories are re-exported lazily from :mod:`sigma_des.agents.registry`:
 ``DYNAMICS``, ``BEHAVIOURS``, ``make_dynamics``, ``make_behaviour``; the ideal
-run :func:`~sigma_des.agents.ideal.fly` and :func:`~sigma_des.agents.dtw.dtw`
-likewise. See docs/AGENTS.md.
+run :func:`~sigma_des.agents.ideal.fly` likewise (DTW is a metric:
+:mod:`sigma_des.metrics.dtw`). See docs/AGENTS.md.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["DYNAMICS", "BEHAVIOURS", "make_dynamics", "make_behaviour", "fly", "dtw",
-           "dtw_normalised"]
+__all__ = ["DYNAMICS", "BEHAVIOURS", "make_dynamics", "make_behaviour", "fly"]
 
 _LAZY = {"DYNAMICS": "registry", "BEHAVIOURS": "registry", "make_dynamics": "registry",
-         "make_behaviour": "registry", "fly": "ideal", "dtw": "dtw", "dtw_normalised": "dtw"}
+         "make_behaviour": "registry", "fly": "ideal"}
 
 
 def __getattr__(name: str) -> Any:

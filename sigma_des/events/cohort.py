@@ -32,9 +32,9 @@ from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
 from sigma_des.events import cohort_jit as J
 from sigma_des.events import cohort_state as CS
-from sigma_des.events.aligners import OBS_WIDTH
+from sigma_des.events.align.base import OBS_WIDTH, StateBatch
+from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.engine import _ROLLBACK, _STEP, END, PAUSED, TRIGGER_DUE, MethodRun
-from sigma_des.events.hlc import Stamp
 
 __all__ = ["CohortFallback", "CohortRun", "execute", "make_run", "unsupported"]
 
@@ -392,11 +392,11 @@ class CohortRun(MethodRun):
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
         al: Any = self.aligner
         S = self.S
-        S[CS.LS][0] = al._got
+        S[CS.LS][0] = al.got
         S[CS.LS][1] = al.live
         iv = S[CS.II]
         iv[CS.I_LCUR] = al.current
-        iv[CS.I_LMISS] = al._missing
+        iv[CS.I_LMISS] = al.missing
         iv[CS.I_LCOMP] = int(al.complete)
 
     def _messages(self, bound: float, strict: bool) -> bool:
@@ -444,9 +444,9 @@ class CohortRun(MethodRun):
         if o:
             oi = S[CS.OUT_I][:o]
             of = S[CS.OUT_F][:o]
-            self.aligner.on_states(
+            self.aligner.on_states(StateBatch(
                 of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH], of[:, 2], oi[:, 2]
-            )
+            ))
             if self.tap is not None:
                 self.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], of[:, 3 : 3 + OBS_WIDTH])
             iv[CS.I_OUT] = 0

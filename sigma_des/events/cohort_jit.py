@@ -353,7 +353,7 @@ def _at_server(S, s, now):  # type: ignore[no-untyped-def]
     w = q[Q_W]
     for j in range(w):
         of[o, 3 + j] = evf[s, EF_PAY + j]
-    if q[Q_LOCK]:  # LockstepAligner.on_state's barrier count, mirrored
+    if q[Q_LOCK]:  # LockstepAligner.on_states' barrier count, mirrored
         ls = S[LS]
         if ls[1, subject] == 0 and frame == iv[I_LCUR]:
             ls[1, subject] = 1

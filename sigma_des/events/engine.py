@@ -32,11 +32,12 @@ from sigma_des.config import Scenario
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
-from sigma_des.events.aligners import ALIGNERS, OBS_WIDTH, Aligner
-from sigma_des.events.hlc import HLC, Stamp
-from sigma_des.events.rpc import RpcAligner
+from sigma_des.events.align import make_aligner
+from sigma_des.events.align.base import OBS_WIDTH, Aligner, one_state
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.fidelity import TrajectoryLog
+from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE
@@ -138,9 +139,8 @@ class MethodRun:
         self.hlc = [HLC() for _ in range(n)] if self.use_hlc else []
         self.server_hlc = HLC()
         # server
-        aligner_cls = RpcAligner if method == "rpc" else ALIGNERS[method]
-        self.aligner: Aligner = aligner_cls(n, sc, self)
-        self.collector = Collector(sc, method, self.net)
+        self.aligner: Aligner = make_aligner(method, n, self, sc.align_params())
+        self.collector = Collector(sc.collector_spec(), method)
         self.align_tick = 0
         self.render_tick = 0
         # periodic triggers: T_k = t0 + (k - k0) / f, rebased when the rate changes
@@ -273,7 +273,7 @@ class MethodRun:
             self._tap_delivery(client, kind, subject, index, payload, t_pub, t)
         if client == self.server:
             frame, gen, obs, stamp = payload
-            self.aligner.on_state(t, subject, frame, gen, obs, stamp)
+            self.aligner.on_states(one_state(t, subject, frame, gen, obs, stamp))
             return
         if t >= self.crash_at[client]:
             return
@@ -513,7 +513,19 @@ class MethodRun:
                 gc.enable()
             gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
-        return self.collector.finish(self)
+        return self.finish()
+
+    def finish(self) -> dict[str, Any]:
+        """The collector's results, from the run's, the aligner's and the network's reports."""
+        run = RunReport(
+            f_trig=self.f_trig,
+            rollbacks=self.rollbacks,
+            resim_steps=self.resim_steps,
+            history_misses=self.history_misses,
+            wall_seconds=self.wall_seconds,
+            events=self.kernel.events,
+        )
+        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))
 
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""

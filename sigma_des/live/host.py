@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario, from_dict
 from sigma_des.core.rng import RandomStreams
-from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
 from sigma_des.live.ledger import Ledger

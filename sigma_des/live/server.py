@@ -1,8 +1,8 @@
 """The live alignment server: trigger source, aligner, behaviour and renderer sampling.
 
-:class:`LiveServer` is the engine side of :class:`~sigma_des.events.aligners.ServerContext`
+:class:`LiveServer` is the engine side of :class:`~sigma_des.events.align.base.ServerContext`
 driven by real messages and the wall clock: it runs the simulator's own aligner
-(``ALIGNERS[method]``), behaviour and :class:`~sigma_des.metrics.collector.Collector`
+(``make_aligner(method, ...)``), behaviour and :class:`~sigma_des.metrics.collector.Collector`
 on measured timestamps. Triggers follow the DES rule ``T_k = t0 + (k - k0) / f``
 (rebased when BiDES changes the rate; Lock-Step waits for its barrier);
 alignment and render ticks run at ``(k + align_phase) / f_align`` and
@@ -23,8 +23,9 @@ from numpy.typing import NDArray
 from sigma_des.agents.base import SwarmView
 from sigma_des.config import Scenario
 from sigma_des.core.rng import RandomStreams
-from sigma_des.events.aligners import ALIGNERS, Aligner
-from sigma_des.events.hlc import HLC, Stamp
+from sigma_des.events.align import make_aligner
+from sigma_des.events.align.base import Aligner, one_state
+from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.live.ledger import Ledger
 from sigma_des.live.loop import Client, Loop
@@ -44,6 +45,7 @@ from sigma_des.live.wire import (
     encode_trigger,
 )
 from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.reports import NetReport, RunReport
 
 __all__ = ["LiveNet", "LiveServer"]
 
@@ -136,8 +138,8 @@ class LiveServer(ImpairedSender):
         self.server_hlc = HLC()
         self.net = LiveNet()
         self.ledger = Ledger(sc, "server")
-        self.aligner: Aligner = ALIGNERS[method](n, sc, self)
-        self.collector = Collector(sc, method, self.net)  # type: ignore[arg-type]
+        self.aligner: Aligner = make_aligner(method, n, self, sc.align_params())
+        self.collector = Collector(sc.collector_spec(), method)
         self.impair = Impairment(sc.net.server_link, sc.net, RandomStreams(sc.seed), sc.hosts,
                                  impair)
         self.align_tick = 0
@@ -291,7 +293,7 @@ class LiveServer(ImpairedSender):
             self.kept["states"].append((node, frame, t_send, t))
             self.kept["obs"].append(obs.tolist())
         stamp = Stamp(hl, hc) if self.use_hlc else None
-        self.aligner.on_state(t, node, frame, t_gen, obs, stamp)
+        self.aligner.on_states(one_state(t, node, frame, t_gen, obs, stamp))
 
     # ------------------------------------------------------------ ticks
 
@@ -357,9 +359,10 @@ class LiveServer(ImpairedSender):
         sc = self.sc
         st = self.dyn.initial_state(self.n)
         obs = self.dyn.observe(st)
-        scratch = ALIGNERS[self.method](self.n, sc, _Scratch(sc.f_trig))
+        scratch = make_aligner(self.method, self.n, _Scratch(sc.f_trig), sc.align_params())
         for i in range(self.n):
-            scratch.on_state(0.0, i, 0, 0.0, obs[i], Stamp(0.0, 0) if self.use_hlc else None)
+            scratch.on_states(one_state(0.0, i, 0, 0.0, obs[i],
+                                         Stamp(0.0, 0) if self.use_hlc else None))
         scratch.align(0.0)
         if self.behaviour is not None:
             view = SwarmView(obs=obs, frame=np.zeros(self.n, dtype=np.int64),
@@ -396,4 +399,7 @@ class LiveServer(ImpairedSender):
         self.net.retransmissions += self.impair.lost
         self.net.gave_up += self.impair.gave_up
         self.kernel.events = self.loop.handled
-        return self.collector.finish(self)
+        run = RunReport(f_trig=self.f_trig, rollbacks=self.rollbacks, resim_steps=self.resim_steps,
+                        history_misses=self.history_misses, wall_seconds=self.wall_seconds,
+                        events=self.kernel.events)
+        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))

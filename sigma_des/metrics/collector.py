@@ -1,30 +1,31 @@
-"""Accumulates one run's measurements and turns them into metrics (DESIGN §5).
+"""Accumulates one run's measurements and turns them into metrics (docs/MODEL.md, "Metrics").
 
 The engine reports deliveries, triggers, snapshot changes and render ticks; the
 collector keeps only what the metrics need (samples after the warm-up) and, at
 the end, returns a flat ``{metric: value}`` dict plus per-render-tick time
 series. Times are reported in milliseconds, rates in Hz, throughput in Mbps of
-wire bits (every packet on every link, headers and framing included).
+wire bits (every packet on every link, headers and framing included). It knows
+neither the scenario nor the engines: it is built from a :class:`CollectorSpec` and
+finishes from the components' typed reports (:mod:`sigma_des.metrics.reports`).
 """
 
 from __future__ import annotations
 
 import math
 import resource
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
-from sigma_des.events.bides_align import EXTRAPOLATED, FILLED
+from sigma_des.core.flags import EXTRAPOLATED, FILLED
+from sigma_des.core.validate import require, require_positive
 from sigma_des.metrics.aoi import AoITracker
+from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.stats import summarize
 
-if TYPE_CHECKING:
-    from sigma_des.net.network import Network
-
-__all__ = ["Collector", "METRIC_UNITS", "WALL_METRICS"]
+__all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS"]
 
 _KINDS = {1: "trigger", 2: "state", 3: "command", 4: "rerequest", 5: "state"}
 
@@ -86,18 +87,57 @@ WALL_METRICS: dict[str, str] = {
 }
 
 
-class Collector:
-    """Measurement sink of one :class:`~sigma_des.events.engine.MethodRun`."""
+@dataclass(frozen=True)
+class CollectorSpec:
+    """What the collector needs to know of the run (the scenario builds it).
 
-    def __init__(self, sc: Scenario, method: str, net: Network) -> None:
-        self.sc = sc
+    Attributes:
+        nodes: number of nodes.
+        warmup: samples before this time (s) are left out.
+        duration: end of the run (s).
+        f_trig: nominal trigger rate (Hz; the start of ``f_trig_min_hz``).
+        history_frames: indices remembered per subject to spot duplicate deliveries.
+        stall_threshold: a gap between new snapshots longer than this is a stall (s).
+    """
+
+    nodes: int
+    warmup: float
+    duration: float
+    f_trig: float
+    history_frames: int
+    stall_threshold: float
+
+    def __post_init__(self) -> None:
+        require(self.nodes >= 1, "nodes", f"must be >= 1, got {self.nodes}")
+        require(
+            0 <= self.warmup < self.duration,
+            "warmup",
+            f"must be in [0, duration = {self.duration}), got {self.warmup}",
+        )
+        require_positive(self, "f_trig", "stall_threshold")
+        require(
+            self.history_frames >= 1,
+            "history_frames",
+            f"must be >= 1, got {self.history_frames}",
+        )
+
+
+class Collector:
+    """Measurement sink of one run (an engine's or the live server's).
+
+    Args:
+        spec: what it needs to know of the run.
+        method: the alignment method's name (for the results).
+    """
+
+    def __init__(self, spec: CollectorSpec, method: str) -> None:
+        self.spec = spec
         self.method = method
-        self.net = net
-        self.w0 = sc.warmup
-        n = sc.nodes
-        self.aoi = AoITracker(n, sc.warmup)
+        self.w0 = spec.warmup
+        n = spec.nodes
+        self.aoi = AoITracker(n, spec.warmup)
         self._shown_gen = np.full(n, np.nan)  # generation times shown after the last tick
-        H = sc.history_frames
+        H = spec.history_frames
         # per kind, the newest index seen per (subject, index % H): made on first use, so
         # a run that never calls delivered() (the cohort engine) never holds them
         self._seen: dict[int, NDArray[np.int64]] = {}
@@ -106,7 +146,7 @@ class Collector:
         self.duplicates = 0
         self.messages = 0
         self.triggers = 0
-        self.f_trig_min = sc.f_trig
+        self.f_trig_min = spec.f_trig
         self._snap_times: list[float] = []
         self._aoi_samples: list[NDArray[np.float64]] = []
         self._spread: list[int] = []
@@ -227,9 +267,18 @@ class Collector:
 
     # ------------------------------------------------------------ results
 
-    def finish(self, run: Any) -> dict[str, Any]:
-        """Metrics of the finished run (see :data:`METRIC_UNITS`, :data:`WALL_METRICS`)."""
-        sc = self.sc
+    def finish(self, run: RunReport, aligner: AlignerReport, net: NetReport) -> dict[str, Any]:
+        """Metrics of the finished run (see :data:`METRIC_UNITS`, :data:`WALL_METRICS`).
+
+        Args:
+            run: the engine's (or live server's) report on the run itself.
+            aligner: the alignment method's report.
+            net: the network's counters.
+
+        Returns:
+            ``{"metrics", "wall", "links_mbps", "timeseries"}``.
+        """
+        sc = self.spec
         window = sc.duration - self.w0
         m: dict[str, float] = {}
         ms = 1000.0
@@ -243,12 +292,12 @@ class Collector:
             lat = summarize(np.asarray(xs))
             m[f"latency_{kind}_mean"] = lat["mean"] * ms
             m[f"latency_{kind}_p99"] = lat["p99"] * ms
-        net = self.net
-        links = net.links()
-        total_bytes = sum(ld.bytes for ld in links)
+        links = net.links
+        total_bytes = sum(nbytes for _name, nbytes, _packets in links)
         m["throughput_mbps"] = total_bytes * 8 / window / 1e6
-        m["throughput_max_link_mbps"] = max(ld.bytes for ld in links) * 8 / window / 1e6
-        m["packets_per_s"] = sum(ld.packets for ld in links) / window
+        top = max(nbytes for _name, nbytes, _p in links)
+        m["throughput_max_link_mbps"] = top * 8 / window / 1e6
+        m["packets_per_s"] = sum(packets for _name, _b, packets in links) / window
         m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["f_trig_final_hz"] = run.f_trig
@@ -277,18 +326,18 @@ class Collector:
         m["gave_up"] = net.gave_up
         m["broker_util"] = net.broker_work / window
         m["broker_max_wait_ms"] = net.broker_max_wait * ms
-        m["buffer_bytes_peak"] = run.aligner.peak_bytes
+        m["buffer_bytes_peak"] = aligner.peak_bytes
         m["rollbacks"] = run.rollbacks
         m["resim_steps"] = run.resim_steps
-        m["evicted"] = getattr(run.aligner, "evicted", 0)
-        m["rejoined"] = getattr(run.aligner, "rejoined", 0)
-        m["rerequests"] = getattr(run.aligner, "rerequests", 0)
+        m["evicted"] = aligner.evicted
+        m["rejoined"] = aligner.rejoined
+        m["rerequests"] = aligner.rerequests
         m["history_misses"] = run.history_misses
-        links_mbps = {ld.name: ld.bytes * 8 / window / 1e6 for ld in links}
+        links_mbps = {name: nbytes * 8 / window / 1e6 for name, nbytes, _p in links}
         wall = {
             "wall_s": run.wall_seconds,
-            "events": run.kernel.events,
-            "events_per_s": run.kernel.events / max(run.wall_seconds, 1e-9),
+            "events": run.events,
+            "events_per_s": run.events / max(run.wall_seconds, 1e-9),
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
             "speed_x_realtime": sc.duration / max(run.wall_seconds, 1e-9),
         }

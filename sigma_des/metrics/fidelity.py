@@ -1,4 +1,4 @@
-"""Swarm fidelity (DESIGN §5): how the swarm flew compared with an ideal run.
+"""Swarm fidelity (docs/MODEL.md, "Metrics"): how the swarm flew compared with an ideal run.
 
 The engine logs every node's true position at ``log_rate`` Hz of *physics* time
 (interpolating between frames, as :func:`sigma_des.agents.ideal.fly` does for the
@@ -9,7 +9,7 @@ ideal one:
   offset from the swarm centroid and its offset in the ideal run (shape error,
   independent of where the whole swarm is); reported as mean and max over time;
 * DTW distance of each node's trajectory to its ideal trajectory, normalised as
-  the paper does (``r = D·T/s``, see :mod:`sigma_des.agents.dtw`), averaged over
+  the paper does (``r = D·T/s``, see :mod:`sigma_des.metrics.dtw`), averaged over
   (at most ``dtw_nodes`` evenly spread) nodes.
 
 Both are taken over the physics time that both the run and the ideal run cover.
@@ -18,13 +18,34 @@ Both are taken over the physics time that both the run and the ideal run cover.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.dtw import dtw, dtw_normalised
+from sigma_des.core.validate import require, require_positive
+from sigma_des.metrics.dtw import dtw, dtw_normalised
 
-__all__ = ["TrajectoryLog", "fidelity"]
+__all__ = ["FidelitySpec", "TrajectoryLog", "fidelity"]
+
+
+@dataclass(frozen=True)
+class FidelitySpec:
+    """Swarm fidelity against an ideal run (zero latency, perfect alignment).
+
+    Attributes:
+        enabled: fly the ideal run and compute formation error and DTW.
+        log_rate: trajectory sampling rate (Hz of physics time; the paper: 30 Hz).
+        dtw_nodes: DTW is averaged over at most this many evenly spread nodes.
+    """
+
+    enabled: bool = True
+    log_rate: float = 30.0
+    dtw_nodes: int = 50
+
+    def __post_init__(self) -> None:
+        require_positive(self, "log_rate")
+        require(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
 
 
 class TrajectoryLog:

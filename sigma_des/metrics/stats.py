@@ -1,4 +1,4 @@
-"""Summary statistics of metric samples (DESIGN §5)."""
+"""Summary statistics of metric samples (docs/MODEL.md, "Metrics")."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """The GA's fitness, eq. (13): ``r = D T / s`` with exact DTW, and the fit metrics R² / RMS.
 
-``D`` is the exact dynamic-time-warping distance (agents/dtw.py: Euclidean
+``D`` is the exact dynamic-time-warping distance (metrics/dtw.py: Euclidean
 local cost, steps (1,0), (0,1), (1,1); eq. (14) with the cumulative ``D^e`` on
 the right-hand side) between the logged and the simulated trajectory, summed
 over the replay windows (within a Sakoe–Chiba band, ``tune.band``: see
@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.agents.dtw import dtw_rows
+from sigma_des.metrics.dtw import dtw_rows
 from sigma_des.tuning.flightlog import STATE_COLUMNS
 from sigma_des.tuning.replay import Windows
 

@@ -17,7 +17,6 @@ from sigma_des.agents.behaviours import (
     separation_rule,
     to_command,
 )
-from sigma_des.agents.dtw import dtw, dtw_normalised
 from sigma_des.agents.formation import formation_rule, formation_slots
 from sigma_des.agents.ideal import fly
 from sigma_des.agents.params import AircraftParams
@@ -25,6 +24,7 @@ from sigma_des.agents.pointmass import PointMass
 from sigma_des.agents.presets import preset, quadrotor_f450
 from sigma_des.agents.registry import BEHAVIOURS, DYNAMICS, make_behaviour, make_dynamics
 from sigma_des.errors import ConfigError
+from sigma_des.metrics.dtw import dtw, dtw_normalised
 
 
 def _view(obs: np.ndarray) -> SwarmView:

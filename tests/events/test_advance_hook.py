@@ -54,7 +54,7 @@ def _driven(sc: Any, method: str) -> tuple[Any, dict[str, Any], int, int]:
         run._send_command_batch(run.align_tick - 1, cap.view.aligned_frame, ok, cmds)
         cap.view = None
         pauses += 1
-    return run, run.collector.finish(run), pauses, outside
+    return run, run.finish(), pauses, outside
 
 
 @pytest.mark.parametrize("engine", ["events", "cohort"])

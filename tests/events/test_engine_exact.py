@@ -162,4 +162,4 @@ def test_f_trig_min_counts_a_rate_set_before_the_window() -> None:
     run.kernel.run(0.1)
     run.set_rate(50.0)  # lowered before the metrics window opens, and kept
     run._advance(None)
-    assert run.collector.finish(run)["metrics"]["f_trig_min_hz"] == 50.0
+    assert run.finish()["metrics"]["f_trig_min_hz"] == 50.0

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from sigma_des.agents.aircraft import observe_state
-from sigma_des.agents.dtw import dtw, dtw_rows
 from sigma_des.agents.presets import preset
+from sigma_des.metrics.dtw import dtw, dtw_rows
 from sigma_des.tuning.fitness import FitnessSpec, fit_metrics, fitness
 from sigma_des.tuning.flightlog import resample
 from sigma_des.tuning.ga import Evaluator

@@ -1,15 +1,83 @@
 """Hybrid logical clocks: send/receive rules case by case, monotonicity, and the
-stability buffer's release order and liveness."""
+stability buffer's release order and liveness (against a heap reference too)."""
 
 from __future__ import annotations
 
+import heapq
 import math
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sigma_des.events.hlc import HLC, StabilityBuffer, Stamp
+from sigma_des.events.align.hlc_clock import HLC, StabilityBuffer, Stamp
+
+
+class _Items:
+    """The buffer with labelled items, one state per call (a batch of one)."""
+
+    def __init__(self, n: int) -> None:
+        self.buf = StabilityBuffer(n, 1)
+        self.items: list[object] = []
+
+    def add(self, node: int, stamp: Stamp, item: object) -> None:
+        j = len(self.items)
+        self.items.append(item)
+        self.buf.add(np.array([node]), np.array([stamp.l]), np.array([stamp.c]),
+                     np.array([j]), np.array([0.0]), np.zeros((1, 1)))
+
+    def release(self) -> list[tuple[Stamp, int, object]]:
+        r = self.buf.release()
+        return [(Stamp(float(l_), int(c)), int(nd), self.items[int(f)])
+                for l_, c, nd, f in zip(r.l, r.c, r.nodes, r.frames, strict=True)]
+
+    def set_live(self, node: int, live: bool) -> None:
+        self.buf.set_live(node, live)
+
+    def bound(self) -> Stamp | None:
+        return self.buf.bound()
+
+    @property
+    def peak(self) -> int:
+        return self.buf.peak
+
+    def __len__(self) -> int:
+        return len(self.buf)
+
+
+class _HeapReference:
+    """A naive reference: every stamped item in a heap keyed (l, c, node, arrival)."""
+
+    def __init__(self, n: int) -> None:
+        self.live = [True] * n
+        self.newest: list[tuple[float, int] | None] = [None] * n
+        self.heap: list[tuple[float, int, int, int]] = []
+        self.seq = 0
+
+    def add(self, node: int, stamp: Stamp, item: int) -> None:
+        key = (stamp.l, stamp.c)
+        cur = self.newest[node]
+        if cur is None or key > cur:
+            self.newest[node] = key
+        heapq.heappush(self.heap, (stamp.l, stamp.c, node, item))
+        self.seq += 1
+
+    def bound(self) -> Stamp | None:
+        keys = [k for k, live in zip(self.newest, self.live, strict=True) if live]
+        if not any(self.live):
+            sent = [k for k in self.newest if k is not None]
+            return Stamp(*max(sent)) if sent else None
+        if any(k is None for k in keys):
+            return None
+        return Stamp(*min(k for k in keys if k is not None))
+
+    def release(self) -> list[tuple[int, int]]:
+        b = self.bound()
+        out: list[tuple[int, int]] = []
+        while b is not None and self.heap and (self.heap[0][0], self.heap[0][1]) <= (b.l, b.c):
+            e = heapq.heappop(self.heap)
+            out.append((e[2], e[3]))
+        return out
 
 
 def _clock(l: float, c: int) -> HLC:  # noqa: E741
@@ -84,7 +152,7 @@ def test_stamps_strictly_increase_and_dominate(ops: list[tuple]) -> None:
 
 
 def test_release_order_and_ties() -> None:
-    buf = StabilityBuffer(3)
+    buf = _Items(3)
     buf.add(0, Stamp(1.0, 0), "a")
     buf.add(1, Stamp(2.0, 0), "b")
     assert buf.bound() is None  # node 2 has sent nothing
@@ -106,7 +174,7 @@ def test_release_order_and_ties() -> None:
 
 
 def test_counter_orders_equal_l() -> None:
-    buf = StabilityBuffer(2)
+    buf = _Items(2)
     buf.add(1, Stamp(3.0, 2), "late")
     buf.add(0, Stamp(3.0, 1), "early")
     buf.add(0, Stamp(3.0, 2), "x")
@@ -115,7 +183,7 @@ def test_counter_orders_equal_l() -> None:
 
 
 def test_bound_ignores_older_stamps() -> None:
-    buf = StabilityBuffer(2)
+    buf = _Items(2)
     buf.add(0, Stamp(5.0, 0), "new")
     buf.add(0, Stamp(4.0, 0), "old")  # e.g. a retransmission arriving late
     buf.add(1, Stamp(6.0, 0), "z")
@@ -124,7 +192,7 @@ def test_bound_ignores_older_stamps() -> None:
 
 
 def test_dead_node_no_longer_blocks() -> None:
-    buf = StabilityBuffer(3)
+    buf = _Items(3)
     for node in range(3):
         buf.add(node, Stamp(1.0, 0), node)
     buf.release()
@@ -139,7 +207,7 @@ def test_dead_node_no_longer_blocks() -> None:
 
 
 def test_node_that_never_sent_blocks_until_dead() -> None:
-    buf = StabilityBuffer(2)
+    buf = _Items(2)
     buf.add(0, Stamp(1.0, 0), "a")
     assert buf.release() == []
     buf.set_live(1, False)
@@ -147,7 +215,7 @@ def test_node_that_never_sent_blocks_until_dead() -> None:
 
 
 def test_no_live_node_releases_everything() -> None:
-    buf = StabilityBuffer(2)
+    buf = _Items(2)
     assert buf.bound() is None
     buf.add(0, Stamp(1.0, 4), "a")
     buf.add(1, Stamp(1.0, 7), "b")
@@ -178,11 +246,9 @@ def test_batch_buffer_releases_what_the_heap_buffer_releases(
     batches: list[list[tuple[int, float, int]]], dead: list[int]
 ) -> None:
     """Same bound, same released set, same order (HLC order, node, arrival)."""
-    from sigma_des.events.hlc import BatchStabilityBuffer
-
-    heap, batch = StabilityBuffer(4), BatchStabilityBuffer(4, 1)
+    heap, batch = _HeapReference(4), StabilityBuffer(4, 1)
     for node in dead:
-        heap.set_live(node, False)
+        heap.live[node] = False
         batch.set_live(node, False)
     seq = 0
     for rows in batches:
@@ -194,9 +260,10 @@ def test_batch_buffer_releases_what_the_heap_buffer_releases(
             ls = np.array([r[1] for r in rows])
             cs = np.array([r[2] for r in rows], dtype=np.int64)
             ids = np.arange(seq - len(rows), seq, dtype=np.int64)
-            batch.add_many(nodes, ls, cs, ids, ids.astype(float), ids[:, None].astype(float))
+            batch.add(nodes, ls, cs, ids, ids.astype(float), ids[:, None].astype(float))
         assert heap.bound() == batch.bound()
-        want = [(node, item) for _s, node, item in heap.release()]
-        got_nodes, got_ids, _g, _o = batch.release_arrays()
+        want = heap.release()
+        rel = batch.release()
+        got_nodes, got_ids = rel.nodes, rel.frames
         assert list(zip(got_nodes.tolist(), got_ids.tolist(), strict=True)) == want
-        assert len(heap) == len(batch)
+        assert len(heap.heap) == len(batch)

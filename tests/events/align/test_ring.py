@@ -6,15 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sigma_des.events.bides_align import (
-    EXACT,
-    EXTRAPOLATED,
-    FILLED,
-    MISSING,
-    AlignResult,
-    RingBuffers,
-    align,
-)
+from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
+from sigma_des.events.align.ring import AlignResult, RingBuffers, align
 
 
 def _fill(buf: RingBuffers, node: int, frames: list[int], value=lambda f: float(f)) -> None:
@@ -147,7 +140,7 @@ def test_nbytes() -> None:
     assert RingBuffers(3, 4, 2).nbytes == 96 + 96 + 192 + 24
 
 
-def test_insert_many_equals_sequential_inserts() -> None:
+def test_batch_insert_equals_sequential_inserts() -> None:
     rng = np.random.default_rng(1)
     n, k, w, m = 20, 6, 3, 3000
     nodes = rng.integers(0, n, m)
@@ -160,7 +153,7 @@ def test_insert_many_equals_sequential_inserts() -> None:
     bat = RingBuffers(n, k, w)
     for lo in range(0, m, 500):  # several batches, with duplicates inside each
         sl = slice(lo, lo + 500)
-        bat.insert_many(nodes[sl], frames[sl], gens[sl], obs[sl])
+        bat.insert(nodes[sl], frames[sl], gens[sl], obs[sl])
     np.testing.assert_array_equal(bat.frame, seq.frame)
     np.testing.assert_array_equal(bat.gen_time, seq.gen_time)
     np.testing.assert_array_equal(bat.obs, seq.obs)
@@ -168,7 +161,7 @@ def test_insert_many_equals_sequential_inserts() -> None:
 
 
 def _reference(buf: RingBuffers, theta_lag: int | None, hole_fill: bool, prev: int) -> AlignResult:
-    """Per-node loop following the rules in bides_align's docstring."""
+    """Per-node loop following the rules in ring.py's docstring."""
     n, w = buf.n, buf.width
     res = AlignResult(
         prev, np.full(n, -1), np.full(n, np.nan), np.full((n, w), np.nan), np.full(n, MISSING)
@@ -250,7 +243,7 @@ def test_compiled_align_equals_the_numpy_one_bitwise(seed: int) -> None:
     for f in range(int(top.max()) + 1):
         ok = (rng.random(n) > 0.2) & (top >= f)
         nodes = np.flatnonzero(ok)
-        buf.insert_many(nodes, np.full(nodes.size, f), f * 0.01 + rng.random(nodes.size),
+        buf.insert(nodes, np.full(nodes.size, f), f * 0.01 + rng.random(nodes.size),
                         rng.normal(size=(nodes.size, w)))
     for theta_lag, hole_fill, prev in ((5, True, -1), (None, True, 30), (3, False, 10),
                                        (0, False, -1)):

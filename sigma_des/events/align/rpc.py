@@ -2,7 +2,7 @@
 
 AirSim's vehicles are reached by msgpack-rpc over TCP; a client's ``call`` blocks
 until its response. Here the server plays the frame loop of such a simulator
-(parameters in :class:`~sigma_des.peer_specs.RpcSpec`):
+(parameters in :class:`~sigma_des.events.align.spec.RpcSpec`):
 
 1. frame k starts when its trigger is issued: the server sends a request (a
    trigger message to that one vehicle) to the first ``in_flight`` vehicles
@@ -26,12 +26,17 @@ from typing import Protocol, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.config import Scenario
+from sigma_des.core.flags import EXACT, MISSING
 from sigma_des.core.rng import RandomStreams
 from sigma_des.errors import ConfigError
-from sigma_des.events.aligners import _RECORD_BYTES, OBS_WIDTH, Aligner, ServerContext
-from sigma_des.events.bides_align import EXACT, MISSING
-from sigma_des.events.hlc import Stamp
+from sigma_des.events.align.base import (
+    OBS_WIDTH,
+    RECORD_BYTES,
+    Aligner,
+    ServerContext,
+    StateBatch,
+)
+from sigma_des.events.align.spec import AlignParams, RpcSpec
 from sigma_des.net.links import dist_cache
 
 __all__ = ["RpcAligner", "RpcContext"]
@@ -48,21 +53,33 @@ class RpcContext(ServerContext, Protocol):
 
 
 class RpcAligner(Aligner):
-    """Synchronous calls to every vehicle, then one render, per frame."""
+    """Synchronous calls to every vehicle, then one render, per frame.
+
+    Args:
+        n: number of vehicles.
+        spec: the frame loop's parameters.
+        ctx: the engine's side of the server (an :class:`RpcContext`).
+        seed: the run's root seed (call and render times are drawn from it).
+        middleware: ``net.middleware``; must be ``"mqtt"``.
+
+    Raises:
+        ConfigError: ``middleware`` is not ``"mqtt"`` (key ``methods``).
+    """
 
     name = "rpc"
 
-    def __init__(self, n: int, sc: Scenario, ctx: ServerContext) -> None:
-        if sc.net.middleware != "mqtt":
+    def __init__(
+        self, n: int, spec: RpcSpec, ctx: ServerContext, seed: int, middleware: str
+    ) -> None:
+        if middleware != "mqtt":
             raise ConfigError(
                 "methods",
                 "rpc models msgpack-rpc over TCP and needs net.middleware = 'mqtt' (with "
-                f"zero broker service it is a plain relay), got {sc.net.middleware!r}",
+                f"zero broker service it is a plain relay), got {middleware!r}",
             )
-        super().__init__(n, sc, ctx)
+        super().__init__(n, ctx)
         self.rctx = cast(RpcContext, ctx)
-        spec = sc.rpc
-        streams = RandomStreams(sc.seed)
+        streams = RandomStreams(seed)
         self._call_t = dist_cache(n + 1, spec.call_time, streams, "rpc.call")
         self._render_t = dist_cache(n + 1, spec.render_time, streams, "rpc.render")
         self._per_frame = spec.render_per_vehicle * n
@@ -80,7 +97,13 @@ class RpcAligner(Aligner):
         self._done_obs = np.full((n, OBS_WIDTH), np.nan)
         self.calls = 0
 
+    @classmethod
+    def build(cls, n: int, ctx: ServerContext, params: AlignParams) -> RpcAligner:
+        """The registry's constructor: ``params.rpc``, the seed and the middleware."""
+        return cls(n, params.rpc, ctx, params.seed, params.middleware)
+
     def on_trigger(self, frame: int, t: float) -> None:
+        """Start frame ``frame``: send the first ``in_flight`` requests."""
         self.current = frame
         self._got[:] = False
         self._next = 0
@@ -94,15 +117,13 @@ class RpcAligner(Aligner):
         self.calls += 1
         self.rctx.rpc_call(node, frame)
 
-    def on_state(
-        self,
-        t: float,
-        node: int,
-        frame: int,
-        gen: float,
-        obs: NDArray[np.float64],
-        stamp: Stamp | None,
-    ) -> None:
+    def on_states(self, batch: StateBatch) -> None:
+        """Queue each response of the current frame on the game thread, in order."""
+        t, nodes, frames, gens = batch.t, batch.nodes, batch.frames, batch.gens
+        for j in range(nodes.size):
+            self._one(float(t[j]), int(nodes[j]), int(frames[j]), float(gens[j]), batch.obs[j])
+
+    def _one(self, t: float, node: int, frame: int, gen: float, obs: NDArray[np.float64]) -> None:
         if frame != self.current or self._got[node]:
             return
         self._got[node] = True
@@ -131,6 +152,7 @@ class RpcAligner(Aligner):
         self.ctx.barrier_done(frame)
 
     def align(self, t: float) -> None:
+        """Show the last rendered frame."""
         self.new_snapshot = self._dirty
         if self._dirty:
             # the rendered frame's states (the next frame's are still arriving)
@@ -140,7 +162,8 @@ class RpcAligner(Aligner):
             self.flag[:] = np.where(np.isnan(self._done_gen), MISSING, EXACT)
             self.aligned_frame = self._done_frame
             self._dirty = False
-        self._note_memory()
+        self.note_memory()
 
     def memory_bytes(self) -> int:
-        return 2 * self.n * _RECORD_BYTES
+        """The frame being collected and the rendered one."""
+        return 2 * self.n * RECORD_BYTES

@@ -4,7 +4,8 @@ The alignment server keeps the last ``k`` states of every node in
 :class:`RingBuffers` (slot ``frame % k``) and :func:`align` builds a snapshot of
 the whole swarm at one frame, vectorised over nodes (no Python loop per node).
 
-Decisions where DESIGN §3 leaves room (documented here and in the tests):
+Decisions where the model (docs/MODEL.md, "Alignment methods") leaves room (documented
+here and in the tests):
 
 * **Considered nodes** are those with any state; with ``theta_lag`` set, a node
   whose newest frame lags the swarm's newest by more than ``theta_lag`` frames is
@@ -25,7 +26,7 @@ Decisions where DESIGN §3 leaves room (documented here and in the tests):
 
 * An excluded (lagging) node is EXTRAPOLATED: ``obs`` linearly extrapolated
   from its two newest buffered frames to ``F`` (a copy of the newest if it has
-  only one) and reported at ``frame`` ``F`` (DESIGN §3: the slot stands for the
+  only one) and reported at ``frame`` ``F`` (the model: the slot stands for the
   aligned frame), ``gen_time`` that of its newest state (so its AoI stays honest).
 * So a shown state's ``frame`` differs from ``F`` only for a hole shown as a
   single buffered neighbour (held older state, or with ``hole_fill`` the oldest
@@ -42,24 +43,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = [
-    "EXACT",
-    "EXTRAPOLATED",
-    "FILLED",
-    "MISSING",
-    "AlignResult",
-    "RingBuffers",
-    "align",
-]
+from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
 
-#: The node's state at exactly the aligned frame.
-EXACT = 0
-#: A hole filled from neighbouring frames (interpolated, copied or held).
-FILLED = 1
-#: Node excluded for lag; its state extrapolated to the aligned frame.
-EXTRAPOLATED = 2
-#: Nothing usable to show.
-MISSING = 3
+__all__ = ["AlignResult", "RingBuffers", "align"]
 
 _BIG = np.iinfo(np.int64).max
 
@@ -68,7 +54,7 @@ _BIG = np.iinfo(np.int64).max
 def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, latest: np.ndarray,
                  nodes: np.ndarray, frames: np.ndarray, gens: np.ndarray, rows: np.ndarray,
                  accepted: np.ndarray) -> None:
-    """:meth:`RingBuffers.insert` row after row (compiled; the same rule, in order)."""
+    """The rule of :meth:`RingBuffers.insert`, row after row in order (compiled)."""
     k = frame.shape[1]
     for j in range(nodes.shape[0]):
         nd = nodes[j]
@@ -108,41 +94,31 @@ class RingBuffers:
         self.obs: NDArray[np.float64] = np.zeros((n, k, width))
         self.latest: NDArray[np.int64] = np.full(n, -1, dtype=np.int64)
 
-    def insert(self, node: int, frame: int, gen_time: float, obs: ArrayLike) -> bool:
-        """Store ``node``'s state of ``frame`` in slot ``frame % k``.
-
-        Returns:
-            False (and stores nothing) if the slot already holds this frame (a
-            duplicate) or a newer one; True otherwise.
-        """
-        if frame < 0:
-            raise ValueError(f"frame must be >= 0, got {frame}")
-        slot = frame % self.k
-        if self.frame[node, slot] >= frame:
-            return False
-        self.frame[node, slot] = frame
-        self.gen_time[node, slot] = gen_time
-        self.obs[node, slot] = obs
-        if frame > self.latest[node]:
-            self.latest[node] = frame
-        return True
-
-    def insert_many(
+    def insert(
         self,
         nodes: ArrayLike,
         frames: ArrayLike,
         gen_times: ArrayLike,
         obs: ArrayLike,
     ) -> NDArray[np.bool_]:
-        """:meth:`insert` of a batch (e.g. one cohort of arrivals), compiled.
+        """Store each row's state of ``frames[j]`` in its node's slot ``frames[j] % k``.
 
-        Exactly :meth:`insert` called for each row in order. The buffers end up the
+        A batch (e.g. one cohort of arrivals) or a single state (scalars: a batch of
+        one), compiled. Rows are taken in order; a row is stored unless its slot
+        already holds this frame (a duplicate) or a newer one. The buffers end up the
         same for any order of the rows: per ``(node, slot)`` the newest frame wins,
         and of identical ``(node, frame)`` rows the first.
 
         Returns:
-            ``(m,)`` what :meth:`insert` returned for each row.
+            ``(m,)`` per row, whether it was stored.
+
+        Raises:
+            ValueError: a frame is negative.
         """
+        fr1 = np.asarray(frames)
+        if fr1.size == 1:  # a single state (the per-message engines): no compiled call
+            return np.array([self._insert_one(int(np.asarray(nodes).item()), int(fr1.item()),
+                                              float(np.asarray(gen_times).item()), obs)])
         nd = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
         fr = np.ascontiguousarray(frames, dtype=np.int64).ravel()
         gt = np.ascontiguousarray(np.broadcast_to(np.asarray(gen_times, dtype=np.float64),
@@ -154,6 +130,20 @@ class RingBuffers:
         accepted = np.zeros(nd.size, dtype=np.bool_)
         _insert_rows(self.frame, self.gen_time, self.obs, self.latest, nd, fr, gt, ob, accepted)
         return accepted
+
+    def _insert_one(self, node: int, frame: int, gen_time: float, obs: ArrayLike) -> bool:
+        """The rule of :meth:`insert` for one row, in Python (cheaper than a compiled call)."""
+        if frame < 0:
+            raise ValueError("frames must be >= 0")
+        slot = frame % self.k
+        if self.frame[node, slot] >= frame:
+            return False
+        self.frame[node, slot] = frame
+        self.gen_time[node, slot] = gen_time
+        self.obs[node, slot] = np.reshape(obs, self.width)
+        if frame > self.latest[node]:
+            self.latest[node] = frame
+        return True
 
     @property
     def nbytes(self) -> int:
