@@ -15,15 +15,31 @@ zero span (``AERO_B == 0``) gets drag only, with no alpha/beta trigonometry.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
-from sigma_des.agents.approx import asin_fast, atan2_fast
+from sigma_des.agents.approx import asin_fast, atan2_fast, sqrt
 
-__all__ = ["aero_forces"]
+__all__ = ["bluff_body_forces", "aero_forces"]
+
+
+@njit(cache=True, inline="always")
+def _drag_only(qs: float, cd0: float, vt: float, ur: float, vr: float, wr: float
+               ) -> tuple[float, float, float, float, float, float]:
+    f = -qs * cd0 / vt
+    return f * ur, f * vr, f * wr, 0.0, 0.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def bluff_body_forces(prm: np.ndarray, ur: float, vr: float, wr: float, rho: float
+                      ) -> tuple[float, float, float, float, float, float]:
+    """:func:`aero_forces` of a preset with zero span (``AERO_B == 0``): drag only, along -V."""
+    area, cd0 = prm[L.AERO_S], prm[L.CD0]
+    v2 = ur * ur + vr * vr + wr * wr
+    if v2 < 1e-4:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return _drag_only(0.5 * rho * v2 * area, cd0, sqrt(v2), ur, vr, wr)
 
 
 @njit(cache=True, inline="always")
@@ -42,17 +58,22 @@ def aero_forces(prm: np.ndarray, ur: float, vr: float, wr: float, p: float, q: f
     Returns:
         ``(Fx, Fy, Fz, L, M, N)``.
     """
+    # Every parameter is read before the first branch, so the vectorised kernel
+    # (kernel.py) holds no array reference across the branches.
+    area, b, c = prm[L.AERO_S], prm[L.AERO_B], prm[L.AERO_C]
+    cl0, cla, clq, clde, clmax = prm[L.CL0], prm[L.CLA], prm[L.CLQ], prm[L.CLDE], prm[L.CLMAX]
+    cd0, cdk, cdde = prm[L.CD0], prm[L.CDK], prm[L.CDDE]
+    cyb, cyp, cyr, cyda, cydr = prm[L.CYB], prm[L.CYP], prm[L.CYR], prm[L.CYDA], prm[L.CYDR]
+    clb, clp, clr, clda, cldr = prm[L.CLB], prm[L.CLP], prm[L.CLR], prm[L.CLDA], prm[L.CLDR]
+    cm0, cma, cmq, cmde = prm[L.CM0], prm[L.CMA], prm[L.CMQ], prm[L.CMDE]
+    cnb, cnp, cnr, cnda, cndr = prm[L.CNB], prm[L.CNP], prm[L.CNR], prm[L.CNDA], prm[L.CNDR]
     v2 = ur * ur + vr * vr + wr * wr
     if v2 < 1e-4:
         return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    vt = math.sqrt(v2)
-    qs = 0.5 * rho * v2 * prm[L.AERO_S]
-    b = prm[L.AERO_B]
+    vt = sqrt(v2)
+    qs = 0.5 * rho * v2 * area
     if b == 0.0:
-        # Bluff body (multirotor frame): drag only, along -V.
-        f = -qs * prm[L.CD0] / vt
-        return f * ur, f * vr, f * wr, 0.0, 0.0, 0.0
-    c = prm[L.AERO_C]
+        return _drag_only(qs, cd0, vt, ur, vr, wr)
     # Polynomial atan2/asin (approx.py, 1e-5 rad): two libm calls per sub-step saved;
     # 1e-5 rad of alpha is 6e-5 in CL, far below the model's own accuracy.
     alpha = atan2_fast(wr, ur)
@@ -60,17 +81,15 @@ def aero_forces(prm: np.ndarray, ur: float, vr: float, wr: float, p: float, q: f
     pn = p * b / (2.0 * vt)
     qn = q * c / (2.0 * vt)
     rn = r * b / (2.0 * vt)
-    cl = prm[L.CL0] + prm[L.CLA] * alpha + prm[L.CLQ] * qn + prm[L.CLDE] * de
-    clmax = prm[L.CLMAX]
+    cl = cl0 + cla * alpha + clq * qn + clde * de
     if cl > clmax:
         cl = clmax
     elif cl < -clmax:
         cl = -clmax
-    cd = prm[L.CD0] + prm[L.CDK] * cl * cl + prm[L.CDDE] * abs(de)
-    cy = (prm[L.CYB] * beta + prm[L.CYP] * pn + prm[L.CYR] * rn
-          + prm[L.CYDA] * da + prm[L.CYDR] * dr)
+    cd = cd0 + cdk * cl * cl + cdde * abs(de)
+    cy = cyb * beta + cyp * pn + cyr * rn + cyda * da + cydr * dr
     # Lift direction: perpendicular to V in the x-z plane, (sin a, 0, -cos a).
-    vxz = math.sqrt(ur * ur + wr * wr)
+    vxz = sqrt(ur * ur + wr * wr)
     if vxz > 1e-6:
         sa = wr / vxz
         ca = ur / vxz
@@ -81,9 +100,7 @@ def aero_forces(prm: np.ndarray, ur: float, vr: float, wr: float, p: float, q: f
     fx = fd * ur + qs * cl * sa
     fy = fd * vr + qs * cy
     fz = fd * wr - qs * cl * ca
-    lm = qs * b * (prm[L.CLB] * beta + prm[L.CLP] * pn + prm[L.CLR] * rn
-                   + prm[L.CLDA] * da + prm[L.CLDR] * dr)
-    mm = qs * c * (prm[L.CM0] + prm[L.CMA] * alpha + prm[L.CMQ] * qn + prm[L.CMDE] * de)
-    nm = qs * b * (prm[L.CNB] * beta + prm[L.CNP] * pn + prm[L.CNR] * rn
-                   + prm[L.CNDA] * da + prm[L.CNDR] * dr)
+    lm = qs * b * (clb * beta + clp * pn + clr * rn + clda * da + cldr * dr)
+    mm = qs * c * (cm0 + cma * alpha + cmq * qn + cmde * de)
+    nm = qs * b * (cnb * beta + cnp * pn + cnr * rn + cnda * da + cndr * dr)
     return fx, fy, fz, lm, mm, nm

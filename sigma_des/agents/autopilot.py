@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
-from sigma_des.agents.approx import asin_fast, atan2_fast, wrap_pi
+from sigma_des.agents.approx import asin_fast, atan2_fast, sqrt, wrap_pi
 from sigma_des.agents.rigid_body import to_body
 
 __all__ = ["MULTIROTOR_GAINS", "FIXEDWING_GAINS", "multirotor_prepare", "multirotor_autopilot",
@@ -58,11 +58,20 @@ def _clip(v: float, lo: float, hi: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def multirotor_prepare(prm: np.ndarray, cmd: np.ndarray, rm: tuple, pre: np.ndarray) -> None:
+def multirotor_prepare(prm: np.ndarray, cmd: tuple, rm: tuple, heading: tuple,
+                       tan_tilt: float, pre: np.ndarray) -> None:
     """Per-frame part of the cascade: velocity vector, yaw-rate and roll-override set-points.
 
     The yaw loop and the command geometry change slowly, so they are evaluated
     once per frame step and held over its sub-steps (saves trigonometry).
+
+    Args:
+        prm: aircraft parameter vector.
+        cmd: the resolved guidance command (no NaN in slots 0-2).
+        rm: rotation matrix.
+        heading: ``(cos, sin)`` of the heading (``(1, 0)`` when pointing straight up).
+        tan_tilt: ``tan`` of the tilt limit (a constant of the aircraft).
+        pre: the 8 set-points (written).
     """
     gb = L.GAIN_BASE
     tilt, vmax, rmax = prm[gb + 10], prm[gb + 12], prm[gb + 13]
@@ -74,40 +83,68 @@ def multirotor_prepare(prm: np.ndarray, cmd: np.ndarray, rm: tuple, pre: np.ndar
     psi = atan2_fast(rm[3], rm[0])
     pre[3] = _clip(prm[gb + 8] * wrap_pi(chi - psi), -rmax, rmax)
     pre[4] = math.tan(_clip(cmd[3], -tilt, tilt)) if cmd[3] == cmd[3] else math.nan
-    hn = math.sqrt(rm[0] * rm[0] + rm[3] * rm[3])
-    pre[5], pre[6] = (rm[0] / hn, rm[3] / hn) if hn > 1e-9 else (1.0, 0.0)
-    pre[7] = math.tan(tilt)
+    pre[5], pre[6] = heading
+    pre[7] = tan_tilt
 
 
 @njit(cache=True, inline="always")
-def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, pre: np.ndarray, rm: tuple,
-                         vn: float, ve: float, vd: float, g: float, h: float,
-                         act: np.ndarray) -> None:
-    """Cascade controller sub-step: writes ``act`` and advances integrators I0..I2 of ``x``.
+def _mixer_row(prm: np.ndarray, i: int) -> tuple[float, float, float, float]:
+    """Row ``i`` of the inverse mixer: (thrust, L, M, N) -> rotor ``i``'s thrust."""
+    mb = L.MIX_BASE + 4 * i
+    return prm[mb], prm[mb + 1], prm[mb + 2], prm[mb + 3]
+
+
+@njit(cache=True, inline="always")
+def _rotor_speed(row: tuple, thrust: float, lm: float, mm: float, nm: float, kt: float,
+                 wmin: float, wmax: float) -> float:
+    """Rotor speed of mixer ``row`` from the static thrust constant ``kt``, clipped."""
+    ti = row[0] * thrust + row[1] * lm + row[2] * mm + row[3] * nm
+    return _clip(sqrt(max(ti, 0.0) / kt), wmin, wmax)
+
+
+@njit(cache=True, inline="always")
+def multirotor_autopilot(prm: np.ndarray, pre: tuple, rm: tuple, vn: float, ve: float,
+                         vd: float, g: float, h: float, hgt: float, p: float, q: float,
+                         r: float, i0: float, i1: float, i2: float) -> tuple:
+    """Cascade controller sub-step (a pure function of scalars).
 
     The attitude loop is geometric: the error is the rotation taking the body z
     axis to the demanded thrust direction, expressed in body axes — no Euler angles.
+
+    Args:
+        prm: aircraft parameter vector.
+        pre: the 8 set-points of :func:`multirotor_prepare`.
+        rm: rotation matrix; ``vn, ve, vd``: NED ground velocity (m/s).
+        g: gravity (m/s^2); ``h``: sub-step (s); ``hgt``: altitude (m).
+        p, q, r: body rates (rad/s); ``i0, i1, i2``: integrator states.
+
+    Returns:
+        New ``(i0, i1, i2)`` and the seven actuator commands (ACTUATOR_NAMES).
     """
     gb = L.GAIN_BASE
     kv, kiv, kh, vzmax = prm[gb], prm[gb + 1], prm[gb + 2], prm[gb + 3]
     kvz, kiz, katt, krate = prm[gb + 4], prm[gb + 5], prm[gb + 6], prm[gb + 7]
     krr, amax = prm[gb + 9], prm[gb + 11]
+    # Every parameter is read before the first branch (see aero.py).
+    mass, ixx, iyy, izz = prm[L.MASS], prm[L.IXX], prm[L.IYY], prm[L.IZZ]
+    kt, wmin, wmax = prm[L.KT], prm[L.OMEGA_MIN], prm[L.OMEGA_MAX]
+    m0, m1, m2, m3 = _mixer_row(prm, 0), _mixer_row(prm, 1), _mixer_row(prm, 2), _mixer_row(prm, 3)
     # Velocity PI (north/east) -> horizontal acceleration demand.
     en, ee = pre[0] - vn, pre[1] - ve
     ilim = amax / kiv
-    x[L.I0] = _clip(x[L.I0] + h * en, -ilim, ilim)
-    x[L.I1] = _clip(x[L.I1] + h * ee, -ilim, ilim)
-    an = kv * en + kiv * x[L.I0]
-    ae = kv * ee + kiv * x[L.I1]
-    amag = math.sqrt(an * an + ae * ae)
+    i0 = _clip(i0 + h * en, -ilim, ilim)
+    i1 = _clip(i1 + h * ee, -ilim, ilim)
+    an = kv * en + kiv * i0
+    ae = kv * ee + kiv * i1
+    amag = sqrt(an * an + ae * ae)
     if amag > amax:
         an *= amax / amag
         ae *= amax / amag
     # Altitude P -> climb-rate PI -> vertical acceleration demand (up).
-    vzc = _clip(kh * (pre[2] - x[L.H]), -vzmax, vzmax)
+    vzc = _clip(kh * (pre[2] - hgt), -vzmax, vzmax)
     ez = vzc + vd
-    x[L.I2] = _clip(x[L.I2] + h * ez, -0.5 * g / kiz, 0.5 * g / kiz)
-    gz = g + kvz * ez + kiz * x[L.I2]
+    i2 = _clip(i2 + h * ez, -0.5 * g / kiz, 0.5 * g / kiz)
+    gz = g + kvz * ez + kiz * i2
     if gz < 0.3 * g:
         gz = 0.3 * g
     if pre[4] == pre[4]:
@@ -117,35 +154,28 @@ def multirotor_autopilot(x: np.ndarray, prm: np.ndarray, pre: np.ndarray, rm: tu
         argt = gz * pre[4]
         an, ae = ch * afwd - sh * argt, sh * afwd + ch * argt
     lim = gz * pre[7]
-    amag = math.sqrt(an * an + ae * ae)
+    amag = sqrt(an * an + ae * ae)
     if amag > lim:
         an *= lim / amag
         ae *= lim / amag
     # Demanded thrust direction (NED, pointing "down" like body z) vs body z.
-    fn = math.sqrt(an * an + ae * ae + gz * gz)
+    fn = sqrt(an * an + ae * ae + gz * gz)
     zdx, zdy, zdz = -an / fn, -ae / fn, gz / fn
     zbx, zby, zbz = rm[2], rm[5], rm[8]
     ex, ey, ez_ = to_body(rm, zby * zdz - zbz * zdy, zbz * zdx - zbx * zdz, zbx * zdy - zby * zdx)
-    thrust = prm[L.MASS] * max(gz * zbz - an * zbx - ae * zby, 0.0)
-    # Attitude P -> rate set-points -> rate P -> moments.
-    lm = prm[L.IXX] * krate * (katt * ex - x[L.P])
-    mm = prm[L.IYY] * krate * (katt * ey - x[L.Q])
-    nm = prm[L.IZZ] * krr * (pre[3] - x[L.R])
-    # Inverse mixer: rotor thrusts; omega from the static thrust constant.
-    kt = prm[L.KT]
-    mb = L.MIX_BASE
-    wmin, wmax = prm[L.OMEGA_MIN], prm[L.OMEGA_MAX]
-    for i in range(4):
-        ti = (prm[mb + 4 * i] * thrust + prm[mb + 4 * i + 1] * lm
-              + prm[mb + 4 * i + 2] * mm + prm[mb + 4 * i + 3] * nm)
-        act[i] = _clip(math.sqrt(max(ti, 0.0) / kt), wmin, wmax)
-    act[4] = 0.0
-    act[5] = 0.0
-    act[6] = 0.0
+    thrust = mass * max(gz * zbz - an * zbx - ae * zby, 0.0)
+    # Attitude P -> rate set-points -> rate P -> moments; inverse mixer -> rotor speeds.
+    lm = ixx * krate * (katt * ex - p)
+    mm = iyy * krate * (katt * ey - q)
+    nm = izz * krr * (pre[3] - r)
+    return (i0, i1, i2, _rotor_speed(m0, thrust, lm, mm, nm, kt, wmin, wmax),
+            _rotor_speed(m1, thrust, lm, mm, nm, kt, wmin, wmax),
+            _rotor_speed(m2, thrust, lm, mm, nm, kt, wmin, wmax),
+            _rotor_speed(m3, thrust, lm, mm, nm, kt, wmin, wmax), 0.0, 0.0, 0.0)
 
 
 @njit(cache=True, inline="always")
-def fixedwing_prepare(prm: np.ndarray, cmd: np.ndarray, vn: float, ve: float,
+def fixedwing_prepare(prm: np.ndarray, cmd: tuple, vn: float, ve: float,
                       pre: np.ndarray) -> None:
     """Per-frame part: airspeed and altitude set-points, course loop -> roll set-point."""
     gb = L.GAIN_BASE
@@ -160,35 +190,47 @@ def fixedwing_prepare(prm: np.ndarray, cmd: np.ndarray, vn: float, ve: float,
 
 
 @njit(cache=True, inline="always")
-def fixedwing_autopilot(x: np.ndarray, prm: np.ndarray, pre: np.ndarray, rm: tuple,
-                        va: float, g: float, h: float, act: np.ndarray) -> None:
-    """Successive-loop-closure sub-step: writes ``act``, advances I0..I2 of ``x``."""
+def fixedwing_autopilot(prm: np.ndarray, pre: tuple, rm: tuple, va: float, g: float,
+                        h: float, hgt: float, p: float, q: float, r: float, i0: float,
+                        i1: float, i2: float) -> tuple:
+    """Successive-loop-closure sub-step (a pure function of scalars).
+
+    Args:
+        prm: aircraft parameter vector.
+        pre: the set-points of :func:`fixedwing_prepare` (slots 0, 2, 3 are read).
+        rm: rotation matrix; ``va``: airspeed (m/s); ``g``: gravity (m/s^2).
+        h: sub-step (s); ``hgt``: altitude (m); ``p, q, r``: body rates (rad/s).
+        i0, i1, i2: integrator states.
+
+    Returns:
+        New ``(i0, i1, i2)`` and the seven actuator commands (ACTUATOR_NAMES).
+    """
     gb = L.GAIN_BASE
     kphi, kp = prm[gb + 2], prm[gb + 3]
     kiphi, kh, kih, thmax = prm[gb + 4], prm[gb + 5], prm[gb + 6], prm[gb + 7]
     kth, kq, kv, kiv = prm[gb + 8], prm[gb + 9], prm[gb + 10], prm[gb + 11]
     kr, hemax = prm[gb + 12], prm[gb + 15]
     dmax = prm[L.DELTA_MAX]
+    # Every parameter is read before the first branch (see aero.py).
+    trim_theta, trim_de, trim_thr = prm[L.TRIM_THETA], prm[L.TRIM_DE], prm[L.TRIM_THROTTLE]
+    wmax = prm[L.OMEGA_MAX]
     phi = atan2_fast(rm[7], rm[8])
     theta = asin_fast(-rm[6])
     # Lateral: roll PI + rate damping -> aileron.
     eph = pre[3] - phi
-    x[L.I0] = _clip(x[L.I0] + h * eph, -0.5, 0.5)
-    act[4] = _clip(kphi * eph - kp * x[L.P] + kiphi * x[L.I0], -dmax, dmax)
+    i0 = _clip(i0 + h * eph, -0.5, 0.5)
+    da = _clip(kphi * eph - kp * p + kiphi * i0, -dmax, dmax)
     # Yaw damper about the coordinated-turn yaw rate g sin(phi) / V.
     rss = g / max(va, 1.0) * rm[7]
-    act[6] = _clip(kr * (x[L.R] - rss), -dmax, dmax)
+    dr = _clip(kr * (r - rss), -dmax, dmax)
     # Longitudinal: altitude PI -> pitch -> elevator; airspeed PI -> throttle.
-    eh = _clip(pre[2] - x[L.H], -hemax, hemax)
+    eh = _clip(pre[2] - hgt, -hemax, hemax)
     if abs(eh) < 5.0:
         # Integrate only near the target altitude: no wind-up during long climbs.
-        x[L.I1] = _clip(x[L.I1] + h * eh, -thmax / kih, thmax / kih)
-    thc = _clip(prm[L.TRIM_THETA] + kh * eh + kih * x[L.I1], -thmax, thmax)
-    act[5] = _clip(prm[L.TRIM_DE] - kth * (thc - theta) + kq * x[L.Q], -dmax, dmax)
+        i1 = _clip(i1 + h * eh, -thmax / kih, thmax / kih)
+    thc = _clip(trim_theta + kh * eh + kih * i1, -thmax, thmax)
+    de = _clip(trim_de - kth * (thc - theta) + kq * q, -dmax, dmax)
     ev = pre[0] - va
-    x[L.I2] = _clip(x[L.I2] + h * ev, -1.0 / kiv, 1.0 / kiv)
-    thr = _clip(prm[L.TRIM_THROTTLE] + kv * ev + kiv * x[L.I2], 0.0, 1.0)
-    act[0] = thr * prm[L.OMEGA_MAX]
-    act[1] = 0.0
-    act[2] = 0.0
-    act[3] = 0.0
+    i2 = _clip(i2 + h * ev, -1.0 / kiv, 1.0 / kiv)
+    thr = _clip(trim_thr + kv * ev + kiv * i2, 0.0, 1.0)
+    return i0, i1, i2, thr * wmax, 0.0, 0.0, 0.0, da, de, dr

@@ -25,39 +25,45 @@ import numpy as np
 from numba import njit
 
 from sigma_des.agents import layout as L
+from sigma_des.agents.approx import sqrt
 
-__all__ = ["rotor_thrust_torque", "hover_inflow", "static_ct"]
+__all__ = ["rotor_constants", "rotor_thrust_torque", "hover_inflow", "static_ct"]
 
 
 @njit(cache=True, inline="always")
-def rotor_thrust_torque(prm: np.ndarray, va: float, vt2: float, omega: float,
+def rotor_constants(prm: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """The rotor constants ``(R, lambda_h, sigma, a, theta, cd0)`` of parameter vector ``prm``."""
+    return (prm[L.ROT_R], prm[L.ROT_LAMBDA_H], prm[L.ROT_SIGMA], prm[L.ROT_A],
+            prm[L.ROT_THETA], prm[L.ROT_CD0])
+
+
+@njit(cache=True, inline="always")
+def rotor_thrust_torque(rc: tuple, va: float, vt2: float, omega: float,
                         rho: float) -> tuple[float, float]:
     """Thrust (N, along the rotor axis) and shaft torque (N m) of one rotor.
 
     Args:
-        prm: aircraft parameter vector (layout.py).
+        rc: the :func:`rotor_constants`.
         va: air-relative velocity component along the thrust axis (m/s; > 0 when
             the rotor moves in the direction it pushes, i.e. climb / forward flight).
         vt2: squared in-plane air-relative velocity (m^2/s^2).
         omega: rotor speed (rad/s).
         rho: air density (kg/m^3).
     """
-    rad = prm[L.ROT_R]
+    rad, lam_h, sig, a, theta, cd0 = rc
     tip = omega * rad
     if tip < 1e-3:
         return 0.0, 0.0
-    lam_h = prm[L.ROT_LAMBDA_H]
     lam_c = va / tip
     mu2 = vt2 / (tip * tip)
-    den = math.sqrt(mu2 + (lam_c + lam_h) * (lam_c + lam_h))
+    den = sqrt(mu2 + (lam_c + lam_h) * (lam_c + lam_h))
     if den < lam_h:
         den = lam_h
     lam = lam_c + lam_h * lam_h / den
-    sig = prm[L.ROT_SIGMA]
-    ct = 0.5 * sig * prm[L.ROT_A] * (prm[L.ROT_THETA] / 3.0 * (1.0 + 1.5 * mu2) - 0.5 * lam)
+    ct = 0.5 * sig * a * (theta / 3.0 * (1.0 + 1.5 * mu2) - 0.5 * lam)
     if ct < 0.0:
         ct = 0.0            # no reverse thrust: a windmilling prop is not modelled
-    cq = sig * prm[L.ROT_CD0] / 8.0 * (1.0 + 4.65 * mu2) + lam * ct
+    cq = sig * cd0 / 8.0 * (1.0 + 4.65 * mu2) + lam * ct
     qdyn = rho * math.pi * rad * rad * tip * tip
     return ct * qdyn, cq * qdyn * rad
 
