@@ -33,7 +33,7 @@ from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
 from sigma_des.events.align import make_aligner
-from sigma_des.events.align.base import Aligner, one_state
+from sigma_des.events.align.base import Aligner, OneState
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.node import PhysicsNodes
@@ -114,6 +114,8 @@ class MethodRun:
         )
         self.nodes = self.make_nodes(warp)
         self.aligner: Aligner = make_aligner(method, n, self, spec.align)
+        #: the reusable batch of one each delivered state is handed over in
+        self.one = OneState()
         self.collector = Collector(spec.collect, method)
         self.align_tick = 0
         self.render_tick = 0
@@ -253,7 +255,7 @@ class MethodRun:
             self.tap_delivery(client, kind, subject, index, payload, t_pub)
         if client == self.server:
             frame, gen, obs, stamp = payload
-            self.aligner.on_states(one_state(t, subject, frame, gen, obs, stamp))
+            self.aligner.on_states(self.one.fill(t, subject, frame, gen, obs, stamp))
             return
         self.nodes.deliver(client, kind, index, payload, t)
 
@@ -443,8 +445,7 @@ class MethodRun:
                 # first by the next call (same heap order), so the split is invisible
                 k.run(until=t)
             else:
-                while k.peek() < dur:
-                    k.step()
+                k.run_before(dur)
             if progress is not None:
                 progress(t)
 

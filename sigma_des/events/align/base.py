@@ -30,6 +30,7 @@ __all__ = [
     "StateBatch",
     "newest_rows",
     "one_state",
+    "OneState",
     "take_newest",
 ]
 
@@ -140,6 +141,44 @@ def one_state(
         f[0:1], i[0:1], i[1:2], f[1:2], np.asarray(obs, dtype=np.float64).reshape(1, -1),
         f[2:3], i[2:3],
     )
+
+
+class OneState:
+    """A reusable batch of one, for engines that hand states over one by one.
+
+    :meth:`fill` overwrites the same seven length-1 arrays and returns them as a
+    :class:`StateBatch`, equal to :func:`one_state` of the same arguments, without
+    allocating. Safe because an aligner copies what it keeps of a batch (every one
+    in this package does: rows go into its own arrays) and never holds the batch.
+    """
+
+    def __init__(self, width: int = OBS_WIDTH) -> None:
+        f = np.zeros(3)
+        i = np.zeros(3, dtype=np.int64)
+        self.batch = StateBatch(f[0:1], i[0:1], i[1:2], f[1:2], np.zeros((1, width)), f[2:3],
+                                i[2:3])
+
+    def fill(
+        self,
+        t: float,
+        node: int,
+        frame: int,
+        gen: float,
+        obs: NDArray[np.float64],
+        stamp: Stamp | None = None,
+    ) -> StateBatch:
+        """The batch holding this one state (see :func:`one_state` for the arguments)."""
+        b = self.batch
+        b.t[0] = t
+        b.nodes[0] = node
+        b.frames[0] = frame
+        b.gens[0] = gen
+        b.obs[0] = obs
+        if stamp is None:
+            b.hlc_l[0], b.hlc_c[0] = math.nan, 0
+        else:
+            b.hlc_l[0], b.hlc_c[0] = stamp.l, stamp.c
+        return b
 
 
 class ServerContext(Protocol):

@@ -7,7 +7,7 @@ import pytest
 
 from sigma_des.errors import ConfigError
 from sigma_des.events.align import ALIGNERS, make_aligner
-from sigma_des.events.align.base import StateBatch, one_state, take_newest
+from sigma_des.events.align.base import OneState, StateBatch, one_state, take_newest
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.spec import AlignParams, LockstepSpec
 
@@ -92,3 +92,16 @@ def test_lockstep_report_counts_rerequests_and_evictions() -> None:
     assert (rep.evicted, rep.rejoined, rep.rerequests) == (0, 0, 0)
     assert rep.peak_bytes == 2 * 3 * (12 * 8 + 16)
     assert make_aligner("none", 3, ctx, AlignParams()).report().evicted == 0
+
+
+def test_reusable_batch_of_one_equals_one_state_and_is_overwritten() -> None:
+    one = OneState(width=3)
+    a = one.fill(0.5, 7, 12, 0.25, np.array([1.0, 2.0, 3.0]), Stamp(0.4, 2))
+    ref = one_state(0.5, 7, 12, 0.25, np.array([1.0, 2.0, 3.0]), Stamp(0.4, 2))
+    for got, want in zip(a, ref, strict=True):
+        assert got.dtype == want.dtype and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+    b = one.fill(0.75, 3, 13, 0.5, np.array([4.0, 5.0, 6.0]))
+    assert b is a  # the same arrays, overwritten: no allocation per state
+    assert a.nodes.tolist() == [3] and a.frames.tolist() == [13] and a.t.tolist() == [0.75]
+    assert np.isnan(a.hlc_l[0]) and a.hlc_c[0] == 0 and a.obs.tolist() == [[4.0, 5.0, 6.0]]
