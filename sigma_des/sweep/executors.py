@@ -26,7 +26,7 @@ from sigma_des import __version__
 from sigma_des.sweep.local import local_pool
 from sigma_des.sweep.tasks import Task, TaskFn, execute
 
-__all__ = ["Submit", "executor", "local_cluster", "run_inprocess"]
+__all__ = ["Submit", "executor", "local_cluster", "run_inprocess", "sigint_ignored"]
 
 #: ``submit(fn, tasks)`` → (task, payload) pairs as the tasks complete.
 Submit = Callable[[TaskFn, Sequence[Task]], Iterator[tuple[Task, dict[str, Any]]]]
@@ -102,7 +102,7 @@ def executor(client: Any, n_workers: int) -> Iterator[Submit]:
 
 
 @contextmanager
-def _sigint_ignored() -> Iterator[None]:
+def sigint_ignored() -> Iterator[None]:
     """Ignore SIGINT while worker processes start, so they inherit the disposition.
 
     Ctrl-C reaches every process of the terminal's group; the workers then stay
@@ -124,7 +124,7 @@ def local_cluster(n_workers: int) -> Any:
     """A LocalCluster bound to 127.0.0.1 only: processes, one thread each, no dashboard."""
     from dask.distributed import LocalCluster
 
-    with warnings.catch_warnings(), _sigint_ignored():
+    with warnings.catch_warnings(), sigint_ignored():
         # the scheduler's small HTTP endpoint falls back to a free loopback port
         warnings.filterwarnings("ignore", message="Port .* is already in use")
         return LocalCluster(

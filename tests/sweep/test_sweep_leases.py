@@ -13,7 +13,7 @@ from pathlib import Path
 from sweep_helpers import CountingTask, tiny_base
 
 from sigma_des.sweep import ResultStore, Sweep
-from sigma_des.sweep.executors import _sigint_ignored
+from sigma_des.sweep.executors import sigint_ignored
 
 GRID = {"nodes": [3, 4]}
 METHODS = ["none"]
@@ -83,7 +83,7 @@ def test_workers_started_with_sigint_ignored() -> None:
     """Processes started while the cluster starts inherit SIGINT ignored, so Ctrl-C
     gives them no KeyboardInterrupt traceback."""
     code = "import signal; print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)"
-    with _sigint_ignored():
+    with sigint_ignored():
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.strip() == "True"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
