@@ -134,13 +134,7 @@ def one_state(
     Returns:
         The batch of one, for :meth:`Aligner.on_states`.
     """
-    l_, c = (math.nan, 0) if stamp is None else (stamp.l, stamp.c)
-    f = np.array([t, gen, l_])  # two allocations, seven views: cheap per message
-    i = np.array([node, frame, c], dtype=np.int64)
-    return StateBatch(
-        f[0:1], i[0:1], i[1:2], f[1:2], np.asarray(obs, dtype=np.float64).reshape(1, -1),
-        f[2:3], i[2:3],
-    )
+    return OneState(int(np.size(obs))).fill(t, node, frame, gen, obs, stamp)
 
 
 class OneState:
