@@ -62,9 +62,10 @@ G_LEN = 2
 N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
 N_ROWS = 6
 # event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
-# or command stamp), frame (of a state, republished state or re-request)
-E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
-E_COLS = 7
+# or command stamp), frame (of a state, republished state or re-request); attempt of the
+# transmission and, in a resend timer, the type of the event it resends (F2, transport)
+E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME, E_ATT, E_RTYPE = range(9)
+E_COLS = 9
 # event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
 EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
 # draw sources: latency and loss uniforms per (link class, direction), broker, compute
@@ -72,6 +73,17 @@ LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
 U_OFFSET = 4
 SVC_PUB, SVC_DEL, STEP = 8, 9, 10
 N_SOURCES = 11
+
+# F2 — transport: event type of a resend timer, exit code of a draw-fill request,
+# transport parameters (S.tr_params, S.tr_fparams) and counters (S.tr_ints)
+EV_RESEND = 3
+NEED_FILL = 7
+T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS = range(4)
+T_QLEN = 4
+TF_TIMEOUT = 0
+TF_LEN = 1
+T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_FILL = range(6)
+T_ILEN = 6
 
 
 @dataclass(frozen=True)
@@ -102,7 +114,9 @@ _f, _i = np.float64, np.int64
 #: access links, ``hosts``, ``cores``, ``tables`` draw-table rows, ``H`` history
 #: frames, ``W`` observation width, ``M`` command width, ``pay`` event float columns,
 #: ``out``/``lat`` delivery buffer capacities, ``slow`` slow-fault windows,
-#: ``seen_n``/``seen_h`` Lock-Step duplicate table.
+#: ``seen_k``/``seen_n``/``seen_h`` duplicate table (Lock-Step's re-requests and republished
+#: states, or every kind under QoS 1 over datagram), ``ack_tables``/``x_tables``/``x_rows``
+#: PUBACK and resend draw tables.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "event heap: times"),
     Field("heap_k", _i, ("cap",), 0.0, "event heap: keys (sequence << SLOT_BITS | slot)"),
@@ -142,7 +156,22 @@ FIELDS: tuple[Field, ...] = (
     Field("last_int", _i, ("n", 2), None, "last published state: frame, HLC c"),
     Field("last_float", _f, ("n", "last_w"), 0.0, "last published state: gen, HLC l, obs"),
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
-    Field("seen", _i, (2, "seen_n", "seen_h"), -1.0, "Lock-Step: newest re-request/republish"),
+    Field("seen", _i, ("seen_k", "seen_n", "seen_h"), -1.0,
+          "duplicate rule: newest index per (kind row, subject, index % seen_h)"),
+    # F2 — transport: QoS 1 over datagram (PUBACK hops, resend timers, redelivery)
+    Field("tr_params", _i, (T_QLEN,), None, "transport int parameters T_*"),
+    Field("tr_fparams", _f, (TF_LEN,), None, "transport float parameters TF_*"),
+    Field("tr_ints", _i, (T_ILEN,), 0.0, "transport counters and the draw-fill request"),
+    Field("ack_map", _i, (N_SOURCES, N_KINDS), None, "PUBACK draws, attempt 0: -> table"),
+    Field("ack_val", _f, ("ack_tables", "H", "clients"), None, "PUBACK draws: values"),
+    Field("ack_tag", _i, ("ack_tables", "H"), None, "PUBACK draws: index held by each row"),
+    Field("x_map", _i, (N_SOURCES, 2 * N_KINDS), None,
+          "draws of attempts >= 1: (source, kind [+ N_KINDS: PUBACK]) -> table, -1 const"),
+    Field("x_const", _f, (N_SOURCES,), None, "constant value of a source (attempts >= 1)"),
+    Field("x_first", _i, (N_KINDS,), None, "first attempt table of each kind (-1: none)"),
+    Field("x_val", _f, ("x_tables", "x_rows", "clients"), None, "attempt draws: values"),
+    Field("x_tag", _i, ("x_tables", "x_rows"), None,
+          "attempt draws: key index * (max_retries + 1) + attempt held by each row"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -188,6 +217,17 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
+TR_PARAMS = INDEX["tr_params"]
+TR_FPARAMS = INDEX["tr_fparams"]
+TR_INTS = INDEX["tr_ints"]
+ACK_MAP = INDEX["ack_map"]
+ACK_VAL = INDEX["ack_val"]
+ACK_TAG = INDEX["ack_tag"]
+X_MAP = INDEX["x_map"]
+X_CONST = INDEX["x_const"]
+X_FIRST = INDEX["x_first"]
+X_VAL = INDEX["x_val"]
+X_TAG = INDEX["x_tag"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -36,6 +36,7 @@ from sigma_des.events.fast.layout import (
     EV_CLIENT,
     EV_FLOAT,
     EV_INT,
+    EV_RESEND,
     HEAP_T,
     I_ERR,
     I_FREE,
@@ -49,6 +50,7 @@ from sigma_des.events.fast.layout import (
     K_REREQ,
     K_TRIGGER,
     LAT_BUF,
+    NEED_FILL,
     NEED_FLUSH,
     NEED_SPACE,
     OK,
@@ -57,10 +59,14 @@ from sigma_des.events.fast.layout import (
     Q_M,
     Q_N,
     Q_QOS1S,
+    T_QOS1D,
+    TR_PARAMS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
-from sigma_des.events.fast.primitives import alloc, count, jit, pop, release, send_up
+from sigma_des.events.fast.primitives import alloc, count, jit, pop, release
+from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
+from sigma_des.events.fast.transport import puback_client, send_up
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
 
@@ -72,6 +78,8 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
     sub = S[EV_INT][s, E_WHO]
     if q[Q_QOS1S]:
         count(S, sub, 1, q[Q_ACK], now)
+    elif S[TR_PARAMS][T_QOS1D]:
+        puback_client(S, s, now)
     delivered(S, s, now)
     if sub == q[Q_N]:
         at_server(S, s, now)
@@ -136,20 +144,26 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     iv = S[INTS]
     ht = S[HEAP_T]
     n = S[IPARAMS][Q_N]
+    qos1d = S[TR_PARAMS][T_QOS1D]
+    spare = n + 4 + qos1d * (n + 4)  # a fan-out (and its resend timers under QoS 1)
     while iv[I_HEAP] > 0:
         t = ht[0]
         if t > t_stop or (strict and t >= t_stop):
             return OK
-        if iv[I_FREE] < n + 4:
+        if iv[I_FREE] < spare:
             return NEED_SPACE
         if _full(S):
             return NEED_FLUSH
+        if qos1d and missing(S):
+            return NEED_FILL
         s = pop(S)
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
         elif typ == EV_BROKER:
             broker(S, s, t)
+        elif typ == EV_RESEND:
+            resend(S, s, t)
         else:
             done(S, s, t)
         release(S, s)

@@ -68,7 +68,8 @@ from sigma_des.events.fast.layout import (
     SLOW_PTR,
     STEP,
 )
-from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, send_up
+from sigma_des.events.fast.primitives import address, alloc, draw, jit, push
+from sigma_des.events.fast.transport import send_up
 
 __all__ = ["at_node", "done", "reserve"]
 
