@@ -17,13 +17,13 @@ from typing import Any, TypeVar
 from numba import njit
 
 from sigma_des.events.fast.layout import (
+    ACK_MAP,
+    ACK_TAG,
+    ACK_VAL,
     DRAW_CONST,
     DRAW_MAP,
     DRAW_TAG,
     DRAW_VAL,
-    ACK_MAP,
-    ACK_TAG,
-    ACK_VAL,
     E_ATT,
     E_INDEX,
     E_KIND,

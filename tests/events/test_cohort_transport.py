@@ -1,0 +1,68 @@
+"""The cohort core reproduces MQTT QoS 1 over datagram exactly (docs/MODEL.md, "Engines").
+
+Resends after a lost or late PUBLISH, lost or late PUBACKs (a resend only while the
+sender's timer still runs), redeliveries by the broker, give-ups after
+``max_retries`` and the duplicates they make: each case runs on both engines, whose
+whole results must be identical, and checks that it really exercises those paths.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+import sigma_des.events.fast.attempts as attempts
+from sigma_des.events.fast.support import unsupported
+from tests.conftest import tiny
+from tests.events.test_cohort import run_both
+
+#: QoS 1 over datagram with heavy loss and a timeout inside the latency's range, so
+#: PUBLISHes and PUBACKs are lost and late both.
+_LOSSY: dict[str, Any] = {
+    "nodes": 6,
+    "net.transport": "datagram",
+    "net.qos": 1,
+    "net.host_link.loss": {"p": 0.2},
+    "net.server_link.loss": {"p": 0.1},
+    "net.host_link.latency": {"dist": "uniform", "low": 0.0002, "high": 0.004},
+    "net.qos1_timeout": 0.003,
+    "net.max_retries": 2,
+    "commands.enabled": True,
+}
+
+
+@pytest.mark.parametrize("method", ["none", "lockstep", "hlc", "bides"])
+def test_qos1_datagram_resends_and_give_ups_identical(method: str) -> None:
+    sc = tiny(**_LOSSY)
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    assert m["retransmissions"] > 0 and m["gave_up"] > 0 and m["duplicates"] > 0
+
+
+def test_qos1_datagram_late_not_lost_identical() -> None:
+    """No loss, but every PUBLISH arrives after the timeout: resent until given up."""
+    sc = tiny(**{**_LOSSY, "net.host_link.loss": {"p": 0.0}, "net.server_link.loss": {"p": 0.0},
+                 "net.host_link.latency": 0.004, "net.qos1_timeout": 0.002})
+    ev, co = run_both(sc, "bides")
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    assert m["retransmissions"] > 0 and m["gave_up"] > 0 and m["duplicates"] > 0
+
+
+def test_qos1_datagram_without_retries_only_gives_up() -> None:
+    sc = tiny(**{**_LOSSY, "net.max_retries": 0})
+    ev, co = run_both(sc, "none")
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    assert m["retransmissions"] == 0 and m["gave_up"] > 0 and m["duplicates"] == 0
+
+
+def test_attempt_draws_refilled_on_demand(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One row for all later attempts: every resend's draws are refilled before use."""
+    monkeypatch.setattr(attempts, "X_ROWS", 1)
+    ev, co = run_both(tiny(**{**_LOSSY, "nodes": 4, "duration": 0.6}), "hlc")
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] > 0
