@@ -138,7 +138,6 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
 @pytest.mark.parametrize(
     ("over", "method", "why"),
     [
-        ({"net.host_link.loss": {"p": 0.1}}, "bides", "stream transport with loss"),
         ({"clocks.ntp_period": 1.0, "clocks.ntp_residual_std": 1e-4}, "hlc", "NTP"),
         (
             {"faults": [{"kind": "drop", "node": 1, "frame": 20, "message": "state"}]},
@@ -256,17 +255,16 @@ def scenarios(draw: st.DrawFn) -> tuple[Scenario, str]:
         "clocks.offset_std": draw(st.sampled_from([0.0, 0.002])),
         "clocks.drift_ppm_std": draw(st.sampled_from([0.0, 100.0])),
     }
-    if transport == "datagram":
-        over["net.qos"] = draw(st.sampled_from([0, 1]))
-        if over["net.qos"] == 1:  # resends, late and lost PUBACKs, redeliveries, give-ups
-            over["net.qos1_timeout"] = draw(st.sampled_from([0.002, 0.004, 0.05]))
-            over["net.max_retries"] = draw(st.sampled_from([0, 1, 3]))
+    over["net.qos"] = draw(st.sampled_from([0, 1]))
+    if transport == "datagram" or draw(st.booleans()):  # a stream: hold-back, RTO retries
         over["net.host_link.latency"] = draw(_LAT)
         over["net.server_link.latency"] = draw(_LAT)
         over["net.host_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.05, 0.3]))}
         over["net.server_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.1]))}
-    else:
-        over["net.qos"] = draw(st.sampled_from([0, 1]))
+        # QoS 1 over datagram: resends, late and lost PUBACKs, redeliveries, give-ups
+        over["net.qos1_timeout"] = draw(st.sampled_from([0.002, 0.004, 0.05]))
+        over["net.rto"] = draw(st.sampled_from([0.002, 0.01]))
+        over["net.max_retries"] = draw(st.sampled_from([0, 1, 3]))
     faults = []
     if draw(st.booleans()):
         faults.append({"kind": "crash", "node": draw(st.integers(0, n - 1)),

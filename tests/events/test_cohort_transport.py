@@ -1,9 +1,11 @@
-"""The cohort core reproduces MQTT QoS 1 over datagram exactly (docs/MODEL.md, "Engines").
+"""The cohort core reproduces the transports exactly (docs/MODEL.md, "Engines").
 
-Resends after a lost or late PUBLISH, lost or late PUBACKs (a resend only while the
-sender's timer still runs), redeliveries by the broker, give-ups after
-``max_retries`` and the duplicates they make: each case runs on both engines, whose
-whole results must be identical, and checks that it really exercises those paths.
+MQTT QoS 1 over datagram: resends after a lost or late PUBLISH, lost or late PUBACKs
+(a resend only while the sender's timer still runs), redeliveries by the broker,
+give-ups after ``max_retries`` and the duplicates they make. The stream transport on
+a link with loss or random latency: in-order hold-back, RTO retries, give-ups. Each
+case runs on both engines, whose whole results must be identical, and checks that it
+really exercises those paths.
 """
 
 from __future__ import annotations
@@ -66,3 +68,33 @@ def test_attempt_draws_refilled_on_demand(monkeypatch: pytest.MonkeyPatch) -> No
     ev, co = run_both(tiny(**{**_LOSSY, "nodes": 4, "duration": 0.6}), "hlc")
     assert co["engine"]["used"] == "cohort"
     assert ev["metrics"]["retransmissions"] > 0
+
+
+#: A stream on lossy links with random latency: reordered arrivals are held back, lost
+#: segments retried after the doubling RTO or given up.
+_STREAM: dict[str, Any] = {
+    **_LOSSY,
+    "net.transport": "stream",
+    "net.rto": 0.003,
+    "net.server_link.latency": {"dist": "exponential", "mean": 0.001},
+}
+
+
+@pytest.mark.parametrize(("method", "qos"), [("none", 0), ("lockstep", 1), ("hlc", 0),
+                                             ("bides", 1)])
+def test_stream_with_loss_retries_and_give_ups_identical(method: str, qos: int) -> None:
+    sc = tiny(**{**_STREAM, "net.qos": qos})
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    assert m["retransmissions"] > 0 and m["gave_up"] > 0
+    assert m["duplicates"] == 0  # a stream delivers a segment once, or never
+
+
+def test_stream_with_random_latency_only_identical() -> None:
+    """No loss: nothing is retried, but reordered segments are held back."""
+    sc = tiny(**{**_STREAM, "net.host_link.loss": {"p": 0.0}, "net.server_link.loss": {"p": 0.0}})
+    ev, co = run_both(sc, "bides")
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] == 0 and ev["metrics"]["gave_up"] == 0

@@ -1,10 +1,11 @@
-"""Draw tables of PUBACKs and resends for the compiled message core (QoS 1 over datagram).
+"""Draw tables of PUBACKs and resends for the compiled message core, and its transport state.
 
 The main draw tables (:mod:`sigma_des.events.fast.tables`) hold the first
 transmission of every message. QoS 1 over datagram also draws, keyed by
 ``kind + ACK``, for every PUBACK (attempt 0 and on), and for every resend of a
 PUBLISH or a delivery (attempts 1 .. ``max_retries``): latency and loss on the
-links, broker service. The PUBACK draws of attempt 0 are needed for every
+links, broker service; a stream with hold-back draws latency and loss for every
+retry of a lost segment. The PUBACK draws of attempt 0 are needed for every
 message: they are filled with the message's own rows, one row per message index
 (``index % history``). Draws of later attempts are needed only after a loss: the
 loop asks for them before the event that needs them
@@ -36,8 +37,10 @@ from sigma_des.events.fast.layout import (
     T_QLEN,
     T_QOS1D,
     T_RETRIES,
+    T_STREAM,
     T_XROWS,
     TF_LEN,
+    TF_RTO,
     TF_TIMEOUT,
     U_OFFSET,
 )
@@ -66,16 +69,31 @@ class AttemptTables:
         lockstep: whether re-requests and republished states are sent.
 
     Attributes:
-        active: whether the run uses QoS 1 over datagram (else the tables are empty).
+        qos1d: whether the run uses QoS 1 over datagram.
+        stream: per link class (host, server), whether it is a stream with hold-back
+            (loss or random latency: ``Links.transmit``'s in-order bookkeeping).
+        active: whether anything is resent (else the tables are empty).
     """
 
     def __init__(
         self, net: Network, p_loss: tuple[float, float], history: int, subjects: int,
         lockstep: bool,
     ) -> None:
-        self.active = net.qos1 and net.datagram
+        self.qos1d = net.qos1 and net.datagram
+        setup = net.setup
+        specs = (setup.net.host_link, setup.net.server_link)
+        self.stream = tuple(
+            not net.datagram and not (
+                s.latency.dist == "constant" and s.loss.model == "bernoulli" and s.loss.p == 0.0
+                and not setup.degrades and not setup.drops)
+            for s in specs
+        )
+        self.active = self.qos1d or any(self.stream)
         self.retries = net.max_retries
         self.timeout = net.timeout
+        self.rto = net.rto
+        self.conn = np.zeros((4, 2, subjects), dtype=np.int64)
+        self.conn[2:] = -1  # pending lists: no head, no tail
         self.rows = X_ROWS if self.active else 1
         self.ack_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
         self.x_map = np.full((N_SOURCES, 2 * N_KINDS), -1, dtype=np.int64)
@@ -83,10 +101,12 @@ class AttemptTables:
         self.x_first = np.full(N_KINDS, -1, dtype=np.int64)
         self._ack: dict[int, list[_Fill]] = {k: [] for k in range(N_KINDS)}
         self._x: dict[int, list[_Fill]] = {k: [] for k in range(N_KINDS)}
-        if self.active:
-            kinds = [K_TRIGGER, K_STATE, K_COMMAND] + ([K_REREQ, K_REPUB] if lockstep else [])
-            for k in kinds:
+        kinds = [K_TRIGGER, K_STATE, K_COMMAND] + ([K_REREQ, K_REPUB] if lockstep else [])
+        for k in kinds:
+            if self.qos1d:
                 self._register(net, p_loss, k)
+            elif self.active:
+                self._register_stream(net, p_loss, k)
         n_ack = sum(len(v) for v in self._ack.values())
         n_x = sum(len(v) for v in self._x.values())
         self.ack_val = np.zeros((max(n_ack, 1), history, subjects))
@@ -107,6 +127,15 @@ class AttemptTables:
                 self._add(U_OFFSET + src, k, ack, net.loss_draws(cls == 1, bool(up)))
         self._add(SVC_PUB, k, False, net.broker.publish_draws)
         self._add(SVC_DEL, k, False, net.broker.delivery_draws)
+
+    def _register_stream(self, net: Network, p_loss: tuple[float, float], k: int) -> None:
+        """The retry sources of kind ``k``: its legs on lossy streams."""
+        pub = 1 if k in (K_TRIGGER, K_COMMAND, K_REREQ) else 0
+        for cls, up in ((pub, 1), (1 - pub, 0)):
+            if self.stream[cls] and p_loss[cls] > 0.0:  # only a lost segment is retried
+                src = lat_source(cls, up)
+                self._add(src, k, False, net.latency_draws(cls == 1, bool(up)))
+                self._add(U_OFFSET + src, k, False, net.loss_draws(cls == 1, bool(up)))
 
     def _add(self, src: int, k: int, ack: bool, cache: DrawCache) -> None:
         if cache.constant is not None:
@@ -130,16 +159,18 @@ class AttemptTables:
     def given(self) -> dict[str, NDArray[Any]]:
         """The state arrays of the transport (parameters and tables)."""
         tp = np.zeros(T_QLEN, dtype=np.int64)
-        tp[T_QOS1D] = int(self.active)
-        tp[T_DUPALL] = int(self.active)
+        tp[T_QOS1D] = int(self.qos1d)
+        tp[T_DUPALL] = int(self.qos1d)
         tp[T_RETRIES] = self.retries
         tp[T_XROWS] = self.rows
+        tp[T_STREAM : T_STREAM + 2] = self.stream
         tf = np.zeros(TF_LEN)
         tf[TF_TIMEOUT] = self.timeout
+        tf[TF_RTO] = self.rto
         return {"tr_params": tp, "tr_fparams": tf, "ack_map": self.ack_map,
                 "ack_val": self.ack_val, "ack_tag": self.ack_tag, "x_map": self.x_map,
                 "x_const": self.x_const, "x_first": self.x_first, "x_val": self.x_val,
-                "x_tag": self.x_tag}
+                "x_tag": self.x_tag, "conn": self.conn}
 
     def fill_ack(self, kind: int, index: int) -> None:
         """Make the PUBACK rows of attempt 0 of ``(kind, index)`` present."""

@@ -101,7 +101,7 @@ class CompiledCore:
         n, spec = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
         pay = L.EF_PAY + max(OBS_WIDTH, M)
-        dup_all = self.attempts.active
+        dup_all = self.attempts.qos1d
         seen = self._lockstep or dup_all
         return {
             "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": spec.hosts + 1,

@@ -63,9 +63,11 @@ N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
 N_ROWS = 6
 # event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
 # or command stamp), frame (of a state, republished state or re-request); attempt of the
-# transmission and, in a resend timer, the type of the event it resends (F2, transport)
-E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME, E_ATT, E_RTYPE = range(9)
-E_COLS = 9
+# transmission (QoS 1 or stream segment); in a transport event (F2) the type of the event
+# it becomes, its action TA_*, its stream sequence number and pending-list links
+E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
+E_ATT, E_RTYPE, E_TACT, E_SEQ, E_NEXT, E_PREV = range(7, 13)
+E_COLS = 13
 # event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
 EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
 # draw sources: latency and loss uniforms per (link class, direction), broker, compute
@@ -74,16 +76,20 @@ U_OFFSET = 4
 SVC_PUB, SVC_DEL, STEP = 8, 9, 10
 N_SOURCES = 11
 
-# F2 — transport: event type of a resend timer, exit code of a draw-fill request,
-# transport parameters (S.tr_params, S.tr_fparams) and counters (S.tr_ints)
+# F2 — transport: event type of a transport event (QoS 1 resend timer, stream retry or
+# arrival) and its actions, exit code of a draw-fill request, transport parameters
+# (S.tr_params; T_STREAM + link class: a stream with hold-back), float parameters,
+# counters and the draining connection (S.tr_ints), stream connection rows (S.conn)
 EV_RESEND = 3
+TA_RESEND, TA_RETRY, TA_ARRIVE, TA_GONE = range(4)
 NEED_FILL = 7
-T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS = range(4)
-T_QLEN = 4
-TF_TIMEOUT = 0
-TF_LEN = 1
-T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_FILL = range(6)
+T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS, T_STREAM = range(5)
+T_QLEN = 6
+TF_TIMEOUT, TF_RTO = range(2)
+TF_LEN = 2
+T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
 T_ILEN = 6
+C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
 
 @dataclass(frozen=True)
@@ -172,6 +178,9 @@ FIELDS: tuple[Field, ...] = (
     Field("x_val", _f, ("x_tables", "x_rows", "clients"), None, "attempt draws: values"),
     Field("x_tag", _i, ("x_tables", "x_rows"), None,
           "attempt draws: key index * (max_retries + 1) + attempt held by each row"),
+    Field("conn", _i, (4, 2, "clients"), None,
+          "stream connections (down, up) per client: next seq, next to deliver, pending list"),
+    Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -228,6 +237,8 @@ X_CONST = INDEX["x_const"]
 X_FIRST = INDEX["x_first"]
 X_VAL = INDEX["x_val"]
 X_TAG = INDEX["x_tag"]
+CONN = INDEX["conn"]
+TR_FLOATS = INDEX["tr_floats"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

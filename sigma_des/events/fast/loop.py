@@ -59,13 +59,18 @@ from sigma_des.events.fast.layout import (
     Q_M,
     Q_N,
     Q_QOS1S,
+    T_DRAIN,
     T_QOS1D,
+    T_STREAM,
+    TR_FLOATS,
+    TR_INTS,
     TR_PARAMS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
 from sigma_des.events.fast.primitives import alloc, count, jit, pop, release
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
+from sigma_des.events.fast.stream import next_ready
 from sigma_des.events.fast.transport import puback_client, send_up
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
@@ -144,19 +149,34 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     iv = S[INTS]
     ht = S[HEAP_T]
     n = S[IPARAMS][Q_N]
-    qos1d = S[TR_PARAMS][T_QOS1D]
+    tp = S[TR_PARAMS]
+    qos1d = tp[T_QOS1D]
+    attempts = qos1d or tp[T_STREAM] or tp[T_STREAM + 1]  # resends draw on demand
     spare = n + 4 + qos1d * (n + 4)  # a fan-out (and its resend timers under QoS 1)
-    while iv[I_HEAP] > 0:
-        t = ht[0]
-        if t > t_stop or (strict and t >= t_stop):
-            return OK
-        if iv[I_FREE] < spare:
-            return NEED_SPACE
-        if _full(S):
-            return NEED_FLUSH
-        if qos1d and missing(S):
-            return NEED_FILL
-        s = pop(S)
+    tr = S[TR_INTS]
+    while True:
+        if tr[T_DRAIN]:  # a stream arrival hands its connection's segments on, in order
+            if iv[I_FREE] < spare:
+                return NEED_SPACE
+            if _full(S):
+                return NEED_FLUSH
+            s = next_ready(S)
+            if s < 0:
+                continue
+            t = S[TR_FLOATS][0]
+        else:
+            if iv[I_HEAP] == 0:
+                return OK
+            t = ht[0]
+            if t > t_stop or (strict and t >= t_stop):
+                return OK
+            if iv[I_FREE] < spare:
+                return NEED_SPACE
+            if _full(S):
+                return NEED_FLUSH
+            if attempts and missing(S):
+                return NEED_FILL
+            s = pop(S)
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
@@ -173,4 +193,3 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             code = iv[I_PEND]
             iv[I_PEND] = 0
             return code
-    return OK

@@ -1,9 +1,10 @@
-"""Resend timers of the compiled message core, and their draws on demand.
+"""Transport events of the compiled message core, and their draws on demand.
 
-:func:`resend` handles a resend timer's event (QoS 1 over datagram): a PUBLISH
-resent by its publisher (``Network._publish_try`` with the next attempt) or a
-delivery resent by the broker (``Network._redeliver``: one more delivery service,
-then the hop). Draws of attempts >= 1 are not in the main draw tables; before an
+:func:`resend` handles a transport event: a QoS 1 resend timer (over datagram) — a
+PUBLISH resent by its publisher (``Network._publish_try`` with the next attempt)
+or a delivery resent by the broker (``Network._redeliver``: one more delivery
+service, then the hop) — or a stream segment's retry or arrival
+(:mod:`sigma_des.events.fast.stream`). Draws of attempts >= 1 are not in the main draw tables; before an
 event whose message is such an attempt, :func:`missing` finds whether its rows are
 in the attempt tables and, if not, names them for Python
 (:class:`~sigma_des.events.fast.attempts.AttemptTables`), which fills them before
@@ -18,21 +19,27 @@ from sigma_des.events.fast.layout import (
     E_INDEX,
     E_KIND,
     E_RTYPE,
+    E_TACT,
     E_TYPE,
     EF_TDEP,
     EV_BROKER,
     EV_FLOAT,
     EV_INT,
+    EV_RESEND,
     HEAP_K,
     SLOT_MASK,
     T_FATT,
     T_FINDEX,
     T_FKIND,
+    TA_ARRIVE,
+    TA_RESEND,
+    TA_RETRY,
     TR_INTS,
     X_FIRST,
     X_TAG,
 )
 from sigma_des.events.fast.primitives import alloc, attempt_key, jit, key_of
+from sigma_des.events.fast.stream import stream_arrive, stream_try
 from sigma_des.events.fast.transport import copy_slot, send
 
 __all__ = ["missing", "resend"]
@@ -47,8 +54,8 @@ def missing(S):  # type: ignore[no-untyped-def]
     evi = S[EV_INT]
     slot = S[HEAP_K][0] & SLOT_MASK
     attempt = evi[slot, E_ATT]
-    if attempt == 0:
-        return False
+    if attempt == 0 or (evi[slot, E_TYPE] == EV_RESEND and evi[slot, E_TACT] >= TA_ARRIVE):
+        return False  # a first try, or a stream arrival (it draws nothing)
     kind = evi[slot, E_KIND]
     c = S[X_FIRST][kind]
     if c < 0:
@@ -66,10 +73,18 @@ def missing(S):  # type: ignore[no-untyped-def]
 
 @jit
 def resend(S, s, now):  # type: ignore[no-untyped-def]
-    """The resend timer in slot ``s`` fires at ``now``: send its copy again."""
+    """The transport event in slot ``s`` at ``now``: a QoS 1 resend timer fires (send its
+    copy again), a stream segment is tried again or arrives (its copy goes on)."""
     ns = alloc(S)
     copy_slot(S, s, ns)
     evi = S[EV_INT]
+    act = evi[s, E_TACT]
+    if act == TA_RETRY:  # Links._stream_retry
+        stream_try(S, ns, now)
+        return
+    if act != TA_RESEND:  # Links._stream_arrive (a segment or a give-up)
+        stream_arrive(S, ns, now)
+        return
     evi[ns, E_TYPE] = evi[s, E_RTYPE]
     if evi[ns, E_TYPE] == EV_BROKER:  # Network._publish_try, next attempt
         send(S, ns, now)

@@ -20,11 +20,11 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: drop and
-    degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, and the stream
-    transport on a link with loss or random latency (in-order hold-back and
-    retransmission); the DDS middleware and the ``rpc`` method (issue 16:
-    per-message models only). MQTT QoS 1 over datagrams (PUBACK hops, resends,
-    redelivery) runs on the core (:mod:`sigma_des.events.fast.transport`).
+    degrade faults, NTP-corrected clocks, Gilbert–Elliott loss; the DDS middleware
+    and the ``rpc`` method (issue 16: per-message models only). MQTT QoS 1 over
+    datagrams (PUBACK hops, resends, redelivery) and the stream transport on a link
+    with loss or random latency (in-order hold-back, RTO retries, give-ups) run on
+    the core (:mod:`sigma_des.events.fast.transport`, :mod:`~sigma_des.events.fast.stream`).
     """
     why: list[str] = []
     kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
@@ -36,10 +36,6 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     for name, link in (("host_link", net.host_link), ("server_link", net.server_link)):
         if link.loss.model != "bernoulli":
             why.append(f"{name}: Gilbert-Elliott loss")
-        elif net.transport == "stream" and (
-            link.latency.dist != "constant" or link.loss.p > 0.0
-        ):
-            why.append(f"{name}: stream transport with loss or random latency")
     if net.middleware == "dds":
         why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
     if method == "rpc":

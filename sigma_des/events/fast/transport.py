@@ -10,7 +10,8 @@ resend a lost or late PUBACK causes while the sender's timer still runs. A resen
 timer is an event slot holding a copy of the message, its attempt and the type of
 the event it will resend (:mod:`sigma_des.events.fast.resend` handles it).
 Without QoS 1 over datagram :func:`send` is one hop
-(:func:`~sigma_des.events.fast.primitives.hop`).
+(:func:`~sigma_des.events.fast.primitives.hop`), or a stream segment with hold-back
+(:mod:`sigma_des.events.fast.stream`) on a link with loss or random latency.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 from sigma_des.events.fast.layout import (
     E_ATT,
     E_RTYPE,
+    E_TACT,
     E_TYPE,
     E_WHO,
     EF_TDEP,
@@ -27,10 +29,13 @@ from sigma_des.events.fast.layout import (
     EV_RESEND,
     IPARAMS,
     Q_ACK,
+    Q_N,
     T_GAVE,
     T_QOS1D,
     T_RETRIES,
     T_RETX,
+    T_STREAM,
+    TA_RESEND,
     TF_TIMEOUT,
     TR_FPARAMS,
     TR_INTS,
@@ -47,6 +52,7 @@ from sigma_des.events.fast.primitives import (
     push,
     release,
 )
+from sigma_des.events.fast.stream import stream_send
 
 __all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_up"]
 
@@ -75,6 +81,7 @@ def _schedule(S, tm, when):  # type: ignore[no-untyped-def]
     ti[T_RETX] += 1
     evi[tm, E_RTYPE] = evi[tm, E_TYPE]
     evi[tm, E_TYPE] = EV_RESEND
+    evi[tm, E_TACT] = TA_RESEND
     evi[tm, E_ATT] = attempt + 1
     push(S, when, tm)
 
@@ -82,8 +89,13 @@ def _schedule(S, tm, when):  # type: ignore[no-untyped-def]
 @jit
 def send(S, slot, t):  # type: ignore[no-untyped-def]
     """The addressed PUBLISH in ``slot`` leaves its sender at ``t`` (its attempt set)."""
-    if not S[TR_PARAMS][T_QOS1D]:
-        hop(S, slot, t)
+    tp = S[TR_PARAMS]
+    if not tp[T_QOS1D]:
+        cls = 1 if S[EV_INT][slot, E_WHO] == S[IPARAMS][Q_N] else 0
+        if tp[T_STREAM + cls]:
+            stream_send(S, slot, t)
+        else:
+            hop(S, slot, t)
         return
     S[EV_FLOAT][slot, EF_TDEP] = t  # when this try left (the PUBACK's timer starts)
     tm = alloc(S)  # the resend's copy, made before the hop frees a lost message

@@ -31,10 +31,10 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    assert len(set(names)) == len(names) == 50  # 39 + 11 of the transport (F2)
+    assert len(set(names)) == len(names) == 52  # 39 + 13 of the transport (F2)
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(50))
+    assert [getattr(L, name.upper()) for name in names] == list(range(52))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
 
 
