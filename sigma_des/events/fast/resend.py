@@ -4,9 +4,9 @@
 PUBLISH resent by its publisher (``Network._publish_try`` with the next attempt)
 or a delivery resent by the broker (``Network._redeliver``: one more delivery
 service, then the hop) — or a stream segment's retry or arrival
-(:mod:`sigma_des.events.fast.stream`). Draws of attempts >= 1 are not in the main draw tables; before an
-event whose message is such an attempt, :func:`missing` finds whether its rows are
-in the attempt tables and, if not, names them for Python
+(:mod:`sigma_des.events.fast.stream`). Draws of attempts >= 1 are not in the main
+draw tables; before an event whose message is such an attempt, :func:`missing`
+finds whether its rows are in the attempt tables and, if not, names them for Python
 (:class:`~sigma_des.events.fast.attempts.AttemptTables`), which fills them before
 the loop takes that event: draws stay a pure function of their key.
 """
