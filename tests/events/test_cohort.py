@@ -375,3 +375,13 @@ def test_link_features_run_compiled_and_identical(
     assert co["engine"] == {"requested": "cohort", "used": "cohort", "fallback": ""}
     without = run_method(replace(tiny(**base), engine="events"), method)["metrics"]
     assert any(not _same(v, without[k]) for k, v in ev["metrics"].items())
+
+
+def test_send_beyond_the_link_tables_falls_back_mid_run() -> None:
+    """A broker backlog of seconds: deliveries leave past the Gilbert–Elliott table
+    (the run's end + 1 s), so the cohort run is redone per message."""
+    sc = tiny(**{**_DATAGRAM, "broker.publish_service": 0.02,
+                 "net.host_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.5}})
+    _ev, co = run_both(sc, "none")
+    assert co["engine"]["used"] == "events"
+    assert "beyond the link and clock tables" in co["engine"]["fallback"]
