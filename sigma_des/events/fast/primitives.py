@@ -195,7 +195,8 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
 
     FIFO serialization on the receiver's (down) or sender's (up) link, latency and
-    loss; a lost message frees its slot.
+    loss (time-dependent: Gilbert–Elliott state, degrade windows and drop faults,
+    :mod:`~sigma_des.events.fast.loss`); a lost message frees its slot.
     """
     evi = S[EV_INT]
     client = evi[slot, E_WHO]
