@@ -98,3 +98,23 @@ def test_stream_with_random_latency_only_identical() -> None:
     ev, co = run_both(sc, "bides")
     assert co["engine"]["used"] == "cohort"
     assert ev["metrics"]["retransmissions"] == 0 and ev["metrics"]["gave_up"] == 0
+
+
+#: Link features of the core on top: a Gilbert–Elliott server link, a lossy degrade
+#: window and a dropped state (its first transmission), on both transports.
+_LINK_FAULTS: dict[str, Any] = {
+    "net.server_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.4,
+                             "loss_good": 0.01, "loss_bad": 0.6, "slot": 0.004},
+    "faults": [{"kind": "degrade", "host": 1, "start": 0.2, "end": 0.6, "extra_delay": 0.002,
+                "extra_loss": 0.3},
+               {"kind": "drop", "node": 1, "frame": 30, "message": "state"}],
+}
+
+
+@pytest.mark.parametrize("base", [_LOSSY, _STREAM], ids=["qos1-datagram", "stream"])
+def test_transports_with_link_faults_identical(base: dict[str, Any]) -> None:
+    sc = tiny(**{**base, **_LINK_FAULTS})
+    assert unsupported(sc.run_spec(), "bides") is None
+    ev, co = run_both(sc, "bides")
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] > 0 and ev["metrics"]["gave_up"] > 0

@@ -63,7 +63,8 @@ class AttemptTables:
 
     Args:
         net: the per-message network (owner of the draw caches and QoS settings).
-        p_loss: loss probability of the host and server links (0: no loss draws).
+        lossy: whether a packet can be lost on the host links and the server's link
+            (:func:`~sigma_des.events.fast.tables.lossy_classes`; else no loss draws).
         history: rows of the PUBACK tables (as the main tables).
         subjects: values per row (nodes and the server).
         lockstep: whether re-requests and republished states are sent.
@@ -76,7 +77,7 @@ class AttemptTables:
     """
 
     def __init__(
-        self, net: Network, p_loss: tuple[float, float], history: int, subjects: int,
+        self, net: Network, lossy: tuple[bool, bool], history: int, subjects: int,
         lockstep: bool,
     ) -> None:
         self.qos1d = net.qos1 and net.datagram
@@ -95,8 +96,9 @@ class AttemptTables:
         self.conn = np.zeros((4, 2, subjects), dtype=np.int64)
         self.conn[2:] = -1  # pending lists: no head, no tail
         self.rows = X_ROWS if self.active else 1
-        self.ack_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
-        self.x_map = np.full((N_SOURCES, 2 * N_KINDS), -1, dtype=np.int64)
+        # -1: a constant source, -2: none registered (reading it stops the compiled run)
+        self.ack_map = np.full((N_SOURCES, N_KINDS), -2, dtype=np.int64)
+        self.x_map = np.full((N_SOURCES, 2 * N_KINDS), -2, dtype=np.int64)
         self.x_const = np.zeros(N_SOURCES)
         self.x_first = np.full(N_KINDS, -1, dtype=np.int64)
         self._ack: dict[int, list[_Fill]] = {k: [] for k in range(N_KINDS)}
@@ -104,9 +106,9 @@ class AttemptTables:
         kinds = [K_TRIGGER, K_STATE, K_COMMAND] + ([K_REREQ, K_REPUB] if lockstep else [])
         for k in kinds:
             if self.qos1d:
-                self._register(net, p_loss, k)
+                self._register(net, lossy, k)
             elif self.active:
-                self._register_stream(net, p_loss, k)
+                self._register_stream(net, lossy, k)
         n_ack = sum(len(v) for v in self._ack.values())
         n_x = sum(len(v) for v in self._x.values())
         self.ack_val = np.zeros((max(n_ack, 1), history, subjects))
@@ -114,7 +116,7 @@ class AttemptTables:
         self.x_val = np.zeros((max(n_x, 1), self.rows, subjects))
         self.x_tag = np.full((max(n_x, 1), self.rows), -1, dtype=np.int64)
 
-    def _register(self, net: Network, p_loss: tuple[float, float], k: int) -> None:
+    def _register(self, net: Network, lossy: tuple[bool, bool], k: int) -> None:
         """The sources of kind ``k``: its PUBLISH legs, their PUBACKs, broker service."""
         pub = 1 if k in (K_TRIGGER, K_COMMAND, K_REREQ) else 0  # publisher's link class
         # (link class, up, PUBACK?): publish up and its PUBACK down on the publisher's
@@ -123,23 +125,28 @@ class AttemptTables:
         for cls, up, ack in legs:
             src = lat_source(cls, up)
             self._add(src, k, ack, net.latency_draws(cls == 1, bool(up)))
-            if p_loss[cls] > 0.0:
+            if lossy[cls]:
                 self._add(U_OFFSET + src, k, ack, net.loss_draws(cls == 1, bool(up)))
         self._add(SVC_PUB, k, False, net.broker.publish_draws)
         self._add(SVC_DEL, k, False, net.broker.delivery_draws)
 
-    def _register_stream(self, net: Network, p_loss: tuple[float, float], k: int) -> None:
-        """The retry sources of kind ``k``: its legs on lossy streams."""
+    def _register_stream(self, net: Network, lossy: tuple[bool, bool], k: int) -> None:
+        """The retry sources of kind ``k``: its legs on streams with hold-back (a
+        segment lost, or dropped by a fault, is retried)."""
         pub = 1 if k in (K_TRIGGER, K_COMMAND, K_REREQ) else 0
         for cls, up in ((pub, 1), (1 - pub, 0)):
-            if self.stream[cls] and p_loss[cls] > 0.0:  # only a lost segment is retried
+            if self.stream[cls]:
                 src = lat_source(cls, up)
                 self._add(src, k, False, net.latency_draws(cls == 1, bool(up)))
-                self._add(U_OFFSET + src, k, False, net.loss_draws(cls == 1, bool(up)))
+                if lossy[cls]:
+                    self._add(U_OFFSET + src, k, False, net.loss_draws(cls == 1, bool(up)))
 
     def _add(self, src: int, k: int, ack: bool, cache: DrawCache) -> None:
         if cache.constant is not None:
             self.x_const[src] = cache.constant
+            self.x_map[src, k + N_KINDS if ack else k] = -1
+            if ack:
+                self.ack_map[src, k] = -1
             return
         c = sum(len(v) for v in self._x.values())
         self.x_map[src, k + N_KINDS if ack else k] = c

@@ -34,8 +34,20 @@ from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
-from sigma_des.events.fast.support import CohortFallback, unsupported
-from sigma_des.events.fast.tables import DrawTables, network_sources
+from sigma_des.events.fast.support import (
+    TABLE_MARGIN,
+    CohortFallback,
+    ge_slots,
+    ntp_syncs,
+    unsupported,
+)
+from sigma_des.events.fast.tables import (
+    DrawTables,
+    clock_tables,
+    link_tables,
+    lossy_classes,
+    network_sources,
+)
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
@@ -87,11 +99,11 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
-        sources = network_sources(host.net, p_loss)
+        sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
-        self.attempts = AttemptTables(host.net, p_loss, spec.history_frames, host.n + 1,
-                                      self._lockstep)
+        self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
+                                      host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
     # ------------------------------------------------------------ layout
@@ -113,6 +125,10 @@ class CompiledCore:
             # every kind (QoS 1 over datagram: row = kind)
             "seen_k": L.N_KINDS if dup_all else 2, "seen_n": n + 1 if seen else 1,
             "seen_h": spec.history_frames if seen else 1, **self.attempts.dims(),
+            # link and clock tables (Gilbert–Elliott, degrade, drop, NTP)
+            "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
+            "deg": max(1, len(spec.net.degrades)), "drops": max(1, len(spec.net.drops)),
+            "ntp_j": ntp_syncs(spec),
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -182,6 +198,7 @@ class CompiledCore:
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
             **self._links(), **self._nodes(), **self.attempts.given(),
+            **link_tables(h.net, spec), **clock_tables(h.nodes.clocks, spec),
         }
 
     def ensure_space(self, k: int) -> None:
@@ -335,6 +352,11 @@ class CompiledCore:
                     a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
                     h = self.host
                     self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
+            elif int(S[L.INTS][L.I_ERR]) == L.ERR_HORIZON:
+                raise CohortFallback(
+                    "a send or clock reading beyond the link and clock tables "
+                    f"(the run's end + {TABLE_MARGIN} s)"
+                )
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "

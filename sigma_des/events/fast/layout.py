@@ -121,8 +121,9 @@ _f, _i = np.float64, np.int64
 #: frames, ``W`` observation width, ``M`` command width, ``pay`` event float columns,
 #: ``out``/``lat`` delivery buffer capacities, ``slow`` slow-fault windows,
 #: ``seen_k``/``seen_n``/``seen_h`` duplicate table (Lock-Step's re-requests and republished
-#: states, or every kind under QoS 1 over datagram), ``ack_tables``/``x_tables``/``x_rows``
-#: PUBACK and resend draw tables.
+#: states, or every kind under QoS 1 over datagram), ``links_1`` = links + 1, the link and
+#: clock tables' ``ge_slots``, ``deg``, ``drops``, ``ntp_j``, and ``ack_tables``/``x_tables``/
+#: ``x_rows`` the PUBACK and resend draw tables.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "event heap: times"),
     Field("heap_k", _i, ("cap",), 0.0, "event heap: keys (sequence << SLOT_BITS | slot)"),
@@ -164,6 +165,17 @@ FIELDS: tuple[Field, ...] = (
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
     Field("seen", _i, ("seen_k", "seen_n", "seen_h"), -1.0,
           "duplicate rule: newest index per (kind row, subject, index % seen_h)"),
+    # F1, link-level features (Gilbert–Elliott loss, degrade and drop faults, NTP clocks):
+    # ``ge_slots`` chain slots, ``deg`` degrade windows, ``drops`` dropped keys,
+    # ``ntp_j`` NTP sync instants (each table bounded by the run's end + a margin)
+    Field("link_dyn", _i, (4,), None, "link features on: GE host, GE server, degrade, drops"),
+    Field("ge_par", _f, (2, 3), None, "Gilbert-Elliott per link class: slot, loss_good, loss_bad"),
+    Field("ge_bad", np.uint8, (2, "links", "ge_slots"), None, "GE chain (down, up): bad per slot"),
+    Field("deg_ptr", _i, ("links_1",), None, "degrade windows of link k: rows ptr[k]:ptr[k+1]"),
+    Field("deg", _f, ("deg", 4), None, "degrade windows in fault order (start, end, delay, loss)"),
+    Field("drops", _i, ("drops", 3), None, "drop faults' (kind, subject, index), sorted"),
+    Field("ntp_period", _f, (1,), None, "NTP period (0: no NTP)"),
+    Field("ntp_res", _f, ("n", "ntp_j"), None, "NTP residual of node i after sync j (j >= 1)"),
     # F2 — transport: QoS 1 over datagram (PUBACK hops, resend timers, redelivery)
     Field("tr_params", _i, (T_QLEN,), None, "transport int parameters T_*"),
     Field("tr_fparams", _f, (TF_LEN,), None, "transport float parameters TF_*"),
@@ -226,6 +238,18 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
+# F1, link-level features
+LINK_DYN = INDEX["link_dyn"]
+GE_PAR = INDEX["ge_par"]
+GE_BAD = INDEX["ge_bad"]
+DEG_PTR = INDEX["deg_ptr"]
+DEG = INDEX["deg"]
+DROPS = INDEX["drops"]
+NTP_PERIOD = INDEX["ntp_period"]
+NTP_RES = INDEX["ntp_res"]
+#: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
+#: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
+ERR_HORIZON = 2
 TR_PARAMS = INDEX["tr_params"]
 TR_FPARAMS = INDEX["tr_fparams"]
 TR_INTS = INDEX["tr_ints"]

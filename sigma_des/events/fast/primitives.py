@@ -11,11 +11,7 @@ state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
-
-from numba import njit
-
+from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     ACK_MAP,
     ACK_TAG,
@@ -50,7 +46,6 @@ from sigma_des.events.fast.layout import (
     LINK_OF,
     LINK_SPB,
     N_KINDS,
-    P_LOSS,
     Q_N,
     SLOT_BITS,
     SLOT_MASK,
@@ -64,13 +59,7 @@ from sigma_des.events.fast.layout import (
     X_TAG,
     X_VAL,
 )
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-#: Compiled without numba's reference counting: every array is borrowed from the
-#: driver and nothing is allocated, and NRT's atomic increments on each array access
-#: made the loop ~4x slower.
-jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+from sigma_des.events.fast.loss import forced_drop, link_loss
 
 
 @jit
@@ -222,6 +211,15 @@ def attempt_key(S, index, attempt):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _constant(S, src, c):  # type: ignore[no-untyped-def]
+    """A constant source's value (``c == -1``); an unregistered one (-2) is an error."""
+    if c == -1:
+        return S[X_CONST][src]
+    S[INTS][I_ERR] = 1
+    return 0.0
+
+
+@jit
 def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped-def]
     """The draw of ``(kind [+ ACK], subj, index, attempt)`` from source ``src``.
 
@@ -234,7 +232,7 @@ def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped
             return draw(S, src, kind, subj, index)
         c = S[ACK_MAP][src, kind]
         if c < 0:
-            return S[X_CONST][src]
+            return _constant(S, src, c)
         tag = S[ACK_TAG]
         r = index % tag.shape[1]
         if tag[c, r] != index:
@@ -243,7 +241,7 @@ def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped
         return S[ACK_VAL][c, r, subj]
     c = S[X_MAP][src, kind + N_KINDS if ack else kind]
     if c < 0:
-        return S[X_CONST][src]
+        return _constant(S, src, c)
     key, r = attempt_key(S, index, attempt)
     if S[X_TAG][c, r] != key:
         S[INTS][I_ERR] = 1
@@ -252,8 +250,9 @@ def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped
 
 
 @jit
-def fly(S, client, up, kind, subj, index, attempt, ack, done):  # type: ignore[no-untyped-def]
-    """Latency and loss of a packet whose last bit left ``client``'s link at ``done``.
+def fly(S, client, up, kind, subj, index, attempt, ack, done, t):  # type: ignore[no-untyped-def]
+    """Latency and loss of a packet sent at ``t`` whose last bit left ``client``'s link
+    at ``done`` (Links.hop after the serialization; ``ack``: a PUBACK's draws).
 
     Returns:
         (arrival time at the far end, lost?)
@@ -261,11 +260,14 @@ def fly(S, client, up, kind, subj, index, attempt, ack, done):  # type: ignore[n
     cls = 1 if client == S[IPARAMS][Q_N] else 0
     src = lat_source(cls, up)
     lat = draw_at(S, src, kind, subj, index, attempt, ack)
-    p = S[P_LOSS][cls]
+    p, extra = link_loss(S, client, cls, up, t)
     lost = False
     if p > 0.0:
         lost = draw_at(S, U_OFFSET + src, kind, subj, index, attempt, ack) < p
-    return done + lat, lost
+    # a drop fault loses a message's first transmission (a PUBACK's key is kind + ACK)
+    if attempt == 0 and not ack and forced_drop(S, up, kind, subj, index):
+        lost = True
+    return done + lat + extra, lost
 
 
 @jit
@@ -273,7 +275,8 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
 
     FIFO serialization on the receiver's (down) or sender's (up) link, latency and
-    loss; a lost message frees its slot.
+    loss (time-dependent: Gilbert–Elliott state, degrade windows and drop faults,
+    :mod:`~sigma_des.events.fast.loss`); a lost message frees its slot.
 
     Returns:
         (arrival time, lost?) of this transmission.
@@ -283,7 +286,7 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     kind, subj, index = key_of(S, slot)
     up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
     done = count(S, client, up, S[WIRE_BYTES][kind], t)
-    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, E_ATT], False, done)
+    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, E_ATT], False, done, t)
     if lost:
         release(S, slot)
     else:

@@ -67,7 +67,7 @@ def stream_try(S, slot, t):  # type: ignore[no-untyped-def]
     kind, subj, index = key_of(S, slot)
     att = evi[slot, E_ATT]
     done = count(S, client, up, S[WIRE_BYTES][kind], t)
-    arr, lost = fly(S, client, up, kind, subj, index, att, False, done)
+    arr, lost = fly(S, client, up, kind, subj, index, att, False, done, t)
     evi[slot, E_TYPE] = EV_RESEND
     if not lost:
         evi[slot, E_TACT] = TA_ARRIVE

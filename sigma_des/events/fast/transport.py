@@ -123,7 +123,7 @@ def _puback(S, s, up, t, now):  # type: ignore[no-untyped-def]
     client = S[EV_INT][s, E_WHO]
     attempt = S[EV_INT][s, E_ATT]
     done = count(S, client, up, S[IPARAMS][Q_ACK], t)
-    arr, lost = fly(S, client, up, kind, subj, index, attempt, True, done)
+    arr, lost = fly(S, client, up, kind, subj, index, attempt, True, done, t)
     when = S[EV_FLOAT][s, EF_TDEP] + S[TR_FPARAMS][TF_TIMEOUT]
     if now <= when and (lost or arr > when):
         tm = alloc(S)
