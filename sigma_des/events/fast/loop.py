@@ -37,6 +37,7 @@ from sigma_des.events.fast.layout import (
     EV_FLOAT,
     EV_INT,
     EV_RESEND,
+    HEAP_K,
     HEAP_T,
     I_ERR,
     I_FREE,
@@ -59,6 +60,7 @@ from sigma_des.events.fast.layout import (
     Q_M,
     Q_N,
     Q_QOS1S,
+    SLOT_MASK,
     T_DRAIN,
     T_QOS1D,
     T_STREAM,
@@ -174,7 +176,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
                 return NEED_SPACE
             if _full(S):
                 return NEED_FLUSH
-            if attempts and missing(S):
+            if attempts and missing(S, S[HEAP_K][0] & SLOT_MASK):
                 return NEED_FILL
             s = pop(S)
         typ = S[EV_INT][s, E_TYPE]

@@ -26,8 +26,6 @@ from sigma_des.events.fast.layout import (
     EV_FLOAT,
     EV_INT,
     EV_RESEND,
-    HEAP_K,
-    SLOT_MASK,
     T_FATT,
     T_FINDEX,
     T_FKIND,
@@ -46,13 +44,11 @@ __all__ = ["missing", "resend"]
 
 
 @jit
-def missing(S):  # type: ignore[no-untyped-def]
-    """Whether the next event's message needs attempt draws not yet in the tables.
-
-    If so, the request ``(kind, index, attempt)`` is written for Python.
+def missing(S, slot):  # type: ignore[no-untyped-def]
+    """Whether the next event's message (in ``slot``) needs attempt draws not yet in
+    the tables. If so, the request ``(kind, index, attempt)`` is written for Python.
     """
     evi = S[EV_INT]
-    slot = S[HEAP_K][0] & SLOT_MASK
     attempt = evi[slot, E_ATT]
     if attempt == 0 or (evi[slot, E_TYPE] == EV_RESEND and evi[slot, E_TACT] >= TA_ARRIVE):
         return False  # a first try, or a stream arrival (it draws nothing)
