@@ -38,17 +38,24 @@ K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
 #: message kinds + 1 (kind 0 is the compute source's key in the draw tables)
 N_KINDS = len(Kind) + 1
 
-# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
+# queue keys pack (sequence << SLOT_BITS) | event slot into one int64
 SLOT_BITS = 24
 SLOT_MASK = (1 << SLOT_BITS) - 1
 MAX_SLOTS = 1 << SLOT_BITS
 
-# int scalars (S.ints)
+# int scalars (S.ints); I_HEAP is unused since the run-merge queue (its scalars are Q_INT's)
 I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
 I_LAT = 12  # three counters: trigger, state, command latencies buffered
 I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
 I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
 I_LEN = 19
+# run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
+# runs sealed since the last compaction, heap size, current run and whether there is one
+QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
+QI_LEN = 7
+# run-merge queue float scalars (S.q_float): the pending minimum's time
+QF_PMIN = 0
+QF_LEN = 1
 # float scalars (S.floats)
 F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
 F_LEN = 4
@@ -124,9 +131,10 @@ _f, _i = np.float64, np.int64
 #: states, or every kind under QoS 1 over datagram), ``links_1`` = links + 1, the link and
 #: clock tables' ``ge_slots``, ``deg``, ``drops``, ``ntp_j``, and ``ack_tables``/``x_tables``/
 #: ``x_rows`` the PUBACK and resend draw tables.
+#: ``arena``: the run-merge queue's run-arena rows.
 FIELDS: tuple[Field, ...] = (
-    Field("heap_t", _f, ("cap",), 0.0, "event heap: times"),
-    Field("heap_k", _i, ("cap",), 0.0, "event heap: keys (sequence << SLOT_BITS | slot)"),
+    Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
+    Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
     Field("ev_int", _i, ("cap", E_COLS), 0.0, "event slots: int columns E_*"),
     Field("ev_float", _f, ("cap", "pay"), 0.0, "event slots: float columns EF_* + payload"),
     Field("free", _i, ("cap",), None, "free list of event slots"),
@@ -193,6 +201,18 @@ FIELDS: tuple[Field, ...] = (
     Field("conn", _i, (4, 2, "clients"), None,
           "stream connections (down, up) per client: next seq, next to deliver, pending list"),
     Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
+    # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
+    Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
+    Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
+    Field("pend_k", _i, ("cap",), 0.0, "pending events: keys"),
+    Field("run_t", _f, ("arena",), 0.0, "run arena: times (each run sorted)"),
+    Field("run_k", _i, ("arena",), 0.0, "run arena: keys"),
+    Field("run_pos", _i, ("arena",), 0.0, "run table: arena position of each run's head"),
+    Field("run_end", _i, ("arena",), 0.0, "run table: arena end of each run"),
+    Field("run_fwd", _i, ("arena",), 0.0, "compaction scratch: new id of each run"),
+    Field("bounds", _i, ("arena",), 0.0, "sealing scratch: boundaries of sorted stretches"),
+    Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
+    Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -263,6 +283,17 @@ X_VAL = INDEX["x_val"]
 X_TAG = INDEX["x_tag"]
 CONN = INDEX["conn"]
 TR_FLOATS = INDEX["tr_floats"]
+HEAP_R = INDEX["heap_r"]
+PEND_T = INDEX["pend_t"]
+PEND_K = INDEX["pend_k"]
+RUN_T = INDEX["run_t"]
+RUN_K = INDEX["run_k"]
+RUN_POS = INDEX["run_pos"]
+RUN_END = INDEX["run_end"]
+RUN_FWD = INDEX["run_fwd"]
+BOUNDS = INDEX["bounds"]
+Q_INT = INDEX["q_int"]
+Q_FLOAT = INDEX["q_float"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

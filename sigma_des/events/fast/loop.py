@@ -3,8 +3,9 @@
 The per-message engine (:mod:`sigma_des.events.engine` over
 :mod:`sigma_des.net.network`) is the executable specification. The compiled core
 runs the same message model — access-link FIFOs, the broker's FIFO, host cores,
-node triggers, state publishes and command deliveries — as a loop over a binary
-heap of ``(time, sequence)`` keys held in numpy arrays. It performs the same
+node triggers, state publishes and command deliveries — as a loop over a k-way
+merge of sorted runs of ``(time, sequence)`` keys held in numpy arrays
+(:mod:`~sigma_des.events.fast.queue`: the heap orders only the runs' heads). It performs the same
 floating point operations in the same order as the specification and numbers
 events in the same relative order, so simultaneous events are broken the same way
 and the results are bit-identical (docs/MODEL.md, "Engines").
@@ -38,10 +39,10 @@ from sigma_des.events.fast.layout import (
     EV_INT,
     EV_RESEND,
     HEAP_K,
+    HEAP_R,
     HEAP_T,
     I_ERR,
     I_FREE,
-    I_HEAP,
     I_LAT,
     I_OUT,
     I_PEND,
@@ -57,9 +58,21 @@ from sigma_des.events.fast.layout import (
     OK,
     OUT_INT,
     Q_ACK,
+    Q_FLOAT,
+    Q_INT,
     Q_M,
     Q_N,
     Q_QOS1S,
+    QF_PMIN,
+    QI_CUR,
+    QI_HAS,
+    QI_HEAP,
+    QI_PMINK,
+    QI_PN,
+    RUN_END,
+    RUN_K,
+    RUN_POS,
+    RUN_T,
     SLOT_MASK,
     T_DRAIN,
     T_QOS1D,
@@ -69,7 +82,8 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
-from sigma_des.events.fast.primitives import alloc, count, jit, pop, release
+from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release
+from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.stream import next_ready
@@ -142,15 +156,39 @@ def _full(S):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _drain_step(S, spare):  # type: ignore[no-untyped-def]
+    """The draining stream connection's next segment: (code, slot), slot -1 at the end."""
+    if S[INTS][I_FREE] < spare:
+        return NEED_SPACE, -1
+    if _full(S):
+        return NEED_FLUSH, -1
+    return OK, next_ready(S)
+
+
+@jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
+
+    The next event is the head of the queue's current run, or of the heap's top
+    run (which then trades places with it), when it precedes the pending minimum:
+    checked here, inline, as numba passes the state tuple by value to a function
+    it does not inline; otherwise :func:`~sigma_des.events.fast.queue.first` seals
+    the pending events into a run.
 
     Returns:
         OK when done, else the reason Python must act before the next event.
     """
     iv = S[INTS]
-    ht = S[HEAP_T]
     n = S[IPARAMS][Q_N]
+    Q = view(S)
+    qi = S[Q_INT]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    pos = S[RUN_POS]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    hr = S[HEAP_R]
+    pmin = S[Q_FLOAT]
     tp = S[TR_PARAMS]
     qos1d = tp[T_QOS1D]
     attempts = qos1d or tp[T_STREAM] or tp[T_STREAM + 1]  # resends draw on demand
@@ -158,27 +196,49 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     tr = S[TR_INTS]
     while True:
         if tr[T_DRAIN]:  # a stream arrival hands its connection's segments on, in order
-            if iv[I_FREE] < spare:
-                return NEED_SPACE
-            if _full(S):
-                return NEED_FLUSH
-            s = next_ready(S)
+            code, s = _drain_step(S, spare)
+            if code != OK:
+                return code
             if s < 0:
                 continue
             t = S[TR_FLOATS][0]
         else:
-            if iv[I_HEAP] == 0:
-                return OK
-            t = ht[0]
+            c = qi[QI_CUR]
+            p = 0
+            t = 0.0
+            due = qi[QI_HAS] != 0
+            if due:
+                p = pos[c]
+                t = at[p]
+                k = ak[p]
+                nh = qi[QI_HEAP]
+                if nh > 0 and precedes(ht[0], hk[0], t, k):  # the top run's turn
+                    top = hr[0]
+                    t = ht[0]
+                    k = hk[0]
+                    replace_top(ht, hk, hr, nh, at[p], ak[p], c)
+                    c = top
+                    qi[QI_CUR] = c
+                    p = pos[c]
+                due = qi[QI_PN] == 0 or precedes(t, k, pmin[QF_PMIN], qi[QI_PMINK])
+            if not due:
+                t = first(Q)
+                if not qi[QI_HAS]:
+                    break
+                c = qi[QI_CUR]
+                p = pos[c]
             if t > t_stop or (strict and t >= t_stop):
                 return OK
             if iv[I_FREE] < spare:
                 return NEED_SPACE
             if _full(S):
                 return NEED_FLUSH
-            if attempts and missing(S, S[HEAP_K][0] & SLOT_MASK):
+            if attempts and missing(S, ak[p] & SLOT_MASK):
                 return NEED_FILL
-            s = pop(S)
+            s = ak[p] & SLOT_MASK  # take the head
+            pos[c] = p + 1
+            if p + 1 == S[RUN_END][c]:
+                qi[QI_HAS] = 0
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
@@ -195,3 +255,4 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             code = iv[I_PEND]
             iv[I_PEND] = 0
             return code
+    return OK
