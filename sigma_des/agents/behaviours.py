@@ -204,13 +204,18 @@ def route_rule(leaders: Sequence[int] = (0,), size: tuple[float, float] = (1000.
         return t
 
     def logic(_: Any, view: SwarmView) -> Array:
-        pos = view.obs[:, 9:11]
-        out = np.full((len(pos), 4), np.nan)
-        ok = ~np.isnan(pos[:, 0])
-        c = rectangle_carrot(pos[ok], size, origin, lookahead)
-        out[ok, 0] = speed
-        out[ok, 1] = np.arctan2(c[:, 1] - pos[ok, 1], c[:, 0] - pos[ok, 0])
-        out[ok, 2] = altitude
+        # only the leaders' rows: the trigger leaves every other row inactive, and
+        # guidance reads a rule's action on its active rows only (every figure of a
+        # row depends on that row alone, so the leaders' values are the same bits)
+        obs = view.obs
+        out = np.full((obs.shape[0], 4), np.nan)
+        rows = lead[lead < len(out)]
+        rows = rows[~np.isnan(obs[rows, 9])]
+        pos = obs[rows, 9:11]
+        c = rectangle_carrot(pos, size, origin, lookahead)
+        out[rows, 0] = speed
+        out[rows, 1] = np.arctan2(c[:, 1] - pos[:, 1], c[:, 0] - pos[:, 0])
+        out[rows, 2] = altitude
         return out
 
     return Rule("route", lambda v: None, trigger, 0.5, logic, weight)
