@@ -81,8 +81,9 @@ def main(argv: list[str] | None = None) -> int:
         time.sleep(a.interval)
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
-    print(f"tree_rss: exit {proc.returncode}, wall {wall:.1f} s, CPU {ru.ru_utime + ru.ru_stime:.1f}"
-          f" s (user {ru.ru_utime:.1f}), largest process (time -v) {ru.ru_maxrss / 1024:.0f} MB",
+    cpu = ru.ru_utime + ru.ru_stime
+    print(f"tree_rss: exit {proc.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s"
+          f" (user {ru.ru_utime:.1f}), largest process (time -v) {ru.ru_maxrss / 1024:.0f} MB",
           file=sys.stderr)
     order = sorted(peak, key=lambda q: -peak[q])
     print("tree_rss: per-process peak RSS MB: " + ", ".join(

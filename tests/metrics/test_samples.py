@@ -86,3 +86,37 @@ def test_trajectory_log_equals_the_stacked_interpolation() -> None:
     assert np.array_equal(got, np.stack(ref))
     log.add(0.6, np.zeros((4, 3)))  # logging on after arrays() leaves them as they were
     assert np.array_equal(got, np.stack(ref)) and log.arrays()[1].shape[0] > len(ref)
+
+
+@settings(max_examples=60, deadline=None)
+@given(chunks, st.integers(1, 9))
+def test_spilled_samples_read_back_the_same_values_in_order(
+    parts: list[list[float]], spill: int
+) -> None:
+    s = Samples(spill=spill)
+    whole: list[float] = []
+    for i, p in enumerate(parts):
+        if i % 3 == 2 and p:
+            s.append(p[0])
+            whole.append(p[0])
+        else:
+            s.extend(np.array(p, dtype=np.float64))
+            whole.extend(p)
+        assert s.resident_bytes < 16 * spill
+    got = s.values()
+    assert len(s) == len(whole) == got.size and s.nbytes == 8 * len(whole)
+    assert got.tobytes() == np.asarray(whole, dtype=np.float64).tobytes()
+    assert not got.flags.writeable
+
+
+def test_a_spilled_store_keeps_one_chunk_to_two_in_memory() -> None:
+    s = Samples(spill=4)
+    s.extend(np.arange(7.0))  # under two chunks: all in memory
+    assert s.resident_bytes == 56
+    s.append(7.0)  # 8 = two chunks: one goes to disk
+    assert s.resident_bytes == 32 and len(s) == 8
+    first = s.values()
+    s.extend(np.arange(8.0, 19.0))  # 19 values: 4 + 12 on disk, 7 (1 chunk + 3) kept
+    assert s.resident_bytes == 56
+    assert first.tolist() == list(range(8)) and s.values().tolist() == list(range(19))
+    assert Samples(spill=None).resident_bytes == 0
