@@ -3,8 +3,9 @@
 The per-message engine (:mod:`sigma_des.events.engine` over
 :mod:`sigma_des.net.network`) is the executable specification. The compiled core
 runs the same message model — access-link FIFOs, the broker's FIFO, host cores,
-node triggers, state publishes and command deliveries — as a loop over a binary
-heap of ``(time, sequence)`` keys held in numpy arrays. It performs the same
+node triggers, state publishes and command deliveries — as a loop over a k-way
+merge of sorted runs of ``(time, sequence)`` keys held in numpy arrays
+(:mod:`~sigma_des.events.fast.queue`: the heap orders only the runs' heads). It performs the same
 floating point operations in the same order as the specification and numbers
 events in the same relative order, so simultaneous events are broken the same way
 and the results are bit-identical (docs/MODEL.md, "Engines").
@@ -36,10 +37,11 @@ from sigma_des.events.fast.layout import (
     EV_CLIENT,
     EV_FLOAT,
     EV_INT,
+    HEAP_K,
+    HEAP_R,
     HEAP_T,
     I_ERR,
     I_FREE,
-    I_HEAP,
     I_LAT,
     I_OUT,
     I_PEND,
@@ -54,12 +56,26 @@ from sigma_des.events.fast.layout import (
     OK,
     OUT_INT,
     Q_ACK,
+    Q_FLOAT,
+    Q_INT,
     Q_M,
     Q_N,
     Q_QOS1S,
+    QF_PMIN,
+    QI_CUR,
+    QI_HAS,
+    QI_HEAP,
+    QI_PMINK,
+    QI_PN,
+    RUN_END,
+    RUN_K,
+    RUN_POS,
+    RUN_T,
+    SLOT_MASK,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
-from sigma_des.events.fast.primitives import alloc, count, jit, pop, release, send_up
+from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release, send_up
+from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.server import at_server, delivered
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
@@ -130,21 +146,61 @@ def _full(S):  # type: ignore[no-untyped-def]
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
 
+    The next event is the head of the queue's current run, or of the heap's top
+    run (which then trades places with it), when it precedes the pending minimum:
+    checked here, inline, as numba passes the state tuple by value to a function
+    it does not inline; otherwise :func:`~sigma_des.events.fast.queue.first` seals
+    the pending events into a run.
+
     Returns:
         OK when done, else the reason Python must act before the next event.
     """
     iv = S[INTS]
-    ht = S[HEAP_T]
     n = S[IPARAMS][Q_N]
-    while iv[I_HEAP] > 0:
-        t = ht[0]
+    Q = view(S)
+    qi = S[Q_INT]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    pos = S[RUN_POS]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    hr = S[HEAP_R]
+    pmin = S[Q_FLOAT]
+    while True:
+        c = qi[QI_CUR]
+        p = 0
+        t = 0.0
+        due = qi[QI_HAS] != 0
+        if due:
+            p = pos[c]
+            t = at[p]
+            k = ak[p]
+            nh = qi[QI_HEAP]
+            if nh > 0 and precedes(ht[0], hk[0], t, k):  # the top run's turn
+                top = hr[0]
+                t = ht[0]
+                k = hk[0]
+                replace_top(ht, hk, hr, nh, at[p], ak[p], c)
+                c = top
+                qi[QI_CUR] = c
+                p = pos[c]
+            due = qi[QI_PN] == 0 or precedes(t, k, pmin[QF_PMIN], qi[QI_PMINK])
+        if not due:
+            t = first(Q)
+            if not qi[QI_HAS]:
+                break
+            c = qi[QI_CUR]
+            p = pos[c]
         if t > t_stop or (strict and t >= t_stop):
             return OK
         if iv[I_FREE] < n + 4:
             return NEED_SPACE
         if _full(S):
             return NEED_FLUSH
-        s = pop(S)
+        s = ak[p] & SLOT_MASK  # take the head
+        pos[c] = p + 1
+        if p + 1 == S[RUN_END][c]:
+            qi[QI_HAS] = 0
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
