@@ -35,7 +35,7 @@ from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
-from sigma_des.events.jobs import job_cost
+from sigma_des.events.jobs import JobCosts
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.truth import SwarmTruth
@@ -89,6 +89,7 @@ class CompiledCore:
         sources = network_sources(host.net, p_loss)
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
+        self.costs = JobCosts(host.nodes.step_time)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
     # ------------------------------------------------------------ layout
@@ -255,16 +256,39 @@ class CompiledCore:
         if not nd[L.N_BUSY, i]:
             self._start_job(i)
 
+    def _rollback(self, i: int, c: int, current: int) -> None:
+        """Node ``i`` rolls back to frame ``c``: owe the steps now, re-simulate later.
+
+        The physics re-simulation is deferred (:meth:`SwarmTruth.defer_rollback`) and
+        the node marked in ``resim_pend``: the loop stops before the node's next
+        state publish (``NEED_RESIM``), and :meth:`advance_to` flushes before it
+        returns, so nothing reads the stale rows.
+        """
+        h = self.host
+        truth = h.truth
+        pend = self.S[L.RESIM_PEND]
+        if pend[i]:  # a second rollback of a pending node re-simulates the first
+            self.flush_rollbacks()
+        steps = truth.defer_rollback(i, c, current, h.nodes.cmd[i])
+        if truth.owes(i):
+            pend[i] = 1
+        self.add_resim(i, steps)
+
+    def flush_rollbacks(self) -> None:
+        """Re-simulate the deferred rollbacks (one batched call) and unmark their nodes."""
+        if self.host.truth.pending:
+            self.S[L.RESIM_PEND][self.host.truth.flush_rollbacks()] = 0
+
     def _start_job(self, i: int) -> None:
-        """A job start that needs Python (rollback draws): :func:`job_cost`, as the spec."""
+        """A job start that needs Python (rollback draws): :func:`~sigma_des.events.jobs.job_cost`,
+        as the spec (through :class:`~sigma_des.events.jobs.JobCosts`)."""
         now = self._t_event
         nd = self.S[L.NODE]
         target = int(nd[L.N_REQ, i])
         rb = int(nd[L.N_RB, i])
         nd[L.N_RB, i] = 0
         h = self.host.nodes
-        cost = job_cost(h.step_time, h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1,
-                        target, rb, now)
+        cost = self.costs.cost(h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1, target, rb, now)
         self.ensure_space(2)
         loop.reserve(self.S, i, target, cost, now)
 
@@ -285,7 +309,8 @@ class CompiledCore:
         """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
 
         Serves the loop's requests for Python on the way (rollbacks, job starts with
-        rollback draws, buffer flushes, table growth).
+        rollback draws, buffer flushes, table growth, deferred re-simulations) and
+        re-simulates every deferred rollback before it returns.
 
         Returns:
             True if it stopped early because a Lock-Step barrier completed (the next
@@ -300,11 +325,13 @@ class CompiledCore:
                 self._sync_barrier()
             code = loop.advance(self.S, bound, strict)
             if code == L.OK:
+                self.flush_rollbacks()
                 self.drain()
                 return False
             S = self.S
             if code == L.BARRIER:
                 # the aligner sees the completing state at its own arrival time
+                self.flush_rollbacks()
                 self.host.kernel.jump_to(float(S[L.FLOATS][L.F_PT]))
                 self.drain()
                 return True
@@ -312,15 +339,15 @@ class CompiledCore:
                 self.ensure_space(self.host.n + 8)
             elif code == L.NEED_FLUSH:
                 self.drain()
+            elif code == L.NEED_RESIM:
+                self.flush_rollbacks()
             elif code in (L.NEED_START, L.NEED_ROLLBACK):
                 self._t_event = float(S[L.FLOATS][L.F_PT])
                 i = int(S[L.INTS][L.I_PNODE])
                 if code == L.NEED_START:
                     self._start_job(i)
                 else:
-                    a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
-                    h = self.host
-                    self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
+                    self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]))
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "

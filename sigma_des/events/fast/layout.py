@@ -32,6 +32,8 @@ __all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
 EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
 # exit codes of advance()
 OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
+# P (per-frame Python path): the next event publishes a state Python still owes a re-simulation of
+NEED_RESIM = 7
 
 # message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
 K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
@@ -143,6 +145,8 @@ FIELDS: tuple[Field, ...] = (
     Field("last_float", _f, ("n", "last_w"), 0.0, "last published state: gen, HLC l, obs"),
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
     Field("seen", _i, (2, "seen_n", "seen_h"), -1.0, "Lock-Step: newest re-request/republish"),
+    # P (per-frame Python path): batched time-warp re-simulation
+    Field("resim_pend", _i, ("n",), 0.0, "node's rollback re-simulation still owed by Python"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -188,6 +192,7 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
+RESIM_PEND = INDEX["resim_pend"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

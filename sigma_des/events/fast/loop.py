@@ -12,8 +12,9 @@ and the results are bit-identical (docs/MODEL.md, "Engines").
 All state is one state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`), shared with the
 Python driver (:mod:`sigma_des.events.fast.driver`). :func:`advance` hands control
 back to Python, between two events, when something needs Python: a time-warp
-rollback (re-simulating physics), a job whose cost includes rollback draws, a full
-delivery buffer, a full event table, a completed Lock-Step barrier, or a random
+rollback (its physics re-simulation is batched: Python owes it until the node's
+next state publish, ``NEED_RESIM``), a job whose cost includes rollback draws, a
+full delivery buffer, a full event table, a completed Lock-Step barrier, or a random
 draw that is not in the draw tables (then the driver falls back to the
 per-message engine). Random numbers are never drawn here: Python fills per-index
 rows of the draw tables from the very same counter-based samplers the
@@ -50,6 +51,7 @@ from sigma_des.events.fast.layout import (
     K_TRIGGER,
     LAT_BUF,
     NEED_FLUSH,
+    NEED_RESIM,
     NEED_SPACE,
     OK,
     OUT_INT,
@@ -58,7 +60,7 @@ from sigma_des.events.fast.layout import (
     Q_N,
     Q_QOS1S,
 )
-from sigma_des.events.fast.node import at_node, done, reserve
+from sigma_des.events.fast.node import at_node, done, reserve, resim_due
 from sigma_des.events.fast.primitives import alloc, count, jit, pop, release, send_up
 from sigma_des.events.fast.server import at_server, delivered
 
@@ -144,6 +146,8 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             return NEED_SPACE
         if _full(S):
             return NEED_FLUSH
+        if resim_due(S):
+            return NEED_RESIM
         s = pop(S)
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:

@@ -20,6 +20,7 @@ from sigma_des.events.fast.layout import (
     E_FRAME,
     E_INDEX,
     E_KIND,
+    E_TYPE,
     E_WHO,
     EF_GEN,
     EF_L,
@@ -30,6 +31,7 @@ from sigma_des.events.fast.layout import (
     EV_INT,
     F_PT,
     FLOATS,
+    HEAP_K,
     HLC_C,
     HLC_L,
     HOST_OF,
@@ -63,14 +65,16 @@ from sigma_des.events.fast.layout import (
     Q_THETA,
     Q_W,
     Q_WARP,
+    RESIM_PEND,
     SLOT_FRAME,
+    SLOT_MASK,
     SLOW,
     SLOW_PTR,
     STEP,
 )
 from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, send_up
 
-__all__ = ["at_node", "done", "reserve"]
+__all__ = ["at_node", "done", "reserve", "resim_due"]
 
 
 @jit
@@ -253,6 +257,16 @@ def _command(S, s, i, now):  # type: ignore[no-untyped-def]
     _hand_over(S, NEED_ROLLBACK, i, now)
     S[INTS][I_PA] = stamp
     S[INTS][I_PB] = current
+
+
+@jit
+def resim_due(S):  # type: ignore[no-untyped-def]
+    """Whether the next event (the heap is not empty) is a job completion of a node
+    whose time-warp re-simulation Python still owes: its publish reads ``obs_hist``,
+    so Python must re-simulate first (the driver batches rollbacks until then)."""
+    s = S[HEAP_K][0] & SLOT_MASK
+    evi = S[EV_INT]
+    return evi[s, E_TYPE] == EV_DONE and S[RESIM_PEND][evi[s, E_WHO]] != 0
 
 
 @jit
