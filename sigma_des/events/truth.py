@@ -62,7 +62,10 @@ class SwarmTruth:
         self.nodes = np.arange(n, dtype=np.int64)
         self.initial = dynamics.initial_state(n)
         self.state = self.initial.copy()
-        self.ckpt = np.zeros(((H if checkpoints else 0),) + self.state.shape)
+        # uninitialised (a slot is read only once written, see _checkpoint): a fresh
+        # zeroed array of this size faults its pages in one by one at first touch,
+        # ~10x the cost of np.empty's (huge-page) memory on Linux
+        self.ckpt = np.empty(((H if checkpoints else 0),) + self.state.shape)
         self.obs_hist = np.full((H, n, OBS_COLUMNS), np.nan)
         self.slot_frame = np.full(H, -1, dtype=np.int64)
         self.frame_dt = np.zeros(H)
@@ -134,7 +137,7 @@ class SwarmTruth:
         H = self.H
         latest = self.latest
         c = max(c, max(0, latest - H + 2))
-        prev = self.initial[i] if c == 0 else self.ckpt[(c - 1) % H, i]
+        prev = self._checkpoint(i, c)
         s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
         if step_frames is not None and c <= latest:
@@ -159,6 +162,19 @@ class SwarmTruth:
         self.rollbacks += 1
         self.resim_steps += steps
         return steps
+
+    def _checkpoint(self, i: int, c: int) -> NDArray[np.float64]:
+        """Node ``i``'s state before frame ``c``: its checkpoint of frame ``c - 1``.
+
+        The initial state for ``c = 0``; a ring slot never written reads as zeros (the
+        ring's former ``np.zeros`` fill; unreachable: a rollback's ``c`` is held).
+        """
+        if c == 0:
+            return self.initial[i]
+        slot = (c - 1) % self.H
+        if self.slot_frame[slot] < 0:
+            return np.zeros(self.state.shape[1])
+        return self.ckpt[slot, i]
 
     def defer_rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> int:
         """:meth:`rollback`, its re-simulation owed until :meth:`flush_rollbacks`.
@@ -205,7 +221,7 @@ class SwarmTruth:
         rows = np.array([p[2] for p in pend], dtype=np.float64)
         cur = np.empty((nodes.size, self.state.shape[1]))
         for k, (i, c, _row) in enumerate(pend):
-            cur[k] = self.initial[i] if c == 0 else self.ckpt[(c - 1) % H, i]
+            cur[k] = self._checkpoint(i, c)
         m = 0
         for f in range(int(first[0]), latest + 1):
             while m < nodes.size and first[m] <= f:
