@@ -33,6 +33,7 @@ from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
+from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.fast.tables import DrawTables, network_sources
 from sigma_des.events.jobs import JobCosts
@@ -100,8 +101,9 @@ class CompiledCore:
         M = int(h.nodes.cmd.shape[1])
         pay = L.EF_PAY + max(OBS_WIDTH, M)
         lockstep = self._lockstep
+        cap = 4 * (n + 1) + SLACK
         return {
-            "cap": 4 * (n + 1) + SLACK, "n": n, "clients": n + 1, "links": spec.hosts + 1,
+            "cap": cap, "arena": ARENA * cap, "n": n, "clients": n + 1, "links": spec.hosts + 1,
             "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
             "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
@@ -180,21 +182,29 @@ class CompiledCore:
         }
 
     def ensure_space(self, k: int) -> None:
-        """Grow the event table unless ``k`` slots (plus a fan-out) are free."""
+        """Grow the event table unless ``k`` slots (plus a fan-out) are free.
+
+        Every array of ``cap`` rows grows with it (the queue's heap and pending
+        buffer, whose sizes it bounds), and the run arena to ``ARENA`` times it;
+        their contents keep their positions.
+        """
         S = self.S
         iv = S[L.INTS]
         if iv[L.I_FREE] >= k + self.host.n + 4:
             return
-        old = S[L.HEAP_T].size
+        old = S[L.EV_INT].shape[0]
         new = 2 * old + k
         if new > L.MAX_SLOTS:
             raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
         grown: dict[str, NDArray[Any]] = {}
-        for name in ("heap_t", "heap_k", "ev_int", "ev_float"):
-            a = S[L.INDEX[name]]
-            b = np.zeros((new,) + a.shape[1:], dtype=a.dtype)
-            b[:old] = a
-            grown[name] = b
+        for f in L.FIELDS:
+            if f.fill is None or f.shape[0] not in ("cap", "arena"):
+                continue
+            a = S[L.INDEX[f.name]]
+            b = np.zeros((new if f.shape[0] == "cap" else ARENA * new,) + a.shape[1:],
+                         dtype=a.dtype)
+            b[: a.shape[0]] = a
+            grown[f.name] = b
         nfree = int(iv[L.I_FREE])
         free = np.zeros(new, dtype=np.int64)
         free[:nfree] = S[L.FREE][:nfree]

@@ -40,17 +40,24 @@ K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
 #: message kinds + 1 (kind 0 is the compute source's key in the draw tables)
 N_KINDS = len(Kind) + 1
 
-# heap keys pack (sequence << SLOT_BITS) | event slot into one int64
+# queue keys pack (sequence << SLOT_BITS) | event slot into one int64
 SLOT_BITS = 24
 SLOT_MASK = (1 << SLOT_BITS) - 1
 MAX_SLOTS = 1 << SLOT_BITS
 
-# int scalars (S.ints)
+# int scalars (S.ints); I_HEAP is unused since the run-merge queue (its scalars are Q_INT's)
 I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NEV, I_ERR = range(12)
 I_LAT = 12  # three counters: trigger, state, command latencies buffered
 I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
 I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
 I_LEN = 19
+# run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
+# runs sealed since the last compaction, heap size, current run and whether there is one
+QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
+QI_LEN = 7
+# run-merge queue float scalars (S.q_float): the pending minimum's time
+QF_PMIN = 0
+QF_LEN = 1
 # float scalars (S.floats)
 F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
 F_LEN = 4
@@ -100,14 +107,14 @@ class Field:
 _f, _i = np.float64, np.int64
 
 #: The state of the compiled core, in order. Dimensions: ``cap`` event slots,
-#: ``n`` nodes, ``clients`` = n + 1 (the server is client n), ``links`` = hosts + 1
-#: access links, ``hosts``, ``cores``, ``tables`` draw-table rows, ``H`` history
-#: frames, ``W`` observation width, ``M`` command width, ``pay`` event float columns,
-#: ``out``/``lat`` delivery buffer capacities, ``slow`` slow-fault windows,
-#: ``seen_n``/``seen_h`` Lock-Step duplicate table.
+#: ``arena`` run-arena rows, ``n`` nodes, ``clients`` = n + 1 (the server is
+#: client n), ``links`` = hosts + 1 access links, ``hosts``, ``cores``, ``tables``
+#: draw-table rows, ``H`` history frames, ``W`` observation width, ``M`` command
+#: width, ``pay`` event float columns, ``out``/``lat`` delivery buffer capacities,
+#: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` Lock-Step duplicate table.
 FIELDS: tuple[Field, ...] = (
-    Field("heap_t", _f, ("cap",), 0.0, "event heap: times"),
-    Field("heap_k", _i, ("cap",), 0.0, "event heap: keys (sequence << SLOT_BITS | slot)"),
+    Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
+    Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
     Field("ev_int", _i, ("cap", E_COLS), 0.0, "event slots: int columns E_*"),
     Field("ev_float", _f, ("cap", "pay"), 0.0, "event slots: float columns EF_* + payload"),
     Field("free", _i, ("cap",), None, "free list of event slots"),
@@ -145,6 +152,18 @@ FIELDS: tuple[Field, ...] = (
     Field("last_float", _f, ("n", "last_w"), 0.0, "last published state: gen, HLC l, obs"),
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
     Field("seen", _i, (2, "seen_n", "seen_h"), -1.0, "Lock-Step: newest re-request/republish"),
+    # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
+    Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
+    Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
+    Field("pend_k", _i, ("cap",), 0.0, "pending events: keys"),
+    Field("run_t", _f, ("arena",), 0.0, "run arena: times (each run sorted)"),
+    Field("run_k", _i, ("arena",), 0.0, "run arena: keys"),
+    Field("run_pos", _i, ("arena",), 0.0, "run table: arena position of each run's head"),
+    Field("run_end", _i, ("arena",), 0.0, "run table: arena end of each run"),
+    Field("run_fwd", _i, ("arena",), 0.0, "compaction scratch: new id of each run"),
+    Field("bounds", _i, ("arena",), 0.0, "sealing scratch: boundaries of sorted stretches"),
+    Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
+    Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
     # P (per-frame Python path): batched time-warp re-simulation
     Field("resim_pend", _i, ("n",), 0.0, "node's rollback re-simulation still owed by Python"),
 )
@@ -192,6 +211,17 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
+HEAP_R = INDEX["heap_r"]
+PEND_T = INDEX["pend_t"]
+PEND_K = INDEX["pend_k"]
+RUN_T = INDEX["run_t"]
+RUN_K = INDEX["run_k"]
+RUN_POS = INDEX["run_pos"]
+RUN_END = INDEX["run_end"]
+RUN_FWD = INDEX["run_fwd"]
+BOUNDS = INDEX["bounds"]
+Q_INT = INDEX["q_int"]
+Q_FLOAT = INDEX["q_float"]
 RESIM_PEND = INDEX["resim_pend"]
 
 

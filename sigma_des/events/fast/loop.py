@@ -3,8 +3,9 @@
 The per-message engine (:mod:`sigma_des.events.engine` over
 :mod:`sigma_des.net.network`) is the executable specification. The compiled core
 runs the same message model — access-link FIFOs, the broker's FIFO, host cores,
-node triggers, state publishes and command deliveries — as a loop over a binary
-heap of ``(time, sequence)`` keys held in numpy arrays. It performs the same
+node triggers, state publishes and command deliveries — as a loop over a k-way
+merge of sorted runs of ``(time, sequence)`` keys held in numpy arrays
+(:mod:`~sigma_des.events.fast.queue`: the heap orders only the runs' heads). It performs the same
 floating point operations in the same order as the specification and numbers
 events in the same relative order, so simultaneous events are broken the same way
 and the results are bit-identical (docs/MODEL.md, "Engines").
@@ -37,10 +38,8 @@ from sigma_des.events.fast.layout import (
     EV_CLIENT,
     EV_FLOAT,
     EV_INT,
-    HEAP_T,
     I_ERR,
     I_FREE,
-    I_HEAP,
     I_LAT,
     I_OUT,
     I_PEND,
@@ -56,12 +55,15 @@ from sigma_des.events.fast.layout import (
     OK,
     OUT_INT,
     Q_ACK,
+    Q_INT,
     Q_M,
     Q_N,
     Q_QOS1S,
+    QI_HAS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve, resim_due
-from sigma_des.events.fast.primitives import alloc, count, jit, pop, release, send_up
+from sigma_des.events.fast.primitives import alloc, count, jit, release, send_up
+from sigma_des.events.fast.queue import peek, take
 from sigma_des.events.fast.server import at_server, delivered
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
@@ -136,10 +138,12 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
         OK when done, else the reason Python must act before the next event.
     """
     iv = S[INTS]
-    ht = S[HEAP_T]
+    qi = S[Q_INT]
     n = S[IPARAMS][Q_N]
-    while iv[I_HEAP] > 0:
-        t = ht[0]
+    while True:
+        t = peek(S)
+        if not qi[QI_HAS]:
+            break
         if t > t_stop or (strict and t >= t_stop):
             return OK
         if iv[I_FREE] < n + 4:
@@ -148,7 +152,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             return NEED_FLUSH
         if resim_due(S):
             return NEED_RESIM
-        s = pop(S)
+        s = take(S)
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)

@@ -31,7 +31,6 @@ from sigma_des.events.fast.layout import (
     EV_INT,
     F_PT,
     FLOATS,
-    HEAP_K,
     HLC_C,
     HLC_L,
     HOST_OF,
@@ -60,12 +59,16 @@ from sigma_des.events.fast.layout import (
     NODE,
     OBS_HIST,
     Q_HLC,
+    Q_INT,
     Q_LOCK,
     Q_M,
     Q_THETA,
     Q_W,
     Q_WARP,
+    QI_CUR,
     RESIM_PEND,
+    RUN_K,
+    RUN_POS,
     SLOT_FRAME,
     SLOT_MASK,
     SLOW,
@@ -261,10 +264,11 @@ def _command(S, s, i, now):  # type: ignore[no-untyped-def]
 
 @jit
 def resim_due(S):  # type: ignore[no-untyped-def]
-    """Whether the next event (the heap is not empty) is a job completion of a node
+    """Whether the next event (the head of the queue's current run, after
+    :func:`~sigma_des.events.fast.queue.peek` found one) is a job completion of a node
     whose time-warp re-simulation Python still owes: its publish reads ``obs_hist``,
     so Python must re-simulate first (the driver batches rollbacks until then)."""
-    s = S[HEAP_K][0] & SLOT_MASK
+    s = S[RUN_K][S[RUN_POS][S[Q_INT][QI_CUR]]] & SLOT_MASK
     evi = S[EV_INT]
     return evi[s, E_TYPE] == EV_DONE and S[RESIM_PEND][evi[s, E_WHO]] != 0
 

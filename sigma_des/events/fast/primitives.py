@@ -1,8 +1,9 @@
-"""Primitives of the compiled message core: heap, event slots, draws, link hops.
+"""Primitives of the compiled message core: queueing, event slots, draws, link hops.
 
 The handlers (:mod:`~sigma_des.events.fast.broker`,
 :mod:`~sigma_des.events.fast.node`, :mod:`~sigma_des.events.fast.server`) build on
-these: the binary heap of ``(time, sequence)`` keys, the event-slot free list, the
+these: queueing an event (keyed ``(time, sequence)``, taken in that order by
+:mod:`~sigma_des.events.fast.queue`), the event-slot free list, the
 draw-table lookup and one hop over an access link (FIFO serialization, latency,
 loss) — each the same floating point operations, in the same order, as
 :mod:`sigma_des.net.network`. The state ``S`` is a
@@ -32,12 +33,9 @@ from sigma_des.events.fast.layout import (
     FREE,
     G_END,
     G_WARMUP,
-    HEAP_K,
-    HEAP_T,
     I_EID,
     I_ERR,
     I_FREE,
-    I_HEAP,
     I_NEV,
     INTS,
     IPARAMS,
@@ -46,9 +44,15 @@ from sigma_des.events.fast.layout import (
     LINK_OF,
     LINK_SPB,
     P_LOSS,
+    PEND_K,
+    PEND_T,
+    Q_FLOAT,
+    Q_INT,
     Q_N,
+    QF_PMIN,
+    QI_PMINK,
+    QI_PN,
     SLOT_BITS,
-    SLOT_MASK,
     U_OFFSET,
     WIRE_BYTES,
 )
@@ -74,7 +78,7 @@ def in_window(S, t):  # type: ignore[no-untyped-def]
     return g[G_WARMUP] <= t and t < g[G_END]
 
 
-# ---------------------------------------------------------------- heap and slots
+# ---------------------------------------------------------------- queueing and slots
 
 
 @jit
@@ -84,55 +88,26 @@ def precedes(t1, k1, t2, k2):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _put(ht, hk, i, t, key):  # type: ignore[no-untyped-def]
-    ht[i] = t
-    hk[i] = key
-
-
-@jit
 def push(S, t, slot):  # type: ignore[no-untyped-def]
-    ht = S[HEAP_T]
-    hk = S[HEAP_K]
+    """Queue an event at ``t`` for ``slot``; its sequence number is the creation order.
+
+    The event joins the pending buffer of :mod:`~sigma_des.events.fast.queue`
+    (sealed into a sorted run before it could be due); its minimum is kept.
+    """
     iv = S[INTS]
     e = iv[I_EID]
     iv[I_EID] = e + 1
     iv[I_NEV] += 1
     key = (e << SLOT_BITS) | slot  # sequence number first: it alone orders equal times
-    i = iv[I_HEAP]
-    iv[I_HEAP] = i + 1
-    while i > 0:
-        p = (i - 1) >> 1
-        if not precedes(t, key, ht[p], hk[p]):
-            break
-        _put(ht, hk, i, ht[p], hk[p])
-        i = p
-    _put(ht, hk, i, t, key)
-
-
-@jit
-def pop(S):  # type: ignore[no-untyped-def]
-    ht = S[HEAP_T]
-    hk = S[HEAP_K]
-    iv = S[INTS]
-    n = iv[I_HEAP] - 1
-    iv[I_HEAP] = n
-    top = hk[0] & SLOT_MASK
-    if n > 0:
-        t = ht[n]
-        key = hk[n]
-        i = 0
-        while True:
-            c = 2 * i + 1
-            if c >= n:
-                break
-            if c + 1 < n and precedes(ht[c + 1], hk[c + 1], ht[c], hk[c]):
-                c += 1
-            if not precedes(ht[c], hk[c], t, key):
-                break
-            _put(ht, hk, i, ht[c], hk[c])
-            i = c
-        _put(ht, hk, i, t, key)
-    return top
+    qi = S[Q_INT]
+    m = qi[QI_PN]
+    S[PEND_T][m] = t
+    S[PEND_K][m] = key
+    qi[QI_PN] = m + 1
+    qf = S[Q_FLOAT]
+    if m == 0 or t < qf[QF_PMIN]:  # a later key at an equal time never comes first
+        qf[QF_PMIN] = t
+        qi[QI_PMINK] = key
 
 
 @jit

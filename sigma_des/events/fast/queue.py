@@ -1,0 +1,307 @@
+"""The compiled core's event queue: a k-way merge of sorted runs (docs/MODEL.md, "Engines").
+
+The specification orders events totally by ``(time, sequence)``, the sequence
+being the creation (push) order. :func:`~sigma_des.events.fast.primitives.push`
+appends each new event to the *pending* buffer, which is therefore in sequence
+order, and tracks the pending minimum in O(1). Before an event is taken
+(:func:`peek`), the pending buffer is *sealed* if its minimum would come first:
+sorted by ``(time, sequence)`` (a natural merge sort, linear on the nearly sorted
+batches of a broadcast) into one *run*, an array segment of the *arena*. The
+heap holds only the heads of runs; the *current* run, whose head is the earliest
+event, stays out of it and is consumed without any heap operation while its next
+element precedes both the heap's top and the pending minimum. Every comparison is
+the specification's ``(time, sequence)`` comparison on unique keys, so events come
+out in exactly the order of one heap of all events.
+
+Capacity: every queued event holds its own event slot, so the pending buffer
+(``cap``) and the live part of the arena never exceed the event table; the arena
+(``arena`` = :data:`ARENA` x ``cap``) is compacted in place when its top is
+reached, and grows with the event table (``CompiledCore.ensure_space``).
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.layout import (
+    BOUNDS,
+    HEAP_K,
+    HEAP_R,
+    HEAP_T,
+    PEND_K,
+    PEND_T,
+    Q_FLOAT,
+    Q_INT,
+    QF_PMIN,
+    QI_ATOP,
+    QI_CUR,
+    QI_HAS,
+    QI_HEAP,
+    QI_NRUN,
+    QI_PMINK,
+    QI_PN,
+    RUN_END,
+    RUN_FWD,
+    RUN_K,
+    RUN_POS,
+    RUN_T,
+    SLOT_MASK,
+)
+from sigma_des.events.fast.primitives import jit, precedes
+
+__all__ = ["ARENA", "peek", "take"]
+
+#: Size of the run arena in event-table rows (compaction every ~ARENA x cap events).
+ARENA = 4
+
+# ---------------------------------------------------------------- heap of run heads
+
+
+@jit
+def _hput(S, i, t, k, r):  # type: ignore[no-untyped-def]
+    S[HEAP_T][i] = t
+    S[HEAP_K][i] = k
+    S[HEAP_R][i] = r
+
+
+@jit
+def _sift_up(S, i, t, k, r):  # type: ignore[no-untyped-def]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    hr = S[HEAP_R]
+    while i > 0:
+        p = (i - 1) >> 1
+        if not precedes(t, k, ht[p], hk[p]):
+            break
+        _hput(S, i, ht[p], hk[p], hr[p])
+        i = p
+    _hput(S, i, t, k, r)
+
+
+@jit
+def _sift_down(S, n, t, k, r):  # type: ignore[no-untyped-def]
+    """Place head ``(t, k)`` of run ``r`` at the root of the ``n``-entry heap."""
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    hr = S[HEAP_R]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            break
+        if c + 1 < n and precedes(ht[c + 1], hk[c + 1], ht[c], hk[c]):
+            c += 1
+        if not precedes(ht[c], hk[c], t, k):
+            break
+        _hput(S, i, ht[c], hk[c], hr[c])
+        i = c
+    _hput(S, i, t, k, r)
+
+
+@jit
+def _push_run(S, t, k, r):  # type: ignore[no-untyped-def]
+    qi = S[Q_INT]
+    i = qi[QI_HEAP]
+    qi[QI_HEAP] = i + 1
+    _sift_up(S, i, t, k, r)
+
+
+@jit
+def _pop_run(S):  # type: ignore[no-untyped-def]
+    """Remove the top run of the heap; return its id."""
+    qi = S[Q_INT]
+    r = S[HEAP_R][0]
+    n = qi[QI_HEAP] - 1
+    qi[QI_HEAP] = n
+    if n > 0:
+        _sift_down(S, n, S[HEAP_T][n], S[HEAP_K][n], S[HEAP_R][n])
+    return r
+
+
+# ---------------------------------------------------------------- sealing
+
+
+@jit
+def _merge(xt, xk, xo, yt, yk, yo, lo, mid, hi):  # type: ignore[no-untyped-def]
+    """Merge sorted ``x[xo+lo:xo+mid]`` and ``x[xo+mid:xo+hi]`` into ``y[yo+lo:yo+hi]``."""
+    i = lo
+    j = mid
+    o = yo + lo
+    while i < mid and j < hi:
+        if precedes(xt[xo + j], xk[xo + j], xt[xo + i], xk[xo + i]):
+            yt[o] = xt[xo + j]
+            yk[o] = xk[xo + j]
+            j += 1
+        else:
+            yt[o] = xt[xo + i]
+            yk[o] = xk[xo + i]
+            i += 1
+        o += 1
+    while i < mid:
+        yt[o] = xt[xo + i]
+        yk[o] = xk[xo + i]
+        i += 1
+        o += 1
+    while j < hi:
+        yt[o] = xt[xo + j]
+        yk[o] = xk[xo + j]
+        j += 1
+        o += 1
+
+
+@jit
+def _sort_pending(S, m, a):  # type: ignore[no-untyped-def]
+    """Sort the ``m`` pending events by ``(t, key)`` into the arena at ``a``.
+
+    A natural merge sort: the ascending stretches of the pending buffer are merged
+    pairwise, pass after pass, between the pending buffer and the arena segment.
+    """
+    pt = S[PEND_T]
+    pk = S[PEND_K]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    b = S[BOUNDS]
+    nr = 0
+    b[0] = 0
+    for i in range(1, m):
+        if precedes(pt[i], pk[i], pt[i - 1], pk[i - 1]):
+            nr += 1
+            b[nr] = i
+    nr += 1
+    b[nr] = m
+    in_pending = True
+    while nr > 1:
+        j = 0
+        for r in range(0, nr, 2):
+            lo = b[r]
+            hi = b[r + 2] if r + 2 <= nr else b[r + 1]
+            mid = b[r + 1] if r + 1 < nr else hi
+            if in_pending:
+                _merge(pt, pk, 0, at, ak, a, lo, mid, hi)
+            else:
+                _merge(at, ak, a, pt, pk, 0, lo, mid, hi)
+            b[j] = lo
+            j += 1
+        b[j] = m
+        nr = j
+        in_pending = not in_pending
+    if in_pending:
+        for i in range(m):
+            at[a + i] = pt[i]
+            ak[a + i] = pk[i]
+
+
+@jit
+def _compact(S):  # type: ignore[no-untyped-def]
+    """Move the live runs to the front of the arena, renumbering them in order.
+
+    Runs are numbered in the order they were sealed, which is their order in the
+    arena, so one pass moves every live segment down; the heap's run ids (and the
+    current run's) follow the renumbering.
+    """
+    qi = S[Q_INT]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    pos = S[RUN_POS]
+    end = S[RUN_END]
+    fwd = S[RUN_FWD]
+    dst = 0
+    j = 0
+    for r in range(qi[QI_NRUN]):
+        p = pos[r]
+        e = end[r]
+        fwd[r] = j
+        if p == e:
+            continue
+        pos[j] = dst
+        for i in range(p, e):
+            at[dst] = at[i]
+            ak[dst] = ak[i]
+            dst += 1
+        end[j] = dst
+        j += 1
+    qi[QI_NRUN] = j
+    qi[QI_ATOP] = dst
+    hr = S[HEAP_R]
+    for h in range(qi[QI_HEAP]):
+        hr[h] = fwd[hr[h]]
+    if qi[QI_HAS]:
+        qi[QI_CUR] = fwd[qi[QI_CUR]]
+
+
+@jit
+def _seal(S):  # type: ignore[no-untyped-def]
+    """Sort the pending events into a new run; return its id."""
+    qi = S[Q_INT]
+    m = qi[QI_PN]
+    cap = S[RUN_T].shape[0]
+    if qi[QI_ATOP] + m > cap or qi[QI_NRUN] >= cap:
+        _compact(S)
+    a = qi[QI_ATOP]
+    _sort_pending(S, m, a)
+    r = qi[QI_NRUN]
+    qi[QI_NRUN] = r + 1
+    S[RUN_POS][r] = a
+    S[RUN_END][r] = a + m
+    qi[QI_ATOP] = a + m
+    qi[QI_PN] = 0
+    return r
+
+
+# ---------------------------------------------------------------- taking events
+
+
+@jit
+def peek(S):  # type: ignore[no-untyped-def]
+    """Make the earliest queued event the head of the current run.
+
+    Returns:
+        Its time; the queue is empty if ``S[Q_INT][QI_HAS]`` is 0 afterwards.
+    """
+    qi = S[Q_INT]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    has = qi[QI_HAS]
+    c = qi[QI_CUR]
+    ct = 0.0
+    ck = 0
+    if has:
+        p = S[RUN_POS][c]
+        ct = at[p]
+        ck = ak[p]
+    if qi[QI_HEAP] > 0 and (not has or precedes(S[HEAP_T][0], S[HEAP_K][0], ct, ck)):
+        top = S[HEAP_R][0]
+        ht = S[HEAP_T][0]
+        hk = S[HEAP_K][0]
+        if has:  # the current run goes back into the heap in the top's place
+            _sift_down(S, qi[QI_HEAP], ct, ck, c)
+        else:
+            _pop_run(S)
+        c = top
+        ct = ht
+        ck = hk
+        has = 1
+    if qi[QI_PN] > 0:
+        pt = S[Q_FLOAT][QF_PMIN]
+        pk = qi[QI_PMINK]
+        if not has or precedes(pt, pk, ct, ck):
+            if has:
+                _push_run(S, ct, ck, c)
+            qi[QI_HAS] = 0  # the sealing may renumber runs: only heap ids follow
+            c = _seal(S)
+            ct = pt
+            has = 1
+    qi[QI_HAS] = has
+    qi[QI_CUR] = c
+    return ct
+
+
+@jit
+def take(S):  # type: ignore[no-untyped-def]
+    """Remove the head of the current run (after :func:`peek`); return its event slot."""
+    qi = S[Q_INT]
+    c = qi[QI_CUR]
+    pos = S[RUN_POS]
+    p = pos[c]
+    pos[c] = p + 1
+    if p + 1 == S[RUN_END][c]:
+        qi[QI_HAS] = 0
+    return S[RUN_K][p] & SLOT_MASK
