@@ -282,12 +282,15 @@ class CompiledCore:
         steps = truth.defer_rollback(i, c, current, h.nodes.cmd[i])
         if truth.owes(i):
             pend[i] = 1
+            pend[h.n] = 1  # some node is pending
         self.add_resim(i, steps)
 
     def flush_rollbacks(self) -> None:
         """Re-simulate the deferred rollbacks (one batched call) and unmark their nodes."""
         if self.host.truth.pending:
-            self.S[L.RESIM_PEND][self.host.truth.flush_rollbacks()] = 0
+            pend = self.S[L.RESIM_PEND]
+            pend[self.host.truth.flush_rollbacks()] = 0
+            pend[self.host.n] = 0  # the flush re-simulated every pending node
 
     def _start_job(self, i: int) -> None:
         """A job start that needs Python (rollback draws): :func:`~sigma_des.events.jobs.job_cost`,

@@ -165,7 +165,8 @@ FIELDS: tuple[Field, ...] = (
     Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
     Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
     # P (per-frame Python path): batched time-warp re-simulation
-    Field("resim_pend", _i, ("n",), 0.0, "node's rollback re-simulation still owed by Python"),
+    Field("resim_pend", _i, ("clients",), 0.0,
+          "node's rollback re-simulation still owed by Python; [n]: any node's"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.

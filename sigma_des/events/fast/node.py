@@ -62,6 +62,7 @@ from sigma_des.events.fast.layout import (
     Q_INT,
     Q_LOCK,
     Q_M,
+    Q_N,
     Q_THETA,
     Q_W,
     Q_WARP,
@@ -267,10 +268,14 @@ def resim_due(S):  # type: ignore[no-untyped-def]
     """Whether the next event (the head of the queue's current run, after
     :func:`~sigma_des.events.fast.queue.peek` found one) is a job completion of a node
     whose time-warp re-simulation Python still owes: its publish reads ``obs_hist``,
-    so Python must re-simulate first (the driver batches rollbacks until then)."""
+    so Python must re-simulate first (the driver batches rollbacks until then).
+    ``resim_pend[n]`` says whether any node is pending: one read per event otherwise."""
+    pend = S[RESIM_PEND]
+    if pend[S[IPARAMS][Q_N]] == 0:
+        return False
     s = S[RUN_K][S[RUN_POS][S[Q_INT][QI_CUR]]] & SLOT_MASK
     evi = S[EV_INT]
-    return evi[s, E_TYPE] == EV_DONE and S[RESIM_PEND][evi[s, E_WHO]] != 0
+    return evi[s, E_TYPE] == EV_DONE and pend[evi[s, E_WHO]] != 0
 
 
 @jit
