@@ -34,8 +34,20 @@ from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.queue import ARENA
-from sigma_des.events.fast.support import CohortFallback, unsupported
-from sigma_des.events.fast.tables import DrawTables, network_sources
+from sigma_des.events.fast.support import (
+    TABLE_MARGIN,
+    CohortFallback,
+    ge_slots,
+    ntp_syncs,
+    unsupported,
+)
+from sigma_des.events.fast.tables import (
+    DrawTables,
+    clock_tables,
+    link_tables,
+    lossy_classes,
+    network_sources,
+)
 from sigma_des.events.jobs import JobCosts
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
@@ -87,7 +99,7 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
-        sources = network_sources(host.net, p_loss)
+        sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.costs = JobCosts(host.nodes.step_time)
@@ -110,6 +122,10 @@ class CompiledCore:
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step only)
             "seen_n": n + 1 if lockstep else 1, "seen_h": spec.history_frames if lockstep else 1,
+            # link and clock tables (Gilbert–Elliott, degrade, drop, NTP)
+            "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
+            "deg": max(1, len(spec.net.degrades)), "drops": max(1, len(spec.net.drops)),
+            "ntp_j": ntp_syncs(spec),
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -179,6 +195,7 @@ class CompiledCore:
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
             **self._links(), **self._nodes(),
+            **link_tables(h.net, spec), **clock_tables(h.nodes.clocks, spec),
         }
 
     def ensure_space(self, k: int) -> None:
@@ -361,6 +378,11 @@ class CompiledCore:
                     self._start_job(i)
                 else:
                     self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]))
+            elif int(S[L.INTS][L.I_ERR]) == L.ERR_HORIZON:
+                raise CohortFallback(
+                    "a send or clock reading beyond the link and clock tables "
+                    f"(the run's end + {TABLE_MARGIN} s)"
+                )
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "

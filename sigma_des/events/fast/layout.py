@@ -111,7 +111,9 @@ _f, _i = np.float64, np.int64
 #: client n), ``links`` = hosts + 1 access links, ``hosts``, ``cores``, ``tables``
 #: draw-table rows, ``H`` history frames, ``W`` observation width, ``M`` command
 #: width, ``pay`` event float columns, ``out``/``lat`` delivery buffer capacities,
-#: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` Lock-Step duplicate table.
+#: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` Lock-Step duplicate table,
+#: ``links_1`` = links + 1, and the link and clock tables' ``ge_slots``, ``deg``,
+#: ``drops``, ``ntp_j``.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
@@ -164,6 +166,17 @@ FIELDS: tuple[Field, ...] = (
     Field("bounds", _i, ("arena",), 0.0, "sealing scratch: boundaries of sorted stretches"),
     Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
     Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
+    # F1, link-level features (Gilbert–Elliott loss, degrade and drop faults, NTP clocks):
+    # ``ge_slots`` chain slots, ``deg`` degrade windows, ``drops`` dropped keys,
+    # ``ntp_j`` NTP sync instants (each table bounded by the run's end + a margin)
+    Field("link_dyn", _i, (4,), None, "link features on: GE host, GE server, degrade, drops"),
+    Field("ge_par", _f, (2, 3), None, "Gilbert-Elliott per link class: slot, loss_good, loss_bad"),
+    Field("ge_bad", np.uint8, (2, "links", "ge_slots"), None, "GE chain (down, up): bad per slot"),
+    Field("deg_ptr", _i, ("links_1",), None, "degrade windows of link k: rows ptr[k]:ptr[k+1]"),
+    Field("deg", _f, ("deg", 4), None, "degrade windows in fault order (start, end, delay, loss)"),
+    Field("drops", _i, ("drops", 3), None, "drop faults' (kind, subject, index), sorted"),
+    Field("ntp_period", _f, (1,), None, "NTP period (0: no NTP)"),
+    Field("ntp_res", _f, ("n", "ntp_j"), None, "NTP residual of node i after sync j (j >= 1)"),
     # P (per-frame Python path): batched time-warp re-simulation
     Field("resim_pend", _i, ("clients",), 0.0,
           "node's rollback re-simulation still owed by Python; [n]: any node's"),
@@ -223,6 +236,18 @@ RUN_FWD = INDEX["run_fwd"]
 BOUNDS = INDEX["bounds"]
 Q_INT = INDEX["q_int"]
 Q_FLOAT = INDEX["q_float"]
+# F1, link-level features
+LINK_DYN = INDEX["link_dyn"]
+GE_PAR = INDEX["ge_par"]
+GE_BAD = INDEX["ge_bad"]
+DEG_PTR = INDEX["deg_ptr"]
+DEG = INDEX["deg"]
+DROPS = INDEX["drops"]
+NTP_PERIOD = INDEX["ntp_period"]
+NTP_RES = INDEX["ntp_res"]
+#: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
+#: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
+ERR_HORIZON = 2
 RESIM_PEND = INDEX["resim_pend"]
 
 

@@ -36,8 +36,12 @@ from sigma_des.events.fast.layout import (
     EF_TPUB,
     EV_BROKER,
     EV_CLIENT,
+    EV_DONE,
     EV_FLOAT,
     EV_INT,
+    HEAP_K,
+    HEAP_R,
+    HEAP_T,
     I_ERR,
     I_FREE,
     I_LAT,
@@ -55,15 +59,27 @@ from sigma_des.events.fast.layout import (
     OK,
     OUT_INT,
     Q_ACK,
+    Q_FLOAT,
     Q_INT,
     Q_M,
     Q_N,
     Q_QOS1S,
+    QF_PMIN,
+    QI_CUR,
     QI_HAS,
+    QI_HEAP,
+    QI_PMINK,
+    QI_PN,
+    RESIM_PEND,
+    RUN_END,
+    RUN_K,
+    RUN_POS,
+    RUN_T,
+    SLOT_MASK,
 )
-from sigma_des.events.fast.node import at_node, done, reserve, resim_due
-from sigma_des.events.fast.primitives import alloc, count, jit, release, send_up
-from sigma_des.events.fast.queue import peek, take
+from sigma_des.events.fast.node import at_node, done, reserve
+from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release, send_up
+from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.server import at_server, delivered
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
@@ -134,25 +150,64 @@ def _full(S):  # type: ignore[no-untyped-def]
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
 
+    The next event is the head of the queue's current run, or of the heap's top
+    run (which then trades places with it), when it precedes the pending minimum:
+    checked here, inline, as numba passes the state tuple by value to a function
+    it does not inline; otherwise :func:`~sigma_des.events.fast.queue.first` seals
+    the pending events into a run.
+
     Returns:
         OK when done, else the reason Python must act before the next event.
     """
     iv = S[INTS]
-    qi = S[Q_INT]
     n = S[IPARAMS][Q_N]
+    Q = view(S)
+    qi = S[Q_INT]
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    pos = S[RUN_POS]
+    ht = S[HEAP_T]
+    hk = S[HEAP_K]
+    hr = S[HEAP_R]
+    pmin = S[Q_FLOAT]
+    rp = S[RESIM_PEND]  # [n]: a node's re-simulation is owed (driver._rollback)
     while True:
-        t = peek(S)
-        if not qi[QI_HAS]:
-            break
+        c = qi[QI_CUR]
+        p = 0
+        t = 0.0
+        due = qi[QI_HAS] != 0
+        if due:
+            p = pos[c]
+            t = at[p]
+            k = ak[p]
+            nh = qi[QI_HEAP]
+            if nh > 0 and precedes(ht[0], hk[0], t, k):  # the top run's turn
+                top = hr[0]
+                t = ht[0]
+                k = hk[0]
+                replace_top(ht, hk, hr, nh, at[p], ak[p], c)
+                c = top
+                qi[QI_CUR] = c
+                p = pos[c]
+            due = qi[QI_PN] == 0 or precedes(t, k, pmin[QF_PMIN], qi[QI_PMINK])
+        if not due:
+            t = first(Q)
+            if not qi[QI_HAS]:
+                break
+            c = qi[QI_CUR]
+            p = pos[c]
         if t > t_stop or (strict and t >= t_stop):
             return OK
         if iv[I_FREE] < n + 4:
             return NEED_SPACE
         if _full(S):
             return NEED_FLUSH
-        if resim_due(S):
-            return NEED_RESIM
-        s = take(S)
+        s = ak[p] & SLOT_MASK  # the head
+        if rp[n] != 0 and S[EV_INT][s, E_TYPE] == EV_DONE and rp[S[EV_INT][s, E_WHO]] != 0:
+            return NEED_RESIM  # its publish reads rows whose re-simulation Python owes
+        pos[c] = p + 1  # take the head
+        if p + 1 == S[RUN_END][c]:
+            qi[QI_HAS] = 0
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)

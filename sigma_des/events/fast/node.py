@@ -10,9 +10,8 @@ rollback draws; otherwise the start is handed to Python, which computes it with
 
 from __future__ import annotations
 
+from sigma_des.events.fast.clock import local_time
 from sigma_des.events.fast.layout import (
-    CLOCK_DRIFT,
-    CLOCK_OFF,
     CMD,
     CORES,
     CRASH,
@@ -20,7 +19,6 @@ from sigma_des.events.fast.layout import (
     E_FRAME,
     E_INDEX,
     E_KIND,
-    E_TYPE,
     E_WHO,
     EF_GEN,
     EF_L,
@@ -59,31 +57,24 @@ from sigma_des.events.fast.layout import (
     NODE,
     OBS_HIST,
     Q_HLC,
-    Q_INT,
     Q_LOCK,
     Q_M,
-    Q_N,
     Q_THETA,
     Q_W,
     Q_WARP,
-    QI_CUR,
-    RESIM_PEND,
-    RUN_K,
-    RUN_POS,
     SLOT_FRAME,
-    SLOT_MASK,
     SLOW,
     SLOW_PTR,
     STEP,
 )
 from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, send_up
 
-__all__ = ["at_node", "done", "reserve", "resim_due"]
+__all__ = ["at_node", "done", "reserve"]
 
 
 @jit
 def _local(S, i, t):  # type: ignore[no-untyped-def]
-    return t + S[CLOCK_OFF][i] + S[CLOCK_DRIFT][i] * t
+    return local_time(S, i, t)
 
 
 @jit
@@ -261,21 +252,6 @@ def _command(S, s, i, now):  # type: ignore[no-untyped-def]
     _hand_over(S, NEED_ROLLBACK, i, now)
     S[INTS][I_PA] = stamp
     S[INTS][I_PB] = current
-
-
-@jit
-def resim_due(S):  # type: ignore[no-untyped-def]
-    """Whether the next event (the head of the queue's current run, after
-    :func:`~sigma_des.events.fast.queue.peek` found one) is a job completion of a node
-    whose time-warp re-simulation Python still owes: its publish reads ``obs_hist``,
-    so Python must re-simulate first (the driver batches rollbacks until then).
-    ``resim_pend[n]`` says whether any node is pending: one read per event otherwise."""
-    pend = S[RESIM_PEND]
-    if pend[S[IPARAMS][Q_N]] == 0:
-        return False
-    s = S[RUN_K][S[RUN_POS][S[Q_INT][QI_CUR]]] & SLOT_MASK
-    evi = S[EV_INT]
-    return evi[s, E_TYPE] == EV_DONE and pend[evi[s, E_WHO]] != 0
 
 
 @jit

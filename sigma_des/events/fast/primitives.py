@@ -12,11 +12,7 @@ state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
-
-from numba import njit
-
+from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     DRAW_CONST,
     DRAW_MAP,
@@ -43,7 +39,6 @@ from sigma_des.events.fast.layout import (
     LINK_COUNT,
     LINK_OF,
     LINK_SPB,
-    P_LOSS,
     PEND_K,
     PEND_T,
     Q_FLOAT,
@@ -56,13 +51,7 @@ from sigma_des.events.fast.layout import (
     U_OFFSET,
     WIRE_BYTES,
 )
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-#: Compiled without numba's reference counting: every array is borrowed from the
-#: driver and nothing is allocated, and NRT's atomic increments on each array access
-#: made the loop ~4x slower.
-jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+from sigma_des.events.fast.loss import forced_drop, link_loss
 
 
 @jit
@@ -181,7 +170,8 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
 
     FIFO serialization on the receiver's (down) or sender's (up) link, latency and
-    loss; a lost message frees its slot.
+    loss (time-dependent: Gilbert–Elliott state, degrade windows and drop faults,
+    :mod:`~sigma_des.events.fast.loss`); a lost message frees its slot.
     """
     evi = S[EV_INT]
     client = evi[slot, E_WHO]
@@ -191,14 +181,16 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     cls = 1 if client == S[IPARAMS][Q_N] else 0
     src = lat_source(cls, up)
     lat = draw(S, src, kind, subj, index)
-    p = S[P_LOSS][cls]
+    p, extra = link_loss(S, client, cls, up, t)
     lost = False
     if p > 0.0:
         lost = draw(S, U_OFFSET + src, kind, subj, index) < p
+    if forced_drop(S, up, kind, subj, index):
+        lost = True
     if lost:
         release(S, slot)
     else:
-        push(S, done + lat, slot)
+        push(S, done + lat + extra, slot)
 
 
 @jit

@@ -47,41 +47,50 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.primitives import jit, precedes
 
-__all__ = ["ARENA", "peek", "take"]
+__all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
 
 #: Size of the run arena in event-table rows (compaction every ~ARENA x cap events).
 ARENA = 4
+
+# ---------------------------------------------------------------- the queue's arrays
+
+# positions in the queue view Q (:func:`view`): the queue's arrays only, so a call
+# passes ~13 array descriptors, not the whole state tuple (numba passes a tuple by
+# value: ~3 kB of descriptors for ``S``, copied on every call that is not inlined)
+V_INT, V_FLOAT, V_HT, V_HK, V_HR, V_AT, V_AK, V_POS, V_END, V_PT, V_PK, V_B, V_FWD = range(13)
+
+
+@jit
+def view(S):  # type: ignore[no-untyped-def]
+    """The queue's arrays of state ``S``, in the order of the ``V_*`` positions."""
+    return (S[Q_INT], S[Q_FLOAT], S[HEAP_T], S[HEAP_K], S[HEAP_R], S[RUN_T], S[RUN_K],
+            S[RUN_POS], S[RUN_END], S[PEND_T], S[PEND_K], S[BOUNDS], S[RUN_FWD])
+
 
 # ---------------------------------------------------------------- heap of run heads
 
 
 @jit
-def _hput(S, i, t, k, r):  # type: ignore[no-untyped-def]
-    S[HEAP_T][i] = t
-    S[HEAP_K][i] = k
-    S[HEAP_R][i] = r
+def _hput(ht, hk, hr, i, t, k, r):  # type: ignore[no-untyped-def]
+    ht[i] = t
+    hk[i] = k
+    hr[i] = r
 
 
 @jit
-def _sift_up(S, i, t, k, r):  # type: ignore[no-untyped-def]
-    ht = S[HEAP_T]
-    hk = S[HEAP_K]
-    hr = S[HEAP_R]
+def _sift_up(ht, hk, hr, i, t, k, r):  # type: ignore[no-untyped-def]
     while i > 0:
         p = (i - 1) >> 1
         if not precedes(t, k, ht[p], hk[p]):
             break
-        _hput(S, i, ht[p], hk[p], hr[p])
+        _hput(ht, hk, hr, i, ht[p], hk[p], hr[p])
         i = p
-    _hput(S, i, t, k, r)
+    _hput(ht, hk, hr, i, t, k, r)
 
 
 @jit
-def _sift_down(S, n, t, k, r):  # type: ignore[no-untyped-def]
-    """Place head ``(t, k)`` of run ``r`` at the root of the ``n``-entry heap."""
-    ht = S[HEAP_T]
-    hk = S[HEAP_K]
-    hr = S[HEAP_R]
+def replace_top(ht, hk, hr, n, t, k, r):  # type: ignore[no-untyped-def]
+    """Put head ``(t, k)`` of run ``r`` in the root's place in the ``n``-entry heap."""
     i = 0
     while True:
         c = 2 * i + 1
@@ -91,29 +100,9 @@ def _sift_down(S, n, t, k, r):  # type: ignore[no-untyped-def]
             c += 1
         if not precedes(ht[c], hk[c], t, k):
             break
-        _hput(S, i, ht[c], hk[c], hr[c])
+        _hput(ht, hk, hr, i, ht[c], hk[c], hr[c])
         i = c
-    _hput(S, i, t, k, r)
-
-
-@jit
-def _push_run(S, t, k, r):  # type: ignore[no-untyped-def]
-    qi = S[Q_INT]
-    i = qi[QI_HEAP]
-    qi[QI_HEAP] = i + 1
-    _sift_up(S, i, t, k, r)
-
-
-@jit
-def _pop_run(S):  # type: ignore[no-untyped-def]
-    """Remove the top run of the heap; return its id."""
-    qi = S[Q_INT]
-    r = S[HEAP_R][0]
-    n = qi[QI_HEAP] - 1
-    qi[QI_HEAP] = n
-    if n > 0:
-        _sift_down(S, n, S[HEAP_T][n], S[HEAP_K][n], S[HEAP_R][n])
-    return r
+    _hput(ht, hk, hr, i, t, k, r)
 
 
 # ---------------------------------------------------------------- sealing
@@ -148,17 +137,17 @@ def _merge(xt, xk, xo, yt, yk, yo, lo, mid, hi):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _sort_pending(S, m, a):  # type: ignore[no-untyped-def]
+def _sort_pending(Q, m, a):  # type: ignore[no-untyped-def]
     """Sort the ``m`` pending events by ``(t, key)`` into the arena at ``a``.
 
     A natural merge sort: the ascending stretches of the pending buffer are merged
     pairwise, pass after pass, between the pending buffer and the arena segment.
     """
-    pt = S[PEND_T]
-    pk = S[PEND_K]
-    at = S[RUN_T]
-    ak = S[RUN_K]
-    b = S[BOUNDS]
+    pt = Q[V_PT]
+    pk = Q[V_PK]
+    at = Q[V_AT]
+    ak = Q[V_AK]
+    b = Q[V_B]
     nr = 0
     b[0] = 0
     for i in range(1, m):
@@ -190,19 +179,19 @@ def _sort_pending(S, m, a):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _compact(S):  # type: ignore[no-untyped-def]
+def _compact(Q):  # type: ignore[no-untyped-def]
     """Move the live runs to the front of the arena, renumbering them in order.
 
     Runs are numbered in the order they were sealed, which is their order in the
     arena, so one pass moves every live segment down; the heap's run ids (and the
     current run's) follow the renumbering.
     """
-    qi = S[Q_INT]
-    at = S[RUN_T]
-    ak = S[RUN_K]
-    pos = S[RUN_POS]
-    end = S[RUN_END]
-    fwd = S[RUN_FWD]
+    qi = Q[V_INT]
+    at = Q[V_AT]
+    ak = Q[V_AK]
+    pos = Q[V_POS]
+    end = Q[V_END]
+    fwd = Q[V_FWD]
     dst = 0
     j = 0
     for r in range(qi[QI_NRUN]):
@@ -220,7 +209,7 @@ def _compact(S):  # type: ignore[no-untyped-def]
         j += 1
     qi[QI_NRUN] = j
     qi[QI_ATOP] = dst
-    hr = S[HEAP_R]
+    hr = Q[V_HR]
     for h in range(qi[QI_HEAP]):
         hr[h] = fwd[hr[h]]
     if qi[QI_HAS]:
@@ -228,19 +217,19 @@ def _compact(S):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _seal(S):  # type: ignore[no-untyped-def]
+def _seal(Q):  # type: ignore[no-untyped-def]
     """Sort the pending events into a new run; return its id."""
-    qi = S[Q_INT]
+    qi = Q[V_INT]
     m = qi[QI_PN]
-    cap = S[RUN_T].shape[0]
+    cap = Q[V_AT].shape[0]
     if qi[QI_ATOP] + m > cap or qi[QI_NRUN] >= cap:
-        _compact(S)
+        _compact(Q)
     a = qi[QI_ATOP]
-    _sort_pending(S, m, a)
+    _sort_pending(Q, m, a)
     r = qi[QI_NRUN]
     qi[QI_NRUN] = r + 1
-    S[RUN_POS][r] = a
-    S[RUN_END][r] = a + m
+    Q[V_POS][r] = a
+    Q[V_END][r] = a + m
     qi[QI_ATOP] = a + m
     qi[QI_PN] = 0
     return r
@@ -250,43 +239,54 @@ def _seal(S):  # type: ignore[no-untyped-def]
 
 
 @jit
-def peek(S):  # type: ignore[no-untyped-def]
+def first(Q):  # type: ignore[no-untyped-def]
     """Make the earliest queued event the head of the current run.
 
+    Args:
+        Q: the queue's arrays (:func:`view`).
+
     Returns:
-        Its time; the queue is empty if ``S[Q_INT][QI_HAS]`` is 0 afterwards.
+        Its time; the queue is empty if ``Q[V_INT][QI_HAS]`` is 0 afterwards.
     """
-    qi = S[Q_INT]
-    at = S[RUN_T]
-    ak = S[RUN_K]
+    qi = Q[V_INT]
+    at = Q[V_AT]
+    ak = Q[V_AK]
+    ht = Q[V_HT]
+    hk = Q[V_HK]
+    hr = Q[V_HR]
     has = qi[QI_HAS]
     c = qi[QI_CUR]
     ct = 0.0
     ck = 0
     if has:
-        p = S[RUN_POS][c]
+        p = Q[V_POS][c]
         ct = at[p]
         ck = ak[p]
-    if qi[QI_HEAP] > 0 and (not has or precedes(S[HEAP_T][0], S[HEAP_K][0], ct, ck)):
-        top = S[HEAP_R][0]
-        ht = S[HEAP_T][0]
-        hk = S[HEAP_K][0]
+    n = qi[QI_HEAP]
+    if n > 0 and (not has or precedes(ht[0], hk[0], ct, ck)):
+        top = hr[0]
+        tt = ht[0]
+        tk = hk[0]
         if has:  # the current run goes back into the heap in the top's place
-            _sift_down(S, qi[QI_HEAP], ct, ck, c)
+            replace_top(ht, hk, hr, n, ct, ck, c)
         else:
-            _pop_run(S)
+            qi[QI_HEAP] = n - 1
+            if n > 1:
+                replace_top(ht, hk, hr, n - 1, ht[n - 1], hk[n - 1], hr[n - 1])
         c = top
-        ct = ht
-        ck = hk
+        ct = tt
+        ck = tk
         has = 1
     if qi[QI_PN] > 0:
-        pt = S[Q_FLOAT][QF_PMIN]
+        pt = Q[V_FLOAT][QF_PMIN]
         pk = qi[QI_PMINK]
         if not has or precedes(pt, pk, ct, ck):
             if has:
-                _push_run(S, ct, ck, c)
+                n = qi[QI_HEAP]
+                qi[QI_HEAP] = n + 1
+                _sift_up(ht, hk, hr, n, ct, ck, c)
             qi[QI_HAS] = 0  # the sealing may renumber runs: only heap ids follow
-            c = _seal(S)
+            c = _seal(Q)
             ct = pt
             has = 1
     qi[QI_HAS] = has
@@ -295,8 +295,17 @@ def peek(S):  # type: ignore[no-untyped-def]
 
 
 @jit
+def peek(S):  # type: ignore[no-untyped-def]
+    """:func:`first` on the queue of state ``S``."""
+    return first(view(S))
+
+
+@jit
 def take(S):  # type: ignore[no-untyped-def]
-    """Remove the head of the current run (after :func:`peek`); return its event slot."""
+    """Remove the head of the current run (after :func:`peek`); return its event slot.
+
+    The event loop does this (and the check that no :func:`first` is needed) inline.
+    """
     qi = S[Q_INT]
     c = qi[QI_CUR]
     pos = S[RUN_POS]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import heapq
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -10,14 +11,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import sigma_des.events.fast.driver as driver
+from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.primitives import push
 from sigma_des.events.fast.queue import peek, take
+from sigma_des.factory import make_behaviour, make_dynamics
+from tests.conftest import tiny
+from tests.events.test_cohort import run_both
 
 DIMS = {
     "cap": 5, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
     "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
     "slow": 1, "seen_n": 1, "seen_h": 1,
+    "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
 }
 
 
@@ -144,3 +151,20 @@ def test_every_arena_size_gives_the_same_order(arena: int) -> None:
     pops = [2, 4] * 5
     S = _state(8, arena)
     assert _run(S, batches, pops) == _expected(batches, pops)
+
+
+def test_a_run_with_the_smallest_arena_compacts_grows_and_stays_identical(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Arena = event table, no slack: compaction and growth on every path, same results."""
+    monkeypatch.setattr(driver, "SLACK", 0)
+    monkeypatch.setattr(driver, "ARENA", 1)
+    sc = tiny(nodes=6, **{"broker.delivery_service": 0.0008, "commands.enabled": True})
+    run_both(sc, "bides")
+    run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
+                    make_behaviour(sc), compiled=True)
+    assert run.fast is not None
+    cap0 = run.fast.array("run_t").size
+    assert cap0 == run.fast.array("ev_int").shape[0] == 4 * 7
+    run.run()
+    assert run.fast.array("run_t").size == run.fast.array("ev_int").shape[0] > cap0
