@@ -8,6 +8,14 @@ node publishes when it completes that frame), its step ``dt`` and physics time,
 and, for BiDES time warp, the state checkpoints a rollback re-simulates from.
 A frame enters the fidelity log (:class:`~sigma_des.metrics.fidelity.TrajectoryLog`)
 only when it leaves the ring and can no longer be rolled back.
+
+A rollback re-simulates at once (:meth:`SwarmTruth.rollback`, the per-message
+engine's path) or, for the compiled core, later and in a batch
+(:meth:`SwarmTruth.defer_rollback`, :meth:`SwarmTruth.flush_rollbacks`): the owed
+compute steps are arithmetic, and the rows of different aircraft are independent,
+so one step call per frame over every pending aircraft gives each row the very
+bits its own re-simulation gives it (the dynamics' ``step_frames`` marks a model
+whose rows do not depend on the batch; others re-simulate at once).
 """
 
 from __future__ import annotations
@@ -54,7 +62,10 @@ class SwarmTruth:
         self.nodes = np.arange(n, dtype=np.int64)
         self.initial = dynamics.initial_state(n)
         self.state = self.initial.copy()
-        self.ckpt = np.zeros(((H if checkpoints else 0),) + self.state.shape)
+        # uninitialised (a slot is read only once written, see _checkpoint): a fresh
+        # zeroed array of this size faults its pages in one by one at first touch,
+        # ~10x the cost of np.empty's (huge-page) memory on Linux
+        self.ckpt = np.empty(((H if checkpoints else 0),) + self.state.shape)
         self.obs_hist = np.full((H, n, OBS_COLUMNS), np.nan)
         self.slot_frame = np.full(H, -1, dtype=np.int64)
         self.frame_dt = np.zeros(H)
@@ -64,6 +75,10 @@ class SwarmTruth:
         self.traj = TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12])
         self.rollbacks = 0
         self.resim_steps = 0
+        self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
+        #: deferred re-simulations ``(node, first frame, command row)``, one per node
+        self.pending: list[tuple[int, int, NDArray[np.float64]]] = []
+        self._pending_nodes: set[int] = set()
 
     def step_frame(
         self, k: int, dt: float, cmd: NDArray[np.float64], pending: NDArray[np.float64] | None
@@ -122,7 +137,7 @@ class SwarmTruth:
         H = self.H
         latest = self.latest
         c = max(c, max(0, latest - H + 2))
-        prev = self.initial[i] if c == 0 else self.ckpt[(c - 1) % H, i]
+        prev = self._checkpoint(i, c)
         s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
         if step_frames is not None and c <= latest:
@@ -147,6 +162,82 @@ class SwarmTruth:
         self.rollbacks += 1
         self.resim_steps += steps
         return steps
+
+    def _checkpoint(self, i: int, c: int) -> NDArray[np.float64]:
+        """Node ``i``'s state before frame ``c``: its checkpoint of frame ``c - 1``.
+
+        The initial state for ``c = 0``; a ring slot never written reads as zeros (the
+        ring's former ``np.zeros`` fill; unreachable: a rollback's ``c`` is held).
+        """
+        if c == 0:
+            return self.initial[i]
+        slot = (c - 1) % self.H
+        if self.slot_frame[slot] < 0:
+            return np.zeros(self.state.shape[1])
+        return self.ckpt[slot, i]
+
+    def defer_rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> int:
+        """:meth:`rollback`, its re-simulation owed until :meth:`flush_rollbacks`.
+
+        Until the flush, node ``i``'s checkpoints, published rows (``obs_hist``) and
+        ``state`` row from the clamped ``c`` on are stale: the caller flushes before
+        anything reads them. A second rollback of a pending node flushes first.
+        Without batching (see the module doc) this is :meth:`rollback`.
+
+        Returns:
+            The compute steps the node's next job owes (as :meth:`rollback`).
+        """
+        if i in self._pending_nodes:
+            self.flush_rollbacks()
+        latest = self.latest
+        c = max(c, max(0, latest - self.H + 2))
+        if not self.batched or c > latest:
+            return self.rollback(i, c, current, row)
+        self.pending.append((i, c, row.copy()))
+        self._pending_nodes.add(i)
+        steps = max(0, current - c + 1)
+        self.rollbacks += 1
+        self.resim_steps += steps
+        return steps
+
+    def owes(self, i: int) -> bool:
+        """True if node ``i``'s re-simulation is deferred (not yet flushed)."""
+        return i in self._pending_nodes
+
+    def flush_rollbacks(self) -> NDArray[np.int64]:
+        """Re-simulate every deferred rollback: one step call per frame for all of them.
+
+        Returns:
+            The nodes re-simulated (empty if none were pending).
+        """
+        if not self.pending:
+            return self.nodes[:0]
+        pend = sorted(self.pending, key=lambda p: p[1])  # by first frame (stable)
+        self.pending = []
+        self._pending_nodes.clear()
+        H, latest = self.H, self.latest
+        nodes = np.array([p[0] for p in pend], dtype=np.int64)
+        first = np.array([p[1] for p in pend], dtype=np.int64)
+        rows = np.array([p[2] for p in pend], dtype=np.float64)
+        cur = np.empty((nodes.size, self.state.shape[1]))
+        for k, (i, c, _row) in enumerate(pend):
+            cur[k] = self._checkpoint(i, c)
+        m = 0
+        for f in range(int(first[0]), latest + 1):
+            while m < nodes.size and first[m] <= f:
+                m += 1
+            slot = f % H
+            cur[:m] = self.dyn.step(cur[:m], rows[:m], float(self.frame_dt[slot]), f, nodes[:m])
+            self.ckpt[slot, nodes[:m]] = cur[:m]
+        # one observe call for all re-simulated (frame, node) rows (rows are independent)
+        counts = latest - first + 1
+        who = np.repeat(nodes, counts)
+        frames = np.repeat(first, counts) + (np.arange(who.size) - np.repeat(
+            np.cumsum(counts) - counts, counts))
+        slots = frames % H
+        self.obs_hist[slots, who] = self.dyn.observe(self.ckpt[slots, who])
+        self.state[nodes] = cur
+        return nodes
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at the fidelity log rate (Hz of physics time), so far."""

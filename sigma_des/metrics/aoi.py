@@ -68,7 +68,7 @@ class AoITracker:
             return
         nd = np.atleast_1d(np.asarray(nodes, dtype=np.int64))
         g = np.broadcast_to(np.asarray(gen_times, dtype=np.float64), nd.shape)
-        if nd.size > 1:
+        if nd.size > 1 and not bool((nd[1:] > nd[:-1]).all()):  # else: unique, in order
             order = np.lexsort((g, nd))
             last = np.ones(nd.size, dtype=np.bool_)
             last[:-1] = nd[order[1:]] != nd[order[:-1]]

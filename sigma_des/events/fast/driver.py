@@ -49,7 +49,7 @@ from sigma_des.events.fast.tables import (
     lossy_classes,
     network_sources,
 )
-from sigma_des.events.jobs import job_cost
+from sigma_des.events.jobs import JobCosts
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.truth import SwarmTruth
@@ -103,6 +103,7 @@ class CompiledCore:
         sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
+        self.costs = JobCosts(host.nodes.step_time)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
@@ -293,16 +294,42 @@ class CompiledCore:
         if not nd[L.N_BUSY, i]:
             self._start_job(i)
 
+    def _rollback(self, i: int, c: int, current: int) -> None:
+        """Node ``i`` rolls back to frame ``c``: owe the steps now, re-simulate later.
+
+        The physics re-simulation is deferred (:meth:`SwarmTruth.defer_rollback`) and
+        the node marked in ``resim_pend``: the loop stops before the node's next
+        state publish (``NEED_RESIM``), and :meth:`advance_to` flushes before it
+        returns, so nothing reads the stale rows.
+        """
+        h = self.host
+        truth = h.truth
+        pend = self.S[L.RESIM_PEND]
+        if pend[i]:  # a second rollback of a pending node re-simulates the first
+            self.flush_rollbacks()
+        steps = truth.defer_rollback(i, c, current, h.nodes.cmd[i])
+        if truth.owes(i):
+            pend[i] = 1
+            pend[h.n] = 1  # some node is pending
+        self.add_resim(i, steps)
+
+    def flush_rollbacks(self) -> None:
+        """Re-simulate the deferred rollbacks (one batched call) and unmark their nodes."""
+        if self.host.truth.pending:
+            pend = self.S[L.RESIM_PEND]
+            pend[self.host.truth.flush_rollbacks()] = 0
+            pend[self.host.n] = 0  # the flush re-simulated every pending node
+
     def _start_job(self, i: int) -> None:
-        """A job start that needs Python (rollback draws): :func:`job_cost`, as the spec."""
+        """A job start that needs Python (rollback draws): :func:`~sigma_des.events.jobs.job_cost`,
+        as the spec (through :class:`~sigma_des.events.jobs.JobCosts`)."""
         now = self._t_event
         nd = self.S[L.NODE]
         target = int(nd[L.N_REQ, i])
         rb = int(nd[L.N_RB, i])
         nd[L.N_RB, i] = 0
         h = self.host.nodes
-        cost = job_cost(h.step_time, h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1,
-                        target, rb, now)
+        cost = self.costs.cost(h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1, target, rb, now)
         self.ensure_space(2)
         loop.reserve(self.S, i, target, cost, now)
 
@@ -323,7 +350,8 @@ class CompiledCore:
         """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
 
         Serves the loop's requests for Python on the way (rollbacks, job starts with
-        rollback draws, buffer flushes, table growth).
+        rollback draws, buffer flushes, table growth, deferred re-simulations) and
+        re-simulates every deferred rollback before it returns.
 
         Returns:
             True if it stopped early because a Lock-Step barrier completed (the next
@@ -338,11 +366,13 @@ class CompiledCore:
                 self._sync_barrier()
             code = loop.advance(self.S, bound, strict)
             if code == L.OK:
+                self.flush_rollbacks()
                 self.drain()
                 return False
             S = self.S
             if code == L.BARRIER:
                 # the aligner sees the completing state at its own arrival time
+                self.flush_rollbacks()
                 self.host.kernel.jump_to(float(S[L.FLOATS][L.F_PT]))
                 self.drain()
                 return True
@@ -350,6 +380,8 @@ class CompiledCore:
                 self.ensure_space(self.host.n + 8)
             elif code == L.NEED_FLUSH:
                 self.drain()
+            elif code == L.NEED_RESIM:
+                self.flush_rollbacks()
             elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
                 tr = S[L.TR_INTS]
                 self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
@@ -359,9 +391,7 @@ class CompiledCore:
                 if code == L.NEED_START:
                     self._start_job(i)
                 else:
-                    a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
-                    h = self.host
-                    self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
+                    self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]))
             elif int(S[L.INTS][L.I_ERR]) == L.ERR_HORIZON:
                 raise CohortFallback(
                     "a send or clock reading beyond the link and clock tables "

@@ -32,6 +32,8 @@ __all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
 EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
 # exit codes of advance()
 OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
+# P (per-frame Python path): the next event publishes a state Python still owes a re-simulation of
+NEED_RESIM = 7
 
 # message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
 K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
@@ -196,6 +198,9 @@ FIELDS: tuple[Field, ...] = (
     Field("drops", _i, ("drops", 3), None, "drop faults' (kind, subject, index), sorted"),
     Field("ntp_period", _f, (1,), None, "NTP period (0: no NTP)"),
     Field("ntp_res", _f, ("n", "ntp_j"), None, "NTP residual of node i after sync j (j >= 1)"),
+    # P (per-frame Python path): batched time-warp re-simulation
+    Field("resim_pend", _i, ("clients",), 0.0,
+          "node's rollback re-simulation still owed by Python; [n]: any node's"),
     # F2 — transport: QoS 1 over datagram (PUBACK hops, resend timers, redelivery)
     Field("tr_params", _i, (T_QLEN,), None, "transport int parameters T_*"),
     Field("tr_fparams", _f, (TF_LEN,), None, "transport float parameters TF_*"),
@@ -281,6 +286,7 @@ NTP_RES = INDEX["ntp_res"]
 #: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
 #: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
 ERR_HORIZON = 2
+RESIM_PEND = INDEX["resim_pend"]
 TR_PARAMS = INDEX["tr_params"]
 TR_FPARAMS = INDEX["tr_fparams"]
 TR_INTS = INDEX["tr_ints"]

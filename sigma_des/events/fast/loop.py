@@ -13,8 +13,9 @@ and the results are bit-identical (docs/MODEL.md, "Engines").
 All state is one state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`), shared with the
 Python driver (:mod:`sigma_des.events.fast.driver`). :func:`advance` hands control
 back to Python, between two events, when something needs Python: a time-warp
-rollback (re-simulating physics), a job whose cost includes rollback draws, a full
-delivery buffer, a full event table, a completed Lock-Step barrier, or a random
+rollback (its physics re-simulation is batched: Python owes it until the node's
+next state publish, ``NEED_RESIM``), a job whose cost includes rollback draws, a
+full delivery buffer, a full event table, a completed Lock-Step barrier, or a random
 draw that is not in the draw tables (then the driver falls back to the
 per-message engine). Random numbers are never drawn here: Python fills per-index
 rows of the draw tables from the very same counter-based samplers the
@@ -35,6 +36,7 @@ from sigma_des.events.fast.layout import (
     EF_TPUB,
     EV_BROKER,
     EV_CLIENT,
+    EV_DONE,
     EV_FLOAT,
     EV_INT,
     EV_RESEND,
@@ -54,6 +56,7 @@ from sigma_des.events.fast.layout import (
     LAT_BUF,
     NEED_FILL,
     NEED_FLUSH,
+    NEED_RESIM,
     NEED_SPACE,
     OK,
     OUT_INT,
@@ -69,6 +72,7 @@ from sigma_des.events.fast.layout import (
     QI_HEAP,
     QI_PMINK,
     QI_PN,
+    RESIM_PEND,
     RUN_END,
     RUN_K,
     RUN_POS,
@@ -179,11 +183,9 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 @jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
-    """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done,
-    else the reason Python must act before the next event. A draining stream connection's
-    segments come first; then the head of the queue's current run, or of the heap's top run
-    (they trade places) if it precedes the pending minimum — inline, as numba passes the
-    state tuple by value to a function it does not inline — else ``queue.first`` seals."""
+    """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done, else
+    the reason Python must act first. A draining stream's segments come first, then the queue's
+    head, found inline (numba passes the state tuple by value to calls it does not inline)."""
     iv = S[INTS]
     n = S[IPARAMS][Q_N]
     Q = view(S)
@@ -196,6 +198,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     hr = S[HEAP_R]
     pmin = S[Q_FLOAT]
     attempts, spare = _limits(S, n)
+    rp = S[RESIM_PEND]  # [n]: a node's re-simulation is owed (driver._rollback)
     while True:
         if S[TR_INTS][T_DRAIN]:  # a stream arrival hands its connection's segments on
             code, s, t = _drain_step(S, spare)
@@ -234,10 +237,12 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
                 return NEED_SPACE
             if _full(S):
                 return NEED_FLUSH
-            if attempts and missing(S, ak[p] & SLOT_MASK):
+            s = ak[p] & SLOT_MASK  # the head
+            if attempts and missing(S, s):
                 return NEED_FILL
-            s = ak[p] & SLOT_MASK  # take the head
-            pos[c] = p + 1
+            if rp[n] != 0 and S[EV_INT][s, E_TYPE] == EV_DONE and rp[S[EV_INT][s, E_WHO]] != 0:
+                return NEED_RESIM  # its publish reads rows whose re-simulation Python owes
+            pos[c] = p + 1  # take the head
             if p + 1 == S[RUN_END][c]:
                 qi[QI_HAS] = 0
         typ = S[EV_INT][s, E_TYPE]
