@@ -32,8 +32,16 @@ __all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
 EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
 # exit codes of advance()
 OK, NEED_START, NEED_ROLLBACK, NEED_FLUSH, NEED_SPACE, DRAW_MISS, BARRIER = 0, 1, 2, 3, 4, 5, 6
-# P (per-frame Python path): the next event publishes a state Python still owes a re-simulation of
+# the next event publishes a state Python still owes a re-simulation of (deferred rollbacks)
 NEED_RESIM = 7
+# a resend's or PUBACK's draws are not in the tables yet (QoS 1 over datagram, streams)
+NEED_FILL = 8
+#: every exit code by name (one place, so no two parts of the core reuse a number)
+EXIT_CODES: dict[str, int] = {
+    "OK": OK, "NEED_START": NEED_START, "NEED_ROLLBACK": NEED_ROLLBACK,
+    "NEED_FLUSH": NEED_FLUSH, "NEED_SPACE": NEED_SPACE, "DRAW_MISS": DRAW_MISS,
+    "BARRIER": BARRIER, "NEED_RESIM": NEED_RESIM, "NEED_FILL": NEED_FILL,
+}
 
 # message kinds, as plain ints for numba (declared once, in sigma_des.net.kinds)
 K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB = (int(k) for k in Kind)
@@ -86,12 +94,11 @@ SVC_PUB, SVC_DEL, STEP = 8, 9, 10
 N_SOURCES = 11
 
 # F2 — transport: event type of a transport event (QoS 1 resend timer, stream retry or
-# arrival) and its actions, exit code of a draw-fill request, transport parameters
+# arrival) and its actions, transport parameters
 # (S.tr_params; T_STREAM + link class: a stream with hold-back), float parameters,
 # counters and the draining connection (S.tr_ints), stream connection rows (S.conn)
 EV_RESEND = 3
 TA_RESEND, TA_RETRY, TA_ARRIVE, TA_GONE = range(4)
-NEED_FILL = 7
 T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS, T_STREAM = range(5)
 T_QLEN = 6
 TF_TIMEOUT, TF_RTO = range(2)

@@ -108,3 +108,13 @@ def test_a_run_state_follows_the_declaration() -> None:
     q = S[L.IPARAMS]
     assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
     assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
+
+
+def test_exit_codes_are_distinct_and_all_registered() -> None:
+    # two parts of the core once both took code 7 (a draw fill was served as a
+    # re-simulation, and the loop asked again forever)
+    codes = L.EXIT_CODES
+    assert len(set(codes.values())) == len(codes)
+    named = {k for k, v in vars(L).items() if k.startswith("NEED_") and isinstance(v, int)}
+    assert named | {"OK", "DRAW_MISS", "BARRIER"} == set(codes)
+    assert all(getattr(L, k) == v for k, v in codes.items())
