@@ -308,6 +308,14 @@ class Links:
         """
         return self._lat[is_server, up]
 
+    def loss_process(self, is_server: bool, up: bool, link: int) -> LossProcess:
+        """The loss process (Gilbert–Elliott chain) of access link ``link``, one direction.
+
+        Read-only use, as :meth:`latency_draws`: its chain state is a pure function of
+        the slot, so asking about any time does not change any result.
+        """
+        return self._loss[is_server, up, link]
+
     def loss_draws(self, is_server: bool, up: bool) -> DrawCache:
         """Uniform loss draws of the server's (or the hosts') link, one direction
         (a packet is lost when its draw is below the loss probability)."""

@@ -138,19 +138,10 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
 @pytest.mark.parametrize(
     ("over", "method", "why"),
     [
-        ({"net.host_link.loss": {"p": 0.1}}, "bides", "stream transport with loss"),
-        ({"net.transport": "datagram", "net.qos": 1}, "none", "QoS 1 over datagram"),
-        ({"clocks.ntp_period": 1.0, "clocks.ntp_residual_std": 1e-4}, "hlc", "NTP"),
         (
-            {"faults": [{"kind": "drop", "node": 1, "frame": 20, "message": "state"}]},
-            "bides",
-            "faults of kind drop",
-        ),
-        (
-            {"net.transport": "datagram",
-             "net.server_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.5}},
-            "none",
-            "Gilbert",
+            {"clocks.ntp_period": 1e-7, "clocks.ntp_residual_std": 1e-4},
+            "hlc",
+            "NTP-corrected clocks: residual table too large",
         ),
     ],
 )
@@ -225,6 +216,17 @@ _LAT = st.sampled_from(
 )
 
 
+_LOSS = st.sampled_from(
+    [
+        {"p": 0.0},
+        {"p": 0.05},
+        {"p": 0.3},
+        {"model": "gilbert_elliott", "p_gb": 0.05, "p_bg": 0.4, "loss_good": 0.01,
+         "loss_bad": 0.7, "slot": 0.004},
+    ]
+)
+
+
 @st.composite
 def scenarios(draw: st.DrawFn) -> tuple[Scenario, str]:
     """Small random scenarios mixing every option the cohort core handles."""
@@ -257,15 +259,29 @@ def scenarios(draw: st.DrawFn) -> tuple[Scenario, str]:
         "clocks.offset_std": draw(st.sampled_from([0.0, 0.002])),
         "clocks.drift_ppm_std": draw(st.sampled_from([0.0, 100.0])),
     }
-    if transport == "datagram":
-        over["net.qos"] = 0
+    if draw(st.booleans()):  # NTP-corrected clocks
+        over["clocks.ntp_period"] = draw(st.sampled_from([0.05, 0.3]))
+        over["clocks.ntp_residual_std"] = draw(st.sampled_from([0.0, 1e-4]))
+    faults = []
+    over["net.qos"] = draw(st.sampled_from([0, 1]))
+    if transport == "datagram" or draw(st.booleans()):  # a stream: hold-back, RTO retries
         over["net.host_link.latency"] = draw(_LAT)
         over["net.server_link.latency"] = draw(_LAT)
-        over["net.host_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.05, 0.3]))}
-        over["net.server_link.loss"] = {"p": draw(st.sampled_from([0.0, 0.1]))}
-    else:
-        over["net.qos"] = draw(st.sampled_from([0, 1]))
-    faults = []
+        over["net.host_link.loss"] = draw(_LOSS)
+        over["net.server_link.loss"] = draw(_LOSS)
+        # QoS 1 over datagram: resends, late and lost PUBACKs, redeliveries, give-ups
+        over["net.qos1_timeout"] = draw(st.sampled_from([0.002, 0.004, 0.05]))
+        over["net.rto"] = draw(st.sampled_from([0.002, 0.01]))
+        over["net.max_retries"] = draw(st.sampled_from([0, 1, 3]))
+        if draw(st.booleans()):
+            faults.append({"kind": "degrade", "host": draw(st.integers(0, over["hosts"] - 1)),
+                           "start": draw(st.sampled_from([0.0, 0.3])), "end": 0.7,
+                           "extra_delay": draw(st.sampled_from([0.0, 0.003])),
+                           "extra_loss": draw(st.sampled_from([0.0, 0.3]))})
+        if draw(st.booleans()):
+            faults.append({"kind": "drop", "node": draw(st.integers(0, n - 1)),
+                           "frame": draw(st.integers(0, 40)),
+                           "message": draw(st.sampled_from(["trigger", "state", "command"]))})
     if draw(st.booleans()):
         faults.append({"kind": "crash", "node": draw(st.integers(0, n - 1)),
                        "start": draw(st.sampled_from([0.0, 0.3]))})
@@ -289,3 +305,68 @@ def test_random_scenarios_identical(case: tuple[Scenario, str]) -> None:
     sc, method = case
     _ev, co = run_both(sc, method)
     assert co["engine"]["used"] == "cohort"
+
+
+_DATAGRAM = {"net.transport": "datagram", "net.qos": 0}
+
+
+@pytest.mark.parametrize(
+    ("base", "feature", "method"),
+    [
+        pytest.param(
+            _DATAGRAM,
+            {"net.server_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.5},
+             "net.host_link.loss": {"model": "gilbert_elliott", "p_gb": 0.05, "p_bg": 0.3,
+                                    "loss_good": 0.01, "loss_bad": 0.6, "slot": 0.002}},
+            "bides",
+            id="gilbert-elliott",
+        ),
+        pytest.param(
+            {**_DATAGRAM, "net.host_link.loss": {"p": 0.05}},
+            {"faults": [
+                {"kind": "degrade", "host": 0, "start": 0.2, "end": 0.6, "extra_delay": 0.004,
+                 "extra_loss": 0.2},
+                {"kind": "degrade", "host": 0, "start": 0.4, "end": 0.8, "extra_delay": 0.001,
+                 "extra_loss": 0.1},
+                {"kind": "degrade", "host": 1, "start": 0.1, "end": 0.5, "extra_delay": 0.003},
+            ]},
+            "lockstep",
+            id="degrade",
+        ),
+        pytest.param(
+            {**_DATAGRAM, "commands.enabled": True},
+            {"faults": [
+                {"kind": "drop", "node": 1, "frame": 20, "message": "state"},
+                {"kind": "drop", "node": 0, "frame": 10, "message": "trigger"},
+                {"kind": "drop", "node": 2, "frame": 3, "message": "command"},
+            ]},
+            "lockstep",
+            id="drop",
+        ),
+        pytest.param(
+            {"clocks.offset_std": 0.002, "clocks.drift_ppm_std": 100.0},
+            {"clocks.ntp_period": 0.1, "clocks.ntp_residual_std": 1e-4},
+            "hlc",
+            id="ntp",
+        ),
+    ],
+)
+def test_link_features_run_compiled_and_identical(
+    base: dict[str, Any], feature: dict[str, Any], method: str
+) -> None:
+    """Gilbert–Elliott loss, degrade and drop faults and NTP clocks run on the cohort
+    core, bit-identical to the per-message engine, and each changes the result."""
+    ev, co = run_both(tiny(**base, **feature), method)
+    assert co["engine"] == {"requested": "cohort", "used": "cohort", "fallback": ""}
+    without = run_method(replace(tiny(**base), engine="events"), method)["metrics"]
+    assert any(not _same(v, without[k]) for k, v in ev["metrics"].items())
+
+
+def test_send_beyond_the_link_tables_falls_back_mid_run() -> None:
+    """A broker backlog of seconds: deliveries leave past the Gilbert–Elliott table
+    (the run's end + 1 s), so the cohort run is redone per message."""
+    sc = tiny(**{**_DATAGRAM, "broker.publish_service": 0.02,
+                 "net.host_link.loss": {"model": "gilbert_elliott", "p_gb": 0.1, "p_bg": 0.5}})
+    _ev, co = run_both(sc, "none")
+    assert co["engine"]["used"] == "events"
+    assert "beyond the link and clock tables" in co["engine"]["fallback"]

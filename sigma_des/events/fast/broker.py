@@ -9,6 +9,7 @@ in the same order, as :mod:`sigma_des.net.network`.
 from __future__ import annotations
 
 from sigma_des.events.fast.layout import (
+    E_ATT,
     E_AUX,
     E_FRAME,
     E_INDEX,
@@ -33,19 +34,21 @@ from sigma_des.events.fast.layout import (
     Q_QOS1S,
     SVC_DEL,
     SVC_PUB,
+    T_QOS1D,
+    TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import (
     address,
     alloc,
     count,
-    draw,
-    hop,
+    draw_at,
     in_window,
     jit,
     key_of,
 )
+from sigma_des.events.fast.transport import puback_broker, send
 
-__all__ = ["broker"]
+__all__ = ["broker", "serve_delivery"]
 
 
 @jit
@@ -60,7 +63,7 @@ def _deliver(S, src, sub, subject, d):  # type: ignore[no-untyped-def]
     address(S, slot, EV_CLIENT, sub, evi[src, E_KIND], subject, evi[src, E_INDEX])
     evi[slot, E_AUX] = evi[src, E_AUX]
     evi[slot, E_FRAME] = evi[src, E_FRAME]
-    hop(S, slot, d)
+    send(S, slot, d)
 
 
 @jit
@@ -79,21 +82,36 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     ff = S[FLOATS]
     q = S[IPARAMS]
     n = q[Q_N]
-    s_pub = draw(S, SVC_PUB, kind, subject, index)
+    att = S[EV_INT][s, E_ATT]  # the PUBLISH's attempt keys the service draws
+    s_pub = draw_at(S, SVC_PUB, kind, subject, index, att, False)
     busy = ff[F_BUSY]
     start = now if now > busy else busy
     if in_window(S, now):
         ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
     if q[Q_QOS1S]:
         count(S, S[EV_INT][s, E_WHO], 0, q[Q_ACK], start + s_pub)
+    elif S[TR_PARAMS][T_QOS1D]:
+        puback_broker(S, s, start + s_pub, now)
     d = start + s_pub
     if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
         for sub in range(n):
-            d += draw(S, SVC_DEL, kind, sub, index)
+            d += draw_at(S, SVC_DEL, kind, sub, index, att, False)
             _deliver(S, s, sub, sub, d)
     else:
         sub = n if kind == K_STATE or kind == K_REPUB else subject
-        d += draw(S, SVC_DEL, kind, subject, index)
+        d += draw_at(S, SVC_DEL, kind, subject, index, att, False)
         _deliver(S, s, sub, subject, d)
     ff[F_BUSY] = d
     _work(S, start, d)
+
+
+@jit
+def serve_delivery(S, kind, subject, index, attempt, now):  # type: ignore[no-untyped-def]
+    """Broker.serve_delivery: one QoS 1 redelivery asked for ``now``; its departure."""
+    ff = S[FLOATS]
+    s_del = draw_at(S, SVC_DEL, kind, subject, index, attempt, False)
+    busy = ff[F_BUSY]
+    start = now if now > busy else busy
+    ff[F_BUSY] = start + s_del
+    _work(S, start, start + s_del)
+    return start + s_del

@@ -33,9 +33,22 @@ from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
+from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.queue import ARENA
-from sigma_des.events.fast.support import CohortFallback, unsupported
-from sigma_des.events.fast.tables import DrawTables, network_sources
+from sigma_des.events.fast.support import (
+    TABLE_MARGIN,
+    CohortFallback,
+    ge_slots,
+    ntp_syncs,
+    unsupported,
+)
+from sigma_des.events.fast.tables import (
+    DrawTables,
+    clock_tables,
+    link_tables,
+    lossy_classes,
+    network_sources,
+)
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
@@ -87,9 +100,11 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
-        sources = network_sources(host.net, p_loss)
+        sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
+        self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
+                                      host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
 
     # ------------------------------------------------------------ layout
@@ -99,7 +114,8 @@ class CompiledCore:
         n, spec = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
         pay = L.EF_PAY + max(OBS_WIDTH, M)
-        lockstep = self._lockstep
+        dup_all = self.attempts.qos1d
+        seen = self._lockstep or dup_all
         cap = 4 * (n + 1) + SLACK
         return {
             "cap": cap, "arena": ARENA * cap, "n": n, "clients": n + 1, "links": spec.hosts + 1,
@@ -107,8 +123,14 @@ class CompiledCore:
             "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
-            # duplicate check of re-requests and republished states (Lock-Step only)
-            "seen_n": n + 1 if lockstep else 1, "seen_h": spec.history_frames if lockstep else 1,
+            # duplicate check of re-requests and republished states (Lock-Step), or of
+            # every kind (QoS 1 over datagram: row = kind)
+            "seen_k": L.N_KINDS if dup_all else 2, "seen_n": n + 1 if seen else 1,
+            "seen_h": spec.history_frames if seen else 1, **self.attempts.dims(),
+            # link and clock tables (Gilbert–Elliott, degrade, drop, NTP)
+            "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
+            "deg": max(1, len(spec.net.degrades)), "drops": max(1, len(spec.net.drops)),
+            "ntp_j": ntp_syncs(spec),
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -177,7 +199,8 @@ class CompiledCore:
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
-            **self._links(), **self._nodes(),
+            **self._links(), **self._nodes(), **self.attempts.given(),
+            **link_tables(h.net, spec), **clock_tables(h.nodes.clocks, spec),
         }
 
     def ensure_space(self, k: int) -> None:
@@ -225,6 +248,8 @@ class CompiledCore:
         tb.fill(TRIGGER, k)
         tb.fill(STATE, k)
         tb.fill(0, k)  # compute
+        self.attempts.fill_ack(TRIGGER, k)
+        self.attempts.fill_ack(STATE, k)
         self.ensure_space(2)
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
         now = self.host.kernel.now
@@ -240,6 +265,7 @@ class CompiledCore:
         if nodes.size == 0:
             return
         self.tables.fill(COMMAND, tick)
+        self.attempts.fill_ack(COMMAND, tick)
         self.ensure_space(nodes.size + 2)
         rows = np.ascontiguousarray(cmds, dtype=np.float64)
         now = self.host.kernel.now
@@ -253,6 +279,8 @@ class CompiledCore:
         index = frame * 64 + min(retry, 63)
         self.tables.fill(REREQUEST, index)
         self.tables.fill(REPUBLISH, index)
+        self.attempts.fill_ack(REREQUEST, index)
+        self.attempts.fill_ack(REPUBLISH, index)
         self.ensure_space(2)
         loop.publish_rerequest(self.S, node, frame, index, self.host.kernel.now)
 
@@ -322,6 +350,9 @@ class CompiledCore:
                 self.ensure_space(self.host.n + 8)
             elif code == L.NEED_FLUSH:
                 self.drain()
+            elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
+                tr = S[L.TR_INTS]
+                self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
             elif code in (L.NEED_START, L.NEED_ROLLBACK):
                 self._t_event = float(S[L.FLOATS][L.F_PT])
                 i = int(S[L.INTS][L.I_PNODE])
@@ -331,6 +362,11 @@ class CompiledCore:
                     a, b = int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB])
                     h = self.host
                     self.add_resim(i, h.truth.rollback(i, a, b, h.nodes.cmd[i].copy()))
+            elif int(S[L.INTS][L.I_ERR]) == L.ERR_HORIZON:
+                raise CohortFallback(
+                    "a send or clock reading beyond the link and clock tables "
+                    f"(the run's end + {TABLE_MARGIN} s)"
+                )
             else:
                 raise CohortFallback(
                     "a message needed a random draw older than history_frames "
@@ -384,3 +420,7 @@ class CompiledCore:
         h.kernel.events += int(iv[L.I_NEV])
         for slot in (L.I_DUPS, L.I_MSGS, L.I_HMISS, L.I_NEV):
             iv[slot] = 0
+        tr = S[L.TR_INTS]
+        net.retransmissions += int(tr[L.T_RETX])
+        net.gave_up += int(tr[L.T_GAVE])
+        tr[L.T_RETX] = tr[L.T_GAVE] = 0

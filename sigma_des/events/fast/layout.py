@@ -69,9 +69,12 @@ G_LEN = 2
 N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
 N_ROWS = 6
 # event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
-# or command stamp), frame (of a state, republished state or re-request)
+# or command stamp), frame (of a state, republished state or re-request); attempt of the
+# transmission (QoS 1 or stream segment); in a transport event (F2) the type of the event
+# it becomes, its action TA_*, its stream sequence number and pending-list links
 E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
-E_COLS = 7
+E_ATT, E_RTYPE, E_TACT, E_SEQ, E_NEXT, E_PREV = range(7, 13)
+E_COLS = 13
 # event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
 EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
 # draw sources: latency and loss uniforms per (link class, direction), broker, compute
@@ -79,6 +82,21 @@ LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
 U_OFFSET = 4
 SVC_PUB, SVC_DEL, STEP = 8, 9, 10
 N_SOURCES = 11
+
+# F2 — transport: event type of a transport event (QoS 1 resend timer, stream retry or
+# arrival) and its actions, exit code of a draw-fill request, transport parameters
+# (S.tr_params; T_STREAM + link class: a stream with hold-back), float parameters,
+# counters and the draining connection (S.tr_ints), stream connection rows (S.conn)
+EV_RESEND = 3
+TA_RESEND, TA_RETRY, TA_ARRIVE, TA_GONE = range(4)
+NEED_FILL = 7
+T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS, T_STREAM = range(5)
+T_QLEN = 6
+TF_TIMEOUT, TF_RTO = range(2)
+TF_LEN = 2
+T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
+T_ILEN = 6
+C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
 
 @dataclass(frozen=True)
@@ -105,11 +123,14 @@ class Field:
 _f, _i = np.float64, np.int64
 
 #: The state of the compiled core, in order. Dimensions: ``cap`` event slots,
-#: ``arena`` run-arena rows, ``n`` nodes, ``clients`` = n + 1 (the server is
-#: client n), ``links`` = hosts + 1 access links, ``hosts``, ``cores``, ``tables``
-#: draw-table rows, ``H`` history frames, ``W`` observation width, ``M`` command
-#: width, ``pay`` event float columns, ``out``/``lat`` delivery buffer capacities,
-#: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` Lock-Step duplicate table.
+#: ``n`` nodes, ``clients`` = n + 1 (the server is client n), ``links`` = hosts + 1
+#: access links, ``hosts``, ``cores``, ``tables`` draw-table rows, ``H`` history
+#: frames, ``W`` observation width, ``M`` command width, ``pay`` event float columns,
+#: ``out``/``lat`` delivery buffer capacities, ``slow`` slow-fault windows,
+#: ``seen_k``/``seen_n``/``seen_h`` duplicate table (Lock-Step's re-requests and republished
+#: states, or every kind under QoS 1 over datagram), ``links_1`` = links + 1, the link and
+#: clock tables' ``ge_slots``, ``deg``, ``drops``, ``ntp_j``, and ``ack_tables``/``x_tables``/
+#: ``x_rows`` the PUBACK and resend draw tables, ``arena`` the run arena's rows.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
@@ -149,7 +170,36 @@ FIELDS: tuple[Field, ...] = (
     Field("last_int", _i, ("n", 2), None, "last published state: frame, HLC c"),
     Field("last_float", _f, ("n", "last_w"), 0.0, "last published state: gen, HLC l, obs"),
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
-    Field("seen", _i, (2, "seen_n", "seen_h"), -1.0, "Lock-Step: newest re-request/republish"),
+    Field("seen", _i, ("seen_k", "seen_n", "seen_h"), -1.0,
+          "duplicate rule: newest index per (kind row, subject, index % seen_h)"),
+    # F1, link-level features (Gilbert–Elliott loss, degrade and drop faults, NTP clocks):
+    # ``ge_slots`` chain slots, ``deg`` degrade windows, ``drops`` dropped keys,
+    # ``ntp_j`` NTP sync instants (each table bounded by the run's end + a margin)
+    Field("link_dyn", _i, (4,), None, "link features on: GE host, GE server, degrade, drops"),
+    Field("ge_par", _f, (2, 3), None, "Gilbert-Elliott per link class: slot, loss_good, loss_bad"),
+    Field("ge_bad", np.uint8, (2, "links", "ge_slots"), None, "GE chain (down, up): bad per slot"),
+    Field("deg_ptr", _i, ("links_1",), None, "degrade windows of link k: rows ptr[k]:ptr[k+1]"),
+    Field("deg", _f, ("deg", 4), None, "degrade windows in fault order (start, end, delay, loss)"),
+    Field("drops", _i, ("drops", 3), None, "drop faults' (kind, subject, index), sorted"),
+    Field("ntp_period", _f, (1,), None, "NTP period (0: no NTP)"),
+    Field("ntp_res", _f, ("n", "ntp_j"), None, "NTP residual of node i after sync j (j >= 1)"),
+    # F2 — transport: QoS 1 over datagram (PUBACK hops, resend timers, redelivery)
+    Field("tr_params", _i, (T_QLEN,), None, "transport int parameters T_*"),
+    Field("tr_fparams", _f, (TF_LEN,), None, "transport float parameters TF_*"),
+    Field("tr_ints", _i, (T_ILEN,), 0.0, "transport counters and the draw-fill request"),
+    Field("ack_map", _i, (N_SOURCES, N_KINDS), None, "PUBACK draws, attempt 0: -> table"),
+    Field("ack_val", _f, ("ack_tables", "H", "clients"), None, "PUBACK draws: values"),
+    Field("ack_tag", _i, ("ack_tables", "H"), None, "PUBACK draws: index held by each row"),
+    Field("x_map", _i, (N_SOURCES, 2 * N_KINDS), None,
+          "draws of attempts >= 1: (source, kind [+ N_KINDS: PUBACK]) -> table, -1 const"),
+    Field("x_const", _f, (N_SOURCES,), None, "constant value of a source (attempts >= 1)"),
+    Field("x_first", _i, (N_KINDS,), None, "first attempt table of each kind (-1: none)"),
+    Field("x_val", _f, ("x_tables", "x_rows", "clients"), None, "attempt draws: values"),
+    Field("x_tag", _i, ("x_tables", "x_rows"), None,
+          "attempt draws: key index * (max_retries + 1) + attempt held by each row"),
+    Field("conn", _i, (4, 2, "clients"), None,
+          "stream connections (down, up) per client: next seq, next to deliver, pending list"),
+    Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
     # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
     Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
     Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
@@ -207,6 +257,32 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
+# F1, link-level features
+LINK_DYN = INDEX["link_dyn"]
+GE_PAR = INDEX["ge_par"]
+GE_BAD = INDEX["ge_bad"]
+DEG_PTR = INDEX["deg_ptr"]
+DEG = INDEX["deg"]
+DROPS = INDEX["drops"]
+NTP_PERIOD = INDEX["ntp_period"]
+NTP_RES = INDEX["ntp_res"]
+#: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
+#: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
+ERR_HORIZON = 2
+TR_PARAMS = INDEX["tr_params"]
+TR_FPARAMS = INDEX["tr_fparams"]
+TR_INTS = INDEX["tr_ints"]
+ACK_MAP = INDEX["ack_map"]
+ACK_VAL = INDEX["ack_val"]
+ACK_TAG = INDEX["ack_tag"]
+X_MAP = INDEX["x_map"]
+X_CONST = INDEX["x_const"]
+X_FIRST = INDEX["x_first"]
+X_VAL = INDEX["x_val"]
+X_TAG = INDEX["x_tag"]
+CONN = INDEX["conn"]
+TR_FLOATS = INDEX["tr_floats"]
+# Q, the run-merge event queue
 HEAP_R = INDEX["heap_r"]
 PEND_T = INDEX["pend_t"]
 PEND_K = INDEX["pend_k"]

@@ -37,6 +37,7 @@ from sigma_des.events.fast.layout import (
     EV_CLIENT,
     EV_FLOAT,
     EV_INT,
+    EV_RESEND,
     HEAP_K,
     HEAP_R,
     HEAP_T,
@@ -51,6 +52,7 @@ from sigma_des.events.fast.layout import (
     K_REREQ,
     K_TRIGGER,
     LAT_BUF,
+    NEED_FILL,
     NEED_FLUSH,
     NEED_SPACE,
     OK,
@@ -72,11 +74,20 @@ from sigma_des.events.fast.layout import (
     RUN_POS,
     RUN_T,
     SLOT_MASK,
+    T_DRAIN,
+    T_QOS1D,
+    T_STREAM,
+    TR_FLOATS,
+    TR_INTS,
+    TR_PARAMS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
-from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release, send_up
+from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release
 from sigma_des.events.fast.queue import first, replace_top, view
+from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
+from sigma_des.events.fast.stream import next_ready
+from sigma_des.events.fast.transport import puback_client, send_up
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
 
@@ -88,6 +99,8 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
     sub = S[EV_INT][s, E_WHO]
     if q[Q_QOS1S]:
         count(S, sub, 1, q[Q_ACK], now)
+    elif S[TR_PARAMS][T_QOS1D]:
+        puback_client(S, s, now)
     delivered(S, s, now)
     if sub == q[Q_N]:
         at_server(S, s, now)
@@ -157,6 +170,11 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """
     iv = S[INTS]
     n = S[IPARAMS][Q_N]
+    tp = S[TR_PARAMS]
+    qos1d = tp[T_QOS1D]
+    attempts = qos1d or tp[T_STREAM] or tp[T_STREAM + 1]  # resends draw on demand
+    spare = n + 4 + qos1d * (n + 4)  # a fan-out (and its resend timers under QoS 1)
+    tr = S[TR_INTS]
     Q = view(S)
     qi = S[Q_INT]
     at = S[RUN_T]
@@ -167,45 +185,59 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     hr = S[HEAP_R]
     pmin = S[Q_FLOAT]
     while True:
-        c = qi[QI_CUR]
-        p = 0
-        t = 0.0
-        due = qi[QI_HAS] != 0
-        if due:
-            p = pos[c]
-            t = at[p]
-            k = ak[p]
-            nh = qi[QI_HEAP]
-            if nh > 0 and precedes(ht[0], hk[0], t, k):  # the top run's turn
-                top = hr[0]
-                t = ht[0]
-                k = hk[0]
-                replace_top(ht, hk, hr, nh, at[p], ak[p], c)
-                c = top
-                qi[QI_CUR] = c
-                p = pos[c]
-            due = qi[QI_PN] == 0 or precedes(t, k, pmin[QF_PMIN], qi[QI_PMINK])
-        if not due:
-            t = first(Q)
-            if not qi[QI_HAS]:
-                break
+        if tr[T_DRAIN]:  # a stream arrival hands its connection's segments on, in order
+            if iv[I_FREE] < spare:
+                return NEED_SPACE
+            if _full(S):
+                return NEED_FLUSH
+            s = next_ready(S)
+            if s < 0:
+                continue
+            t = S[TR_FLOATS][0]
+        else:
             c = qi[QI_CUR]
-            p = pos[c]
-        if t > t_stop or (strict and t >= t_stop):
-            return OK
-        if iv[I_FREE] < n + 4:
-            return NEED_SPACE
-        if _full(S):
-            return NEED_FLUSH
-        s = ak[p] & SLOT_MASK  # take the head
-        pos[c] = p + 1
-        if p + 1 == S[RUN_END][c]:
-            qi[QI_HAS] = 0
+            p = 0
+            t = 0.0
+            due = qi[QI_HAS] != 0
+            if due:
+                p = pos[c]
+                t = at[p]
+                k = ak[p]
+                nh = qi[QI_HEAP]
+                if nh > 0 and precedes(ht[0], hk[0], t, k):  # the top run's turn
+                    top = hr[0]
+                    t = ht[0]
+                    k = hk[0]
+                    replace_top(ht, hk, hr, nh, at[p], ak[p], c)
+                    c = top
+                    qi[QI_CUR] = c
+                    p = pos[c]
+                due = qi[QI_PN] == 0 or precedes(t, k, pmin[QF_PMIN], qi[QI_PMINK])
+            if not due:
+                t = first(Q)
+                if not qi[QI_HAS]:
+                    return OK
+                c = qi[QI_CUR]
+                p = pos[c]
+            if t > t_stop or (strict and t >= t_stop):
+                return OK
+            if iv[I_FREE] < spare:
+                return NEED_SPACE
+            if _full(S):
+                return NEED_FLUSH
+            s = ak[p] & SLOT_MASK  # take the head
+            if attempts and missing(S, s):
+                return NEED_FILL
+            pos[c] = p + 1
+            if p + 1 == S[RUN_END][c]:
+                qi[QI_HAS] = 0
         typ = S[EV_INT][s, E_TYPE]
         if typ == EV_CLIENT:
             _client(S, s, t)
         elif typ == EV_BROKER:
             broker(S, s, t)
+        elif typ == EV_RESEND:
+            resend(S, s, t)
         else:
             done(S, s, t)
         release(S, s)
@@ -215,4 +247,3 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             code = iv[I_PEND]
             iv[I_PEND] = 0
             return code
-    return OK

@@ -10,9 +10,8 @@ rollback draws; otherwise the start is handed to Python, which computes it with
 
 from __future__ import annotations
 
+from sigma_des.events.fast.clock import local_time
 from sigma_des.events.fast.layout import (
-    CLOCK_DRIFT,
-    CLOCK_OFF,
     CMD,
     CORES,
     CRASH,
@@ -68,14 +67,15 @@ from sigma_des.events.fast.layout import (
     SLOW_PTR,
     STEP,
 )
-from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, send_up
+from sigma_des.events.fast.primitives import address, alloc, draw, jit, push
+from sigma_des.events.fast.transport import send_up
 
 __all__ = ["at_node", "done", "reserve"]
 
 
 @jit
 def _local(S, i, t):  # type: ignore[no-untyped-def]
-    return t + S[CLOCK_OFF][i] + S[CLOCK_DRIFT][i] * t
+    return local_time(S, i, t)
 
 
 @jit

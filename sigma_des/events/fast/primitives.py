@@ -12,16 +12,16 @@ state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, TypeVar
-
-from numba import njit
-
+from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
+    ACK_MAP,
+    ACK_TAG,
+    ACK_VAL,
     DRAW_CONST,
     DRAW_MAP,
     DRAW_TAG,
     DRAW_VAL,
+    E_ATT,
     E_INDEX,
     E_KIND,
     E_SUBJ,
@@ -43,7 +43,7 @@ from sigma_des.events.fast.layout import (
     LINK_COUNT,
     LINK_OF,
     LINK_SPB,
-    P_LOSS,
+    N_KINDS,
     PEND_K,
     PEND_T,
     Q_FLOAT,
@@ -53,16 +53,17 @@ from sigma_des.events.fast.layout import (
     QI_PMINK,
     QI_PN,
     SLOT_BITS,
+    T_RETRIES,
+    T_XROWS,
+    TR_PARAMS,
     U_OFFSET,
     WIRE_BYTES,
+    X_CONST,
+    X_MAP,
+    X_TAG,
+    X_VAL,
 )
-
-_F = TypeVar("_F", bound=Callable[..., Any])
-
-#: Compiled without numba's reference counting: every array is borrowed from the
-#: driver and nothing is allocated, and NRT's atomic increments on each array access
-#: made the loop ~4x slower.
-jit: Callable[[_F], _F] = njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+from sigma_des.events.fast.loss import forced_drop, link_loss
 
 
 @jit
@@ -140,6 +141,7 @@ def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped
     evi[slot, E_KIND] = kind
     evi[slot, E_SUBJ] = subject
     evi[slot, E_INDEX] = index
+    evi[slot, E_ATT] = 0  # a first transmission (resends set their attempt)
 
 
 # ---------------------------------------------------------------- draws and links
@@ -177,32 +179,91 @@ def count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
 
 
 @jit
+def attempt_key(S, index, attempt):  # type: ignore[no-untyped-def]
+    """The key of ``(index, attempt)`` in the attempt tables, and its row."""
+    key = index * (S[TR_PARAMS][T_RETRIES] + 1) + attempt
+    return key, key % S[TR_PARAMS][T_XROWS]
+
+
+@jit
+def _constant(S, src, c):  # type: ignore[no-untyped-def]
+    """A constant source's value (``c == -1``); an unregistered one (-2) is an error."""
+    if c == -1:
+        return S[X_CONST][src]
+    S[INTS][I_ERR] = 1
+    return 0.0
+
+
+@jit
+def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped-def]
+    """The draw of ``(kind [+ ACK], subj, index, attempt)`` from source ``src``.
+
+    Attempt 0 of a PUBLISH is in the main tables (:func:`draw`), attempt 0 of its
+    PUBACK (``ack``) in the PUBACK tables, later attempts in the attempt tables
+    (filled on demand: :func:`sigma_des.events.fast.transport.missing`).
+    """
+    if attempt == 0:
+        if not ack:
+            return draw(S, src, kind, subj, index)
+        c = S[ACK_MAP][src, kind]
+        if c < 0:
+            return _constant(S, src, c)
+        tag = S[ACK_TAG]
+        r = index % tag.shape[1]
+        if tag[c, r] != index:
+            S[INTS][I_ERR] = 1
+            return 0.0
+        return S[ACK_VAL][c, r, subj]
+    c = S[X_MAP][src, kind + N_KINDS if ack else kind]
+    if c < 0:
+        return _constant(S, src, c)
+    key, r = attempt_key(S, index, attempt)
+    if S[X_TAG][c, r] != key:
+        S[INTS][I_ERR] = 1
+        return 0.0
+    return S[X_VAL][c, r, subj]
+
+
+@jit
+def fly(S, client, up, kind, subj, index, attempt, ack, done, t):  # type: ignore[no-untyped-def]
+    """Latency and loss of a packet sent at ``t`` whose last bit left ``client``'s link
+    at ``done`` (Links.hop after the serialization; ``ack``: a PUBACK's draws).
+
+    Returns:
+        (arrival time at the far end, lost?)
+    """
+    cls = 1 if client == S[IPARAMS][Q_N] else 0
+    src = lat_source(cls, up)
+    lat = draw_at(S, src, kind, subj, index, attempt, ack)
+    p, extra = link_loss(S, client, cls, up, t)
+    lost = False
+    if p > 0.0:
+        lost = draw_at(S, U_OFFSET + src, kind, subj, index, attempt, ack) < p
+    # a drop fault loses a message's first transmission (a PUBACK's key is kind + ACK)
+    if attempt == 0 and not ack and forced_drop(S, up, kind, subj, index):
+        lost = True
+    return done + lat + extra, lost
+
+
+@jit
 def hop(S, slot, t):  # type: ignore[no-untyped-def]
     """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
 
     FIFO serialization on the receiver's (down) or sender's (up) link, latency and
-    loss; a lost message frees its slot.
+    loss (time-dependent: Gilbert–Elliott state, degrade windows and drop faults,
+    :mod:`~sigma_des.events.fast.loss`); a lost message frees its slot.
+
+    Returns:
+        (arrival time, lost?) of this transmission.
     """
     evi = S[EV_INT]
     client = evi[slot, E_WHO]
     kind, subj, index = key_of(S, slot)
     up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
     done = count(S, client, up, S[WIRE_BYTES][kind], t)
-    cls = 1 if client == S[IPARAMS][Q_N] else 0
-    src = lat_source(cls, up)
-    lat = draw(S, src, kind, subj, index)
-    p = S[P_LOSS][cls]
-    lost = False
-    if p > 0.0:
-        lost = draw(S, U_OFFSET + src, kind, subj, index) < p
+    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, E_ATT], False, done, t)
     if lost:
         release(S, slot)
     else:
-        push(S, done + lat, slot)
-
-
-@jit
-def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
-    """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
-    address(S, slot, EV_BROKER, client, kind, subject, index)
-    hop(S, slot, t)
+        push(S, arr, slot)
+    return arr, lost

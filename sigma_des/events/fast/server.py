@@ -45,6 +45,8 @@ from sigma_des.events.fast.layout import (
     Q_LOCK,
     Q_W,
     SEEN,
+    T_DUPALL,
+    TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import jit
 
@@ -59,12 +61,14 @@ def delivered(S, s, now):  # type: ignore[no-untyped-def]
     kind = evi[s, E_KIND]
     index = evi[s, E_INDEX]
     t_pub = S[EV_FLOAT][s, EF_TPUB]
-    # Collector.delivered: on this path only a re-request or republished state can come
-    # twice (a retry index is capped at 63: frame * 64 + min(retry, 63))
+    # Collector.delivered: without QoS 1 over datagram only a re-request or republished
+    # state can come twice (a retry index is capped at 63: frame * 64 + min(retry, 63));
+    # with it, a resend makes any kind a possible duplicate (one seen row per kind)
     dup = False
-    if kind >= K_REREQ:
+    dup_all = S[TR_PARAMS][T_DUPALL]
+    if dup_all or kind >= K_REREQ:
         seen = S[SEEN]
-        row = kind - K_REREQ
+        row = kind if dup_all else kind - K_REREQ
         subject = evi[s, E_SUBJ]
         slot = index % seen.shape[2]
         if seen[row, subject, slot] == index:

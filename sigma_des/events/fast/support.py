@@ -2,45 +2,74 @@
 
 Features whose per-message behaviour the core does not reproduce are listed by
 :func:`unsupported`; a run that needs them uses the per-message engine for the
-whole run and says why (docs/MODEL.md, "Engines").
+whole run and says why (docs/MODEL.md, "Engines"). The link and clock tables the
+core reads for Gilbert–Elliott loss and NTP clocks cover the run and
+:data:`TABLE_MARGIN` seconds more; :func:`ge_slots` and :func:`ntp_syncs` size
+them.
 """
 
 from __future__ import annotations
 
+import math
+
 from sigma_des.events.spec import RunSpec
 
-__all__ = ["CohortFallback", "unsupported"]
+__all__ = ["MAX_TABLE_BYTES", "TABLE_MARGIN", "CohortFallback", "ge_slots", "ntp_syncs",
+           "unsupported"]
+
+#: Seconds past the run's end covered by the Gilbert–Elliott and NTP tables (a send
+#: later than that, behind a broker backlog this long, stops the compiled run and
+#: the whole run is made per message).
+TABLE_MARGIN = 1.0
+#: Largest Gilbert–Elliott or NTP table the core builds (bytes); beyond, fall back.
+MAX_TABLE_BYTES = 1 << 26
 
 
 class CohortFallback(RuntimeError):
     """The cohort core met something it cannot reproduce exactly (run per message)."""
 
 
+def ge_slots(sc: RunSpec) -> int:
+    """Chain slots of the core's Gilbert–Elliott table (1: no link uses the model)."""
+    horizon = sc.duration + TABLE_MARGIN
+    net = sc.net.net
+    slots = [
+        math.floor(horizon / link.loss.slot) + 1
+        for link in (net.host_link, net.server_link)
+        if link.loss.model == "gilbert_elliott"
+    ]
+    return max(slots, default=1)
+
+
+def ntp_syncs(sc: RunSpec) -> int:
+    """Columns of the core's NTP residual table: sync indices ``0 ... j_max`` (1: no NTP)."""
+    period = sc.clocks.ntp_period
+    if period <= 0.0:
+        return 1
+    return math.floor((sc.duration + TABLE_MARGIN) / period) + 2
+
+
 def unsupported(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
-    These features fall back to the per-message engine for the whole run: drop and
-    degrade faults, NTP-corrected clocks, Gilbert–Elliott loss, MQTT QoS 1 over
-    datagrams (resends and PUBACK hops), and the stream transport on a link with
-    loss or random latency (in-order hold-back and retransmission); the DDS
-    middleware and the ``rpc`` method (issue 16: per-message models only).
+    These features fall back to the per-message engine for the whole run: the DDS
+    middleware and the ``rpc`` method (issue 16: per-message models only); a
+    Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
+    slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
+    degrade and drop faults and NTP-corrected clocks, MQTT QoS 1 over datagrams
+    (PUBACK hops, resends, redelivery: :mod:`~sigma_des.events.fast.transport`) and
+    the stream transport on a link with loss or random latency (in-order hold-back,
+    RTO retries, give-ups: :mod:`~sigma_des.events.fast.stream`).
     """
     why: list[str] = []
-    kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow"})
+    net = sc.net.net
+    kinds = sorted({f.kind for f in sc.faults} - {"crash", "slow", "degrade", "drop"})
     if kinds:
         why.append(f"faults of kind {', '.join(kinds)}")
-    if sc.clocks.ntp_period > 0:
-        why.append("NTP-corrected clocks")
-    net = sc.net.net
-    for name, link in (("host_link", net.host_link), ("server_link", net.server_link)):
-        if link.loss.model != "bernoulli":
-            why.append(f"{name}: Gilbert-Elliott loss")
-        elif net.transport == "stream" and (
-            link.latency.dist != "constant" or link.loss.p > 0.0
-        ):
-            why.append(f"{name}: stream transport with loss or random latency")
-    if net.transport == "datagram" and net.qos == 1:
-        why.append("QoS 1 over datagram (resends, PUBACK hops)")
+    if 8 * sc.nodes * ntp_syncs(sc) > MAX_TABLE_BYTES:
+        why.append("NTP-corrected clocks: residual table too large (NTP period too short)")
+    if 2 * (sc.hosts + 1) * ge_slots(sc) > MAX_TABLE_BYTES:
+        why.append("Gilbert-Elliott loss: chain table too large (slot too short)")
     if net.middleware == "dds":
         why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
     if method == "rpc":

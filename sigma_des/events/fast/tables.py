@@ -1,4 +1,4 @@
-"""Draw tables of the compiled message core: counter-based draws, filled by Python.
+"""Tables of the compiled message core, filled by Python: draws, links, clocks.
 
 The compiled loop never draws a random number. For every random source of the
 message model (latency and loss per link class and direction, broker service,
@@ -7,11 +7,17 @@ for one message index; Python fills it, from the very same
 :class:`~sigma_des.core.draws.DrawCache` sampler the per-message engine reads,
 before the messages of that index can need it. Draws are a pure function of their
 key, so a table row can be refilled at any time and results never change.
+
+The link and clock tables (:func:`link_tables`, :func:`clock_tables`) are built
+once per run from the very objects the per-message engine reads: the
+Gilbert–Elliott chain state per link, direction and slot, the degrade windows and
+dropped keys, and the NTP residual per node and sync instant.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,22 +37,26 @@ from sigma_des.events.fast.layout import (
     U_OFFSET,
 )
 from sigma_des.events.fast.primitives import lat_source
+from sigma_des.events.fast.support import CohortFallback, ge_slots, ntp_syncs
 from sigma_des.events.jobs import STEP_DRAW
+from sigma_des.events.spec import RunSpec
+from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.network import Network
 
-__all__ = ["DrawTables", "network_sources"]
+__all__ = ["DrawTables", "clock_tables", "link_tables", "lossy_classes", "network_sources"]
 
 _Sampler = Callable[[int], NDArray[np.float64]]
 #: (draw source, message kind, cache) of one random source of the core
 Source = tuple[int, int, DrawCache]
 
 
-def network_sources(net: Network, p_loss: tuple[float, float]) -> list[Source]:
+def network_sources(net: Network, lossy: tuple[bool, bool]) -> list[Source]:
     """The network's random sources: link latency and loss, broker service.
 
     Args:
         net: the per-message network (owner of the draw caches).
-        p_loss: loss probability of the host and server links (0: no loss draws).
+        lossy: whether the host and server links can lose a packet (else: no loss
+            draws; see :func:`lossy_classes`).
     """
     out: list[Source] = []
     for cls, is_server in ((0, False), (1, True)):
@@ -61,7 +71,7 @@ def network_sources(net: Network, p_loss: tuple[float, float]) -> list[Source]:
             lat = net.latency_draws(is_server, bool(up))
             for k in kinds:
                 out.append((src, k, lat))
-                if p_loss[cls] > 0.0:
+                if lossy[cls]:
                     out.append((U_OFFSET + src, k, net.loss_draws(is_server, bool(up))))
     for k in (K_TRIGGER, K_STATE, K_COMMAND, K_REREQ, K_REPUB):
         out.append((SVC_PUB, k, net.broker.publish_draws))
@@ -117,3 +127,79 @@ def _vector_of(cache: DrawCache, kind: int) -> _Sampler:
         return cache.vector(kind, index, 0)
 
     return sample
+
+
+# ---------------------------------------------------------------- link and clock tables
+
+
+def lossy_classes(spec: RunSpec) -> tuple[bool, bool]:
+    """Whether a packet can be lost on the host links and on the server's link
+    (Bernoulli ``p``, a Gilbert–Elliott state's loss, or a lossy degrade window)."""
+    net = spec.net.net
+    hosts = spec.hosts
+    out = []
+    for cls, link in ((0, net.host_link), (1, net.server_link)):
+        loss = link.loss
+        ge = loss.model == "gilbert_elliott" and max(loss.loss_good, loss.loss_bad) > 0.0
+        deg = any((d.host == hosts) == (cls == 1) and d.extra_loss > 0.0
+                  for d in spec.net.degrades)
+        out.append(loss.p > 0.0 or ge or deg)
+    return out[0], out[1]
+
+
+def link_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
+    """The core's link tables: Gilbert–Elliott chains, degrade windows, dropped keys.
+
+    The chain states come from the network's own loss processes
+    (:meth:`~sigma_des.net.links.Links.loss_process`), the windows in fault order per
+    link (the order :meth:`~sigma_des.net.links.Links._loss_at` combines them).
+    """
+    setup = spec.net
+    links = setup.net
+    hosts = spec.hosts
+    slots = ge_slots(spec)
+    dyn = np.zeros(4, dtype=np.int64)
+    par = np.zeros((2, 3))
+    bad = np.zeros((2, hosts + 1, slots), dtype=np.uint8)
+    for cls, link in ((0, links.host_link), (1, links.server_link)):
+        loss = link.loss
+        par[cls] = (loss.slot, loss.loss_good, loss.loss_bad)
+        if loss.model != "gilbert_elliott":
+            continue
+        dyn[cls] = 1
+        # the middle of each slot: floor(t / slot) is the slot itself, exactly
+        t = (np.arange(slots, dtype=np.float64) + 0.5) * loss.slot
+        if not np.array_equal(np.floor(t / loss.slot), np.arange(slots)):
+            raise CohortFallback("Gilbert-Elliott slot times are not exact")
+        for k in range(hosts + 1):
+            if (k == hosts) == (cls == 1):
+                for up in (0, 1):
+                    bad[up, k] = net.loss_process(cls == 1, up == 1, k).bad_state(t)
+    ptr = np.zeros(hosts + 2, dtype=np.int64)
+    rows: list[tuple[float, float, float, float]] = []
+    for k in range(hosts + 1):
+        rows.extend((d.start, d.end, d.extra_delay, d.extra_loss)
+                    for d in setup.degrades if d.host == k)
+        ptr[k + 1] = len(rows)
+    dyn[2] = int(bool(rows))
+    drops = sorted(setup.drops)
+    dyn[3] = int(bool(drops))
+    return {
+        "link_dyn": dyn, "ge_par": par, "ge_bad": bad, "deg_ptr": ptr,
+        "deg": np.array(rows if rows else [(0.0, 0.0, 0.0, 0.0)], dtype=np.float64),
+        "drops": np.array(drops if drops else [(-1, -1, -1)], dtype=np.int64),
+    }
+
+
+def clock_tables(clocks: NodeClocks, spec: RunSpec) -> dict[str, NDArray[Any]]:
+    """The core's NTP table: residual ``e_ij`` of node ``i`` after sync ``j``, drawn by
+    ``(node, 2, j)`` from the clocks' own stream, times ``ntp_residual_std``."""
+    cs = clocks.spec
+    n = clocks.n
+    cols = ntp_syncs(spec)
+    res = np.zeros((n, cols))
+    if cs.ntp_period > 0.0:
+        ids = np.arange(n, dtype=np.int64)[:, None]
+        js = np.arange(cols, dtype=np.int64)[None, :]
+        res = np.ascontiguousarray(cs.ntp_residual_std * clocks.stream.normal(ids, 2, js))
+    return {"ntp_period": np.array([cs.ntp_period]), "ntp_res": res}

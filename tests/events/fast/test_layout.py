@@ -16,7 +16,9 @@ from tests.conftest import tiny
 DIMS = {
     "cap": 5, "arena": 6, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
     "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
-    "slow": 1, "seen_n": 1, "seen_h": 1,
+    "slow": 1, "seen_k": 2, "seen_n": 1, "seen_h": 1,
+    "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
+    "ack_tables": 1, "x_tables": 1, "x_rows": 1,
 }
 
 
@@ -30,10 +32,10 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    assert len(set(names)) == len(names) == 50
+    assert len(set(names)) == len(names) == 71  # 39 + 8 F1 links + 13 F2 transport + 11 Q queue
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(50))
+    assert [getattr(L, name.upper()) for name in names] == list(range(71))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
 
 

@@ -1,0 +1,143 @@
+"""MQTT QoS 1 over datagram in the compiled message core (docs/MODEL.md, "Network").
+
+The transport side of a PUBLISH's hop, the same operations in the same order as
+:mod:`sigma_des.net.network`: :func:`send` is ``Network._send_publish`` with
+``_schedule_resend`` (a first transmission, a resend or a redelivery: the arrival
+is queued first, then, if it is lost or later than ``qos1_timeout``, the resend
+timer); :func:`puback_broker` and :func:`puback_client` are ``Network._puback``
+from the broker to the publisher and from a subscriber to the broker, with the
+resend a lost or late PUBACK causes while the sender's timer still runs. A resend
+timer is an event slot holding a copy of the message, its attempt and the type of
+the event it will resend (:mod:`sigma_des.events.fast.resend` handles it).
+Without QoS 1 over datagram :func:`send` is one hop
+(:func:`~sigma_des.events.fast.primitives.hop`), or a stream segment with hold-back
+(:mod:`sigma_des.events.fast.stream`) on a link with loss or random latency.
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.layout import (
+    E_ATT,
+    E_RTYPE,
+    E_TACT,
+    E_TYPE,
+    E_WHO,
+    EF_TDEP,
+    EV_BROKER,
+    EV_FLOAT,
+    EV_INT,
+    EV_RESEND,
+    IPARAMS,
+    Q_ACK,
+    Q_N,
+    T_GAVE,
+    T_QOS1D,
+    T_RETRIES,
+    T_RETX,
+    T_STREAM,
+    TA_RESEND,
+    TF_TIMEOUT,
+    TR_FPARAMS,
+    TR_INTS,
+    TR_PARAMS,
+)
+from sigma_des.events.fast.primitives import (
+    address,
+    alloc,
+    count,
+    fly,
+    hop,
+    jit,
+    key_of,
+    push,
+    release,
+)
+from sigma_des.events.fast.stream import stream_send
+
+__all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_up"]
+
+
+@jit
+def copy_slot(S, src, dst):  # type: ignore[no-untyped-def]
+    """Copy every column of event slot ``src`` into ``dst``."""
+    evi = S[EV_INT]
+    evf = S[EV_FLOAT]
+    for j in range(evi.shape[1]):
+        evi[dst, j] = evi[src, j]
+    for j in range(evf.shape[1]):
+        evf[dst, j] = evf[src, j]
+
+
+@jit
+def _schedule(S, tm, when):  # type: ignore[no-untyped-def]
+    """Network._schedule_resend: the copy in slot ``tm`` is resent at ``when``, or given up."""
+    evi = S[EV_INT]
+    ti = S[TR_INTS]
+    attempt = evi[tm, E_ATT]
+    if attempt >= S[TR_PARAMS][T_RETRIES]:
+        ti[T_GAVE] += 1
+        release(S, tm)
+        return
+    ti[T_RETX] += 1
+    evi[tm, E_RTYPE] = evi[tm, E_TYPE]
+    evi[tm, E_TYPE] = EV_RESEND
+    evi[tm, E_TACT] = TA_RESEND
+    evi[tm, E_ATT] = attempt + 1
+    push(S, when, tm)
+
+
+@jit
+def send(S, slot, t):  # type: ignore[no-untyped-def]
+    """The addressed PUBLISH in ``slot`` leaves its sender at ``t`` (its attempt set)."""
+    tp = S[TR_PARAMS]
+    if not tp[T_QOS1D]:
+        cls = 1 if S[EV_INT][slot, E_WHO] == S[IPARAMS][Q_N] else 0
+        if tp[T_STREAM + cls]:
+            stream_send(S, slot, t)
+        else:
+            hop(S, slot, t)
+        return
+    S[EV_FLOAT][slot, EF_TDEP] = t  # when this try left (the PUBACK's timer starts)
+    tm = alloc(S)  # the resend's copy, made before the hop frees a lost message
+    copy_slot(S, slot, tm)
+    arr, lost = hop(S, slot, t)
+    when = t + S[TR_FPARAMS][TF_TIMEOUT]
+    if lost or arr > when:
+        _schedule(S, tm, when)
+    else:
+        release(S, tm)
+
+
+@jit
+def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
+    """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
+    address(S, slot, EV_BROKER, client, kind, subject, index)
+    send(S, slot, t)
+
+
+@jit
+def _puback(S, s, up, t, now):  # type: ignore[no-untyped-def]
+    """Network._puback for the PUBLISH in slot ``s`` (its try left at ``EF_TDEP``),
+    sent at ``t`` on its client's link; resend it if the sender's timer fires first."""
+    kind, subj, index = key_of(S, s)
+    client = S[EV_INT][s, E_WHO]
+    attempt = S[EV_INT][s, E_ATT]
+    done = count(S, client, up, S[IPARAMS][Q_ACK], t)
+    arr, lost = fly(S, client, up, kind, subj, index, attempt, True, done, t)
+    when = S[EV_FLOAT][s, EF_TDEP] + S[TR_FPARAMS][TF_TIMEOUT]
+    if now <= when and (lost or arr > when):
+        tm = alloc(S)
+        copy_slot(S, s, tm)
+        _schedule(S, tm, when)
+
+
+@jit
+def puback_broker(S, s, t_ack, now):  # type: ignore[no-untyped-def]
+    """The broker acknowledges the PUBLISH in slot ``s`` (received ``now``) at ``t_ack``."""
+    _puback(S, s, 0, t_ack, now)
+
+
+@jit
+def puback_client(S, s, now):  # type: ignore[no-untyped-def]
+    """The subscriber of the delivery in slot ``s`` acknowledges it on arrival ``now``."""
+    _puback(S, s, 1, now, now)
