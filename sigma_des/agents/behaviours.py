@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -163,6 +164,24 @@ class BehaviourSet:
 
 # --- built-in rules ------------------------------------------------------------------------
 
+@lru_cache(maxsize=64)
+def _rectangle(
+    size: tuple[float, float], origin: tuple[float, float]
+) -> tuple[Array, Array, Array, Array, Array, float]:
+    """The route rectangle's constant arrays (computed once per rectangle, read-only):
+    corners, side lengths, start and end of each side along the perimeter, side
+    vectors, perimeter."""
+    a, b = size
+    corners = np.array([[0, 0], [a, 0], [a, b], [0, b]], dtype=float) + np.asarray(origin)
+    seg_len = np.array([a, b, a, b])
+    ends = np.cumsum(seg_len)
+    starts = np.concatenate([[0.0], ends[:-1]])
+    d = np.roll(corners, -1, axis=0) - corners
+    for x in (corners, seg_len, ends, starts, d):
+        x.flags.writeable = False
+    return corners, seg_len, starts, ends, d, 2 * (a + b)
+
+
 def rectangle_carrot(pos: Array, size: tuple[float, float], origin: tuple[float, float],
                      lookahead: float) -> Array:
     """Carrot points ``lookahead`` metres ahead along a clockwise rectangle.
@@ -173,19 +192,14 @@ def rectangle_carrot(pos: Array, size: tuple[float, float], origin: tuple[float,
     perimeter point ``lookahead`` further along. Being a pure function of the
     position, the route needs no waypoint index (safe under rollback).
     """
-    a, b = size
-    corners = np.array([[0, 0], [a, 0], [a, b], [0, b]], dtype=float) + np.asarray(origin)
-    seg_len = np.array([a, b, a, b])
-    starts = np.concatenate([[0.0], np.cumsum(seg_len)[:-1]])
-    perim = 2 * (a + b)
+    corners, seg_len, starts, ends, d, perim = _rectangle(tuple(size), tuple(origin))
     rel = pos[:, None, :] - corners[None, :, :]
-    d = np.roll(corners, -1, axis=0) - corners
     t = np.clip((rel * d[None]).sum(-1) / seg_len[None] ** 2, 0, 1)
     proj = corners[None] + t[..., None] * d[None]
     dist = np.linalg.norm(pos[:, None, :] - proj, axis=-1)
     k = np.argmin(dist, axis=1)
     s = (starts[k] + t[np.arange(len(k)), k] * seg_len[k] + lookahead) % perim
-    seg = np.searchsorted(np.cumsum(seg_len), s, side="right").clip(0, 3)
+    seg = np.searchsorted(ends, s, side="right").clip(0, 3)
     frac = (s - starts[seg]) / seg_len[seg]
     return corners[seg] + frac[:, None] * d[seg]
 
@@ -204,13 +218,18 @@ def route_rule(leaders: Sequence[int] = (0,), size: tuple[float, float] = (1000.
         return t
 
     def logic(_: Any, view: SwarmView) -> Array:
-        pos = view.obs[:, 9:11]
-        out = np.full((len(pos), 4), np.nan)
-        ok = ~np.isnan(pos[:, 0])
-        c = rectangle_carrot(pos[ok], size, origin, lookahead)
-        out[ok, 0] = speed
-        out[ok, 1] = np.arctan2(c[:, 1] - pos[ok, 1], c[:, 0] - pos[ok, 0])
-        out[ok, 2] = altitude
+        # only the leaders' rows: the trigger leaves every other row inactive, and
+        # guidance reads a rule's action on its active rows only (every figure of a
+        # row depends on that row alone, so the leaders' values are the same bits)
+        obs = view.obs
+        out = np.full((obs.shape[0], 4), np.nan)
+        rows = lead[lead < len(out)]
+        rows = rows[~np.isnan(obs[rows, 9])]
+        pos = obs[rows, 9:11]
+        c = rectangle_carrot(pos, size, origin, lookahead)
+        out[rows, 0] = speed
+        out[rows, 1] = np.arctan2(c[:, 1] - pos[:, 1], c[:, 0] - pos[:, 0])
+        out[rows, 2] = altitude
         return out
 
     return Rule("route", lambda v: None, trigger, 0.5, logic, weight)

@@ -23,6 +23,7 @@ from sigma_des.core.flags import EXTRAPOLATED, FILLED
 from sigma_des.core.validate import require, require_positive
 from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
+from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import summarize
 
 __all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS"]
@@ -142,15 +143,17 @@ class Collector:
         # a run that never calls delivered() (the cohort engine) never holds them
         self._seen: dict[int, NDArray[np.int64]] = {}
         self._seen_shape = (n + 1, H)
-        self._lat: dict[str, list[float]] = {"trigger": [], "state": [], "command": []}
+        # samples needed whole at the end (exact percentiles and whole-sample means),
+        # 8 bytes each (sigma_des.metrics.samples)
+        self._lat = {k: Samples() for k in ("trigger", "state", "command")}
         self.duplicates = 0
         self.messages = 0
         self.triggers = 0
         self.f_trig_min = spec.f_trig
         self._snap_times: list[float] = []
-        self._aoi_samples: list[NDArray[np.float64]] = []
+        self._aoi_samples = Samples()
         self._spread: list[int] = []
-        self._pos_err: list[NDArray[np.float64]] = []
+        self._pos_err = Samples()
         self._flag_counts = [0, 0, 0, 0]  # shown, filled, extrapolated, off the ref frame
         self.ts: dict[str, list[float]] = {
             k: []
@@ -206,7 +209,7 @@ class Collector:
         self.messages += messages
         name = _KINDS[kind]
         if name in self._lat and latencies.size:
-            self._lat[name].extend(latencies.tolist())
+            self._lat[name].extend(latencies)
 
     def aoi_update(self, t: float, nodes: NDArray[np.int64], gens: NDArray[np.float64]) -> None:
         """The consumer starts showing new states of ``nodes``."""
@@ -245,12 +248,12 @@ class Collector:
             return
         valid = ~np.isnan(gen)
         ages = t - gen[valid]
-        self._aoi_samples.append(ages)
+        self._aoi_samples.extend(ages)
         spread = int(frame[valid].max() - frame[valid].min()) if ages.size else 0
         self._spread.append(spread)
         if truth is not None and ages.size:
             err = np.linalg.norm(obs[valid, 9:12] - truth[valid], axis=1)
-            self._pos_err.append(err[~np.isnan(err)])
+            self._pos_err.extend(err[~np.isnan(err)])
         self._flag_counts[0] += int(valid.sum())
         self._flag_counts[1] += int(np.count_nonzero(flag == FILLED))
         self._flag_counts[2] += int(np.count_nonzero(flag == EXTRAPOLATED))
@@ -264,6 +267,16 @@ class Collector:
         ts["f_trig"].append(f_trig)
         ts["latest_trigger"].append(latest)
         ts["aligned_frame"].append(ref)
+
+    def latencies(self, kind: str) -> NDArray[np.float64]:
+        """The delivery latencies (s) counted so far of ``kind`` (``trigger``, ``state``,
+        ``command``), in delivery order (a copy)."""
+        return self._lat[kind].values().copy()
+
+    def sample_bytes(self) -> int:
+        """Bytes held by the samples kept whole for the end (latencies, AoI, errors)."""
+        held = [*self._lat.values(), self._aoi_samples, self._pos_err]
+        return sum(s.nbytes for s in held)
 
     # ------------------------------------------------------------ results
 
@@ -282,14 +295,14 @@ class Collector:
         window = sc.duration - self.w0
         m: dict[str, float] = {}
         ms = 1000.0
-        a = summarize(np.concatenate(self._aoi_samples) if self._aoi_samples else np.empty(0))
+        a = summarize(self._aoi_samples.values())
         for s in ("mean", "std", "p50", "p95", "p99", "max"):
             m[f"aoi_{s}"] = a[s] * ms
         fin = self.aoi.finish(sc.duration)
         m["aoi_time_avg"] = fin["time_average"] * ms
         m["aoi_peak_mean"] = fin["peak_mean"] * ms
         for kind, xs in self._lat.items():
-            lat = summarize(np.asarray(xs))
+            lat = summarize(xs.values())
             m[f"latency_{kind}_mean"] = lat["mean"] * ms
             m[f"latency_{kind}_p99"] = lat["p99"] * ms
         links = net.links
@@ -314,7 +327,7 @@ class Collector:
         sp = np.asarray(self._spread, dtype=np.float64)
         m["spread_mean"] = float(sp.mean()) if sp.size else math.nan
         m["spread_max"] = float(sp.max()) if sp.size else math.nan
-        pe = np.concatenate(self._pos_err) if self._pos_err else np.empty(0)
+        pe = self._pos_err.values()
         m["pos_err_mean"] = float(pe.mean()) if pe.size else math.nan
         m["pos_err_max"] = float(pe.max()) if pe.size else math.nan
         shown = max(1, self._flag_counts[0])

@@ -130,11 +130,11 @@ def test_duplicate_delivery_changes_no_metric() -> None:
     run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     obs = np.zeros(12)
     run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
-    lat = list(run.collector._lat["state"])
+    lat = run.collector.latencies("state").tolist()
     ring = run.aligner.ring.frame.copy()  # type: ignore[attr-defined]
     run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
     assert run.collector.duplicates == 1
-    assert run.collector._lat["state"] == lat
+    assert run.collector.latencies("state").tolist() == lat
     assert np.array_equal(run.aligner.ring.frame, ring)  # type: ignore[attr-defined]
 
 

@@ -1,0 +1,98 @@
+#!/usr/bin/env python
+"""Peak memory of a command and every process it starts (the ``compare --jobs`` workers).
+
+``/usr/bin/time -v`` reports the largest *single* process of a command (its
+``ru_maxrss`` covers waited-for children one by one, never their sum). This script
+runs the command, samples ``/proc`` every ``--interval`` seconds for the command's
+process tree and prints, at the end: wall and CPU seconds (the children's
+``user+sys``), each process's peak RSS, the peak of the tree's summed RSS (counts
+pages the forked workers share with their parent once per process) and the peak of
+the summed PSS (``/proc/PID/smaps_rollup``: a shared page split between its sharers,
+so the sum is the tree's real footprint). Linux only.
+
+Usage::
+
+    python experiments/tree_rss.py -- sigma-des compare --set nodes=1000 --set hosts=50 \
+        --set duration=60 --jobs 2 --no-progress
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import time
+
+
+def children(pid: int) -> list[int]:
+    """Direct children of ``pid`` (via /proc/PID/task/*/children)."""
+    out: list[int] = []
+    try:
+        for tid in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{tid}/children") as fh:
+                out += [int(x) for x in fh.read().split()]
+    except OSError:
+        pass
+    return out
+
+
+def tree(pid: int) -> list[int]:
+    """``pid`` and all its descendants."""
+    todo, seen = [pid], []
+    while todo:
+        p = todo.pop()
+        seen.append(p)
+        todo += children(p)
+    return seen
+
+
+def memory_kb(pid: int) -> tuple[int, int]:
+    """(RSS, PSS) of ``pid`` in kB (0, 0 once it is gone)."""
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as fh:
+            vals = {ln.split(":")[0]: int(ln.split()[1]) for ln in fh if ln.endswith("kB\n")}
+        return vals.get("Rss", 0), vals.get("Pss", 0)
+    except (OSError, ValueError, IndexError):
+        return 0, 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--interval", type=float, default=0.25)
+    p.add_argument("cmd", nargs=argparse.REMAINDER)
+    a = p.parse_args(argv)
+    cmd = a.cmd[1:] if a.cmd[:1] == ["--"] else a.cmd
+    if not cmd:
+        p.error("no command")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd)
+    peak: dict[int, int] = {}
+    sum_rss = sum_pss = 0
+    while proc.poll() is None:
+        rss_t = pss_t = 0
+        for pid in tree(proc.pid):
+            rss, pss = memory_kb(pid)
+            peak[pid] = max(peak.get(pid, 0), rss)
+            rss_t += rss
+            pss_t += pss
+        sum_rss, sum_pss = max(sum_rss, rss_t), max(sum_pss, pss_t)
+        time.sleep(a.interval)
+    wall = time.perf_counter() - t0
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = ru.ru_utime + ru.ru_stime
+    print(f"tree_rss: exit {proc.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s"
+          f" (user {ru.ru_utime:.1f}), largest process (time -v) {ru.ru_maxrss / 1024:.0f} MB",
+          file=sys.stderr)
+    order = sorted(peak, key=lambda q: -peak[q])
+    print("tree_rss: per-process peak RSS MB: " + ", ".join(
+        f"{q}{' (parent)' if q == proc.pid else ''} {peak[q] / 1024:.0f}" for q in order),
+        file=sys.stderr)
+    print(f"tree_rss: peak summed RSS {sum_rss / 1024:.0f} MB, peak summed PSS "
+          f"{sum_pss / 1024:.0f} MB (sampled every {a.interval:g} s)", file=sys.stderr)
+    return proc.returncode
+
+
+if __name__ == "__main__":
+    sys.exit(main())
