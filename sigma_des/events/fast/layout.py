@@ -130,7 +130,8 @@ _f, _i = np.float64, np.int64
 #: ``seen_k``/``seen_n``/``seen_h`` duplicate table (Lock-Step's re-requests and republished
 #: states, or every kind under QoS 1 over datagram), ``links_1`` = links + 1, the link and
 #: clock tables' ``ge_slots``, ``deg``, ``drops``, ``ntp_j``, and ``ack_tables``/``x_tables``/
-#: ``x_rows`` the PUBACK and resend draw tables, ``arena`` the run arena's rows.
+#: ``x_rows`` the PUBACK and resend draw tables.
+#: ``arena``: the run-merge queue's run-arena rows.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
@@ -172,18 +173,6 @@ FIELDS: tuple[Field, ...] = (
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
     Field("seen", _i, ("seen_k", "seen_n", "seen_h"), -1.0,
           "duplicate rule: newest index per (kind row, subject, index % seen_h)"),
-    # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
-    Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
-    Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
-    Field("pend_k", _i, ("cap",), 0.0, "pending events: keys"),
-    Field("run_t", _f, ("arena",), 0.0, "run arena: times (each run sorted)"),
-    Field("run_k", _i, ("arena",), 0.0, "run arena: keys"),
-    Field("run_pos", _i, ("arena",), 0.0, "run table: arena position of each run's head"),
-    Field("run_end", _i, ("arena",), 0.0, "run table: arena end of each run"),
-    Field("run_fwd", _i, ("arena",), 0.0, "compaction scratch: new id of each run"),
-    Field("bounds", _i, ("arena",), 0.0, "sealing scratch: boundaries of sorted stretches"),
-    Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
-    Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
     # F1, link-level features (Gilbert–Elliott loss, degrade and drop faults, NTP clocks):
     # ``ge_slots`` chain slots, ``deg`` degrade windows, ``drops`` dropped keys,
     # ``ntp_j`` NTP sync instants (each table bounded by the run's end + a margin)
@@ -212,6 +201,18 @@ FIELDS: tuple[Field, ...] = (
     Field("conn", _i, (4, 2, "clients"), None,
           "stream connections (down, up) per client: next seq, next to deliver, pending list"),
     Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
+    # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
+    Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
+    Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
+    Field("pend_k", _i, ("cap",), 0.0, "pending events: keys"),
+    Field("run_t", _f, ("arena",), 0.0, "run arena: times (each run sorted)"),
+    Field("run_k", _i, ("arena",), 0.0, "run arena: keys"),
+    Field("run_pos", _i, ("arena",), 0.0, "run table: arena position of each run's head"),
+    Field("run_end", _i, ("arena",), 0.0, "run table: arena end of each run"),
+    Field("run_fwd", _i, ("arena",), 0.0, "compaction scratch: new id of each run"),
+    Field("bounds", _i, ("arena",), 0.0, "sealing scratch: boundaries of sorted stretches"),
+    Field("q_int", _i, (QI_LEN,), 0.0, "run-merge queue int scalars QI_*"),
+    Field("q_float", _f, (QF_LEN,), 0.0, "run-merge queue float scalars QF_*"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -257,18 +258,6 @@ LAST_INT = INDEX["last_int"]
 LAST_FLOAT = INDEX["last_float"]
 LS_MIRROR = INDEX["ls_mirror"]
 SEEN = INDEX["seen"]
-# Q, the run-merge event queue
-HEAP_R = INDEX["heap_r"]
-PEND_T = INDEX["pend_t"]
-PEND_K = INDEX["pend_k"]
-RUN_T = INDEX["run_t"]
-RUN_K = INDEX["run_k"]
-RUN_POS = INDEX["run_pos"]
-RUN_END = INDEX["run_end"]
-RUN_FWD = INDEX["run_fwd"]
-BOUNDS = INDEX["bounds"]
-Q_INT = INDEX["q_int"]
-Q_FLOAT = INDEX["q_float"]
 # F1, link-level features
 LINK_DYN = INDEX["link_dyn"]
 GE_PAR = INDEX["ge_par"]
@@ -294,6 +283,17 @@ X_VAL = INDEX["x_val"]
 X_TAG = INDEX["x_tag"]
 CONN = INDEX["conn"]
 TR_FLOATS = INDEX["tr_floats"]
+HEAP_R = INDEX["heap_r"]
+PEND_T = INDEX["pend_t"]
+PEND_K = INDEX["pend_k"]
+RUN_T = INDEX["run_t"]
+RUN_K = INDEX["run_k"]
+RUN_POS = INDEX["run_pos"]
+RUN_END = INDEX["run_end"]
+RUN_FWD = INDEX["run_fwd"]
+BOUNDS = INDEX["bounds"]
+Q_INT = INDEX["q_int"]
+Q_FLOAT = INDEX["q_float"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

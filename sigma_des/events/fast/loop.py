@@ -156,25 +156,36 @@ def _full(S):  # type: ignore[no-untyped-def]
 
 
 @jit
-def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
-    """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``).
-
-    The next event is the head of the queue's current run, or of the heap's top
-    run (which then trades places with it), when it precedes the pending minimum:
-    checked here, inline, as numba passes the state tuple by value to a function
-    it does not inline; otherwise :func:`~sigma_des.events.fast.queue.first` seals
-    the pending events into a run.
-
-    Returns:
-        OK when done, else the reason Python must act before the next event.
-    """
-    iv = S[INTS]
-    n = S[IPARAMS][Q_N]
+def _limits(S, n):  # type: ignore[no-untyped-def]
+    """Whether attempt draws come on demand, and the free slots an event may need
+    (a fan-out, and its resend timers under QoS 1 over datagram)."""
     tp = S[TR_PARAMS]
     qos1d = tp[T_QOS1D]
-    attempts = qos1d or tp[T_STREAM] or tp[T_STREAM + 1]  # resends draw on demand
-    spare = n + 4 + qos1d * (n + 4)  # a fan-out (and its resend timers under QoS 1)
-    tr = S[TR_INTS]
+    attempts = qos1d != 0 or tp[T_STREAM] != 0 or tp[T_STREAM + 1] != 0
+    return attempts, n + 4 + qos1d * (n + 4)
+
+
+@jit
+def _drain_step(S, spare):  # type: ignore[no-untyped-def]
+    """The draining stream connection's next segment: (code, slot, its event's time),
+    slot -1 at the drain's end."""
+    t = S[TR_FLOATS][0]
+    if S[INTS][I_FREE] < spare:
+        return NEED_SPACE, -1, t
+    if _full(S):
+        return NEED_FLUSH, -1, t
+    return OK, next_ready(S), t
+
+
+@jit
+def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
+    """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done,
+    else the reason Python must act before the next event. A draining stream connection's
+    segments come first; then the head of the queue's current run, or of the heap's top run
+    (they trade places) if it precedes the pending minimum — inline, as numba passes the
+    state tuple by value to a function it does not inline — else ``queue.first`` seals."""
+    iv = S[INTS]
+    n = S[IPARAMS][Q_N]
     Q = view(S)
     qi = S[Q_INT]
     at = S[RUN_T]
@@ -184,16 +195,14 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     hk = S[HEAP_K]
     hr = S[HEAP_R]
     pmin = S[Q_FLOAT]
+    attempts, spare = _limits(S, n)
     while True:
-        if tr[T_DRAIN]:  # a stream arrival hands its connection's segments on, in order
-            if iv[I_FREE] < spare:
-                return NEED_SPACE
-            if _full(S):
-                return NEED_FLUSH
-            s = next_ready(S)
+        if S[TR_INTS][T_DRAIN]:  # a stream arrival hands its connection's segments on
+            code, s, t = _drain_step(S, spare)
+            if code != OK:
+                return code
             if s < 0:
                 continue
-            t = S[TR_FLOATS][0]
         else:
             c = qi[QI_CUR]
             p = 0
@@ -216,7 +225,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             if not due:
                 t = first(Q)
                 if not qi[QI_HAS]:
-                    return OK
+                    break
                 c = qi[QI_CUR]
                 p = pos[c]
             if t > t_stop or (strict and t >= t_stop):
@@ -225,9 +234,9 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
                 return NEED_SPACE
             if _full(S):
                 return NEED_FLUSH
-            s = ak[p] & SLOT_MASK  # take the head
-            if attempts and missing(S, s):
+            if attempts and missing(S, ak[p] & SLOT_MASK):
                 return NEED_FILL
+            s = ak[p] & SLOT_MASK  # take the head
             pos[c] = p + 1
             if p + 1 == S[RUN_END][c]:
                 qi[QI_HAS] = 0
@@ -243,7 +252,8 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
         release(S, s)
         if iv[I_ERR]:
             return DRAW_MISS
-        if iv[I_PEND]:
-            code = iv[I_PEND]
+        code = iv[I_PEND]
+        if code:
             iv[I_PEND] = 0
             return code
+    return OK

@@ -45,9 +45,8 @@ __all__ = ["missing", "resend"]
 
 @jit
 def missing(S, slot):  # type: ignore[no-untyped-def]
-    """Whether the next event's (in ``slot``) message needs attempt draws not yet in the tables.
-
-    If so, the request ``(kind, index, attempt)`` is written for Python.
+    """Whether the next event's message (in ``slot``) needs attempt draws not yet in
+    the tables. If so, the request ``(kind, index, attempt)`` is written for Python.
     """
     evi = S[EV_INT]
     attempt = evi[slot, E_ATT]

@@ -32,7 +32,7 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    assert len(set(names)) == len(names) == 71  # 39 + 11 Q queue + 8 F1 links + 13 F2 transport
+    assert len(set(names)) == len(names) == 71  # 39 + 11 queue + 8 link (F1) + 13 transport (F2)
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
     assert [getattr(L, name.upper()) for name in names] == list(range(71))
