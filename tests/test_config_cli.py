@@ -118,7 +118,8 @@ def test_cli_compare_writes_table_and_files(tmp_path: Path,
 def test_cli_footer_names_a_fallback_and_its_reason(capsys: pytest.CaptureFixture[str]) -> None:
     args = ["compare", "--set", "nodes=4", "--set", "hosts=1", "--set", "duration=0.3",
             "--set", "warmup=0.1", "--set", 'net.middleware="dds"', "--set",
-            'net.transport="datagram"', "--methods", "none", "--no-progress"]
+            'net.transport="datagram"', "--set", "net.qos=0", "--methods", "none",
+            "--no-progress"]
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "engine events: none" in out
