@@ -1,8 +1,9 @@
 """The compiled message core: a backend of the engine (docs/MODEL.md, "Engines").
 
-``layout`` declares its state by name; ``primitives`` holds the heap, slot, draw
-and link operations; ``broker``, ``node`` and ``server`` the handlers;
-``loop`` the entry points and the event loop; ``tables`` the draw tables Python
+``layout`` declares its state by name; ``primitives`` holds the queueing, slot,
+draw and link operations; ``queue`` the event queue (a merge of sorted runs);
+``broker``, ``node`` and ``server`` the handlers; ``loop`` the entry points and the
+event loop; ``tables`` the draw tables Python
 fills; ``driver`` the Python side the engine composes; ``support`` what the core
 reproduces.
 """

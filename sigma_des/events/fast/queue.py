@@ -21,6 +21,7 @@ reached, and grows with the event table (``CompiledCore.ensure_space``).
 
 from __future__ import annotations
 
+from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     BOUNDS,
     HEAP_K,
@@ -45,7 +46,7 @@ from sigma_des.events.fast.layout import (
     RUN_T,
     SLOT_MASK,
 )
-from sigma_des.events.fast.primitives import jit, precedes
+from sigma_des.events.fast.primitives import precedes
 
 __all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
 
