@@ -90,6 +90,7 @@ from sigma_des.events.fast.primitives import alloc, count, jit, precedes, releas
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
+from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.stream import next_ready
 from sigma_des.events.fast.transport import puback_client, send_up
 
@@ -115,6 +116,7 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
 @jit
 def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
     """The server publishes trigger ``k`` at ``t`` (with its HLC stamp)."""
+    S = ref(S)  # one pointer to the state for every call below
     ns = alloc(S)
     S[EV_FLOAT][ns, EF_TPUB] = t
     S[EV_FLOAT][ns, EF_L] = hlc_l
@@ -126,6 +128,7 @@ def publish_trigger(S, k, t, hlc_l, hlc_c):  # type: ignore[no-untyped-def]
 @jit
 def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped-def]
     """The server publishes ``rows[i]`` to each node ``i`` of ``nodes``, in order."""
+    S = ref(S)  # one pointer to the state for every call below
     n = S[IPARAMS][Q_N]
     m = S[IPARAMS][Q_M]
     for i in nodes:
@@ -140,6 +143,7 @@ def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped
 @jit
 def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
     """Lock-Step: the server asks ``node`` again for its state of ``frame``."""
+    S = ref(S)  # one pointer to the state for every call below
     ns = alloc(S)
     S[EV_FLOAT][ns, EF_TPUB] = t
     S[EV_INT][ns, E_FRAME] = frame
@@ -186,6 +190,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done, else
     the reason Python must act first. A draining stream's segments come first, then the queue's
     head, found inline (numba passes the state tuple by value to calls it does not inline)."""
+    S = ref(S)  # one pointer to the state for every call below
     iv = S[INTS]
     n = S[IPARAMS][Q_N]
     Q = view(S)

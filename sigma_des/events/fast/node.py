@@ -68,6 +68,7 @@ from sigma_des.events.fast.layout import (
     STEP,
 )
 from sigma_des.events.fast.primitives import address, alloc, draw, jit, push
+from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.transport import send_up
 
 __all__ = ["at_node", "done", "reserve"]
@@ -90,6 +91,7 @@ def _hand_over(S, code, i, now):  # type: ignore[no-untyped-def]
 @jit
 def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
     """Take the host's earliest-free core for ``cost`` seconds; schedule completion."""
+    S = ref(S)  # one pointer to the state for every call below
     row = S[CORES][S[HOST_OF][i]]
     m = 0
     for j in range(1, row.shape[0]):
