@@ -8,7 +8,7 @@ two independent groups of similar size, each compiled in its own process —
 
 * ``core``: the compiled message core (``advance``, the ``publish_*`` entry points),
   the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths: every method of a
-  tiny point-mass scenario with commands;
+  tiny point-mass scenario with commands, and a BiDES run with rollbacks;
 * ``physics``: the 6-DoF aircraft step and observation (quadrotor and fixed wing, one
   specialisation), the sensors, wind and atmosphere kernels, and the DTW of the fidelity
   metrics: a tiny ideal flight of each preset.
@@ -45,6 +45,12 @@ def _core() -> None:
     sc = load(None, ["nodes=4", "hosts=2", "duration=0.3", "warmup=0.1", "dynamics=\"pointmass\"",
                      "fidelity.enabled=false"])
     compare(sc, METHODS, progress=False)
+    # BiDES rollbacks whose job start is Python's (``driver._start_job``): the state
+    # tuple's own specialisation of ``reserve``, which the tiny run above never reaches.
+    rb = load(None, ["nodes=40", "hosts=4", "duration=1.0", "warmup=0.3", "dynamics=\"pointmass\"",
+                     "fidelity.enabled=false", "broker.publish_service=0.0001",
+                     "broker.delivery_service=0.00008", "bides.theta_warp=1", "bides.hold_down=1"])
+    compare(rb, ["bides"], progress=False)
 
 
 def _physics() -> None:

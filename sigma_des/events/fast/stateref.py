@@ -31,7 +31,7 @@ class StateRef(types.Type):
     """numba type: a pointer to a state tuple of type ``tup`` held by a caller's frame."""
 
     def __init__(self, tup: types.BaseTuple) -> None:
-        self.tup = tup
+        self.tup: Any = tup
         super().__init__(name=f"StateRef({tup})")
 
 
