@@ -188,9 +188,8 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 @jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done, else
-    the reason Python must act first. A draining stream's segments come first, then the queue's
-    head, found inline (numba passes the state tuple by value to calls it does not inline)."""
-    S = ref(S)  # one pointer to the state for every call below
+    the reason Python must act first. A draining stream's segments first, then the queue's head."""
+    S = ref(S)  # handlers get one pointer, not the tuple by value (stateref)
     iv = S[INTS]
     n = S[IPARAMS][Q_N]
     Q = view(S)
