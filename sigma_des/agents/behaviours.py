@@ -27,6 +27,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
@@ -235,6 +236,23 @@ def route_rule(leaders: Sequence[int] = (0,), size: tuple[float, float] = (1000.
     return Rule("route", lambda v: None, trigger, 0.5, logic, weight)
 
 
+@njit(cache=True)
+def _scatter_pairs(i, j, push, gap, rep, depth):  # type: ignore[no-untyped-def]
+    """``np.add.at(rep, i, push)``, ``np.add.at(rep, j, -push)`` and ``np.maximum.at`` of
+    ``gap`` into ``depth`` at ``i`` then ``j``, in that order (so the sums are bit-identical):
+    numpy's ``ufunc.at`` took ≈ 0.25 s per frame for the millions of pairs at N = 10 000."""
+    for p in range(i.shape[0]):
+        for c in range(rep.shape[1]):
+            rep[i[p], c] += push[p, c]
+    for p in range(j.shape[0]):
+        for c in range(rep.shape[1]):
+            rep[j[p], c] += -push[p, c]
+    for idx in (i, j):
+        for p in range(idx.shape[0]):
+            if gap[p] > depth[idx[p]]:
+                depth[idx[p]] = gap[p]
+
+
 def separation_rule(radius: float = 10.0, gain: float = 2.0, weight: float = 5.0) -> Rule:
     """Collision avoidance: steer away from every neighbour closer than ``radius``.
 
@@ -248,19 +266,19 @@ def separation_rule(radius: float = 10.0, gain: float = 2.0, weight: float = 5.0
         raise ConfigError("separation.radius", f"must be > 0, got {radius}")
 
     def extract(view: SwarmView) -> tuple[Array, Array]:
-        pos = np.nan_to_num(view.obs[:, [9, 10, 11]], nan=1e12)
+        pos = view.obs[:, [9, 10, 11]]
         rep = np.zeros_like(pos)
         depth = np.zeros(len(pos))
-        pairs = cKDTree(pos).query_pairs(radius, output_type="ndarray")
+        # Only nodes with a known position: unknown ones (NaN) are nobody's neighbour,
+        # and mapping them all to one far point made every pair of them "intrude".
+        known = np.flatnonzero(np.isfinite(pos).all(axis=1))
+        pairs = cKDTree(pos[known]).query_pairs(radius, output_type="ndarray")
         if len(pairs):
-            i, j = pairs[:, 0], pairs[:, 1]
+            i, j = known[pairs[:, 0]], known[pairs[:, 1]]
             d = pos[i] - pos[j]
             dist = np.maximum(np.linalg.norm(d, axis=1), 1e-6)
             push = d / dist[:, None] * ((radius - dist) / radius)[:, None]
-            np.add.at(rep, i, push)
-            np.add.at(rep, j, -push)
-            np.maximum.at(depth, i, radius - dist)
-            np.maximum.at(depth, j, radius - dist)
+            _scatter_pairs(i, j, push, radius - dist, rep, depth)
         return rep, depth
 
     def logic(info: tuple[Array, Array], view: SwarmView) -> Array:
