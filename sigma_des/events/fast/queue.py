@@ -51,7 +51,7 @@ from sigma_des.events.fast.primitives import precedes
 __all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
 
 #: Size of the run arena in event-table rows (compaction every ~ARENA x cap events).
-ARENA = 4
+ARENA = 2
 
 # ---------------------------------------------------------------- the queue's arrays
 
@@ -222,8 +222,9 @@ def _seal(Q):  # type: ignore[no-untyped-def]
     """Sort the pending events into a new run; return its id."""
     qi = Q[V_INT]
     m = qi[QI_PN]
-    cap = Q[V_AT].shape[0]
-    if qi[QI_ATOP] + m > cap or qi[QI_NRUN] >= cap:
+    # live runs + pending events <= cap (each holds an event slot), so after a
+    # compaction both the arena and the run table (cap rows) have room for this run
+    if qi[QI_ATOP] + m > Q[V_AT].shape[0] or qi[QI_NRUN] >= Q[V_POS].shape[0]:
         _compact(Q)
     a = qi[QI_ATOP]
     _sort_pending(Q, m, a)
