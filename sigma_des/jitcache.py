@@ -28,6 +28,10 @@ race), every sibling but the :data:`KEEP` most recently used is removed if unuse
 :data:`GRACE_S` seconds (each import touches its directory). A directory is renamed
 away before it is deleted, so no process sees it half-removed; one deleted under a
 running process is recreated by numba on its next save.
+
+Changing a ``NUMBA_*`` variable in this process after the import makes numba re-read
+its configuration at the next compilation, resetting the directory to the bare root:
+set such variables before importing the package (or call :func:`ensure_cache_dir` again).
 """
 
 from __future__ import annotations
