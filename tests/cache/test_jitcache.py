@@ -56,6 +56,22 @@ def test_a_subprocess_caches_under_the_root_by_fingerprint(tmp_path: Path, var: 
     assert sorted(p.name for p in (root / "numba").iterdir()) == [".prune.lock", FP]
 
 
+def test_editing_a_constant_module_of_a_copy_moves_its_processes_to_a_new_directory(
+        tmp_path: Path) -> None:
+    """The issue's trap: ``events/fast/layout.py`` defines no kernel, yet after an edit a
+    new process must not use the kernels compiled before it."""
+    pkg = tmp_path / "site" / "sigma_des"
+    shutil.copytree(ROOT, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    env = _env(tmp_path, PYTHONPATH=str(pkg.parent), NUMBA_CACHE_DIR=str(tmp_path / "nb"))
+    before = _probe(env, tmp_path)[0]
+    layout = pkg / "events" / "fast" / "layout.py"
+    layout.write_text(layout.read_text() + "\n# edited\n")
+    after = _probe(env, tmp_path)[0]
+    assert before == str(tmp_path / "nb" / "numba" / FP)
+    assert after == str(tmp_path / "nb" / "numba" / fingerprint(pkg)) and after != before
+    assert (tmp_path / "nb" / "numba" / FP).is_dir()  # used a moment ago: not pruned
+
+
 def test_cache_root_order(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     for k in ("NUMBA_CACHE_DIR", "SIGMA_DES_CACHE_DIR", "XDG_CACHE_HOME"):
         monkeypatch.delenv(k, raising=False)
