@@ -8,7 +8,7 @@ __version__ = "0.1.0"
 
 from sigma_des.jitcache import ensure_cache_dir  # noqa: E402
 
-ensure_cache_dir()  # before any numba kernel is defined (read-only installs, no HOME)
+ensure_cache_dir()  # before any numba kernel is defined: its directory names its sources
 
 from sigma_des.api import Results, compare, run_method  # noqa: E402
 from sigma_des.config import METHODS, Scenario, load, to_toml  # noqa: E402

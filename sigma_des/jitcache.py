@@ -1,23 +1,60 @@
-"""Where numba caches the compiled kernels, chosen before any kernel is defined.
+"""Where numba caches the compiled kernels: a directory named by their sources' fingerprint.
 
-numba caches ``cache=True`` functions next to their source (``__pycache__``) or,
-failing that, in the user's cache directory (``~/.cache/numba``). A user who can
-write neither (a read-only install and no writable HOME) would get
-``RuntimeError: cannot cache function ...: no locator available`` on import.
-:func:`ensure_cache_dir` detects that case and points numba at a private
-temporary directory instead, with a one-line warning on stderr.
+numba's ``cache=True`` checks only the defining file of a kernel, so an edit of a
+constant module (``events/fast/layout.py``) or of a callee in another file would load
+stale kernels. :func:`ensure_cache_dir` (called by ``sigma_des/__init__.py`` before any
+kernel is defined; numba's locator reads ``numba.config.CACHE_DIR`` when a
+``cache=True`` dispatcher is created) points numba at::
+
+    <root>/numba/<fingerprint>/
+
+* ``<root>`` is ``$NUMBA_CACHE_DIR`` if set, else the package's cache root
+  (:func:`sigma_des.cache.paths.root`: ``$SIGMA_DES_CACHE_DIR``, ``$XDG_CACHE_HOME/
+  sigma_des`` or ``~/.cache/sigma_des``). ``SIGMA_DES_CACHE_DIR=off`` switches off the
+  ideal-run cache only: kernels then use the default root (they cannot go stale, and
+  compiling them in every process would cost ~45 CPU-s each); to keep them out of
+  ``~/.cache`` set ``NUMBA_CACHE_DIR``. If the root cannot be written (read-only HOME),
+  ``<tmp>/sigma_des-numba-<uid>`` is used instead, with a one-line warning.
+* ``<fingerprint>`` is :func:`sigma_des.cache.sources.fingerprint` (16 hex digits).
+
+The root is exported as ``NUMBA_CACHE_DIR`` when unset, so every child process
+(spawned workers, pytest-xdist, ``compare --jobs``) uses the same root even if it
+changes ``SIGMA_DES_CACHE_DIR``; each child computes the fingerprint of the sources it
+imports itself, so processes on the same sources agree on the directory.
+
+Old fingerprint directories are pruned when a new one is created (the first import
+after an edit): under a non-blocking ``flock`` (concurrent importers skip, never
+race), every sibling but the :data:`KEEP` most recently used is removed if unused for
+:data:`GRACE_S` seconds (each import touches its directory). A directory is renamed
+away before it is deleted, so no process sees it half-removed; one deleted under a
+running process is recreated by numba on its next save.
+
+Changing a ``NUMBA_*`` variable in this process after the import makes numba re-read
+its configuration at the next compilation, resetting the directory to the bare root:
+set such variables before importing the package (or call :func:`ensure_cache_dir` again).
 """
 
 from __future__ import annotations
 
 import os
+import re
+import shutil
 import sys
 import tempfile
+import time
 from pathlib import Path
 
-__all__ = ["ensure_cache_dir"]
+from sigma_des.cache.paths import default_root, root
+from sigma_des.cache.sources import PACKAGE, fingerprint
 
-_PACKAGE = Path(__file__).resolve().parent
+__all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "prune"]
+
+#: Fingerprint directories kept besides the current one, the most recently used first.
+KEEP = 3
+#: Never prune a directory used this recently (s): another checkout may be running.
+GRACE_S = 3600.0
+
+_FINGERPRINT = re.compile(r"[0-9a-f]{16}")
 
 
 def _can_write_dir(d: Path) -> bool:
@@ -30,46 +67,100 @@ def _can_write_dir(d: Path) -> bool:
     return True
 
 
-def _user_cache_dir() -> Path:
-    from numba.misc.appdirs import AppDirs
-
-    return Path(AppDirs(appname="numba", appauthor=False).user_cache_dir)
-
-
-def _in_tree_ok(package: Path) -> bool:
-    dirs = {p.parent for p in package.rglob("*.py") if "__pycache__" not in p.parts}
-    return all(_can_write_dir(d / "__pycache__") for d in dirs)
+def cache_root() -> Path:
+    """``$NUMBA_CACHE_DIR`` if set, else the package's cache root (default if switched off)."""
+    env = os.environ.get("NUMBA_CACHE_DIR")
+    if env:
+        return Path(env)
+    return root() or default_root()
 
 
-def ensure_cache_dir(package: Path = _PACKAGE) -> str | None:
-    """Make sure numba has somewhere to cache ``package``'s kernels.
-
-    Does nothing when ``NUMBA_CACHE_DIR`` is set, the package tree is writable or
-    the user-wide cache directory is. Otherwise sets ``NUMBA_CACHE_DIR`` (inherited
-    by worker processes) to ``<tmp>/sigma_des-numba-<uid>`` and warns once.
-
-    Args:
-        package: the package directory whose ``__pycache__`` folders numba would use.
-
-    Returns:
-        The temporary cache directory chosen, or None if none was needed.
-    """
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return None
-    if _in_tree_ok(package) or _can_write_dir(_user_cache_dir()):
-        return None
+def _fallback(wanted: Path) -> Path:
+    """A writable root in the temporary directory, for when ``wanted`` is not writable."""
     uid = os.getuid() if hasattr(os, "getuid") else 0
     tmp = Path(tempfile.gettempdir()) / f"sigma_des-numba-{uid}"
     if not _can_write_dir(tmp):
         tmp = Path(tempfile.mkdtemp(prefix="sigma_des-numba-"))
-    os.environ["NUMBA_CACHE_DIR"] = str(tmp)
-    if "numba" in sys.modules:  # numba read its configuration already
-        from numba.core import config
+    print(f"sigma-des: warning: cannot write numba's cache in {wanted}; "
+          f"caching compiled kernels in {tmp}", file=sys.stderr)
+    return tmp
 
-        config.CACHE_DIR = str(tmp)  # type: ignore[attr-defined]
-    print(
-        f"sigma-des: warning: cannot write numba's cache next to {package} or in "
-        f"{_user_cache_dir()}; caching compiled kernels in {tmp}",
-        file=sys.stderr,
-    )
-    return str(tmp)
+
+def ensure_cache_dir(package: Path = PACKAGE) -> str:
+    """Point numba's cache at ``<root>/numba/<fingerprint of package>``; prune old ones.
+
+    Args:
+        package: the package whose kernels' sources are fingerprinted.
+
+    Returns:
+        The directory set as ``numba.config.CACHE_DIR``.
+    """
+    rt = cache_root()
+    fp = fingerprint(package)
+    d = rt / "numba" / fp
+    is_new = not d.is_dir()
+    if not _can_write_dir(d):
+        rt = _fallback(rt)
+        d = rt / "numba" / fp
+        is_new = not d.is_dir()
+        _can_write_dir(d)
+        os.environ["NUMBA_CACHE_DIR"] = str(rt)
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(rt))
+    from numba.core import config
+
+    # numba re-reads its configuration before each compilation when a NUMBA_* variable
+    # changed since it last looked, which would replace CACHE_DIR by the bare root
+    config.reload_config()
+    config.CACHE_DIR = str(d)  # type: ignore[attr-defined]
+    try:
+        os.utime(d)  # "last used", for prune
+    except OSError:
+        pass
+    if is_new:
+        prune(d.parent, fp)
+    return str(d)
+
+
+def prune(parent: Path, current: str, keep: int = KEEP, grace_s: float = GRACE_S,
+          now: float | None = None) -> list[str]:
+    """Remove old fingerprint directories of ``parent`` (see the module docstring).
+
+    Args:
+        parent: the ``<root>/numba`` directory.
+        current: the fingerprint in use (never removed).
+        keep: how many others to keep, the most recently used first.
+        grace_s: directories used less than this many seconds ago are kept too.
+        now: the current time (``time.time()`` if None).
+
+    Returns:
+        The fingerprints removed; empty if another process holds the prune lock.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: never prune
+        return []
+    now = time.time() if now is None else now
+    try:
+        lock = (parent / ".prune.lock").open("a")
+    except OSError:
+        return []
+    with lock:
+        try:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            return []  # another process is pruning
+        used = sorted(((p.stat().st_mtime, p.name) for p in parent.iterdir()
+                       if p.is_dir() and _FINGERPRINT.fullmatch(p.name) and p.name != current),
+                      reverse=True)
+        removed = []
+        for mtime, name in used[keep:]:
+            if now - mtime < grace_s:
+                continue
+            trash = parent / f".trash-{name}-{os.getpid()}"
+            try:
+                os.rename(parent / name, trash)
+            except OSError:
+                continue  # removed by another process meanwhile
+            shutil.rmtree(trash, ignore_errors=True)
+            removed.append(name)
+        return removed

@@ -2,6 +2,9 @@
 
 * :mod:`sigma_des.cache.ideal` — the ideal run, computed once per scenario and shared by
   every method, process and run (``SIGMA_DES_CACHE_DIR``).
+* :mod:`sigma_des.cache.paths` — the cache root both caches live under.
+* :mod:`sigma_des.cache.sources` — the fingerprint of the sources compiled code depends
+  on, which names numba's cache directory (:mod:`sigma_des.jitcache`).
 * :mod:`sigma_des.cache.warmup` — ``sigma-des warmup``: compile every kernel a default
   run uses into numba's cache, the groups in parallel processes.
 """

@@ -43,27 +43,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des import __version__
+from sigma_des.cache.paths import ENV_VAR, root
 from sigma_des.config import Scenario, to_dict
 
 __all__ = ["ENV_VAR", "cache_dir", "cache_key", "cached", "code_fingerprint"]
-
-#: Environment variable naming the cache root (``off`` / ``0`` / empty: no cache).
-ENV_VAR = "SIGMA_DES_CACHE_DIR"
-
-_OFF = ("", "0", "off", "false", "no")
 
 Arrays = tuple[NDArray[np.float64], NDArray[np.float64]]
 
 
 def cache_dir() -> Path | None:
     """The directory of ideal-run entries, or None when the cache is switched off."""
-    root = os.environ.get(ENV_VAR)
-    if root is not None:
-        if root.strip().lower() in _OFF:
-            return None
-        return Path(root) / "ideal"
-    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(xdg) / "sigma_des" / "ideal"
+    r = root()
+    return None if r is None else r / "ideal"
 
 
 @lru_cache(maxsize=1)

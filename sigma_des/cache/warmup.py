@@ -14,9 +14,10 @@ two independent groups of similar size, each compiled in its own process —
   metrics: a tiny ideal flight of each preset.
 
 Each unit runs tiny scenarios, so the argument types (and hence the compiled
-specialisations) are those of a run at any size. Compiled code goes where numba puts it
-(``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``), so later processes load it
-instead of compiling.
+specialisations) are those of a run at any size. Compiled code goes to numba's cache
+directory for the current sources (:mod:`sigma_des.jitcache`:
+``<root>/numba/<fingerprint>``; the workers compute the same one), so later processes
+on the same sources load it instead of compiling.
 """
 
 from __future__ import annotations
