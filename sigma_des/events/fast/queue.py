@@ -16,7 +16,9 @@ out in exactly the order of one heap of all events.
 Capacity: every queued event holds its own event slot, so the pending buffer
 (``cap``) and the live part of the arena never exceed the event table; the arena
 (``arena`` = :data:`ARENA` x ``cap``) is compacted in place when its top is
-reached, and grows with the event table (``CompiledCore.ensure_space``).
+reached, and grows with the event table (``CompiledCore.ensure_space``). The run
+table (each run's position and end) has ``cap`` rows: live runs and pending events
+each hold an event slot, so after a compaction there is always a free run id.
 """
 
 from __future__ import annotations
@@ -50,7 +52,9 @@ from sigma_des.events.fast.primitives import precedes
 
 __all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
 
-#: Size of the run arena in event-table rows (compaction every ~ARENA x cap events).
+#: Size of the run arena in event-table rows (a compaction moves at most ``cap`` live
+#: events, at most once per ``(ARENA - 1) x cap`` sealed ones). 2, not 4: the arena's
+#: times and keys are 16 B a row, and a saturated broker's backlog can hold 10^6 slots.
 ARENA = 2
 
 # ---------------------------------------------------------------- the queue's arrays
