@@ -30,44 +30,22 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from sigma_des.config import METHODS, NODES_PER_HOST, load
+from sigma_des.config import METHODS
 from sigma_des.errors import ConfigError
 from sigma_des.studies import json_ready
-from sigma_des.sweep import Sweep
-
-#: Node counts of the full sweep and of ``--quick``.
-FULL_NODES: tuple[int, ...] = (10, 20, 50, 100, 200, 500, 1000)
-QUICK_NODES: tuple[int, ...] = (10, 20)
-#: Lock-Step "degrades" where its mean AoI exceeds BiDES's by more than this factor.
-DEGRADE_FACTOR = 1.5
-
-#: Plotted metrics: (metric, file stem, y-axis label).
-PLOTS: tuple[tuple[str, str, str], ...] = (
-    ("aoi_mean", "aoi_vs_nodes", "mean Age of Information (ms)"),
-    ("latency_state_mean", "latency_vs_nodes", "mean state latency, publish → delivery (ms)"),
-    ("snapshot_rate_hz", "snapshot_rate_vs_nodes", "new aligned snapshots per second (Hz)"),
-)
-#: Marker and line style per method (overlapping curves stay visible).
-STYLES: dict[str, tuple[str, str]] = {
-    "none": ("o", ":"),
-    "lockstep": ("s", "--"),
-    "hlc": ("^", "-."),
-    "bides": ("D", "-"),
-}
-#: Key figures reported per (N, method) in summary.json and the printed table.
-KEY_METRICS: tuple[str, ...] = (
-    "aoi_mean",
-    "aoi_p99",
-    "latency_state_mean",
-    "snapshot_rate_hz",
-    "trigger_rate_hz",
-    "throughput_mbps",
+from sigma_des.studies.node_sweep import (
+    build_sweep,
+    degrade_line,
+    estimate_text,
+    figure_table,
+    key_figures,
+    lockstep_degradation,
+    plot_figures,
+    summary,
 )
 
 
@@ -90,129 +68,18 @@ def _args(argv: Sequence[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
-def build_sweep(a: argparse.Namespace) -> Sweep:
-    """The sweep of the arguments (validated: raises ConfigError on bad input)."""
-    if a.nodes:
-        try:
-            nodes = [int(x) for x in a.nodes.split(",") if x.strip()]
-        except ValueError:
-            raise ConfigError(
-                "--nodes", f"must be a comma list of integers, got {a.nodes!r}"
-            ) from None
-    else:
-        nodes = list(QUICK_NODES if a.quick else FULL_NODES)
-    duration = a.duration if a.duration is not None else (0.5 if a.quick else 10.0)
-    warmup = 0.1 if duration <= 1.0 else 1.0
-    seeds = a.seeds if a.seeds is not None else ("2" if a.quick else "5")
-    base = load(None, [f"duration={duration}", f"warmup={warmup}", *a.sets])
-    points = [{"nodes": n, "hosts": max(1, math.ceil(n / NODES_PER_HOST))} for n in nodes]
-    store = Path(a.store) if a.store else Path(a.out) / "sweep.sqlite"
-    return Sweep(base, points, a.methods, seeds, store)
-
-
-def key_figures(agg: list[dict[str, Any]]) -> dict[str, dict[int, dict[str, dict[str, float]]]]:
-    """``{method: {N: {metric: {mean, ci95, n}}}}`` from aggregate rows."""
-    out: dict[str, dict[int, dict[str, dict[str, float]]]] = {}
-    for r in agg:
-        if r["metric"] not in KEY_METRICS:
-            continue
-        cell = out.setdefault(r["method"], {}).setdefault(int(r["nodes"]), {})
-        cell[r["metric"]] = {"mean": r["mean"], "ci95": r["ci95"], "n": r["n"]}
-    return out
-
-
-def lockstep_degradation(fig: dict[str, dict[int, dict[str, dict[str, float]]]]) -> int | None:
-    """Smallest N where Lock-Step's mean AoI > DEGRADE_FACTOR × BiDES's (None: nowhere)."""
-    ls, bd = fig.get("lockstep", {}), fig.get("bides", {})
-    for n in sorted(set(ls) & set(bd)):
-        a, b = ls[n]["aoi_mean"]["mean"], bd[n]["aoi_mean"]["mean"]
-        if math.isfinite(a) and math.isfinite(b) and a > DEGRADE_FACTOR * b:
-            return n
-    return None
-
-
-def plot(fig: dict[str, dict[int, dict[str, dict[str, float]]]], out: Path) -> list[Path]:
-    """One PNG per plotted metric: mean per method with a 95 % CI band, log-x."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import NullFormatter, ScalarFormatter
-
-    paths: list[Path] = []
-    all_n = sorted({n for d in fig.values() for n in d})
-    for metric, stem, ylabel in PLOTS:
-        f, ax = plt.subplots(figsize=(6.4, 4.2))
-        for method in [m for m in METHODS if m in fig]:
-            style = STYLES.get(method, ("o", "-"))
-            ns = sorted(n for n in fig[method] if metric in fig[method][n])
-            mean = [fig[method][n][metric]["mean"] for n in ns]
-            ci = [fig[method][n][metric]["ci95"] for n in ns]
-            ci = [0.0 if not math.isfinite(c) else c for c in ci]
-            hollow = method == "lockstep"  # drawn larger and hollow: it often equals BiDES
-            (line,) = ax.plot(
-                ns,
-                mean,
-                marker=style[0],
-                linestyle=style[1],
-                markersize=10 if hollow else 6,
-                markerfacecolor="none" if hollow else None,
-                label=method,
-            )
-            lo = [m - c for m, c in zip(mean, ci, strict=True)]
-            hi = [m + c for m, c in zip(mean, ci, strict=True)]
-            ax.fill_between(ns, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
-        ax.set_xscale("log")
-        ax.set_xticks(all_n)
-        ax.xaxis.set_major_formatter(ScalarFormatter())
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.set_xlabel("physics nodes N (log scale)")
-        ax.set_ylabel(ylabel)
-        ax.set_title(f"{ylabel.split(' (')[0]} vs swarm size (mean ± 95 % CI over seeds)")
-        ax.title.set_fontsize(10)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(title="method")
-        f.tight_layout()
-        path = out / f"{stem}.png"
-        f.savefig(path, dpi=120)
-        plt.close(f)
-        paths.append(path)
-    return paths
-
-
-def _table(fig: dict[str, dict[int, dict[str, dict[str, float]]]]) -> str:
-    lines = [f"{'N':>6} {'method':>9} {'AoI ms':>16} {'lat ms':>8} {'snap Hz':>8} {'trig Hz':>8}"]
-    ns = sorted({n for m in fig.values() for n in m})
-    for n in ns:
-        for method in [m for m in METHODS if m in fig and n in fig[m]]:
-            c = fig[method][n]
-            aoi = f"{c['aoi_mean']['mean']:.2f} ± {c['aoi_mean']['ci95']:.2f}"
-            lines.append(
-                f"{n:>6} {method:>9} {aoi:>16} {c['latency_state_mean']['mean']:>8.2f} "
-                f"{c['snapshot_rate_hz']['mean']:>8.1f} {c['trigger_rate_hz']['mean']:>8.1f}"
-            )
-    return "\n".join(lines)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the sweep, write tables, summary and plots; returns the exit status."""
     a = _args(argv)
     try:
-        sw = build_sweep(a)
+        sw = build_sweep(a.nodes, a.quick, a.duration, a.seeds, a.methods, a.sets, a.out, a.store)
     except ConfigError as e:
         print(f"sweep_nodes: error: {e}", file=sys.stderr)
         return 2
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
-    workers = 1 if a.in_process else a.workers
-    est = sw.estimate(workers, a.retry_failed)
     print(f"sweep_nodes: {sw.describe()}")
-    est_txt = f"{est:.0f} s" if est < 120 else f"{est / 60:.0f} min"
-    print(
-        f"{len(sw.pending(a.retry_failed))} runs to do (store {sw.store.path}); rough estimate "
-        f"{est_txt} on {workers} worker(s) — interrupt at will, rerun to resume",
-        flush=True,
-    )
+    print(estimate_text(sw, 1 if a.in_process else a.workers, a.retry_failed), flush=True)
     client = "inprocess" if a.in_process else a.scheduler
     try:
         rep = sw.run(client, a.workers, not a.no_progress, a.retry_failed)
@@ -221,30 +88,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     print(rep.text())
     runs_csv, agg_csv = sw.write(out)
-    agg = sw.aggregate(include_wall=False)
-    fig = key_figures(agg)
+    fig = key_figures(sw.aggregate(include_wall=False))
     n_deg = lockstep_degradation(fig)
-    pngs = plot(fig, out) if fig else []
-    summary = {
-        "nodes": [p["nodes"] for p in sw.points],
-        "hosts": [p["hosts"] for p in sw.points],
-        "methods": sw.methods,
-        "seeds": sw.seeds,
-        "duration_s": sw.base.duration,
-        "warmup_s": sw.base.warmup,
-        "runs": rep.total,
-        "failed": [{"key": list(k), "error": e} for k, e in rep.failures],
-        "lockstep_degrades_at": n_deg,
-        "degrade_rule": f"lockstep aoi_mean > {DEGRADE_FACTOR} x bides aoi_mean",
-        "figures": {m: {str(n): v for n, v in d.items()} for m, d in fig.items()},
-    }
+    pngs = plot_figures(fig, out) if fig else []
     (out / "summary.json").write_text(
-        json.dumps(json_ready(summary), indent=2, sort_keys=True, allow_nan=False) + "\n"
+        json.dumps(json_ready(summary(sw, rep, fig, n_deg)), indent=2, sort_keys=True,
+                   allow_nan=False) + "\n"
     )
-    print(_table(fig))
-    if "lockstep" in fig and "bides" in fig:
-        where = f"N = {n_deg}" if n_deg is not None else "not within the grid"
-        print(f"lock-step degrades (AoI > {DEGRADE_FACTOR:g} × BiDES's): {where}")
+    print(figure_table(fig))
+    if line := degrade_line(fig, n_deg):
+        print(line)
     print(f"wrote {runs_csv}, {agg_csv}, {out / 'summary.json'}, " + ", ".join(map(str, pngs)))
     return 1 if rep.failures else 0
 

@@ -1,7 +1,8 @@
 """The engine benchmark's cases: plan, run one in a fresh process, compare, tabulate rows.
 
-``experiments/bench_engine.py`` (the script: command line and printing) times the
-cohort engine, the per-message engine and the process-per-message reference model
+``experiments/bench_engine.py`` (a front end to :mod:`~sigma_des.studies.engine_driver`,
+whose report is :mod:`~sigma_des.studies.engine_tables`) times the cohort engine, the
+per-message engine and the process-per-message reference model
 (:mod:`sigma_des.reference.process_model`) for every node count; this module holds
 what it runs: :func:`plan` (the cases of one N), :func:`run_fresh` (one case in a
 fresh child process on the local executor, :mod:`sigma_des.sweep.local`, so peak RSS
@@ -146,7 +147,6 @@ COLUMNS: tuple[str, ...] = (
 
 #: Thread-count variables set to 1: one core per case.
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-
 
 
 class Case(NamedTuple):
@@ -387,6 +387,7 @@ def baseline_estimate_s(rows: Iterable[dict[str, Any]], n: int, sim_s: float) ->
 
 
 def rel_diff(a: float, b: float) -> float:
+    """``|a - b| / max(|a|, |b|)``: 0 if equal or both NaN, inf if only one is NaN."""
     if a == b or (math.isnan(a) and math.isnan(b)):
         return 0.0
     if math.isnan(a) or math.isnan(b):

@@ -7,7 +7,7 @@ from typing import Any
 from sigma_des.studies.engine_bench import BASELINE_RTOL, COMPARED, Check, col
 from sigma_des.studies.tables import text_table
 
-__all__ = ["check_table", "metric_table", "speed_table", "speedup_table"]
+__all__ = ["check_table", "metric_table", "report_text", "speed_table", "speedup_table"]
 
 
 def _fmt(x: Any, spec: str) -> str:
@@ -154,3 +154,36 @@ def metric_table(rows: list[dict[str, Any]]) -> str:
         line += [f"{b['max_rel_diff']:.1e}", b["max_rel_diff_metric"] or "-"]
         lines.append(line)
     return text_table(lines)
+
+
+def report_text(rows: list[dict[str, Any]], checks: list[Check], notes: list[str]) -> str:
+    """The report after the last case: speed, speed-up, metric-check and (when a
+    baseline ran) cohort-vs-baseline tables with their captions, then one line per note.
+
+    It starts with an empty line (it follows the progress lines).
+    """
+    out = [
+        "",
+        "Speed (s/s = wall seconds per simulated second, xRT = times real time, "
+        "ev/s = events per wall second;",
+        "full = commands on; restricted = commands off, the baseline's scenario class; "
+        "cohort~ = cohort twin at a capped duration)",
+        speed_table(rows),
+        "",
+        "Speed-up (ratio of wall seconds per simulated second; - = not measured)",
+        speedup_table(rows),
+        "",
+        "Metric checks (same simulated duration; cohort vs events: every metric, must be "
+        f"identical; cohort vs baseline: {len(COMPARED)} metrics, rel. diff <= "
+        f"{BASELINE_RTOL:.0e})",
+        check_table(checks),
+    ]
+    if any(r["impl"] == "baseline" for r in rows):
+        out += [
+            "",
+            "Metrics, cohort vs baseline (method none, restricted scenario, same seed;"
+            " ms, Hz, Mbps)",
+            metric_table(rows),
+        ]
+    out += [f"note: {note}" for note in notes]
+    return "\n".join(out)

@@ -45,6 +45,7 @@ from sigma_des.events.fast.layout import (
     U_OFFSET,
 )
 from sigma_des.events.fast.primitives import lat_source
+from sigma_des.events.fast.tables import Fill, fill_rows
 from sigma_des.net.kinds import ACK
 from sigma_des.net.network import Network
 
@@ -53,9 +54,6 @@ __all__ = ["X_ROWS", "AttemptTables"]
 #: Rows of the attempt tables (a message's later attempts share them; a row taken by
 #: another key is refilled on demand, so this changes speed only).
 X_ROWS = 64
-
-#: (table, cache, kind the sampler is keyed by)
-_Fill = tuple[int, DrawCache, int]
 
 
 class AttemptTables:
@@ -101,8 +99,8 @@ class AttemptTables:
         self.x_map = np.full((N_SOURCES, 2 * N_KINDS), -2, dtype=np.int64)
         self.x_const = np.zeros(N_SOURCES)
         self.x_first = np.full(N_KINDS, -1, dtype=np.int64)
-        self._ack: dict[int, list[_Fill]] = {k: [] for k in range(N_KINDS)}
-        self._x: dict[int, list[_Fill]] = {k: [] for k in range(N_KINDS)}
+        self._ack: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
+        self._x: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
         kinds = [K_TRIGGER, K_STATE, K_COMMAND] + ([K_REREQ, K_REPUB] if lockstep else [])
         for k in kinds:
             if self.qos1d:
@@ -181,21 +179,10 @@ class AttemptTables:
 
     def fill_ack(self, kind: int, index: int) -> None:
         """Make the PUBACK rows of attempt 0 of ``(kind, index)`` present."""
-        tags = self.ack_tag
-        r = index % tags.shape[1]
-        for c, cache, sk in self._ack[kind]:
-            if tags[c, r] != index:
-                v = cache.vector(sk, index, 0)
-                self.ack_val[c, r, : v.size] = v
-                tags[c, r] = index
+        row = index % self.ack_tag.shape[1]
+        fill_rows(self.ack_val, self.ack_tag, self._ack[kind], row, index, index)
 
     def fill(self, kind: int, index: int, attempt: int) -> None:
         """Make the rows of attempt ``attempt >= 1`` of ``(kind, index)`` present."""
         key = index * (self.retries + 1) + attempt
-        r = key % self.rows
-        tags = self.x_tag
-        for c, cache, sk in self._x[kind]:
-            if tags[c, r] != key:
-                v = cache.vector(sk, index, attempt)
-                self.x_val[c, r, : v.size] = v
-                tags[c, r] = key
+        fill_rows(self.x_val, self.x_tag, self._x[kind], key % self.rows, key, index, attempt)

@@ -16,7 +16,7 @@ dropped keys, and the NTP residual per node and sync instant.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -43,9 +43,18 @@ from sigma_des.events.spec import RunSpec
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.network import Network
 
-__all__ = ["DrawTables", "clock_tables", "link_tables", "lossy_classes", "network_sources"]
+__all__ = [
+    "DrawTables",
+    "Fill",
+    "clock_tables",
+    "fill_rows",
+    "link_tables",
+    "lossy_classes",
+    "network_sources",
+]
 
-_Sampler = Callable[[int], NDArray[np.float64]]
+#: (table, cache, kind the cache is sampled with): one table filled from one cache
+Fill = tuple[int, DrawCache, int]
 #: (draw source, message kind, cache) of one random source of the core
 Source = tuple[int, int, DrawCache]
 
@@ -97,7 +106,7 @@ class DrawTables:
     def __init__(self, sources: list[Source], history: int, subjects: int) -> None:
         self.draw_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
         self.draw_const = np.zeros(N_SOURCES)
-        self._fills: dict[int, list[tuple[int, _Sampler]]] = {k: [] for k in range(N_KINDS)}
+        self._fills: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
         tables = 0
         for src, k, cache in sources:
             if cache.constant is not None:
@@ -105,7 +114,7 @@ class DrawTables:
                 continue
             self.draw_map[src, k] = tables
             sampler_kind = STEP_DRAW if src == STEP else k
-            self._fills[k].append((tables, _vector_of(cache, sampler_kind)))
+            self._fills[k].append((tables, cache, sampler_kind))
             tables += 1
         self.tables = max(tables, 1)
         self.values = np.zeros((self.tables, history, subjects))
@@ -113,20 +122,41 @@ class DrawTables:
 
     def fill(self, kind: int, index: int) -> None:
         """Make the rows of ``(kind, index)`` present (a pure function of the key)."""
-        tags = self.tags
-        r = index % tags.shape[1]
-        for c, sample in self._fills[kind]:
-            if tags[c, r] != index:
-                v = sample(index)
-                self.values[c, r, : v.size] = v
-                tags[c, r] = index
+        fill_rows(self.values, self.tags, self._fills[kind], index % self.tags.shape[1], index,
+                  index)
 
 
-def _vector_of(cache: DrawCache, kind: int) -> _Sampler:
-    def sample(index: int) -> NDArray[np.float64]:
-        return cache.vector(kind, index, 0)
+def fill_rows(
+    values: NDArray[np.float64],
+    tags: NDArray[np.int64],
+    fills: Sequence[Fill],
+    row: int,
+    key: int,
+    index: int,
+    attempt: int = 0,
+) -> None:
+    """Make row ``row`` of every table of ``fills`` hold the draws of ``key``.
 
-    return sample
+    A row whose tag is ``key`` already is left alone; any other is overwritten with
+    ``cache.vector(kind, index, attempt)`` (a short vector fills the row's head) and
+    tagged ``key``. Draws are a pure function of their key, so a row taken by another
+    key can be refilled at any time without changing results.
+
+    Args:
+        values: the tables' values ``[table, row, subject]``.
+        tags: the key each row holds ``[table, row]`` (-1: none).
+        fills: the tables to fill, each with its cache and sampling kind.
+        row: the row of every table to fill.
+        key: what the row holds once filled (the message index, or a key of index
+            and attempt).
+        index: the message index the draws are keyed by.
+        attempt: the attempt the draws are keyed by (0: the first transmission).
+    """
+    for c, cache, kind in fills:
+        if tags[c, row] != key:
+            v = cache.vector(kind, index, attempt)
+            values[c, row, : v.size] = v
+            tags[c, row] = key
 
 
 # ---------------------------------------------------------------- link and clock tables
