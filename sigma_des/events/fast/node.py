@@ -67,7 +67,7 @@ from sigma_des.events.fast.layout import (
     SLOW_PTR,
     STEP,
 )
-from sigma_des.events.fast.primitives import address, alloc, draw, jit, push
+from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, row_of
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.transport import send_up
 
@@ -140,7 +140,7 @@ def _request(S, i, frame, now):  # type: ignore[no-untyped-def]
 def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
     """Node ``i`` publishes its state of frame ``target`` (kept for re-requests)."""
     h = S[SLOT_FRAME].shape[0]
-    sl = target % h
+    sl = row_of(target, h)
     if S[SLOT_FRAME][sl] != target:
         S[INTS][I_HMISS] += 1
     ns = alloc(S)

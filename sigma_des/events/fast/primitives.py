@@ -148,12 +148,25 @@ def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped
 
 
 @jit
+def row_of(index, rows):  # type: ignore[no-untyped-def]
+    """``index % rows`` (Python's floor modulo), by a mask when ``rows`` is a power of two.
+
+    Tables have ``history_frames`` rows (512 by default); an integer division costs
+    tens of cycles, several times per message event, and for a power of two the mask
+    gives the floor modulo of every integer, negative ones included (two's complement).
+    """
+    if rows & (rows - 1) == 0:
+        return index & (rows - 1)
+    return index % rows
+
+
+@jit
 def draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
     c = S[DRAW_MAP][src, kind]
     if c < 0:
         return S[DRAW_CONST][src]
     tag = S[DRAW_TAG]
-    r = index % tag.shape[1]
+    r = row_of(index, tag.shape[1])
     if tag[c, r] != index:
         S[INTS][I_ERR] = 1
         return 0.0
@@ -182,7 +195,7 @@ def count(S, client, up, nbytes, t):  # type: ignore[no-untyped-def]
 def attempt_key(S, index, attempt):  # type: ignore[no-untyped-def]
     """The key of ``(index, attempt)`` in the attempt tables, and its row."""
     key = index * (S[TR_PARAMS][T_RETRIES] + 1) + attempt
-    return key, key % S[TR_PARAMS][T_XROWS]
+    return key, row_of(key, S[TR_PARAMS][T_XROWS])
 
 
 @jit
@@ -209,7 +222,7 @@ def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped
         if c < 0:
             return _constant(S, src, c)
         tag = S[ACK_TAG]
-        r = index % tag.shape[1]
+        r = row_of(index, tag.shape[1])
         if tag[c, r] != index:
             S[INTS][I_ERR] = 1
             return 0.0

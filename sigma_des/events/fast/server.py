@@ -48,7 +48,7 @@ from sigma_des.events.fast.layout import (
     T_DUPALL,
     TR_PARAMS,
 )
-from sigma_des.events.fast.primitives import jit
+from sigma_des.events.fast.primitives import jit, row_of
 
 __all__ = ["at_server", "delivered"]
 
@@ -70,7 +70,7 @@ def delivered(S, s, now):  # type: ignore[no-untyped-def]
         seen = S[SEEN]
         row = kind if dup_all else kind - K_REREQ
         subject = evi[s, E_SUBJ]
-        slot = index % seen.shape[2]
+        slot = row_of(index, seen.shape[2])
         if seen[row, subject, slot] == index:
             dup = True
             iv[I_DUPS] += 1
