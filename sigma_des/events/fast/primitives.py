@@ -161,16 +161,22 @@ def row_of(index, rows):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _tabled(S, tag, val, c, r, key, subj):  # type: ignore[no-untyped-def]
+    """Value ``subj`` of row ``r`` of table ``c`` if the row holds ``key``, else an error
+    (the row was never filled, or was refilled for a newer key)."""
+    if tag[c, r] != key:
+        S[INTS][I_ERR] = 1
+        return 0.0
+    return val[c, r, subj]
+
+
+@jit
 def draw(S, src, kind, subj, index):  # type: ignore[no-untyped-def]
     c = S[DRAW_MAP][src, kind]
     if c < 0:
         return S[DRAW_CONST][src]
     tag = S[DRAW_TAG]
-    r = row_of(index, tag.shape[1])
-    if tag[c, r] != index:
-        S[INTS][I_ERR] = 1
-        return 0.0
-    return S[DRAW_VAL][c, r, subj]
+    return _tabled(S, tag, S[DRAW_VAL], c, row_of(index, tag.shape[1]), index, subj)
 
 
 @jit
@@ -222,19 +228,12 @@ def draw_at(S, src, kind, subj, index, attempt, ack):  # type: ignore[no-untyped
         if c < 0:
             return _constant(S, src, c)
         tag = S[ACK_TAG]
-        r = row_of(index, tag.shape[1])
-        if tag[c, r] != index:
-            S[INTS][I_ERR] = 1
-            return 0.0
-        return S[ACK_VAL][c, r, subj]
+        return _tabled(S, tag, S[ACK_VAL], c, row_of(index, tag.shape[1]), index, subj)
     c = S[X_MAP][src, kind + N_KINDS if ack else kind]
     if c < 0:
         return _constant(S, src, c)
     key, r = attempt_key(S, index, attempt)
-    if S[X_TAG][c, r] != key:
-        S[INTS][I_ERR] = 1
-        return 0.0
-    return S[X_VAL][c, r, subj]
+    return _tabled(S, S[X_TAG], S[X_VAL], c, r, key, subj)
 
 
 @jit
