@@ -50,11 +50,26 @@ def job_cost(
     Returns:
         The job's cost.
     """
+    resim_draws = (step_time.get(ROLLBACK_DRAW, node, target, j) for j in range(resim))
+    return _summed(step_time, slow, node, first, target, resim_draws, now)
+
+
+def _summed(
+    step_time: DrawCache,
+    slow: Iterable[tuple[float, float, float]],
+    node: int,
+    first: int,
+    target: int,
+    resim_draws: Iterable[float],
+    now: float,
+) -> float:
+    """The job cost's sum, in its one order: the step draws of ``first..target``, then
+    the rollback draws, then every slow factor active at ``now``."""
     cost = 0.0
     for f in range(first, target + 1):
         cost += step_time.get(STEP_DRAW, node, f, 0)
-    for j in range(resim):
-        cost += step_time.get(ROLLBACK_DRAW, node, target, j)
+    for v in resim_draws:
+        cost += v
     for a, b, factor in slow:
         if a <= now < b:
             cost *= factor
@@ -107,12 +122,5 @@ class JobCosts:
         st = self.step_time
         if st.constant is not None or resim == 0:
             return job_cost(st, slow, node, first, target, resim, now)
-        cost = 0.0
-        for f in range(first, target + 1):
-            cost += st.get(STEP_DRAW, node, f, 0)
-        for v in self.rollback_draws(node, target, resim):
-            cost += v
-        for a, b, factor in slow:
-            if a <= now < b:
-                cost *= factor
-        return cost
+        return _summed(st, slow, node, first, target, self.rollback_draws(node, target, resim),
+                       now)
