@@ -1,7 +1,7 @@
 """Reading MCAP recordings back: tidy tables and per-node state arrays.
 
-:func:`read_table` gives one row per recorded message (``method, kind, node,
-frame, t_send, t_recv``, NaN where not applicable); :func:`read_states` gives, per
+:func:`read_table` gives one row per recorded delivery, snapshot and render sample
+(``method, kind, node, frame, t_send, t_recv``, NaN where not applicable or absent); :func:`read_states` gives, per
 method, the recorded states with the incremental encoding undone. Every problem
 with the file (missing, not MCAP, truncated, corrupt, unknown schema) raises
 :class:`RecordError` naming the file and what is wrong.
@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des.errors import ConfigError
 from sigma_des.record.delta import decode
-from sigma_des.record.schemas import KINDS, SCHEMAS
+from sigma_des.record.schemas import KINDS, LEGACY, SCHEMAS
 
 __all__ = ["Recording", "RecordError", "StateTable", "open_recording", "read_states",
            "read_table"]
@@ -140,6 +140,10 @@ def open_recording(path: str | Path) -> Recording:
     for ch in summary.channels.values():
         sch = summary.schemas.get(ch.schema_id)
         name = sch.name if sch is not None else "<none>"
+        if name in LEGACY:
+            raise RecordError(str(p), f"schema {name!r} on topic {ch.topic!r} is the older "
+                              "column-batch layout, which this version does not read; record "
+                              "the run again")
         if name not in _KNOWN:
             raise RecordError(str(p), f"unknown schema {name!r} on topic {ch.topic!r}")
         parts = ch.topic.split("/")
@@ -176,36 +180,41 @@ def read_states(path: str | Path, method: str | None = None) -> dict[str, StateT
     return {m: _states(rec, m) for m in methods}
 
 
-def _states(rec: Recording, method: str) -> StateTable:
-    ints = ("node", "frame", "key")
-    cols: dict[str, list[Any]] = {}
+def _rows(rec: Recording, kind: str, method: str) -> list[dict[str, Any]]:
+    """Every row of the window messages of ``/<method>/<kind>``, in file order."""
     try:
-        for body in rec.messages("state", method):
-            for k in ("node", "frame", "t_send", "t_recv", "key", *_POSE_COLS):
-                if k in body:  # None -> NaN
-                    cols.setdefault(k, []).append(
-                        np.array(body[k], dtype=np.int64 if k in ints else float))
+        return [r for body in rec.messages(kind, method) for r in body["rows"]]
+    except (KeyError, TypeError) as e:
+        raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: "
+                          f"missing {e}") from None
 
-        def arr(k: str, dt: Any) -> Any:
-            xs = cols.get(k)
-            return np.concatenate(xs).astype(dt) if xs else np.zeros(0, dtype=dt)
 
-        node = arr("node", np.int64)
-        vals = np.stack([arr(c, float) for c in _POSE_COLS], axis=1) if node.size else (
-            np.zeros((0, 9)))
+def _column(rows: list[dict[str, Any]], key: str, dtype: Any = float) -> NDArray[Any]:
+    """Field ``key`` of every row (an absent field is NaN)."""
+    nan = float("nan")
+    return np.fromiter((r.get(key, nan) for r in rows), dtype=dtype, count=len(rows))
+
+
+def _states(rec: Recording, method: str) -> StateTable:
+    rows = _rows(rec, "state", method)
+    try:
+        node = _column(rows, "node", np.int64)
+        frame = _column(rows, "frame", np.int64)
+        vals = (np.stack([_column(rows, c) for c in _POSE_COLS], axis=1) if rows
+                else np.zeros((0, 9)))
         if rec.record_mode == "incremental":
-            vals = decode(node, arr("key", np.int8), vals)
-        st = StateTable(node, arr("frame", np.int64), arr("t_send", float), arr("t_recv", float),
-                        vals[:, 0:3], vals[:, 3:6], vals[:, 6:9])
-    except (ValueError, TypeError) as e:
+            vals = decode(node, _column(rows, "key", np.int8), vals)
+        return StateTable(node, frame, _column(rows, "t_send"), _column(rows, "t_recv"),
+                          vals[:, 0:3], vals[:, 3:6], vals[:, 6:9])
+    except (ValueError, TypeError) as e:  # e.g. a row without node, a non-number
         raise RecordError(str(rec.path), f"corrupt states of {method!r}: {e}") from None
-    if not (st.frame.size == st.t_send.size == st.t_recv.size == node.size):
-        raise RecordError(str(rec.path), f"corrupt states of {method!r}: column lengths differ")
-    return st
 
 
 def read_table(path: str | Path) -> Any:
-    """One row per recorded message: ``method, kind, node, frame, t_send, t_recv``.
+    """One row per recorded delivery, snapshot and render sample.
+
+    Columns ``method, kind, node, frame, t_send, t_recv``; a delivery's absent
+    ``t_recv`` (a trigger issue, a command send) is NaN.
 
     ``node``/``frame`` are floats (NaN where not applicable: render samples have no
     node or frame, snapshots no node); ``t_send`` is NaN for snapshots and render
@@ -236,31 +245,30 @@ def read_table(path: str | Path) -> Any:
 def _kind_rows(rec: Recording, method: str, kind: str) -> Any:
     import pandas as pd
 
-    node: list[Any] = []
-    frame: list[Any] = []
-    ts: list[Any] = []
-    tr: list[Any] = []
-    try:
-        for b in rec.messages(kind, method):
-            if kind in ("trigger", "state", "command"):
-                node += b["node"]
-                frame += b["frame"]
-                ts += b["t_send"]
-                tr += b["t_recv"]
-            elif kind == "snapshot":
-                t = b["t"] if "t" in b else b["timestamp"]["sec"] + b["timestamp"]["nsec"] * 1e-9
-                node.append(None)
-                frame.append(b["frame"])
-                ts.append(None)
-                tr.append(t)
-            else:
-                node.append(None)
-                frame.append(None)
-                ts.append(None)
-                tr.append(b["t"])
-    except (KeyError, TypeError) as e:
-        raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: {e}") from None
-    def f(xs: list[Any]) -> NDArray[np.float64]:
-        return np.array(xs, dtype=float)  # None -> NaN
-    return pd.DataFrame({"method": method, "kind": kind, "node": f(node), "frame": f(frame),
-                         "t_send": f(ts), "t_recv": f(tr)})
+    cols: dict[str, NDArray[np.float64]]
+    if kind in ("trigger", "state", "command"):
+        rows = _rows(rec, kind, method)
+        try:
+            cols = {k: _column(rows, k) for k in ("node", "frame", "t_send", "t_recv")}
+        except (ValueError, TypeError) as e:
+            raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: {e}"
+                              ) from None
+    else:
+        t: list[float] = []
+        frame: list[Any] = []
+        try:
+            for b in rec.messages(kind, method):
+                if kind == "snapshot":
+                    t.append(b["t"] if "t" in b
+                             else b["timestamp"]["sec"] + b["timestamp"]["nsec"] * 1e-9)
+                    frame.append(b["frame"])
+                else:
+                    t.append(b["t"])
+                    frame.append(None)
+        except (KeyError, TypeError) as e:
+            raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: "
+                              f"{e}") from None
+        n = len(t)
+        cols = {"node": np.full(n, np.nan), "frame": np.array(frame, dtype=float),
+                "t_send": np.full(n, np.nan), "t_recv": np.array(t, dtype=float)}
+    return pd.DataFrame({"method": method, "kind": kind, **cols})

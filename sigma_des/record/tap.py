@@ -1,7 +1,12 @@
 """The engines' recording tap: turns engine-side events into recorder calls.
 
 An engine run with ``run.tap`` set calls the tap where messages are delivered,
-snapshots change and render ticks sample. The tap converts the published state
+snapshots change and render ticks sample. Both engines call it in simulated-time
+order, and states reach it no later than the next tick, so at every alignment and
+render tick at ``t`` the tap promises the recorder that nothing older than ``t``
+follows (:meth:`~sigma_des.record.writer.MethodRecorder.advance`): the recording is
+written as the run goes, in ``log_time`` order, one message per trigger period and
+channel. The tap converts the published state
 rows (columns :data:`~sigma_des.core.models.OBS_FIELDS`: body velocities, Euler
 angles, body rates, north/east position, altitude up) to NED position, NED
 velocity and Euler angles, and writes them through a
@@ -21,6 +26,7 @@ from sigma_des.record.writer import MethodRecorder, Recorder
 __all__ = ["RecordTap", "obs_to_ned"]
 
 _F = NDArray[np.float64]
+_CONVERT_EVERY = 4096  # states converted to NED in batches of about this many
 
 
 def obs_to_ned(obs: _F) -> tuple[_F, _F, _F]:
@@ -54,6 +60,7 @@ class RecordTap:
     """
 
     def __init__(self, path: str | Path, scenario: dict[str, Any], method: str, spec: Any) -> None:
+        f_trig = float(scenario.get("f_trig", 100.0))
         self.rec = Recorder(
             path,
             scenario=scenario,
@@ -62,6 +69,7 @@ class RecordTap:
             deadband_vel=spec.deadband_vel,
             deadband_att=spec.deadband_att,
             keyframe_every=spec.keyframe_every,
+            window=1.0 / f_trig,
         )
         self.run: MethodRecorder = self.rec.run(method, mode="des")
         self._incremental = spec.mode == "incremental"
@@ -79,7 +87,7 @@ class RecordTap:
                               np.array(frames, dtype=np.int64), np.array(gens, dtype=float),
                               np.array(obs, dtype=float).reshape(-1, obs.shape[-1])))
         self._n_pending += self._pending[-1][1].size
-        if self._n_pending >= self.rec.batch:
+        if self._n_pending >= _CONVERT_EVERY:
             self._states_now()
 
     def _states_now(self) -> None:
@@ -99,6 +107,7 @@ class RecordTap:
 
     def snapshot(self, t: float, frame: int, frames: NDArray[np.int64], obs: _F) -> None:
         """A new aligned snapshot shown at ``t``."""
+        self._advance(t)
         if self._incremental:  # frames only: the poses are in the state channel
             self.run.snapshot(t=t, frame=frame, frames=frames, pos=np.zeros((0, 3)))
             return
@@ -107,7 +116,13 @@ class RecordTap:
 
     def render(self, t: float, gen: _F) -> None:
         """A render tick: AoI per node (NaN where nothing is shown)."""
+        self._advance(t)
         self.run.render(t=t, aoi=t - gen)
+
+    def _advance(self, t: float) -> None:
+        """A tick at ``t``: every state received so far is handed over, then written."""
+        self._states_now()
+        self.run.advance(t)
 
     def close(self) -> None:
         """Finish the file."""

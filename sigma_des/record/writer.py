@@ -1,4 +1,4 @@
-"""Recording runs to MCAP: one channel per method and message kind.
+"""Recording runs to MCAP: one channel per method and message kind, one timeline.
 
 >>> import tempfile, os
 >>> from sigma_des.record import Recorder, read_table
@@ -10,19 +10,33 @@
 [['bides', 'trigger', 0.0, 0.0, 0.0, 0.001]]
 
 Topics are ``/<method>/<kind>`` (kinds: :data:`~sigma_des.record.schemas.KINDS`);
-message encoding ``json``, schema encoding ``jsonschema``. Bulk kinds (triggers,
-states, commands) are buffered and written as column batches of up to ``batch``
-messages; every entry keeps its own send and receive time, and the MCAP message's
-``publish_time``/``log_time`` are the batch's earliest send and latest receive
-time (ns). The file ends with a summary section (schemas, channels, statistics,
-chunk indexes) so readers can seek. Times are seconds: simulated time in DES
-runs, one monotonic clock since the run's start in live runs.
+message encoding ``json``, schema encoding ``jsonschema`` (see
+:mod:`sigma_des.record.schemas` for the bodies). Bulk kinds (triggers, states,
+commands) are grouped by **window**: the rows whose time (receive time, or send time
+where the receive time is not known) falls in ``[k·window, (k+1)·window)`` form one
+message with ``log_time = publish_time = (k+1)·window``; snapshots and render samples
+are one message each at their time.
+
+**The file's** ``log_time`` **never decreases.** Messages are held until they are due:
+:meth:`MethodRecorder.advance` promises that no later message of that run is older
+than ``t`` (the engines' tap calls it at every alignment and render tick), and the
+recorder writes, in time order, everything of every run up to the earliest such
+promise; :meth:`Recorder.close` writes the rest. A message that still arrives late
+(older than what was written) is written with the last time written (its rows keep
+their own times) and counted in the run's ``late_messages``. The file ends with a
+summary section (schemas, channels, statistics, chunk indexes) so readers can seek.
+Times are seconds: simulated time in DES runs, one monotonic clock since the run's
+start in live runs.
 """
 
 from __future__ import annotations
 
+import heapq
 import json
 import math
+from collections.abc import Iterator
+from contextlib import ExitStack
+from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
@@ -34,6 +48,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from sigma_des import __version__
 from sigma_des.record.delta import DeltaEncoder
+from sigma_des.record.enu import poses_in_frame
+from sigma_des.record.rows import array_tokens, rows_json
 from sigma_des.record.schemas import KINDS, schema_bytes
 
 __all__ = ["MethodRecorder", "Recorder", "RECORD_MODES", "PROFILE"]
@@ -43,19 +59,25 @@ RECORD_MODES: tuple[str, ...] = ("full", "incremental")
 #: MCAP profile string written in the header.
 PROFILE = "sigma_des"
 _RUN_MODES = ("des", "live")
+_RANK = {k: i for i, k in enumerate(KINDS)}  # same-time order: bulk windows, then the rest
+_END = 2**62  # "everything": later than any time in ns
+_POSE_COLS = ("x", "y", "z", "vx", "vy", "vz", "phi", "theta", "psi")
+_Msg = tuple[int, tuple[int, ...], int, bytes]  # log_ns, sort key, channel, data
 
 
 def _ns(t: float) -> int:
     return max(0, round(t * 1e9)) if math.isfinite(t) else 0
 
 
-def _col(a: ArrayLike, dtype: Any = np.float64) -> NDArray[Any]:
-    """A contiguous column orjson serialises natively (NaN → null)."""
-    return np.ascontiguousarray(np.asarray(a, dtype=dtype))
+def _ns_arr(t: NDArray[np.float64]) -> NDArray[np.int64]:
+    out = np.zeros(t.shape, dtype=np.int64)
+    ok = np.isfinite(t)
+    out[ok] = np.maximum(np.round(t[ok] * 1e9), 0).astype(np.int64)
+    return out
 
 
 class Recorder:
-    """An MCAP recording of one or more method runs.
+    """An MCAP recording of one or more method runs on one timeline.
 
     Args:
         path: the ``.mcap`` file to create (an existing file is replaced unless
@@ -68,7 +90,8 @@ class Recorder:
         deadband_vel: incremental: dead-band on the velocity (m/s).
         deadband_att: incremental: dead-band on the attitude (rad).
         keyframe_every: incremental: frames between a node's keyframes.
-        batch: bulk kinds are written in batches of at most this many messages.
+        window: rows of the bulk kinds are grouped into messages per window (s; the
+            engines use one trigger period).
         overwrite: replace an existing file (False: raise FileExistsError).
 
     Raises:
@@ -86,15 +109,17 @@ class Recorder:
         deadband_vel: float = 0.1,
         deadband_att: float = 0.02,
         keyframe_every: int = 100,
-        batch: int = 1000,
+        window: float = 0.01,
         overwrite: bool = True,
     ) -> None:
         if mode not in RECORD_MODES:
             raise ValueError(f"record mode must be one of {RECORD_MODES}, got {mode!r}")
         if min(deadband_pos, deadband_vel, deadband_att) < 0:
             raise ValueError("dead-bands must be >= 0")
-        if keyframe_every < 1 or batch < 1:
-            raise ValueError("keyframe_every and batch must be >= 1")
+        if keyframe_every < 1:
+            raise ValueError("keyframe_every must be >= 1")
+        if not (window >= 1e-6 and math.isfinite(window)):
+            raise ValueError(f"window must be a finite number >= 1e-6 s, got {window}")
         self.path = Path(path)
         if self.path.exists() and not overwrite:
             raise FileExistsError(f"{self.path}: exists (not overwritten)")
@@ -105,11 +130,12 @@ class Recorder:
             "deadband_att": deadband_att,
             "keyframe_every": keyframe_every,
         }
-        self.batch = batch
+        self.window_ns = max(1, round(window * 1e9))
         self._fh: IO[bytes] = self.path.open("wb")
         self._w = Writer(self._fh, compression=CompressionType.ZSTD)
         self._w.start(profile=PROFILE, library=f"sigma_des {__version__}")
-        meta = {"version": __version__, "record_mode": mode, "params": self.params}
+        meta = {"version": __version__, "record_mode": mode, "params": self.params,
+                "window": self.window_ns / 1e9}
         self._w.add_metadata(
             "sigma_des",
             {
@@ -122,30 +148,47 @@ class Recorder:
             name, data = schema_bytes(kind, mode)
             self._schemas[kind] = self._w.register_schema(name, "jsonschema", data)
         self.runs: dict[str, MethodRecorder] = {}
+        self._parts: list[tuple[Path, dict[int, int]]] = []
         self._copied: dict[str, dict[str, str]] = {}
         self._copied_methods: set[str] = set()
+        self._seq: dict[int, int] = {}
+        self._last_ns = 0  # log time of the last message written
+        self._written_to = -1  # everything up to this time is written
+        self._late: dict[int, int] = {}  # channel -> messages written late
         self._closed = False
 
     def run(self, method: str, mode: str = "des") -> MethodRecorder:
-        """The writer of one method's channels (``mode``: ``des`` or ``live``)."""
+        """The writer of one method's channels (``mode``: ``des`` or ``live``).
+
+        Raises:
+            ValueError: bad mode, a repeated method, or messages were already written
+                (create every run first: the file is one timeline).
+        """
         if mode not in _RUN_MODES:
             raise ValueError(f"run mode must be one of {_RUN_MODES}, got {mode!r}")
         if method in self.runs or method in self._copied_methods:
             raise ValueError(f"method {method!r} is already recorded in this file")
+        if self._written_to >= 0 or self._parts:
+            raise ValueError("create every run before the first advance() (one timeline), "
+                             "and do not mix runs with copy_from")
         self.runs[method] = r = MethodRecorder(self, method, mode)
         return r
 
     def copy_from(self, part: str | Path) -> None:
-        """Copy every method of another recording (same record mode) into this one.
+        """Join every method of another recording (same record mode) into this one.
 
-        Messages are copied as stored (no re-encoding); used to join the per-method
-        files that worker processes write.
+        Messages are copied as stored (no re-encoding) when the recorder closes,
+        merged with the other parts' in ``log_time`` order; used to join the
+        per-method files that worker processes write.
 
         Raises:
-            ValueError: the part's record mode differs, or it repeats a method.
+            ValueError: the part's record mode differs, it repeats a method, or this
+                recorder records runs of its own.
         """
         from mcap.reader import make_reader
 
+        if self.runs:
+            raise ValueError("copy_from: this recorder records runs of its own")
         with Path(part).open("rb") as fh:
             reader = make_reader(fh)
             meta = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
@@ -154,38 +197,73 @@ class Recorder:
                 raise ValueError(f"{part}: record mode {mode!r}, this file is {self.mode!r}")
             summary = reader.get_summary()
             assert summary is not None
-            ids: dict[int, int] = {}
             new = {ch.metadata["method"] for ch in summary.channels.values()}
             if new & (set(self.runs) | self._copied_methods):
                 raise ValueError(f"{part}: repeats a method of this file: {sorted(new)}")
             self._copied_methods |= new
-            for cid, ch in summary.channels.items():
-                method, kind = ch.metadata["method"], ch.metadata["kind"]
-                ids[cid] = self._channel(method, kind, ch.metadata["run_mode"])
-            for _s, ch, m in reader.iter_messages(log_time_order=False):
-                self._w.add_message(ids[ch.id], m.log_time, m.data, m.publish_time, m.sequence)
+            ids = {cid: self._channel(ch.metadata["method"], ch.metadata["kind"],
+                                      ch.metadata["run_mode"])
+                   for cid, ch in summary.channels.items()}
+            self._parts.append((Path(part), ids))
             for name, data in meta.items():
                 if name.startswith("run:"):
                     self._copied[name] = data
 
     def _channel(self, method: str, kind: str, run_mode: str) -> int:
         meta = {"method": method, "kind": kind, "run_mode": run_mode, "record_mode": self.mode}
-        return self._w.register_channel(
+        cid = self._w.register_channel(
             f"/{method}/{kind}", "json", self._schemas[kind], metadata=meta
         )
+        self._seq[cid] = 0
+        self._late[cid] = 0
+        return cid
 
-    def _add(self, channel: int, seq: int, t_send: float, t_recv: float, body: Any) -> None:
-        data = orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)  # NaN, inf -> null
-        self._w.add_message(channel, _ns(t_recv), data, _ns(t_send), sequence=seq)
+    def _write(self, channel: int, log_ns: int, data: bytes, pub_ns: int | None = None) -> None:
+        if log_ns < self._last_ns:  # late: keep the file's order, count it
+            self._late[channel] += 1
+            log_ns = self._last_ns
+        self._last_ns = log_ns
+        self._w.add_message(channel, log_ns, data, log_ns if pub_ns is None else pub_ns,
+                            sequence=self._seq[channel])
+        self._seq[channel] += 1
+
+    def _pump(self) -> None:
+        """Write what every run has promised (the earliest of their advances)."""
+        up = min(r.mark for r in self.runs.values())
+        if up > self._written_to:
+            self._emit(up)
+
+    def _emit(self, up_ns: int) -> None:
+        msgs: list[_Msg] = []
+        for i, r in enumerate(self.runs.values()):
+            msgs += r.ready(up_ns, i)
+        msgs.sort(key=lambda m: (m[0], m[1]))
+        for log_ns, _key, ch, data in msgs:
+            self._write(ch, log_ns, data)
+        self._written_to = up_ns
+
+    def _copy_parts(self) -> None:
+        from mcap.reader import make_reader
+
+        def part(j: int, fh: IO[bytes], ids: dict[int, int]) -> Iterator[tuple[Any, ...]]:
+            for i, (_s, ch, m) in enumerate(make_reader(fh).iter_messages(log_time_order=True)):
+                yield m.log_time, j, i, ids[ch.id], m.data, m.publish_time
+
+        with ExitStack() as stack:
+            its = [part(j, stack.enter_context(p.open("rb")), ids)
+                   for j, (p, ids) in enumerate(self._parts)]
+            for log_ns, _j, _i, cid, data, pub in heapq.merge(*its):
+                self._write(cid, log_ns, data, pub)
 
     def close(self) -> None:
-        """Flush every run's buffers and write the summary and indexes."""
+        """Write every pending message, the parts joined, the summary and indexes."""
         if self._closed:
             return
         self._closed = True
         try:
-            for r in self.runs.values():
-                r.flush()
+            if self.runs:
+                self._emit(_END)
+            self._copy_parts()
             for m, r in self.runs.items():
                 self._w.add_metadata(f"run:{m}", {k: str(v) for k, v in r.counts().items()})
             for name, data in self._copied.items():
@@ -206,24 +284,30 @@ class Recorder:
         self.close()
 
 
-class _Batch:
-    """Column buffers of one bulk kind."""
+class _Pending:
+    """Rows of one bulk kind not written yet (column chunks, copied on entry)."""
 
     def __init__(self) -> None:
-        self.cols: dict[str, list[Any]] = {}
-        self.size = 0
+        self.chunks: list[dict[str, Any]] = []
+        self.n = 0
 
-    def extend(self, **cols: ArrayLike) -> None:
-        for k, v in cols.items():
-            arr = np.atleast_1d(np.array(v))  # a copy: callers may reuse their buffers
-            self.cols.setdefault(k, []).append(arr)
-        self.size += int(np.atleast_1d(np.asarray(next(iter(cols.values())))).shape[0])
+    def add(self, cols: dict[str, Any]) -> None:
+        self.chunks.append(cols)
+        self.n += len(cols["node"])
 
-    def take(self) -> dict[str, NDArray[Any]]:
-        out = {k: np.concatenate(v) for k, v in self.cols.items()}
-        self.cols = {}
-        self.size = 0
+    def take(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for k in self.chunks[0]:
+            parts = [c[k] for c in self.chunks]
+            out[k] = (list(chain.from_iterable(parts)) if isinstance(parts[0], list)
+                      else np.concatenate(parts))
+        self.chunks, self.n = [], 0
         return out
+
+
+def _pick(cols: dict[str, Any], idx: NDArray[np.intp]) -> dict[str, Any]:
+    return {k: [v[i] for i in idx.tolist()] if isinstance(v, list) else v[idx]
+            for k, v in cols.items()}
 
 
 class MethodRecorder:
@@ -234,12 +318,10 @@ class MethodRecorder:
         self.method = method
         self.run_mode = mode
         self._ch = {k: rec._channel(method, k, mode) for k in KINDS}
-        self._seq = dict.fromkeys(KINDS, 0)
-        self._buf = {k: _Batch() for k in ("trigger", "state", "command")}
-        self._cmd_values: list[NDArray[np.float64]] = []
-        self._pending: list[tuple[NDArray[Any], ...]] = []
-        self._n_pending = 0
+        self._pend = {k: _Pending() for k in ("trigger", "state", "command")}
+        self._singles: list[_Msg] = []
         self._n = dict.fromkeys(KINDS, 0)
+        self.mark = -1  # advance(): no later message is older than this (ns)
         p = rec.params
         self.encoder = (
             DeltaEncoder(
@@ -277,7 +359,7 @@ class MethodRecorder:
     def command(
         self, node: int, frame: int, t_send: float, t_recv: float, values: ArrayLike
     ) -> None:
-        """One command delivery (``values``: the command row, floats)."""
+        """One command delivery (``values``: the command row, floats; NaN: keep)."""
         self.commands([node], [frame], [t_send], [t_recv], [np.ravel(values)])
 
     def snapshot(
@@ -291,16 +373,25 @@ class MethodRecorder:
         """An aligned snapshot shown at ``t`` (``pos``: n × 3 NED m; ``att``: n × 3 rad)."""
         fr = np.asarray(frames, dtype=np.int64).ravel()
         if self.rec.mode == "incremental":
-            body: dict[str, Any] = {"t": t, "frame": int(frame), "frames": _col(fr, np.int64)}
+            body: dict[str, Any] = {"t": t, "frame": int(frame),
+                                    "frames": np.ascontiguousarray(fr)}
         else:
-            body = _poses_in_frame(t, int(frame), fr, np.asarray(pos, dtype=float), att)
-        self._write("snapshot", t, t, body)
-        self._n["snapshot"] += 1
+            body = poses_in_frame(t, int(frame), fr, np.asarray(pos, dtype=float), att)
+        self._single("snapshot", t, body)
 
     def render(self, t: float, aoi: ArrayLike) -> None:
-        """One render sample: the Age of Information of every node (s; NaN: none)."""
-        self._write("render", t, t, {"t": t, "aoi": _col(aoi).ravel()})
-        self._n["render"] += 1
+        """One render sample: the Age of Information of every node (s; NaN: none shown)."""
+        a = np.array(aoi, dtype=float).ravel()
+        a[~np.isfinite(a)] = -1.0
+        self._single("render", t, {"t": t, "aoi": a})
+
+    def advance(self, t: float) -> None:
+        """Promise that no later message of this run is older than ``t`` (s).
+
+        Everything of every run up to the earliest promise is then written.
+        """
+        self.mark = max(self.mark, _ns(t))
+        self.rec._pump()
 
     # ------------------------------------------------------------ vectorised forms
 
@@ -308,7 +399,7 @@ class MethodRecorder:
         self, nodes: ArrayLike, frames: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike
     ) -> None:
         """Many trigger deliveries at once (arrays of equal length)."""
-        self._bulk("trigger", node=nodes, frame=frames, t_send=t_send, t_recv=t_recv)
+        self._bulk("trigger", nodes, frames, t_send, t_recv, {})
 
     def states(
         self,
@@ -320,38 +411,10 @@ class MethodRecorder:
     ) -> None:
         """Many state deliveries (``values``: m × 9, pos, vel, att), in arrival order.
 
-        The arrays are copied (callers may reuse their buffers) and encoded once
-        ``batch`` states are pending.
+        The arrays are copied (callers may reuse their buffers).
         """
-        nd = np.array(nodes, dtype=np.int64).ravel()
-        v = np.array(values, dtype=float).reshape(-1, 9)
-        self._pending.append((nd, np.array(frames, dtype=np.int64).ravel(),
-                              np.array(t_send, dtype=float).ravel(),
-                              np.array(t_recv, dtype=float).ravel(), v))
-        self._n_pending += nd.size
-        self._n["state"] += nd.size
-        if self._n_pending >= self.rec.batch:
-            self._encode_pending()
-
-    def _encode_pending(self) -> None:
-        if not self._pending:
-            return
-        nd, fr, ts, tr, v = (np.concatenate(c) for c in zip(*self._pending, strict=True))
-        self._pending = []
-        self._n_pending = 0
-        cols: dict[str, Any]
-        if self.encoder is not None:
-            rows, key, v = self.encoder.encode(nd, fr, ts, v)
-            nd, fr, ts, tr = nd[rows], fr[rows], ts[rows], tr[rows]
-            cols = {"key": key}
-        else:
-            cols = {}
-        names = ("x", "y", "z", "vx", "vy", "vz", "phi", "theta", "psi")
-        cols.update({c: v[:, j] for j, c in enumerate(names)})
-        if nd.size:
-            self._buf["state"].extend(node=nd, frame=fr, t_send=ts, t_recv=tr, **cols)
-            if self._buf["state"].size >= self.rec.batch:
-                self._flush("state")
+        self._bulk("state", nodes, frames, t_send, t_recv,
+                   {"values": np.array(values, dtype=float).reshape(-1, 9)})
 
     def commands(
         self,
@@ -365,103 +428,116 @@ class MethodRecorder:
         if isinstance(values, np.ndarray) and values.ndim == 2:
             rows: list[NDArray[np.float64]] = list(np.array(values, dtype=float))
         else:
-            rows = [np.asarray(r, dtype=float).ravel() for r in values]  # type: ignore[union-attr]
-        self._cmd_values.extend(rows)
-        self._bulk("command", node=nodes, frame=frames, t_send=t_send, t_recv=t_recv)
+            rows = [np.array(r, dtype=float).ravel() for r in values]  # type: ignore[union-attr]
+        self._bulk("command", nodes, frames, t_send, t_recv, {"values": rows})
 
     # ------------------------------------------------------------ internals
 
-    def _bulk(self, kind: str, **cols: ArrayLike) -> None:
-        b = self._buf[kind]
-        before = b.size
-        b.extend(**cols)
-        self._n[kind] += b.size - before
-        if b.size >= self.rec.batch:
-            self._flush(kind)
+    def _bulk(self, kind: str, nodes: ArrayLike, frames: ArrayLike, t_send: ArrayLike,
+              t_recv: ArrayLike, extra: dict[str, Any]) -> None:
+        cols = {
+            "node": np.array(nodes, dtype=np.int64).ravel(),
+            "frame": np.array(frames, dtype=np.int64).ravel(),
+            "t_send": np.array(t_send, dtype=float).ravel(),
+            "t_recv": np.array(t_recv, dtype=float).ravel(),
+            **extra,
+        }
+        m = cols["node"].size
+        if any(len(v) != m for v in cols.values()):
+            raise ValueError(f"{kind}s: the arrays must have equal lengths")
+        if m:
+            self._pend[kind].add(cols)
+            self._n[kind] += m
 
-    def _flush(self, kind: str) -> None:
-        b = self._buf[kind]
-        if b.size == 0:
-            return
-        cols = b.take()
-        body: dict[str, Any] = {"seq": self._seq[kind]}
-        for k, v in cols.items():
-            body[k] = _col(v, np.int64 if k in ("node", "frame", "key") else np.float64)
-        if kind == "command":
-            vals = self._cmd_values
-            if len({r.size for r in vals}) == 1:
-                body["values"] = _col(np.stack(vals))
+    def _single(self, kind: str, t: float, body: dict[str, Any]) -> None:
+        data = orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
+        key = (_RANK[kind], len(self._singles))
+        self._singles.append((_ns(t), key, self._ch[kind], data))
+        self._n[kind] += 1
+
+    def ready(self, up_ns: int, run: int) -> list[_Msg]:
+        """Take the messages due by ``up_ns``: full windows and single messages."""
+        out: list[_Msg] = []
+        for kind, p in self._pend.items():
+            if p.n:
+                out += self._windows(kind, p, up_ns, run)
+        keep = []
+        for log_ns, key, ch, data in self._singles:
+            if log_ns <= up_ns:
+                out.append((log_ns, (run, *key), ch, data))
             else:
-                body["values"] = [_col(r) for r in vals]
-            self._cmd_values = []
-        ts = cols["t_send"].astype(float)
-        tr = cols["t_recv"].astype(float)
-        t_pub = float(np.nanmin(ts)) if np.isfinite(ts).any() else 0.0
-        t_log = float(np.nanmax(tr)) if np.isfinite(tr).any() else float(np.nanmax(ts))
-        self._write(kind, t_pub, t_log, body)
+                keep.append((log_ns, key, ch, data))
+        self._singles = keep
+        return out
 
-    def _write(self, kind: str, t_send: float, t_recv: float, body: Any) -> None:
-        self.rec._add(self._ch[kind], self._seq[kind], t_send, t_recv, body)
-        self._seq[kind] += 1
+    def _windows(self, kind: str, p: _Pending, up_ns: int, run: int) -> list[_Msg]:
+        cols = p.take()
+        ts, tr = cols["t_send"], cols["t_recv"]
+        log = _ns_arr(np.where(np.isfinite(tr), tr, ts))
+        w = self.rec.window_ns
+        k = log // w
+        due = (k + 1) * w <= up_ns
+        if not due.all():
+            p.add(_pick(cols, np.flatnonzero(~due)))
+        idx = np.flatnonzero(due)
+        order = idx[np.lexsort((log[idx], k[idx]))]  # stable: arrival order within ties
+        c = _pick(cols, order)
+        k = k[order]
+        if kind == "state" and self.encoder is not None:  # encode in file order
+            rows, key, vals = self.encoder.encode(c["node"], c["frame"], c["t_send"],
+                                                  c["values"])
+            o = np.argsort(rows, kind="stable")
+            rows, key, vals = rows[o], key[o], vals[o]
+            k = k[rows]
+            c = {**_pick(c, rows), "values": vals}
+            fields = self._fields(kind, c, key.astype(np.int64))
+        else:
+            fields = self._fields(kind, c)
+        if k.size == 0:
+            return []
+        body = rows_json(fields)
+        starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+        ends = np.r_[starts[1:], k.size]
+        out: list[_Msg] = []
+        for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+            end_ns = int(k[a] + 1) * w
+            data = b'{"t":%s,"rows":[{%s}]}' % (orjson.dumps(end_ns / 1e9),
+                                                b"},{".join(body[a:b]))
+            out.append((end_ns, (run, _RANK[kind], int(k[a])), self._ch[kind], data))
+        return out
 
-    def flush(self) -> None:
-        """Write every buffered batch."""
-        self._encode_pending()
-        for kind in self._buf:
-            self._flush(kind)
+    @staticmethod
+    def _fields(kind: str, c: dict[str, Any], key: NDArray[np.int64] | None = None
+                ) -> list[tuple[str, Any]]:
+        """The row fields of ``kind`` in schema order (``key``: delta rows' keyframe flags)."""
+        f: list[tuple[str, Any]] = [(n, c[n]) for n in ("node", "frame", "t_send", "t_recv")]
+        if key is not None:
+            f.append(("key", key))
+        if kind == "state":
+            f += [(n, np.ascontiguousarray(c["values"][:, j])) for j, n in enumerate(_POSE_COLS)]
+        elif kind == "command":
+            vals: list[NDArray[np.float64]] = c["values"]
+            if len({v.size for v in vals}) == 1:
+                v = np.stack(vals)
+                ok = np.isfinite(v)
+                f.append(("values", array_tokens(np.where(ok, v, 0.0))))
+                f.append(("valid", array_tokens(ok.astype(np.int64))))
+            else:  # rows of different widths: one at a time
+                f.append(("values", [orjson.dumps(np.where(np.isfinite(r), r, 0.0),
+                                                  option=orjson.OPT_SERIALIZE_NUMPY)
+                                     for r in vals]))
+                f.append(("valid", [orjson.dumps(np.isfinite(r).astype(np.int64),
+                                                 option=orjson.OPT_SERIALIZE_NUMPY)
+                                    for r in vals]))
+        return f
 
     def counts(self) -> dict[str, Any]:
-        """Messages handed to this writer per kind, plus states actually stored."""
+        """Messages handed to this writer per kind, states stored, late messages."""
         out: dict[str, Any] = {f"{k}s": n for k, n in self._n.items()}
         out["run_mode"] = self.run_mode
         if self.encoder is not None:
             out["states_stored"] = self.encoder.written
         else:
             out["states_stored"] = self._n["state"]
+        out["late_messages"] = sum(self.rec._late[c] for c in self._ch.values())
         return out
-
-
-def _poses_in_frame(
-    t: float, frame: int, frames: NDArray[np.int64], pos: NDArray[np.float64],
-    att: ArrayLike | None,
-) -> dict[str, Any]:
-    """A ``foxglove.PosesInFrame`` body (NED frame ``ned``) with frame fields added."""
-    n = frames.size
-    p = pos.reshape(n, 3)
-    if att is None:
-        q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-    else:
-        q = _quat(np.asarray(att, dtype=float).reshape(n, 3))
-    ok = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
-    poses = [
-        {
-            "position": {"x": a[0], "y": a[1], "z": a[2]},
-            "orientation": {"x": b[0], "y": b[1], "z": b[2], "w": b[3]},
-        }
-        for a, b in zip(p[ok].tolist(), q[ok].tolist(), strict=True)
-    ]
-    sec = int(max(t, 0.0))
-    nsec = min(999_999_999, max(0, round((max(t, 0.0) - sec) * 1e9)))
-    return {
-        "timestamp": {"sec": sec, "nsec": nsec},
-        "frame_id": "ned",
-        "poses": poses,
-        "frame": frame,
-        "frames": _col(frames, np.int64),
-        "nodes": np.flatnonzero(ok).astype(np.int64),
-    }
-
-
-def _quat(att: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Quaternions (x, y, z, w) of Z-Y-X Euler angles (phi, theta, psi)."""
-    hp, ht, hs = att[:, 0] / 2, att[:, 1] / 2, att[:, 2] / 2
-    cp, sp, ct, st, cs, ss = np.cos(hp), np.sin(hp), np.cos(ht), np.sin(ht), np.cos(hs), np.sin(hs)
-    return np.stack(
-        [
-            sp * ct * cs - cp * st * ss,
-            cp * st * cs + sp * ct * ss,
-            cp * ct * ss - sp * st * cs,
-            cp * ct * cs + sp * st * ss,
-        ],
-        axis=1,
-    )

@@ -40,6 +40,17 @@ def test_recorded_states_match_the_measured_latency(recorded: dict, engine: str)
         assert (sn.t_recv >= sc.warmup).sum() == round(res.metric(method, "snapshot_rate_hz")
                                                        * window)
         assert (df[(df.method == method)].kind == "render").sum() == 25  # 25 Hz for 1 s
+        assert open_recording(path).runs[method]["late_messages"] == "0"
+
+
+@pytest.mark.parametrize("engine", ["cohort", "events"])
+def test_the_tap_writes_one_timeline_in_log_time_order(recorded: dict, engine: str) -> None:
+    """Both engines keep the tap's promise: nothing late, log_time never decreases."""
+    from mcap.reader import make_reader
+
+    with recorded[engine][1].open("rb") as fh:
+        times = [m.log_time for _s, _c, m in make_reader(fh).iter_messages(log_time_order=False)]
+    assert len(times) > 100 and times == sorted(times)
 
 
 def test_both_engines_record_the_same_states(recorded: dict) -> None:

@@ -16,7 +16,7 @@ from sigma_des.record.schemas import SCHEMAS
 
 
 def _write(path: Path, mode: str = "full") -> None:
-    with Recorder(path, scenario={"nodes": 2}, mode=mode, batch=3) as rec:
+    with Recorder(path, scenario={"nodes": 2}, mode=mode) as rec:
         for method in ("none", "bides"):
             run = rec.run(method, mode="des")
             for k in range(4):
@@ -67,24 +67,37 @@ def test_file_layout_topics_schemas_and_indexes(tmp_path: Path) -> None:
         assert summary is not None
         topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
         assert topics["/bides/snapshot"] == "foxglove.PosesInFrame"
-        assert topics["/none/state"] == "sigma_des.States"
+        assert topics["/none/state"] == "sigma_des.StateRows"
         assert set(topics) == {f"/{m}/{k}" for m in ("none", "bides")
                                for k in ("trigger", "state", "command", "snapshot", "render")}
         assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
         assert summary.chunk_indexes, "no chunk index: readers cannot seek"
         assert summary.statistics is not None
-        # 8 triggers in batches of 3 -> 3 messages per method; states too; 4 commands -> 2
+        # one message per 10 ms window: frames k = 0..3 fall in windows 0..3
         by_topic = {summary.channels[c].topic: n
                     for c, n in summary.statistics.channel_message_counts.items()}
-        assert by_topic["/none/trigger"] == 3 and by_topic["/none/command"] == 2
+        assert by_topic["/none/trigger"] == 4 and by_topic["/none/command"] == 4
         msgs = list(reader.iter_messages(topics=["/bides/snapshot"]))
+        trig = [m for _s, _c, m in reader.iter_messages(topics=["/none/trigger"])]
+        cmd = json.loads(next(reader.iter_messages(topics=["/none/command"]))[2].data)
+    assert [m.log_time for m in trig] == [10_000_000, 20_000_000, 30_000_000, 40_000_000]
+    assert json.loads(trig[1].data) == {"t": 0.02, "rows": [
+        {"node": 0, "frame": 1, "t_send": 0.01, "t_recv": 0.011},
+        {"node": 1, "frame": 1, "t_send": 0.01, "t_recv": 0.012}]}
+    # the NaN cell: 0 with valid 0, never null
+    assert cmd["rows"] == [{"node": 1, "frame": 0, "t_send": 0.0, "t_recv": 0.003,
+                            "values": [1.5, 0.0], "valid": [1, 0]}]
     body = json.loads(msgs[1][2].data)
     schema = SCHEMAS[("snapshot", "full")][1]
     _conforms(body, schema)
     assert body["timestamp"] == {"sec": 0, "nsec": 14_000_000}
-    assert body["frame_id"] == "ned" and body["frame"] == 1 and body["frames"] == [1, 0]
-    assert body["poses"][1]["position"] == {"x": 1.0, "y": 1.0, "z": -10.0}
-    assert body["poses"][0]["orientation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    assert body["frame_id"] == "enu" and body["frame"] == 1 and body["frames"] == [1, 0]
+    # NED (1, 1, -10): 1 m north, 1 m east, 10 m up -> ENU (1, 1, 10)
+    assert body["poses"][1]["position"] == {"x": 1.0, "y": 1.0, "z": 10.0}
+    assert body["poses"][0]["position"] == {"x": 0.0, "y": 1.0, "z": 10.0}
+    h = math.sqrt(0.5)  # level, heading north: the FLU body turned +90 deg about ENU z
+    q = body["poses"][0]["orientation"]
+    assert [q[c] for c in "xyzw"] == pytest.approx([0.0, 0.0, h, h], abs=1e-15)
     assert msgs[1][2].log_time == 14_000_000
 
 
@@ -104,18 +117,79 @@ def _conforms(body: Any, schema: dict[str, Any]) -> None:
             _conforms(v, schema["items"])
 
 
-def test_attitude_becomes_the_quaternion_of_zyx_euler_angles(tmp_path: Path) -> None:
+def test_log_time_never_decreases_across_methods_and_channels(tmp_path: Path) -> None:
+    path = tmp_path / "r.mcap"
+    _write(path)  # two methods written one after the other, no advance: sorted at close
+    with path.open("rb") as fh:
+        times = [m.log_time for _s, _c, m in make_reader(fh).iter_messages(log_time_order=False)]
+    assert len(times) == 2 * (4 * 3 + 4 + 4) and times == sorted(times)
+    assert open_recording(path).runs["none"]["late_messages"] == "0"
+
+
+def test_advance_writes_as_the_run_goes_and_counts_late_messages(tmp_path: Path) -> None:
+    path = tmp_path / "a.mcap"
+    with Recorder(path, window=0.1) as rec:
+        run = rec.run("none")
+        run.trigger(frame=0, node=0, t_send=0.0, t_recv=0.05)
+        run.advance(0.1)  # window [0, 0.1) is due: written now
+        assert rec._last_ns == 100_000_000
+        run.trigger(frame=1, node=0, t_send=0.1, t_recv=0.15)
+        run.advance(0.12)  # [0.1, 0.2) not due yet
+        assert rec._last_ns == 100_000_000
+        run.render(t=0.3, aoi=[0.2])
+        run.advance(0.3)  # the window at 0.2, then the render at 0.3
+        run.trigger(frame=0, node=1, t_send=0.0, t_recv=0.08)  # breaks the promise
+    with path.open("rb") as fh:
+        msgs = [(c.topic, m.log_time) for _s, c, m in make_reader(fh).iter_messages(
+            log_time_order=False)]
+    assert msgs == [("/none/trigger", 100_000_000), ("/none/trigger", 200_000_000),
+                    ("/none/render", 300_000_000), ("/none/trigger", 300_000_000)]
+    assert open_recording(path).runs["none"]["late_messages"] == "1"
+    tr = read_table(path)
+    assert tr[tr.kind == "trigger"].t_recv.tolist() == [0.05, 0.15, 0.08]  # own times kept
+
+
+def test_non_finite_values_are_absent_or_flagged_never_null(tmp_path: Path) -> None:
+    path = tmp_path / "n.mcap"
+    with Recorder(path) as rec:
+        run = rec.run("none")
+        run.trigger(frame=0, node=-1, t_send=0.0, t_recv=math.nan)
+        run.state(node=0, frame=0, t_send=0.0, t_recv=0.001, pos=(1.0, math.inf, 0.0),
+                  vel=(0, 0, 0), att=(0, 0, math.nan))
+        run.render(t=0.02, aoi=[0.004, math.nan])
+    with path.open("rb") as fh:
+        data = {c.topic: json.loads(m.data) for _s, c, m in make_reader(fh).iter_messages()}
+    assert data["/none/trigger"]["rows"] == [{"node": -1, "frame": 0, "t_send": 0.0}]
+    row = data["/none/state"]["rows"][0]
+    assert "y" not in row and "psi" not in row and row["x"] == 1.0 and row["theta"] == 0.0
+    assert data["/none/render"]["aoi"] == [0.004, -1.0]
+    st = read_states(path)["none"]
+    assert np.isnan(st.pos[0, 1]) and np.isnan(st.att[0, 2]) and st.pos[0, 0] == 1.0
+    assert np.isnan(read_table(path).query("kind == 'trigger'").t_recv.iloc[0])
+
+
+def test_attitude_is_drawn_in_enu_with_forward_left_up_bodies(tmp_path: Path) -> None:
+    """Hand-computed: where the nose (body x) and the top (body z, FLU) point in ENU."""
     from scipy.spatial.transform import Rotation
 
     path = tmp_path / "q.mcap"
-    att = np.array([[0.1, -0.2, 0.3], [0.0, 0.0, math.pi / 2]])
+    att = np.array([[0.0, 0.0, math.pi / 2],  # level, heading east
+                    [0.0, 0.3, 0.0],          # nose 0.3 rad up, heading north
+                    [0.4, 0.0, 0.0]])         # right wing 0.4 rad down, heading north
     with Recorder(path) as rec:
-        rec.run("none").snapshot(t=1.0, frame=5, frames=[5, 5], pos=np.zeros((2, 3)), att=att)
+        rec.run("none").snapshot(t=1.0, frame=5, frames=[5, 5, 5], pos=np.zeros((3, 3)),
+                                 att=att)
     with path.open("rb") as fh:
         body = json.loads(next(make_reader(fh).iter_messages())[2].data)
-    want = Rotation.from_euler("ZYX", att[:, ::-1]).as_quat()
-    got = np.array([[p["orientation"][c] for c in "xyzw"] for p in body["poses"]])
-    np.testing.assert_allclose(got, want, atol=1e-12)
+    q = np.array([[p["orientation"][c] for c in "xyzw"] for p in body["poses"]])
+    r = Rotation.from_quat(q)
+    nose, top, left = r.apply([1.0, 0, 0]), r.apply([0, 0, 1.0]), r.apply([0, 1.0, 0])
+    c, s = math.cos, math.sin
+    np.testing.assert_allclose(nose, [[1, 0, 0], [0, c(0.3), s(0.3)], [0, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(top, [[0, 0, 1], [0, -s(0.3), c(0.3)], [s(0.4), 0, c(0.4)]],
+                               atol=1e-12)
+    np.testing.assert_allclose(left[2], [-c(0.4), 0, s(0.4)], atol=1e-12)  # top to the east, left wing up
+    assert np.allclose(np.linalg.det(r.as_matrix()), 1.0)  # rotations: nothing mirrored
 
 
 def test_metadata_counts_and_run_mode(tmp_path: Path) -> None:
@@ -171,6 +245,21 @@ def test_unknown_schema_is_refused(tmp_path: Path) -> None:
         w.finish()
     with pytest.raises(RecordError, match="unknown schema 'acme.Thing'"):
         read_table(path)
+
+
+def test_the_older_column_batch_layout_is_named(tmp_path: Path) -> None:
+    from mcap.writer import Writer
+
+    path = tmp_path / "old.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start(profile="sigma_des")
+        w.add_metadata("sigma_des", {"recording": "{}", "scenario": "{}"})
+        sid = w.register_schema("sigma_des.States", "jsonschema", b"{}")
+        w.register_channel("/none/state", "json", sid)
+        w.finish()
+    with pytest.raises(RecordError, match="older column-batch layout"):
+        read_states(path)
 
 
 def test_existing_file_kept_unless_overwrite(tmp_path: Path) -> None:

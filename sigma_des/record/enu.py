@@ -1,0 +1,76 @@
+"""Aligned snapshots as ``foxglove.PosesInFrame`` in the z-up frame ``enu``.
+
+The simulator's poses are NED (x north, y east, z down) with Z-Y-X Euler angles of a
+forward-right-down body. A viewer's world is z-up, so the snapshot is written in
+``enu`` (x east, y north, z up) with forward-left-up bodies — the ROS convention
+(REP 103) — and the 3-D panel draws the swarm right side up at its altitude:
+``position.z`` is the altitude. Both changes of axes are proper rotations, so
+nothing is mirrored.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+__all__ = ["FRAME_ID", "enu_poses", "poses_in_frame"]
+
+#: ``frame_id`` of the snapshots.
+FRAME_ID = "enu"
+# NED -> ENU axes and FLU -> FRD body axes (both rotations by pi, det +1).
+_NED_TO_ENU = Rotation.from_matrix([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+_FLU_TO_FRD = Rotation.from_matrix([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+
+
+def enu_poses(pos: NDArray[np.float64], att: NDArray[np.float64] | None
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """ENU positions and FLU-body → ENU quaternions ``(x, y, z, w)`` of NED poses.
+
+    Args:
+        pos: ``(n, 3)`` NED positions (m).
+        att: ``(n, 3)`` Euler angles ``(phi, theta, psi)`` (rad, Z-Y-X), or None (level,
+            heading north).
+    """
+    n = pos.shape[0]
+    p = np.stack([pos[:, 1], pos[:, 0], -pos[:, 2]], axis=1)
+    a = np.zeros((n, 3)) if att is None else att
+    q = np.full((n, 4), np.nan)
+    ok = np.isfinite(a).all(axis=1)
+    if ok.any():
+        body_to_ned = Rotation.from_euler("ZYX", a[ok][:, ::-1])
+        q[ok] = (_NED_TO_ENU * body_to_ned * _FLU_TO_FRD).as_quat(canonical=True)  # w >= 0
+    return p, q
+
+
+def poses_in_frame(t: float, frame: int, frames: NDArray[np.int64], pos: NDArray[np.float64],
+                   att: ArrayLike | None) -> dict[str, Any]:
+    """A ``foxglove.PosesInFrame`` body with sigma_des's frame fields added.
+
+    Nodes whose position or attitude is not finite have no pose; ``nodes`` names the
+    node of each pose.
+    """
+    n = frames.size
+    a = None if att is None else np.asarray(att, dtype=float).reshape(n, 3)
+    p, q = enu_poses(pos.reshape(n, 3), a)
+    ok = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
+    poses = [
+        {
+            "position": {"x": u[0], "y": u[1], "z": u[2]},
+            "orientation": {"x": v[0], "y": v[1], "z": v[2], "w": v[3]},
+        }
+        for u, v in zip(p[ok].tolist(), q[ok].tolist(), strict=True)
+    ]
+    ts = max(t, 0.0)
+    sec = int(ts)
+    nsec = min(999_999_999, max(0, round((ts - sec) * 1e9)))
+    return {
+        "timestamp": {"sec": sec, "nsec": nsec},
+        "frame_id": FRAME_ID,
+        "poses": poses,
+        "frame": frame,
+        "frames": np.ascontiguousarray(frames, dtype=np.int64),
+        "nodes": np.flatnonzero(ok).astype(np.int64),
+    }
