@@ -1,10 +1,10 @@
 """Reading MCAP recordings back: tidy tables and per-node state arrays.
 
 :func:`read_table` gives one row per recorded delivery, snapshot and render sample
-(``method, kind, node, frame, t_send, t_recv``, NaN where not applicable or absent); :func:`read_states` gives, per
-method, the recorded states with the incremental encoding undone. Every problem
-with the file (missing, not MCAP, truncated, corrupt, unknown schema) raises
-:class:`RecordError` naming the file and what is wrong.
+(``method, kind, node, frame, t_send, t_recv``, NaN where not applicable or absent);
+:func:`read_states` gives, per method, the recorded states with the incremental
+encoding undone. Every problem with the file (missing, not MCAP, truncated, corrupt,
+unknown or older schema) raises :class:`RecordError` naming the file and what is wrong.
 """
 
 from __future__ import annotations

@@ -188,7 +188,8 @@ def test_attitude_is_drawn_in_enu_with_forward_left_up_bodies(tmp_path: Path) ->
     np.testing.assert_allclose(nose, [[1, 0, 0], [0, c(0.3), s(0.3)], [0, 1, 0]], atol=1e-12)
     np.testing.assert_allclose(top, [[0, 0, 1], [0, -s(0.3), c(0.3)], [s(0.4), 0, c(0.4)]],
                                atol=1e-12)
-    np.testing.assert_allclose(left[2], [-c(0.4), 0, s(0.4)], atol=1e-12)  # top to the east, left wing up
+    # rolled right: the top leans east, the left wing rises
+    np.testing.assert_allclose(left[2], [-c(0.4), 0, s(0.4)], atol=1e-12)
     assert np.allclose(np.linalg.det(r.as_matrix()), 1.0)  # rotations: nothing mirrored
 
 
