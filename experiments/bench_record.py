@@ -7,7 +7,8 @@ recorded, recorded ``full``, recorded ``incremental`` (dead-bands ``--deadband-p
 ``--deadband-vel``, ``--deadband-att``, keyframes every ``--keyframe-every`` frames)
 — after a short warm-up run (numba caches). It prints and writes (``--out``, JSON):
 
-* wall time of each run and the recording overhead (recorded / not recorded − 1);
+* wall and CPU time of each run, the recording overhead (recorded / not recorded − 1)
+  and the recorder's CPU cost (recorded CPU − not recorded CPU);
 * file size of both recordings and the ratio full / incremental; states stored;
 * reconstruction error of the incremental file: every state of the full recording is
   rebuilt from the incremental one (``hermite-dw``, window ``none`` as in the replay, on
@@ -48,6 +49,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--deadband-att", type=float, default=0.02)
     p.add_argument("--keyframe-every", type=int, default=100)
     p.add_argument("--rate", type=float, default=60.0)
+    p.add_argument("--no-replay", action="store_true",
+                   help="skip the reconstruction error and the replay (only runs and sizes)")
     p.add_argument("--dir", default=None, help="keep the recordings here (default: temp)")
     p.add_argument("--out", default=None, help="write the figures as JSON here")
     p.add_argument("--reuse", action="store_true",
@@ -60,11 +63,12 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def _run(sets: list[str], method: str, record: Path | None) -> float:
+def _run(sets: list[str], method: str, record: Path | None) -> tuple[float, float]:
+    """Wall and CPU time (s) of one run."""
     sc = load(None, sets)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     compare(sc, methods=[method], progress=False, record=record)
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def reconstruction_error(full: Path, inc: Path, method: str) -> dict[str, float]:
@@ -102,38 +106,42 @@ def main(argv: list[str] | None = None) -> int:
             print("--reuse needs a previous JSON (--out or --reuse-from) and --dir with "
                   "full.mcap (and incremental.mcap)", file=sys.stderr)
             return 2
-        wall = json.loads(prev.read_text())["wall_s"]
+        old = json.loads(prev.read_text())
+        wall, cpu = old["wall_s"], old.get("cpu_s", {})
         if a.reuse_from:
             _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"],
                  a.method, d / "warm.mcap")
-            wall = {**wall, "incremental": _run(inc_sets, a.method, inc)}
+            wall["incremental"], cpu["incremental"] = _run(inc_sets, a.method, inc)
     else:
         _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"], a.method,
              d / "warm.mcap")
-        wall = {"plain": _run(base, a.method, None), "full": _run(base, a.method, full),
+        runs = {"plain": _run(base, a.method, None), "full": _run(base, a.method, full),
                 "incremental": _run(inc_sets, a.method, inc)}
+        wall = {k: v[0] for k, v in runs.items()}
+        cpu = {k: v[1] for k, v in runs.items()}
     size = {"full": full.stat().st_size, "incremental": inc.stat().st_size}
     runs = open_recording(inc).runs[a.method]
-    err = reconstruction_error(full, inc, a.method)
-    t0, c0 = time.perf_counter(), time.process_time()
-    df = replay(inc, a.rate, "hermite-dw")
-    t_replay, c_replay = time.perf_counter() - t0, time.process_time() - c0
-    t0 = time.perf_counter()
-    df.to_csv(d / "traj.csv", index=False)
-    t_csv = time.perf_counter() - t0
-    res = {
+    res: dict[str, object] = {
         "nodes": a.nodes, "duration_s": a.duration, "method": a.method,
         "deadband": {"pos_m": a.deadband_pos, "vel_mps": a.deadband_vel,
                      "att_rad": a.deadband_att, "keyframe_every": a.keyframe_every},
-        "wall_s": wall,
+        "wall_s": wall, "cpu_s": cpu,
         "overhead": {k: wall[k] / wall["plain"] - 1 for k in ("full", "incremental")},
+        "recorder_cpu_s": {k: cpu[k] - cpu["plain"] for k in ("full", "incremental") if cpu},
         "bytes": size, "size_ratio": size["full"] / size["incremental"],
         "states": int(runs["states"]), "states_stored": int(runs["states_stored"]),
-        "reconstruction": err,
-        "replay": {"rate_hz": a.rate, "rows": len(df), "read_and_rebuild_s": t_replay,
-                   "read_and_rebuild_cpu_s": c_replay, "csv_write_s": t_csv},
         "load_avg_1min": os.getloadavg()[0], "cpus": os.cpu_count(),
     }
+    if not a.no_replay:
+        res["reconstruction"] = reconstruction_error(full, inc, a.method)
+        t0, c0 = time.perf_counter(), time.process_time()
+        df = replay(inc, a.rate, "hermite-dw")
+        t_replay, c_replay = time.perf_counter() - t0, time.process_time() - c0
+        t0 = time.perf_counter()
+        df.to_csv(d / "traj.csv", index=False)
+        res["replay"] = {"rate_hz": a.rate, "rows": len(df), "read_and_rebuild_s": t_replay,
+                         "read_and_rebuild_cpu_s": c_replay,
+                         "csv_write_s": time.perf_counter() - t0}
     text = json.dumps(res, indent=2)
     print(text)
     if a.out:
