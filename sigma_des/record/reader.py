@@ -22,13 +22,13 @@ from numpy.typing import NDArray
 
 from sigma_des.errors import ConfigError
 from sigma_des.record.delta import decode
+from sigma_des.record.rows import POSE_COLS
 from sigma_des.record.schemas import KINDS, LEGACY, SCHEMAS
 
 __all__ = ["Recording", "RecordError", "StateTable", "open_recording", "read_states",
            "read_table"]
 
 TABLE_COLUMNS = ("method", "kind", "node", "frame", "t_send", "t_recv")
-_POSE_COLS = ("x", "y", "z", "vx", "vy", "vz", "phi", "theta", "psi")
 _KNOWN = {name for name, _s in SCHEMAS.values()}
 _MAGIC = b"\x89MCAP0\r\n"
 
@@ -200,7 +200,7 @@ def _states(rec: Recording, method: str) -> StateTable:
     try:
         node = _column(rows, "node", np.int64)
         frame = _column(rows, "frame", np.int64)
-        vals = (np.stack([_column(rows, c) for c in _POSE_COLS], axis=1) if rows
+        vals = (np.stack([_column(rows, c) for c in POSE_COLS], axis=1) if rows
                 else np.zeros((0, 9)))
         if rec.record_mode == "incremental":
             vals = decode(node, _column(rows, "key", np.int8), vals)

@@ -1,4 +1,4 @@
-"""JSON row objects of the bulk channels, built column-wise (no per-row Python calls).
+"""Rows of the bulk channels: pending columns, their fields, JSON built column-wise.
 
 Each column is serialised once by ``orjson`` and split into one token per row; the
 rows are then assembled by list-slice assignment and one ``bytes.join``. A float
@@ -9,13 +9,17 @@ that is not finite leaves its field out of that row (the schemas' rule: absent, 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from itertools import chain
 from typing import Any
 
 import numpy as np
 import orjson
 from numpy.typing import NDArray
 
-__all__ = ["array_tokens", "rows_json"]
+__all__ = ["POSE_COLS", "Pending", "array_tokens", "pick", "row_fields", "rows_json"]
+
+#: State row fields after node, frame, times (NED m, m/s; Euler rad).
+POSE_COLS = ("x", "y", "z", "vx", "vy", "vz", "phi", "theta", "psi")
 
 _OPT = orjson.OPT_SERIALIZE_NUMPY
 
@@ -69,3 +73,56 @@ def rows_json(cols: Sequence[tuple[str, NDArray[Any] | list[bytes]]]) -> list[by
             pieces[2 * (i * c + j)] = pieces[2 * (i * c + j) + 1] = b""
     pieces[2 * c :: 2 * c] = [b"},{" + pieces[0]] * (n - 1)  # row boundaries
     return b"".join(pieces).split(b"},{")
+
+
+def row_fields(kind: str, c: dict[str, Any], key: NDArray[np.int64] | None = None
+               ) -> list[tuple[str, Any]]:
+    """The row fields of ``kind`` in schema order (``key``: delta rows' keyframe flags)."""
+    f: list[tuple[str, Any]] = [(n, c[n]) for n in ("node", "frame", "t_send", "t_recv")]
+    if key is not None:
+        f.append(("key", key))
+    if kind == "state":
+        f += [(n, np.ascontiguousarray(c["values"][:, j])) for j, n in enumerate(POSE_COLS)]
+    elif kind == "command":
+        vals: list[NDArray[np.float64]] = c["values"]
+        if len({v.size for v in vals}) == 1:
+            v = np.stack(vals)
+            ok = np.isfinite(v)
+            f.append(("values", array_tokens(np.where(ok, v, 0.0))))
+            f.append(("valid", array_tokens(ok.astype(np.int64))))
+        else:  # rows of different widths: one at a time
+            f.append(("values", [orjson.dumps(np.where(np.isfinite(r), r, 0.0),
+                                              option=orjson.OPT_SERIALIZE_NUMPY)
+                                 for r in vals]))
+            f.append(("valid", [orjson.dumps(np.isfinite(r).astype(np.int64),
+                                             option=orjson.OPT_SERIALIZE_NUMPY)
+                                for r in vals]))
+    return f
+
+
+class Pending:
+    """Rows of one bulk kind not written yet (column chunks, copied on entry)."""
+
+    def __init__(self) -> None:
+        self.chunks: list[dict[str, Any]] = []
+        self.n = 0
+
+    def add(self, cols: dict[str, Any]) -> None:
+        self.chunks.append(cols)
+        self.n += len(cols["node"])
+
+    def take(self) -> dict[str, Any]:
+        """Every pending row as one column set (and none left pending)."""
+        out: dict[str, Any] = {}
+        for k in self.chunks[0]:
+            parts = [c[k] for c in self.chunks]
+            out[k] = (list(chain.from_iterable(parts)) if isinstance(parts[0], list)
+                      else np.concatenate(parts))
+        self.chunks, self.n = [], 0
+        return out
+
+
+def pick(cols: dict[str, Any], idx: NDArray[np.intp]) -> dict[str, Any]:
+    """Rows ``idx`` of every column (array or list)."""
+    return {k: [v[i] for i in idx.tolist()] if isinstance(v, list) else v[idx]
+            for k, v in cols.items()}

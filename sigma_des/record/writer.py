@@ -36,7 +36,6 @@ import json
 import math
 from collections.abc import Iterator
 from contextlib import ExitStack
-from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any
@@ -49,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from sigma_des import __version__
 from sigma_des.record.delta import DeltaEncoder
 from sigma_des.record.enu import poses_in_frame
-from sigma_des.record.rows import array_tokens, rows_json
+from sigma_des.record.rows import Pending, pick, row_fields, rows_json
 from sigma_des.record.schemas import KINDS, schema_bytes
 
 __all__ = ["MethodRecorder", "Recorder", "RECORD_MODES", "PROFILE"]
@@ -61,7 +60,6 @@ PROFILE = "sigma_des"
 _RUN_MODES = ("des", "live")
 _RANK = {k: i for i, k in enumerate(KINDS)}  # same-time order: bulk windows, then the rest
 _END = 2**62  # "everything": later than any time in ns
-_POSE_COLS = ("x", "y", "z", "vx", "vy", "vz", "phi", "theta", "psi")
 _Msg = tuple[int, tuple[int, ...], int, bytes]  # log_ns, sort key, channel, data
 
 
@@ -284,32 +282,6 @@ class Recorder:
         self.close()
 
 
-class _Pending:
-    """Rows of one bulk kind not written yet (column chunks, copied on entry)."""
-
-    def __init__(self) -> None:
-        self.chunks: list[dict[str, Any]] = []
-        self.n = 0
-
-    def add(self, cols: dict[str, Any]) -> None:
-        self.chunks.append(cols)
-        self.n += len(cols["node"])
-
-    def take(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        for k in self.chunks[0]:
-            parts = [c[k] for c in self.chunks]
-            out[k] = (list(chain.from_iterable(parts)) if isinstance(parts[0], list)
-                      else np.concatenate(parts))
-        self.chunks, self.n = [], 0
-        return out
-
-
-def _pick(cols: dict[str, Any], idx: NDArray[np.intp]) -> dict[str, Any]:
-    return {k: [v[i] for i in idx.tolist()] if isinstance(v, list) else v[idx]
-            for k, v in cols.items()}
-
-
 class MethodRecorder:
     """Writer of one method's channels ``/<method>/<kind>``; made by :meth:`Recorder.run`."""
 
@@ -318,7 +290,7 @@ class MethodRecorder:
         self.method = method
         self.run_mode = mode
         self._ch = {k: rec._channel(method, k, mode) for k in KINDS}
-        self._pend = {k: _Pending() for k in ("trigger", "state", "command")}
+        self._pend = {k: Pending() for k in ("trigger", "state", "command")}
         self._singles: list[_Msg] = []
         self._n = dict.fromkeys(KINDS, 0)
         self.mark = -1  # advance(): no later message is older than this (ns)
@@ -470,7 +442,7 @@ class MethodRecorder:
         self._singles = keep
         return out
 
-    def _windows(self, kind: str, p: _Pending, up_ns: int, run: int) -> list[_Msg]:
+    def _windows(self, kind: str, p: Pending, up_ns: int, run: int) -> list[_Msg]:
         cols = p.take()
         ts, tr = cols["t_send"], cols["t_recv"]
         log = _ns_arr(np.where(np.isfinite(tr), tr, ts))
@@ -478,10 +450,10 @@ class MethodRecorder:
         k = log // w
         due = (k + 1) * w <= up_ns
         if not due.all():
-            p.add(_pick(cols, np.flatnonzero(~due)))
+            p.add(pick(cols, np.flatnonzero(~due)))
         idx = np.flatnonzero(due)
         order = idx[np.lexsort((log[idx], k[idx]))]  # stable: arrival order within ties
-        c = _pick(cols, order)
+        c = pick(cols, order)
         k = k[order]
         if kind == "state" and self.encoder is not None:  # encode in file order
             rows, key, vals = self.encoder.encode(c["node"], c["frame"], c["t_send"],
@@ -489,10 +461,10 @@ class MethodRecorder:
             o = np.argsort(rows, kind="stable")
             rows, key, vals = rows[o], key[o], vals[o]
             k = k[rows]
-            c = {**_pick(c, rows), "values": vals}
-            fields = self._fields(kind, c, key.astype(np.int64))
+            c = {**pick(c, rows), "values": vals}
+            fields = row_fields(kind, c, key.astype(np.int64))
         else:
-            fields = self._fields(kind, c)
+            fields = row_fields(kind, c)
         if k.size == 0:
             return []
         body = rows_json(fields)
@@ -505,31 +477,6 @@ class MethodRecorder:
                                                 b"},{".join(body[a:b]))
             out.append((end_ns, (run, _RANK[kind], int(k[a])), self._ch[kind], data))
         return out
-
-    @staticmethod
-    def _fields(kind: str, c: dict[str, Any], key: NDArray[np.int64] | None = None
-                ) -> list[tuple[str, Any]]:
-        """The row fields of ``kind`` in schema order (``key``: delta rows' keyframe flags)."""
-        f: list[tuple[str, Any]] = [(n, c[n]) for n in ("node", "frame", "t_send", "t_recv")]
-        if key is not None:
-            f.append(("key", key))
-        if kind == "state":
-            f += [(n, np.ascontiguousarray(c["values"][:, j])) for j, n in enumerate(_POSE_COLS)]
-        elif kind == "command":
-            vals: list[NDArray[np.float64]] = c["values"]
-            if len({v.size for v in vals}) == 1:
-                v = np.stack(vals)
-                ok = np.isfinite(v)
-                f.append(("values", array_tokens(np.where(ok, v, 0.0))))
-                f.append(("valid", array_tokens(ok.astype(np.int64))))
-            else:  # rows of different widths: one at a time
-                f.append(("values", [orjson.dumps(np.where(np.isfinite(r), r, 0.0),
-                                                  option=orjson.OPT_SERIALIZE_NUMPY)
-                                     for r in vals]))
-                f.append(("valid", [orjson.dumps(np.isfinite(r).astype(np.int64),
-                                                 option=orjson.OPT_SERIALIZE_NUMPY)
-                                    for r in vals]))
-        return f
 
     def counts(self) -> dict[str, Any]:
         """Messages handed to this writer per kind, states stored, late messages."""
