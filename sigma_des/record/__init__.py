@@ -1,8 +1,9 @@
 """Recording runs to MCAP and reading them back (the replay memory's storage).
 
 The writer (:class:`Recorder`) makes one channel per method and message kind with
-JSON schemas a standard viewer decodes (aligned snapshots as Foxglove's
-``foxglove.PosesInFrame``); the reader returns tidy tables (:func:`read_table`) and
+JSON schemas that Foxglove and Lichtblick load (rows per trigger period; aligned
+snapshots as Foxglove's ``foxglove.PosesInFrame`` in a z-up frame), on one timeline
+whose ``log_time`` never decreases; the reader returns tidy tables (:func:`read_table`) and
 per-node states (:func:`read_states`). ``mode="incremental"`` stores states as
 per-node deltas with a dead-band and keyframes (:mod:`sigma_des.record.delta`).
 """
