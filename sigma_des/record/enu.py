@@ -4,8 +4,11 @@ The simulator's poses are NED (x north, y east, z down) with Z-Y-X Euler angles 
 forward-right-down body. A viewer's world is z-up, so the snapshot is written in
 ``enu`` (x east, y north, z up) with forward-left-up bodies — the ROS convention
 (REP 103) — and the 3-D panel draws the swarm right side up at its altitude:
-``position.z`` is the altitude. Both changes of axes are proper rotations, so
-nothing is mirrored.
+``position.z`` is the altitude. Both changes of axes are rotations by π
+(NED → ENU: ``R_z(π/2)·R_x(π)``; FLU → FRD: ``R_x(π)``), so nothing is mirrored, and
+moving them through the Z-Y-X Euler product gives the ENU attitude of a FLU body in one
+SciPy call: ``R_z(π/2 − ψ)·R_y(−θ)·R_x(φ)`` (heading measured from east, pitch sign
+flipped with the y axis, roll unchanged).
 """
 
 from __future__ import annotations
@@ -20,9 +23,6 @@ __all__ = ["FRAME_ID", "enu_poses", "poses_in_frame"]
 
 #: ``frame_id`` of the snapshots.
 FRAME_ID = "enu"
-# NED -> ENU axes and FLU -> FRD body axes (both rotations by pi, det +1).
-_NED_TO_ENU = Rotation.from_matrix([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-_FLU_TO_FRD = Rotation.from_matrix([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 
 
 def enu_poses(pos: NDArray[np.float64], att: NDArray[np.float64] | None
@@ -40,8 +40,9 @@ def enu_poses(pos: NDArray[np.float64], att: NDArray[np.float64] | None
     q = np.full((n, 4), np.nan)
     ok = np.isfinite(a).all(axis=1)
     if ok.any():
-        body_to_ned = Rotation.from_euler("ZYX", a[ok][:, ::-1])
-        q[ok] = (_NED_TO_ENU * body_to_ned * _FLU_TO_FRD).as_quat(canonical=True)  # w >= 0
+        phi, theta, psi = a[ok].T
+        enu = np.stack([np.pi / 2 - psi, -theta, phi], axis=1)
+        q[ok] = Rotation.from_euler("ZYX", enu).as_quat(canonical=True)  # w >= 0
     return p, q
 
 

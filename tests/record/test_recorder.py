@@ -193,6 +193,21 @@ def test_attitude_is_drawn_in_enu_with_forward_left_up_bodies(tmp_path: Path) ->
     assert np.allclose(np.linalg.det(r.as_matrix()), 1.0)  # rotations: nothing mirrored
 
 
+def test_enu_attitude_is_the_change_of_axes_of_the_ned_attitude() -> None:
+    """R_z(pi/2 - psi) R_y(-theta) R_x(phi) == R(NED->ENU) R_ZYX(psi, theta, phi) R(FLU->FRD)."""
+    from scipy.spatial.transform import Rotation
+
+    from sigma_des.record.enu import enu_poses
+
+    att = np.random.default_rng(3).uniform(-3.0, 3.0, (200, 3))
+    ned_to_enu = Rotation.from_matrix([[0.0, 1, 0], [1, 0, 0], [0, 0, -1]])
+    flu_to_frd = Rotation.from_matrix([[1.0, 0, 0], [0, -1, 0], [0, 0, -1]])
+    want = ned_to_enu * Rotation.from_euler("ZYX", att[:, ::-1]) * flu_to_frd
+    pos, q = enu_poses(np.array([[10.0, 20.0, -30.0]] * 200), att)
+    assert (Rotation.from_quat(q) * want.inv()).magnitude().max() < 1e-12
+    assert (q[:, 3] >= 0).all() and (pos == [20.0, 10.0, 30.0]).all()
+
+
 def test_metadata_counts_and_run_mode(tmp_path: Path) -> None:
     path = tmp_path / "r.mcap"
     _write(path)
