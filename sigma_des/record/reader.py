@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from itertools import chain
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -183,7 +185,7 @@ def read_states(path: str | Path, method: str | None = None) -> dict[str, StateT
 def _rows(rec: Recording, kind: str, method: str) -> list[dict[str, Any]]:
     """Every row of the window messages of ``/<method>/<kind>``, in file order."""
     try:
-        return [r for body in rec.messages(kind, method) for r in body["rows"]]
+        return list(chain.from_iterable(body["rows"] for body in rec.messages(kind, method)))
     except (KeyError, TypeError) as e:
         raise RecordError(str(rec.path), f"corrupt {kind} message of {method!r}: "
                           f"missing {e}") from None
@@ -191,21 +193,35 @@ def _rows(rec: Recording, kind: str, method: str) -> list[dict[str, Any]]:
 
 def _column(rows: list[dict[str, Any]], key: str, dtype: Any = float) -> NDArray[Any]:
     """Field ``key`` of every row (an absent field is NaN)."""
-    nan = float("nan")
-    return np.fromiter((r.get(key, nan) for r in rows), dtype=dtype, count=len(rows))
+    try:  # the common case, at C speed: every row has the field
+        return np.fromiter(map(itemgetter(key), rows), dtype=dtype, count=len(rows))
+    except KeyError:
+        nan = float("nan")
+        return np.fromiter((r.get(key, nan) for r in rows), dtype=dtype, count=len(rows))
+
+
+def _table(rows: list[dict[str, Any]], keys: tuple[str, ...]) -> NDArray[np.float64]:
+    """``(len(rows), len(keys))`` floats of the rows' fields (an absent field is NaN)."""
+    if not rows:
+        return np.zeros((0, len(keys)))
+    try:  # the common case, at C speed: every row has every field
+        return np.array(list(map(itemgetter(*keys), rows)), dtype=float).reshape(-1, len(keys))
+    except KeyError:
+        return np.stack([_column(rows, k) for k in keys], axis=1)
 
 
 def _states(rec: Recording, method: str) -> StateTable:
     rows = _rows(rec, "state", method)
+    incremental = rec.record_mode == "incremental"
     try:
         node = _column(rows, "node", np.int64)
         frame = _column(rows, "frame", np.int64)
-        vals = (np.stack([_column(rows, c) for c in POSE_COLS], axis=1) if rows
-                else np.zeros((0, 9)))
-        if rec.record_mode == "incremental":
-            vals = decode(node, _column(rows, "key", np.int8), vals)
-        return StateTable(node, frame, _column(rows, "t_send"), _column(rows, "t_recv"),
-                          vals[:, 0:3], vals[:, 3:6], vals[:, 6:9])
+        tab = _table(rows, ("t_send", "t_recv", *(("key",) if incremental else ()), *POSE_COLS))
+        vals = tab[:, -9:]
+        if incremental:
+            vals = decode(node, tab[:, 2].astype(np.int8), vals)
+        return StateTable(node, frame, tab[:, 0].copy(), tab[:, 1].copy(), vals[:, 0:3],
+                          vals[:, 3:6], vals[:, 6:9])
     except (ValueError, TypeError) as e:  # e.g. a row without node, a non-number
         raise RecordError(str(rec.path), f"corrupt states of {method!r}: {e}") from None
 
