@@ -208,7 +208,7 @@ def _reap(p: subprocess.Popen[bytes]) -> None:
 
 def _pump(srv: LiveServer, seconds: float) -> None:
     srv.loop.stopped = False
-    srv.loop.run(until=srv.loop.now() + seconds)
+    srv.loop.run(until=srv.loop.now + seconds)
 
 
 def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected: int,

@@ -25,10 +25,12 @@ from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import summarize
+from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
 
 __all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS"]
 
-_KINDS = {1: "trigger", 2: "state", 3: "command", 4: "rerequest", 5: "state"}
+#: latency series of each message kind (a republished state is a state)
+_KINDS = {**KIND_NAMES, REPUBLISH: KIND_NAMES[STATE]}
 
 #: Unit of every metric the collector reports.
 METRIC_UNITS: dict[str, str] = {
