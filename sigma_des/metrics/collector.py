@@ -275,6 +275,10 @@ class Collector:
         ``command``), in delivery order (a copy)."""
         return self._lat[kind].values().copy()
 
+    def aoi_samples(self) -> NDArray[np.float64]:
+        """The AoI samples (s) taken so far at the render ticks, in order (a copy)."""
+        return self._aoi_samples.values().copy()
+
     def sample_bytes(self) -> int:
         """Bytes held by the samples kept whole for the end (latencies, AoI, errors)."""
         held = [*self._lat.values(), self._aoi_samples, self._pos_err]
