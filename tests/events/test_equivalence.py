@@ -1,7 +1,7 @@
 """One loop, two clocks: the DES and the live processes run the same rules.
 
-The same scenario is run twice: through the DES (:class:`MethodRun`, per-message
-engine, SimPy kernel) and through the live server and hosts
+The same scenario is run through the DES (:class:`MethodRun` on the SimPy kernel,
+messages as events and in the compiled core) and through the live server and hosts
 (:class:`LiveServer`, :class:`Host`: their codecs, topics and handlers) on one
 virtual clock (:class:`VirtualLoop`) with a deterministic in-process MQTT stand-in
 (no broker: a message takes its publisher's access-link latency to the "broker"
@@ -38,7 +38,8 @@ L_SERVER = 0.0003  # server access link, one way (s)
 
 #: 6 nodes on 2 hosts of 1 core; a node's step (4 ms) x 3 nodes > the 10 ms period:
 #: jobs queue on the core, triggers coalesce into catch-up jobs, Lock-Step's barrier
-#: comes late, BiDES lowers its rate; commands every 3rd tick (formation).
+#: comes late, BiDES lowers its rate; commands every 3rd tick (formation), and with
+#: Θ_warp = 2 frames BiDES's late commands roll nodes back (time warp).
 SETS = [
     "nodes=6", "hosts=2", "cores_per_host=1", "f_trig=100", "f_align=60", "f_render=60",
     "duration=1.5", "warmup=0.25", 'engine="events"',
@@ -46,6 +47,7 @@ SETS = [
     f"net.host_link.latency.value={L_HOST}", f"net.server_link.latency.value={L_SERVER}",
     "net.host_link.bandwidth_mbps=1e20", "net.server_link.bandwidth_mbps=1e20",
     "broker.publish_service.value=0.0", "broker.delivery_service.value=0.0",
+    "bides.theta_warp=2",
 ]
 METHODS = ["none", "lockstep", "hlc", "bides"]
 
@@ -116,8 +118,9 @@ class _Wire:
                 loop.call_at(loop.now + c.latency, c.on_message, topic, payload)
 
 
-def run_des(sc: Scenario, method: str) -> DesServer:
-    run = DesServer(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
+def run_des(sc: Scenario, method: str, compiled: bool = False) -> DesServer:
+    run = DesServer(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc),
+                    compiled=compiled)
     run.triggers, run.ticks = [], []
     run.run()
     return run
@@ -151,8 +154,16 @@ LOGNORMAL = ['compute.step_time.dist="lognormal"', "compute.step_time.mean=0.004
 @pytest.mark.parametrize("method", METHODS)
 def test_live_rules_on_a_virtual_clock_equal_the_des(method: str, step: str) -> None:
     sc = load(None, SETS + (LOGNORMAL if step == "lognormal" else []))
-    des = run_des(sc, method)
     live, hosts = run_live(sc, method)
+    for compiled in (False, True):  # the per-message engine and the compiled core
+        _assert_equal(run_des(sc, method, compiled), live, hosts)
+    # the nodes did the same work: the same newest frames (the per-message engine's nodes)
+    des = run_des(sc, method)
+    assert [h.jobs.frame for h in hosts] == [des.nodes.frame[:3], des.nodes.frame[3:]]
+    assert sum(h.jobs.history_misses for h in hosts) == des.nodes.history_misses
+
+
+def _assert_equal(des: DesServer, live: VirtualLiveServer, hosts: list[Host]) -> None:
     assert len(des.triggers) > 50 and len(des.ticks) > 60
     assert live.triggers == des.triggers
     assert live.ticks == des.ticks
@@ -162,9 +173,8 @@ def test_live_rules_on_a_virtual_clock_equal_the_des(method: str, step: str) -> 
     assert ts_live.keys() == ts_des.keys()
     for key in ts_des:  # render ticks: times, AoI mean/max, spread, rate, frames
         assert np.array_equal(ts_live[key], ts_des[key], equal_nan=True), key
-    # the nodes did the same work: the same states, the same catch-up jobs
-    assert [h.jobs.frame for h in hosts] == [des.nodes.frame[:3], des.nodes.frame[3:]]
     assert sum(h.rollbacks for h in hosts) == des.truth.rollbacks
+    assert sum(h.resim_steps for h in hosts) == des.truth.resim_steps
 
 
 def test_the_scenario_exercises_what_it_claims() -> None:
@@ -172,6 +182,7 @@ def test_the_scenario_exercises_what_it_claims() -> None:
     sc = load(None, SETS)
     bides = run_des(sc, "bides")
     assert bides.f_trig < sc.f_trig  # the rate came down
+    assert bides.truth.rollbacks > 10  # late commands rolled nodes back
     assert len({dt for _k, _t, dt in bides.triggers}) > 1
     lock = run_des(sc, "lockstep")
     gaps = np.diff([t for _k, t, _dt in lock.triggers])
