@@ -130,7 +130,6 @@ class Host(ImpairedSender):
         self.initial = full[self.nodes].copy()
         self.state = self.initial.copy()
         self.cmd = self.dyn.default_command(full)[self.nodes].copy()
-        self.cmd_stamp = np.full(m, -1, dtype=np.int64)
         H = self.H = sc.history_frames
         self.frame = -1
         self.frame_dt = np.zeros(H)
