@@ -61,6 +61,10 @@ class Kernel:
         # same tuple as Environment.schedule(), pushed directly: this is the hot path
         heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))  # type: ignore[misc]
 
+    def count(self, events: int) -> None:
+        """Count ``events`` handled outside the queue (by the compiled message core)."""
+        self.events += events
+
     def jump_to(self, t: float) -> None:
         """Set the clock to ``t`` between two events (a backend that ran events itself).
 

@@ -218,3 +218,7 @@ class PhysicsNodes:
         self.rb_steps[i] += self.truth.rollback(i, stamp_frame, current, row)
         if not self.busy[i]:
             self.start_job(i)
+
+    def count_history_misses(self, misses: int) -> None:
+        """Count ``misses`` more rollbacks past the history (met by the compiled core)."""
+        self.history_misses += misses

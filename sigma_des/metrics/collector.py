@@ -198,15 +198,19 @@ class Collector:
             if name in self._lat:
                 self._lat[name].append(t - t_pub)
 
-    def delivered_batch(self, kind: int, latencies: NDArray[np.float64], messages: int) -> None:
-        """Many first deliveries of ``kind`` (the cohort engine's path; no duplicates).
+    def delivered_batch(
+        self, kind: int, latencies: NDArray[np.float64], messages: int, duplicates: int = 0
+    ) -> None:
+        """Many deliveries of ``kind`` (the cohort engine's path, which tells duplicates).
 
         Args:
             kind: message kind (its latency series gets ``latencies``, in order).
             latencies: delivery latencies (s) of the counted messages.
-            messages: number of counted messages (published after the warm-up).
+            messages: number of counted first deliveries (published after the warm-up).
+            duplicates: number of duplicate deliveries (not in ``messages``).
         """
         self.messages += messages
+        self.duplicates += duplicates
         name = _KINDS[kind]
         if name in self._lat and latencies.size:
             self._lat[name].extend(latencies)
