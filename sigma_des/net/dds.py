@@ -40,6 +40,7 @@ This module knows nothing of alignment methods or aircraft.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from sigma_des.core.rng import RandomStreams
@@ -92,16 +93,12 @@ def acknack_bytes() -> int:
     return RTPS_HEADER + INFO_DST + ACKNACK
 
 
+@dataclass(slots=True, eq=False, repr=False)
 class Sample(Msg):
     """A writer's sample: the message (``client``: the writer) and its sequence number
     among that writer's samples (the reader's delivery order)."""
 
-    __slots__ = ("seq",)
-
-    def __init__(self, m: Msg, seq: int) -> None:
-        super().__init__(m.client, m.kind, m.subject, m.index, m.payload, m.bits, m.subs,
-                         m.attempt, m.t_pub, m.t_sent)
-        self.seq = seq
+    seq: int
 
 
 def make_network(
@@ -233,7 +230,7 @@ class DdsNetwork(Network):
             return
         for sub in subs:  # a reader's first sample from this writer starts its order
             self._next.setdefault((client, kind, subject, sub), seq)
-        msg = Sample(Msg(client, kind, subject, index, payload, payload_bits, tuple(subs), 0, t, t),
+        msg = Sample(client, kind, subject, index, payload, payload_bits, tuple(subs), 0, t, t,
                      seq)
         if self.spec.multicast and len(subs) > 1:
             done = self._cpu(client, t, self._w_cost.get(kind, subject, index, 0))

@@ -20,6 +20,7 @@ This module takes the net layer's own :class:`~sigma_des.net.spec.NetSetup`
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,19 +70,16 @@ class _Conn:
         self.pending: dict[int, _Segment | None] = {}
 
 
+@dataclass(slots=True, eq=False)
 class _Segment:
     """One message sent as stream segment ``seq`` of connection ``conn``."""
 
-    __slots__ = ("conn", "seq", "m", "up", "nbytes", "on_arrive")
-
-    def __init__(self, conn: _Conn, seq: int, m: Msg, up: bool, nbytes: int,
-                 on_arrive: Callable[[Msg], None]) -> None:
-        self.conn = conn
-        self.seq = seq
-        self.m = m
-        self.up = up
-        self.nbytes = nbytes
-        self.on_arrive = on_arrive
+    conn: _Conn
+    seq: int
+    m: Msg
+    up: bool
+    nbytes: int
+    on_arrive: Callable[[Msg], None]
 
 
 class Links:

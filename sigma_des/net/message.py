@@ -12,11 +12,13 @@ of the hop.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 __all__ = ["Msg"]
 
 
+@dataclass(slots=True, eq=False, repr=False)
 class Msg:
     """One try of one PUBLISH on one hop.
 
@@ -34,32 +36,16 @@ class Msg:
         t_sent: when this try left (the publisher, or the broker downstream).
     """
 
-    __slots__ = ("client", "kind", "subject", "index", "payload", "bits", "subs", "attempt",
-                 "t_pub", "t_sent")
-
-    def __init__(
-        self,
-        client: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        subs: tuple[int, ...],
-        attempt: int,
-        t_pub: float,
-        t_sent: float,
-    ) -> None:
-        self.client = client
-        self.kind = kind
-        self.subject = subject
-        self.index = index
-        self.payload = payload
-        self.bits = bits
-        self.subs = subs
-        self.attempt = attempt
-        self.t_pub = t_pub
-        self.t_sent = t_sent
+    client: int
+    kind: int
+    subject: int
+    index: int
+    payload: Any
+    bits: int
+    subs: tuple[int, ...]
+    attempt: int
+    t_pub: float
+    t_sent: float
 
     def resent(self) -> Msg:
         """The next try of this hop (``t_sent``: set when it leaves)."""
