@@ -103,7 +103,6 @@ class MethodRun:
         self.streams = RandomStreams(spec.seed)
         self.net: Network = make_network(self.kernel, spec.net, self.streams, self.deliver)
         self.server = n
-        self.all_nodes = list(range(n))
         self.dyn = dynamics
         self.behaviour = behaviour if spec.commands.enabled else None
         warp = method == "bides" and spec.time_warp
