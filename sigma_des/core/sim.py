@@ -85,13 +85,6 @@ class Kernel:
         """Process the next event."""
         self.env.step()
 
-    def run_before(self, t: float) -> None:
-        """Process every event at a time ``< t`` (none at exactly ``t``)."""
-        # the engines' hot loop when a run ends: bound methods, no wrapper per event
-        peek, step = self.env.peek, self.env.step
-        while peek() < t:
-            step()
-
     def head_is(self, fn: Callable[..., Any]) -> bool:
         """True if the next event is a :class:`Call` of ``fn``."""
         q = self.env._queue  # type: ignore[attr-defined]
