@@ -139,8 +139,10 @@ class Network(Links):
                                                    dsubj)
         if self.qos1 and self._puback(m, False, t_ack, now):
             self._resend(m, self._publish_try)
+        kind, index, payload, bits, t_pub = m.kind, m.index, m.payload, m.bits, m.t_pub
         for sub, ds, d in zip(subs, dsubj, departs, strict=True):
-            self._deliver_try(m.to(sub, ds, d))
+            # the broker's first try towards ``sub`` (Msg.to, inlined: the fan-out's hot loop)
+            self._deliver_try(Msg(sub, kind, ds, index, payload, bits, (), 0, t_pub, d))
 
     def _puback(self, m: Msg, up: bool, t: float, now: float) -> bool:
         """Send the PUBACK of ``m`` (received ``now``) on its client's link at ``t``; True
