@@ -64,6 +64,10 @@ class Kernel:
     #: the :class:`~sigma_des.core.clock.Clock` name of :meth:`at`
     call_at = at
 
+    def count(self, events: int) -> None:
+        """Count ``events`` handled outside the queue (by the compiled message core)."""
+        self.events += events
+
     def jump_to(self, t: float) -> None:
         """Set the clock to ``t`` between two events (a backend that ran events itself).
 
@@ -83,13 +87,6 @@ class Kernel:
     def step(self) -> None:
         """Process the next event."""
         self.env.step()
-
-    def run_before(self, t: float) -> None:
-        """Process every event at a time ``< t`` (none at exactly ``t``)."""
-        # the engines' hot loop when a run ends: bound methods, no wrapper per event
-        peek, step = self.env.peek, self.env.step
-        while peek() < t:
-            step()
 
     def head_is(self, fn: Callable[..., Any]) -> bool:
         """True if the next event is a :class:`Call` of ``fn``."""

@@ -289,3 +289,7 @@ class PhysicsNodes(NodeRules):
             self.receive_command(i, payload[0], payload[1], t)
         elif kind == REREQUEST:
             self.receive_rerequest(i, payload, index, t)
+
+    def count_history_misses(self, misses: int) -> None:
+        """Count ``misses`` more rollbacks past the history (met by the compiled core)."""
+        self.history_misses += misses

@@ -35,6 +35,7 @@ from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_brok
 from sigma_des.live.loop import Client
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
+from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
@@ -147,14 +148,9 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d,
                                                   progress)
             kept[m] = out.pop("kept")
-            res.methods[m] = out["metrics"]
-            res.wall[m] = out["wall"]
-            res.links_mbps[m] = out["links_mbps"]
-            res.timeseries[m] = out["timeseries"]
-            res.engines[m] = {"requested": "live", "used": "live", "fallback": ""}
+            res.add(m, MethodReport.of(out, {"requested": "live", "used": "live",
+                                             "fallback": ""}))
             res.live[m] = out["live"]
-            if "fidelity" in out:
-                res.fidelity[m] = out["fidelity"]
             tables.append(table)
             if interrupted:
                 res.interrupted = True
@@ -288,7 +284,7 @@ def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: 
     that did not report (killed) leaves the metrics NaN.
     """
     from sigma_des.api import ideal_run
-    from sigma_des.metrics.fidelity import TrajectoryLog, fidelity
+    from sigma_des.metrics.fidelity import TrajectoryLog, add_fidelity
 
     n = sc.nodes
     tracks = []
@@ -313,10 +309,7 @@ def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: 
     log = TrajectoryLog(sc.fidelity.log_rate, srv.dyn.observe(srv.dyn.initial_state(n))[:, 9:12])
     for k in range(frames.size):
         log.add(float(t[k]), pos[k])
-    times, traj = log.arrays()
-    fid, err = fidelity(traj, ideal_run(sc)[1], 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
-    out["metrics"].update(fid)
-    out["fidelity"] = {"t": times[: len(err)], "formation_err": err}
+    add_fidelity(out, *log.arrays(), ideal_run(sc)[1], sc.fidelity)
 
 
 def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,

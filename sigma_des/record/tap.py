@@ -1,6 +1,6 @@
 """The engines' recording tap: turns engine-side events into recorder calls.
 
-An engine run with ``run.tap`` set calls the tap where messages are delivered,
+An engine run with a tap attached (``MethodRun.record``) calls it where messages are delivered,
 snapshots change and render ticks sample. The tap converts the published state
 rows (columns :data:`~sigma_des.core.models.OBS_FIELDS`: body velocities, Euler
 angles, body rates, north/east position, altitude up) to NED position, NED
@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.events.tap import Tap
 from sigma_des.record.writer import MethodRecorder, Recorder
 
 __all__ = ["RecordTap", "obs_to_ned"]
@@ -43,7 +44,7 @@ def obs_to_ned(obs: _F) -> tuple[_F, _F, _F]:
     return pos, vel, obs[:, 3:6].copy()
 
 
-class RecordTap:
+class RecordTap(Tap):
     """Records one method run into its own MCAP file.
 
     Args:
