@@ -42,9 +42,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des import __version__
 from sigma_des.cache.paths import ENV_VAR, root
 from sigma_des.config import Scenario, to_dict
+from sigma_des.version import __version__
 
 __all__ = ["ENV_VAR", "cache_dir", "cache_key", "cached", "code_fingerprint"]
 

@@ -17,13 +17,11 @@ from pathlib import Path
 from sigma_des.config import METHODS, Scenario
 from sigma_des.errors import ConfigError
 
-__all__ = ["add_calibrate_parser", "add_live_parser", "run_calibrate", "run_live_command"]
+__all__ = ["add_calibrate_args", "add_live_args", "run_calibrate", "run_live_command"]
 
 
-def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> None:  # type: ignore[type-arg]
-    """Register ``live`` (``scenario_args`` adds the scenario and ``--set`` arguments)."""
-    p = sub.add_parser("live", help="run the scenario live over a real Mosquitto broker")
-    scenario_args(p)  # type: ignore[operator]
+def add_live_args(p: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``live`` to its subparser ``p`` (the caller adds the scenario's)."""
     p.add_argument("--methods", default=None,
                    help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)")
     p.add_argument("--broker", default=None, metavar="HOST:PORT",
@@ -48,9 +46,8 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
                    "settings: record.*)")
 
 
-def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``calibrate``."""
-    p = sub.add_parser("calibrate", help="fit DES parameters from a live run")
+def add_calibrate_args(p: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``calibrate`` to its subparser ``p``."""
     p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
     p.add_argument("--out", default=None, metavar="SCENARIO.toml",
                    help="write the calibrated scenario here (default: print it)")
