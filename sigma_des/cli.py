@@ -24,7 +24,7 @@ __all__ = ["COMMANDS", "main"]
 
 
 class Command(NamedTuple):
-    """One subcommand: its help line and where its arguments are added."""
+    """One subcommand: its help line, where its arguments are added, what it needs."""
 
     help: str
     #: adds the command's own arguments to its subparser (``module:function``: imported
@@ -32,6 +32,8 @@ class Command(NamedTuple):
     args: str | Callable[[argparse.ArgumentParser], None]
     #: True if the command takes a scenario (file or shipped name) and ``--set``.
     scenario: bool = False
+    #: the extra (pyproject.toml) the command needs, named when one of its packages is missing
+    extra: str = ""
 
 
 _EPILOG = """\
@@ -97,15 +99,16 @@ COMMANDS: dict[str, Command] = {
     "config": Command("print the full resolved scenario as TOML (start from the defaults)",
                       _no_args, True),
     "sweep": Command("a grid of scenario keys x methods x seeds on Dask, resumable "
-                     "(docs/SWEEPS.md)", "sigma_des.sweep.cli:add_sweep_args", True),
+                     "(docs/SWEEPS.md)", "sigma_des.sweep.cli:add_sweep_args", True,
+                     "experiments"),
     "replay": Command("rebuild recorded trajectories (compare --record) at any rate",
-                      "sigma_des.replay.cli:add_replay_args"),
+                      "sigma_des.replay.cli:add_replay_args", extra="record"),
     "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
-                    "sigma_des.live.cli:add_live_args", True),
+                    "sigma_des.live.cli:add_live_args", True, "live"),
     "calibrate": Command("fit DES parameters from a live run; writes a scenario TOML",
-                         "sigma_des.live.cli:add_calibrate_args"),
+                         "sigma_des.live.cli:add_calibrate_args", extra="live"),
     "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
-                    "sigma_des.tuning.cli:add_args"),
+                    "sigma_des.tuning.cli:add_args", extra="tuning"),
     "warmup": Command("compile the numba kernels once, after installing (in parallel)",
                       "sigma_des.warmup.cli:add_args"),
 }
@@ -143,7 +146,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ModuleNotFoundError as e:
         from sigma_des.extras import missing_extra
 
-        err = missing_extra(e, args.command)
+        err = missing_extra(e, args.command, COMMANDS[args.command].extra)
         if err is None:
             raise
         print(f"sigma-des: error: {err}", file=sys.stderr)
@@ -157,6 +160,9 @@ def _run(args: argparse.Namespace) -> int:
     """Run the parsed command; ConfigError and missing packages propagate to :func:`main`."""
     command = args.command
     if command == "replay":
+        from sigma_des.extras import need
+
+        need("replay", "mcap", "orjson")
         return _function("sigma_des.replay.cli:run_replay")(args)  # type: ignore[no-any-return]
     if command == "tune":
         return _function("sigma_des.tuning.cli:run")(args)  # type: ignore[no-any-return]
@@ -205,6 +211,10 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
                     "--methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}"
                 )
     if args.out:  # a bad output location must not cost the whole run
+        if not args.no_plots:
+            from sigma_des.extras import need
+
+            need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
     if args.record is not None:
         from sigma_des.extras import need
@@ -223,20 +233,12 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
     if args.out:
         csv_path, json_path = res.write(args.out)
         print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
-        if not args.no_plots:
-            _plots(res, args.out)
+        if not args.no_plots:  # matplotlib was checked before the run
+            from sigma_des.plots import write_plots
+
+            paths = write_plots(res, args.out)
+            print(f"plots: {', '.join(p.name for p in paths)}")
     return 0
-
-
-def _plots(res: object, out: str) -> None:
-    """Draw the comparison's plots into ``out`` (a one-line note without matplotlib)."""
-    from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
-
-    if not have_matplotlib():
-        print(MISSING_NOTE)
-        return
-    paths = write_plots(res, out)  # type: ignore[arg-type]
-    print(f"plots: {', '.join(p.name for p in paths)}")
 
 
 if __name__ == "__main__":

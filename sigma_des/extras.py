@@ -15,19 +15,19 @@ from sigma_des.errors import ConfigError
 
 __all__ = ["EXTRAS", "MissingExtra", "missing_extra", "need"]
 
-#: Top-level module -> the extra that installs it.
-EXTRAS: dict[str, str] = {
-    "orjson": "record",
-    "mcap": "record",
-    "dask": "experiments",
-    "distributed": "experiments",
-    "matplotlib": "experiments",
-    "pandas": "experiments",
-    "jsbsim": "physics",
-    "paho": "live",
-    "deap": "tuning",
-    "pettingzoo": "env",
-    "gymnasium": "env",
+#: Top-level module -> the extras that install it (the first is named by default).
+EXTRAS: dict[str, tuple[str, ...]] = {
+    "orjson": ("record",),
+    "mcap": ("record",),
+    "dask": ("experiments",),
+    "distributed": ("experiments",),
+    "matplotlib": ("experiments",),
+    "pandas": ("experiments", "live", "record"),
+    "jsbsim": ("physics",),
+    "paho": ("live",),
+    "deap": ("tuning",),
+    "pettingzoo": ("env",),
+    "gymnasium": ("env",),
 }
 
 
@@ -37,34 +37,44 @@ class MissingExtra(ConfigError):
     Attributes:
         module: the missing top-level module.
         extra: the extra that installs it.
+        instead: what the user may do instead (e.g. ``pass --no-plots``), or empty.
     """
 
-    def __init__(self, what: str, module: str) -> None:
+    def __init__(self, what: str, module: str, extra: str = "", instead: str = "") -> None:
         self.module = module
-        self.extra = EXTRAS[module]
-        super().__init__(what, f"needs the optional package {module!r}, not installed: "
-                               f"pip install 'sigma-des[{self.extra}]'")
+        self.extra = extra or EXTRAS[module][0]
+        self.instead = instead
+        super().__init__(what, f"needs the optional package {module!r}, which is not installed: "
+                               f"pip install 'sigma-des[{self.extra}]'"
+                               + (f", or {instead}" if instead else ""))
 
-    def __reduce__(self) -> tuple[type[MissingExtra], tuple[str, str]]:  # type: ignore[override]
-        return type(self), (self.key, self.module)
+    def __reduce__(self) -> tuple[type[MissingExtra], tuple[str, str, str, str]]:  # type: ignore[override]
+        return type(self), (self.key, self.module, self.extra, self.instead)
 
 
-def need(what: str, *modules: str) -> None:
+def need(what: str, *modules: str, extra: str = "", instead: str = "") -> None:
     """Check that ``modules`` can be imported (without importing them).
 
     Args:
         what: the feature, as the user named it (``--record``, ``sweep``, ...).
         modules: top-level modules of :data:`EXTRAS`.
+        extra: the extra to name (default: the module's first in :data:`EXTRAS`).
+        instead: what the user may do instead, appended to the message.
 
     Raises:
-        MissingExtra: the first module that is not installed.
+        MissingExtra: for the first module that is not installed.
     """
     for m in modules:
         if importlib.util.find_spec(m) is None:
-            raise MissingExtra(what, m)
+            raise MissingExtra(what, m, extra, instead)
 
 
-def missing_extra(e: ModuleNotFoundError, what: str) -> MissingExtra | None:
-    """``e`` as a :class:`MissingExtra` if it names a package of an extra, else None."""
+def missing_extra(e: ModuleNotFoundError, what: str, extra: str = "") -> MissingExtra | None:
+    """``e`` as a :class:`MissingExtra` if it names a package of an extra, else None.
+
+    ``extra`` is named if it is one of the module's extras (a command's own extra).
+    """
     top = (e.name or "").split(".")[0]
-    return MissingExtra(what, top) if top in EXTRAS else None
+    if top not in EXTRAS:
+        return None
+    return MissingExtra(what, top, extra if extra in EXTRAS[top] else "")

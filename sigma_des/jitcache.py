@@ -224,8 +224,12 @@ def _remove_hook() -> None:
 def install_hook() -> None:
     """Set numba's cache directory when numba is first imported (now if it already is).
 
-    Cheap and without side effects until numba is imported; idempotent.
+    Cheap, and until numba is imported its only effect is exporting the root as
+    ``NUMBA_CACHE_DIR`` (when unset): the root is fixed when the package is imported,
+    as the module docstring says, even if ``SIGMA_DES_CACHE_DIR`` changes later (the
+    test suite moves the ideal-run cache that way, not the kernels). Idempotent.
     """
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_root()))
     if "numba" in sys.modules:
         _remove_hook()
         ensure_cache_dir()
