@@ -1,4 +1,4 @@
-"""A missing optional package: one line naming the extra, exit status 2, no traceback (issue 22.5)."""
+"""A missing optional package: one line naming the extra, exit 2, no traceback (issue 22.5)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``warmup = -1`` (the default) is 0.1 x duration, so every allowed duration validates (issue 22.6)."""
+"""``warmup = -1`` (default): 0.1 x duration, so every allowed duration validates (issue 22.6)."""
 
 from __future__ import annotations
 
