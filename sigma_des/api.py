@@ -20,7 +20,6 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des import __version__
 from sigma_des.agents.ideal import fly
 from sigma_des.budget import check_memory
 from sigma_des.cache.ideal import cache_dir, cached
@@ -32,6 +31,7 @@ from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import add_fidelity
 from sigma_des.metrics.reports import MethodReport
 from sigma_des.outputs import check_out_dir, write_files
+from sigma_des.version import __version__
 
 __all__ = ["Results", "compare", "ideal_run", "run_method"]
 
@@ -363,7 +363,7 @@ def _run_methods(
     """Every method's raw result: here in turn, or on ``jobs`` workers of the local executor."""
     outs: dict[str, dict[str, Any]] = {}
     if jobs > 1 and len(ms) > 1:
-        from sigma_des.sweep.local import local_pool
+        from sigma_des.pool import local_pool
 
         with local_pool(min(jobs, len(ms))) as submit:
             if cache_dir() is None:

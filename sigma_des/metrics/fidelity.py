@@ -25,7 +25,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.validate import require, require_positive
-from sigma_des.metrics.dtw import dtw, dtw_normalised
 from sigma_des.metrics.samples import Samples
 
 __all__ = ["FidelitySpec", "TrajectoryLog", "add_fidelity", "fidelity", "formation_error"]
@@ -107,6 +106,8 @@ def fidelity(
             "formation_err_max": math.nan,
             "dtw_r": math.nan,
         }, np.empty(0)
+    from sigma_des.metrics.dtw import dtw, dtw_normalised  # numba: compiled on first use
+
     a, b = pos[:t], ideal[:t]
     err = formation_error(a, b)
     n = pos.shape[1]

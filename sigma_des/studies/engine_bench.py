@@ -5,7 +5,7 @@ whose report is :mod:`~sigma_des.studies.engine_tables`) times the cohort engine
 per-message engine and the process-per-message reference model
 (:mod:`sigma_des.reference.process_model`) for every node count; this module holds
 what it runs: :func:`plan` (the cases of one N), :func:`run_fresh` (one case in a
-fresh child process on the local executor, :mod:`sigma_des.sweep.local`, so peak RSS
+fresh child process on the local executor, :mod:`sigma_des.pool`, so peak RSS
 is per case), :func:`make_row` (one CSV row) and :func:`annotate` (speed-up ratios
 and the metric checks). See ``docs/BENCHMARKS.md``.
 
@@ -53,7 +53,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any, NamedTuple
 
 from sigma_des import config
-from sigma_des.sweep.local import run_all
+from sigma_des.pool import run_all
 
 __all__ = [
     "ALL_METHODS",

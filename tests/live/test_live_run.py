@@ -136,9 +136,37 @@ def test_external_broker_with_credentials(tmp_path: Path,
                 f"{addr.host}:{addr.port}", "--username", addr.username]
         assert main([*base, "--password", "wrong"]) == 2
         assert "--broker: MQTT connect" in capsys.readouterr().err
-        assert main([*base, "--password", addr.password, "--out", str(tmp_path)]) == 0
-    summ = json.loads((tmp_path / "summary.json").read_text())
+        secret = tmp_path / "secret"
+        secret.write_text(addr.password + "\n")
+        out = tmp_path / "out"
+        assert main([*base, "--password-file", str(secret), "--no-progress", "--no-plots",
+                     "--out", str(out)]) == 0
+    summ = json.loads((out / "summary.json").read_text())
     assert summ["methods"]["none"]["latency_state_mean"] > 0
+
+
+def test_the_password_comes_from_the_option_the_file_or_the_environment(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+
+    from sigma_des.errors import ConfigError
+    from sigma_des.live.cli import PASSWORD_ENV, password
+
+    def ns(pw: str | None = None, pw_file: str | None = None) -> argparse.Namespace:
+        return argparse.Namespace(password=pw, password_file=pw_file)
+
+    monkeypatch.delenv(PASSWORD_ENV, raising=False)
+    assert password(ns()) == ""
+    monkeypatch.setenv(PASSWORD_ENV, "from-env")
+    assert password(ns()) == "from-env"
+    f = tmp_path / "pw"
+    f.write_text("from-file\nignored\n")
+    assert password(ns(pw_file=str(f))) == "from-file"
+    assert password(ns(pw="from-option")) == "from-option"
+    with pytest.raises(ConfigError, match="cannot go with --password"):
+        password(ns("a", str(f)))
+    with pytest.raises(ConfigError, match="cannot read"):
+        password(ns(pw_file=str(tmp_path / "missing")))
 
 
 class _FakeRun:
