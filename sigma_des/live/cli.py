@@ -53,7 +53,12 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: igno
     p = sub.add_parser("calibrate", help="fit DES parameters from a live run")
     p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
     p.add_argument("--out", default=None, metavar="SCENARIO.toml",
-                   help="write the calibrated scenario here (default: print it)")
+                   help="write the calibrated scenario here, the report next to it as "
+                   "SCENARIO.json (default: print the scenario)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="fit even when hosts' per-node rows are missing (with a warning)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the in-sample check (the calibrated DES re-running the live run)")
 
 
 def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
@@ -110,11 +115,14 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     if res.interrupted:
         print("interrupted: partial results", file=sys.stderr)
     if args.out:
+        from sigma_des.live.cpu import write_cpu
         from sigma_des.live.messages import write_messages
 
         csv_path, json_path = res.write(args.out)
         mpath = write_messages(msgs, Path(args.out))
-        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path} and {mpath}")
+        cpath = write_cpu(res.live, Path(args.out))
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path}, {mpath} "
+              f"and {cpath}")
         if not args.no_plots:
             from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
 
@@ -132,16 +140,31 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    """Run ``calibrate``; ConfigError propagates (exit 2)."""
-    from sigma_des.live.calibrate import calibrate, calibrated_toml
+    """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
+    import json
 
-    sc, report = calibrate(Path(args.source), Path(args.out).parent if args.out else None)
+    from sigma_des.live.calibrate import calibrate, calibrated_toml, report_lines
+    from sigma_des.live.insample import in_sample
+
+    source = Path(args.source)
+    sc, report = calibrate(source, Path(args.out).parent if args.out else None,
+                           strict=not args.allow_incomplete)
+    if not args.no_check:
+        rows, warn = in_sample(sc, source)
+        report["in_sample"] = rows
+        report["warnings"] += warn
     text = calibrated_toml(sc, report)
+    for w in report["warnings"]:
+        print(f"sigma-des: warning: {w}", file=sys.stderr)
     if args.out:
-        Path(args.out).write_text(text)
-        print(f"wrote {args.out}")
-        for k, v in report.items():
-            print(f"  {k} = {v}")
+        out = Path(args.out)
+        out.write_text(text)
+        rep = out.with_suffix(".json")
+        rep.write_text(json.dumps(report, indent=2, default=float) + "\n")
+        print(f"wrote {out} and {rep}")
+        for line in report_lines(report):
+            if not line.startswith("warning: "):
+                print(f"  {line}")
     else:
         sys.stdout.write(text)
     return 0
