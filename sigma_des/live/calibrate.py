@@ -54,7 +54,7 @@ from sigma_des.events.spec import ComputeSpec
 from sigma_des.factory import make_dynamics
 from sigma_des.live.cpu import CPU_FILE
 from sigma_des.live.demands import fit_demands, read_cpu
-from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, quantiles
+from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, job_services, quantiles
 from sigma_des.live.messages import read_messages
 from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
 from sigma_des.loading import from_dict
@@ -157,8 +157,9 @@ def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
     return Scenario(nodes=n, hosts=min(n, max(1, int(msgs.get("host", pd.Series([0])).max()) + 1)))
 
 
-def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame]:
-    """The base scenario, the messages in its run window and the (first-sent) states."""
+def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """The base scenario, all messages, those in its run window and the (first-sent)
+    states of the window."""
     msgs = read_messages(source)
     base = _base_scenario(source, msgs)
     # an MCAP table (sigma_des.record.read_table) has the contract columns only
@@ -173,7 +174,7 @@ def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame]:
     states = w[(w["kind"] == "state") & ~w["republish"].astype(bool)]
     if len(states) < 10:
         raise ConfigError(str(source), f"only {len(states)} states in the window; need >= 10")
-    return base, w, states
+    return base, msgs, w, states
 
 
 #: Fewer samples than this in a fit is warned about (the fit uses them all the same).
@@ -222,11 +223,17 @@ def _write_latency_files(d: Path, files: dict[str, NDArray[np.float64]]) -> dict
     return out
 
 
-def _publish_costs(w: pd.DataFrame) -> pd.DataFrame:
-    """``state_pub`` rows with ``cost`` = publish minus trigger receipt (finite, >= 0)."""
-    pub = w[w["kind"] == "state_pub"]
-    pub = pub.assign(cost=pub["t_send"] - pub["t_trig"])
-    return pub[np.isfinite(pub["cost"]) & (pub["cost"] >= 0)]
+def _publish_costs(msgs: pd.DataFrame, base: Scenario) -> pd.DataFrame:
+    """The window's ``state_pub`` rows with ``raw`` = publish minus trigger receipt and
+    ``cost`` = the job's service without its wait for one of the host's
+    ``cores_per_host`` cores (:func:`~sigma_des.live.dequeue.job_services`, replayed over
+    the whole run per method, so jobs queued before the window count)."""
+    pub = msgs[msgs["kind"] == "state_pub"]
+    pub = pub[np.isfinite(pub["t_trig"]) & (pub["t_send"] >= pub["t_trig"])]
+    host = pub["method"].astype(str) + "/" + pub["host"].astype(str)
+    cost = job_services(host, pub["node"], pub["t_trig"], pub["t_send"], base.cores_per_host)
+    pub = pub.assign(raw=pub["t_send"] - pub["t_trig"], cost=cost)
+    return pub[(pub["t_send"] >= base.warmup) & (pub["t_send"] < base.duration)]
 
 
 def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: float,
@@ -272,11 +279,11 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: 
     return net, report
 
 
-def _fit_compute(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, recording: bool,
+def _fit_compute(base: Scenario, msgs: pd.DataFrame, states: pd.DataFrame, recording: bool,
                  strict: bool, warn: list[str]) -> tuple[ComputeSpec, dict[str, Any]]:
     """The node step time from the hosts' per-node publish rows, refusing (``strict``)
     or warning when hosts whose states arrived left none."""
-    pub = _publish_costs(w)
+    pub = _publish_costs(msgs, base)
     keep = base.compute.step_time
     kept = f"compute.step_time kept from the base scenario ({keep.dist}, mean " \
            f"{keep.mean_value() * 1e3:.3g} ms)"
@@ -304,7 +311,9 @@ def _fit_compute(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, recordin
     mean, std = float(cost.mean()), float(cost.std()) if cost.size > 1 else 0.0
     spec = ComputeSpec(step_time=Dist(dist="lognormal", mean=max(mean, 1e-7), std=std))
     return spec, {"step_time_mean_s": mean, "step_time_std_s": std,
-                  "step_time_host_share": host_share(pub), "step_time_samples": int(cost.size)}
+                  "step_time_with_core_wait_mean_s": float(pub["raw"].mean()),
+                  "step_time_host_share": host_share(pub.assign(cost=pub["raw"])),
+                  "step_time_samples": int(cost.size)}
 
 
 def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[float, float]:
@@ -351,12 +360,13 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True
         ConfigError: naming the source if it holds too few messages to fit, or (strict)
             naming what is missing.
     """
-    base, w, states = _window(source)
+    base, msgs, w, states = _window(source)
     warn: list[str] = []
     delivery, slope = _fit_delivery(base, w, warn)
     d = files_dir or (source if source.is_dir() else source.parent)
     net, lat_report = _fit_links(base, w, states, delivery, d, warn)
-    compute, step_report = _fit_compute(base, w, states, source.suffix == ".mcap", strict, warn)
+    compute, step_report = _fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
+                                        warn)
     topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
