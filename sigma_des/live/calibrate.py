@@ -40,6 +40,7 @@ TOML that ``sigma-des compare`` runs (the sample files sit next to it).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -190,7 +191,7 @@ def _hop_samples(x: NDArray[np.float64], held_: NDArray[np.bool_], services: flo
     return np.clip((quantiles(xs, w, x.size) - services) / 2.0, 0.0, None)
 
 
-def _paths(w: pd.DataFrame, states: pd.DataFrame) -> dict[str, Any]:
+def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float) -> dict[str, Any]:
     """Path latencies of both directions, with the in-order holds flagged.
 
     Up (states): one in-order stream per method into the server (the DES's server
@@ -206,9 +207,9 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame) -> dict[str, Any]:
     down_conn = pd.factorize(down["method"].astype(str) + "/" + down["host"].astype(str))[0]
     return {
         "up": lat_up,
-        "up_held": held(up_conn, states["t_send"], states["t_recv"]),
+        "up_held": held(up_conn, states["t_send"], states["t_recv"], tol),
         "down": (down["t_recv"] - down["t_send"]).to_numpy(),
-        "down_held": held(down_conn, down["t_send"], down["t_recv"]),
+        "down_held": held(down_conn, down["t_send"], down["t_recv"], tol),
         "down_triggers": int((down["kind"] == "trigger").sum()),
     }
 
@@ -237,11 +238,11 @@ def _publish_costs(msgs: pd.DataFrame, base: Scenario) -> pd.DataFrame:
 
 
 def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: float,
-               d: Path, warn: list[str]) -> tuple[NetSpec, dict[str, Any]]:
+               d: Path, tol: float, warn: list[str]) -> tuple[NetSpec, dict[str, Any]]:
     """Per-direction de-queued hop latencies (and the server's receive queue) as the
     links' empirical latency files (see the module doc)."""
     services = base.broker.publish_service.mean_value() + delivery
-    p = _paths(w, states)
+    p = _paths(w, states, tol)
     hop_up = _hop_samples(p["up"], p["up_held"], services)
     queue = np.nan_to_num(np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None))
     fold = float(queue.mean()) > 0.05 * float(hop_up.mean())
@@ -272,7 +273,7 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: 
         "down_latencies": int(p["down"].size),
         "hop_down_latency_mean_s": float(hop_down.mean()),
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
-        "hold_tol_s": HOLD_TOL,
+        "hold_tol_s": tol,
         "server_receive_queue_mean_s": float(queue.mean()),
         "server_queue_folded_into_server_link": fold,
     }
@@ -341,8 +342,8 @@ def _fit_demands(source: Path, warn: list[str]) -> dict[str, Any]:
     return {"cpu_demands": table.to_dict("records"), "background_cores": bg}
 
 
-def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True
-              ) -> tuple[Scenario, dict[str, Any]]:
+def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
+              hold_tol: float = HOLD_TOL) -> tuple[Scenario, dict[str, Any]]:
     """Fit a DES scenario to the live run at ``source``.
 
     Args:
@@ -350,6 +351,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True
         files_dir: where to write the empirical latency files (default: next to source).
         strict: refuse incomplete inputs (hosts whose per-node rows are missing);
             False: fit from what there is and say so in ``report["warnings"]``.
+        hold_tol: a delivery this close after the previous one on its connection counts
+            as held behind it (s; :func:`~sigma_des.live.dequeue.held`); 0 keeps the
+            measured latencies as they are (nothing is held exactly together live).
 
     Returns:
         The calibrated scenario and a report of the fitted figures (seconds), with
@@ -364,7 +368,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True
     warn: list[str] = []
     delivery, slope = _fit_delivery(base, w, warn)
     d = files_dir or (source if source.is_dir() else source.parent)
-    net, lat_report = _fit_links(base, w, states, delivery, d, warn)
+    if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
+        raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
+    net, lat_report = _fit_links(base, w, states, delivery, d, hold_tol, warn)
     compute, step_report = _fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
                                         warn)
     topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")

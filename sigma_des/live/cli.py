@@ -57,6 +57,10 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: igno
                    "SCENARIO.json (default: print the scenario)")
     p.add_argument("--allow-incomplete", action="store_true",
                    help="fit even when hosts' per-node rows are missing (with a warning)")
+    p.add_argument("--hold-tol", type=float, default=None, metavar="SECONDS",
+                   help="a delivery this close after the previous one on its connection "
+                   "counts as held behind it when latencies are de-queued (default 1e-4; "
+                   "0: keep the measured latencies)")
     p.add_argument("--no-check", action="store_true",
                    help="skip the in-sample check (the calibrated DES re-running the live run)")
 
@@ -147,8 +151,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from sigma_des.live.insample import in_sample
 
     source = Path(args.source)
+    from sigma_des.live.dequeue import HOLD_TOL
+
+    tol = HOLD_TOL if args.hold_tol is None else args.hold_tol
     sc, report = calibrate(source, Path(args.out).parent if args.out else None,
-                           strict=not args.allow_incomplete)
+                           strict=not args.allow_incomplete, hold_tol=tol)
     if not args.no_check:
         rows, warn = in_sample(sc, source)
         report["in_sample"] = rows

@@ -7,17 +7,18 @@ an earlier-sent one waits for it. A live latency already *contains* that waiting
 order), so resampling measured latencies and letting the DES add its in-order wait
 again counts the wait twice.
 
-The DES's connection is ``D_k = max(s_k + d_k, D_{k-1})`` (send ``s``, draw ``d``,
-delivery ``D``, in send order). Read backwards, a message delivered strictly after
-every earlier-sent one was not held, so its draw *is* its latency ``D_k - s_k``;
-a message delivered no later than an earlier-sent one (within ``hold_tol``: a live
-receiver spends a few µs per message on a backlog) may have been held, so all that
-is known is ``d_k <= D_k - s_k``: a left-censored sample. The draws' distribution is
+The DES's connection is ``D_k = max(a_k, D_{k-1})`` in its sequence (arrival
+``a_k = s_k + d_k``: send ``s``, draw ``d``; delivery ``D``), so its delivery order is its
+sequence. Read backwards, a message delivered strictly after its predecessor was not
+held, so its draw *is* its latency ``D_k - s_k``; a message delivered together with its
+predecessor (within ``tol``: a live receiver spends a few µs per message of a backlog)
+may have been held, so all that is known is ``d_k <= D_k - s_k``: a left-censored
+sample. The draws' distribution is
 then the Kaplan–Meier estimate for left-censored data, computed as Efron's
 redistribution to the left (:func:`censored_weights`): each censored sample hands
 its mass, equally, to every smaller sample (events before censored ones at a tie);
 mass with no smaller sample to go to stays at its bound (an upper bound: the draw
-was at most that). The censoring point ``max(D_j) - s_k`` depends only on earlier
+was at most that). The censoring point ``D_{k-1} - s_k`` depends only on earlier
 draws, so it is independent of ``d_k`` and the estimate is consistent.
 :func:`quantiles` turns the weighted samples into the equally weighted sample file
 that an empirical :class:`~sigma_des.net.latency.Dist` resamples.
@@ -38,39 +39,36 @@ HOLD_TOL = 1e-4
 
 def held(conn: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike,
          tol: float = HOLD_TOL) -> NDArray[np.bool_]:
-    """Which messages may have waited behind an earlier-sent one on their connection.
+    """Which messages may have waited behind their predecessor on their connection.
+
+    A connection delivers in its own sequence, so its delivery order *is* its sequence
+    (for a stream into one receiver that merges several senders, the broker's order,
+    which send times do not give). A message delivered no later than ``tol`` after the
+    previous delivery on its connection may have been held behind it.
 
     Args:
-        conn: connection id of each message (messages of one id share one in-order
-            stream, sequenced by send time).
-        t_send: send times (s).
+        conn: connection id of each message.
+        t_send: send times (s); they order deliveries at the same instant.
         t_recv: delivery times (s).
-        tol: a delivery within ``tol`` after the latest earlier delivery counts as held.
+        tol: a delivery within ``tol`` after the previous one counts as held.
 
     Returns:
-        ``held[k]``: message ``k``'s delivery is no later than ``tol`` after the latest
-        delivery of a message sent before it on its connection (the first message of a
-        connection is never held).
+        ``held[k]`` in the input order (the first delivery of a connection is never held).
     """
     c = np.asarray(conn)
     s = np.asarray(t_send, dtype=np.float64)
     d = np.asarray(t_recv, dtype=np.float64)
-    order = np.lexsort((s, c))  # by connection, then send time (stable)
-    cs, ds = c[order], d[order]
     out = np.zeros(s.size, dtype=bool)
     if s.size == 0:
         return out
-    first = np.ones(s.size, dtype=bool)
-    first[1:] = cs[1:] != cs[:-1]
-    # running max of the earlier deliveries per connection (exclusive)
-    prev = np.empty(s.size)
-    run = -np.inf
-    for i in range(s.size):
-        if first[i]:
-            run = -np.inf
-        prev[i] = run
-        run = max(run, ds[i])
-    out[order] = ds <= prev + tol
+    order = np.lexsort((s, d, c))  # by connection, then delivery (then send) time
+    cs, ds = c[order], d[order]
+    same = np.zeros(s.size, dtype=bool)
+    same[1:] = cs[1:] == cs[:-1]
+    gap = np.empty(s.size)
+    gap[0] = np.inf
+    gap[1:] = ds[1:] - ds[:-1]
+    out[order] = same & (gap <= tol)
     return out
 
 

@@ -151,3 +151,19 @@ def test_in_sample_errors_are_zero_on_the_des_itself_and_flag_a_miss(tmp_path: P
         assert got[k]["error"] == 0.0 and not got[k]["flagged"]
     assert warn == [f"none: the calibrated DES misses its own run by more than "
                     f"{TOLERANCE:.0%} on aoi_mean"]
+
+
+def test_hold_tol_is_validated(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sc = load(None, SETS)
+    d = _write(tmp_path / "r", sc, _run(sc))
+    assert main(["calibrate", str(d), "--hold-tol", "-0.001", "--no-check"]) == 2
+    assert "--hold-tol: must be in 0..0.01 s, got -0.001" in capsys.readouterr().err
+    # bursts of states 5 us apart: held at the default tolerance, kept as measured at 0
+    t = _run(sc)
+    st = t["kind"] == "state"
+    t.loc[st, "t_recv"] = t.loc[st, "t_recv"] - 0.0005 * t.loc[st, "node"] + 5e-6 * t.loc[st, "node"]
+    _sc, rep = calibrate(_write(tmp_path / "b", sc, t), tmp_path / "f")
+    assert rep["state_held_frac"] == pytest.approx(0.75)  # all but the first of each frame
+    _sc, rep0 = calibrate(_write(tmp_path / "b0", sc, t), tmp_path / "f0", hold_tol=0.0)
+    assert rep0["state_held_frac"] == 0.0
+    assert rep0["hop_latency_mean_s"] > rep["hop_latency_mean_s"]
