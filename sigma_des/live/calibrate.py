@@ -11,19 +11,35 @@ metrics window:
   the 5th percentile of the gaps between consecutive receivers
   (:func:`delivery_floor`: scheduling noise only adds to a gap, so a low quantile
   approaches the broker's own per-delivery time);
-* **per-hop latency** (``net.host_link.latency``, an empirical sample file): a
-  state travels host -> broker -> server, so one hop is
-  ``(state latency - publish_service - delivery_service) / 2``; the broker's
-  publish service is not separable from the hop latency from outside the broker,
-  so the base scenario's value is kept;
+* **per-hop latency per direction** (empirical sample files): a state travels
+  host -> broker -> server (``net.host_link.latency`` and
+  ``net.server_link.latency_down``), a trigger or command server -> broker -> host
+  (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
+  ``(path latency - publish_service - delivery_service) / 2``, the path latency
+  **de-queued** first (:mod:`sigma_des.live.dequeue`: the DES's stream keeps order
+  itself, so the in-order wait in the measured latencies must not be drawn again).
+  The broker's publish service is not separable from the hop latency from outside
+  the broker, so the base scenario's value is kept;
 * **the server's receive cost** (time from the client's receipt to the loop
   handling the state): the DES has no such stage, so it is folded into the
-  server link's latency (``net.server_link.latency``: hop + receive queueing,
-  sampled pairwise) when its mean exceeds 5 % of the hop's;
+  server link's down latency (fitted as a hop from each state's path latency plus
+  twice its receive queueing, so that hop carries the whole queueing) when its mean
+  exceeds 5 % of the hop's;
 * **node step time** ``compute.step_time``: a lognormal with the mean and standard
-  deviation of (state publish - trigger receipt) per job; the report also gives the
-  share of its variance common to a host's nodes in one frame (:func:`host_share`;
-  the DES draws every node independently);
+  deviation of each job's service, i.e. its publish minus the time it got one of the
+  host's ``cores_per_host`` cores (replayed FCFS, :func:`~sigma_des.live.dequeue.
+  job_services`; the DES adds the wait for a core itself); the report also gives the
+  share of the publish delay's variance common to a host's nodes in one frame
+  (:func:`host_share`; the DES draws every node independently);
+* **CPU service demands** of every process by the Utilization Law, and the
+  background CPU (:mod:`sigma_des.live.demands`, from the run's ``cpu.csv``):
+  reported only, the DES has no CPU stage yet.
+
+What cannot be fitted is said, never filled in silently: hosts whose states arrived
+without their per-node publish rows are refused (``strict``) or warned about, and too
+few samples, a single receiver per trigger or a missing ``cpu.csv`` are warnings in
+``report["warnings"]``. :mod:`sigma_des.live.insample` checks the result against the
+run it came from.
 * **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
   and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
   so the DES counts the same bytes.
@@ -210,7 +226,6 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float) -> dict[str, Any]:
         "up_held": held(up_conn, states["t_send"], states["t_recv"], tol),
         "down": (down["t_recv"] - down["t_send"]).to_numpy(),
         "down_held": held(down_conn, down["t_send"], down["t_recv"], tol),
-        "down_triggers": int((down["kind"] == "trigger").sum()),
     }
 
 
