@@ -147,7 +147,8 @@ def test_in_sample_errors_are_zero_on_the_des_itself_and_flag_a_miss(tmp_path: P
     rows, warn = in_sample(sc, _write(tmp_path / "y", sc, _run(sc), {"none": live}))
     got = {r["metric"]: r for r in rows}
     assert got["aoi_mean"]["error"] == pytest.approx(-0.5) and got["aoi_mean"]["flagged"]
-    for k in ("aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac"):
+    for k in ("aoi_p99", "latency_state_mean", "latency_trigger_mean", "trigger_rate_hz",
+              "missed_frac"):
         assert got[k]["error"] == 0.0 and not got[k]["flagged"]
     assert warn == [f"none: the calibrated DES misses its own run by more than "
                     f"{TOLERANCE:.0%} on aoi_mean"]
@@ -161,7 +162,7 @@ def test_hold_tol_is_validated(tmp_path: Path, capsys: pytest.CaptureFixture[str
     # bursts of states 5 us apart: held at the default tolerance, kept as measured at 0
     t = _run(sc)
     st = t["kind"] == "state"
-    t.loc[st, "t_recv"] = t.loc[st, "t_recv"] - 0.0005 * t.loc[st, "node"] + 5e-6 * t.loc[st, "node"]
+    t.loc[st, "t_recv"] -= (0.0005 - 5e-6) * t.loc[st, "node"]  # node i 5i us after node 0
     _sc, rep = calibrate(_write(tmp_path / "b", sc, t), tmp_path / "f")
     assert rep["state_held_frac"] == pytest.approx(0.75)  # all but the first of each frame
     _sc, rep0 = calibrate(_write(tmp_path / "b0", sc, t), tmp_path / "f0", hold_tol=0.0)
