@@ -4,8 +4,10 @@
 loopback port, unless ``--broker``), prints ``compare``'s table and with ``--out``
 writes ``results.csv``, ``summary.json`` (``"mode": "live"``) and
 ``messages.csv.gz`` (one row per message: kind, host, node, frame, t_send,
-t_recv, …). ``calibrate`` fits DES parameters from such a directory (or an MCAP
-recording) and writes a scenario TOML that ``compare`` runs.
+t_recv, …) and ``cpu.csv`` (each process's CPU over the idle and metrics windows).
+``calibrate`` fits DES parameters from such a directory (or an MCAP recording),
+writes a scenario TOML that ``compare`` runs and its report (JSON), with the
+in-sample check and warnings about what it could not fit.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
     p.add_argument("--no-step-delay", action="store_true",
                    help="nodes publish right after their real step (no drawn step_time)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="write results.csv, summary.json and messages.csv.gz here")
+                   help="write results.csv, summary.json, messages.csv.gz and cpu.csv here")
     p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="record every message to an MCAP file (sigma_des.record; "
