@@ -258,6 +258,8 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: 
     links' empirical latency files (see the module doc)."""
     services = base.broker.publish_service.mean_value() + delivery
     p = _paths(w, states, tol)
+    if p["up"].size < MIN_SAMPLES:
+        warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
     hop_up = _hop_samples(p["up"], p["up_held"], services)
     queue = np.nan_to_num(np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None))
     fold = float(queue.mean()) > 0.05 * float(hop_up.mean())
