@@ -161,7 +161,8 @@ def test_external_broker_with_credentials(tmp_path: Path,
                 f"{addr.host}:{addr.port}", "--username", addr.username]
         assert main([*base, "--password", "wrong"]) == 2
         assert "--broker: MQTT connect" in capsys.readouterr().err
-        assert main([*base, "--password", addr.password, "--out", str(tmp_path)]) == 0
+        # `--password=...`: a generated password may start with '-' (token_urlsafe)
+        assert main([*base, f"--password={addr.password}", "--out", str(tmp_path)]) == 0
     summ = json.loads((tmp_path / "summary.json").read_text())
     assert summ["methods"]["none"]["latency_state_mean"] > 0
 
