@@ -443,6 +443,10 @@ def report_lines(report: dict[str, Any]) -> list[str]:
         lines.append(f"in-sample {r['method']} {r['metric']}: live {r['live']:.4g}, DES "
                      f"{r['des']:.4g}, error {100 * r['error']:+.1f} {unit}"
                      + ("  > 10: FLAGGED" if r["flagged"] else ""))
+    cells = [r for r in report.get("in_sample", []) if math.isfinite(r["error"])]
+    if cells:
+        ok = sum(not r["flagged"] for r in cells)
+        lines.append(f"in-sample: {ok} of {len(cells)} cells within 10 % (10 pp)")
     lines += [f"warning: {w}" for w in report.get("warnings", [])]
     return lines
 

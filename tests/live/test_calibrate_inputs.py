@@ -17,7 +17,7 @@ from sigma_des.api import run_method
 from sigma_des.cli import main
 from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.calibrate import calibrate
+from sigma_des.live.calibrate import calibrate, report_lines
 from sigma_des.live.dequeue import job_services
 from sigma_des.live.insample import TOLERANCE, in_sample, missed_frac
 from sigma_des.live.messages import write_messages
@@ -152,6 +152,9 @@ def test_in_sample_errors_are_zero_on_the_des_itself_and_flag_a_miss(tmp_path: P
         assert got[k]["error"] == 0.0 and not got[k]["flagged"]
     assert warn == [f"none: the calibrated DES misses its own run by more than "
                     f"{TOLERANCE:.0%} on aoi_mean"]
+    lines = report_lines({"in_sample": rows})
+    assert "in-sample none aoi_mean: live" in lines[0] and lines[0].endswith("FLAGGED")
+    assert lines[-1] == "in-sample: 5 of 6 cells within 10 % (10 pp)"
 
 
 def test_hold_tol_is_validated(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
