@@ -4,8 +4,10 @@
 loopback port, unless ``--broker``), prints ``compare``'s table and with ``--out``
 writes ``results.csv``, ``summary.json`` (``"mode": "live"``) and
 ``messages.csv.gz`` (one row per message: kind, host, node, frame, t_send,
-t_recv, …). ``calibrate`` fits DES parameters from such a directory (or an MCAP
-recording) and writes a scenario TOML that ``compare`` runs.
+t_recv, …) and ``cpu.csv`` (each process's CPU over the idle and metrics windows).
+``calibrate`` fits DES parameters from such a directory (or an MCAP recording),
+writes a scenario TOML that ``compare`` runs and its report (JSON), with the
+in-sample check and warnings about what it could not fit.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-step-delay", action="store_true",
                    help="nodes publish right after their real step (no drawn step_time)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="write results.csv, summary.json and messages.csv.gz here")
+                   help="write results.csv, summary.json, messages.csv.gz and cpu.csv here")
     p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
@@ -60,7 +62,16 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
     """Add the arguments of ``calibrate`` to its subparser ``p``."""
     p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
     p.add_argument("--out", default=None, metavar="SCENARIO.toml",
-                   help="write the calibrated scenario here (default: print it)")
+                   help="write the calibrated scenario here, the report next to it as "
+                   "SCENARIO.json (default: print the scenario)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="fit even when hosts' per-node rows are missing (with a warning)")
+    p.add_argument("--hold-tol", type=float, default=None, metavar="SECONDS",
+                   help="a delivery this close after the previous one on its connection "
+                   "counts as held behind it when latencies are de-queued (default 1e-4; "
+                   "0: keep the measured latencies)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the in-sample check (the calibrated DES re-running the live run)")
 
 
 def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
@@ -116,11 +127,14 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     if res.interrupted:
         print("interrupted: partial results", file=sys.stderr)
     if args.out:
+        from sigma_des.live.cpu import write_cpu
         from sigma_des.live.messages import write_messages
 
         csv_path, json_path = res.write(args.out)
         mpath = write_messages(msgs, Path(args.out))
-        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path} and {mpath}")
+        cpath = write_cpu(res.live, Path(args.out))
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path}, {mpath} "
+              f"and {cpath}")
         if not args.no_plots:  # matplotlib was checked before the run
             from sigma_des.plots import write_plots
 
@@ -155,16 +169,34 @@ def password(args: argparse.Namespace) -> str:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    """Run ``calibrate``; ConfigError propagates (exit 2)."""
-    from sigma_des.live.calibrate import calibrate, calibrated_toml
+    """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
+    import json
 
-    sc, report = calibrate(Path(args.source), Path(args.out).parent if args.out else None)
+    from sigma_des.live.calibrate import calibrate, calibrated_toml, report_lines
+    from sigma_des.live.insample import in_sample
+
+    source = Path(args.source)
+    from sigma_des.live.dequeue import HOLD_TOL
+
+    tol = HOLD_TOL if args.hold_tol is None else args.hold_tol
+    sc, report = calibrate(source, Path(args.out).parent if args.out else None,
+                           strict=not args.allow_incomplete, hold_tol=tol)
+    if not args.no_check:
+        rows, warn = in_sample(sc, source)
+        report["in_sample"] = rows
+        report["warnings"] += warn
     text = calibrated_toml(sc, report)
+    for w in report["warnings"]:
+        print(f"sigma-des: warning: {w}", file=sys.stderr)
     if args.out:
-        Path(args.out).write_text(text)
-        print(f"wrote {args.out}")
-        for k, v in report.items():
-            print(f"  {k} = {v}")
+        out = Path(args.out)
+        out.write_text(text)
+        rep = out.with_suffix(".json")
+        rep.write_text(json.dumps(report, indent=2, default=float) + "\n")
+        print(f"wrote {out} and {rep}")
+        for line in report_lines(report):
+            if not line.startswith("warning: "):
+                print(f"  {line}")
     else:
         sys.stdout.write(text)
     return 0

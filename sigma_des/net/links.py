@@ -120,7 +120,8 @@ class Links:
         for is_server, spec in ((False, net.host_link), (True, net.server_link)):
             for up in (True, False):
                 tag = f"{'server' if is_server else 'host'}.{'up' if up else 'down'}"
-                self._lat[is_server, up] = dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
+                self._lat[is_server, up] = dist_cache(nsub, spec.latency_of(up), streams,
+                                                      f"lat.{tag}")
                 ust = streams.stream(f"lossu.{tag}")
                 self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust))
                 for h in range(hosts + 1):
@@ -145,9 +146,10 @@ class Links:
         self._u_l = [[self._u[c, False], self._u[c, True]] for c in (False, True)]
         self._in_order: list[list[bool]] = []
         for _c, spec in ((False, net.host_link), (True, net.server_link)):
-            ordered = (spec.latency.dist == "constant" and spec.loss.model == "bernoulli"
-                       and spec.loss.p == 0.0 and not self._degrade and not self.forced_drops)
-            self._in_order.append([ordered, ordered])
+            calm = (spec.loss.model == "bernoulli" and spec.loss.p == 0.0
+                    and not self._degrade and not self.forced_drops)
+            self._in_order.append([calm and spec.latency_of(up).dist == "constant"
+                                   for up in (False, True)])
         self._p_const: list[list[float | None]] = []
         for c, spec in ((False, net.host_link), (True, net.server_link)):
             dyn = spec.loss.model != "bernoulli" or (

@@ -11,6 +11,7 @@ import pytest
 
 from sigma_des.cli import main
 from sigma_des.config import load
+from sigma_des.live.insample import IN_SAMPLE_METRICS
 from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto
@@ -27,6 +28,13 @@ def live_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_writes_compares_files_with_mode_live(live_dir: Path) -> None:
     summ = json.loads((live_dir / "summary.json").read_text())
     assert summ["mode"] == "live" and summ["interrupted"] is False
+    # CPU of every process over the idle and the metrics windows (cpu.csv = summary's rows)
+    cpu = pd.read_csv(live_dir / "cpu.csv")
+    assert len(cpu) == 4 * 5 and set(cpu["process"]) == {"server", "host0", "host1", "broker",
+                                                         "background"}
+    assert (cpu["window_s"] > 0).all() and (cpu["idle_s"] >= 0.9).all()  # idle window 1 s
+    srv = cpu[(cpu["method"] == "bides") & (cpu["process"] == "server")].iloc[0]
+    assert summ["live"]["bides"]["cpu"][0]["cpu_s"] == pytest.approx(srv["cpu_s"])
     assert set(summ["methods"]) == {"none", "lockstep", "hlc", "bides"}
     rows = pd.read_csv(live_dir / "results.csv")
     assert set(rows["method"]) == {"none", "lockstep", "hlc", "bides"}
@@ -85,7 +93,24 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
     assert sc.net.host_link.latency.dist == "empirical"
     hop = np.loadtxt(sc.net.host_link.latency.file)
     assert hop.min() >= 0 and 0 < hop.mean() < 0.1
+    down = sc.net.host_link.latency_down
+    assert down is not None and down.file != sc.net.host_link.latency.file  # per direction
     assert sc.compute.step_time.dist == "lognormal"
+    # the report: CPU demands of every process and the in-sample errors of every method
+    rep = json.loads(out.with_suffix(".json").read_text())
+    methods = {"none", "lockstep", "hlc", "bides"}
+    assert {(r["method"], r["metric"]) for r in rep["in_sample"]} == {
+        (m, k) for m in methods for k in IN_SAMPLE_METRICS}
+    assert all(np.isfinite(r["live"]) for r in rep["in_sample"])  # trigger latency included
+    assert all(r["flagged"] == (abs(r["error"]) > 0.1) for r in rep["in_sample"])
+    dem = {(r["method"], r["process"]): r for r in rep["cpu_demands"]}
+    assert set(dem) == {(m, p) for m in methods for p in ("server", "host0", "host1", "broker")}
+    for (m, p), r in dem.items():
+        assert r["messages"] > 0 and r["busy_s"] == pytest.approx(
+            r["cpu_s"] - r["idle_rate"] * r["window_s"])
+        if p == "broker":  # every PUBLISH a client sent or received went through it
+            assert r["messages"] == sum(dem[m, q]["messages"] for q in ("server", "host0", "host1"))
+    assert set(rep["background_cores"]) == methods
     assert main(["compare", str(out), "--set", "duration=0.5", "--set", "warmup=0.1",
                  "--methods", "bides", "--no-progress"]) == 0
 
