@@ -20,7 +20,6 @@ from typing import IO, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des import __version__
 from sigma_des.agents.ideal import fly
 from sigma_des.budget import check_memory
 from sigma_des.cache.ideal import cache_dir, cached
@@ -29,8 +28,10 @@ from sigma_des.errors import ConfigError
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
-from sigma_des.metrics.fidelity import fidelity
+from sigma_des.metrics.fidelity import add_fidelity
+from sigma_des.metrics.reports import MethodReport
 from sigma_des.outputs import check_out_dir, write_files
+from sigma_des.version import __version__
 
 __all__ = ["Results", "compare", "ideal_run", "run_method"]
 
@@ -70,6 +71,16 @@ class Results:
     def config_hash(self) -> str:
         """Hash of the scenario (seed and method list excluded)."""
         return config_hash(self.scenario)
+
+    def add(self, method: str, report: MethodReport) -> None:
+        """File ``method``'s finished run (in the order methods are added)."""
+        self.methods[method] = report.metrics
+        self.wall[method] = report.wall
+        self.links_mbps[method] = report.links_mbps
+        self.timeseries[method] = report.timeseries
+        self.engines[method] = report.engine
+        if report.fidelity:
+            self.fidelity[method] = report.fidelity
 
     def metric(self, method: str, name: str) -> float:
         """One metric of one method."""
@@ -289,10 +300,7 @@ def run_method(
     if sc.fidelity.enabled:
         if ideal is None:
             ideal = ideal_run(sc)[1]
-        _t, pos = run.trajectory()
-        fid, err = fidelity(pos, ideal, 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
-        out["metrics"].update(fid)
-        out["fidelity"] = {"t": _t[: len(err)], "formation_err": err}
+        add_fidelity(out, *run.trajectory(), ideal, sc.fidelity)
     return out
 
 
@@ -341,14 +349,7 @@ def compare(
     parts = _record_parts(record, ms)
     outs = _run_methods(sc, ms, jobs, parts, bar)
     for m in ms:  # the caller's order, whatever order the workers finished in
-        out = outs[m]
-        res.methods[m] = out["metrics"]
-        res.wall[m] = out["wall"]
-        res.links_mbps[m] = out["links_mbps"]
-        res.timeseries[m] = out["timeseries"]
-        res.engines[m] = out["engine"]
-        if "fidelity" in out:
-            res.fidelity[m] = out["fidelity"]
+        res.add(m, MethodReport.of(outs[m]))
     if bar is not None:
         bar.close()
     if record is not None:
@@ -362,7 +363,7 @@ def _run_methods(
     """Every method's raw result: here in turn, or on ``jobs`` workers of the local executor."""
     outs: dict[str, dict[str, Any]] = {}
     if jobs > 1 and len(ms) > 1:
-        from sigma_des.sweep.local import local_pool
+        from sigma_des.pool import local_pool
 
         with local_pool(min(jobs, len(ms))) as submit:
             if cache_dir() is None:

@@ -1,58 +1,75 @@
 """The ``sigma-des`` command line.
 
-Commands:
-  compare  run alignment methods side by side on one scenario, print a table,
-           write results.csv (tidy) and summary.json.
-  config   print the full resolved scenario as TOML (start from the defaults).
-  sweep    run a grid of scenario keys x methods x seeds on Dask (a LocalCluster
-           by default), resumable through a SQLite results store; writes
-           runs.csv and aggregate.csv (see docs/SWEEPS.md).
-  live     run the scenario live over a real Mosquitto broker (docs/LIVE.md).
-  calibrate  fit DES parameters from a live run; writes a scenario TOML.
-  replay   rebuild the trajectories of a recording (compare --record) at any
-           rate with a chosen interpolant; writes a tidy CSV.
-  warmup   compile the numba kernels into numba's cache (once, after installing;
-           the kernel groups in parallel processes).
-  tune     fit the quadrotor / fixed-wing model to a CSV flight log (GA + DTW;
-           see sigma_des/tuning); writes a fitted.toml for dynamics_params.
+Each subcommand's module is imported only when that subcommand runs (or shows its
+``--help``): the table :data:`COMMANDS` holds the one-line help of every command and
+where its arguments are defined, so ``sigma-des --help``, ``--version`` and
+``config`` start without numba, SciPy or the engines.
 
-Bad input (unknown key, wrong type, out-of-range value) exits with status 2 and
-a message naming the key and what is allowed.
+Bad input (unknown key, wrong type, out-of-range value, a missing optional package)
+exits with status 2 and one line naming the key and what is allowed.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
 
-from sigma_des import __version__
-from sigma_des.config import ALL_METHODS, NODES_PER_HOST, load, to_toml
 from sigma_des.errors import ConfigError
-from sigma_des.outputs import check_out_dir
+from sigma_des.version import __version__
 
-__all__ = ["main"]
+__all__ = ["COMMANDS", "main"]
 
 
-def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="sigma-des", description=__doc__.split("\n\n")[0])
-    p.add_argument("--version", action="version", version=f"sigma-des {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
+class Command(NamedTuple):
+    """One subcommand: its help line, where its arguments are added, what it needs."""
 
-    def scenario_args(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument("scenario", nargs="?", help="scenario TOML file (default: built-in)")
-        sp.add_argument(
-            "--set",
-            dest="sets",
-            action="append",
-            default=[],
-            metavar="KEY=VALUE",
-            help="override a scenario key (dotted, value in TOML syntax); "
-            "repeatable, e.g. --set nodes=50 --set net.host_link.loss.p=0.1",
-        )
+    help: str
+    #: adds the command's own arguments to its subparser (``module:function``: imported
+    #: only when the command is chosen)
+    args: str | Callable[[argparse.ArgumentParser], None]
+    #: True if the command takes a scenario (file or shipped name) and ``--set``.
+    scenario: bool = False
+    #: the extra (pyproject.toml) the command needs, named when one of its packages is missing
+    extra: str = ""
 
-    c = sub.add_parser("compare", help="run alignment methods side by side")
-    scenario_args(c)
+
+_EPILOG = """\
+A scenario is a TOML file or the name of a shipped one (e.g. latency_tolerance);
+--set KEY=VALUE overrides any key. 'sigma-des COMMAND --help' lists a command's
+options. Bad input exits with status 2 and a message naming the key."""
+
+
+def _function(ref: str | Callable[..., Any]) -> Callable[..., Any]:
+    if callable(ref):
+        return ref
+    module, name = ref.split(":")
+    return getattr(importlib.import_module(module), name)  # type: ignore[no-any-return]
+
+
+def _scenario_args(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument("scenario", nargs="?",
+                    help="scenario TOML file or shipped scenario name (default: built-in)")
+    sp.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key (dotted, value in TOML syntax); "
+        "repeatable, e.g. --set nodes=50 --set net.host_link.loss.p=0.1",
+    )
+
+
+def _no_args(sp: argparse.ArgumentParser) -> None:
+    """``config`` has only the scenario's arguments."""
+
+
+def _compare_args(c: argparse.ArgumentParser) -> None:
+    from sigma_des.config import ALL_METHODS
+
     c.add_argument(
         "--methods",
         default=None,
@@ -75,110 +92,153 @@ def _parser() -> argparse.ArgumentParser:
     c.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="also record every run to this MCAP file (settings: record.*)")
 
-    g = sub.add_parser("config", help="print the resolved scenario as TOML")
-    scenario_args(g)
 
-    from sigma_des.sweep.cli import add_sweep_args
+COMMANDS: dict[str, Command] = {
+    "compare": Command("run alignment methods side by side on one scenario; print a table, "
+                       "write results.csv and summary.json", _compare_args, True),
+    "config": Command("print the full resolved scenario as TOML (start from the defaults)",
+                      _no_args, True),
+    "sweep": Command("a grid of scenario keys x methods x seeds on Dask, resumable "
+                     "(docs/SWEEPS.md)", "sigma_des.sweep.cli:add_sweep_args", True,
+                     "experiments"),
+    "replay": Command("rebuild recorded trajectories (compare --record) at any rate",
+                      "sigma_des.replay.cli:add_replay_args", extra="record"),
+    "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
+                    "sigma_des.live.cli:add_live_args", True, "live"),
+    "calibrate": Command("fit DES parameters from a live run; writes a scenario TOML",
+                         "sigma_des.live.cli:add_calibrate_args", extra="live"),
+    "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
+                    "sigma_des.tuning.cli:add_args", extra="tuning"),
+    "warmup": Command("compile the numba kernels once, after installing (in parallel)",
+                      "sigma_des.warmup.cli:add_args"),
+}
 
-    s = sub.add_parser("sweep", help="grid x methods x seeds on Dask, resumable")
-    scenario_args(s)
-    add_sweep_args(s)
-    from sigma_des.replay.cli import add_replay_parser
+def _selected(argv: Sequence[str]) -> str | None:
+    """The subcommand named in ``argv`` (the first word that is not an option)."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
-    add_replay_parser(sub)
 
-    from sigma_des.live.cli import add_calibrate_parser, add_live_parser
-
-    add_live_parser(sub, scenario_args)
-    add_calibrate_parser(sub)
-
-    from sigma_des.tuning.cli import add_parser as add_tune_parser
-
-    add_tune_parser(sub)
-
-    from sigma_des.cache.cli import add_parser as add_warmup_parser
-
-    add_warmup_parser(sub)
+def _parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The parser; only the command selected in ``argv`` gets (and imports) its arguments."""
+    p = argparse.ArgumentParser(
+        prog="sigma-des", epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Discrete-event simulation of time alignment (none, Lock-Step, HLC, "
+        "BiDES) in distributed UAV-swarm simulators.")
+    p.add_argument("--version", action="version", version=f"sigma-des {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    chosen = _selected(argv)
+    for name, cmd in COMMANDS.items():
+        sp = sub.add_parser(name, help=cmd.help, description=cmd.help[0].upper() + cmd.help[1:]
+                            + ".")
+        if name == chosen:
+            if cmd.scenario:
+                _scenario_args(sp)
+            _function(cmd.args)(sp)
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point; returns the process exit status."""
-    args = _parser().parse_args(argv)
-    if args.command == "replay":
-        from sigma_des.replay.cli import run_replay
-
-        return run_replay(args)
-    if args.command == "tune":
-        from sigma_des.tuning.cli import run as run_tune
-
-        return run_tune(args)
-    if args.command == "warmup":
-        from sigma_des.cache.cli import run as run_warmup
-
-        return run_warmup(args)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = _parser(argv).parse_args(argv)
     try:
-        if args.command == "calibrate":
-            from sigma_des.live.cli import run_calibrate
+        return _run(args)
+    except ModuleNotFoundError as e:
+        from sigma_des.extras import missing_extra
 
-            return run_calibrate(args)
-        sc = load(args.scenario, args.sets)
-        if args.command == "live":
-            from sigma_des.live.cli import run_live_command
-
-            return run_live_command(args, sc)
-        if args.command == "config":
-            sys.stdout.write(
-                f"# hosts = 0 (the default) means ceil(nodes / {NODES_PER_HOST}) hosts "
-                f"({NODES_PER_HOST} nodes each); here that is hosts = {sc.hosts}\n"
-                + to_toml(sc)
-            )
-            return 0
-        if args.command == "sweep":
-            from sigma_des.sweep.cli import run_sweep_command
-
-            return run_sweep_command(args, sc)
-        from sigma_des.api import compare
-
-        methods = None
-        if args.methods is not None:
-            methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-            for m in methods:
-                if m not in ALL_METHODS:
-                    raise ConfigError(
-                        "--methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}"
-                    )
-        if args.out:  # a bad output location must not cost the whole run
-            check_out_dir(args.out)
-        if args.record is not None:
-            from sigma_des.record.cli import check_record_path
-
-            check_record_path(args.record)
-        res = compare(
-            sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force,
-            record=args.record,
-        )
-        print(res.table())
-        if args.out:
-            csv_path, json_path = res.write(args.out)
-            print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
-            if not args.no_plots:
-                _plots(res, args.out)
+        err = missing_extra(e, args.command, COMMANDS[args.command].extra)
+        if err is None:
+            raise
+        print(f"sigma-des: error: {err}", file=sys.stderr)
+        return 2
     except ConfigError as e:
         print(f"sigma-des: error: {e}", file=sys.stderr)
         return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed command; ConfigError and missing packages propagate to :func:`main`."""
+    command = args.command
+    if command == "replay":
+        from sigma_des.extras import need
+
+        need("replay", "mcap", "orjson")
+        return _function("sigma_des.replay.cli:run_replay")(args)  # type: ignore[no-any-return]
+    if command == "tune":
+        return _function("sigma_des.tuning.cli:run")(args)  # type: ignore[no-any-return]
+    if command == "warmup":
+        return _function("sigma_des.warmup.cli:run")(args)  # type: ignore[no-any-return]
+    if command == "calibrate":
+        return _function("sigma_des.live.cli:run_calibrate")(args)  # type: ignore[no-any-return]
+    from sigma_des.config import load
+
+    sc = load(args.scenario, args.sets)
+    if sc.dynamics.startswith("jsbsim:") and command != "config":
+        from sigma_des.extras import need
+
+        need(f"dynamics={sc.dynamics}", "jsbsim")
+    if command == "config":
+        return _config(sc)
+    if command == "live":
+        return _function("sigma_des.live.cli:run_live_command")(args, sc)  # type: ignore[no-any-return]
+    if command == "sweep":
+        return _function("sigma_des.sweep.cli:run_sweep_command")(args, sc)  # type: ignore[no-any-return]
+    return _compare(args, sc)
+
+
+def _config(sc: Any) -> int:
+    """Print the scenario as TOML; automatic values are written as such, to stay automatic."""
+    from sigma_des.config import NODES_PER_HOST, WARMUP_FRACTION, to_toml
+
+    sys.stdout.write(
+        f"# hosts = 0 means ceil(nodes / {NODES_PER_HOST}) hosts (here {sc.hosts}); "
+        f"warmup = -1 means {WARMUP_FRACTION:g} x duration (here {sc.warmup:g} s)\n"
+        + to_toml(sc)
+    )
     return 0
 
 
-def _plots(res: object, out: str) -> None:
-    """Draw the comparison's plots into ``out`` (a one-line note without matplotlib)."""
-    from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+def _compare(args: argparse.Namespace, sc: Any) -> int:
+    from sigma_des.config import ALL_METHODS
+    from sigma_des.outputs import check_out_dir
 
-    if not have_matplotlib():
-        print(MISSING_NOTE)
-        return
-    paths = write_plots(res, out)  # type: ignore[arg-type]
-    print(f"plots: {', '.join(p.name for p in paths)}")
+    methods = None
+    if args.methods is not None:
+        methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+        for m in methods:
+            if m not in ALL_METHODS:
+                raise ConfigError(
+                    "--methods", f"unknown method {m!r}; allowed: {', '.join(ALL_METHODS)}"
+                )
+    if args.out:  # a bad output location must not cost the whole run
+        if not args.no_plots:
+            from sigma_des.extras import need
+
+            need("--out", "matplotlib", instead="pass --no-plots")
+        check_out_dir(args.out)
+    if args.record is not None:
+        from sigma_des.extras import need
+
+        need("--record", "mcap", "orjson")
+        from sigma_des.record.cli import check_record_path
+
+        check_record_path(args.record)
+    from sigma_des.api import compare
+
+    res = compare(
+        sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force,
+        record=args.record,
+    )
+    print(res.table())
+    if args.out:
+        csv_path, json_path = res.write(args.out)
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
+        if not args.no_plots:  # matplotlib was checked before the run
+            from sigma_des.plots import write_plots
+
+            paths = write_plots(res, args.out)
+            print(f"plots: {', '.join(p.name for p in paths)}")
+    return 0
 
 
 if __name__ == "__main__":

@@ -54,6 +54,7 @@ __all__ = [
     "ALL_METHODS",
     "METHODS",
     "NODES_PER_HOST",
+    "WARMUP_FRACTION",
     "NetSpec",
     "RecordSpec",
     "Scenario",
@@ -68,6 +69,10 @@ __all__ = [
 
 #: Nodes per host when ``hosts = 0`` (auto): the paper's 20 aircraft per PC.
 NODES_PER_HOST = 20
+#: ``warmup = -1`` (auto, the default) ignores this fraction of ``duration``: 1 s of 10.
+WARMUP_FRACTION = 0.1
+#: The ``warmup`` value meaning "automatic" (:data:`WARMUP_FRACTION` of the duration).
+WARMUP_AUTO = -1.0
 #: Largest trigger, alignment and render rate (Hz): a 0.1 ms physics step.
 MAX_RATE_HZ = 10_000.0
 #: Longest simulated duration (s): one day.
@@ -110,12 +115,14 @@ class Scenario:
             default 0.6 samples half an alignment period after each alignment tick,
             so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
         duration: simulated time (s), at most 86400 (one day).
-        warmup: metrics ignore everything before this time (s).
+        warmup: metrics ignore everything before this time (s), in ``[0, duration)``.
+            -1 (the default) means ``WARMUP_FRACTION * duration`` (0.1: 1 s of the
+            default 10 s), so any ``duration`` works without setting ``warmup``.
         payload_bits: state payload size (the paper: 150 bits).
         trigger_payload_bits: trigger payload size.
         dynamics: ``pointmass``, ``quadrotor``, ``fixedwing`` or ``jsbsim:<model>``.
         dynamics_params: fitted parameter file of ``sigma-des tune`` (TOML; see
-            sigma_des/tuning/fitted.py) applied to the ``quadrotor`` / ``fixedwing``
+            sigma_des/agents/fitted.py) applied to the ``quadrotor`` / ``fixedwing``
             preset; empty = the preset as shipped. The hash covers the path only.
         engine: ``cohort`` (messages in a compiled core; features it does not
             reproduce fall back to the per-message engine per method) or ``events``
@@ -139,7 +146,7 @@ class Scenario:
     align_phase: float = 0.1
     render_phase: float = 0.6
     duration: float = 10.0
-    warmup: float = 1.0
+    warmup: float = WARMUP_AUTO
     payload_bits: int = 150
     trigger_payload_bits: int = 64
     dynamics: str = "quadrotor"
@@ -196,10 +203,16 @@ class Scenario:
         for key in ("align_phase", "render_phase"):
             v = getattr(self, key)
             require(0.0 <= v < 1.0, key, f"must be in [0, 1) (a fraction of a tick), got {v}")
+        # like ``hosts_auto``: ``warmup_auto`` keeps an automatic warm-up automatic when
+        # the scenario is written out (to_toml) or a sweep point changes the duration
+        object.__setattr__(self, "warmup_auto", self.warmup == WARMUP_AUTO)
+        if self.warmup == WARMUP_AUTO:
+            object.__setattr__(self, "warmup", WARMUP_FRACTION * self.duration)
         require(
             0 <= self.warmup < self.duration,
             "warmup",
-            f"must be in [0, duration={self.duration}), got {self.warmup}",
+            f"must be in [0, duration={self.duration}) s, or -1 (auto: "
+            f"{WARMUP_FRACTION:g} x duration), got {self.warmup}",
         )
         require(self.payload_bits >= 1, "payload_bits", f"must be >= 1, got {self.payload_bits}")
         require(
@@ -235,7 +248,7 @@ class Scenario:
             f"must be one of {DYNAMICS_BUILTIN} or 'jsbsim:<model>', got {self.dynamics!r}",
         )
         if self.dynamics_params:
-            from sigma_des.tuning.fitted import fitted_params
+            from sigma_des.agents.fitted import fitted_params
 
             require(self.dynamics in ("quadrotor", "fixedwing"), "dynamics_params",
                     f"applies to dynamics 'quadrotor' or 'fixedwing', not {self.dynamics!r}")
@@ -333,14 +346,27 @@ class Scenario:
 # ---------------------------------------------------------------- loading
 
 
-def to_dict(s: Scenario) -> dict[str, Any]:
-    """The scenario as plain nested dicts and lists."""
-    return dict(plain(s))
+def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
+    """The scenario as plain nested dicts and lists.
+
+    Args:
+        s: the scenario.
+        keep_auto: write automatic values as such (``hosts = 0``, ``warmup = -1``), so
+            that editing ``nodes`` or ``duration`` of the result re-derives them;
+            False: the resolved values (what the run uses, and what the hash covers).
+    """
+    d = dict(plain(s))
+    if keep_auto:
+        if getattr(s, "hosts_auto", False):
+            d["hosts"] = 0
+        if getattr(s, "warmup_auto", False):
+            d["warmup"] = WARMUP_AUTO
+    return d
 
 
 def to_toml(s: Scenario) -> str:
-    """The full resolved scenario as TOML (loadable by :func:`load`)."""
-    d = to_dict(s)
+    """The full scenario as TOML (loadable by :func:`load`); automatic values stay so."""
+    d = to_dict(s, keep_auto=True)
     faults = d.pop("faults")
     text = tomli_w.dumps(d)
     if faults:
@@ -401,7 +427,10 @@ def _read_toml(p: Path) -> dict[str, Any]:
     try:
         return tomllib.loads(p.read_bytes().decode("utf-8"))
     except FileNotFoundError:
-        raise ConfigError(str(p), "scenario file not found") from None
+        from sigma_des.shipped import names
+
+        raise ConfigError(str(p), "scenario file not found (shipped scenarios, runnable by "
+                                  f"name: {', '.join(names())})") from None
     except UnicodeDecodeError as e:
         raise ConfigError(
             str(p), f"not a text (UTF-8 TOML) file: undecodable byte at offset {e.start}"
@@ -418,7 +447,8 @@ def load(
     """Load a scenario from an optional TOML file, then apply overrides.
 
     Args:
-        path: TOML file (None = defaults).
+        path: TOML file or the name of a shipped scenario (:mod:`sigma_des.shipped`;
+            None = defaults).
         overrides: ``key=value`` strings (dotted keys), applied in order.
         **values: further top-level values (Python objects), applied last.
 
@@ -427,7 +457,9 @@ def load(
     """
     data: dict[str, Any] = {}
     if path is not None:
-        data = _read_toml(Path(path))
+        from sigma_des.shipped import resolve
+
+        data = _read_toml(resolve(path))
     for item in overrides:
         k, v = parse_set(item)
         set_key(data, k, v)
@@ -445,7 +477,7 @@ def with_overrides(sc: Scenario, overrides: typing.Iterable[str]) -> Scenario:
     items = tuple(overrides)
     if not items:
         return sc
-    data = to_dict(sc)
+    data = to_dict(sc, keep_auto=True)
     for item in items:
         set_key(data, *parse_set(item))
     return from_dict(Scenario, data)  # type: ignore[no-any-return]

@@ -18,6 +18,10 @@ class ConfigError(ValueError):
         self.reason = reason
         super().__init__(f"{key}: {reason}" if key else reason)
 
+    def __reduce__(self) -> tuple[type[ConfigError], tuple[str, str]]:
+        # rebuilt from both fields, so the error survives a worker process's pickling
+        return type(self), (self.key, self.reason)
+
     def under(self, prefix: str) -> ConfigError:
         """The same error with ``prefix.`` prepended to its key."""
         key = f"{prefix}.{self.key}" if self.key else prefix

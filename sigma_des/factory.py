@@ -15,7 +15,7 @@ def make_dynamics(sc: Scenario) -> DynamicsModel:
     """The dynamics model named by ``sc.dynamics`` (with ``sc.dynamics_params`` applied)."""
     if sc.dynamics_params:
         from sigma_des.agents.aircraft import GeneralAircraft
-        from sigma_des.tuning.fitted import fitted_params
+        from sigma_des.agents.fitted import fitted_params
 
         return GeneralAircraft(fitted_params(sc.dynamics_params, sc.dynamics))
     try:

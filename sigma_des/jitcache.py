@@ -2,9 +2,7 @@
 
 numba's ``cache=True`` checks only the defining file of a kernel, so an edit of a
 constant module (``events/fast/layout.py``) or of a callee in another file would load
-stale kernels. :func:`ensure_cache_dir` (called by ``sigma_des/__init__.py`` before any
-kernel is defined; numba's locator reads ``numba.config.CACHE_DIR`` when a
-``cache=True`` dispatcher is created) points numba at::
+stale kernels. :func:`ensure_cache_dir` points numba at::
 
     <root>/numba/<fingerprint>/
 
@@ -16,6 +14,15 @@ kernel is defined; numba's locator reads ``numba.config.CACHE_DIR`` when a
   ``~/.cache`` set ``NUMBA_CACHE_DIR``. If the root cannot be written (read-only HOME),
   ``<tmp>/sigma_des-numba-<uid>`` is used instead, with a one-line warning.
 * ``<fingerprint>`` is :func:`sigma_des.cache.sources.fingerprint` (16 hex digits).
+
+numba's locator reads ``numba.config.CACHE_DIR`` when a ``cache=True`` dispatcher is
+created, so the directory must be set before any kernel is defined, yet ``import
+sigma_des`` must not import numba (a second of CPU) nor create directories. So
+``sigma_des/__init__.py`` calls :func:`install_hook`: a finder on ``sys.meta_path``
+that, the first time ``numba`` is imported (by whichever module needs it), lets numba
+load and then calls :func:`ensure_cache_dir` before the importing module continues —
+before its ``@njit(cache=True)`` lines run. If numba is already loaded when the
+package is imported, :func:`install_hook` calls :func:`ensure_cache_dir` at once.
 
 The root is exported as ``NUMBA_CACHE_DIR`` when unset, so every child process
 (spawned workers, pytest-xdist, ``compare --jobs``) uses the same root even if it
@@ -36,18 +43,22 @@ set such variables before importing the package (or call :func:`ensure_cache_dir
 
 from __future__ import annotations
 
+import importlib.abc
+import importlib.machinery
 import os
 import re
 import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
+from types import ModuleType
 
 from sigma_des.cache.paths import default_root, root
 from sigma_des.cache.sources import PACKAGE, fingerprint
 
-__all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "prune"]
+__all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "install_hook", "prune"]
 
 #: Fingerprint directories kept besides the current one, the most recently used first.
 KEEP = 3
@@ -164,3 +175,63 @@ def prune(parent: Path, current: str, keep: int = KEEP, grace_s: float = GRACE_S
             shutil.rmtree(trash, ignore_errors=True)
             removed.append(name)
         return removed
+
+
+class _NumbaLoader(importlib.abc.Loader):
+    """numba's own loader, followed by :func:`ensure_cache_dir` once numba is loaded."""
+
+    def __init__(self, inner: importlib.abc.Loader) -> None:
+        self.inner = inner
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        return self.inner.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        _remove_hook()
+        # the module's spec and __loader__ name numba's own loader again, as if unhooked
+        module.__loader__ = self.inner
+        if module.__spec__ is not None:
+            module.__spec__.loader = self.inner
+        self.inner.exec_module(module)
+        ensure_cache_dir()
+
+
+class _NumbaHook(importlib.abc.MetaPathFinder):
+    """Finds ``numba`` through the other finders and hooks its loader.
+
+    It stays in place until numba is loaded (a mere ``importlib.util.find_spec``
+    must not disarm it).
+    """
+
+    def find_spec(self, fullname: str, path: Sequence[str] | None = None,
+                  target: ModuleType | None = None) -> importlib.machinery.ModuleSpec | None:
+        if fullname != "numba":
+            return None
+        for finder in sys.meta_path:
+            if finder is self or not hasattr(finder, "find_spec"):
+                continue
+            spec = finder.find_spec(fullname, path, target)
+            if spec is not None and spec.loader is not None:
+                spec.loader = _NumbaLoader(spec.loader)
+                return spec
+        return None  # not installed: the import fails as it would without the hook
+
+
+def _remove_hook() -> None:
+    sys.meta_path[:] = [f for f in sys.meta_path if not isinstance(f, _NumbaHook)]
+
+
+def install_hook() -> None:
+    """Set numba's cache directory when numba is first imported (now if it already is).
+
+    Cheap, and until numba is imported its only effect is exporting the root as
+    ``NUMBA_CACHE_DIR`` (when unset): the root is fixed when the package is imported,
+    as the module docstring says, even if ``SIGMA_DES_CACHE_DIR`` changes later (the
+    test suite moves the ideal-run cache that way, not the kernels). Idempotent.
+    """
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(cache_root()))
+    if "numba" in sys.modules:
+        _remove_hook()
+        ensure_cache_dir()
+    elif not any(isinstance(f, _NumbaHook) for f in sys.meta_path):
+        sys.meta_path.insert(0, _NumbaHook())

@@ -39,7 +39,11 @@ def _convert(value: Any, tp: Any, key: str) -> Any:
             raise ConfigError(key, f"must be a list, got {value!r}")
         return tuple(_convert(v, elem, f"{key}[{i}]") for i, v in enumerate(value))
     if origin in (typing.Union, types.UnionType):
-        raise ConfigError(key, "internal: union types are not supported")
+        # ``X | None``: an optional key (TOML has no null: present means X, absent None)
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) != 1 or len(typing.get_args(tp)) != 2:
+            raise ConfigError(key, "internal: only `X | None` unions are supported")
+        return _convert(value, args[0], key)
     if tp is bool:
         if not isinstance(value, bool):
             raise ConfigError(key, f"must be true or false, got {value!r}")
@@ -81,9 +85,11 @@ def from_dict(cls: type[Any], data: dict[str, Any], prefix: str = "") -> Any:
 
 
 def plain(v: Any) -> Any:
-    """A dataclass (nested) as plain dicts and lists."""
+    """A dataclass (nested) as plain dicts and lists; an optional key left at None is
+    omitted (TOML has no null, and a scenario without it hashes as before it existed)."""
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        return {f.name: plain(getattr(v, f.name)) for f in dataclasses.fields(v)}
+        return {f.name: plain(x) for f in dataclasses.fields(v)
+                if (x := getattr(v, f.name)) is not None}
     if isinstance(v, tuple | list):
         return [plain(x) for x in v]
     return v

@@ -4,6 +4,11 @@ An output location is checked *before* a run (so a bad ``--out`` costs nothing),
 and a set of files is written under temporary names and renamed into place only
 once every one of them was written, so a failed write never leaves a
 ``results.csv`` without the ``summary.json`` that belongs to it.
+
+Temporary files are made by :func:`temp_file`: ``mkstemp`` creates them ``0600``,
+which ``os.replace`` would carry to the final name; they get the mode a plain
+``open`` would give (``0666`` less the umask: ``0644`` under umask 022), so others on
+a shared machine can read the results as the user's umask says.
 """
 
 from __future__ import annotations
@@ -17,10 +22,40 @@ from typing import IO
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["check_out_dir", "write_files"]
+__all__ = ["check_out_dir", "temp_file", "umask", "write_files"]
 
 #: A writer fills one open text file.
 Writer = Callable[[IO[str]], None]
+
+
+def umask() -> int:
+    """The process's umask (read without changing it where ``/proc`` tells it)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    old = os.umask(0o022)  # no /proc (macOS): set and restore at once
+    os.umask(old)
+    return old
+
+
+def temp_file(d: str | Path, prefix: str, suffix: str) -> tuple[int, str]:
+    """``tempfile.mkstemp`` in ``d``, with the mode a new file gets from ``open``.
+
+    Returns:
+        ``(fd, path)``, as ``mkstemp``; rename the file into place with ``os.replace``.
+    """
+    fd, path = tempfile.mkstemp(dir=d, prefix=prefix, suffix=suffix)
+    try:
+        os.fchmod(fd, 0o666 & ~umask())
+    except BaseException:
+        os.close(fd)
+        os.unlink(path)
+        raise
+    return fd, path
 
 
 def check_out_dir(path: str | Path, key: str = "--out") -> Path:
@@ -85,7 +120,7 @@ def write_files(out_dir: str | Path, files: Mapping[str, Writer]) -> list[Path]:
     try:
         with _temporaries(d) as tmps:
             for name, writer in files.items():
-                fd, tmp_name = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".tmp")
+                fd, tmp_name = temp_file(d, prefix=f".{name}.", suffix=".tmp")
                 tmps.append(Path(tmp_name))
                 with os.fdopen(fd, "w", newline="") as fh:
                     writer(fh)

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from sigma_des.outputs import temp_file
 
 if TYPE_CHECKING:
     from sigma_des.api import Results
@@ -180,7 +181,7 @@ def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
             _DRAW[name](ax, res)
             ax.grid(alpha=0.3)
             fig.tight_layout()
-            fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".png")
+            fd, tmp = temp_file(d, prefix=f".{name}.", suffix=".png")
             os.close(fd)
             try:
                 fig.savefig(tmp, dpi=100)

@@ -17,6 +17,11 @@ _CACHE_ROOT = tempfile.mkdtemp(prefix="sigma_des_test_cache_")
 os.environ["SIGMA_DES_CACHE_DIR"] = _CACHE_ROOT
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Long tests marked ``early`` first: at the end they would run alone on one worker."""
+    items.sort(key=lambda item: item.get_closest_marker("early") is None)  # stable
+
+
 def pytest_unconfigure(config: pytest.Config) -> None:
     """Remove this process's ideal-run cache directory."""
     shutil.rmtree(_CACHE_ROOT, ignore_errors=True)

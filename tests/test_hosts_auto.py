@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -38,11 +39,18 @@ def test_explicit_hosts_still_checked() -> None:
     assert ei.value.key == "hosts" and "0 (auto" in ei.value.reason
 
 
-def test_config_says_how_hosts_was_chosen(capsys: pytest.CaptureFixture[str]) -> None:
+def test_config_writes_automatic_hosts_as_0_so_editing_nodes_replaces_them(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """``sigma-des config > a.toml``, then a new ``nodes`` in the file: hosts follow it."""
     assert main(["config", "--set", "nodes=4"]) == 0
     out = capsys.readouterr().out
-    assert out.startswith("# hosts = 0 (the default) means ceil(nodes / 20) hosts")
-    assert "\nhosts = 1\n" in out
+    assert out.startswith("# hosts = 0 means ceil(nodes / 20) hosts (here 1)")
+    assert "\nhosts = 0\n" in out
+    edited = tmp_path / "a.toml"
+    edited.write_text(out.replace("\nnodes = 4\n", "\nnodes = 45\n"))
+    assert load(edited).hosts == 3
+    assert main(["config", "--set", "nodes=4", "--set", "hosts=2"]) == 0
+    assert "\nhosts = 2\n" in capsys.readouterr().out  # explicit: kept as written
 
 
 def test_sweep_points_place_their_own_nodes() -> None:

@@ -26,6 +26,20 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
 #: the ground floor may import only itself and the error types
 CORE_ALLOWED = ("sigma_des.core", "sigma_des.errors")
 
+#: the top floors: commands, studies and the tools built on whole runs
+_UPPER = ("sigma_des.cli", "sigma_des.sweep", "sigma_des.tuning", "sigma_des.studies",
+          "sigma_des.replay", "sigma_des.warmup", "sigma_des.plots")
+#: the middle band, bottom to top: each must not import what sits above it
+_MIDDLE = ("sigma_des.loading", "sigma_des.config", "sigma_des.factory", "sigma_des.cache",
+           "sigma_des.record", "sigma_des.api", "sigma_des.live", "sigma_des.env")
+#: what may sit above a middle module without being above it (``live`` draws plots)
+_BESIDE = {"sigma_des.live": ("sigma_des.plots",)}
+for _i, _mod in enumerate(_MIDDLE):
+    FORBIDDEN[_mod] = tuple(m for m in _MIDDLE[_i + 1:] + _UPPER
+                            if m not in _BESIDE.get(_mod, ()))
+#: the package face (``sigma_des/__init__.py``): imported by users and the top floors only
+FACE = "sigma_des"
+
 
 def _within(name: str, prefix: str) -> bool:
     return name == prefix or name.startswith(prefix + ".")
@@ -56,7 +70,10 @@ def imports(mod: str, src: str, is_pkg: bool = False) -> list[tuple[int, str, li
 def layering_violations(mod: str, src: str, is_pkg: bool = False) -> list[str]:
     """Imports of ``mod`` that point up or sideways, and private names taken from other modules."""
     bad = []
+    below_face = not any(_within(mod, u) for u in _UPPER) and mod != FACE
     for line, imported, names in imports(mod, src, is_pkg):
+        if below_face and imported == FACE:
+            bad.append(f"{mod}:{line} imports the package face ({', '.join(names)})")
         if _within(mod, "sigma_des.core"):
             allowed = any(_within(imported, a) for a in CORE_ALLOWED)
             if _within(imported, "sigma_des") and not allowed:
@@ -117,6 +134,19 @@ def test_checker_finds_what_it_must() -> None:
         "sigma_des.core.probe:1 imports sigma_des.net"
     ]
     assert layering_violations("sigma_des.config", src[:38]) == []
+    # the middle band's upward imports removed by issue 23, one per rule
+    assert layering_violations("sigma_des.api", "from sigma_des.sweep.local import run_all\n"
+                               "from sigma_des import __version__\n") == [
+        "sigma_des.api:1 imports sigma_des.sweep.local",
+        "sigma_des.api:2 imports the package face (__version__)",
+    ]
+    assert layering_violations("sigma_des.config", "from sigma_des.tuning.fitted import f\n")
+    assert layering_violations("sigma_des.factory", "from sigma_des.tuning.fitted import f\n")
+    assert layering_violations("sigma_des.cache.warmup", "from sigma_des.api import compare\n")
+    assert layering_violations("sigma_des.record.writer", "import sigma_des\n")
+    assert layering_violations("sigma_des.config", "from sigma_des.api import compare\n")
+    assert layering_violations("sigma_des.live.cli", "from sigma_des.plots import f\n") == []
+    assert layering_violations("sigma_des.studies.run", "import sigma_des\n") == []
     long_fn = "def f():\n" + "    x = 1\n" * 80
     assert size_violations(long_fn) == ["function f (line 1) has 81 lines"]
     assert size_violations(long_fn, max_lines=50)[0] == "module has 81 lines"

@@ -22,6 +22,22 @@ SETS = ["--set", "nodes=2", "--set", "duration=0.3", "--set", "warmup=0.1",
         "--methods", "none"]
 
 
+@pytest.mark.parametrize(("mask", "mode"), [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_written_files_get_the_umask_s_mode(tmp_path: Path, mask: int, mode: int) -> None:
+    """As ``open`` would make them: ``0666`` less the umask (mkstemp alone gives 0600)."""
+    from sigma_des.outputs import umask
+
+    old = os.umask(mask)
+    try:
+        assert umask() == mask
+        paths = write_files(tmp_path, {"a.csv": lambda fh: fh.write("x\n"),
+                                       "b.json": lambda fh: fh.write("{}")})
+    finally:
+        os.umask(old)
+    assert [p.stat().st_mode & 0o777 for p in paths] == [mode, mode]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.csv", "b.json"]
+
+
 def test_results_csv_is_identical_for_same_seed(tmp_path: Path) -> None:
     sc = tiny()
     a, b = tmp_path / "a", tmp_path / "b"

@@ -5,6 +5,7 @@
 * :mod:`sigma_des.cache.paths` — the cache root both caches live under.
 * :mod:`sigma_des.cache.sources` — the fingerprint of the sources compiled code depends
   on, which names numba's cache directory (:mod:`sigma_des.jitcache`).
-* :mod:`sigma_des.cache.warmup` — ``sigma-des warmup``: compile every kernel a default
-  run uses into numba's cache, the groups in parallel processes.
+
+``sigma-des warmup`` (:mod:`sigma_des.warmup`), which fills numba's cache by running
+tiny comparisons, sits above :mod:`sigma_des.api`, not here.
 """

@@ -32,7 +32,6 @@ import json
 import os
 import platform
 import sys
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -42,9 +41,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des import __version__
 from sigma_des.cache.paths import ENV_VAR, root
 from sigma_des.config import Scenario, to_dict
+from sigma_des.outputs import temp_file
+from sigma_des.version import __version__
 
 __all__ = ["ENV_VAR", "cache_dir", "cache_key", "cached", "code_fingerprint"]
 
@@ -110,7 +110,7 @@ def _read(path: Path) -> Arrays | None:
 
 def _write(path: Path, t: NDArray[np.float64], pos: NDArray[np.float64]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem[:16]}.", suffix=".tmp")
+    fd, tmp = temp_file(path.parent, prefix=f".{path.stem[:16]}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez(fh, t=t, pos=pos)

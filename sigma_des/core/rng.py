@@ -17,7 +17,6 @@ import hashlib
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import ndtr, ndtri
 
 __all__ = ["RandomStreams", "Stream", "mix"]
 
@@ -76,6 +75,8 @@ class Stream:
 
     def normal(self, *ids: ArrayLike) -> NDArray[np.float64]:
         """Standard normal draws (inverse CDF of :meth:`uniform`)."""
+        from scipy.special import ndtri  # here: SciPy is slow to import (the CLI's start)
+
         return np.asarray(ndtri(self.uniform(*ids)), dtype=np.float64)
 
     def exponential(self, *ids: ArrayLike) -> NDArray[np.float64]:
@@ -86,6 +87,8 @@ class Stream:
         self, mean: float, std: float, low: float, *ids: ArrayLike
     ) -> NDArray[np.float64]:
         """Normal(mean, std) conditioned on ``x >= low`` (exact inverse-CDF truncation)."""
+        from scipy.special import ndtr, ndtri
+
         u = self.uniform(*ids)
         if std == 0.0:
             return np.full(u.shape, max(mean, low))

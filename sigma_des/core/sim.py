@@ -15,12 +15,9 @@ from typing import Any
 
 import simpy
 
-__all__ = ["ARRIVAL", "TRIGGER", "ALIGN", "RENDER", "Kernel"]
+from sigma_des.core.clock import ALIGN, ARRIVAL, RENDER, TRIGGER
 
-ARRIVAL = 0
-TRIGGER = 1
-ALIGN = 2
-RENDER = 3
+__all__ = ["ARRIVAL", "TRIGGER", "ALIGN", "RENDER", "Kernel"]
 
 
 class Call(simpy.Event):
@@ -41,7 +38,10 @@ class Call(simpy.Event):
 
 
 class Kernel:
-    """A SimPy environment plus callback scheduling and an event counter."""
+    """A SimPy environment plus callback scheduling and an event counter.
+
+    The DES's :class:`~sigma_des.core.clock.Clock` (``now``, ``call_at``, ``head_is``).
+    """
 
     def __init__(self) -> None:
         self.env = simpy.Environment()
@@ -60,6 +60,13 @@ class Kernel:
         self.events += 1
         # same tuple as Environment.schedule(), pushed directly: this is the hot path
         heappush(env._queue, (t, priority, next(env._eid), Call(env, fn, args)))  # type: ignore[misc]
+
+    #: the :class:`~sigma_des.core.clock.Clock` name of :meth:`at`
+    call_at = at
+
+    def count(self, events: int) -> None:
+        """Count ``events`` handled outside the queue (by the compiled message core)."""
+        self.events += events
 
     def jump_to(self, t: float) -> None:
         """Set the clock to ``t`` between two events (a backend that ran events itself).
@@ -80,13 +87,6 @@ class Kernel:
     def step(self) -> None:
         """Process the next event."""
         self.env.step()
-
-    def run_before(self, t: float) -> None:
-        """Process every event at a time ``< t`` (none at exactly ``t``)."""
-        # the engines' hot loop when a run ends: bound methods, no wrapper per event
-        peek, step = self.env.peek, self.env.step
-        while peek() < t:
-            step()
 
     def head_is(self, fn: Callable[..., Any]) -> bool:
         """True if the next event is a :class:`Call` of ``fn``."""

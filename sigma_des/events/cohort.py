@@ -18,6 +18,7 @@ from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.spec import RunSpec
+from sigma_des.events.tap import Tap
 
 __all__ = ["execute", "make_run"]
 
@@ -40,7 +41,7 @@ def execute(
     dynamics: Callable[[], DynamicsModel],
     behaviour: Callable[[], Behaviour | None],
     progress: Callable[[float], None] | None = None,
-    tap: Callable[[], Any] | None = None,
+    tap: Callable[[], Tap] | None = None,
 ) -> tuple[MethodRun, dict[str, Any], dict[str, str]]:
     """Run ``method`` on the engine ``sc.engine`` asks for, falling back when needed.
 
@@ -60,7 +61,7 @@ def execute(
     try:
         out = _attempt(run, progress, tap)
     except CohortFallback as exc:  # met mid-run: redo the whole run per message
-        why = str(exc)
+        why = str(exc) or "CohortFallback"
         run = MethodRun(sc, method, dynamics(), behaviour())
         out = _attempt(run, progress, tap)
     used = "events" if why or sc.engine == "events" else "cohort"
@@ -68,12 +69,11 @@ def execute(
 
 
 def _attempt(
-    run: MethodRun, progress: Callable[[float], None] | None, tap: Callable[[], Any] | None
+    run: MethodRun, progress: Callable[[float], None] | None, tap: Callable[[], Tap] | None
 ) -> dict[str, Any]:
     """One run attempt, recorded through a fresh tap when ``tap`` is given."""
-    if tap is None:
-        return run.run(progress)
-    run.tap = tap()
+    if tap is not None:
+        run.record(tap())
     try:
         return run.run(progress)
     finally:

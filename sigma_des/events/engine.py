@@ -7,20 +7,22 @@ trigger source ──PUBLISH──▶ broker ──N deliveries──▶ physics
 host cores)──▶ state PUBLISH ──▶ broker ──▶ alignment server ──(align ticks)──▶
 renderer samples (render ticks); behaviour commands travel back server ─▶ node.
 
-Each concept has its own room, composed here: the trigger source
-(:mod:`sigma_des.events.trigger`), the physics truth stepped at each issue
-(:mod:`sigma_des.events.truth`), the physics nodes (:mod:`sigma_des.events.node`),
-the network (:mod:`sigma_des.net`), the aligner and the collector. This module
-wires them, runs the alignment and render ticks and the run loop, and offers the
-stepping hook (``advance_until`` / ``pending_state``) that ``sigma_des.env`` uses.
-The message-core calls (:meth:`MethodRun.publish_trigger`,
-:meth:`MethodRun.publish_commands`, delivery) are small methods a compiled
-backend replaces.
+Each concept has its own room, composed here: the alignment server's loop
+(trigger source, aligner, alignment and render ticks, collector:
+:mod:`sigma_des.events.server`, shared with the live mode), the physics truth
+stepped at each issue (:mod:`sigma_des.events.truth`), the physics nodes
+(:mod:`sigma_des.events.node`), the network (:mod:`sigma_des.net`). This module
+supplies the server's simulated transport, wires the parts, runs the run loop, and
+offers the stepping hook (``advance_until`` / ``pending_state``) that
+``sigma_des.env`` uses. Messages are carried by the run's message core
+(:class:`~sigma_des.events.message_core.MessageCore`: SimPy events on the network,
+or the compiled core), which the run loop brings up to each control event.
 """
 
 from __future__ import annotations
 
 import gc
+import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -28,24 +30,25 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.core.draws import DrawCache
-from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.core.rng import RandomStreams
-from sigma_des.core.sim import ALIGN, RENDER, TRIGGER, Kernel
-from sigma_des.events.align import make_aligner
-from sigma_des.events.align.base import Aligner, OneState
-from sigma_des.events.align.hlc_clock import HLC, Stamp
+from sigma_des.core.sim import Kernel
+from sigma_des.events.align.base import OneState
+from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast.driver import CompiledCore
+from sigma_des.events.jobs import step_draws
+from sigma_des.events.message_core import EventCore, MessageCore
 from sigma_des.events.node import PhysicsNodes
+from sigma_des.events.server import AlignmentServer
 from sigma_des.events.spec import RunSpec
-from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
+from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
-from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
-from sigma_des.net.kinds import COMMAND, REREQUEST
+from sigma_des.net.kinds import COMMAND
 from sigma_des.net.kinds import TRIGGER as K_TRIGGER
+from sigma_des.net.message import Msg
 from sigma_des.net.network import Network
 
 __all__ = ["MethodRun", "PAUSED", "TRIGGER_DUE", "END"]
@@ -56,8 +59,12 @@ TRIGGER_DUE = 1
 END = 2
 
 
-class MethodRun:
+class MethodRun(AlignmentServer):
     """One scenario under one alignment method: the components, wired.
+
+    The server's loop (trigger, ticks, aligner, collector) is
+    :class:`~sigma_des.events.server.AlignmentServer`'s, on the simulation kernel;
+    this class supplies its simulated transport (the hooks) and the run loop.
 
     Args:
         spec: the run spec (``Scenario.run_spec()``).
@@ -78,9 +85,10 @@ class MethodRun:
         net: the broker and links.
         pending_state: the state of the next trigger's frame, computed outside
             (batched physics of ``sigma_des.env``); None: the issue steps the swarm.
-        tap: recording tap (``sigma_des.record.tap.RecordTap``), set before ``run``;
-            None: off.
-        fast: the compiled message core (None: messages are SimPy events).
+        tap: recording tap (:meth:`record`; the base :class:`~sigma_des.events.tap.Tap`
+            records nothing).
+        core: the message core (:class:`~sigma_des.events.message_core.EventCore`, or
+            the compiled core).
     """
 
     def __init__(
@@ -91,120 +99,60 @@ class MethodRun:
         behaviour: Behaviour | None,
         compiled: bool = False,
     ) -> None:
-        self.spec = spec
-        self.method = method
-        n = self.n = spec.nodes
+        n = spec.nodes
         self.kernel = Kernel()
         self.streams = RandomStreams(spec.seed)
         self.net: Network = make_network(self.kernel, spec.net, self.streams, self.deliver)
         self.server = n
-        self.all_nodes = list(range(n))
-        self.dyn = dynamics
-        self.behaviour = behaviour if spec.commands.enabled else None
         warp = method == "bides" and spec.time_warp
         self.truth = SwarmTruth(dynamics, n, spec.history_frames, spec.log_rate, warp)
-        self.trigger = TriggerSource(
-            self.kernel,
-            spec.f_trig,
-            spec.history_frames,
-            method in BARRIER_METHODS,
-            self.on_frame,
-            None if method == "rpc" else self.publish_trigger,  # RPC: the aligner's requests
-            HLC() if method == "hlc" else None,
-        )
+        super().__init__(self.kernel, spec, method, dynamics, behaviour)
         self.nodes = self.make_nodes(warp)
-        self.aligner: Aligner = make_aligner(method, n, self, spec.align)
         #: the reusable batch of one each delivered state is handed over in
         self.one = OneState()
-        self.collector = Collector(spec.collect, method)
-        self.align_tick = 0
-        self.render_tick = 0
         self.wall_seconds = 0.0
         self.pending_state: NDArray[np.float64] | None = None
-        self.tap: Any = None
-        self.fast: CompiledCore | None = None
+        self.tap = Tap()
+        self.core: MessageCore
         if compiled:  # the core reads and writes the command rows in place
             self.nodes.cmd = np.ascontiguousarray(self.nodes.cmd, dtype=np.float64)
-            self.fast = CompiledCore(self)
+            self.core = CompiledCore(self)
+        else:
+            self.core = EventCore(self.net, self.server, n, spec.trigger_payload_bits,
+                                  spec.commands.payload_bits)
 
     def make_nodes(self, warp: bool) -> PhysicsNodes:
         """The physics nodes of this run (their step-time draws: stream ``compute``)."""
         spec = self.spec
-        st = self.streams.stream("compute")
-        step = spec.compute.step_time
-        step_time = DrawCache(
-            self.n,
-            lambda s, k, i, a: step.sample(st, k, s, i, a),
-            constant=step.value if step.dist == "constant" else None,
-        )
-        clocks = NodeClocks(spec.clocks, self.streams.stream("clocks"), self.n)
         return PhysicsNodes(
-            self.kernel,
-            self.net.publish,
-            self.truth,
-            self.server,
-            spec.host_of,
-            spec.hosts,
-            spec.cores_per_host,
-            step_time,
-            spec.faults,
-            clocks,
-            self.method == "hlc",
-            spec.theta_warp if warp else None,
-            spec.payload_bits,
-            self.dyn.default_command(self.truth.state),
+            clock=self.kernel,
+            publish=self.net.publish,
+            truth=self.truth,
+            server=self.server,
+            host_of=spec.host_of,
+            hosts=spec.hosts,
+            cores_per_host=spec.cores_per_host,
+            step_time=step_draws(spec.compute.step_time, self.streams.stream("compute"), self.n),
+            faults=spec.faults,
+            clocks=NodeClocks(spec.clocks, self.streams.stream("clocks"), self.n),
+            hlc=self.method == "hlc",
+            warp=spec.theta_warp if warp else None,
+            payload_bits=spec.payload_bits,
+            cmd=self.dyn.default_command(self.truth.state),
         )
 
     # ------------------------------------------------------------ state of the parts
-
-    @property
-    def latest_trigger(self) -> int:
-        """Index of the newest trigger issued (-1 before the first)."""
-        return self.trigger.latest
-
-    @property
-    def f_trig(self) -> float:
-        """The current trigger rate (Hz)."""
-        return self.trigger.f_trig
 
     @property
     def state(self) -> NDArray[np.float64]:
         """True state of the swarm at the latest frame."""
         return self.truth.state
 
-    # ------------------------------------------------------------ ServerContext
-
-    def now(self) -> float:
-        """Current simulated time (s)."""
-        return self.kernel.now
-
-    def call_at(self, t: float, fn: Callable[..., Any], *args: Any) -> None:
-        """Schedule ``fn(*args)`` at ``t`` (server-side timers)."""
-        self.kernel.at(t, fn, *args, priority=TRIGGER)
-
-    def set_rate(self, f_trig: float) -> None:
-        """Change the trigger rate; takes effect from the next trigger."""
-        self.trigger.f_trig = f_trig
-        self.collector.rate_change(self.kernel.now, f_trig)
-
-    def barrier_done(self, frame: int) -> None:
-        """Lock-Step/RPC: schedule trigger ``frame+1`` (see :meth:`TriggerSource.barrier_done`)."""
-        self.trigger.barrier_done(frame)
+    # ------------------------------------------------------------ transport (server hooks)
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: re-request ``node``'s state of ``frame`` (one PUBLISH, one delivery)."""
-        if self.fast is not None:
-            self.fast.publish_rerequest(node, frame, retry)
-            return
-        self.net.publish(
-            self.server,
-            REREQUEST,
-            node,
-            frame * 64 + min(retry, 63),
-            frame,
-            self.spec.trigger_payload_bits,
-            (node,),
-        )
+        self.core.publish_rerequest(node, frame, retry)
 
     def rpc_call(self, node: int, frame: int) -> None:
         """RPC: send ``node`` the request for ``frame`` (trigger ``frame`` to that node only)."""
@@ -225,138 +173,73 @@ class MethodRun:
         pending = self.pending_state
         self.pending_state = None  # stepped outside with the very same (state, cmd, dt, k)
         self.truth.step_frame(k, dt, self.nodes.cmd, pending)
-        self.collector.trigger(t, k, dt)
-        self.aligner.on_trigger(k, t)
+        super().on_frame(k, t, dt)
 
     def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
         """Publish trigger ``k`` to every node (the message core's trigger fan-out)."""
-        if self.fast is not None:
-            self.fast.publish_trigger(k, stamp)
-            return
-        self.net.publish(
-            self.server,
-            K_TRIGGER,
-            self.server,
-            k,
-            (k, stamp),
-            self.spec.trigger_payload_bits,
-            self.all_nodes,
-        )
+        self.core.publish_trigger(k, stamp)
 
     # ------------------------------------------------------------ deliveries
 
-    def deliver(
-        self, client: int, kind: int, subject: int, index: int, payload: Any, t_pub: float
-    ) -> None:
-        """The network delivered a message to ``client`` (a node or the server)."""
+    def deliver(self, m: Msg) -> None:
+        """The network delivered message ``m`` to ``m.client`` (a node or the server)."""
         t = self.kernel.now
-        self.collector.delivered(kind, subject, index, t_pub, t)
-        if self.tap is not None:
-            self.tap_delivery(client, kind, subject, index, payload, t_pub)
-        if client == self.server:
-            frame, gen, obs, stamp = payload
-            self.aligner.on_states(self.one.fill(t, subject, frame, gen, obs, stamp))
+        self.collector.delivered(m.kind, m.subject, m.index, m.t_pub, t)
+        if m.client == self.server:
+            frame, gen, obs, stamp = m.payload
+            self.aligner.on_states(self.one.fill(t, m.subject, frame, gen, obs, stamp))
             return
-        self.nodes.deliver(client, kind, index, payload, t)
+        self.nodes.deliver(m.client, m.kind, m.index, m.payload, t)
 
-    def tap_delivery(
-        self, client: int, kind: int, subject: int, index: int, payload: Any, t_pub: float
-    ) -> None:
-        """Hand one delivery (duplicates included), now, to the recording tap."""
+    def record(self, tap: Tap) -> None:
+        """Record this run through ``tap`` (attach before :meth:`run`)."""
+        self.tap = tap
+        # each delivery by the network, now also recorded (the compiled core hands the
+        # tap its own batches: its messages never reach the network)
+        self.net.deliver = self.deliver_recorded
+
+    def deliver_recorded(self, m: Msg) -> None:
+        """:meth:`deliver`, after handing the delivery (duplicates included) to the tap."""
         t = self.kernel.now
-        if client == self.server:
-            frame, gen, obs, _stamp = payload
+        if m.client == self.server:
+            frame, gen, obs, _stamp = m.payload
             self.tap.states(
-                np.array([t]), np.array([subject]), np.array([frame]), np.array([gen]),
+                np.array([t]), np.array([m.subject]), np.array([frame]), np.array([gen]),
                 obs[None, :],
             )
-        elif kind == K_TRIGGER:
-            self.tap.trigger(client, int(payload[0]), t_pub, t)
-        elif kind == COMMAND:
-            self.tap.commands(np.array([client]), index, t_pub, np.array([t]), payload[1][None, :])
+        elif m.kind == K_TRIGGER:
+            self.tap.trigger(m.client, int(m.payload[0]), m.t_pub, t)
+        elif m.kind == COMMAND:
+            self.tap.commands(np.array([m.client]), m.index, m.t_pub, np.array([t]),
+                              m.payload[1][None, :])
+        self.deliver(m)
 
-    # ------------------------------------------------------------ server ticks
+    # ------------------------------------------------------------ server hooks
 
-    def align(self) -> None:
-        """Alignment tick: align, measure, record, send commands, schedule the next tick."""
-        t = self.kernel.now
+    def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
+        """True positions of ``frame`` (None once it left the truth ring)."""
+        return self.truth.positions(frame)
+
+    def snapshot_taken(self, t: float) -> None:
+        """A new snapshot: to the recording tap."""
         al = self.aligner
-        al.align(t)
-        self.collector.shown(t, al.shown_gen)
-        if al.new_snapshot:
-            self.collector.snapshot(t)
-            if self.tap is not None:
-                self.tap.snapshot(t, al.aligned_frame, al.shown_frame, al.shown_obs)
-        if self.behaviour is not None and self.align_tick % self.spec.commands.every == 0:
-            self.send_commands()
-        self.align_tick += 1
-        self.kernel.at(self.align_time(self.align_tick), self.align, priority=ALIGN)
+        self.tap.snapshot(t, al.aligned_frame, al.shown_frame, al.shown_obs)
 
-    def send_commands(self) -> None:
-        """Ask the behaviour for commands on the shown snapshot and publish them."""
-        al = self.aligner
-        valid = ~np.isnan(al.shown_gen)
-        if not valid.any():
-            return
-        assert self.behaviour is not None
-        view = SwarmView(
-            obs=al.shown_obs, frame=al.shown_frame, valid=valid, aligned_frame=al.aligned_frame
-        )
-        cmds = self.behaviour.commands(view, self.dyn)
-        ok = ~np.isnan(cmds).all(axis=1)  # NaN cells mean 'keep'; an all-NaN row, 'none'
-        self.publish_commands(self.align_tick, al.aligned_frame, np.flatnonzero(ok), cmds)
+    def rendered(self, t: float) -> None:
+        """A render tick: to the recording tap."""
+        self.tap.render(t, self.aligner.shown_gen)
 
     def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
-        if self.fast is not None:
-            self.fast.publish_commands(tick, stamp, nodes, cmds)
-            return
-        bits = self.spec.commands.payload_bits
-        for i in nodes.tolist():
-            self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
-
-    def render(self) -> None:
-        """Render tick: sample what is shown against the truth, schedule the next tick."""
-        t = self.kernel.now
-        al = self.aligner
-        ref = al.aligned_frame
-        self.collector.render(
-            t,
-            al.shown_gen,
-            al.shown_frame,
-            al.shown_obs,
-            al.flag,
-            self.truth.positions(ref),
-            self.trigger.f_trig,
-            self.trigger.latest,
-            ref,
-        )
-        if self.tap is not None:
-            self.tap.render(t, al.shown_gen)
-        self.render_tick += 1
-        self.kernel.at(self.render_time(self.render_tick), self.render, priority=RENDER)
-
-    def align_time(self, j: int) -> float:
-        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (multiplied, no drift)."""
-        return (j + self.spec.align_phase) / self.spec.f_align
-
-    def render_time(self, j: int) -> float:
-        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
-        return (j + self.spec.render_phase) / self.spec.f_render
+        self.core.publish_commands(tick, stamp, nodes, cmds)
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at ``fidelity.log_rate`` Hz of physics time, so far."""
         return self.truth.trajectory()
 
     # ------------------------------------------------------------ run
-
-    def start(self) -> None:
-        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases)."""
-        self.trigger.start()
-        self.kernel.at(self.align_time(0), self.align, priority=ALIGN)
-        self.kernel.at(self.render_time(0), self.render, priority=RENDER)
 
     def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
         """Run to ``duration`` and return the collector's results."""
@@ -413,14 +296,18 @@ class MethodRun:
         runs), set :attr:`pending_state` and call again; ``END`` when the next event
         is at or after ``duration``. Processing order is that of :meth:`run`.
         """
-        if self.fast is not None:
-            return self.advance_until_compiled(stop, self.fast)
         k = self.kernel
+        core = self.core
         dur = self.spec.duration
         while True:
             if stop():
                 return PAUSED
-            if k.peek() >= dur:
+            tc = k.peek()
+            last = tc >= dur
+            if core.advance_to(dur if last else tc, last):
+                continue  # a barrier completed: a trigger may now come before tc
+            if last:
+                core.write_back()
                 return END
             if self.trigger_due():
                 return TRIGGER_DUE
@@ -429,66 +316,32 @@ class MethodRun:
     def advance(self, progress: Callable[[float], None] | None) -> None:
         """Process every event at a time ``< duration`` (nothing at exactly ``duration``).
 
-        The strict bound is part of the model: which events a run covers must not
-        depend on how an engine breaks ties at the end time.
+        The core's messages run before each control event (messages first at equal
+        times). The strict bound is part of the model: which events a run covers must
+        not depend on how an engine breaks ties at the end time. ``progress`` is
+        called at each whole simulated second and at ``duration``.
         """
-        if self.fast is not None:
-            self.advance_compiled(progress, self.fast)
-            return
-        k = self.kernel
+        env = self.kernel.env
+        peek, step = env.peek, env.step  # the hot loop: bound methods, no wrapper per event
+        advance_to = self.core.advance_to
         dur = self.spec.duration
-        t = 0.0
-        while t < dur:
-            t = min(dur, t + 1.0)
-            if t < dur:
-                # events at exactly t left behind by run(until) are still processed
-                # first by the next call (same heap order), so the split is invisible
-                k.run(until=t)
-            else:
-                k.run_before(dur)
-            if progress is not None:
-                progress(t)
-
-    # ------------------------------------------------------------ compiled messages
-
-    def advance_compiled(
-        self, progress: Callable[[float], None] | None, fast: CompiledCore
-    ) -> None:
-        """:meth:`advance` with messages run by ``fast`` before each control event."""
-        k = self.kernel
-        dur = self.spec.duration
-        next_p = 1.0
+        tell = progress if progress is not None else _silent
+        next_p = 1.0 if progress is not None else math.inf
         while True:
-            tc = k.peek()
+            tc = peek()
             last = tc >= dur
             bound = dur if last else tc
-            if fast.advance_to(bound, last):
+            if advance_to(bound, last):
                 continue  # a barrier completed: a trigger may now come before tc
-            if progress is not None:
-                while next_p < dur and next_p <= bound:
-                    progress(next_p)
-                    next_p += 1.0
+            while next_p < dur and next_p <= bound:
+                tell(next_p)
+                next_p += 1.0
             if last:
                 break
-            k.step()
-        if progress is not None:
-            progress(dur)
-        fast.write_back()
+            step()
+        tell(dur)
+        self.core.write_back()
 
-    def advance_until_compiled(self, stop: Callable[[], bool], fast: CompiledCore) -> int:
-        """:meth:`advance_until` with messages run by ``fast`` before each control event."""
-        k = self.kernel
-        dur = self.spec.duration
-        while True:
-            if stop():
-                return PAUSED
-            tc = k.peek()
-            last = tc >= dur
-            if fast.advance_to(dur if last else tc, last):
-                continue  # a barrier completed: a trigger may now come before tc
-            if last:
-                fast.write_back()
-                return END
-            if self.trigger_due():
-                return TRIGGER_DUE
-            k.step()
+
+def _silent(t: float) -> None:
+    """No progress report."""

@@ -19,12 +19,29 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
+from sigma_des.core.rng import Stream
+from sigma_des.net.latency import Dist
 
-__all__ = ["ROLLBACK_DRAW", "STEP_DRAW", "JobCosts", "job_cost"]
+__all__ = ["ROLLBACK_DRAW", "STEP_DRAW", "JobCosts", "job_cost", "step_draws"]
 
 #: Draw kinds of the compute stream: a frame's step, a rollback's re-simulated step.
 STEP_DRAW = 0
 ROLLBACK_DRAW = 1
+
+
+def step_draws(step: Dist, stream: Stream, n: int) -> DrawCache:
+    """The step-time draws of ``n`` nodes from the compute stream (both engines, live too).
+
+    Args:
+        step: the ``compute.step_time`` distribution.
+        stream: the ``compute`` stream of the run's root seed.
+        n: number of nodes (all of the run's, whatever part a live host serves).
+    """
+    return DrawCache(
+        n,
+        lambda s, k, i, a: step.sample(stream, k, s, i, a),
+        constant=step.value if step.dist == "constant" else None,
+    )
 
 
 def job_cost(

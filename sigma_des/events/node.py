@@ -12,6 +12,13 @@ good. Commands replace the node's command row (an older-stamped one is
 ignored); under BiDES time warp a command stamped too far behind rolls the node
 back. The cost of a job is :func:`~sigma_des.events.jobs.job_cost` (shared with
 the compiled core). Lock-Step re-requests are answered by republishing the last state.
+
+These rules are written once (:class:`NodeRules`, on a
+:class:`~sigma_des.core.clock.Clock`) and run by two transports, in the spirit of
+SimPy's ``BaseResource`` hooks: :class:`PhysicsNodes` publishes through the DES
+network, the live host (:class:`sigma_des.live.host.HostNodes`) over MQTT. A rule
+object serves any subset of the run's nodes (a live host serves its own): its
+node ``i`` is the run's node ``ids[i]``, which keys the draws, clocks and faults.
 """
 
 from __future__ import annotations
@@ -24,8 +31,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.core.clock import Clock
 from sigma_des.core.draws import DrawCache
-from sigma_des.core.sim import Kernel
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.jobs import job_cost
 from sigma_des.events.spec import FaultSpec
@@ -33,10 +40,12 @@ from sigma_des.events.truth import SwarmTruth
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 
-__all__ = ["PhysicsNodes", "crash_times", "slow_windows"]
+__all__ = ["NodeRules", "PhysicsNodes", "Published", "crash_times", "slow_windows"]
 
 #: A ``slow`` fault window: (start, end, factor).
 SlowWindow = tuple[float, float, float]
+#: What a node publishes of a frame: ``(frame, t_gen, obs row, HLC stamp or None)``.
+Published = tuple[int, float, NDArray[np.float64], Stamp | None]
 #: ``publish(sender, kind, subject, index, payload, payload_bits, receivers)``.
 Publish = Callable[[int, int, int, int, Any, int, Sequence[int]], None]
 
@@ -59,39 +68,41 @@ def slow_windows(faults: Sequence[FaultSpec]) -> dict[int, list[SlowWindow]]:
     return slow
 
 
-class PhysicsNodes:
-    """The ``n`` physics nodes of the per-message engine.
+class NodeRules:
+    """The physics nodes' rules (docs/MODEL.md, "Physics nodes"); transport in hooks.
+
+    Subclasses supply :meth:`publish_state` and :meth:`republish` (how a state
+    leaves the node); :meth:`cost` and :meth:`rollback` are hooks with the model's
+    defaults (:func:`~sigma_des.events.jobs.job_cost`, the truth's re-simulation).
 
     Args:
-        kernel: the simulation kernel (``now`` and ``at``).
-        publish: the network's publish (states and republished states).
-        truth: the physics truth the nodes publish rows of and roll back.
-        server: the server's client id (receiver of states).
-        host_of: host of every node.
-        hosts: number of physics hosts.
+        clock: the clock (DES kernel or live loop).
+        truth: the frames the nodes publish rows of (``H``, ``slot_frame``,
+            ``obs_hist[slot, i]``) and roll back (``rollback(i, c, current, row)``).
+        host_of: host of every node served (an index into the hosts' cores).
+        hosts: number of hosts served.
         cores_per_host: cores per host (FCFS).
-        step_time: the cache of step-time draws (stream ``compute``).
+        step_time: the cache of step-time draws (stream ``compute``, the run's nodes).
         faults: the injected faults (crash and slow act here).
-        clocks: the nodes' local clocks.
+        clocks: the run's nodes' local clocks.
         hlc: nodes keep hybrid logical clocks (the ``hlc`` method).
         warp: time-warp threshold Θ_warp in frames (None: no time warp).
-        payload_bits: state payload size.
-        cmd: ``(n, command_dim)`` initial command rows (the dynamics' defaults).
+        cmd: ``(m, command_dim)`` initial command rows of the nodes served.
+        ids: the run's node id of every node served (None: ``0 .. m-1``).
 
     Attributes:
         frame: each node's last computed frame; ``req``: newest trigger received;
         target: the frame its running job computes; ``busy``: a job is running;
         rb_steps: re-simulation steps owed to the next job; ``cmd``/``cmd_stamp``:
-        command rows in force and their stamps; ``history_misses``: states
-        published of a frame no longer in the truth ring.
+        command rows in force and their stamps; ``last_pub``: the last state
+        published; ``history_misses``: states published of a frame no longer held.
     """
 
     def __init__(
         self,
-        kernel: Kernel,
-        publish: Publish,
-        truth: SwarmTruth,
-        server: int,
+        *,
+        clock: Clock,
+        truth: Any,
         host_of: Sequence[int],
         hosts: int,
         cores_per_host: int,
@@ -100,56 +111,81 @@ class PhysicsNodes:
         clocks: NodeClocks,
         hlc: bool,
         warp: int | None,
-        payload_bits: int,
         cmd: NDArray[np.float64],
+        ids: Sequence[int] | None = None,
     ) -> None:
-        n = len(host_of)
-        self.kernel = kernel
-        self.publish = publish
+        m = len(host_of)
+        self.clock = clock
         self.truth = truth
-        self.server = server
+        self.ids: list[int] = list(range(m)) if ids is None else [int(g) for g in ids]
         self.host_of = list(host_of)
         self.cores: list[list[float]] = [[0.0] * cores_per_host for _ in range(hosts)]
         self.step_time = step_time
-        self.crash_at = crash_times(faults, n)
-        self.slow = slow_windows(faults)
+        crash = crash_times(faults, clocks.n)
+        self.crash_at = [crash[g] for g in self.ids]
+        self.slow = slow_windows(faults)  # by the run's node id
         self.clocks = clocks
         self.offset: list[float] = clocks.offset.tolist()
         self.drift: list[float] = (clocks.drift_ppm * 1e-6).tolist()
-        self.hlc = [HLC() for _ in range(n)] if hlc else []
+        self.hlc = [HLC() for _ in range(m)] if hlc else []
         self.warp = warp
-        self.payload_bits = payload_bits
         self.cmd = cmd
-        self.cmd_stamp = [-1] * n
-        self.frame = [-1] * n
-        self.req = [-1] * n
-        self.target = [-1] * n
-        self.busy = [False] * n
-        self.rb_steps = [0] * n
-        self.last_pub: list[tuple[int, float, NDArray[np.float64], Stamp | None] | None] = [
-            None
-        ] * n
+        self.cmd_stamp = [-1] * m
+        self.frame = [-1] * m
+        self.req = [-1] * m
+        self.target = [-1] * m
+        self.busy = [False] * m
+        self.rb_steps = [0] * m
+        self.last_pub: list[Published | None] = [None] * m
         self.history_misses = 0
+
+    # ------------------------------------------------------------ hooks
+
+    def publish_state(self, i: int, payload: Published) -> None:
+        """Node ``i`` publishes its state ``payload`` to the server."""
+        raise NotImplementedError
+
+    def republish(self, i: int, index: int, payload: Published) -> None:
+        """Node ``i`` answers re-request ``index`` with its last state ``payload``."""
+        raise NotImplementedError
+
+    def cost(self, i: int, target: int, now: float) -> float:
+        """Seconds of compute of node ``i``'s job to ``target`` starting at ``now``."""
+        g = self.ids[i]
+        return job_cost(self.step_time, self.slow.get(g, ()), g, self.frame[i] + 1, target,
+                        self.rb_steps[i], now)
+
+    def rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> int:
+        """Re-simulate node ``i`` from frame ``c``; the compute steps its next job owes."""
+        return int(self.truth.rollback(i, c, current, row))
+
+    # ------------------------------------------------------------ rules
 
     def local_time(self, i: int, t: float) -> float:
         """Node ``i``'s local clock at true time ``t``."""
+        g = self.ids[i]
         if self.clocks.spec.ntp_period > 0:
-            return float(self.clocks.local_time(i, t))
-        return t + self.offset[i] + self.drift[i] * t
+            return float(self.clocks.local_time(g, t))
+        return t + self.offset[g] + self.drift[g] * t
 
-    def deliver(self, i: int, kind: int, index: int, payload: Any, t: float) -> None:
-        """A message reached node ``i`` at ``t`` (ignored once the node crashed)."""
+    def receive_trigger(self, i: int, k: int, stamp: Stamp | None, t: float) -> None:
+        """Trigger ``k`` (server stamp ``stamp``) reached node ``i`` at ``t``."""
         if t >= self.crash_at[i]:
             return
-        if kind == TRIGGER:
-            k, stamp = payload
-            if self.hlc:
-                self.hlc[i].receive(self.local_time(i, t), stamp)
-            self.on_trigger(i, k)
-        elif kind == COMMAND:
-            self.on_command(i, *payload)
-        elif kind == REREQUEST:
-            self.on_rerequest(i, payload, index)
+        if self.hlc and stamp is not None:
+            self.hlc[i].receive(self.local_time(i, t), stamp)
+        self.on_trigger(i, k)
+
+    def receive_command(self, i: int, stamp_frame: int, row: NDArray[np.float64],
+                        t: float) -> None:
+        """A command row stamped ``stamp_frame`` reached node ``i`` at ``t``."""
+        if t < self.crash_at[i]:
+            self.on_command(i, stamp_frame, row)
+
+    def receive_rerequest(self, i: int, frame: int, index: int, t: float) -> None:
+        """Lock-Step re-request ``index`` of ``frame`` reached node ``i`` at ``t``."""
+        if t < self.crash_at[i]:
+            self.on_rerequest(i, frame, index)
 
     def on_trigger(self, i: int, k: int) -> None:
         """Trigger ``k`` reached node ``i``: start (or remember) the job up to ``k``."""
@@ -163,18 +199,15 @@ class PhysicsNodes:
         """Lock-Step re-request of ``frame``: republish it, or compute it first."""
         last = self.last_pub[i]
         if self.frame[i] >= frame and last is not None and last[0] == frame:
-            self.publish(i, REPUBLISH, i, index, last, self.payload_bits, (self.server,))
+            self.republish(i, index, last)
         elif self.req[i] < frame:
             self.on_trigger(i, frame)
 
     def start_job(self, i: int) -> None:
         """Start node ``i``'s job to its newest trigger on the first free core of its host."""
-        now = self.kernel.now
+        now = self.clock.now
         target = self.req[i]
-        cost = job_cost(
-            self.step_time, self.slow.get(i, ()), i, self.frame[i] + 1, target, self.rb_steps[i],
-            now,
-        )
+        cost = self.cost(i, target, now)
         self.rb_steps[i] = 0
         cores = self.cores[self.host_of[i]]
         free = heapq.heappop(cores)
@@ -182,11 +215,11 @@ class PhysicsNodes:
         heapq.heappush(cores, start + cost)
         self.busy[i] = True
         self.target[i] = target
-        self.kernel.at(start + cost, self.complete, i, target)
+        self.clock.call_at(start + cost, self.complete, i, target)
 
     def complete(self, i: int, target: int) -> None:
         """Node ``i``'s job to ``target`` is done: publish the frame, catch up if behind."""
-        t = self.kernel.now
+        t = self.clock.now
         self.busy[i] = False
         if t >= self.crash_at[i]:
             return
@@ -200,7 +233,7 @@ class PhysicsNodes:
             stamp = self.hlc[i].send(self.local_time(i, t)) if self.hlc else None
             payload = (target, t, obs, stamp)
             self.last_pub[i] = payload
-            self.publish(i, STATE, i, target, payload, self.payload_bits, (self.server,))
+            self.publish_state(i, payload)
         if self.req[i] > self.frame[i] or self.rb_steps[i]:
             self.start_job(i)
 
@@ -215,6 +248,48 @@ class PhysicsNodes:
         current = self.target[i] if self.busy[i] else self.frame[i]
         if current - stamp_frame <= self.warp:
             return
-        self.rb_steps[i] += self.truth.rollback(i, stamp_frame, current, row)
+        self.rb_steps[i] += self.rollback(i, stamp_frame, current, row)
         if not self.busy[i]:
             self.start_job(i)
+
+
+class PhysicsNodes(NodeRules):
+    """The ``n`` physics nodes of the per-message engine: the rules on the DES network.
+
+    Args:
+        publish: the network's publish (states and republished states).
+        truth: the physics truth (:class:`~sigma_des.events.truth.SwarmTruth`).
+        server: the server's client id (receiver of states).
+        payload_bits: state payload size.
+        **rules: the :class:`NodeRules` arguments (``clock``, ``host_of``, ...).
+    """
+
+    def __init__(
+        self, *, publish: Publish, truth: SwarmTruth, server: int, payload_bits: int,
+        **rules: Any,
+    ) -> None:
+        super().__init__(truth=truth, **rules)
+        self.publish = publish
+        self.server = server
+        self.payload_bits = payload_bits
+
+    def publish_state(self, i: int, payload: Published) -> None:
+        """One STATE message to the server."""
+        self.publish(i, STATE, i, payload[0], payload, self.payload_bits, (self.server,))
+
+    def republish(self, i: int, index: int, payload: Published) -> None:
+        """One REPUBLISH message to the server."""
+        self.publish(i, REPUBLISH, i, index, payload, self.payload_bits, (self.server,))
+
+    def deliver(self, i: int, kind: int, index: int, payload: Any, t: float) -> None:
+        """A message reached node ``i`` at ``t`` (ignored once the node crashed)."""
+        if kind == TRIGGER:
+            self.receive_trigger(i, payload[0], payload[1], t)
+        elif kind == COMMAND:
+            self.receive_command(i, payload[0], payload[1], t)
+        elif kind == REREQUEST:
+            self.receive_rerequest(i, payload, index, t)
+
+    def count_history_misses(self, misses: int) -> None:
+        """Count ``misses`` more rollbacks past the history (met by the compiled core)."""
+        self.history_misses += misses

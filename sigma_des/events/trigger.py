@@ -8,19 +8,22 @@ when a frame is complete, and trigger ``k+1`` follows at the grid time or at
 once if the barrier was late (docs/MODEL.md, "Alignment methods").
 
 The source owns only the clock of triggers; what happens at an issue (the
-whole-swarm physics step, the collector, the aligner) is the engine's
+whole-swarm physics step, the collector, the aligner) is the server's
 ``on_frame`` callback, and how trigger ``k`` reaches the nodes is its
 ``publish`` callback (a message per node on the per-message engine, one call
-into the compiled core on the cohort engine).
+into the compiled core on the cohort engine, one MQTT message in live mode).
+It runs on any :class:`~sigma_des.core.clock.Clock`: the DES kernel and the live
+loop issue triggers by this one rule.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
 
-from sigma_des.core.sim import TRIGGER, Kernel
+from sigma_des.core.clock import TRIGGER, Clock
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 
 __all__ = ["BARRIER_METHODS", "TriggerSource"]
@@ -33,7 +36,7 @@ class TriggerSource:
     """Issues triggers on the periodic grid or after each barrier.
 
     Args:
-        kernel: the simulation kernel.
+        clock: the clock (DES kernel or live loop).
         f_trig: initial trigger rate (Hz).
         history_frames: length of the ring of issue times.
         barrier: True for Lock-Step/RPC (triggers wait for :meth:`barrier_done`).
@@ -41,6 +44,8 @@ class TriggerSource:
         publish: ``publish(k, stamp)`` sends trigger ``k``; None: the aligner
             sends its own requests (RPC).
         hlc: the server's hybrid logical clock stamping triggers (None: no stamps).
+        end: no trigger is issued at or after this time (the run's end; a DES
+            run never processes an event there, a live loop runs past it).
 
     Attributes:
         f_trig: the current rate (takes effect from the next trigger).
@@ -50,15 +55,17 @@ class TriggerSource:
 
     def __init__(
         self,
-        kernel: Kernel,
+        clock: Clock,
         f_trig: float,
         history_frames: int,
         barrier: bool,
         on_frame: Callable[[int, float, float], None],
         publish: Callable[[int, Stamp | None], None] | None,
         hlc: HLC | None,
+        end: float = math.inf,
     ) -> None:
-        self.kernel = kernel
+        self.clock = clock
+        self.end = end
         self.f_trig = f_trig
         self.latest = -1
         self.H = history_frames
@@ -72,7 +79,7 @@ class TriggerSource:
 
     def start(self) -> None:
         """Schedule the first trigger at t = 0."""
-        self.kernel.at(0.0, self.issue, priority=TRIGGER)
+        self.clock.call_at(0.0, self.issue, priority=TRIGGER)
 
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue."""
@@ -80,7 +87,9 @@ class TriggerSource:
 
     def issue(self) -> None:
         """Issue the next trigger: the frame callback, the publication, the next issue."""
-        t = self.kernel.now
+        t = self.clock.now
+        if t >= self.end:
+            return
         k, dt = self.next_trigger()
         self.trig_time[k % self.H] = t
         self.latest = k
@@ -92,7 +101,7 @@ class TriggerSource:
             if self.f_trig != self.base[2]:  # the rate changed: count periods from here
                 self.base = (t, k, self.f_trig)
             t0, k0, f = self.base
-            self.kernel.at(t0 + (k + 1 - k0) / f, self.issue, priority=TRIGGER)
+            self.clock.call_at(t0 + (k + 1 - k0) / f, self.issue, priority=TRIGGER)
 
     def barrier_done(self, frame: int) -> None:
         """Schedule trigger ``frame+1``, not sooner than ``1/f_trig`` after ``frame``.
@@ -105,12 +114,16 @@ class TriggerSource:
         if self.f_trig != f:  # the rate changed: count periods from trigger ``frame``
             t0, k0, f = self.base = (float(self.trig_time[frame % self.H]), frame, self.f_trig)
         t = t0 + (k - k0) / f
-        now = self.kernel.now
+        now = self.clock.now
         if t < now:  # the barrier was late: trigger now, count periods from here
             t = now
             self.base = (now, k, f)
-        self.kernel.at(t, self.issue, priority=TRIGGER)
+        self.clock.call_at(t, self.issue, priority=TRIGGER)
+
+    def set_rate(self, f_trig: float) -> None:
+        """Change the rate; it takes effect from the next trigger (the grid rebases there)."""
+        self.f_trig = f_trig
 
     def due(self) -> bool:
-        """True if the next event of the kernel is a trigger issue."""
-        return self.kernel.head_is(self.issue)
+        """True if the next call of the clock is a trigger issue."""
+        return self.clock.head_is(self.issue)

@@ -4,32 +4,41 @@
 loopback port, unless ``--broker``), prints ``compare``'s table and with ``--out``
 writes ``results.csv``, ``summary.json`` (``"mode": "live"``) and
 ``messages.csv.gz`` (one row per message: kind, host, node, frame, t_send,
-t_recv, …). ``calibrate`` fits DES parameters from such a directory (or an MCAP
-recording) and writes a scenario TOML that ``compare`` runs.
+t_recv, …) and ``cpu.csv`` (each process's CPU over the idle and metrics windows).
+``calibrate`` fits DES parameters from such a directory (or an MCAP recording),
+writes a scenario TOML that ``compare`` runs and its report (JSON), with the
+in-sample check and warnings about what it could not fit.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 from sigma_des.config import METHODS, Scenario
 from sigma_des.errors import ConfigError
 
-__all__ = ["add_calibrate_parser", "add_live_parser", "run_calibrate", "run_live_command"]
+__all__ = ["PASSWORD_ENV", "add_calibrate_args", "add_live_args", "password", "run_calibrate",
+           "run_live_command"]
+
+#: Environment variable holding the MQTT password (when neither option gives one).
+PASSWORD_ENV = "SIGMA_DES_MQTT_PASSWORD"
 
 
-def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> None:  # type: ignore[type-arg]
-    """Register ``live`` (``scenario_args`` adds the scenario and ``--set`` arguments)."""
-    p = sub.add_parser("live", help="run the scenario live over a real Mosquitto broker")
-    scenario_args(p)  # type: ignore[operator]
+def add_live_args(p: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``live`` to its subparser ``p`` (the caller adds the scenario's)."""
     p.add_argument("--methods", default=None,
                    help=f"comma-separated subset of {','.join(METHODS)} (default: scenario's)")
     p.add_argument("--broker", default=None, metavar="HOST:PORT",
                    help="use a running broker (default: start our own Mosquitto on 127.0.0.1)")
     p.add_argument("--username", default="", help="MQTT user for --broker")
-    p.add_argument("--password", default="", help="MQTT password for --broker")
+    p.add_argument("--password", default=None,
+                   help=f"MQTT password for --broker (visible to other users in the process "
+                   f"list: prefer --password-file or ${PASSWORD_ENV})")
+    p.add_argument("--password-file", default=None, metavar="FILE",
+                   help="read the MQTT password from the first line of FILE")
     p.add_argument("--broker-port", type=int, default=None, metavar="PORT",
                    help="port of our own broker (default: a free one)")
     p.add_argument("--max-inflight", type=int, default=0, metavar="N",
@@ -41,27 +50,35 @@ def add_live_parser(sub: argparse._SubParsersAction, scenario_args: object) -> N
     p.add_argument("--no-step-delay", action="store_true",
                    help="nodes publish right after their real step (no drawn step_time)")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="write results.csv, summary.json and messages.csv.gz here")
+                   help="write results.csv, summary.json, messages.csv.gz and cpu.csv here")
     p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="record every message to an MCAP file (sigma_des.record; "
                    "settings: record.*)")
 
 
-def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``calibrate``."""
-    p = sub.add_parser("calibrate", help="fit DES parameters from a live run")
+def add_calibrate_args(p: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``calibrate`` to its subparser ``p``."""
     p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
     p.add_argument("--out", default=None, metavar="SCENARIO.toml",
-                   help="write the calibrated scenario here (default: print it)")
+                   help="write the calibrated scenario here, the report next to it as "
+                   "SCENARIO.json (default: print the scenario)")
+    p.add_argument("--allow-incomplete", action="store_true",
+                   help="fit even when hosts' per-node rows are missing (with a warning)")
+    p.add_argument("--hold-tol", type=float, default=None, metavar="SECONDS",
+                   help="a delivery this close after the previous one on its connection "
+                   "counts as held behind it when latencies are de-queued (default 1e-4; "
+                   "0: keep the measured latencies)")
+    p.add_argument("--no-check", action="store_true",
+                   help="skip the in-sample check (the calibrated DES re-running the live run)")
 
 
 def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     """Run ``live``; ConfigError propagates to the caller (exit 2)."""
-    try:
-        import paho.mqtt  # noqa: F401
-    except ImportError:
-        raise ConfigError("live", "needs paho-mqtt 2: pip install 'sigma-des[live]'") from None
+    from sigma_des.extras import need
+
+    need("live", "paho", "pandas", extra="live")
     from sigma_des.live.broker import parse_broker
     from sigma_des.live.runner import LiveOptions, run_live
 
@@ -80,25 +97,25 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         raise ConfigError("--broker-port", "is for our own broker; it cannot go with --broker")
     rec_cls = None
     if args.record is not None:
-        try:
-            from sigma_des.record import Recorder
-            from sigma_des.record.cli import check_record_path
-        except ImportError:
-            raise ConfigError("--record", "needs the MCAP recorder's packages: "
-                              "pip install 'sigma-des[record]'") from None
+        need("--record", "mcap", "orjson")
+        from sigma_des.record import Recorder
+        from sigma_des.record.cli import check_record_path
+
         check_record_path(args.record)
         rec_cls = Recorder
     if args.out:  # a bad output location must not cost the whole run
         from sigma_des.outputs import check_out_dir
 
+        if not args.no_plots:
+            need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
-    opts = LiveOptions(broker=args.broker, username=args.username, password=args.password,
+    opts = LiveOptions(broker=args.broker, username=args.username, password=password(args),
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
                        bundle=args.bundle,
                        record=rec_cls is not None)
     try:
-        res, msgs, kept = run_live(sc, methods, opts, progress=True)
+        res, msgs, kept = run_live(sc, methods, opts, progress=not args.no_progress)
     except KeyboardInterrupt:
         print("sigma-des: interrupted before any method finished; broker and hosts stopped",
               file=sys.stderr)
@@ -110,19 +127,19 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     if res.interrupted:
         print("interrupted: partial results", file=sys.stderr)
     if args.out:
+        from sigma_des.live.cpu import write_cpu
         from sigma_des.live.messages import write_messages
 
         csv_path, json_path = res.write(args.out)
         mpath = write_messages(msgs, Path(args.out))
-        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path} and {mpath}")
-        if not args.no_plots:
-            from sigma_des.plots import MISSING_NOTE, have_matplotlib, write_plots
+        cpath = write_cpu(res.live, Path(args.out))
+        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path}, {mpath} "
+              f"and {cpath}")
+        if not args.no_plots:  # matplotlib was checked before the run
+            from sigma_des.plots import write_plots
 
-            if have_matplotlib():
-                paths = write_plots(res, args.out)
-                print(f"plots: {', '.join(p.name for p in paths)}")
-            else:
-                print(MISSING_NOTE)
+            paths = write_plots(res, args.out)
+            print(f"plots: {', '.join(p.name for p in paths)}")
     if rec_cls is not None:
         from sigma_des.live.messages import record_messages
 
@@ -131,17 +148,55 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     return 130 if res.interrupted else 0
 
 
-def run_calibrate(args: argparse.Namespace) -> int:
-    """Run ``calibrate``; ConfigError propagates (exit 2)."""
-    from sigma_des.live.calibrate import calibrate, calibrated_toml
+def password(args: argparse.Namespace) -> str:
+    """The MQTT password: ``--password``, else ``--password-file``, else :data:`PASSWORD_ENV`.
 
-    sc, report = calibrate(Path(args.source), Path(args.out).parent if args.out else None)
+    Raises:
+        ConfigError: both options given, or the file cannot be read.
+    """
+    if args.password is not None and args.password_file is not None:
+        raise ConfigError("--password-file", "cannot go with --password; give one of them")
+    if args.password is not None:
+        return str(args.password)
+    if args.password_file is not None:
+        try:
+            text = Path(args.password_file).read_text(encoding="utf-8")
+        except OSError as e:
+            raise ConfigError("--password-file",
+                              f"cannot read {args.password_file}: {e.strerror or e}") from None
+        return text.splitlines()[0] if text else ""
+    return os.environ.get(PASSWORD_ENV, "")
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
+    import json
+
+    from sigma_des.live.calibrate import calibrate, calibrated_toml, report_lines
+    from sigma_des.live.insample import in_sample
+
+    source = Path(args.source)
+    from sigma_des.live.dequeue import HOLD_TOL
+
+    tol = HOLD_TOL if args.hold_tol is None else args.hold_tol
+    sc, report = calibrate(source, Path(args.out).parent if args.out else None,
+                           strict=not args.allow_incomplete, hold_tol=tol)
+    if not args.no_check:
+        rows, warn = in_sample(sc, source)
+        report["in_sample"] = rows
+        report["warnings"] += warn
     text = calibrated_toml(sc, report)
+    for w in report["warnings"]:
+        print(f"sigma-des: warning: {w}", file=sys.stderr)
     if args.out:
-        Path(args.out).write_text(text)
-        print(f"wrote {args.out}")
-        for k, v in report.items():
-            print(f"  {k} = {v}")
+        out = Path(args.out)
+        out.write_text(text)
+        rep = out.with_suffix(".json")
+        rep.write_text(json.dumps(report, indent=2, default=float) + "\n")
+        print(f"wrote {out} and {rep}")
+        for line in report_lines(report):
+            if not line.startswith("warning: "):
+                print(f"  {line}")
     else:
         sys.stdout.write(text)
     return 0

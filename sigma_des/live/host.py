@@ -2,18 +2,18 @@
 
 On every trigger the host steps all its nodes' aircraft to the trigger's frame with
 the scenario's dynamics model (catching up over lost triggers), for real; then
-each node's publish is scheduled like the DES schedules its compute: the node's
-drawn ``compute.step_time`` (optional) on ``cores_per_host`` FCFS cores, a
-node busy with an earlier frame computing the newest requested frame next.
-Commands apply at frame boundaries (the newest one received before the
-trigger); BiDES time warp re-simulates a node from the command's frame. Crash
-and slow faults act on the node as in the DES. Run as
+its nodes follow the DES's node rules (:class:`~sigma_des.events.node.NodeRules`,
+here :class:`HostNodes` on the live loop): each job's cost is the DES's
+:func:`~sigma_des.events.jobs.job_cost` (the drawn ``compute.step_time``, when
+``step_delay`` is on) on ``cores_per_host`` FCFS cores, triggers coalesce, a
+re-request is answered by republishing, commands apply at frame boundaries and
+BiDES time warp rolls a node back, crash and slow faults act as in the DES. This
+module holds only what is live: MQTT, codecs, the real physics stepping. Run as
 ``python -m sigma_des.live.host CONFIG.json``; the runner writes that file.
 """
 
 from __future__ import annotations
 
-import heapq
 import json
 import math
 import os
@@ -26,18 +26,16 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
 from sigma_des.core.rng import RandomStreams
-from sigma_des.events.align.hlc_clock import HLC, Stamp
+from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.events.jobs import step_draws
+from sigma_des.events.node import NodeRules, Published
 from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
 from sigma_des.live.ledger import Ledger
 from sigma_des.live.loop import Client, Loop
 from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
 from sigma_des.live.wire import (
-    COMMAND,
     MAX_BUNDLE,
-    REREQUEST,
-    STATE,
-    TRIGGER,
     Topics,
     WireError,
     decode_command,
@@ -47,10 +45,53 @@ from sigma_des.live.wire import (
 )
 from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
+from sigma_des.net.kinds import COMMAND, REREQUEST, STATE, TRIGGER
 
-__all__ = ["Host", "main"]
+__all__ = ["Host", "HostNodes", "main"]
 
-_STEP, _ROLLBACK = 0, 1
+
+class HostNodes(NodeRules):
+    """The nodes of one live host: the DES's node rules, publishing over MQTT.
+
+    Args:
+        host: the host process (its truth, its transport).
+        step_delay: jobs take their drawn compute time (False: no time).
+        **rules: the :class:`~sigma_des.events.node.NodeRules` arguments.
+
+    Attributes:
+        trig_t: when each node accepted its newest trigger (for the message rows).
+        job_s: the cost of each node's newest job.
+    """
+
+    def __init__(self, host: Host, step_delay: bool, **rules: Any) -> None:
+        super().__init__(truth=host, **rules)
+        self.host = host
+        self.step_delay = step_delay
+        self.trig_t = [0.0] * len(self.ids)
+        self.job_s = [0.0] * len(self.ids)
+
+    def cost(self, i: int, target: int, now: float) -> float:
+        """The DES's job cost (no time without ``step_delay``)."""
+        c = super().cost(i, target, now) if self.step_delay else 0.0
+        self.job_s[i] = c
+        return c
+
+    def on_trigger(self, i: int, k: int) -> None:
+        """The DES's rule; the time a newer trigger is accepted is noted for the rows."""
+        if k > self.req[i]:
+            self.trig_t[i] = self.clock.now
+        super().on_trigger(i, k)
+
+    def publish_state(self, i: int, payload: Published) -> None:
+        """Send the state (and note the ``state_pub`` row)."""
+        frame, t, _obs, _stamp = payload
+        self.host.send_state(i, payload, t, False)
+        self.host.rows.append(("state_pub", self.host.h, self.ids[i], frame, t, math.nan,
+                               self.trig_t[i], self.job_s[i], 0.0))
+
+    def republish(self, i: int, index: int, payload: Published) -> None:
+        """Send the last state again."""
+        self.host.send_state(i, payload, self.clock.now, True)
 
 
 class Host(ImpairedSender):
@@ -61,19 +102,25 @@ class Host(ImpairedSender):
         method: the alignment method of this run.
         host: this host's index.
         cfg: live options (``qos``, ``impair``, ``step_delay``, ``max_inflight``).
+        topics: the run's topics.
+        addr: the broker.
+        t0: the run's time origin (monotonic seconds).
+        client_factory: ``(subscriptions, on_message) -> Client`` (None: a paho
+            client of ``addr``).
+        loop: the loop to run on (None: a real-time :class:`Loop` from ``t0``).
     """
 
     def __init__(self, sc: Scenario, method: str, host: int, cfg: dict[str, Any],
-                 topics: Topics, addr: BrokerAddress, t0: float) -> None:
+                 topics: Topics, addr: BrokerAddress, t0: float,
+                 client_factory: Any = None, loop: Loop | None = None) -> None:
         self.sc = sc
         self.method = method
         self.h = host
         self.qos = int(cfg["qos"])
-        self.step_delay = bool(cfg["step_delay"])
         self.bundle = bool(cfg.get("bundle", False))
         self._pending: list[tuple[bytes, int, int]] = []
         self.topics = topics
-        self.loop = Loop(t0)
+        self.loop = Loop(t0) if loop is None else loop
         n = sc.nodes
         self.nodes = np.flatnonzero(np.asarray(sc.host_of) == host).astype(np.int64)
         self.local = {int(g): j for j, g in enumerate(self.nodes)}
@@ -83,7 +130,6 @@ class Host(ImpairedSender):
         self.initial = full[self.nodes].copy()
         self.state = self.initial.copy()
         self.cmd = self.dyn.default_command(full)[self.nodes].copy()
-        self.cmd_stamp = np.full(m, -1, dtype=np.int64)
         H = self.H = sc.history_frames
         self.frame = -1
         self.frame_dt = np.zeros(H)
@@ -94,47 +140,44 @@ class Host(ImpairedSender):
         self.track: list[tuple[int, float, NDArray[np.float64]]] = []
         self.warp = method == "bides" and sc.bides.time_warp
         self.ckpt = np.zeros((H if self.warp else 0, m, self.state.shape[1]))
-        self.node_frame = [-1] * m
-        self.node_req = [-1] * m
-        self.node_target = [-1] * m
-        self.node_busy = [False] * m
-        self.node_trig_t = [0.0] * m
-        self.rb_steps = [0] * m
-        self.last_pub: list[tuple[int, float, float, Stamp | None] | None] = [None] * m
-        self.cores = [0.0] * sc.cores_per_host
         streams = RandomStreams(sc.seed)
-        self.step_stream = streams.stream("compute")
         self.use_hlc = method == "hlc"
-        self.clocks = NodeClocks(sc.clocks, streams.stream("clocks"), n)
-        self.hlc = [HLC() for _ in range(m)] if self.use_hlc else []
-        self.crash_at = [math.inf] * m
-        self.slow: dict[int, list[tuple[float, float, float]]] = {}
-        for f in sc.faults:
-            if f.kind in ("crash", "slow") and f.node in self.local:
-                j = self.local[f.node]
-                if f.kind == "crash":
-                    self.crash_at[j] = min(self.crash_at[j], f.start)
-                else:
-                    self.slow.setdefault(j, []).append((f.start, f.end, f.factor))
+        self.jobs = HostNodes(
+            self,
+            bool(cfg["step_delay"]),
+            clock=self.loop,
+            host_of=[0] * m,
+            hosts=1,
+            cores_per_host=sc.cores_per_host,
+            step_time=step_draws(sc.compute.step_time, streams.stream("compute"), n),
+            faults=sc.faults,
+            clocks=NodeClocks(sc.clocks, streams.stream("clocks"), n),
+            hlc=self.use_hlc,
+            warp=sc.bides.theta_warp if self.warp else None,
+            cmd=self.cmd,
+            ids=self.nodes.tolist(),
+        )
         self.impair = Impairment(sc.net.host_link, sc.net, streams, host, bool(cfg["impair"]))
         self.ledger = Ledger(sc, f"host{host}")
         self.rows: list[tuple[Any, ...]] = []
         self.rollbacks = 0
         self.resim_steps = 0
-        self.history_misses = 0
         self.step_real_s = 0.0
         self.steps = 0
         self.rejected = 0
         self.stop_requested = False
         self.started = False
         subs = [(topics.trig, self.qos), (topics.host_down(host), self.qos), (topics.ctl, 1)]
-        self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
-                             int(cfg["max_inflight"]))
+        if client_factory is None:
+            self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
+                                 int(cfg["max_inflight"]))
+        else:
+            self.client = client_factory(subs, self._on_message)
 
     # ------------------------------------------------------------ messages
 
     def _on_message(self, topic: str, payload: bytes) -> None:
-        self.loop.post(self._arrive, topic, payload, self.loop.now())
+        self.loop.post(self._arrive, topic, payload, self.loop.now)
 
     def _arrive(self, topic: str, payload: bytes, t: float) -> None:
         tp = self.topics
@@ -148,8 +191,9 @@ class Host(ImpairedSender):
             elif topic == tp.rereq(self.h):
                 node, frame, retry, t_send = decode_rerequest(payload)
                 j = self._local_index(node)
-                self._deliver(t, REREQUEST, node, frame * 64 + min(retry, 63), t_send, len(topic),
-                              len(payload), self._on_rerequest, j, frame)
+                index = frame * 64 + min(retry, 63)
+                self._deliver(t, REREQUEST, node, index, t_send, len(topic), len(payload),
+                              self._on_rerequest, j, frame, index)
             elif topic == tp.ctl:
                 self._control(payload)
             else:
@@ -174,8 +218,13 @@ class Host(ImpairedSender):
                       len(topic), len(payload), self._on_commands, recs)
 
     def _on_commands(self, t: float, recs: list[tuple[Any, ...]]) -> None:
-        for rec in recs:
-            self._on_command(t, *rec)
+        for j, stamp, tick, t_send, row in recs:
+            self.rows.append(("command", self.h, int(self.nodes[j]), tick, t_send, t, math.nan,
+                              math.nan, 0.0))
+            self.jobs.receive_command(j, stamp, row, t)
+
+    def _on_rerequest(self, t: float, j: int, frame: int, index: int) -> None:
+        self.jobs.receive_rerequest(j, frame, index, t)
 
     def _control(self, payload: bytes) -> None:
         """``go:<t0>`` sets the run's time origin (monotonic seconds); ``stop`` ends the run."""
@@ -209,28 +258,21 @@ class Host(ImpairedSender):
             fn(t, *args)
 
     def _release(self, fn: Any, args: tuple[Any, ...]) -> None:
-        fn(self.loop.now(), *args)
+        fn(self.loop.now, *args)
 
     # ------------------------------------------------------------ physics
 
     def _on_trigger(self, t: float, k: int, t_send: float, dt: float, hl: float,
                     hc: int) -> None:
         self.rows.append(("trigger", self.h, -1, k, t_send, t, math.nan, math.nan, 0.0))
-        if self.use_hlc:
-            stamp = Stamp(hl, hc)
-            for j in range(self.m):
-                self.hlc[j].receive(self._local_time(j, t), stamp)
         if k > self.frame:
             w0 = time.perf_counter()
             for f in range(self.frame + 1, k + 1):
                 self._step(f, dt)
             self.step_real_s += time.perf_counter() - w0
+        stamp = Stamp(hl, hc) if self.use_hlc else None
         for j in range(self.m):
-            if k > self.node_req[j] and t < self.crash_at[j]:
-                self.node_req[j] = k
-                self.node_trig_t[j] = t
-                if not self.node_busy[j]:
-                    self._start_job(j)
+            self.jobs.receive_trigger(j, k, stamp, t)
 
     def _step(self, f: int, dt: float) -> None:
         slot = f % self.H
@@ -266,107 +308,37 @@ class Host(ImpairedSender):
                else np.zeros((0, self.m, 3)))
         return {"track_frames": fr, "track_t": t, "track_pos": pos, "nodes": self.nodes}
 
-    def _local_time(self, j: int, t: float) -> float:
-        return float(self.clocks.local_time(int(self.nodes[j]), t))
-
-    def _cost(self, j: int, target: int) -> float:
-        if not self.step_delay:
-            return 0.0
-        node = int(self.nodes[j])
-        step = self.sc.compute.step_time
-        frames = np.arange(self.node_frame[j] + 1, target + 1)
-        cost = float(step.sample(self.step_stream, _STEP, node, frames, 0).sum())
-        if self.rb_steps[j]:
-            cost += float(step.sample(self.step_stream, _ROLLBACK, node, target,
-                                      np.arange(self.rb_steps[j])).sum())
-        return cost
-
-    def _start_job(self, j: int) -> None:
-        now = self.loop.now()
-        target = self.node_req[j]
-        cost = self._cost(j, target)
-        self.rb_steps[j] = 0
-        for a, b, factor in self.slow.get(j, ()):
-            if a <= now < b:
-                cost *= factor
-        free = heapq.heappop(self.cores)
-        start = max(now, free)
-        heapq.heappush(self.cores, start + cost)
-        self.node_busy[j] = True
-        self.node_target[j] = target
-        if start + cost > now:
-            self.loop.call_at(start + cost, self._complete, j, target, cost)
-        else:
-            self._complete(j, target, cost)
-
-    def _complete(self, j: int, target: int, cost: float) -> None:
-        t = self.loop.now()
-        self.node_busy[j] = False
-        if t >= self.crash_at[j]:
-            return
-        if target > self.node_frame[j]:
-            self.node_frame[j] = target
-            if target <= self.frame - self.H:
-                self.history_misses += 1
-            obs = self.obs_hist[target % self.H, j]
-            stamp = self.hlc[j].send(self._local_time(j, t)) if self.use_hlc else None
-            self.last_pub[j] = (target, t, 0.0, stamp)
-            self._send_state(j, target, t, t, stamp, obs, False)
-            self.rows.append(("state_pub", self.h, int(self.nodes[j]), target, t, math.nan,
-                              self.node_trig_t[j], cost, 0.0))
-        if self.node_req[j] > self.node_frame[j] or self.rb_steps[j]:
-            self._start_job(j)
-
-    def _send_state(self, j: int, frame: int, t_gen: float, t: float, stamp: Stamp | None,
-                    obs: NDArray[np.float64], republish: bool) -> None:
+    def send_state(self, j: int, payload: Published, t: float, republish: bool) -> None:
+        """Publish node ``j``'s state ``payload`` at ``t`` (one message or, with
+        ``bundle``, a record of this loop turn's message)."""
+        frame, t_gen, obs, stamp = payload
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         node = int(self.nodes[j])
-        payload = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
+        msg = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
         if not self.bundle:
-            self._publish(self.topics.state(self.h), payload, t, STATE, node, frame)
+            self._publish(self.topics.state(self.h), msg, t, STATE, node, frame)
             return
         if not self._pending:
             self.loop.call_at(t, self._flush)  # after the current handler, before the inbox
-        self._pending.append((payload, node, frame))
+        self._pending.append((msg, node, frame))
 
     def _flush(self) -> None:
         """``--bundle``: publish the states of this loop turn as one message."""
         pend, self._pending = self._pending, []
         if pend:
-            t = self.loop.now()
+            t = self.loop.now
             self._publish(self.topics.state(self.h), b"".join(p for p, _n, _f in pend), t,
                           STATE, pend[0][1], pend[0][2])
 
-    def _on_rerequest(self, t: float, j: int, frame: int) -> None:
-        if t >= self.crash_at[j]:
-            return
-        last = self.last_pub[j]
-        if self.node_frame[j] >= frame and last is not None and last[0] == frame:
-            obs = self.obs_hist[frame % self.H, j]
-            self._send_state(j, frame, last[1], t, last[3], obs, True)
-        elif self.node_req[j] < frame:
-            self.node_req[j] = frame
-            self.node_trig_t[j] = t
-            if not self.node_busy[j]:
-                self._start_job(j)
+    def rollback(self, j: int, c: int, current: int, row: NDArray[np.float64]) -> int:
+        """Re-simulate node ``j`` from frame ``c`` with command ``row`` (time warp).
 
-    def _on_command(self, t: float, j: int, stamp: int, tick: int, t_send: float,
-                    row: NDArray[np.float64]) -> None:
-        self.rows.append(("command", self.h, int(self.nodes[j]), tick, t_send, t, math.nan,
-                          math.nan, 0.0))
-        if t >= self.crash_at[j] or stamp < self.cmd_stamp[j]:
-            return
-        self.cmd_stamp[j] = stamp
-        self.cmd[j] = row
-        b = self.sc.bides
-        if not self.warp or stamp < 0:
-            return
-        current = self.node_target[j] if self.node_busy[j] else self.node_frame[j]
-        if current - stamp > b.theta_warp:
-            self._rollback(j, stamp, current, row)
+        The live truth's :meth:`~sigma_des.events.truth.SwarmTruth.rollback`: the
+        frames this host stepped, from ``c`` clamped to the oldest held.
 
-    def _rollback(self, j: int, c: int, current: int, row: NDArray[np.float64]) -> None:
-        """Re-simulate node ``j`` from frame ``c`` with command ``row`` (time warp)."""
+        Returns:
+            The compute steps the node's next job owes: ``current - c + 1`` (≥ 0).
+        """
         c = max(c, self.frame - self.H + 2, 0)
         s = (self.initial[j] if c == 0 else self.ckpt[(c - 1) % self.H, j])[None, :].copy()
         node = self.nodes[j : j + 1]
@@ -379,9 +351,7 @@ class Host(ImpairedSender):
         steps = max(0, current - c + 1)
         self.rollbacks += 1
         self.resim_steps += steps
-        self.rb_steps[j] += steps
-        if not self.node_busy[j]:
-            self._start_job(j)
+        return steps
 
     # ------------------------------------------------------------ run
 
@@ -390,7 +360,7 @@ class Host(ImpairedSender):
         if self.started:
             return
         self.client.publish(self.topics.ready(self.h), b"1", 1)
-        self.loop.call_at(self.loop.now() + 0.2, self.announce)
+        self.loop.call_at(self.loop.now + 0.2, self.announce)
 
     def warm_up(self) -> None:
         """Call every compiled kernel once (numba loads its cache lazily on first call)."""
@@ -408,7 +378,7 @@ class Host(ImpairedSender):
             "links": self.ledger.as_dict(),
             "rollbacks": self.rollbacks,
             "resim_steps": self.resim_steps,
-            "history_misses": self.history_misses,
+            "history_misses": self.jobs.history_misses,
             "rejected": self.rejected,
             "lost": self.impair.lost,
             "gave_up": self.impair.gave_up,

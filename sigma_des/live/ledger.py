@@ -11,7 +11,7 @@ from __future__ import annotations
 from sigma_des.config import Scenario
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, publish_bytes
 
-__all__ = ["Ledger"]
+__all__ = ["Ledger", "publishes"]
 
 
 class Ledger:
@@ -58,3 +58,10 @@ class Ledger:
     def as_dict(self) -> dict[str, list[int]]:
         """``{"<name>.up": [bytes, packets], "<name>.down": [...]}``."""
         return {f"{self.name}.{d}": [self.bytes[d], self.packets[d]] for d in ("up", "down")}
+
+
+def publishes(links: dict[str, list[int]], qos: int) -> int:
+    """PUBLISH messages (sent + received) behind a process's :meth:`Ledger.as_dict`
+    counts: every PUBLISH is one packet, plus one PUBACK going the other way at QoS 1."""
+    packets = sum(int(v[1]) for v in links.values())
+    return packets // (1 + qos)

@@ -5,6 +5,11 @@ network thread. Every message is stamped with its receive time in the network
 thread (``on_message``) and handled on the loop thread, so the alignment code
 never runs concurrently with itself. Times are seconds since the run's start
 ``t0`` on ``time.monotonic()`` (one clock for every process on one machine).
+It is the live mode's :class:`~sigma_des.core.clock.Clock`: the rules the DES runs
+on its kernel (trigger, server ticks, node jobs) run on it unchanged, and timers
+due at one instant run in the clock's priority order. :class:`VirtualLoop` is the
+same dispatch on virtual time (no waiting): the live processes' rules can be run
+deterministically in one process, e.g. against the DES (the equivalence test).
 
 :class:`Client` wraps ``paho.mqtt.client.Client`` (``CallbackAPIVersion.VERSION2``,
 MQTT 3.1.1): TCP_NODELAY on its socket (no Nagle batching), a configurable QoS 1
@@ -23,9 +28,12 @@ from typing import Any
 
 import paho.mqtt.client as mqtt
 
+from sigma_des.core.clock import ARRIVAL
 from sigma_des.live.broker import BrokerAddress
 
-__all__ = ["Client", "Loop"]
+__all__ = ["Client", "Loop", "VirtualLoop"]
+
+_Timer = tuple[float, int, int, Callable[..., Any], tuple[Any, ...]]
 
 
 class Loop:
@@ -37,7 +45,7 @@ class Loop:
 
     def __init__(self, t0: float) -> None:
         self.t0 = t0
-        self._heap: list[tuple[float, int, Callable[..., Any], tuple[Any, ...]]] = []
+        self._heap: list[_Timer] = []
         self._seq = 0
         self.inbox: queue.SimpleQueue[tuple[Callable[..., Any], tuple[Any, ...]]] = (
             queue.SimpleQueue()
@@ -45,14 +53,21 @@ class Loop:
         self.stopped = False
         self.handled = 0
 
+    @property
     def now(self) -> float:
         """Seconds since the run's start."""
         return time.monotonic() - self.t0
 
-    def call_at(self, t: float, fn: Callable[..., Any], *args: Any) -> None:
-        """Run ``fn(*args)`` on the loop thread at time ``t`` (loop thread only)."""
+    def call_at(self, t: float, fn: Callable[..., Any], *args: Any,
+                priority: int = ARRIVAL) -> None:
+        """Run ``fn(*args)`` on the loop thread at time ``t`` (loop thread only); calls
+        due at one time run by ``priority``, then in the order they were made."""
         self._seq += 1
-        heapq.heappush(self._heap, (t, self._seq, fn, args))
+        heapq.heappush(self._heap, (t, priority, self._seq, fn, args))
+
+    def head_is(self, fn: Callable[..., Any]) -> bool:
+        """True if the next timer due is a call of ``fn``."""
+        return bool(self._heap) and self._heap[0][3] == fn
 
     def post(self, fn: Callable[..., Any], *args: Any) -> None:
         """Run ``fn(*args)`` on the loop thread soon (thread-safe)."""
@@ -67,13 +82,13 @@ class Loop:
         heap = self._heap
         inbox = self.inbox
         while not self.stopped:
-            now = self.now()
+            now = self.now
             if now >= until:
                 return
             while heap and heap[0][0] <= now and not self.stopped:
-                _t, _s, fn, args = heapq.heappop(heap)
+                _t, _p, _s, fn, args = heapq.heappop(heap)
                 fn(*args)
-            wait = min(until, heap[0][0] if heap else until) - self.now()
+            wait = min(until, heap[0][0] if heap else until) - self.now
             try:
                 fn, args = inbox.get(timeout=min(0.05, max(wait, 0.0)))
             except queue.Empty:
@@ -87,6 +102,41 @@ class Loop:
                     break
                 fn(*args)
                 self.handled += 1
+
+
+class VirtualLoop(Loop):
+    """A :class:`Loop` on virtual time: timers run in order, no waiting, one thread.
+
+    :meth:`post` (a message handed over by a transport) runs at the current
+    virtual time, after the calls already due then, as the real loop's inbox does.
+
+    Args:
+        t0: the virtual time to start at (s).
+    """
+
+    def __init__(self, t0: float = 0.0) -> None:
+        super().__init__(0.0)
+        self._now = t0
+
+    @property
+    def now(self) -> float:
+        """The virtual time (s)."""
+        return self._now
+
+    def post(self, fn: Callable[..., Any], *args: Any) -> None:
+        """Run ``fn(*args)`` now, after what is already due now."""
+        self.handled += 1
+        self.call_at(self._now, fn, *args)
+
+    def run(self, until: float) -> None:
+        """Run every call due before ``until`` (none at exactly ``until``), in order."""
+        heap = self._heap
+        while heap and heap[0][0] < until and not self.stopped:
+            t, _p, _s, fn, args = heapq.heappop(heap)
+            self._now = max(self._now, t)
+            fn(*args)
+        if not self.stopped:
+            self._now = max(self._now, until)
 
 
 class Client:

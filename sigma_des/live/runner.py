@@ -32,9 +32,11 @@ from sigma_des.api import Results
 from sigma_des.config import METHODS, Scenario, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_broker, wait_port
+from sigma_des.live.cpu import CpuMeter, message_counts
 from sigma_des.live.loop import Client
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
+from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
@@ -60,6 +62,8 @@ class LiveOptions:
         broker_down_s: ... and start it again this long after.
         kill_host_at: fault injection: ``(host, t)``: kill that host process at ``t``.
         ready_timeout: seconds to wait for the host processes to subscribe.
+        idle_window: seconds between ``go`` and the first trigger (>= 0.3), the idle
+            window whose CPU rates ``calibrate`` takes as each process's idle loop cost.
         record: keep what ``live --record`` writes (states' poses, snapshots, renders).
         hook: called as ``hook(addr, topics, server)`` right after the first trigger is
             scheduled (tests use it to start a rogue client).
@@ -77,10 +81,13 @@ class LiveOptions:
     broker_down_s: float = 0.5
     kill_host_at: tuple[int, float] | None = None
     ready_timeout: float = 60.0
+    idle_window: float = 1.0
     record: bool = False
     hook: Callable[[BrokerAddress, Topics, LiveServer], None] | None = None
 
     def __post_init__(self) -> None:
+        if not 0.3 <= self.idle_window <= 60.0:
+            raise ConfigError("idle_window", f"must be in 0.3..60 s, got {self.idle_window}")
         if self.max_inflight < 0:
             raise ConfigError("--max-inflight", f"must be >= 0, got {self.max_inflight}")
         if self.broker is not None and self.kill_broker_at is not None:
@@ -147,14 +154,9 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d,
                                                   progress)
             kept[m] = out.pop("kept")
-            res.methods[m] = out["metrics"]
-            res.wall[m] = out["wall"]
-            res.links_mbps[m] = out["links_mbps"]
-            res.timeseries[m] = out["timeseries"]
-            res.engines[m] = {"requested": "live", "used": "live", "fallback": ""}
+            res.add(m, MethodReport.of(out, {"requested": "live", "used": "live",
+                                             "fallback": ""}))
             res.live[m] = out["live"]
-            if "fidelity" in out:
-                res.fidelity[m] = out["fidelity"]
             tables.append(table)
             if interrupted:
                 res.interrupted = True
@@ -208,7 +210,7 @@ def _reap(p: subprocess.Popen[bytes]) -> None:
 
 def _pump(srv: LiveServer, seconds: float) -> None:
     srv.loop.stopped = False
-    srv.loop.run(until=srv.loop.now() + seconds)
+    srv.loop.run(until=srv.loop.now + seconds)
 
 
 def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected: int,
@@ -243,10 +245,14 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         srv.warm_up()
         live = [p for p in procs if p.poll() is None]
         _wait_ready(srv, procs, len(live), opts.ready_timeout, d)
-        t0 = time.monotonic() + 0.3
+        meter = _cpu_meter(procs, broker)
+        t0 = time.monotonic() + opts.idle_window
         srv.client.publish(topics.ctl, f"go:{t0!r}".encode(), 1)
+        meter.mark("idle0")
         while time.monotonic() < t0:
             _pump(srv, 0.02)
+        meter.mark("idle1")
+        srv.loop.call_at(sc.warmup, meter.mark, "w0")
         _inject(srv, opts, broker, procs)
         if progress:
             print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
@@ -259,6 +265,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
             srv.loop.run(until=sc.duration)
         except KeyboardInterrupt:
             interrupted = True
+        meter.mark("w1")
         srv.wall_seconds = time.perf_counter() - w0
         srv.running = False
         srv.client.publish(topics.ctl, b"stop", 1)
@@ -276,8 +283,18 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
             _fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
     out["live"] = _live_info(srv, procs, table, sc)
+    out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos))
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
     return out, table, interrupted
+
+
+def _cpu_meter(procs: list[subprocess.Popen[bytes]], broker: Broker | None) -> CpuMeter:
+    """CPU meter of this process (the server), the live hosts and our broker."""
+    pids = {"server": os.getpid()}
+    pids.update({f"host{h}": p.pid for h, p in enumerate(procs) if p.poll() is None})
+    if broker is not None and broker.proc is not None:
+        pids["broker"] = broker.proc.pid
+    return CpuMeter(pids)
 
 
 def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:
@@ -288,7 +305,7 @@ def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: 
     that did not report (killed) leaves the metrics NaN.
     """
     from sigma_des.api import ideal_run
-    from sigma_des.metrics.fidelity import TrajectoryLog, fidelity
+    from sigma_des.metrics.fidelity import TrajectoryLog, add_fidelity
 
     n = sc.nodes
     tracks = []
@@ -313,10 +330,7 @@ def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: 
     log = TrajectoryLog(sc.fidelity.log_rate, srv.dyn.observe(srv.dyn.initial_state(n))[:, 9:12])
     for k in range(frames.size):
         log.add(float(t[k]), pos[k])
-    times, traj = log.arrays()
-    fid, err = fidelity(traj, ideal_run(sc)[1], 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
-    out["metrics"].update(fid)
-    out["fidelity"] = {"t": times[: len(err)], "formation_err": err}
+    add_fidelity(out, *log.arrays(), ideal_run(sc)[1], sc.fidelity)
 
 
 def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,

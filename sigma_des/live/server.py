@@ -1,12 +1,10 @@
 """The live alignment server: trigger source, aligner, behaviour and renderer sampling.
 
-:class:`LiveServer` is the engine side of :class:`~sigma_des.events.align.base.ServerContext`
-driven by real messages and the wall clock: it runs the simulator's own aligner
-(``make_aligner(method, ...)``), behaviour and :class:`~sigma_des.metrics.collector.Collector`
-on measured timestamps. Triggers follow the DES rule ``T_k = t0 + (k - k0) / f``
-(rebased when BiDES changes the rate; Lock-Step waits for its barrier);
-alignment and render ticks run at ``(k + align_phase) / f_align`` and
-``(k + render_phase) / f_render``, as in the DES.
+:class:`LiveServer` is the DES's alignment server
+(:class:`~sigma_des.events.server.AlignmentServer`: trigger source, aligner,
+behaviour, alignment and render ticks, collector) on the live loop's wall clock,
+with MQTT as its transport: this module holds only what is live (topics, codecs,
+the link shim, the hosts' counters). The rules are the DES's by construction.
 Anything malformed or on an unknown topic is counted and dropped.
 """
 
@@ -23,20 +21,16 @@ from numpy.typing import NDArray
 from sigma_des.config import Scenario
 from sigma_des.core.models import SwarmView
 from sigma_des.core.rng import RandomStreams
-from sigma_des.events.align import make_aligner
-from sigma_des.events.align.base import Aligner, one_state
-from sigma_des.events.align.hlc_clock import HLC, Stamp
+from sigma_des.events.align.base import one_state
+from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.events.server import AlignmentServer
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.live.ledger import Ledger
-from sigma_des.live.loop import Client, Loop
+from sigma_des.live.loop import Client, Loop, VirtualLoop
 from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
 from sigma_des.live.wire import (
-    COMMAND,
     MAX_BUNDLE,
-    REREQUEST,
-    STATE,
     STATE_BYTES,
-    TRIGGER,
     Topics,
     WireError,
     decode_state,
@@ -44,12 +38,10 @@ from sigma_des.live.wire import (
     encode_rerequest,
     encode_trigger,
 )
-from sigma_des.metrics.collector import Collector
 from sigma_des.metrics.reports import NetReport, RunReport
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 
 __all__ = ["LiveNet", "LiveServer"]
-
-_REPUBLISH_KIND = 5
 
 
 class LiveNet:
@@ -81,30 +73,7 @@ def _link_order(name: str) -> tuple[int, str]:
     return (int(base[4:]), "") if base.startswith("host") and base[4:].isdigit() else (10**9, base)
 
 
-class _Scratch:
-    """A do-nothing server context for :meth:`LiveServer.warm_up`."""
-
-    def __init__(self, f_trig: float) -> None:
-        self.latest_trigger = 0
-        self.f_trig = f_trig
-
-    def now(self) -> float:
-        return 0.0
-
-    def call_at(self, t: float, fn: Any, *args: Any) -> None:
-        pass
-
-    def set_rate(self, f_trig: float) -> None:
-        pass
-
-    def barrier_done(self, frame: int) -> None:
-        pass
-
-    def rerequest(self, node: int, frame: int, retry: int) -> None:
-        pass
-
-
-class LiveServer(ImpairedSender):
+class LiveServer(AlignmentServer, ImpairedSender):
     """One method's alignment server over MQTT.
 
     Args:
@@ -117,33 +86,26 @@ class LiveServer(ImpairedSender):
         record: keep states with their pose, snapshots and render samples in
             :attr:`kept` (for ``live --record``).
         bundle: send each host's commands of one tick as one PUBLISH.
+        loop: the loop (clock) to run on (None: a real-time :class:`Loop`;
+            a :class:`~sigma_des.live.loop.VirtualLoop` runs it on virtual time).
     """
 
     def __init__(self, sc: Scenario, method: str, client_factory: Any, topics: Topics,
-                 qos: int, impair: bool, record: bool = False, bundle: bool = False) -> None:
+                 qos: int, impair: bool, record: bool = False, bundle: bool = False,
+                 loop: Loop | None = None) -> None:
         self.sc = sc
-        self.method = method
-        self.n = n = sc.nodes
         self.topics = topics
         self.qos = qos
-        self.loop = Loop(0.0)
+        self.loop = Loop(0.0) if loop is None else loop
         self.host_of = sc.host_of
-        self.dyn = make_dynamics(sc)
-        self.behaviour = make_behaviour(sc) if sc.commands.enabled else None
-        self.f_trig = sc.f_trig
-        self.latest_trigger = -1
-        self.trig_time: dict[int, float] = {}
-        self._base: tuple[float, int, float] = (0.0, 0, sc.f_trig)
+        super().__init__(self.loop, sc.run_spec(), method, make_dynamics(sc),
+                         make_behaviour(sc) if sc.commands.enabled else None)
         self.use_hlc = method == "hlc"
-        self.server_hlc = HLC()
         self.net = LiveNet()
         self.ledger = Ledger(sc, "server")
-        self.aligner: Aligner = make_aligner(method, n, self, sc.align_params())
-        self.collector = Collector(sc.collector_spec(), method)
         self.impair = Impairment(sc.net.server_link, sc.net, RandomStreams(sc.seed), sc.hosts,
                                  impair)
-        self.align_tick = 0
-        self.render_tick = 0
+        self._dt = 1.0 / sc.f_trig  # step of the trigger being issued
         self.record = record
         self.bundle = bundle
         self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
@@ -159,43 +121,24 @@ class LiveServer(ImpairedSender):
         self.resim_steps = 0
         self.history_misses = 0
         self.wall_seconds = 0.0
-        self.kernel = SimpleNamespace(events=0)
         self.got = np.zeros(0, dtype=np.bool_)
         subs = [(topics.up_all, qos)]
         self.client: Client = client_factory(subs, self._on_message)
 
-    # ------------------------------------------------------------ ServerContext
+    # ------------------------------------------------------------ server hooks (MQTT)
 
-    def now(self) -> float:
-        """Seconds since the first trigger."""
-        return self.loop.now()
+    def on_frame(self, k: int, t: float, dt: float) -> None:
+        """Trigger ``k`` is issued: remember its step for the message."""
+        self._dt = dt
+        super().on_frame(k, t, dt)
 
-    def call_at(self, t: float, fn: Any, *args: Any) -> None:
-        """Server-side timer."""
-        self.loop.call_at(t, fn, *args)
-
-    def set_rate(self, f_trig: float) -> None:
-        """BiDES: change the trigger rate from the next trigger on."""
-        self.f_trig = f_trig
-        self.collector.rate_change(self.now(), f_trig)
-
-    def barrier_done(self, frame: int) -> None:
-        """Lock-Step: trigger ``frame + 1`` no sooner than ``1/f_trig`` after ``frame``.
-
-        As in the DES, the earliest time is on the grid ``t0 + (k - k0) / f`` (never a
-        running sum); a barrier that completes later triggers at once and restarts the
-        grid there.
-        """
-        k = frame + 1
-        t0, k0, f = self._base
-        if self.f_trig != f:
-            t0, k0, f = self._base = (self.trig_time[frame], frame, self.f_trig)
-        t = t0 + (k - k0) / f
-        now = self.now()
-        if t < now:
-            t = now
-            self._base = (now, k, f)
-        self.loop.call_at(t, self._issue)
+    def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
+        """One trigger message to every host."""
+        t = self.now()
+        hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
+        self._publish(self.topics.trig, encode_trigger(k, t, self._dt, hl, hc), t, TRIGGER,
+                      self.n, k)
+        self.rows.append(("trigger_sent", -1, -1, k, t, math.nan, math.nan, math.nan, 0.0))
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
@@ -204,33 +147,42 @@ class LiveServer(ImpairedSender):
                       encode_rerequest(node, frame, retry, t), t, REREQUEST, node,
                       frame * 64 + min(retry, 63))
 
-    # ------------------------------------------------------------ sending
-
-    def _issue(self) -> None:
+    def publish_commands(
+        self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
+    ) -> None:
+        """The tick's commands: one message per node, or (``bundle``) per host."""
         t = self.now()
-        if t >= self.sc.duration:
+        ok = nodes.tolist()
+        if self.record:
+            self.kept["commands"] += [(i, tick, t, cmds[i].tolist()) for i in ok]
+        if self.bundle:  # one PUBLISH per host: its nodes' command records back to back
+            per_host: dict[int, list[bytes]] = {}
+            for i in ok:
+                per_host.setdefault(self.host_of[i], []).append(
+                    encode_command(i, stamp, tick, t, cmds[i]))
+            for h, recs in per_host.items():
+                self._publish(self.topics.cmd(h), b"".join(recs), t, COMMAND, h, tick)
             return
-        k = self.latest_trigger + 1
-        dt = 1.0 / self.f_trig
-        self.trig_time[k] = t
-        self.trig_time.pop(k - self.sc.history_frames, None)
-        self.latest_trigger = k
-        self.collector.trigger(t, k, dt)
-        self.aligner.on_trigger(k, t)
-        stamp = self.server_hlc.send(t) if self.use_hlc else Stamp(-math.inf, 0)
-        self._publish(self.topics.trig, encode_trigger(k, t, dt, stamp.l, stamp.c), t, TRIGGER,
-                      self.n, k)
-        self.rows.append(("trigger_sent", -1, -1, k, t, math.nan, math.nan, math.nan, 0.0))
-        if self.method != "lockstep":
-            if self.f_trig != self._base[2]:
-                self._base = (t, k, self.f_trig)
-            t0, k0, f = self._base
-            self.loop.call_at(t0 + (k + 1 - k0) / f, self._issue)
+        for i in ok:
+            payload = encode_command(i, stamp, tick, t, cmds[i])
+            self._publish(self.topics.cmd(self.host_of[i]), payload, t, COMMAND, i, tick)
+
+    def snapshot_taken(self, t: float) -> None:
+        """``--record``: keep the snapshot."""
+        if self.record:
+            al = self.aligner
+            self.kept["snapshots"].append(
+                (t, al.aligned_frame, al.shown_frame.copy(), al.shown_obs.copy()))
+
+    def rendered(self, t: float) -> None:
+        """``--record``: keep the render tick's ages."""
+        if self.record:
+            self.kept["renders"].append((t, t - self.aligner.shown_gen))
 
     # ------------------------------------------------------------ receiving
 
     def _on_message(self, topic: str, payload: bytes) -> None:
-        self.loop.post(self._arrive, topic, payload, self.loop.now())
+        self.loop.post(self._arrive, topic, payload, self.loop.now)
 
     def _arrive(self, topic: str, payload: bytes, t: float) -> None:
         parsed = self.topics.parse_up(topic)
@@ -285,8 +237,8 @@ class LiveServer(ImpairedSender):
                hl: float, hc: int, obs: NDArray[np.float64]) -> None:
         if t >= self.sc.duration:
             return
-        rep = kind == _REPUBLISH_KIND
-        self.collector.delivered(_REPUBLISH_KIND if rep else STATE, node, frame, t_send, t)
+        rep = kind == REPUBLISH
+        self.collector.delivered(kind, node, frame, t_send, t)
         self.rows.append(("state", self.host_of[node], node, frame, t_send, t, self.now(),
                           math.nan, 1.0 if rep else 0.0))
         if self.record:
@@ -295,71 +247,14 @@ class LiveServer(ImpairedSender):
         stamp = Stamp(hl, hc) if self.use_hlc else None
         self.aligner.on_states(one_state(t, node, frame, t_gen, obs, stamp))
 
-    # ------------------------------------------------------------ ticks
-
-    def _align(self) -> None:
-        t = self.now()
-        if t >= self.sc.duration:
-            return
-        al = self.aligner
-        al.align(t)
-        self.collector.shown(t, al.shown_gen)
-        if al.new_snapshot:
-            self.collector.snapshot(t)
-            if self.record:
-                self.kept["snapshots"].append(
-                    (t, al.aligned_frame, al.shown_frame.copy(), al.shown_obs.copy())
-                )
-        if self.behaviour is not None and self.align_tick % self.sc.commands.every == 0:
-            self._send_commands(t)
-        self.align_tick += 1
-        self.loop.call_at(self._align_time(self.align_tick), self._align)
-
-    def _send_commands(self, t: float) -> None:
-        al = self.aligner
-        valid = ~np.isnan(al.shown_gen)
-        if not valid.any():
-            return
-        assert self.behaviour is not None
-        view = SwarmView(obs=al.shown_obs, frame=al.shown_frame, valid=valid,
-                         aligned_frame=al.aligned_frame)
-        cmds = self.behaviour.commands(view, self.dyn)
-        ok = np.flatnonzero(~np.isnan(cmds).all(axis=1))
-        tick = self.align_tick
-        if self.record:
-            self.kept["commands"] += [(i, tick, t, cmds[i].tolist()) for i in ok.tolist()]
-        if self.bundle:  # one PUBLISH per host: its nodes' command records back to back
-            per_host: dict[int, list[bytes]] = {}
-            for i in ok.tolist():
-                per_host.setdefault(self.host_of[i], []).append(
-                    encode_command(i, al.aligned_frame, tick, t, cmds[i]))
-            for h, recs in per_host.items():
-                self._publish(self.topics.cmd(h), b"".join(recs), t, COMMAND, h, tick)
-            return
-        for i in ok.tolist():
-            payload = encode_command(i, al.aligned_frame, tick, t, cmds[i])
-            self._publish(self.topics.cmd(self.host_of[i]), payload, t, COMMAND, i, tick)
-
-    def _render(self) -> None:
-        t = self.now()
-        if t >= self.sc.duration:
-            return
-        al = self.aligner
-        self.collector.render(t, al.shown_gen, al.shown_frame, al.shown_obs, al.flag, None,
-                              self.f_trig, self.latest_trigger, al.aligned_frame)
-        if self.record:
-            self.kept["renders"].append((t, t - al.shown_gen))
-        self.render_tick += 1
-        self.loop.call_at(self._render_time(self.render_tick), self._render)
-
     # ------------------------------------------------------------ run
 
     def warm_up(self) -> None:
         """Run the aligner and behaviour once on the initial swarm (compiled kernels load)."""
-        sc = self.sc
         st = self.dyn.initial_state(self.n)
         obs = self.dyn.observe(st)
-        scratch = make_aligner(self.method, self.n, _Scratch(sc.f_trig), sc.align_params())
+        # a server of its own on a loop never run: its timers and triggers stay unsent
+        scratch = AlignmentServer(VirtualLoop(), self.spec, self.method, self.dyn, None).aligner
         for i in range(self.n):
             scratch.on_states(one_state(0.0, i, 0, 0.0, obs[i],
                                          Stamp(0.0, 0) if self.use_hlc else None))
@@ -369,21 +264,13 @@ class LiveServer(ImpairedSender):
                              valid=np.ones(self.n, dtype=np.bool_), aligned_frame=0)
             self.behaviour.commands(view, self.dyn)
 
-    def start(self, t0: float) -> None:
-        """Set the time origin (monotonic seconds) and schedule trigger 0 and the ticks."""
-        self.loop.t0 = t0
+    def start(self, t0: float | None = None) -> None:
+        """Set the time origin (monotonic seconds; None: keep the loop's) and schedule
+        trigger 0 and the ticks."""
+        if t0 is not None:
+            self.loop.t0 = t0
         self.running = True
-        self.loop.call_at(0.0, self._issue)
-        self.loop.call_at(self._align_time(0), self._align)
-        self.loop.call_at(self._render_time(0), self._render)
-
-    def _align_time(self, j: int) -> float:
-        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (the DES's tick grid)."""
-        return (j + self.sc.align_phase) / self.sc.f_align
-
-    def _render_time(self, j: int) -> float:
-        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
-        return (j + self.sc.render_phase) / self.sc.f_render
+        super().start()
 
     def finish(self) -> dict[str, Any]:
         """The collector's results, with the hosts' counters folded in."""
@@ -398,8 +285,7 @@ class LiveServer(ImpairedSender):
             self.net.gave_up += int(st.get("gave_up", 0))
         self.net.retransmissions += self.impair.lost
         self.net.gave_up += self.impair.gave_up
-        self.kernel.events = self.loop.handled
         run = RunReport(f_trig=self.f_trig, rollbacks=self.rollbacks, resim_steps=self.resim_steps,
                         history_misses=self.history_misses, wall_seconds=self.wall_seconds,
-                        events=self.kernel.events)
+                        events=self.loop.handled)
         return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))

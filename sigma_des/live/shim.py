@@ -57,7 +57,8 @@ class Impairment:
         self.lat_stream = streams.stream("live.latency")
         self.loss = LossProcess(link.loss, streams.stream("live.loss"), link_id)
         lossless = link.loss.model == "bernoulli" and link.loss.p == 0.0
-        zero = link.latency.is_constant and link.latency.mean_value() == 0.0
+        zero = all(link.latency_of(up).is_constant and link.latency_of(up).mean_value() == 0.0
+                   for up in (True, False))
         self.enabled = enabled and not (lossless and zero)
         self._lossless = lossless
         self._last = [0.0, 0.0]  # stream transport: release times stay in order
@@ -77,7 +78,7 @@ class Impairment:
         if not self.enabled:
             return 0.0
         ids = (self.link_id, direction, kind, subject, index)
-        d = float(self.link.latency.sample(self.lat_stream, *ids)[0])
+        d = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
         if not self._lossless:
             net = self.net
             penalty = 0.0

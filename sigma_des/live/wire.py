@@ -11,6 +11,8 @@ Topics of run ``R`` (``R`` is a per-run token, so two runs on one broker never m
 Payloads (byte sizes in brackets; ``f64`` times are seconds since the run's start
 on one monotonic clock):
 
+The kind byte is the message kind of :mod:`sigma_des.net.kinds` (the DES's):
+
 * trigger [33]: kind u8 = 1, frame u32, t_send f64, dt f64, hlc_l f64, hlc_c u32
 * state [85]: kind u8 = 2 (5 = republished), node u32, frame u32, t_gen f64,
   t_send f64, hlc_l f64, hlc_c u32, 12 x f32 published state (``OBS_FIELDS``)
@@ -38,6 +40,8 @@ import struct
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+
 __all__ = [
     "COMMAND",
     "REPUBLISH",
@@ -59,7 +63,6 @@ __all__ = [
     "TRIGGER_BYTES",
 ]
 
-TRIGGER, STATE, COMMAND, REREQUEST, REPUBLISH = 1, 2, 3, 4, 5
 _TRIG = struct.Struct("<BIdddI")
 _STATE = struct.Struct("<BIIdddI12f")
 _CMD_HEAD = struct.Struct("<BIiIdH")

@@ -25,10 +25,13 @@ from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import summarize
+from sigma_des.metrics.throughput import link_mbps, throughput
+from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
 
 __all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS"]
 
-_KINDS = {1: "trigger", 2: "state", 3: "command", 4: "rerequest", 5: "state"}
+#: latency series of each message kind (a republished state is a state)
+_KINDS = {**KIND_NAMES, REPUBLISH: KIND_NAMES[STATE]}
 
 #: Unit of every metric the collector reports.
 METRIC_UNITS: dict[str, str] = {
@@ -198,15 +201,19 @@ class Collector:
             if name in self._lat:
                 self._lat[name].append(t - t_pub)
 
-    def delivered_batch(self, kind: int, latencies: NDArray[np.float64], messages: int) -> None:
-        """Many first deliveries of ``kind`` (the cohort engine's path; no duplicates).
+    def delivered_batch(
+        self, kind: int, latencies: NDArray[np.float64], messages: int, duplicates: int = 0
+    ) -> None:
+        """Many deliveries of ``kind`` (the cohort engine's path, which tells duplicates).
 
         Args:
             kind: message kind (its latency series gets ``latencies``, in order).
             latencies: delivery latencies (s) of the counted messages.
-            messages: number of counted messages (published after the warm-up).
+            messages: number of counted first deliveries (published after the warm-up).
+            duplicates: number of duplicate deliveries (not in ``messages``).
         """
         self.messages += messages
+        self.duplicates += duplicates
         name = _KINDS[kind]
         if name in self._lat and latencies.size:
             self._lat[name].extend(latencies)
@@ -273,6 +280,10 @@ class Collector:
         ``command``), in delivery order (a copy)."""
         return self._lat[kind].values().copy()
 
+    def aoi_samples(self) -> NDArray[np.float64]:
+        """The AoI samples (s) taken so far at the render ticks, in order (a copy)."""
+        return self._aoi_samples.values().copy()
+
     def sample_bytes(self) -> int:
         """Bytes held by the samples kept whole for the end (latencies, AoI, errors)."""
         held = [*self._lat.values(), self._aoi_samples, self._pos_err]
@@ -305,12 +316,7 @@ class Collector:
             lat = summarize(xs.values())
             m[f"latency_{kind}_mean"] = lat["mean"] * ms
             m[f"latency_{kind}_p99"] = lat["p99"] * ms
-        links = net.links
-        total_bytes = sum(nbytes for _name, nbytes, _packets in links)
-        m["throughput_mbps"] = total_bytes * 8 / window / 1e6
-        top = max(nbytes for _name, nbytes, _p in links)
-        m["throughput_max_link_mbps"] = top * 8 / window / 1e6
-        m["packets_per_s"] = sum(packets for _name, _b, packets in links) / window
+        m.update(throughput(net.links, window))
         m["deliveries_per_s"] = self.messages / window
         m["trigger_rate_hz"] = self.triggers / window
         m["f_trig_final_hz"] = run.f_trig
@@ -346,7 +352,6 @@ class Collector:
         m["rejoined"] = aligner.rejoined
         m["rerequests"] = aligner.rerequests
         m["history_misses"] = run.history_misses
-        links_mbps = {name: nbytes * 8 / window / 1e6 for name, nbytes, _p in links}
         wall = {
             "wall_s": run.wall_seconds,
             "events": run.events,
@@ -357,7 +362,7 @@ class Collector:
         return {
             "metrics": m,
             "wall": wall,
-            "links_mbps": links_mbps,
+            "links_mbps": link_mbps(net.links, window),
             "timeseries": whole_ticks(self.ts),
         }
 

@@ -19,15 +19,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.validate import require, require_positive
-from sigma_des.metrics.dtw import dtw, dtw_normalised
 from sigma_des.metrics.samples import Samples
 
-__all__ = ["FidelitySpec", "TrajectoryLog", "fidelity", "formation_error"]
+__all__ = ["FidelitySpec", "TrajectoryLog", "add_fidelity", "fidelity", "formation_error"]
 
 #: Samples per block of :func:`formation_error` (bounds its temporaries to a few MB).
 BLOCK = 256
@@ -106,6 +106,8 @@ def fidelity(
             "formation_err_max": math.nan,
             "dtw_r": math.nan,
         }, np.empty(0)
+    from sigma_des.metrics.dtw import dtw, dtw_normalised  # numba: compiled on first use
+
     a, b = pos[:t], ideal[:t]
     err = formation_error(a, b)
     n = pos.shape[1]
@@ -119,6 +121,27 @@ def fidelity(
         "formation_err_max": float(err.max()),
         "dtw_r": float(r.mean()),
     }, err
+
+
+def add_fidelity(
+    out: dict[str, Any],
+    times: NDArray[np.float64],
+    pos: NDArray[np.float64],
+    ideal: NDArray[np.float64],
+    spec: FidelitySpec,
+) -> None:
+    """Add the fidelity of a run's trajectory to its result dict (``metrics``, ``fidelity``).
+
+    Args:
+        out: the run's result dict (:meth:`~sigma_des.metrics.collector.Collector.finish`).
+        times: the trajectory's sample times (s of physics time).
+        pos: its positions ``(T, n, 3)``, sampled at ``spec.log_rate`` Hz.
+        ideal: the ideal run's positions at the same rate.
+        spec: the fidelity settings.
+    """
+    fid, err = fidelity(pos, ideal, 1.0 / spec.log_rate, spec.dtw_nodes)
+    out["metrics"].update(fid)
+    out["fidelity"] = {"t": times[: len(err)], "formation_err": err}
 
 
 def formation_error(

@@ -9,11 +9,11 @@ Nothing here knows which engine, aligner or network produced them.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-__all__ = ["AlignerReport", "NetCounters", "NetReport", "RunReport"]
+__all__ = ["AlignerReport", "MethodReport", "NetCounters", "NetReport", "RunReport"]
 
 
 @dataclass(frozen=True)
@@ -110,3 +110,39 @@ class RunReport:
     history_misses: int
     wall_seconds: float
     events: int
+
+
+@dataclass(frozen=True)
+class MethodReport:
+    """One method's finished run, as a front end (``compare``, live mode) files it.
+
+    Attributes:
+        metrics: the deterministic metrics (``METRIC_UNITS``; fidelity and live
+            counters included where they were measured).
+        wall: the run's own cost (``WALL_METRICS``).
+        links_mbps: wire Mbps of every link direction.
+        timeseries: per-render-tick arrays (``t``, ``aoi_mean``, ``f_trig``, ...).
+        engine: the engine ``requested`` and ``used`` and why it fell back (``fallback``).
+        fidelity: formation error per logged sample (``t``, ``formation_err``); empty
+            when not measured.
+    """
+
+    metrics: dict[str, float]
+    wall: dict[str, float]
+    links_mbps: dict[str, float]
+    timeseries: dict[str, Any]
+    engine: dict[str, str]
+    fidelity: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, out: Mapping[str, Any], engine: Mapping[str, str] | None = None) -> MethodReport:
+        """From a run's result dict (``run_method``'s, or the live runner's).
+
+        Args:
+            out: the result dict (``metrics``, ``wall``, ``links_mbps``, ``timeseries``,
+                and ``engine`` and ``fidelity`` where present).
+            engine: the engine entry, when ``out`` has none.
+        """
+        eng = engine if engine is not None else out["engine"]
+        return cls(out["metrics"], out["wall"], out["links_mbps"], out["timeseries"],
+                   dict(eng), out.get("fidelity", {}))

@@ -104,6 +104,13 @@ class Broker:
         self._count_work(start, start + s_del)
         return start + s_del
 
+    def carried(self, busy: float, work: float, max_wait: float) -> None:
+        """Service given elsewhere (the compiled core): free again at ``busy`` at the
+        latest, ``work`` more service seconds, a longest wait of ``max_wait``."""
+        self.busy = max(self.busy, busy)
+        self.work += work
+        self.max_wait = max(self.max_wait, max_wait)
+
     def _count_work(self, a: float, b: float) -> None:
         """Count busy time [a, b) inside the metrics window."""
         lo = a if a > self.warmup else self.warmup

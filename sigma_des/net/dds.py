@@ -40,11 +40,13 @@ This module knows nothing of alignment methods or aircraft.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.links import dist_cache
+from sigma_des.net.message import Msg
 from sigma_des.net.network import Deliver, Network
 from sigma_des.net.spec import NetSetup
 from sigma_des.net.wire import frame_bytes, payload_bytes
@@ -89,6 +91,14 @@ def heartbeat_bytes() -> int:
 def acknack_bytes() -> int:
     """RTPS message bytes of one ACKNACK to one writer."""
     return RTPS_HEADER + INFO_DST + ACKNACK
+
+
+@dataclass(slots=True, eq=False, repr=False)
+class Sample(Msg):
+    """A writer's sample: the message (``client``: the writer) and its sequence number
+    among that writer's samples (the reader's delivery order)."""
+
+    seq: int
 
 
 def make_network(
@@ -141,10 +151,10 @@ class DdsNetwork(Network):
         # reliability: samples written per writer (participant, kind, topic subject);
         # lost samples per writer/reader participant pair
         self._written: dict[tuple[int, int, int], int] = {}
-        self._lost: dict[tuple[int, int], dict[tuple[int, int, int], tuple[Any, ...]]] = {}
+        self._lost: dict[tuple[int, int], dict[tuple[int, int, int], tuple[Sample, float]]] = {}
         # in-order delivery per (writer participant, kind, topic subject, reader)
         self._next: dict[tuple[int, int, int, int], int] = {}
-        self._held: dict[tuple[int, int, int, int], dict[int, tuple[Any, ...] | None]] = {}
+        self._held: dict[tuple[int, int, int, int], dict[int, Msg | None]] = {}
         self.dds_meta_messages = 0
         self.dds_unmatched = 0
         phase = streams.stream("dds.launch").uniform(0, list(range(nsub)), 0, 0)
@@ -220,8 +230,8 @@ class DdsNetwork(Network):
             return
         for sub in subs:  # a reader's first sample from this writer starts its order
             self._next.setdefault((client, kind, subject, sub), seq)
-        broadcast = subject == self.server
-        msg = (kind, subject, index, payload, payload_bits, t, seq, broadcast)
+        msg = Sample(client, kind, subject, index, payload, payload_bits, tuple(subs), 0, t, t,
+                     seq)
         if self.spec.multicast and len(subs) > 1:
             done = self._cpu(client, t, self._w_cost.get(kind, subject, index, 0))
             nbytes = self.wire_bytes(payload_bits, False)
@@ -231,13 +241,17 @@ class DdsNetwork(Network):
         for sub in subs:
             self._send_data(client, sub, msg, 0, t)
 
+    def _reader_subject(self, msg: Msg, sub: int) -> int:
+        """Draw subject of ``msg``'s copy to reader ``sub`` (per reader for a broadcast)."""
+        return sub if msg.subject == self.server else msg.subject
+
     def _fan_out(
-        self, client: int, subs: list[int], msg: tuple[Any, ...], nbytes: int, lost: bool,
+        self, client: int, subs: list[int], msg: Sample, nbytes: int, lost: bool,
         t_sent: float,
     ) -> None:
-        kind, subject, index = msg[0], msg[1], msg[2]
+        kind, index = msg.kind, msg.index
         for sub in subs:
-            ds = sub if msg[7] else subject
+            ds = self._reader_subject(msg, sub)
             if lost:
                 self._on_data(False, client, sub, msg, 0, t_sent)
                 continue
@@ -247,33 +261,31 @@ class DdsNetwork(Network):
             else:
                 self.k.at(arr, self._on_data, True, client, sub, msg, 0, t_sent)
 
-    def _send_data(self, client: int, sub: int, msg: tuple[Any, ...], attempt: int,
-                   t: float) -> None:
-        kind, subject, index, _p, bits = msg[:5]
-        ds = sub if msg[7] else subject
+    def _send_data(self, client: int, sub: int, msg: Sample, attempt: int, t: float) -> None:
+        kind, index = msg.kind, msg.index
+        ds = self._reader_subject(msg, sub)
         done = self._cpu(client, t, self._w_cost.get(kind, ds, index, attempt))
-        self._send(client, sub, kind, ds, index, attempt, self.wire_bytes(bits), done,
+        self._send(client, sub, kind, ds, index, attempt, self.wire_bytes(msg.bits), done,
                    self._on_data, (client, sub, msg, attempt, done))
 
-    def _on_data(self, ok: bool, client: int, sub: int, msg: tuple[Any, ...], attempt: int,
+    def _on_data(self, ok: bool, client: int, sub: int, msg: Sample, attempt: int,
                  t_sent: float) -> None:
-        kind, subject, index, payload, _bits, t_pub = msg[:6]
+        kind = msg.kind
         if not ok:
             if self.spec.reliable:
-                self._lost.setdefault((client, sub), {})[(kind, msg[6], attempt)] = (
+                self._lost.setdefault((client, sub), {})[(kind, msg.seq, attempt)] = (
                     msg, t_sent)
             return
-        ds = sub if msg[7] else subject
-        cost = self._r_cost.get(kind, ds, index, attempt) + self._dispatch[sub]
+        ds = self._reader_subject(msg, sub)
+        cost = self._r_cost.get(kind, ds, msg.index, attempt) + self._dispatch[sub]
         done = self._cpu(sub, self.k.now, cost)
-        item = (sub, kind, ds, index, payload, t_pub)
+        item = msg.to(sub, ds, t_sent)
         if self.spec.reliable:
-            self.k.at(done, self._ordered_ready, (client, kind, subject, sub), msg[6], item)
+            self.k.at(done, self._ordered_ready, (client, kind, msg.subject, sub), msg.seq, item)
         else:
-            self.k.at(done, self.deliver, *item)
+            self.k.at(done, self.deliver, item)
 
-    def _ordered_ready(self, ch: tuple[int, int, int, int], seq: int,
-                  item: tuple[Any, ...] | None) -> None:
+    def _ordered_ready(self, ch: tuple[int, int, int, int], seq: int, item: Msg | None) -> None:
         """Sample ``seq`` (None: a GAP) of channel ``ch`` is ready; deliver what is in order."""
         nxt = self._next[ch]
         if seq < nxt:
@@ -284,7 +296,7 @@ class DdsNetwork(Network):
             it = held.pop(nxt)
             nxt += 1
             if it is not None:
-                self.deliver(*it)
+                self.deliver(it)
         self._next[ch] = nxt
 
     # ------------------------------------------------------------ reliability
@@ -328,12 +340,12 @@ class DdsNetwork(Network):
                 continue
             msg, _ts = item
             kind, seq, attempt = key
-            written = self._written[(w, kind, msg[1])]
+            written = self._written[(w, kind, msg.subject)]
             if written - seq > d.history_depth or attempt >= self.max_retries:
                 self.gave_up += 1  # out of the KEEP_LAST history: the reader gets a GAP
                 self._count_meta(t)
                 self._send(w, r, _GAP, r, seq, 0, self._an_b, t, self._on_gap,
-                           ((w, kind, msg[1], r), seq, 0))
+                           ((w, kind, msg.subject, r), seq, 0))
                 continue
             self.retransmissions += 1
             self.k.at(t, self._send_data, w, r, msg, attempt + 1, t)

@@ -32,7 +32,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import ndtr
 
 from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
@@ -196,6 +195,8 @@ class Dist:
         if d == "normal":
             if self.std == 0.0:
                 return self.mean
+            from scipy.special import ndtr  # here: SciPy is slow to import (the CLI's start)
+
             alpha = -self.mean / self.std
             tail = float(ndtr(-alpha))  # P(X >= 0)
             pdf = math.exp(-0.5 * alpha * alpha) / math.sqrt(2.0 * math.pi)

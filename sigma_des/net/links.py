@@ -20,7 +20,7 @@ This module takes the net layer's own :class:`~sigma_des.net.spec.NetSetup`
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,12 +30,11 @@ from sigma_des.core.rng import RandomStreams, Stream
 from sigma_des.core.sim import Kernel
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
+from sigma_des.net.message import Msg
 from sigma_des.net.spec import NetSetup
 
 __all__ = ["LinkDir", "Links", "dist_cache"]
 
-#: A stream segment: (client, up, kind, subject, index, wire bytes).
-_Packet = tuple[int, bool, int, int, int, int]
 
 
 class LinkDir:
@@ -51,6 +50,13 @@ class LinkDir:
         self.bytes = 0
         self.packets = 0
 
+    def carried(self, nbytes: int, packets: int, busy: float) -> None:
+        """Traffic serialized elsewhere (the compiled core): counted here, busy until ``busy``
+        at the latest."""
+        self.bytes += nbytes
+        self.packets += packets
+        self.busy = max(self.busy, busy)
+
 
 class _Conn:
     """One direction of one client's stream connection (in-order delivery)."""
@@ -60,7 +66,20 @@ class _Conn:
     def __init__(self) -> None:
         self.next_seq = 0
         self.next_deliver = 0
-        self.pending: dict[int, tuple[Callable[..., None], tuple[Any, ...]] | None] = {}
+        #: segments arrived out of order, by sequence number (None: given up)
+        self.pending: dict[int, _Segment | None] = {}
+
+
+@dataclass(slots=True, eq=False)
+class _Segment:
+    """One message sent as stream segment ``seq`` of connection ``conn``."""
+
+    conn: _Conn
+    seq: int
+    m: Msg
+    up: bool
+    nbytes: int
+    on_arrive: Callable[[Msg], None]
 
 
 class Links:
@@ -101,7 +120,8 @@ class Links:
         for is_server, spec in ((False, net.host_link), (True, net.server_link)):
             for up in (True, False):
                 tag = f"{'server' if is_server else 'host'}.{'up' if up else 'down'}"
-                self._lat[is_server, up] = dist_cache(nsub, spec.latency, streams, f"lat.{tag}")
+                self._lat[is_server, up] = dist_cache(nsub, spec.latency_of(up), streams,
+                                                      f"lat.{tag}")
                 ust = streams.stream(f"lossu.{tag}")
                 self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust))
                 for h in range(hosts + 1):
@@ -126,9 +146,10 @@ class Links:
         self._u_l = [[self._u[c, False], self._u[c, True]] for c in (False, True)]
         self._in_order: list[list[bool]] = []
         for _c, spec in ((False, net.host_link), (True, net.server_link)):
-            ordered = (spec.latency.dist == "constant" and spec.loss.model == "bernoulli"
-                       and spec.loss.p == 0.0 and not self._degrade and not self.forced_drops)
-            self._in_order.append([ordered, ordered])
+            calm = (spec.loss.model == "bernoulli" and spec.loss.p == 0.0
+                    and not self._degrade and not self.forced_drops)
+            self._in_order.append([calm and spec.latency_of(up).dist == "constant"
+                                   for up in (False, True)])
         self._p_const: list[list[float | None]] = []
         for c, spec in ((False, net.host_link), (True, net.server_link)):
             dyn = spec.loss.model != "bernoulli" or (
@@ -205,97 +226,86 @@ class Links:
     # ------------------------------------------------------------ transport
 
     def transmit(
-        self,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        nbytes: int,
-        t: float,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
+        self, m: Msg, up: bool, nbytes: int, on_arrive: Callable[[Msg], None]
     ) -> tuple[float, bool]:
-        """Send one packet with the configured transport; ``on_arrive(*args)`` runs
-        at its application-level arrival. Returns (first-try arrival, first-try lost)."""
-        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
+        """Send ``m`` (``nbytes`` on the wire, at ``m.t_sent``) on its client's link with the
+        configured transport; ``on_arrive(m)`` runs at its application-level arrival.
+        Returns (first-try arrival, first-try lost)."""
+        t = m.t_sent
+        client = m.client
+        arr, lost = self.hop(client, up, m.kind, m.subject, m.index, m.attempt, nbytes, t)
         if self.datagram or self._in_order[self._cls[client]][up]:
             # a stream on a lossless constant-latency link is already in order (FIFO
             # serialization + equal latency): the in-order bookkeeping would change nothing
             if not lost:
-                self.k.at(arr, on_arrive, *args)
+                self.k.at(arr, on_arrive, m)
             return arr, lost
         conn = self._conns.get((client, up))
         if conn is None:
             conn = self._conns[client, up] = _Conn()
-        seq = conn.next_seq
+        seg = _Segment(conn, conn.next_seq, m, up, nbytes, on_arrive)
         conn.next_seq += 1
-        pkt = (client, up, kind, subject, index, nbytes)
-        self._stream_try(conn, seq, pkt, attempt, t, arr, lost, on_arrive, args)
+        self._stream_try(seg, m.attempt, t, arr, lost)
         return arr, lost
 
-    def _stream_try(
-        self,
-        conn: _Conn,
-        seq: int,
-        pkt: _Packet,
-        attempt: int,
-        t: float,
-        arr: float,
-        lost: bool,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> None:
-        """Try ``attempt`` of stream segment ``seq`` sent at ``t``: in order on arrival,
+    def _stream_try(self, seg: _Segment, attempt: int, t: float, arr: float,
+                    lost: bool) -> None:
+        """Try ``attempt`` of stream segment ``seg`` sent at ``t``: in order on arrival,
         or resent after the (doubling) RTO, or given up after ``max_retries``."""
         if not lost:
-            self.k.at(arr, self._stream_arrive, conn, seq, on_arrive, args)
+            self.k.at(arr, self._stream_arrive, seg, True)
             return
         if attempt >= self.max_retries:
             self.gave_up += 1
-            self.k.at(t, self._stream_arrive, conn, seq, None, ())
+            self.k.at(t, self._stream_arrive, seg, False)
             return
         self.retransmissions += 1
-        self.k.at(
-            t + self.rto * (2**attempt),
-            self._stream_retry,
-            conn,
-            seq,
-            pkt,
-            attempt + 1,
-            on_arrive,
-            args,
-        )
+        self.k.at(t + self.rto * (2**attempt), self._stream_retry, seg, attempt + 1)
 
-    def _stream_retry(
-        self,
-        conn: _Conn,
-        seq: int,
-        pkt: _Packet,
-        attempt: int,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> None:
+    def _stream_retry(self, seg: _Segment, attempt: int) -> None:
         t = self.k.env.now
-        client, up, kind, subject, index, nbytes = pkt
-        arr, lost = self.hop(client, up, kind, subject, index, attempt, nbytes, t)
-        self._stream_try(conn, seq, pkt, attempt, t, arr, lost, on_arrive, args)
+        m = seg.m
+        arr, lost = self.hop(m.client, seg.up, m.kind, m.subject, m.index, attempt, seg.nbytes,
+                             t)
+        self._stream_try(seg, attempt, t, arr, lost)
 
     @staticmethod
-    def _stream_arrive(
-        conn: _Conn, seq: int, on_arrive: Callable[..., None] | None, args: tuple[Any, ...]
-    ) -> None:
-        conn.pending[seq] = (on_arrive, args) if on_arrive is not None else None
+    def _stream_arrive(seg: _Segment, arrived: bool) -> None:
+        """Segment ``seg`` arrived (or was given up): deliver what is now in order."""
+        conn = seg.conn
+        conn.pending[seg.seq] = seg if arrived else None
         while conn.next_deliver in conn.pending:
             item = conn.pending.pop(conn.next_deliver)
             conn.next_deliver += 1
             if item is not None:
-                item[0](*item[1])
+                item.on_arrive(item.m)
 
     def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""
         return self.up + self.down
+
+    def carried(
+        self,
+        nbytes: NDArray[np.int64],
+        packets: NDArray[np.int64],
+        busy: NDArray[np.float64],
+        retransmissions: int,
+        gave_up: int,
+    ) -> None:
+        """Count traffic carried elsewhere (the compiled core) on these links.
+
+        Args:
+            nbytes: wire bytes per direction (0 down, 1 up) and link, in the metrics window.
+            packets: packets, likewise.
+            busy: per direction and link, when its serialization is free again.
+            retransmissions: packets sent again after a loss.
+            gave_up: packets given up after the last retry.
+        """
+        for d, dirs in ((1, self.up), (0, self.down)):
+            for k, ld in enumerate(dirs):
+                ld.carried(int(nbytes[d, k]), int(packets[d, k]), float(busy[d, k]))
+        self.retransmissions += retransmissions
+        self.gave_up += gave_up
 
     # ------------------------------------------------------------ draw tables
 

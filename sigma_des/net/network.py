@@ -23,12 +23,14 @@ from sigma_des.core.sim import Kernel
 from sigma_des.net.broker import Broker
 from sigma_des.net.kinds import ACK
 from sigma_des.net.links import Links
+from sigma_des.net.message import Msg
 from sigma_des.net.spec import NetSetup
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
 
 __all__ = ["Network"]
 
-Deliver = Callable[[int, int, int, int, Any, float], None]
+#: called with every message that reaches its receiver (duplicates included)
+Deliver = Callable[[Msg], None]
 
 
 class Network(Links):
@@ -38,9 +40,9 @@ class Network(Links):
         kernel: the SimPy glue.
         setup: the net's specs, topology, metrics window and link faults.
         streams: root random streams.
-        deliver: ``deliver(client, kind, subject, index, payload, t_publish)`` is
-            called at the application-level arrival of every PUBLISH (duplicates
-            included) at a client.
+        deliver: ``deliver(m)`` is called with the :class:`~sigma_des.net.message.Msg`
+            of every PUBLISH at its application-level arrival at a client
+            (duplicates included; ``m.client`` is the receiver).
     """
 
     def __init__(
@@ -101,188 +103,74 @@ class Network(Links):
         ``subject`` is the node the message is about (the server ``n`` for a
         broadcast, whose deliveries are then keyed by each subscriber).
         """
+        now = self.k.now
         self._publish_try(
-            client, kind, subject, index, payload, payload_bits, tuple(subscribers), 0, self.k.now
+            Msg(client, kind, subject, index, payload, payload_bits, tuple(subscribers), 0,
+                now, now)
         )
 
-    def _publish_try(
-        self,
-        client: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        subs: tuple[int, ...],
-        attempt: int,
-        t_pub: float,
-    ) -> None:
-        t = self.k.env.now
-        if self._send_publish(
-            client,
-            True,
-            kind,
-            subject,
-            index,
-            attempt,
-            bits,
-            t,
-            self._broker_receive,
-            (client, kind, subject, index, payload, bits, subs, attempt, t_pub, t),
-        ):
-            self._schedule_resend(
-                t + self.timeout,
-                attempt,
-                self._publish_try,
-                (client, kind, subject, index, payload, bits, subs, attempt + 1, t_pub),
-            )
+    def _publish_try(self, m: Msg) -> None:
+        """A try of the publisher → broker hop, leaving now."""
+        m.t_sent = self.k.env.now
+        if self._send_publish(m, True, self._broker_receive):
+            self._resend(m, self._publish_try)
 
-    def _send_publish(
-        self,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        bits: int,
-        t: float,
-        on_arrive: Callable[..., None],
-        args: tuple[Any, ...],
-    ) -> bool:
-        """Send one PUBLISH on ``client``'s link at ``t`` (``on_arrive(*args)`` at its
+    def _send_publish(self, m: Msg, up: bool, on_arrive: Callable[[Msg], None]) -> bool:
+        """Send ``m`` on its client's link at ``m.t_sent`` (``on_arrive(m)`` at its
         arrival); True if the sender's QoS 1 timer fires (datagram: lost or late)."""
-        arr, lost = self.transmit(
-            client, up, kind, subject, index, attempt, self.wire_bytes(bits), t, on_arrive, args
-        )
-        return self.datagram and self.qos1 and (lost or arr > t + self.timeout)
+        arr, lost = self.transmit(m, up, self.wire_bytes(m.bits), on_arrive)
+        return self.datagram and self.qos1 and (lost or arr > m.t_sent + self.timeout)
 
-    def _schedule_resend(
-        self, when: float, attempt: int, fn: Callable[..., None], args: tuple[Any, ...]
-    ) -> None:
-        if attempt >= self.max_retries:
+    def _resend(self, m: Msg, fn: Callable[[Msg], None]) -> None:
+        """QoS 1: the next try of ``m``'s hop when its timer fires, unless retries are spent."""
+        if m.attempt >= self.max_retries:
             self.gave_up += 1
             return
         self.retransmissions += 1
-        self.k.at(when, fn, *args)
+        self.k.at(m.t_sent + self.timeout, fn, m.resent())
 
-    def _broker_receive(
-        self,
-        client: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        subs: tuple[int, ...],
-        attempt: int,
-        t_pub: float,
-        t_sent: float,
-    ) -> None:
+    def _broker_receive(self, m: Msg) -> None:
+        """The broker serves the PUBLISH, acknowledges it and fans it out."""
         now = self.k.env.now
-        broadcast = subject == self.server
-        dsubj = [s if broadcast else subject for s in subs]
-        t_ack, departs = self.broker.serve_publish(now, kind, subject, index, attempt, dsubj)
-        # PUBACK back to the publisher
-        if self.qos1 and self._puback(client, False, kind, subject, index, attempt, t_ack,
-                                      t_sent, now):
-            self._schedule_resend(
-                t_sent + self.timeout,
-                attempt,
-                self._publish_try,
-                (client, kind, subject, index, payload, bits, subs, attempt + 1, t_pub),
-            )
+        subject = m.subject
+        subs = m.subs
+        dsubj = [s for s in subs] if subject == self.server else [subject] * len(subs)
+        t_ack, departs = self.broker.serve_publish(now, m.kind, subject, m.index, m.attempt,
+                                                   dsubj)
+        if self.qos1 and self._puback(m, False, t_ack, now):
+            self._resend(m, self._publish_try)
+        kind, index, payload, bits, t_pub = m.kind, m.index, m.payload, m.bits, m.t_pub
         for sub, ds, d in zip(subs, dsubj, departs, strict=True):
-            self._deliver_try(sub, kind, ds, index, payload, bits, 0, t_pub, d)
+            # the broker's first try towards ``sub`` (Msg.to, inlined: the fan-out's hot loop)
+            self._deliver_try(Msg(sub, kind, ds, index, payload, bits, (), 0, t_pub, d))
 
-    def _puback(
-        self,
-        client: int,
-        up: bool,
-        kind: int,
-        subject: int,
-        index: int,
-        attempt: int,
-        t: float,
-        t_sent: float,
-        now: float,
-    ) -> bool:
-        """Send the PUBACK on ``client``'s link at ``t`` for a PUBLISH sent at ``t_sent``
-        and received ``now``; True if the sender's QoS 1 timer fires first (datagram:
-        the PUBACK is lost or late and the timer was still running at ``now``; over a
-        stream the PUBACK is only counted traffic)."""
+    def _puback(self, m: Msg, up: bool, t: float, now: float) -> bool:
+        """Send the PUBACK of ``m`` (received ``now``) on its client's link at ``t``; True
+        if the sender's QoS 1 timer fires first (datagram: the PUBACK is lost or late
+        and the timer was still running at ``now``; over a stream the PUBACK is only
+        counted traffic)."""
         if not self.datagram:
-            self.count_packet(client, up, self._ack_b, t)
+            self.count_packet(m.client, up, self._ack_b, t)
             return False
-        a_arr, a_lost = self.hop(client, up, kind + ACK, subject, index, attempt, self._ack_b, t)
-        return now <= t_sent + self.timeout and (a_lost or a_arr > t_sent + self.timeout)
+        a_arr, a_lost = self.hop(m.client, up, m.kind + ACK, m.subject, m.index, m.attempt,
+                                 self._ack_b, t)
+        late = m.t_sent + self.timeout
+        return now <= late and (a_lost or a_arr > late)
 
-    def _deliver_try(
-        self,
-        sub: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        attempt: int,
-        t_pub: float,
-        t_depart: float,
-    ) -> None:
-        """Broker → subscriber hop leaving the broker at ``t_depart``."""
-        if self._send_publish(
-            sub,
-            False,
-            kind,
-            subject,
-            index,
-            attempt,
-            bits,
-            t_depart,
-            self._client_receive,
-            (sub, kind, subject, index, payload, bits, attempt, t_pub, t_depart),
-        ):
-            self._schedule_resend(
-                t_depart + self.timeout,
-                attempt,
-                self._redeliver,
-                (sub, kind, subject, index, payload, bits, attempt + 1, t_pub),
-            )
+    def _deliver_try(self, m: Msg) -> None:
+        """A try of the broker → subscriber hop, leaving the broker at ``m.t_sent``."""
+        if self._send_publish(m, False, self._client_receive):
+            self._resend(m, self._redeliver)
 
-    def _redeliver(
-        self,
-        sub: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        attempt: int,
-        t_pub: float,
-    ) -> None:
-        depart = self.broker.serve_delivery(self.k.env.now, kind, subject, index, attempt)
-        self._deliver_try(sub, kind, subject, index, payload, bits, attempt, t_pub, depart)
+    def _redeliver(self, m: Msg) -> None:
+        """QoS 1: the broker serves a redelivery, then sends it."""
+        m.t_sent = self.broker.serve_delivery(self.k.env.now, m.kind, m.subject, m.index,
+                                              m.attempt)
+        self._deliver_try(m)
 
-    def _client_receive(
-        self,
-        sub: int,
-        kind: int,
-        subject: int,
-        index: int,
-        payload: Any,
-        bits: int,
-        attempt: int,
-        t_pub: float,
-        t_depart: float,
-    ) -> None:
+    def _client_receive(self, m: Msg) -> None:
+        """The subscriber receives ``m``: PUBACK (QoS 1), then hand it to the application."""
         now = self.k.env.now
-        if self.qos1 and self._puback(sub, True, kind, subject, index, attempt, now, t_depart,
-                                      now):
-            self._schedule_resend(
-                t_depart + self.timeout,
-                attempt,
-                self._redeliver,
-                (sub, kind, subject, index, payload, bits, attempt + 1, t_pub),
-            )
-        self.deliver(sub, kind, subject, index, payload, t_pub)
-
+        if self.qos1 and self._puback(m, True, now, now):
+            self._resend(m, self._redeliver)
+        self.deliver(m)

@@ -54,20 +54,43 @@ MIDDLEWARES: tuple[str, ...] = ("mqtt", "dds")
 
 @dataclass(frozen=True)
 class LinkSpec:
-    """A host's access link to the broker (both directions alike).
+    """A host's access link to the broker (both directions alike unless ``latency_down``).
 
     Attributes:
-        latency: base one-way latency distribution of a packet on this link (s).
+        latency: base one-way latency distribution of a packet on this link (s), in
+            both directions unless ``latency_down`` is given.
         bandwidth_mbps: link rate; serialization = wire bits / rate, FIFO per direction.
         loss: packet loss model of this link.
+        latency_down: base latency of the down direction only (broker -> this link's
+            clients); absent (None): ``latency``. ``sigma-des calibrate`` sets it, since
+            live triggers and states do not take the same time.
     """
 
     latency: Dist = field(default_factory=lambda: Dist(dist="constant", value=0.00025))
     bandwidth_mbps: float = 1000.0
     loss: LossSpec = field(default_factory=LossSpec)
+    latency_down: Dist | None = None
 
     def __post_init__(self) -> None:
         require_positive(self, "bandwidth_mbps")
+        down = self.latency_down
+        if down is not None:
+            lossless = self.loss.model == "bernoulli" and self.loss.p == 0.0
+            # the compiled core decides per link (from `latency`), not per direction,
+            # whether a lossless stream can reorder: a random down direction behind a
+            # constant `latency` would be delivered out of order there
+            require(
+                not (lossless and self.latency.dist == "constant"
+                     and down.dist != "constant"),
+                "latency_down",
+                f"a random down latency ({down.dist!r}) on a lossless link needs a random "
+                "`latency` too (give the up direction as a distribution, e.g. uniform with "
+                "low = high)",
+            )
+
+    def latency_of(self, up: bool) -> Dist:
+        """The base latency of one direction (``up``: client -> broker)."""
+        return self.latency if up or self.latency_down is None else self.latency_down
 
 
 @dataclass(frozen=True)

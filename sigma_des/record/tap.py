@@ -1,10 +1,10 @@
 """The engines' recording tap: turns engine-side events into recorder calls.
 
-An engine run with ``run.tap`` set calls the tap where messages are delivered,
-snapshots change and render ticks sample. Both engines call it in simulated-time
-order, and states reach it no later than the next tick, so at an alignment or
-render tick at ``t`` (one every 0.2 s of simulated time at most) the tap promises the
-recorder that nothing older than ``t`` follows
+An engine run with a tap attached (``MethodRun.record``) calls it where messages are
+delivered, snapshots change and render ticks sample. Both engines call it in
+simulated-time order, and states reach it no later than the next tick, so at an
+alignment or render tick at ``t`` (one every 0.2 s of simulated time at most) the tap
+promises the recorder that nothing older than ``t`` follows
 (:meth:`~sigma_des.record.writer.MethodRecorder.advance`): the recording is written as
 the run goes, in ``log_time`` order, one message per trigger period and channel. The
 tap converts the published state rows (columns
@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.events.tap import Tap
 from sigma_des.record.writer import MethodRecorder, Recorder
 
 __all__ = ["RecordTap", "obs_to_ned"]
@@ -51,7 +52,7 @@ def obs_to_ned(obs: _F) -> tuple[_F, _F, _F]:
     return pos, vel, obs[:, 3:6].copy()
 
 
-class RecordTap:
+class RecordTap(Tap):
     """Records one method run into its own MCAP file.
 
     Args:

@@ -45,11 +45,11 @@ import orjson
 from mcap.writer import CompressionType, Writer
 from numpy.typing import ArrayLike, NDArray
 
-from sigma_des import __version__
 from sigma_des.record.delta import DeltaEncoder
 from sigma_des.record.enu import poses_in_frame
 from sigma_des.record.rows import Pending, pick, row_fields, rows_json
 from sigma_des.record.schemas import KINDS, schema_bytes
+from sigma_des.version import __version__
 
 __all__ = ["MethodRecorder", "Recorder", "RECORD_MODES", "PROFILE"]
 

@@ -186,7 +186,8 @@ class ProcessModel:
         for is_server, spec in ((False, net.host_link), (True, net.server_link)):
             for upward in (True, False):
                 tag = f"{'server' if is_server else 'host'}.{'up' if upward else 'down'}"
-                self.lat[is_server, upward] = _Draws(spec.latency, streams, f"lat.{tag}", nsub)
+                self.lat[is_server, upward] = _Draws(spec.latency_of(upward), streams,
+                                                     f"lat.{tag}", nsub)
         self.svc_pub = _Draws(sc.broker.publish_service, streams, "svc.publish", nsub)
         self.svc_del = _Draws(sc.broker.delivery_service, streams, "svc.delivery", nsub)
         self.step_time = _Draws(sc.compute.step_time, streams, "compute", n)

@@ -9,15 +9,14 @@ from pathlib import Path
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["add_replay_parser", "run_replay"]
+__all__ = ["add_replay_args", "run_replay"]
 
 
-def add_replay_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Register ``sigma-des replay`` on the top-level subparsers."""
+def add_replay_args(r: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``sigma-des replay`` to its subparser ``r``."""
     from sigma_des.replay.interpolate import INTERP_METHODS
     from sigma_des.replay.window import RULES
 
-    r = sub.add_parser("replay", help="rebuild recorded trajectories at any rate")
     r.add_argument("recording", metavar="FILE.mcap", help="a recording (compare/live --record)")
     r.add_argument("--rate", type=float, required=True, metavar="HZ", help="output rate (Hz)")
     r.add_argument("--method", default="hermite-dw", choices=INTERP_METHODS,

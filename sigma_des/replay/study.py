@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
+from sigma_des.agents.ideal import closed_loop
+from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.core.rng import RandomStreams
 from sigma_des.record.tap import obs_to_ned
 from sigma_des.replay.interpolate import interpolate
@@ -57,25 +58,10 @@ class Noise:
 
 def dense_flight(dynamics: DynamicsModel, behaviour: Behaviour | None, n: int,
                  duration: float, dt: float) -> Flight:
-    """Fly ``n`` aircraft for ``duration`` s at step ``dt`` and keep every frame."""
-    nodes = np.arange(n, dtype=np.int64)
-    s = dynamics.initial_state(n)
-    cmd = dynamics.default_command(s)
+    """Fly ``n`` aircraft for ``duration`` s at step ``dt`` (the ideal closed loop,
+    :func:`~sigma_des.agents.ideal.closed_loop`) and keep every frame."""
     frames = int(round(duration / dt))
-    obs = dynamics.observe(s)
-    rows = [obs.copy()]
-    valid = np.ones(n, dtype=bool)
-    for k in range(frames):
-        if behaviour is not None:
-            view = SwarmView(obs=obs, frame=np.full(n, k, dtype=np.int64), valid=valid,
-                             aligned_frame=k)
-            new = behaviour.commands(view, dynamics)
-            ok = ~np.all(np.isnan(new), axis=1)
-            cmd[ok] = new[ok]
-        s = dynamics.step(s, cmd, dt, k + 1, nodes)
-        obs = dynamics.observe(s)
-        rows.append(obs.copy())
-    allobs = np.stack(rows)  # (T, n, 12)
+    allobs = np.stack([obs.copy() for obs in closed_loop(dynamics, behaviour, n, frames, dt)])
     T = allobs.shape[0]
     pos, vel, att = obs_to_ned(allobs.reshape(T * n, -1))
     shape = (T, n, 3)

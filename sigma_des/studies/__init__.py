@@ -6,7 +6,7 @@ share lives here:
 * :mod:`~sigma_des.studies.args` — the common command line (``--quick``, ``--seeds``…);
 * :mod:`~sigma_des.studies.model` — :class:`MethodSpec`, :class:`RunRecord`, :class:`Study`;
 * :mod:`~sigma_des.studies.run` — :func:`run_study` on the local executor
-  (:mod:`sigma_des.sweep.local`);
+  (:mod:`sigma_des.pool`);
 * :mod:`~sigma_des.studies.derived` — metrics derived from the render-tick series;
 * :mod:`~sigma_des.studies.output` — ``results.csv``, ``timeseries.csv``, ``summary.json``;
 * :mod:`~sigma_des.studies.plots` — colours, bars, AoI panels (matplotlib, Agg);

@@ -5,7 +5,7 @@ whose report is :mod:`~sigma_des.studies.engine_tables`) times the cohort engine
 per-message engine and the process-per-message reference model
 (:mod:`sigma_des.reference.process_model`) for every node count; this module holds
 what it runs: :func:`plan` (the cases of one N), :func:`run_fresh` (one case in a
-fresh child process on the local executor, :mod:`sigma_des.sweep.local`, so peak RSS
+fresh child process on the local executor, :mod:`sigma_des.pool`, so peak RSS
 is per case), :func:`make_row` (one CSV row) and :func:`annotate` (speed-up ratios
 and the metric checks). See ``docs/BENCHMARKS.md``.
 
@@ -53,7 +53,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any, NamedTuple
 
 from sigma_des import config
-from sigma_des.sweep.local import run_all
+from sigma_des.pool import run_all
 
 __all__ = [
     "ALL_METHODS",
@@ -225,32 +225,25 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
     """Build and run one simulation.
 
     For the engines this does what ``sigma_des.api.run_method`` does without the
-    fidelity metrics (whose ideal run would be timed too): ``make_run`` picks the
-    engine of ``sc.engine``; a mid-run ``CohortFallback`` re-runs the whole
-    simulation on the per-message engine, and the wall time includes the aborted
-    attempt (what a user of the cohort engine pays).
+    fidelity metrics (whose ideal run would be timed too), through the same
+    :func:`~sigma_des.events.cohort.execute`: the engine of ``sc.engine``; a mid-run
+    ``CohortFallback`` re-runs the whole simulation on the per-message engine, and
+    the wall time includes the aborted attempt (what a user of the cohort engine pays).
     """
     import time
 
     if impl in ENGINES:
-        from sigma_des.events.cohort import make_run
-        from sigma_des.events.engine import MethodRun
-        from sigma_des.events.fast.support import CohortFallback
+        from sigma_des.events.cohort import execute
         from sigma_des.factory import make_behaviour, make_dynamics
 
         if sc.engine != impl:
             raise ValueError(f"impl {impl!r} but scenario engine {sc.engine!r}")
         t0, c0 = time.perf_counter(), time.process_time()
-        run, fallback = make_run(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
-        try:
-            out = run.run()
-        except CohortFallback as exc:
-            fallback = str(exc) or "CohortFallback"
-            run = MethodRun(sc.run_spec(), method, make_dynamics(sc), make_behaviour(sc))
-            out = run.run()
+        run, out, eng = execute(sc.run_spec(), method, lambda: make_dynamics(sc),
+                                lambda: make_behaviour(sc))
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        used = "events" if fallback or impl == "events" else "cohort"
-        return Sim(wall, int(run.kernel.events), dict(out["metrics"]), used, fallback, cpu)
+        return Sim(wall, int(run.kernel.events), dict(out["metrics"]), eng["used"],
+                   eng["fallback"], cpu)
     if impl == "baseline":
         from sigma_des.reference.process_model import ProcessModel, check_supported
 

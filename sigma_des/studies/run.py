@@ -5,7 +5,7 @@ A study script (``experiments/scale_200.py`` and its siblings) names its *varian
 building its scenario for a seed) and, per variant, its method labels
 (:class:`~sigma_des.studies.model.MethodSpec`); :func:`run_study` runs every
 (variant, seed) case with :func:`sigma_des.api.compare`, in this process or on
-``--jobs`` worker processes of :func:`sigma_des.sweep.local.run_all`, and derives
+``--jobs`` worker processes of :func:`sigma_des.pool.run_all`, and derives
 the time-series metrics of every run.
 """
 
@@ -19,9 +19,9 @@ from dataclasses import replace
 
 from sigma_des.api import Results, compare
 from sigma_des.config import Scenario, load, with_overrides
+from sigma_des.pool import run_all
 from sigma_des.studies.derived import derived_metrics
 from sigma_des.studies.model import MethodSpec, RunRecord, Study
-from sigma_des.sweep.local import run_all
 
 __all__ = ["known", "load_scenario", "run_case", "run_study", "scenario_for"]
 

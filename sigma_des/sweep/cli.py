@@ -107,6 +107,10 @@ def run_sweep_command(args: argparse.Namespace, base: Scenario) -> int:
         )
         if args.dry_run:
             return 0
+        if not args.in_process:
+            from sigma_des.extras import need
+
+            need("sweep", "dask", "distributed", instead="pass --in-process")
         client: str | None = "inprocess" if args.in_process else args.scheduler
         try:
             rep = sw.run(

@@ -6,7 +6,7 @@ of :func:`~sigma_des.sweep.tasks.execute`; results come back through
 ``as_completed`` to the client, the only process that writes the results store.
 On exit (also on an interrupt) unfinished futures are cancelled and a cluster
 started here is shut down. ``client="processes"`` runs the tasks on a pool of local
-worker processes without Dask (:mod:`sigma_des.sweep.local`, the executor that
+worker processes without Dask (:mod:`sigma_des.pool`, the executor that
 ``compare --jobs`` and the studies use); a worker that dies takes the sweep down with
 it there (Dask records it as a failed run instead).
 """
@@ -22,9 +22,9 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
-from sigma_des import __version__
-from sigma_des.sweep.local import local_pool
+from sigma_des.pool import local_pool
 from sigma_des.sweep.tasks import Task, TaskFn, execute
+from sigma_des.version import __version__
 
 __all__ = ["Submit", "executor", "local_cluster", "run_inprocess", "sigint_ignored"]
 

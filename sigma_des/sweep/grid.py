@@ -237,9 +237,8 @@ def apply_point(base: Scenario, point: Mapping[str, Any]) -> Scenario:
     Raises:
         ConfigError: unknown key, wrong type or out-of-range value, naming the key.
     """
-    data = to_dict(base)
-    if getattr(base, "hosts_auto", False):
-        data["hosts"] = 0  # placed anew from the point's nodes (unless it sets hosts)
+    # automatic hosts and warmup are derived anew from the point's nodes and duration
+    data = to_dict(base, keep_auto=True)
     for key, value in point.items():
         set_key(data, key, value)
     return from_dict(Scenario, data)  # type: ignore[no-any-return]

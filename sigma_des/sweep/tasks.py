@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from sigma_des import __version__
 from sigma_des.config import Scenario, config_hash
 from sigma_des.sweep.store import RunKey
+from sigma_des.version import __version__
 
 __all__ = ["Task", "TaskFn", "estimate_seconds", "execute", "run_task"]
 

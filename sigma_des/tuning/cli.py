@@ -21,12 +21,11 @@ from sigma_des.config import parse_set, set_key
 from sigma_des.errors import ConfigError
 from sigma_des.loading import from_dict
 
-__all__ = ["add_parser", "run", "load_spec"]
+__all__ = ["add_args", "run", "load_spec"]
 
 
-def add_parser(sub: Any) -> None:
-    """Register the ``tune`` subcommand on an argparse subparsers object."""
-    t = sub.add_parser("tune", help="fit the aircraft model to a flight log (GA + DTW)")
+def add_args(t: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``sigma-des tune`` to its subparser ``t``."""
     t.add_argument("--dynamics", required=True, help="quadrotor or fixedwing")
     t.add_argument("--log", required=True, metavar="CSV", help="tuning flight log")
     t.add_argument("--validate", default=None, metavar="CSV", help="held-out validation log")
@@ -67,8 +66,8 @@ def load_spec(config: str | None, sets: list[str]) -> Any:
 def run(args: argparse.Namespace) -> int:
     """Run ``sigma-des tune``; returns the exit status (2 on bad input)."""
     try:
+        from sigma_des.agents.fitted import KINDS, fitted_params
         from sigma_des.agents.presets import preset
-        from sigma_des.tuning.fitted import KINDS, fitted_params
         from sigma_des.tuning.flightlog import read_csv
         from sigma_des.tuning.pipeline import tune_and_report
 

@@ -16,14 +16,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-from sigma_des import __version__
+from sigma_des.agents.fitted import write_fitted
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.wind import WindConfig
-from sigma_des.tuning.fitted import write_fitted
 from sigma_des.tuning.flightlog import FlightLog
 from sigma_des.tuning.ga import tune
 from sigma_des.tuning.report import PAPER_VALUES, plot_fit, replayed, score
 from sigma_des.tuning.spec import TuneSpec, with_values
+from sigma_des.version import __version__
 
 __all__ = ["tune_and_report", "markdown"]
 

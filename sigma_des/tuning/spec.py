@@ -20,22 +20,18 @@ paper-notes' default for CFD-derived values; reversed for a negative value).
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
-from sigma_des.agents.params import AeroCoeffs, AircraftParams
+from sigma_des.agents.fitted import PARAM_NAMES, get_value, with_values
+from sigma_des.agents.params import AircraftParams
 from sigma_des.errors import ConfigError
 
 __all__ = ["TuneSpec", "GENE_NAMES", "DEFAULT_GENES", "DEFAULT_CHANNELS", "get_value",
            "with_values", "bounds"]
 
-_TOP = tuple(f.name for f in fields(AircraftParams)
-             if f.type in ("float", float) and f.name not in ("altitude", "spacing",
-                                                              "max_substep", "v_cruise"))
-_AERO = tuple(f.name for f in fields(AeroCoeffs))
-#: Every parameter name a gene may be.
-GENE_NAMES: tuple[str, ...] = _TOP + _AERO
+#: Every parameter name a gene may be (those of :mod:`sigma_des.agents.fitted`).
+GENE_NAMES: tuple[str, ...] = PARAM_NAMES
 #: Genes tuned when ``tune.params`` is empty.
 DEFAULT_GENES: dict[str, tuple[str, ...]] = {
     "quadrotor": ("ixx", "iyy", "izz", "rotor_pitch", "rotor_cd0", "tau_motor", "cd_0"),
@@ -162,27 +158,6 @@ class TuneSpec:
     def channels_of(self, kind: str) -> tuple[str, ...]:
         """The DTW point columns for aircraft ``kind``."""
         return self.channels or DEFAULT_CHANNELS[kind]
-
-
-def get_value(p: AircraftParams, name: str) -> float:
-    """Current value of parameter ``name`` (top-level or aerodynamic)."""
-    if name in _TOP:
-        return float(getattr(p, name))
-    if name in _AERO:
-        return float(getattr(p.aero, name))
-    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(GENE_NAMES)}")
-
-
-def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
-    """A copy of ``p`` with the named parameters replaced (validated)."""
-    top = {k: float(v) for k, v in values.items() if k in _TOP}
-    aero = {k: float(v) for k, v in values.items() if k in _AERO}
-    bad = sorted(set(values) - set(top) - set(aero))
-    if bad:
-        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(GENE_NAMES)}")
-    if aero:
-        top["aero"] = dataclasses.replace(p.aero, **aero)  # type: ignore[assignment]
-    return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 
 def bounds(spec: TuneSpec, start: AircraftParams, kind: str

@@ -129,10 +129,10 @@ def test_growth_and_flush_paths_identical(monkeypatch: pytest.MonkeyPatch) -> No
         run_both(sc, method)
     run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
                     make_behaviour(sc), compiled=True)
-    assert run.fast is not None
-    cap0 = run.fast.array("heap_t").size
+    assert isinstance(run.core, driver.CompiledCore)
+    cap0 = run.core.array("heap_t").size
     run.run()
-    assert run.fast.array("heap_t").size > cap0  # the event table grew
+    assert run.core.array("heap_t").size > cap0  # the event table grew
 
 
 @pytest.mark.parametrize(

@@ -33,8 +33,10 @@ def _nodes(
 
     step = DrawCache(n, lambda s, kd, i, a: np.full(len(s), STEP), constant=STEP)
     clocks = NodeClocks(ClockSpec(), RandomStreams(1).stream("clocks"), n)
-    nodes = PhysicsNodes(k, publish, truth, n, [0] * n, 1, cores, step, faults, clocks,
-                         False, warp, 150, dyn.default_command(truth.state))
+    nodes = PhysicsNodes(clock=k, publish=publish, truth=truth, server=n, host_of=[0] * n,
+                         hosts=1, cores_per_host=cores, step_time=step, faults=faults,
+                         clocks=clocks, hlc=False, warp=warp, payload_bits=150,
+                         cmd=dyn.default_command(truth.state))
     return k, truth, nodes, sent
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from sigma_des.cli import main
 from sigma_des.config import load
+from sigma_des.live.insample import IN_SAMPLE_METRICS
 from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto
@@ -27,6 +28,13 @@ def live_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_writes_compares_files_with_mode_live(live_dir: Path) -> None:
     summ = json.loads((live_dir / "summary.json").read_text())
     assert summ["mode"] == "live" and summ["interrupted"] is False
+    # CPU of every process over the idle and the metrics windows (cpu.csv = summary's rows)
+    cpu = pd.read_csv(live_dir / "cpu.csv")
+    assert len(cpu) == 4 * 5 and set(cpu["process"]) == {"server", "host0", "host1", "broker",
+                                                         "background"}
+    assert (cpu["window_s"] > 0).all() and (cpu["idle_s"] >= 0.9).all()  # idle window 1 s
+    srv = cpu[(cpu["method"] == "bides") & (cpu["process"] == "server")].iloc[0]
+    assert summ["live"]["bides"]["cpu"][0]["cpu_s"] == pytest.approx(srv["cpu_s"])
     assert set(summ["methods"]) == {"none", "lockstep", "hlc", "bides"}
     rows = pd.read_csv(live_dir / "results.csv")
     assert set(rows["method"]) == {"none", "lockstep", "hlc", "bides"}
@@ -85,7 +93,24 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
     assert sc.net.host_link.latency.dist == "empirical"
     hop = np.loadtxt(sc.net.host_link.latency.file)
     assert hop.min() >= 0 and 0 < hop.mean() < 0.1
+    down = sc.net.host_link.latency_down
+    assert down is not None and down.file != sc.net.host_link.latency.file  # per direction
     assert sc.compute.step_time.dist == "lognormal"
+    # the report: CPU demands of every process and the in-sample errors of every method
+    rep = json.loads(out.with_suffix(".json").read_text())
+    methods = {"none", "lockstep", "hlc", "bides"}
+    assert {(r["method"], r["metric"]) for r in rep["in_sample"]} == {
+        (m, k) for m in methods for k in IN_SAMPLE_METRICS}
+    assert all(np.isfinite(r["live"]) for r in rep["in_sample"])  # trigger latency included
+    assert all(r["flagged"] == (abs(r["error"]) > 0.1) for r in rep["in_sample"])
+    dem = {(r["method"], r["process"]): r for r in rep["cpu_demands"]}
+    assert set(dem) == {(m, p) for m in methods for p in ("server", "host0", "host1", "broker")}
+    for (m, p), r in dem.items():
+        assert r["messages"] > 0 and r["busy_s"] == pytest.approx(
+            r["cpu_s"] - r["idle_rate"] * r["window_s"])
+        if p == "broker":  # every PUBLISH a client sent or received went through it
+            assert r["messages"] == sum(dem[m, q]["messages"] for q in ("server", "host0", "host1"))
+    assert set(rep["background_cores"]) == methods
     assert main(["compare", str(out), "--set", "duration=0.5", "--set", "warmup=0.1",
                  "--methods", "bides", "--no-progress"]) == 0
 
@@ -136,9 +161,37 @@ def test_external_broker_with_credentials(tmp_path: Path,
                 f"{addr.host}:{addr.port}", "--username", addr.username]
         assert main([*base, "--password", "wrong"]) == 2
         assert "--broker: MQTT connect" in capsys.readouterr().err
-        assert main([*base, "--password", addr.password, "--out", str(tmp_path)]) == 0
-    summ = json.loads((tmp_path / "summary.json").read_text())
+        secret = tmp_path / "secret"
+        secret.write_text(addr.password + "\n")
+        out = tmp_path / "out"
+        assert main([*base, "--password-file", str(secret), "--no-progress", "--no-plots",
+                     "--out", str(out)]) == 0
+    summ = json.loads((out / "summary.json").read_text())
     assert summ["methods"]["none"]["latency_state_mean"] > 0
+
+
+def test_the_password_comes_from_the_option_the_file_or_the_environment(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+
+    from sigma_des.errors import ConfigError
+    from sigma_des.live.cli import PASSWORD_ENV, password
+
+    def ns(pw: str | None = None, pw_file: str | None = None) -> argparse.Namespace:
+        return argparse.Namespace(password=pw, password_file=pw_file)
+
+    monkeypatch.delenv(PASSWORD_ENV, raising=False)
+    assert password(ns()) == ""
+    monkeypatch.setenv(PASSWORD_ENV, "from-env")
+    assert password(ns()) == "from-env"
+    f = tmp_path / "pw"
+    f.write_text("from-file\nignored\n")
+    assert password(ns(pw_file=str(f))) == "from-file"
+    assert password(ns(pw="from-option")) == "from-option"
+    with pytest.raises(ConfigError, match="cannot go with --password"):
+        password(ns("a", str(f)))
+    with pytest.raises(ConfigError, match="cannot read"):
+        password(ns(pw_file=str(tmp_path / "missing")))
 
 
 class _FakeRun:

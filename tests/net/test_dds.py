@@ -214,6 +214,7 @@ def test_same_seed_same_results_with_random_costs_and_loss() -> None:
 def _deliveries(depth: int) -> tuple[MethodRun, list[tuple[int, float, float]]]:
     """Method none, one node; the state of frame 40 is lost on the server's link."""
     from sigma_des.net.kinds import STATE
+    from sigma_des.net.message import Msg
 
     sc = tiny(methods=["none"], nodes=1, hosts=1, **{
         **DDS, "dds.heartbeat_period": 0.1, "dds.history_depth": depth,
@@ -222,11 +223,10 @@ def _deliveries(depth: int) -> tuple[MethodRun, list[tuple[int, float, float]]]:
     got: list[tuple[int, float, float]] = []
     inner = run.net.deliver
 
-    def record(client: int, kind: int, subject: int, index: int, payload: object,
-               t_pub: float) -> None:
-        if kind == STATE:
-            got.append((index, run.kernel.now, t_pub))
-        inner(client, kind, subject, index, payload, t_pub)
+    def record(m: Msg) -> None:
+        if m.kind == STATE:
+            got.append((m.index, run.kernel.now, m.t_pub))
+        inner(m)
 
     run.net.deliver = record
     run.run()

@@ -13,6 +13,7 @@ from sigma_des import Scenario, load
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.kinds import STATE
+from sigma_des.net.message import Msg
 from sigma_des.net.network import Network
 
 
@@ -20,9 +21,8 @@ def _net(sc: Scenario) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
     got: list[tuple[Any, ...]] = []
     k = Kernel()
 
-    def deliver(client: int, kind: int, subject: int, index: int, payload: Any,
-                t_pub: float) -> None:
-        got.append((client, subject, index, t_pub, k.now))
+    def deliver(m: Msg) -> None:
+        got.append((m.client, m.subject, m.index, m.t_pub, k.now))
 
     setup = replace(sc.net_setup(), warmup=0.0)
     return k, Network(k, setup, RandomStreams(sc.seed), deliver), got
@@ -129,10 +129,10 @@ def test_duplicate_delivery_changes_no_metric() -> None:
     sc = Scenario(nodes=3, hosts=1, duration=0.5, warmup=0.0)
     run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     obs = np.zeros(12)
-    run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
+    run.deliver(Msg(run.server, STATE, 1, 0, (0, 0.0, obs, None), 150, (), 0, 0.0, 0.0))
     lat = run.collector.latencies("state").tolist()
     ring = run.aligner.ring.frame.copy()  # type: ignore[attr-defined]
-    run.deliver(run.server, STATE, 1, 0, (0, 0.0, obs, None), 0.0)
+    run.deliver(Msg(run.server, STATE, 1, 0, (0, 0.0, obs, None), 150, (), 0, 0.0, 0.0))
     assert run.collector.duplicates == 1
     assert run.collector.latencies("state").tolist() == lat
     assert np.array_equal(run.aligner.ring.frame, ring)  # type: ignore[attr-defined]

@@ -14,6 +14,7 @@ from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.errors import ConfigError
 from sigma_des.net.kinds import COMMAND, STATE
+from sigma_des.net.message import Msg
 from sigma_des.net.network import Network
 from sigma_des.net.spec import (
     BrokerSpec,
@@ -61,9 +62,8 @@ def test_network_from_a_hand_made_setup() -> None:
     k = Kernel()
     got: list[tuple[Any, ...]] = []
 
-    def deliver(client: int, kind: int, subject: int, index: int, payload: Any,
-                t_pub: float) -> None:
-        got.append((client, kind, subject, index, payload, t_pub, k.now))
+    def deliver(m: Msg) -> None:
+        got.append((m.client, m.kind, m.subject, m.index, m.payload, m.t_pub, k.now))
 
     net = Network(k, setup, RandomStreams(1), deliver)
     k.at(0.125, net.publish, 0, STATE, 0, 3, "x", 150, (net.server,))

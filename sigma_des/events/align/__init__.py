@@ -12,21 +12,21 @@ method's name to its class, and :func:`make_aligner` builds one from
   once causally stable;
 * ``bides`` (:mod:`.bides`, ring buffers and Algorithm 1 in :mod:`.ring`);
 * ``rpc`` (:mod:`.rpc`): an AirSim-style synchronous RPC frame loop.
+
+A method's module is imported when it is first built (or :data:`ALIGNERS` is read):
+the specs (:mod:`.spec`) are read by the scenario without loading numba or SimPy.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+import importlib
+from typing import TYPE_CHECKING, Any, Protocol
 
-from sigma_des.events.align.base import Aligner, ServerContext
-from sigma_des.events.align.bides import BidesAligner
-from sigma_des.events.align.hlc import HLCAligner
-from sigma_des.events.align.lockstep import LockstepAligner
-from sigma_des.events.align.none import NoneAligner
-from sigma_des.events.align.rpc import RpcAligner
-from sigma_des.events.align.spec import AlignParams
+if TYPE_CHECKING:
+    from sigma_des.events.align.base import Aligner, ServerContext
+    from sigma_des.events.align.spec import AlignParams
 
-__all__ = ["ALIGNERS", "AlignerClass", "make_aligner"]
+__all__ = ["ALIGNERS", "AlignerClass", "aligner_class", "make_aligner"]
 
 
 class AlignerClass(Protocol):
@@ -37,14 +37,24 @@ class AlignerClass(Protocol):
         ...
 
 
-#: The methods by name.
-ALIGNERS: dict[str, AlignerClass] = {
-    "none": NoneAligner,
-    "lockstep": LockstepAligner,
-    "hlc": HLCAligner,
-    "bides": BidesAligner,
-    "rpc": RpcAligner,
+#: Each method's module (under this package) and class.
+_CLASSES: dict[str, tuple[str, str]] = {
+    "none": ("none", "NoneAligner"),
+    "lockstep": ("lockstep", "LockstepAligner"),
+    "hlc": ("hlc", "HLCAligner"),
+    "bides": ("bides", "BidesAligner"),
+    "rpc": ("rpc", "RpcAligner"),
 }
+
+
+def aligner_class(method: str) -> AlignerClass:
+    """The class of ``method`` (its module imported on first use).
+
+    Raises:
+        KeyError: unknown method (the scenario validates method names first).
+    """
+    module, cls = _CLASSES[method]
+    return getattr(importlib.import_module(f"{__name__}.{module}"), cls)  # type: ignore[no-any-return]
 
 
 def make_aligner(method: str, n: int, ctx: ServerContext, params: AlignParams) -> Aligner:
@@ -53,4 +63,10 @@ def make_aligner(method: str, n: int, ctx: ServerContext, params: AlignParams) -
     Raises:
         KeyError: unknown method (the scenario validates method names first).
     """
-    return ALIGNERS[method].build(n, ctx, params)
+    return aligner_class(method).build(n, ctx, params)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "ALIGNERS":  # the methods by name (imports every method's module)
+        return {m: aligner_class(m) for m in _CLASSES}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -9,6 +9,8 @@ snapshot; the engine issues the next trigger on :meth:`ServerContext.barrier_don
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -23,7 +25,25 @@ from sigma_des.events.align.base import (
 from sigma_des.events.align.spec import AlignParams, LockstepSpec
 from sigma_des.metrics.reports import AlignerReport
 
-__all__ = ["LockstepAligner"]
+__all__ = ["Barrier", "LockstepAligner"]
+
+
+class Barrier(NamedTuple):
+    """The barrier's state (what the compiled core mirrors before it runs messages).
+
+    Attributes:
+        got: per node, its state of ``current`` has arrived.
+        live: nodes the barrier waits for (not evicted).
+        current: the frame the barrier waits for (-1 before the first trigger).
+        missing: live nodes whose state of ``current`` is still missing.
+        complete: the barrier of ``current`` is done.
+    """
+
+    got: NDArray[np.bool_]
+    live: NDArray[np.bool_]
+    current: int
+    missing: int
+    complete: bool
 
 
 class LockstepAligner(Aligner):
@@ -148,6 +168,10 @@ class LockstepAligner(Aligner):
     def memory_bytes(self) -> int:
         """The frame being collected and the completed one."""
         return 2 * self.n * RECORD_BYTES
+
+    def barrier(self) -> Barrier:
+        """The barrier's state now (its arrays are the aligner's own: read, do not write)."""
+        return Barrier(self.got, self.live, self.current, self.missing, self.complete)
 
     def report(self) -> AlignerReport:
         """Peak memory, evictions, rejoins and re-requests."""

@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
 from sigma_des.events.align.hlc_clock import Stamp
+from sigma_des.events.align.lockstep import LockstepAligner
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
@@ -52,6 +53,7 @@ from sigma_des.events.fast.tables import (
 from sigma_des.events.jobs import JobCosts
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
+from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
@@ -76,7 +78,7 @@ class Host(Protocol):
     collector: Collector
     nodes: PhysicsNodes
     truth: SwarmTruth
-    tap: Any
+    tap: Tap
 
 
 class CompiledCore:
@@ -255,9 +257,8 @@ class CompiledCore:
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
         now = self.host.kernel.now
         loop.publish_trigger(self.S, k, now, hl, hc)
-        tap = self.host.tap
-        if tap is not None:  # the core keeps no per-node trigger deliveries: the issue
-            tap.trigger(-1, k, now, math.nan)
+        # the core keeps no per-node trigger deliveries: the tap records the issue
+        self.host.tap.trigger(-1, k, now, math.nan)
 
     def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
@@ -271,9 +272,8 @@ class CompiledCore:
         rows = np.ascontiguousarray(cmds, dtype=np.float64)
         now = self.host.kernel.now
         loop.publish_commands(self.S, tick, stamp, nodes.astype(np.int64), rows, now)
-        tap = self.host.tap
-        if tap is not None:  # the core keeps no per-node command deliveries: the sends
-            tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
+        # the core keeps no per-node command deliveries: the tap records the sends
+        self.host.tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
 
     def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
@@ -337,14 +337,16 @@ class CompiledCore:
 
     def _sync_barrier(self) -> None:
         """Copy the Lock-Step aligner's barrier state into the core's mirror of it."""
-        al: Any = self.host.aligner
+        al = self.host.aligner
+        assert isinstance(al, LockstepAligner)
+        b = al.barrier()
         S = self.S
-        S[L.LS_MIRROR][0] = al.got
-        S[L.LS_MIRROR][1] = al.live
+        S[L.LS_MIRROR][0] = b.got
+        S[L.LS_MIRROR][1] = b.live
         iv = S[L.INTS]
-        iv[L.I_LCUR] = al.current
-        iv[L.I_LMISS] = al.missing
-        iv[L.I_LCOMP] = int(al.complete)
+        iv[L.I_LCUR] = b.current
+        iv[L.I_LMISS] = b.missing
+        iv[L.I_LCOMP] = int(b.complete)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
@@ -364,7 +366,7 @@ class CompiledCore:
             if self._lockstep:
                 self.drain()
                 self._sync_barrier()
-            code = loop.advance(self.S, bound, strict)
+            code = loop.advance(self.S, float(bound), strict)
             if code == L.OK:
                 self.flush_rollbacks()
                 self.drain()
@@ -416,8 +418,7 @@ class CompiledCore:
             h.aligner.on_states(
                 StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
             )
-            if h.tap is not None:
-                h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
+            h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
             iv[L.I_OUT] = 0
         for k in range(3):
             m = int(iv[L.I_LAT + k])
@@ -426,31 +427,22 @@ class CompiledCore:
                 iv[L.I_LAT + k] = 0
 
     def write_back(self) -> None:
-        """Copy the core's counters into the objects the collector reads."""
+        """Hand the core's counters to the components that report them (their hooks);
+        the counters handed over are zeroed, so a second call adds nothing."""
         S = self.S
         h = self.host
-        net = h.net
         cnt = S[L.LINK_COUNT]
-        busy = S[L.LINK_BUSY]
-        for k in range(h.spec.hosts + 1):
-            net.up[k].bytes = int(cnt[1, 0, k])
-            net.up[k].packets = int(cnt[1, 1, k])
-            net.up[k].busy = float(busy[1, k])
-            net.down[k].bytes = int(cnt[0, 0, k])
-            net.down[k].packets = int(cnt[0, 1, k])
-            net.down[k].busy = float(busy[0, k])
         fv = S[L.FLOATS]
         iv = S[L.INTS]
-        net.broker.busy = float(fv[L.F_BUSY])
-        net.broker.work = float(fv[L.F_WORK])
-        net.broker.max_wait = float(fv[L.F_MAXWAIT])
-        h.nodes.history_misses += int(iv[L.I_HMISS])
-        h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]))
-        h.collector.duplicates += int(iv[L.I_DUPS])
-        h.kernel.events += int(iv[L.I_NEV])
+        tr = S[L.TR_INTS]
+        h.net.carried(cnt[:, 0], cnt[:, 1], S[L.LINK_BUSY], int(tr[L.T_RETX]),
+                      int(tr[L.T_GAVE]))
+        cnt[:] = 0
+        tr[L.T_RETX] = tr[L.T_GAVE] = 0
+        h.net.broker.carried(float(fv[L.F_BUSY]), float(fv[L.F_WORK]), float(fv[L.F_MAXWAIT]))
+        fv[L.F_WORK] = fv[L.F_MAXWAIT] = 0.0
+        h.nodes.count_history_misses(int(iv[L.I_HMISS]))
+        h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]), int(iv[L.I_DUPS]))
+        h.kernel.count(int(iv[L.I_NEV]))
         for slot in (L.I_DUPS, L.I_MSGS, L.I_HMISS, L.I_NEV):
             iv[slot] = 0
-        tr = S[L.TR_INTS]
-        net.retransmissions += int(tr[L.T_RETX])
-        net.gave_up += int(tr[L.T_GAVE])
-        tr[L.T_RETX] = tr[L.T_GAVE] = 0

@@ -96,7 +96,7 @@ def test_missing_or_unexpected_arrays_are_refused() -> None:
 def test_a_run_state_follows_the_declaration() -> None:
     sc = replace(tiny(**{"commands.enabled": True}), engine="cohort")
     run = MethodRun(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc), compiled=True)
-    core = run.fast
+    core = run.core
     assert isinstance(core, CompiledCore)
     S = core.S
     assert S[L.NODE].shape == (L.N_ROWS, 3) and S[L.CLOCK_OFF].shape == (3,)

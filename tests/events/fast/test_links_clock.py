@@ -31,8 +31,8 @@ _GE = {"model": "gilbert_elliott", "p_gb": 0.2, "p_bg": 0.3, "loss_good": 0.05,
 def _run(**over: Any) -> tuple[MethodRun, CompiledCore]:
     sc = replace(tiny(**{"net.transport": "datagram", **over}), engine="cohort")
     run = MethodRun(sc.run_spec(), "hlc", make_dynamics(sc), make_behaviour(sc), compiled=True)
-    assert isinstance(run.fast, CompiledCore)
-    return run, run.fast
+    assert isinstance(run.core, CompiledCore)
+    return run, run.core
 
 
 def test_gilbert_elliott_state_matches_the_loss_process_at_random_times() -> None:

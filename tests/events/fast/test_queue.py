@@ -164,8 +164,8 @@ def test_a_run_with_the_smallest_arena_compacts_grows_and_stays_identical(
     run_both(sc, "bides")
     run = MethodRun(replace(sc, engine="cohort").run_spec(), "none", make_dynamics(sc),
                     make_behaviour(sc), compiled=True)
-    assert run.fast is not None
-    cap0 = run.fast.array("run_t").size
-    assert cap0 == run.fast.array("ev_int").shape[0] == 4 * 7
+    assert isinstance(run.core, driver.CompiledCore)
+    cap0 = run.core.array("run_t").size
+    assert cap0 == run.core.array("ev_int").shape[0] == 4 * 7
     run.run()
-    assert run.fast.array("run_t").size == run.fast.array("ev_int").shape[0] > cap0
+    assert run.core.array("run_t").size == run.core.array("ev_int").shape[0] > cap0

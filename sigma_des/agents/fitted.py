@@ -1,9 +1,13 @@
 """Fitted parameter files: what ``sigma-des tune`` writes and ``dynamics_params`` reads.
 
+The aircraft's parameters by name live here too (:data:`PARAM_NAMES`,
+:func:`get_value`, :func:`with_values`): the scenario reads fitted files, so they sit
+below it, and the tuner (:mod:`sigma_des.tuning`) takes its genes from them.
+
 Format (TOML)::
 
     dynamics = "quadrotor"          # the preset the values apply to
-    [params]                        # gene name = fitted value (spec.GENE_NAMES)
+    [params]                        # parameter name = fitted value (PARAM_NAMES)
     ixx = 0.0191
     rotor_pitch = 0.3012
     [provenance]                    # optional, free-form: seed, log, fitness, version
@@ -15,22 +19,53 @@ Every other parameter keeps the preset's value. A scenario uses the file with
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import tomllib
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
-from sigma_des.agents.params import AircraftParams
+from sigma_des.agents.params import AeroCoeffs, AircraftParams
 from sigma_des.agents.presets import preset
 from sigma_des.errors import ConfigError
-from sigma_des.tuning.spec import GENE_NAMES, with_values
 
-__all__ = ["KINDS", "write_fitted", "read_fitted", "fitted_params"]
+__all__ = ["KINDS", "PARAM_NAMES", "fitted_params", "get_value", "read_fitted", "with_values",
+           "write_fitted"]
 
 #: Presets a fitted file may apply to.
 KINDS: tuple[str, ...] = ("quadrotor", "fixedwing")
+
+_TOP = tuple(f.name for f in fields(AircraftParams)
+             if f.type in ("float", float) and f.name not in ("altitude", "spacing",
+                                                              "max_substep", "v_cruise"))
+_AERO = tuple(f.name for f in fields(AeroCoeffs))
+#: Every parameter a fitted file (or a tuning gene) may set: the float fields of
+#: :class:`AircraftParams` and of its :class:`AeroCoeffs`, by bare name.
+PARAM_NAMES: tuple[str, ...] = _TOP + _AERO
+
+
+def get_value(p: AircraftParams, name: str) -> float:
+    """Current value of parameter ``name`` (top-level or aerodynamic)."""
+    if name in _TOP:
+        return float(getattr(p, name))
+    if name in _AERO:
+        return float(getattr(p.aero, name))
+    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+
+
+def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
+    """A copy of ``p`` with the named parameters replaced (validated)."""
+    top = {k: float(v) for k, v in values.items() if k in _TOP}
+    aero = {k: float(v) for k, v in values.items() if k in _AERO}
+    bad = sorted(set(values) - set(top) - set(aero))
+    if bad:
+        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+    if aero:
+        top["aero"] = dataclasses.replace(p.aero, **aero)  # type: ignore[assignment]
+    return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 
 def write_fitted(path: str | Path, kind: str, values: dict[str, float],
@@ -41,7 +76,7 @@ def write_fitted(path: str | Path, kind: str, values: dict[str, float],
     doc: dict[str, Any] = {"dynamics": kind, "params": {k: float(v) for k, v in values.items()}}
     if provenance:
         doc["provenance"] = provenance
-    path.write_text("# sigma-des tune: fitted parameters (sigma_des/tuning/fitted.py)\n"
+    path.write_text("# sigma-des tune: fitted parameters (sigma_des/agents/fitted.py)\n"
                     + tomli_w.dumps(doc))
     return path
 
@@ -69,9 +104,9 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
         raise ConfigError(f"{src}: params", "must be a table of name = value")
     values: dict[str, float] = {}
     for k, v in params.items():
-        if k not in GENE_NAMES:
+        if k not in PARAM_NAMES:
             raise ConfigError(f"{src}: params.{k}",
-                              f"unknown parameter; allowed: {', '.join(GENE_NAMES)}")
+                              f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
             raise ConfigError(f"{src}: params.{k}", f"must be a finite number, got {v!r}")
         values[k] = float(v)

@@ -1,4 +1,4 @@
-"""sweep/local.py: the one local executor (in-process, process pool, fresh process per call)."""
+"""pool.py: the one local executor (in-process, process pool, fresh process per call)."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from sigma_des import load
+from sigma_des.pool import local_pool, run_all
 from sigma_des.sweep import Sweep, run_task
-from sigma_des.sweep.local import local_pool, run_all
 
 
 def test_in_process_keeps_call_order_and_runs_here() -> None:

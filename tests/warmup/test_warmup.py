@@ -7,14 +7,14 @@ import sys
 
 import pytest
 
-from sigma_des.cache.warmup import UNITS, run_unit, warm
 from sigma_des.cli import main
+from sigma_des.warmup.units import UNITS, run_unit, warm
 
 _PROBE = """
 import sys
 from numba.core.dispatcher import Dispatcher
 from sigma_des.api import compare
-from sigma_des.cache.warmup import UNITS, run_unit
+from sigma_des.warmup.units import UNITS, run_unit
 from sigma_des.config import METHODS, load
 
 def loaded():

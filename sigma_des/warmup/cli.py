@@ -1,6 +1,6 @@
 """The ``sigma-des warmup`` subcommand: compile the numba kernels into the cache, in parallel.
 
-``sigma_des.cli`` registers it with :func:`add_parser` and dispatches to :func:`run`.
+``sigma_des.cli`` adds its arguments with :func:`add_args` and dispatches to :func:`run`.
 """
 
 from __future__ import annotations
@@ -12,19 +12,18 @@ import time
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_args", "run"]
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    """Add ``warmup`` to the ``sigma-des`` subcommands."""
-    w = sub.add_parser("warmup", help="compile the numba kernels once (run after installing)")
+def add_args(w: argparse.ArgumentParser) -> None:
+    """Add the arguments of ``sigma-des warmup`` to its subparser ``w``."""
     w.add_argument("--jobs", type=int, default=os.cpu_count() or 1, metavar="N",
                    help="compile up to N groups of kernels at once (default: the CPU count)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the warm-up and print what each unit cost; exit status 2 on a bad ``--jobs``."""
-    from sigma_des.cache.warmup import warm
+    from sigma_des.warmup.units import warm
 
     if args.jobs < 1:
         print(f"sigma-des: error: {ConfigError('--jobs', f'must be >= 1, got {args.jobs}')}",

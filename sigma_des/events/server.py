@@ -1,0 +1,220 @@
+"""The alignment server's loop: trigger issue, alignment, command and render ticks.
+
+Written once for both engines (docs/MODEL.md, "Engines"): the DES
+(:class:`~sigma_des.events.engine.MethodRun`) and the live server
+(:class:`~sigma_des.live.server.LiveServer`) are subclasses that supply only the
+transport, in the spirit of SimPy's ``BaseResource`` (``_do_put``/``_do_get``):
+
+* :meth:`AlignmentServer.publish_trigger`, :meth:`~AlignmentServer.publish_commands`,
+  :meth:`~AlignmentServer.rerequest`: how a trigger, a tick's commands and a
+  Lock-Step re-request leave the server;
+* :meth:`AlignmentServer.on_frame`: what else happens at an issue (the DES steps
+  its physics truth there);
+* :meth:`AlignmentServer.truth_positions`, :meth:`~AlignmentServer.snapshot_taken`,
+  :meth:`~AlignmentServer.rendered`: the truth a render tick compares with (the
+  live server has none) and what is recorded.
+
+Everything else is here: the trigger source (:mod:`sigma_des.events.trigger`),
+the aligner and its :class:`~sigma_des.events.align.base.ServerContext`, the
+alignment ticks at ``(j + align_phase) / f_align`` (align, measure, send commands
+every ``commands.every`` ticks), the render ticks at ``(j + render_phase) /
+f_render`` (sample AoI against the truth), and the collector. Times come from a
+:class:`~sigma_des.core.clock.Clock`; nothing runs at or after ``duration``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.core.clock import ALIGN, RENDER, TRIGGER, Clock
+from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
+from sigma_des.events.align import make_aligner
+from sigma_des.events.align.base import Aligner
+from sigma_des.events.align.hlc_clock import HLC, Stamp
+from sigma_des.events.spec import RunSpec
+from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
+from sigma_des.metrics.collector import Collector
+
+__all__ = ["AlignmentServer"]
+
+
+class AlignmentServer:
+    """The server side of one run under one method, on a clock; transport in hooks.
+
+    Args:
+        clock: the clock (DES kernel or live loop).
+        spec: the run spec (tick rates and phases, trigger rate, aligner, collector).
+        method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
+        dynamics: the dynamics model (the behaviour's commands are its).
+        behaviour: behaviour producing commands (None: no commands).
+
+    Attributes:
+        trigger: the trigger source.
+        aligner: the method's aligner (this object is its ``ServerContext``).
+        collector: the measurement sink.
+        align_tick: index of the next alignment tick.
+        render_tick: index of the next render tick.
+    """
+
+    def __init__(
+        self,
+        clock: Clock,
+        spec: RunSpec,
+        method: str,
+        dynamics: DynamicsModel,
+        behaviour: Behaviour | None,
+    ) -> None:
+        self.clock = clock
+        self.spec = spec
+        self.method = method
+        self.n = spec.nodes
+        self.dyn = dynamics
+        self.behaviour = behaviour if spec.commands.enabled else None
+        self.trigger = TriggerSource(
+            clock,
+            spec.f_trig,
+            spec.history_frames,
+            method in BARRIER_METHODS,
+            self.on_frame,
+            None if method == "rpc" else self.publish_trigger,  # RPC: the aligner's requests
+            HLC() if method == "hlc" else None,
+            spec.duration,
+        )
+        self.aligner: Aligner = make_aligner(method, spec.nodes, self, spec.align)
+        self.collector = Collector(spec.collect, method)
+        self.align_tick = 0
+        self.render_tick = 0
+
+    # ------------------------------------------------------------ transport hooks
+
+    def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
+        """Send trigger ``k`` (stamped by the server's HLC, or None) to every node."""
+        raise NotImplementedError
+
+    def publish_commands(
+        self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
+    ) -> None:
+        """Send ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
+        raise NotImplementedError
+
+    def rerequest(self, node: int, frame: int, retry: int) -> None:
+        """Lock-Step: ask ``node`` again for its state of ``frame``."""
+        raise NotImplementedError
+
+    def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
+        """True ``(n, 3)`` positions of ``frame`` for the render tick (None: unknown)."""
+        return None
+
+    def snapshot_taken(self, t: float) -> None:
+        """The aligner made a new snapshot at ``t`` (recording hook)."""
+
+    def rendered(self, t: float) -> None:
+        """A render tick sampled the snapshot at ``t`` (recording hook)."""
+
+    # ------------------------------------------------------------ ServerContext
+
+    def now(self) -> float:
+        """Current time (s)."""
+        return self.clock.now
+
+    def call_at(self, t: float, fn: Callable[..., Any], *args: Any) -> None:
+        """Schedule ``fn(*args)`` at ``t`` (the aligner's timers)."""
+        self.clock.call_at(t, fn, *args, priority=TRIGGER)
+
+    @property
+    def latest_trigger(self) -> int:
+        """Index of the newest trigger issued (-1 before the first)."""
+        return self.trigger.latest
+
+    @property
+    def f_trig(self) -> float:
+        """The current trigger rate (Hz)."""
+        return self.trigger.f_trig
+
+    def set_rate(self, f_trig: float) -> None:
+        """Change the trigger rate; takes effect from the next trigger."""
+        self.trigger.set_rate(f_trig)
+        self.collector.rate_change(self.clock.now, f_trig)
+
+    def barrier_done(self, frame: int) -> None:
+        """Lock-Step/RPC: schedule trigger ``frame+1`` (see :meth:`TriggerSource.barrier_done`)."""
+        self.trigger.barrier_done(frame)
+
+    # ------------------------------------------------------------ trigger issue
+
+    def on_frame(self, k: int, t: float, dt: float) -> None:
+        """Trigger ``k`` is issued at ``t`` with step ``dt``: tell collector and aligner."""
+        self.collector.trigger(t, k, dt)
+        self.aligner.on_trigger(k, t)
+
+    # ------------------------------------------------------------ ticks
+
+    def align(self) -> None:
+        """Alignment tick: align, measure, record, send commands, schedule the next tick."""
+        t = self.clock.now
+        if t >= self.spec.duration:
+            return
+        al = self.aligner
+        al.align(t)
+        self.collector.shown(t, al.shown_gen)
+        if al.new_snapshot:
+            self.collector.snapshot(t)
+            self.snapshot_taken(t)
+        if self.behaviour is not None and self.align_tick % self.spec.commands.every == 0:
+            self.send_commands()
+        self.align_tick += 1
+        self.clock.call_at(self.align_time(self.align_tick), self.align, priority=ALIGN)
+
+    def send_commands(self) -> None:
+        """Ask the behaviour for commands on the shown snapshot and publish them."""
+        al = self.aligner
+        valid = ~np.isnan(al.shown_gen)
+        if not valid.any():
+            return
+        assert self.behaviour is not None
+        view = SwarmView(
+            obs=al.shown_obs, frame=al.shown_frame, valid=valid, aligned_frame=al.aligned_frame
+        )
+        cmds = self.behaviour.commands(view, self.dyn)
+        ok = ~np.isnan(cmds).all(axis=1)  # NaN cells mean 'keep'; an all-NaN row, 'none'
+        self.publish_commands(self.align_tick, al.aligned_frame, np.flatnonzero(ok), cmds)
+
+    def render(self) -> None:
+        """Render tick: sample what is shown against the truth, schedule the next tick."""
+        t = self.clock.now
+        if t >= self.spec.duration:
+            return
+        al = self.aligner
+        ref = al.aligned_frame
+        self.collector.render(
+            t,
+            al.shown_gen,
+            al.shown_frame,
+            al.shown_obs,
+            al.flag,
+            self.truth_positions(ref),
+            self.trigger.f_trig,
+            self.trigger.latest,
+            ref,
+        )
+        self.rendered(t)
+        self.render_tick += 1
+        self.clock.call_at(self.render_time(self.render_tick), self.render, priority=RENDER)
+
+    def align_time(self, j: int) -> float:
+        """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (multiplied, no drift)."""
+        return (j + self.spec.align_phase) / self.spec.f_align
+
+    def render_time(self, j: int) -> float:
+        """Render tick ``j`` at ``(j + render_phase) / f_render``."""
+        return (j + self.spec.render_phase) / self.spec.f_render
+
+    def start(self) -> None:
+        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases)."""
+        self.trigger.start()
+        self.clock.call_at(self.align_time(0), self.align, priority=ALIGN)
+        self.clock.call_at(self.render_time(0), self.render, priority=RENDER)

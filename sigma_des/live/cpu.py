@@ -1,0 +1,130 @@
+"""CPU time of the live run's processes, for the Utilization-Law calibration.
+
+A :class:`CpuMeter` reads the CPU seconds (user + system, all threads) of the
+alignment server (this process), every host process and our broker through psutil
+(``/proc/<pid>/stat`` on Linux, resolution one clock tick, 10 ms), and the busy
+CPU seconds of the whole machine, at named marks. The runner marks an **idle
+window** (after ``go`` is published, before the first trigger: every process is
+connected and waiting, so its CPU rate there is the idle loop's cost) and the
+**metrics window** ``[warmup, duration)`` of the method's clock. :meth:`CpuMeter.rows`
+turns the marks into one row per process, plus a ``background`` row: the machine's
+busy CPU minus ours, i.e. what other processes took from the cores during the
+window. ``sigma-des calibrate`` fits the demands from these rows
+(:mod:`sigma_des.live.demands`).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import psutil
+
+from sigma_des.live.ledger import publishes
+
+__all__ = ["CPU_COLUMNS", "CPU_FILE", "CpuMeter", "machine_busy", "message_counts", "write_cpu"]
+
+#: The CPU table of a ``sigma-des live --out`` directory.
+CPU_FILE = "cpu.csv"
+
+#: Columns of a CPU row (``cpu.csv``; ``summary.json``'s ``live.<method>.cpu``).
+CPU_COLUMNS = ("process", "pid", "idle_s", "idle_cpu_s", "window_s", "cpu_s", "messages")
+
+
+def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dict[str, Any]],
+                   qos: int) -> dict[str, int]:
+    """PUBLISH messages each process handled in the metrics window, from the ledgers: the
+    server's, each reporting host's (``stats["links"]``) and the broker's (every PUBLISH a
+    client sent came in, every one a client received went out)."""
+    out = {"server": publishes(server_links, qos)}
+    for h, st in sorted(host_stats.items()):
+        out[f"host{h}"] = publishes(st.get("links", {}), qos)
+    out["broker"] = sum(out.values())
+    return out
+
+
+def machine_busy() -> float:
+    """Busy CPU seconds of the whole machine since boot (all cores; idle and iowait
+    excluded)."""
+    t = psutil.cpu_times()
+    busy = t.user + t.system
+    for name in ("nice", "irq", "softirq", "steal"):
+        busy += getattr(t, name, 0.0)
+    return float(busy)
+
+
+class CpuMeter:
+    """CPU seconds of named processes (and of the machine) at named marks.
+
+    Args:
+        procs: process name (``server``, ``host<H>``, ``broker``) -> pid.
+    """
+
+    def __init__(self, procs: dict[str, int]) -> None:
+        self._ps: dict[str, psutil.Process | None] = {}
+        for name, pid in procs.items():
+            try:
+                self._ps[name] = psutil.Process(pid)
+            except psutil.Error:
+                self._ps[name] = None
+        self.pids = dict(procs)
+        self.marks: dict[str, tuple[float, float, dict[str, float]]] = {}
+
+    def _cpu(self, p: psutil.Process | None) -> float:
+        if p is None:
+            return math.nan
+        try:
+            t = p.cpu_times()
+        except psutil.Error:  # exited (killed host, restarted broker)
+            return math.nan
+        return float(t.user + t.system)
+
+    def mark(self, label: str) -> None:
+        """Record the wall clock, the machine's busy CPU and every process's CPU now."""
+        cpu = {name: self._cpu(p) for name, p in self._ps.items()}
+        self.marks[label] = (time.monotonic(), machine_busy(), cpu)
+
+    def _span(self, a: str, b: str) -> tuple[float, float, dict[str, float]]:
+        if a not in self.marks or b not in self.marks:
+            return math.nan, math.nan, {n: math.nan for n in self._ps}
+        (t0, m0, c0), (t1, m1, c1) = self.marks[a], self.marks[b]
+        return t1 - t0, m1 - m0, {n: c1[n] - c0[n] for n in self._ps}
+
+    def rows(self, messages: dict[str, int]) -> list[dict[str, Any]]:
+        """One row per process (columns :data:`CPU_COLUMNS`) and a ``background`` row.
+
+        Args:
+            messages: PUBLISH messages each process handled (sent + received) in the
+                metrics window; a process without an entry gets NaN.
+
+        The idle window is marks ``idle0``..``idle1``, the metrics window ``w0``..``w1``.
+        """
+        idle_s, idle_m, idle = self._span("idle0", "idle1")
+        win_s, win_m, win = self._span("w0", "w1")
+        out: list[dict[str, Any]] = []
+        for name in self._ps:
+            out.append({"process": name, "pid": self.pids[name], "idle_s": idle_s,
+                        "idle_cpu_s": idle[name], "window_s": win_s, "cpu_s": win[name],
+                        "messages": messages.get(name, math.nan)})
+        ours_idle = sum(v for v in idle.values() if math.isfinite(v))
+        ours_win = sum(v for v in win.values() if math.isfinite(v))
+        out.append({"process": "background", "pid": -1, "idle_s": idle_s,
+                    "idle_cpu_s": max(idle_m - ours_idle, 0.0), "window_s": win_s,
+                    "cpu_s": max(win_m - ours_win, 0.0), "messages": math.nan})
+        return out
+
+
+def write_cpu(live: dict[str, dict[str, Any]], out_dir: Path) -> Path:
+    """Write every method's CPU rows (``live[method]["cpu"]``) to ``out_dir/cpu.csv``
+    (columns ``method`` + :data:`CPU_COLUMNS`; NaN where not measured)."""
+    path = out_dir / CPU_FILE
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(("method", *CPU_COLUMNS))
+        for method, info in live.items():
+            for r in info.get("cpu", []):
+                w.writerow((method, *(r[c] for c in CPU_COLUMNS)))
+    return path
