@@ -8,7 +8,9 @@ recorded, recorded ``full``, recorded ``incremental`` (dead-bands ``--deadband-p
 — after a short warm-up run (numba caches). It prints and writes (``--out``, JSON):
 
 * wall and CPU time of each run, the recording overhead (recorded / not recorded − 1)
-  and the recorder's CPU cost (recorded CPU − not recorded CPU);
+  and the recorder's CPU cost: the CPU time spent inside the recording tap's calls
+  (``tap_cpu_s``: encoding, JSON, compression, writing), and recorded CPU − not
+  recorded CPU (``recorder_cpu_s``, noisier);
 * file size of both recordings and the ratio full / incremental; states stored;
 * reconstruction error of the incremental file: every state of the full recording is
   rebuilt from the incremental one (``hermite-dw``, window ``none`` as in the replay, on
@@ -29,6 +31,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -63,12 +66,33 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
-def _run(sets: list[str], method: str, record: Path | None) -> tuple[float, float]:
-    """Wall and CPU time (s) of one run."""
+TAP_CPU = {"s": 0.0}  # CPU time inside the recording tap's calls (see _time_the_tap)
+
+
+def _time_the_tap() -> None:
+    """Wrap every hook of the recording tap with a CPU timer (runs are in-process)."""
+    from sigma_des.record.tap import RecordTap
+
+    def timer(f: Any) -> Any:
+        def timed(*args: object, **kw: object) -> object:
+            c0 = time.process_time()
+            try:
+                return f(*args, **kw)
+            finally:
+                TAP_CPU["s"] += time.process_time() - c0
+        return timed
+
+    for name in ("trigger", "states", "commands", "snapshot", "render", "close"):
+        setattr(RecordTap, name, timer(getattr(RecordTap, name)))
+
+
+def _run(sets: list[str], method: str, record: Path | None) -> tuple[float, float, float]:
+    """Wall time, CPU time and CPU time inside the recording tap (s) of one run."""
     sc = load(None, sets)
+    TAP_CPU["s"] = 0.0
     t0, c0 = time.perf_counter(), time.process_time()
     compare(sc, methods=[method], progress=False, record=record)
-    return time.perf_counter() - t0, time.process_time() - c0
+    return time.perf_counter() - t0, time.process_time() - c0, TAP_CPU["s"]
 
 
 def reconstruction_error(full: Path, inc: Path, method: str) -> dict[str, float]:
@@ -90,6 +114,7 @@ def reconstruction_error(full: Path, inc: Path, method: str) -> dict[str, float]
 
 def main(argv: list[str] | None = None) -> int:
     a = parser().parse_args(argv)
+    _time_the_tap()
     d = Path(a.dir) if a.dir else Path(tempfile.mkdtemp(prefix="bench_record_"))
     d.mkdir(parents=True, exist_ok=True)
     base = [f"nodes={a.nodes}", f"hosts={a.hosts}", f"duration={a.duration}",
@@ -107,11 +132,12 @@ def main(argv: list[str] | None = None) -> int:
                   "full.mcap (and incremental.mcap)", file=sys.stderr)
             return 2
         old = json.loads(prev.read_text())
-        wall, cpu = old["wall_s"], old.get("cpu_s", {})
+        wall, cpu, tap = old["wall_s"], old.get("cpu_s", {}), old.get("tap_cpu_s", {})
         if a.reuse_from:
             _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"],
                  a.method, d / "warm.mcap")
-            wall["incremental"], cpu["incremental"] = _run(inc_sets, a.method, inc)
+            wall["incremental"], cpu["incremental"], tap["incremental"] = _run(
+                inc_sets, a.method, inc)
     else:
         _run([f"nodes={a.nodes}", f"hosts={a.hosts}", "duration=0.5", "warmup=0.1"], a.method,
              d / "warm.mcap")
@@ -119,13 +145,14 @@ def main(argv: list[str] | None = None) -> int:
                 "incremental": _run(inc_sets, a.method, inc)}
         wall = {k: v[0] for k, v in runs.items()}
         cpu = {k: v[1] for k, v in runs.items()}
+        tap = {k: v[2] for k, v in runs.items() if k != "plain"}
     size = {"full": full.stat().st_size, "incremental": inc.stat().st_size}
     runs = open_recording(inc).runs[a.method]
     res: dict[str, object] = {
         "nodes": a.nodes, "duration_s": a.duration, "method": a.method,
         "deadband": {"pos_m": a.deadband_pos, "vel_mps": a.deadband_vel,
                      "att_rad": a.deadband_att, "keyframe_every": a.keyframe_every},
-        "wall_s": wall, "cpu_s": cpu,
+        "wall_s": wall, "cpu_s": cpu, "tap_cpu_s": tap,
         "overhead": {k: wall[k] / wall["plain"] - 1 for k in ("full", "incremental")},
         "recorder_cpu_s": {k: cpu[k] - cpu["plain"] for k in ("full", "incremental") if cpu},
         "bytes": size, "size_ratio": size["full"] / size["incremental"],
