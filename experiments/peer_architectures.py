@@ -116,11 +116,11 @@ def plots(study: studies.Study, fig: dict[str, Any]) -> None:
     table = fig["table"]
     f, axs = plt.subplots(1, 2, figsize=(13, 4.8))
     aoi, rate = {}, {}
-    for label, rows in table.items():
+    for i, (label, rows) in enumerate(table.items()):
         ns = np.array(list(rows), dtype=float)
         mean = np.array([rows[n]["aoi_mean"] for n in rows])
         std = np.array([rows[n]["aoi_std"] for n in rows])
-        c = studies.line_kw(label)["color"]
+        c = studies.line_kw(label, i)["color"]
         axs[0].fill_between(ns, mean - std, mean + std, color=c, alpha=0.15, linewidth=0)
         axs[0].plot(ns, [rows[n]["aoi_p99"] for n in rows], linestyle=":", color=c)
         aoi[label] = (ns, mean)

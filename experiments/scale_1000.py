@@ -128,7 +128,10 @@ def plots(study: studies.Study) -> None:
         axs[1].plot(t, rate, color="#98df8a", lw=1, label="bides, 4× faster broker")
     cap = study.extra["broker"]["default"]["max_trigger_hz"]
     for ax in axs:
-        ax.axhline(cap, color="k", ls=":", lw=1, label=f"broker capacity ≈ {cap:.0f} Hz")
+        lo, top = studies.rate_ylim([sc.f_trig], [ln.get_ydata() for ln in ax.get_lines()])
+        ax.set_ylim(lo, top)  # the data's range, not the broker's capacity
+        above = " (above the axis)" if cap > top else ""
+        ax.axhline(cap, color="k", ls=":", lw=1, label=f"broker capacity ≈ {cap:.0f} Hz{above}")
         ax.axhline(50.0, color="k", ls="--", lw=0.8, label="paper: settles at 50 Hz")
     axs[0].set_ylabel("trigger rate in force f_trig (Hz)")
     axs[0].set_title(f"BiDES adaptive trigger rate (seed {study.args.seeds[0]}) — {tag}")
@@ -136,7 +139,6 @@ def plots(study: studies.Study) -> None:
     axs[1].set_xlabel("simulated time (s)")
     axs[1].set_title("Achieved trigger rate per method")
     for ax in axs:
-        ax.set_ylim(*studies.rate_ylim([sc.f_trig], [ln.get_ydata() for ln in ax.get_lines()]))
         studies.legend_outside(ax)
     studies.save(fig, out, "trigger_rate.png")
 

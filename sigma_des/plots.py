@@ -48,6 +48,7 @@ __all__ = [
     "PLOTS",
     "MISSING_NOTE",
     "aoi_violins",
+    "draw",
     "have_matplotlib",
     "moving_average",
     "plot_lines",
@@ -151,7 +152,7 @@ def aoi_violins(
     if ok:
         parts = ax.violinplot([clean[i] for i in ok], positions=pos[ok], showmedians=True)
         for body, i in zip(parts["bodies"], ok, strict=True):
-            body.set_facecolor(line_kw(names[i])["color"])
+            body.set_facecolor(line_kw(names[i], i)["color"])
             body.set_alpha(0.55)
         for key in ("cmedians", "cmins", "cmaxes", "cbars"):
             parts[key].set_color("k")
@@ -182,9 +183,9 @@ def _aoi_time(fig: Any, res: Results) -> None:
         t = np.asarray(ts["t"], dtype=float)
         series[m] = (t, moving_average(np.asarray(ts["aoi_mean"], dtype=float) * _MS, n))
     plot_lines(ax, series, " (mean)")
-    for m, (t, mean) in series.items():
+    for i, (m, (t, mean)) in enumerate(series.items()):
         mx = moving_average(np.asarray(res.timeseries[m]["aoi_max"], dtype=float) * _MS, n)
-        ax.fill_between(t, mean, mx, color=line_kw(m)["color"], alpha=0.12, lw=0)
+        ax.fill_between(t, mean, mx, color=line_kw(m, i)["color"], alpha=0.12, lw=0)
     ax.set_xlabel("simulated time (s)")
     ax.set_ylabel("AoI (ms)")
     ax.set_title(f"AoI over time (mean over nodes, band to max; {_SMOOTH_S:g} s moving mean)")
@@ -223,7 +224,7 @@ def _spread(fig: Any, res: Results) -> None:
     for i, m in enumerate(names):
         levels, share = shares[m]
         ax_d.bar(levels + (i - (len(names) - 1) / 2) * width, share, width=width,
-                 color=line_kw(m)["color"], label=m)
+                 color=line_kw(m, i)["color"], label=m)
     all_levels = sorted({int(v) for lv, _ in shares.values() for v in lv})
     ax_d.set_xticks(all_levels)
     ax_d.set_xlabel("frame spread (frames)")
@@ -252,6 +253,27 @@ _DRAW: dict[str, Callable[[Any, Results], None]] = {
 }
 
 
+def draw(name: str, res: Results) -> Any:
+    """The matplotlib figure of plot ``name`` (one of :data:`PLOTS`) for ``res``.
+
+    The caller closes it (``plt.close(fig)``); needs matplotlib.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(9.0, 4.0), layout="constrained")
+    try:
+        _DRAW[name](fig, res)
+    except BaseException:
+        plt.close(fig)
+        raise
+    for ax in fig.axes:
+        ax.grid(alpha=0.3)
+    return fig
+
+
 def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
     """Draw :data:`PLOTS` for ``res`` into ``out_dir`` (each saved under a temporary
     name, then renamed).
@@ -273,11 +295,8 @@ def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
     d = Path(out_dir)
     paths = []
     for name in PLOTS:
-        fig = plt.figure(figsize=(9.0, 4.0), layout="constrained")
+        fig = draw(name, res)
         try:
-            _DRAW[name](fig, res)
-            for ax in fig.axes:
-                ax.grid(alpha=0.3)
             fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".png")
             os.close(fd)
             try:

@@ -48,7 +48,7 @@ class MethodStyle:
 
 
 #: One style per method label (also the peer method and the formation study's ideal
-#: run). Unknown labels fall back to :data:`_OTHER`.
+#: run). Other labels take a style of :data:`_OTHERS` by their line's index.
 STYLES: Mapping[str, MethodStyle] = {
     "none": MethodStyle("#7f7f7f", "-", "o"),
     "lockstep": MethodStyle("#D55E00", "--", "s"),
@@ -58,7 +58,15 @@ STYLES: Mapping[str, MethodStyle] = {
     "rpc": MethodStyle("#CC79A7", ":", "v"),
     "ideal": MethodStyle("#000000", (0, (1, 1)), "*"),
 }
-_OTHER = MethodStyle("#56B4E9", "-", "P")
+#: Styles of labels that are not methods (e.g. ``bides_mqtt``), by the line's index.
+_OTHERS = (
+    MethodStyle("#56B4E9", "-", "P"),
+    MethodStyle("#882255", "--", "X"),
+    MethodStyle("#44AA99", "-.", "h"),
+    MethodStyle("#332288", ":", "p"),
+    MethodStyle("#999933", "-", "d"),
+    MethodStyle("#AA4499", "--", "<"),
+)
 
 #: One colour per method label, the same in every plot (the colours of :data:`STYLES`).
 COLORS: Mapping[str, str] = {m: s.color for m, s in STYLES.items()}
@@ -86,8 +94,8 @@ METRIC_TITLES: Mapping[str, str] = {
 }
 
 
-def _style(method: str) -> MethodStyle:
-    return STYLES.get(method, _OTHER)
+def _style(method: str, index: int = 0) -> MethodStyle:
+    return STYLES.get(method, _OTHERS[index % len(_OTHERS)])
 
 
 def metric_title(metric: str) -> str:
@@ -136,8 +144,9 @@ def method_label(method: str, twins: Mapping[str, str], suffix: str = "") -> str
 def line_kw(method: str, index: int = 0, n_points: int = 0, lw: float = 1.3) -> dict[str, Any]:
     """Keyword arguments of ``ax.plot`` for one method's line.
 
-    Markers are placed on about 12 points per line, shifted by ``index`` so that the
-    markers of coinciding lines do not sit on one another.
+    Markers (hollow) are placed on about 12 points per line, shifted and sized by
+    ``index`` so that the markers of coinciding lines do not hide one another. A label
+    that is not in :data:`STYLES` is styled by ``index``.
 
     Args:
         method: the method label.
@@ -145,13 +154,13 @@ def line_kw(method: str, index: int = 0, n_points: int = 0, lw: float = 1.3) -> 
         n_points: points on the line (0: no markers).
         lw: line width.
     """
-    s = _style(method)
+    s = _style(method, index)
     kw: dict[str, Any] = {"color": s.color, "ls": s.ls, "lw": lw}
     if n_points > 0:
         every = max(1, n_points // 12)
         kw |= {
             "marker": s.marker,
-            "ms": 4.5,
+            "ms": 4.0 + 1.5 * (index % 4),  # coinciding hollow markers nest as rings
             "markevery": (min(index * every // 5, n_points - 1), every),
             "markerfacecolor": "none",
         }

@@ -193,13 +193,13 @@ def _plot_metric(fig: Figures, metric: str, ylabel: str, all_n: list[int]) -> An
 
     f, ax = plt.subplots(figsize=(7.6, 4.2), layout="constrained")
     series = {}
-    for method in [m for m in METHODS if m in fig]:
+    for i, method in enumerate([m for m in METHODS if m in fig]):
         ns = sorted(n for n in fig[method] if metric in fig[method][n])
         mean = np.array([fig[method][n][metric]["mean"] for n in ns], dtype=float)
         ci = np.array([fig[method][n][metric]["ci95"] for n in ns], dtype=float)
         ci[~np.isfinite(ci)] = 0.0
         series[method] = (np.array(ns, dtype=float), mean)
-        ax.fill_between(ns, mean - ci, mean + ci, color=line_kw(method)["color"], alpha=0.2,
+        ax.fill_between(ns, mean - ci, mean + ci, color=line_kw(method, i)["color"], alpha=0.2,
                         linewidth=0)
     plot_lines(ax, series)
     ax.set_xscale("log")

@@ -103,7 +103,8 @@ def bar_metric(
         means.append(float(np.nanmean(xs)) if xs.size else math.nan)
         errs.append(float(np.nanstd(xs)) if xs.size > 1 else 0.0)
     x = np.arange(len(labels))
-    ax.bar(x, means, yerr=errs, capsize=4, color=[line_kw(lab)["color"] for lab in labels])
+    ax.bar(x, means, yerr=errs, capsize=4,
+           color=[line_kw(lab, i)["color"] for i, lab in enumerate(labels)])
     ax.set_xticks(x, labels)
     for xi, m in zip(x, means, strict=True):
         if math.isfinite(m):
@@ -122,12 +123,12 @@ def plot_aoi_time(ax: Any, study: Study, variant: str, labels: Sequence[str] | N
     """AoI over time (first seed): per-tick mean AoI as a line, per-tick max as a band."""
     labels = list(labels) if labels is not None else study.labels(variant)
     series = {}
-    for lab in labels:
+    for i, lab in enumerate(labels):
         ts = study.runs(variant, lab)[0].timeseries
         t = np.asarray(ts["t"], dtype=float)
         series[lab] = (t, np.asarray(ts["aoi_mean"], dtype=float) * 1000.0)
         mx = np.asarray(ts["aoi_max"], dtype=float) * 1000.0
-        ax.fill_between(t, series[lab][1], mx, color=line_kw(lab)["color"], alpha=0.12, lw=0)
+        ax.fill_between(t, series[lab][1], mx, color=line_kw(lab, i)["color"], alpha=0.12, lw=0)
     plot_lines(ax, series, " (mean over nodes)", lw=1.0)
     ax.set_xlabel("simulated time (s)")
     ax.set_ylabel("AoI (ms)")
