@@ -61,7 +61,7 @@ def input_file(path: str | Path, key: str, what: str = "file") -> Path:
         if p.is_dir():
             raise ConfigError(key, f"{p} is a directory, not a {what}")
         if not p.exists():
-            raise ConfigError(key, f"{p}: no such {what}")
+            raise ConfigError(key, f"{p}: {what} not found")
         if not p.is_file():
             raise ConfigError(key, f"{p} is not a regular file (a {what} is needed)")
         with p.open("rb") as fh:

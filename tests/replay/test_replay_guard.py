@@ -61,7 +61,7 @@ def test_recording_that_is_a_directory_or_missing(tmp_path: Path,
     assert f"recording: {tmp_path} is a directory" in err
     err = _err([str(tmp_path / "no.mcap"), "--rate", "10", "--out", str(tmp_path / "t.csv")],
                capsys)
-    assert "no such recording" in err
+    assert "recording (MCAP file) not found" in err
 
 
 @settings(max_examples=25, deadline=None,
