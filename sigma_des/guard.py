@@ -28,7 +28,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from sigma_des.budget import available_bytes
 from sigma_des.errors import ConfigError
 
 __all__ = [
@@ -45,29 +44,35 @@ def _why(e: OSError) -> str:
     return e.strerror or type(e).__name__
 
 
+def _about(p: Path, key: str) -> str:
+    """The file named in a message, unless the key already names it."""
+    return "" if key == str(p) else f"{p}: "
+
+
 def input_file(path: str | Path, key: str, what: str = "file") -> Path:
     """``path`` as an existing, readable regular file.
 
     Args:
         path: the input.
-        key: the option named in the error (``--log``).
+        key: the option named in the error (``--log``), or the file itself.
         what: what the file should be, for the message (``"CSV flight log"``).
 
     Raises:
         ConfigError: missing, a directory (or other non-file), or unreadable.
     """
     p = Path(path)
+    at = _about(p, key)
     try:
         if p.is_dir():
-            raise ConfigError(key, f"{p} is a directory, not a {what}")
+            raise ConfigError(key, f"{at}is a directory, not a {what}")
         if not p.exists():
-            raise ConfigError(key, f"{p}: {what} not found")
+            raise ConfigError(key, f"{at}{what} not found")
         if not p.is_file():
-            raise ConfigError(key, f"{p} is not a regular file (a {what} is needed)")
+            raise ConfigError(key, f"{at}not a regular file (a {what} is needed)")
         with p.open("rb") as fh:
             fh.read(1)
     except OSError as e:
-        raise ConfigError(key, f"cannot read {p}: {_why(e)}") from None
+        raise ConfigError(key, f"{at}cannot read: {_why(e)}") from None
     return p
 
 
@@ -79,15 +84,16 @@ def read_text(path: str | Path, key: str, what: str = "file") -> str:
             first undecodable byte is named).
     """
     p = input_file(path, key, what)
+    at = _about(p, key)
     try:
         data = p.read_bytes()
     except OSError as e:
-        raise ConfigError(key, f"cannot read {p}: {_why(e)}") from None
+        raise ConfigError(key, f"{at}cannot read: {_why(e)}") from None
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise ConfigError(
-            key, f"{p} is not a UTF-8 text {what} (undecodable byte at offset {e.start})"
+            key, f"{at}not a UTF-8 text {what} (undecodable byte at offset {e.start})"
         ) from None
 
 
@@ -202,6 +208,8 @@ def require_memory(need: int, what: str, advice: str, force: bool = False) -> in
     Raises:
         ConfigError: (key ``memory``) ``need`` exceeds the available memory.
     """
+    from sigma_des.budget import available_bytes  # budget knows the scenario: import late
+
     have = available_bytes()
     if not force and have is not None and need > have:
         raise ConfigError(

@@ -25,6 +25,7 @@ import tomli_w
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.presets import preset
 from sigma_des.errors import ConfigError
+from sigma_des.guard import read_text
 from sigma_des.tuning.spec import GENE_NAMES, with_values
 
 __all__ = ["KINDS", "write_fitted", "read_fitted", "fitted_params"]
@@ -50,12 +51,9 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
     """``(kind, values)`` of a fitted file, validated (ConfigError names file and key)."""
     p = Path(path)
     src = str(p)
+    text = read_text(p, src, "fitted parameter file")
     try:
-        doc = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise ConfigError(src, "fitted parameter file not found") from None
-    except OSError as e:
-        raise ConfigError(src, f"cannot read ({e.strerror})") from None
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(src, f"not valid TOML: {e}") from None
     for k in doc:

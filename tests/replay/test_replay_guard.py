@@ -58,10 +58,10 @@ def test_window_w_bound(rec: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 def test_recording_that_is_a_directory_or_missing(tmp_path: Path,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     err = _err([str(tmp_path), "--rate", "10", "--out", str(tmp_path / "t.csv")], capsys)
-    assert f"recording: {tmp_path} is a directory" in err
+    assert f"recording: {tmp_path}: is a directory" in err
     err = _err([str(tmp_path / "no.mcap"), "--rate", "10", "--out", str(tmp_path / "t.csv")],
                capsys)
-    assert "recording (MCAP file) not found" in err
+    assert "recording (MCAP file) not found" in err and "no.mcap" in err
 
 
 @settings(max_examples=25, deadline=None,
@@ -118,9 +118,9 @@ def test_memory_estimate_refuses_huge_output(rec: Path, tmp_path: Path,
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     # 3 nodes x 1 s x 2 methods at 1e6 Hz: 6e6 rows x 288 B = 1.7 GB
     assert replay_bytes({"nodes": 3, "duration": 1.0}, 2, 1e6) == int(2 * 3 * (1e6 + 1) * 288)
-    import sigma_des.guard as guard
+    import sigma_des.budget as budget
 
-    monkeypatch.setattr(guard, "available_bytes", lambda: 2**30)
+    monkeypatch.setattr(budget, "available_bytes", lambda: 2**30)
     err = _err([str(rec), "--rate", "1e6", "--out", str(tmp_path / "t.csv")], capsys)
     assert "memory: replay at --rate 1e+06 Hz needs about 1.61 GiB" in err
     assert "1 GiB is available; lower --rate or pick --methods, or pass --force" in err
