@@ -24,7 +24,7 @@ import dataclasses
 import math
 from dataclasses import dataclass, fields
 
-from sigma_des.agents.params import AeroCoeffs, AircraftParams
+from sigma_des.agents.params import AeroCoeffs, AircraftParams, check_range
 from sigma_des.errors import ConfigError
 
 __all__ = ["TuneSpec", "GENE_NAMES", "DEFAULT_GENES", "DEFAULT_CHANNELS", "get_value",
@@ -185,6 +185,18 @@ def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
     return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 
+def _check_bounds(spec: TuneSpec, i: int, gene: str, lo: float, hi: float) -> None:
+    """Both bounds of gene ``i`` inside the aircraft's plausible range (PARAM_RANGES):
+    the GA must never fly a candidate that the model refuses mid-run."""
+    name = f"aero.{gene}" if gene in _AERO else gene
+    for end, v in (("lower", lo), ("upper", hi)):
+        why = check_range(name, v)
+        if why:
+            key = f"tune.{end}[{i}]" if spec.lower else (
+                "tune.scale_low" if end == "lower" else "tune.scale_high")
+            raise ConfigError(key, f"{end} bound of {gene!r} {why}")
+
+
 def bounds(spec: TuneSpec, start: AircraftParams, kind: str
            ) -> tuple[tuple[str, ...], list[float], list[float]]:
     """Gene names and their lower / upper bounds for a GA started at ``start``."""
@@ -199,6 +211,7 @@ def bounds(spec: TuneSpec, start: AircraftParams, kind: str
             lo.append(min(a, b))
             hi.append(max(a, b))
     for i, g in enumerate(names):
+        _check_bounds(spec, i, g, lo[i], hi[i])
         v = get_value(start, g)
         if not lo[i] <= v <= hi[i]:
             raise ConfigError(f"tune.lower[{i}]", f"bounds [{lo[i]}, {hi[i]}] of {g!r} do not "
