@@ -95,8 +95,8 @@ def plots(study: studies.Study) -> None:
         studies.plot_lines(ax, series, lw=1.0)
         ax.axhspan(30, 90, color="k", alpha=0.06, label="paper: 30–90 ms without alignment")
         ax.set_xlabel("simulated time (s)")
-        ax.set_ylabel("displacement in shown swarm (ms)")
-        ax.set_title(f"Frame spread as time, {SPREAD_SMOOTH_S:g} s moving mean — {v} (seed {seed})")
+        ax.set_title(f"Frame spread as time — {v} (seed {seed})")
+        ax.set_ylabel(f"displacement in shown swarm (ms; {SPREAD_SMOOTH_S:g} s moving mean)")
         studies.legend_outside(ax)
         ax = axs[1, col]
         labels = study.labels(v)

@@ -122,10 +122,14 @@ def plots(study: studies.Study) -> None:
             r.timeseries["f_trig"],
             where="post",
             color="#98df8a",
-            label="bides, 4× faster broker",
+            ls="--",
+            label="bides, 4× faster broker" + (
+                " (= default broker)" if np.array_equal(
+                    r.timeseries["f_trig"], study.runs("default", "bides")[0].timeseries["f_trig"])
+                else ""),
         )
         t, rate = rate_series(r.timeseries["t"], r.timeseries["latest_trigger"], 0.5)
-        axs[1].plot(t, rate, color="#98df8a", lw=1, label="bides, 4× faster broker")
+        axs[1].plot(t, rate, color="#98df8a", lw=1, ls="--", label="bides, 4× faster broker")
     cap = study.extra["broker"]["default"]["max_trigger_hz"]
     for ax in axs:
         lo, top = studies.rate_ylim([sc.f_trig], [ln.get_ydata() for ln in ax.get_lines()])

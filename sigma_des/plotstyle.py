@@ -167,8 +167,17 @@ def line_kw(method: str, index: int = 0, n_points: int = 0, lw: float = 1.3) -> 
     return kw
 
 
-def legend_outside(ax: Any, **kw: Any) -> Any:
-    """A legend to the right of ``ax``, outside the data (kept by constrained layout)."""
+def legend_outside(ax: Any, below: bool = False, **kw: Any) -> Any:
+    """A legend outside the data (kept in the figure by constrained layout).
+
+    Args:
+        ax: the axes.
+        below: under the axes (for long entries) instead of to the right.
+        **kw: more ``ax.legend`` arguments.
+    """
+    if below:
+        return ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), borderaxespad=0.0,
+                         **kw)
     return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kw)
 
 
