@@ -87,12 +87,13 @@ def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("nodes n")
-        ax.set_ylabel("wall time per step (ms); line = median, whisker to p95")
     studies.legend_outside(axs[0], below=True, fontsize=7)
     studies.legend_outside(axs[1], below=True, fontsize=7)
+    axs[0].set_ylabel("wall time per step (ms)")
     axs[0].set_title("Alignment step")
     axs[1].set_title("Receiving the states (per frame / per tick)")
-    fig.suptitle(f"Cost of alignment as implemented (k = {K}, Python {platform.python_version()})")
+    fig.suptitle(f"Cost of alignment as implemented (k = {K}, Python "
+                 f"{platform.python_version()}; line = median, whisker to p95)")
     studies.save(fig, out, "cost_vs_n.png")
 
 

@@ -96,7 +96,7 @@ def plots(study: studies.Study) -> None:
         ax.axhspan(30, 90, color="k", alpha=0.06, label="paper: 30–90 ms without alignment")
         ax.set_xlabel("simulated time (s)")
         ax.set_title(f"Frame spread as time — {v} (seed {seed})")
-        ax.set_ylabel(f"displacement in shown swarm (ms; {SPREAD_SMOOTH_S:g} s moving mean)")
+        ax.set_ylabel(f"displacement (ms, {SPREAD_SMOOTH_S:g} s mean)")
         studies.legend_outside(ax)
         ax = axs[1, col]
         labels = study.labels(v)
@@ -112,7 +112,7 @@ def plots(study: studies.Study) -> None:
                 alpha=1.0 if name == "mean" else 0.45,
             )
         ax.set_xticks(x, labels)
-        ax.set_ylabel("shown vs true position at the snapshot frame (m)")
+        ax.set_ylabel("shown vs true position (m)")
         ax.set_title(f"Positional flicker — {v} (left: mean, right: max)")
     studies.save(fig, out, "flicker.png")
 
