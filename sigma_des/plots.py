@@ -22,8 +22,6 @@ matplotlib is an optional dependency (the ``experiments`` extra): without it
 from __future__ import annotations
 
 import importlib.util
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -31,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.guard import atomic_write
 from sigma_des.plotstyle import (
     MIN_DPI,
     coinciding,
@@ -263,7 +262,7 @@ def draw(name: str, res: Results) -> Any:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig = plt.figure(figsize=(9.0, 4.0), layout="constrained")
+    fig = plt.figure(figsize=(9.0, 4.0), dpi=MIN_DPI, layout="constrained")
     try:
         _DRAW[name](fig, res)
     except BaseException:
@@ -276,7 +275,7 @@ def draw(name: str, res: Results) -> Any:
 
 def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
     """Draw :data:`PLOTS` for ``res`` into ``out_dir`` (each saved under a temporary
-    name, then renamed).
+    name, fsynced, then renamed, readable as the umask says).
 
     Args:
         res: the comparison.
@@ -296,15 +295,8 @@ def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
     paths = []
     for name in PLOTS:
         fig = draw(name, res)
-        try:
-            fd, tmp = tempfile.mkstemp(dir=d, prefix=f".{name}.", suffix=".png")
-            os.close(fd)
-            try:
-                fig.savefig(tmp, dpi=MIN_DPI)
-                os.replace(tmp, d / name)
-            except BaseException:
-                Path(tmp).unlink(missing_ok=True)
-                raise
+        try:  # temporary name, fsync, rename, the umask's mode
+            atomic_write(d / name, fig.savefig, "--out", binary=True)
         finally:
             plt.close(fig)
         paths.append(d / name)

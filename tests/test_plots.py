@@ -144,3 +144,21 @@ def test_compare_spread_is_a_distribution_and_a_moving_mean(res: Any) -> None:
             assert jumps.size == 0 or jumps.max() < 0.5
     finally:
         plt.close(fig)
+
+
+def test_pngs_follow_the_umask(tmp_path: Path) -> None:
+    import os
+    import stat
+
+    out = tmp_path / "o"
+    old = os.umask(0o022)
+    try:
+        assert main(["compare", *SETS, "--out", str(out)]) == 0
+    finally:
+        os.umask(old)
+    for name in plots.PLOTS:
+        assert stat.S_IMODE((out / name).stat().st_mode) == 0o644, name
+        head = (out / name).read_bytes()[:24]
+        assert head[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")) == (
+            900, 400)  # 9 x 4 in at 100 dpi
