@@ -192,11 +192,15 @@ def _gib(b: float) -> str:
     return f"{b / 2**30:.3g} GiB"
 
 
-def require_memory(need: int, what: str, advice: str, force: bool = False) -> int:
+def require_memory(
+    need: int, have: int | None, what: str, advice: str, force: bool = False
+) -> int:
     """Refuse work estimated to need more than the available memory.
 
     Args:
         need: the estimate (bytes).
+        have: the available memory (bytes; :func:`sigma_des.budget.available_bytes`),
+            None if unknown (then nothing is refused).
         what: what needs it, for the message (``"replay at --rate 1e+09 Hz"``).
         advice: what the user can lower (``"lower --rate"``); ``or pass --force`` is
             appended.
@@ -208,9 +212,6 @@ def require_memory(need: int, what: str, advice: str, force: bool = False) -> in
     Raises:
         ConfigError: (key ``memory``) ``need`` exceeds the available memory.
     """
-    from sigma_des.budget import available_bytes  # budget knows the scenario: import late
-
-    have = available_bytes()
     if not force and have is not None and need > have:
         raise ConfigError(
             "memory",

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import importlib.util
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -296,7 +297,8 @@ def write_plots(res: Results, out_dir: str | Path) -> list[Path]:
     for name in PLOTS:
         fig = draw(name, res)
         try:  # temporary name, fsync, rename, the umask's mode
-            atomic_write(d / name, fig.savefig, "--out", binary=True)
+            atomic_write(d / name, partial(fig.savefig, format="png", dpi=MIN_DPI), "--out",
+                         binary=True)
         finally:
             plt.close(fig)
         paths.append(d / name)

@@ -68,6 +68,7 @@ def replay_bytes(scenario: dict[str, Any], n_methods: int, rate: float) -> int:
 
 def _check_options(args: argparse.Namespace) -> list[str] | None:
     """Bounds, input, memory and output checks; the methods to replay (None: all)."""
+    from sigma_des.budget import available_bytes
     from sigma_des.guard import input_file, output_file, require_memory
     from sigma_des.record.reader import open_recording
 
@@ -86,7 +87,7 @@ def _check_options(args: argparse.Namespace) -> list[str] | None:
                 raise ConfigError("--methods", f"{m!r} is not in {args.recording} "
                                   f"(recorded: {', '.join(rec.methods)})")
     n = len(methods) if methods is not None else len(rec.methods)
-    require_memory(replay_bytes(rec.scenario, n, args.rate),
+    require_memory(replay_bytes(rec.scenario, n, args.rate), available_bytes(),
                    f"replay at --rate {args.rate:g} Hz", "lower --rate or pick --methods",
                    force=args.force)
     output_file(args.out, "--out", force=args.force)

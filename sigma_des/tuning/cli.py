@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``sigma-des tune``; returns the exit status (2 on bad input)."""
     try:
         from sigma_des.agents.presets import preset
+        from sigma_des.budget import available_bytes
         from sigma_des.outputs import check_out_dir
         from sigma_des.tuning.fitted import KINDS
         from sigma_des.tuning.pipeline import tune_and_report
@@ -118,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
         log = _read_log(args.log, args.dynamics, "--log")
         val = _read_log(args.validate, args.dynamics, "--validate") if args.validate else None
         start = _start(args.init, args.dynamics) if args.init else preset(args.dynamics)
-        require_memory(tune_bytes(log, spec), f"tune.population={spec.population}",
+        require_memory(tune_bytes(log, spec), available_bytes(),
+                       f"tune.population={spec.population}",
                        "lower tune.population or use a shorter --log", force=args.force)
         check_out_dir(args.out, "--out")
         try:
