@@ -58,12 +58,12 @@ def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
     plt = studies.plot_setup(fast)
     fig, axs = plt.subplots(1, 2, figsize=(13, 5), sharey=True)
     for ax, part in zip(axs, ("align", "ingest"), strict=True):
-        for method in BENCHES:
+        for i, method in enumerate(BENCHES):
             med = np.array([table[str(n)][method][f"{part}_median_ms"] for n in ns])
             p95 = np.array([table[str(n)][method][f"{part}_p95_ms"] for n in ns])
-            c = studies.COLORS[method]
-            ax.plot(ns, med, "o-", color=c, label=f"{method}: {WHAT[(method, part)]}")
-            ax.vlines(ns, med, p95, color=c, alpha=0.6)
+            kw = studies.line_kw(method, i, len(ns))
+            ax.plot(ns, med, label=f"{method}: {WHAT[(method, part)]}", **kw)
+            ax.vlines(ns, med, p95, color=kw["color"], alpha=0.6)
         ref = np.array(ns, dtype=float)
         b = table[str(ns[0])]["bides"][f"{part}_median_ms"]
         ax.plot(ref, b * ref / ref[0], ":", color="k", lw=0.8, label="∝ n (reference)")
@@ -87,11 +87,13 @@ def plot(out: Path, table: dict[str, Any], ns: list[int], fast: bool) -> None:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("nodes n")
-        ax.set_ylabel("wall time per step (ms); line = median, whisker to p95")
-        ax.legend(loc="upper left", fontsize=7)
+    studies.legend_outside(axs[0], below=True, fontsize=7)
+    studies.legend_outside(axs[1], below=True, fontsize=7)
+    axs[0].set_ylabel("wall time per step (ms)")
     axs[0].set_title("Alignment step")
     axs[1].set_title("Receiving the states (per frame / per tick)")
-    fig.suptitle(f"Cost of alignment as implemented (k = {K}, Python {platform.python_version()})")
+    fig.suptitle(f"Cost of alignment as implemented (k = {K}, Python "
+                 f"{platform.python_version()}; line = median, whisker to p95)")
     studies.save(fig, out, "cost_vs_n.png")
 
 

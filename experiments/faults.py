@@ -105,22 +105,19 @@ def plots(study: studies.Study, windows: dict[str, tuple[float, float]]) -> None
     for row, v in enumerate(variants):
         a, b = windows[v]
         ax_aoi, ax_rate = axs[row]
+        aoi, rates = {}, {}
         for lab in study.labels(v):
             ts = study.runs(v, lab)[0].timeseries
-            c = studies.COLORS.get(lab)
-            ax_aoi.plot(ts["t"], np.asarray(ts["aoi_mean"]) * 1000.0, color=c, lw=1, label=lab)
-            t, rate = rate_series(ts["t"], ts["aligned_frame"], window=0.25)
-            ax_rate.plot(t, rate, color=c, lw=1, label=f"{lab}: aligned frames/s")
-            if lab == "bides":
-                ax_rate.step(
-                    ts["t"],
-                    ts["f_trig"],
-                    where="post",
-                    color=c,
-                    ls="--",
-                    lw=1,
-                    label="bides: trigger rate in force",
-                )
+            aoi[lab] = (np.asarray(ts["t"]), np.asarray(ts["aoi_mean"]) * 1000.0)
+            rates[lab] = rate_series(ts["t"], ts["aligned_frame"], window=0.25)
+        studies.plot_lines(ax_aoi, aoi, lw=1.0)
+        studies.plot_lines(ax_rate, rates, ": aligned frames/s", lw=1.0)
+        if "bides" in aoi:
+            ts = study.runs(v, "bides")[0].timeseries
+            ax_rate.step(ts["t"], ts["f_trig"], where="post", color="k", ls=":", lw=1,
+                         label="bides: trigger rate in force")
+        ax_rate.set_ylim(*studies.rate_ylim([study.variants[v].f_trig],
+                                            [y for _, y in rates.values()]))
         for ax in (ax_aoi, ax_rate):
             ax.axvspan(a, b, color="orange", alpha=0.15, label="fault window")
             ax.set_xlabel("simulated time (s)")
@@ -129,8 +126,8 @@ def plots(study: studies.Study, windows: dict[str, tuple[float, float]]) -> None
         ax_aoi.set_title(f"{v}: AoI over time, mean over all nodes incl. the faulty (seed {seed})")
         ax_rate.set_ylabel("rate (Hz; 0.25 s windows)")
         ax_rate.set_title(f"{v}: aligned frame rate and BiDES trigger rate")
-        ax_aoi.legend(loc="upper left", ncols=3, fontsize=7)
-        ax_rate.legend(loc="lower left", ncols=2, fontsize=7)
+        studies.legend_outside(ax_aoi, fontsize=7)
+        studies.legend_outside(ax_rate, fontsize=7)
     studies.save(fig, out, "faults_timeseries.png")
 
     fig, axs = plt.subplots(2, len(variants), figsize=(5 * len(variants), 7), squeeze=False)
@@ -156,7 +153,7 @@ def plots(study: studies.Study, windows: dict[str, tuple[float, float]]) -> None
             ax.set_title(f"{v}: {unit.split(' (')[0]} before / during / after")
             if row == 0:
                 ax.set_yscale("log")
-            ax.legend(fontsize=7)
+            studies.legend_outside(ax, fontsize=7)
     studies.save(fig, out, "faults_windows.png")
 
 

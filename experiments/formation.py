@@ -81,7 +81,6 @@ NETWORKS: dict[str, tuple[Path | None, tuple[str, ...]]] = {
     "ideal": (None, ('net.host_link.latency={dist="constant", value=0.0}',
                      'net.server_link.latency={dist="constant", value=0.0}')),
 }
-COLORS = {**studies.COLORS, IDEAL: "#000000"}
 
 
 def scenario(network: str, duration: float, seed: int) -> Scenario:
@@ -112,7 +111,7 @@ def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
         ax.set_xlabel("east (m)")
         ax.set_aspect("equal", adjustable="box")
     axs[0].set_ylabel("north (m)")
-    axs[0].legend(loc="best", fontsize=7)
+    studies.legend_outside(axs[-1], fontsize=7)
     fig.suptitle(f"Trajectories, {args.network} network, seed {seed} (dot = end)")
     studies.save(fig, out, "trajectories.png")
 
@@ -137,32 +136,34 @@ def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
                 ax.set_title(lab)
             else:
                 ax.set_xlabel("flight time (s)")
-    axs[0, 0].legend(loc="upper right", fontsize=6)
+    studies.legend_outside(axs[0, -1], fontsize=7)
     fig.suptitle(f"Convergence to the V slots, {args.network} network, seed {seed}")
     studies.save(fig, out, "convergence.png")
 
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.2))
+    err = {}
     for lab in METHODS:
         ser = r["series"][lab]
         n = len(ser["formation_err"])
-        axs[0].plot(ser["t"][:n], ser["formation_err"], lw=0.8, color=COLORS.get(lab), label=lab)
+        err[lab] = (ser["t"][:n], ser["formation_err"])
+    studies.plot_lines(axs[0], err, lw=1.0)
     axs[0].set_xlabel("flight time (s)")
     axs[0].set_ylabel("formation (shape) error vs ideal (m)")
     axs[0].set_title("Formation error over time")
-    axs[0].legend(loc="upper left")
+    dist = {}
     for lab in labels:
         ser = r["series"][lab]
         foll = [k for k in range(ser["dh"].shape[1]) if k != LEADER]
-        axs[1].plot(ser["t"], ser["dh"][:, foll].mean(axis=1), lw=0.8, color=COLORS.get(lab),
-                    label=lab)
+        dist[lab] = (ser["t"], ser["dh"][:, foll].mean(axis=1))
+    studies.plot_lines(axs[1], dist, lw=1.0)
     axs[1].set_yscale("log")
     axs[1].set_xlabel("flight time (s)")
     axs[1].set_ylabel("mean horizontal distance to slot (m)")
     axs[1].set_title("Followers' mean distance to slot")
-    axs[1].legend(loc="upper right")
+    studies.legend_outside(axs[1])
     x = np.arange(len(labels))
     ys = [r["metrics"][lab]["dtw_r"] for lab in labels]
-    axs[2].bar(x, ys, color=[COLORS.get(lab) for lab in labels])
+    axs[2].bar(x, ys, color=[studies.line_kw(lab)["color"] for lab in labels])
     axs[2].set_xticks(x, labels)
     axs[2].set_ylabel("normalised DTW to ideal, r = D·T/s (m)")
     axs[2].set_title("Trajectory DTW to the ideal run (mean over nodes)")

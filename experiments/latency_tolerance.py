@@ -47,6 +47,7 @@ PAPER = {
     "bides_aoi_ms": 38,
     "bides_rate_hz": 20,
 }
+SPREAD_SMOOTH_S = 0.2  # spread alternates tick by tick: plot its moving mean
 VARIANTS = {"datagram": ["net.transport=datagram"], "stream": ["net.transport=stream"]}
 #: The 6-DoF quadrotor flies (its manoeuvres make the position error of a stale or
 #: extrapolated state visible; straight point-mass flight would hide it).
@@ -78,22 +79,25 @@ def plots(study: studies.Study) -> None:
         ax.set_yscale("log")
         ax.axhline(70, color=studies.COLORS["hlc"], ls="--", lw=0.8, label="paper HLC 70 ms")
         ax.axhline(38, color=studies.COLORS["bides"], ls="--", lw=0.8, label="paper BiDES 38 ms")
-        ax.legend(loc="upper left", fontsize=7)
+        studies.legend_outside(ax, fontsize=7)
         ax.set_title(f"AoI distribution — {v} transport")
     studies.save(fig, out, "aoi_distribution.png")
 
     fig, axs = plt.subplots(2, 2, figsize=(13, 8))
     for col, v in enumerate(variants[:2]):
         ax = axs[0, col]
+        series = {}
         for lab in study.labels(v):
             ts = study.runs(v, lab)[0].timeseries
             disp = np.asarray(ts["spread"], float) / np.asarray(ts["f_trig"], float) * 1000.0
-            ax.plot(ts["t"], disp, color=studies.COLORS.get(lab), lw=0.8, label=lab)
+            n = max(1, round(SPREAD_SMOOTH_S * study.variants[v].f_render))
+            series[lab] = (np.asarray(ts["t"], float), studies.moving_average(disp, n))
+        studies.plot_lines(ax, series, lw=1.0)
         ax.axhspan(30, 90, color="k", alpha=0.06, label="paper: 30–90 ms without alignment")
         ax.set_xlabel("simulated time (s)")
-        ax.set_ylabel("displacement in shown swarm (ms)")
-        ax.set_title(f"Frame spread of the shown snapshot as time — {v} (seed {seed})")
-        ax.legend(loc="upper right", ncols=2)
+        ax.set_title(f"Frame spread as time — {v} (seed {seed})")
+        ax.set_ylabel(f"displacement (ms, {SPREAD_SMOOTH_S:g} s mean)")
+        studies.legend_outside(ax)
         ax = axs[1, col]
         labels = study.labels(v)
         x = np.arange(len(labels))
@@ -108,7 +112,7 @@ def plots(study: studies.Study) -> None:
                 alpha=1.0 if name == "mean" else 0.45,
             )
         ax.set_xticks(x, labels)
-        ax.set_ylabel("shown vs true position at the snapshot frame (m)")
+        ax.set_ylabel("shown vs true position (m)")
         ax.set_title(f"Positional flicker — {v} (left: mean, right: max)")
     studies.save(fig, out, "flicker.png")
 
@@ -120,7 +124,10 @@ def plots(study: studies.Study) -> None:
         ax.set_xlabel("simulated time (s)")
         ax.set_ylabel("aligned frames advanced per second (1 s windows)")
         ax.set_title(f"Aligned frame rate over time — {v} (seed {seed})")
-        ax.legend(loc="upper right", ncols=3)
+        f_set = study.variants[v].f_trig
+        ax.axhline(f_set, color="k", ls=":", lw=0.8, label=f"set trigger rate {f_set:g} Hz")
+        ax.set_ylim(*studies.rate_ylim([f_set], [ln.get_ydata() for ln in ax.get_lines()]))
+        studies.legend_outside(ax)
         ax = axs[1, col]
         studies.bar_metric(ax, study, v, "snapshot_rate_hz")
         ax.set_ylabel("new snapshots shown per second (Hz)")

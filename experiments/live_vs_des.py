@@ -41,6 +41,7 @@ from sigma_des.config import METHODS, load
 from sigma_des.live.calibrate import calibrate, calibrated_toml, for_target
 from sigma_des.live.messages import write_messages
 from sigma_des.live.runner import LiveOptions, run_live
+from sigma_des.plotstyle import legend_outside, line_kw, metric_title
 
 METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz",
            "snapshot_rate_hz", "throughput_mbps")
@@ -67,23 +68,23 @@ def _plot(rows: list[dict[str, Any]], out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.5))
-    marks = {"none": "o", "lockstep": "s", "hlc": "^", "bides": "D"}
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained")
     for ax, metric in zip(axes, ("aoi_mean", "latency_state_mean"), strict=True):
         sel = [r for r in rows if r["metric"] == metric]
         targets = sorted({r["target"] for r in sel})
-        for ti, tgt in enumerate(targets):
+        for ti, tgt in enumerate(targets):  # one target filled, the others hollow
             for r in (r for r in sel if r["target"] == tgt):
-                ax.scatter(r["live"], r["des"], marker=marks.get(r["method"], "x"),
-                           color=f"C{ti}", label=f"{tgt}" if r["method"] == "none" else None)
+                kw = line_kw(r["method"], n_points=1)
+                ax.scatter(r["live"], r["des"], marker=kw["marker"], s=40,
+                           color=kw["color"], facecolors=kw["color"] if ti == 0 else "none",
+                           label=f"{r['method']} ({tgt})")
         hi = max([max(r["live"], r["des"]) for r in sel if math.isfinite(r["des"])] + [1.0])
         ax.plot([0, hi], [0, hi], "k-", lw=0.8)
         ax.fill_between([0, hi], [0, 0.85 * hi], [0, 1.15 * hi], color="0.9", zorder=0)
         ax.set_xlabel(f"live {metric} (ms)")
         ax.set_ylabel(f"DES {metric} (ms)")
-        ax.set_title(f"{metric}: markers o none, s lockstep, ^ hlc, D bides")
-        ax.legend(fontsize=8)
-    fig.tight_layout()
+        ax.set_title(f"{metric_title(metric)}: DES vs live (band ±15 %)")
+    legend_outside(axes[1], fontsize=8)
     fig.savefig(out / "live_vs_des.png", dpi=110)
     plt.close(fig)
 

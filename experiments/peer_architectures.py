@@ -38,6 +38,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from sigma_des import studies
 
 NAME = "peer_architectures"
@@ -113,17 +115,18 @@ def plots(study: studies.Study, fig: dict[str, Any]) -> None:
     out = study.args.out
     table = fig["table"]
     f, axs = plt.subplots(1, 2, figsize=(13, 4.8))
-    for label, rows in table.items():
-        ns = list(rows)
-        mean = [rows[n]["aoi_mean"] for n in ns]
-        std = [rows[n]["aoi_std"] for n in ns]
-        (line,) = axs[0].plot(ns, mean, marker="o", label=label)
-        axs[0].fill_between(ns, [m - s for m, s in zip(mean, std, strict=True)],
-                            [m + s for m, s in zip(mean, std, strict=True)],
-                            color=line.get_color(), alpha=0.15, linewidth=0)
-        axs[0].plot(ns, [rows[n]["aoi_p99"] for n in ns], linestyle=":",
-                    color=line.get_color())
-        axs[1].plot(ns, [rows[n]["trigger_rate_hz"] for n in ns], marker="o", label=label)
+    aoi, rate = {}, {}
+    for i, (label, rows) in enumerate(table.items()):
+        ns = np.array(list(rows), dtype=float)
+        mean = np.array([rows[n]["aoi_mean"] for n in rows])
+        std = np.array([rows[n]["aoi_std"] for n in rows])
+        c = studies.line_kw(label, i)["color"]
+        axs[0].fill_between(ns, mean - std, mean + std, color=c, alpha=0.15, linewidth=0)
+        axs[0].plot(ns, [rows[n]["aoi_p99"] for n in rows], linestyle=":", color=c)
+        aoi[label] = (ns, mean)
+        rate[label] = (ns, np.array([rows[n]["trigger_rate_hz"] for n in rows]))
+    studies.plot_lines(axs[0], aoi)
+    studies.plot_lines(axs[1], rate)
     axs[0].errorbar([60, 200], [12, 62], yerr=[0, 15], fmt="s", color="k", ms=7, capsize=4,
                     label="paper: Gazebo")
     axs[0].errorbar([200], [8.7], yerr=[1.7], fmt="D", color="g", ms=7, capsize=4,
@@ -133,24 +136,26 @@ def plots(study: studies.Study, fig: dict[str, Any]) -> None:
     axs[0].set_yscale("log")
     axs[0].set_xlabel("physics nodes N")
     axs[0].set_ylabel("AoI (ms; band ± std, dotted p99; log)")
-    axs[0].legend(fontsize=7)
+    studies.legend_outside(axs[0], fontsize=7)
     axs[0].set_title("AoI vs swarm size")
     sc = next(iter(study.variants.values()))
     axs[1].axhline(RATE_FLOOR * sc.f_trig, color="k", linestyle="--", linewidth=1,
                    label="instability floor (0.5 × nominal)")
     axs[1].set_xlabel("physics nodes N")
     axs[1].set_ylabel("achieved frame (trigger) rate (Hz)")
-    axs[1].legend(fontsize=7)
+    studies.legend_outside(axs[1], fontsize=7)
     axs[1].set_title("achieved frame rate vs swarm size")
     studies.save(f, out, "aoi_vs_n.png")
     f2, ax = plt.subplots(figsize=(6.5, 4.5))
-    for label, rows in table.items():
-        ns = list(rows)
-        ax.plot(ns, [rows[n]["latency_state_mean"] for n in ns], marker="o", label=label)
+    studies.plot_lines(ax, {
+        label: (np.array(list(rows), dtype=float),
+                np.array([rows[n]["latency_state_mean"] for n in rows]))
+        for label, rows in table.items()
+    })
     ax.set_yscale("log")
     ax.set_xlabel("physics nodes N")
     ax.set_ylabel("state latency, publish → server (ms; log)")
-    ax.legend(fontsize=7)
+    studies.legend_outside(ax, fontsize=7)
     studies.save(f2, out, "rate_vs_n.png")
 
 

@@ -95,20 +95,18 @@ def plots(study: studies.Study) -> None:
     ]
     studies.bar_panels(axs, study, "default", panels)
     axs.flat[0].axhline(PAPER["throughput_mbps"], color="k", ls="--", lw=1, label="paper 208.4")
-    axs.flat[0].legend(loc="lower right")
+    studies.legend_outside(axs.flat[0])
     axs.flat[1].axhline(19.0, color="k", ls="--", lw=1, label="paper 19 ms")
-    axs.flat[1].legend(loc="lower right")
+    studies.legend_outside(axs.flat[1])
     axs.flat[5].axhline(50.0, color="k", ls="--", lw=1, label="paper 50 Hz")
-    axs.flat[5].legend(loc="lower right")
+    studies.legend_outside(axs.flat[5])
     fig.suptitle(f"Scale study: {tag}")
     studies.save(fig, out, "metrics.png")
 
     fig, axs = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    studies.plot_rate(axs[1], study, "default", "latest_trigger", 0.5)
     for lab in study.labels("default"):
-        r = study.runs("default", lab)[0]
-        ts = r.timeseries
-        t, rate = rate_series(ts["t"], ts["latest_trigger"], window=0.5)
-        axs[1].plot(t, rate, color=studies.COLORS.get(lab), lw=1, label=lab)
+        ts = study.runs("default", lab)[0].timeseries
         if lab == "bides":
             axs[0].step(
                 ts["t"],
@@ -124,13 +122,20 @@ def plots(study: studies.Study) -> None:
             r.timeseries["f_trig"],
             where="post",
             color="#98df8a",
-            label="bides, 4× faster broker",
+            ls="--",
+            label="bides, 4× faster broker" + (
+                " (= default broker)" if np.array_equal(
+                    r.timeseries["f_trig"], study.runs("default", "bides")[0].timeseries["f_trig"])
+                else ""),
         )
         t, rate = rate_series(r.timeseries["t"], r.timeseries["latest_trigger"], 0.5)
-        axs[1].plot(t, rate, color="#98df8a", lw=1, label="bides, 4× faster broker")
+        axs[1].plot(t, rate, color="#98df8a", lw=1, ls="--", label="bides, 4× faster broker")
     cap = study.extra["broker"]["default"]["max_trigger_hz"]
     for ax in axs:
-        ax.axhline(cap, color="k", ls=":", lw=1, label=f"broker capacity ≈ {cap:.0f} Hz")
+        lo, top = studies.rate_ylim([sc.f_trig], [ln.get_ydata() for ln in ax.get_lines()])
+        ax.set_ylim(lo, top)  # the data's range, not the broker's capacity
+        above = " (above the axis)" if cap > top else ""
+        ax.axhline(cap, color="k", ls=":", lw=1, label=f"broker capacity ≈ {cap:.0f} Hz{above}")
         ax.axhline(50.0, color="k", ls="--", lw=0.8, label="paper: settles at 50 Hz")
     axs[0].set_ylabel("trigger rate in force f_trig (Hz)")
     axs[0].set_title(f"BiDES adaptive trigger rate (seed {study.args.seeds[0]}) — {tag}")
@@ -138,7 +143,7 @@ def plots(study: studies.Study) -> None:
     axs[1].set_xlabel("simulated time (s)")
     axs[1].set_title("Achieved trigger rate per method")
     for ax in axs:
-        ax.legend(loc="lower right", ncols=2)
+        studies.legend_outside(ax)
     studies.save(fig, out, "trigger_rate.png")
 
     fig, ax = plt.subplots(figsize=(11, 4.5))

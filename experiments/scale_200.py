@@ -81,7 +81,7 @@ def plots(study: studies.Study) -> None:
         m = float(study.values("default", lab, "aoi_mean").mean())
         s = float(study.values("default", lab, "aoi_std").mean())
         ax.errorbar(i + 0.2, m, yerr=s, fmt="o", color="k", ms=3, capsize=3)
-    ax.set_title("aoi_mean (black: ± AoI std over samples)")
+    ax.set_title("AoI, mean (black: ± AoI std over samples)")
     fig.suptitle(f"Scale study: {tag}")
     studies.save(fig, out, "metrics.png")
 

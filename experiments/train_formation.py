@@ -29,7 +29,7 @@ import numpy as np
 
 from sigma_des import __version__
 from sigma_des.env.learn import CEMConfig, evaluate, train
-from sigma_des.studies import plot_setup, save
+from sigma_des.studies import legend_outside, plot_setup, save
 
 DELAY = {"net.host_link.latency": {"dist": "normal", "mean": 0.15, "std": 0.03},
          "net.host_link.loss": {"p": 0.1}}
@@ -119,7 +119,7 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         "history": history, "eval": evals, "wall_s": wall,
         "policies": {k: v.tolist() for k, v in policies.items()}}, indent=2) + "\n")
     plt = plot_setup(fast=a.quick)
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = plt.subplots(figsize=(8, 3.5))
     for cond, color in (("delay", "#d62728"), ("perfect", "#1f77b4")):
         rows = [r for r in history if r["trained"] == cond]
         it = [r["iteration"] for r in rows]
@@ -129,7 +129,7 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
     ax.set_xlabel("CEM iteration")
     ax.set_ylabel("mean reward per agent-step")
     ax.set_title("formation task: learning curves (in each training condition)")
-    ax.legend()
+    legend_outside(ax)
     save(fig, out, "learning_curves.png")
 
 

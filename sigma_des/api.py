@@ -31,6 +31,7 @@ from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
 from sigma_des.metrics.fidelity import add_fidelity
 from sigma_des.metrics.reports import MethodReport
 from sigma_des.outputs import check_out_dir, write_files
+from sigma_des.tables import text_table
 from sigma_des.version import __version__
 
 __all__ = ["Results", "compare", "ideal_run", "run_method"]
@@ -188,11 +189,7 @@ class Results:
                     f"{self.wall[method]['wall_s']:.2f}",
                 )
             )
-        widths = [max(len(r[i]) for r in lines) for i in range(len(head))]
-        text = "\n".join(
-            "  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in lines
-        )
-        return text + "\n" + self.engine_note()
+        return text_table(lines) + "\n" + self.engine_note()
 
     def engine_note(self) -> str:
         """One line per engine used, naming methods that fell back and why."""

@@ -31,6 +31,7 @@ import tomli_w
 from sigma_des.agents.params import AeroCoeffs, AircraftParams
 from sigma_des.agents.presets import preset
 from sigma_des.errors import ConfigError
+from sigma_des.guard import read_text
 
 __all__ = ["KINDS", "PARAM_NAMES", "fitted_params", "get_value", "read_fitted", "with_values",
            "write_fitted"]
@@ -85,12 +86,9 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
     """``(kind, values)`` of a fitted file, validated (ConfigError names file and key)."""
     p = Path(path)
     src = str(p)
+    text = read_text(p, src, "fitted parameter file")
     try:
-        doc = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise ConfigError(src, "fitted parameter file not found") from None
-    except OSError as e:
-        raise ConfigError(src, f"cannot read ({e.strerror})") from None
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(src, f"not valid TOML: {e}") from None
     for k in doc:

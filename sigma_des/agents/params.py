@@ -10,6 +10,7 @@ invalid value raises :class:`~sigma_des.errors.ConfigError` naming the field.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -20,7 +21,58 @@ from sigma_des.agents.autopilot import FIXEDWING_GAINS, MULTIROTOR_GAINS
 from sigma_des.agents.rotor import hover_inflow
 from sigma_des.errors import ConfigError
 
-__all__ = ["RotorSpec", "AeroCoeffs", "AircraftParams", "AUTOPILOTS"]
+__all__ = ["RotorSpec", "AeroCoeffs", "AircraftParams", "AUTOPILOTS", "PARAM_RANGES",
+           "check_range"]
+
+#: Plausible range of every number of an aircraft, from a 50 g micro drone to a
+#: light aircraft, with its unit: ``name -> (low, high, unit)``; names in
+#: :data:`_POSITIVE` must also be > 0 (the low end is open). ``aero.*`` holds for
+#: every aerodynamic coefficient, ``gains.*`` for every autopilot gain. A value
+#: outside (``ixx = 1e300``) is a typo or a unit slip, never an aircraft.
+PARAM_RANGES: dict[str, tuple[float, float, str]] = {
+    "mass": (0.0, 1e4, "kg"),
+    "ixx": (0.0, 1e5, "kg m^2"),
+    "iyy": (0.0, 1e5, "kg m^2"),
+    "izz": (0.0, 1e5, "kg m^2"),
+    "ixz": (-1e5, 1e5, "kg m^2"),
+    "rotor_radius": (0.0, 10.0, "m"),
+    "rotor_solidity": (0.0, 1.0, ""),
+    "rotor_lift_slope": (0.0, 10.0, "1/rad"),
+    "rotor_cd0": (0.0, 1.0, ""),
+    "tau_motor": (0.0, 10.0, "s"),
+    "omega_max": (0.0, 1e5, "rad/s"),
+    "omega_min": (0.0, 1e5, "rad/s"),
+    "tau_servo": (0.0, 10.0, "s"),
+    "delta_max": (0.0, math.pi / 2, "rad"),
+    "v_cruise": (0.0, 400.0, "m/s"),
+    "altitude": (-1e3, 1e5, "m"),
+    "spacing": (0.0, 1e4, "m"),
+    "max_substep": (0.0, 1.0, "s"),
+    "aero.s": (0.0, 1e3, "m^2"),
+    "aero.b": (0.0, 1e3, "m"),
+    "aero.c": (0.0, 1e3, "m"),
+    "aero.*": (-1e3, 1e3, ""),
+    "gains.*": (-1e6, 1e6, ""),
+}
+_POSITIVE = ("mass", "ixx", "iyy", "izz", "rotor_radius", "rotor_solidity",
+             "rotor_lift_slope", "tau_motor", "omega_max", "tau_servo", "delta_max",
+             "max_substep", "spacing")
+
+
+def check_range(name: str, value: float) -> str | None:
+    """Why ``value`` is outside the :data:`PARAM_RANGES` entry of ``name`` (``None``
+    if inside, or if ``name`` has no entry); ``name`` is e.g. ``ixx``, ``aero.cl_a``."""
+    group = name.split(".")[0] + ".*"
+    entry = PARAM_RANGES.get(name) or PARAM_RANGES.get(group)
+    if entry is None:
+        return None
+    lo, hi, unit = entry
+    positive = name in _POSITIVE
+    if (value > lo if positive else value >= lo) and value <= hi:
+        return None
+    unit = f" {unit}" if unit else ""
+    return f"must be in {'(' if positive else '['}{lo:g}, {hi:g}]{unit}, got {value!r}"
+
 
 #: Autopilot kinds and their kernel codes.
 AUTOPILOTS: dict[str, int] = {"none": 0, "multirotor": 1, "fixedwing": 2}
@@ -145,11 +197,10 @@ class AircraftParams:
             v = getattr(self, f.name)
             if isinstance(v, float | int) and not isinstance(v, bool) and not math.isfinite(v):
                 raise bad(f.name, f"must be finite, got {v}")
-        for name in ("mass", "ixx", "iyy", "izz", "rotor_radius", "rotor_solidity",
-                     "rotor_lift_slope", "tau_motor", "omega_max", "tau_servo",
-                     "delta_max", "max_substep", "spacing"):
+        for name in _POSITIVE:
             if not getattr(self, name) > 0:
                 raise bad(name, f"must be > 0, got {getattr(self, name)}")
+        self._check_ranges(bad)
         if not 0 <= self.omega_min < self.omega_max:
             raise bad("omega_min",
                       f"must be in [0, omega_max={self.omega_max}), got {self.omega_min}")
@@ -175,6 +226,16 @@ class AircraftParams:
             raise bad("gains", f"missing gain(s) {missing}")
         if self.aero.s < 0 or self.aero.b < 0 or self.aero.c < 0:
             raise bad("aero", "reference area, span and chord must be >= 0")
+
+    def _check_ranges(self, bad: Callable[[str, str], ConfigError]) -> None:
+        values = [(f.name, getattr(self, f.name)) for f in fields(self)]
+        values += [(f"aero.{f.name}", getattr(self.aero, f.name)) for f in fields(self.aero)]
+        values += [(f"gains.{k}", v) for k, v in self.gains.items()]
+        for name, v in values:
+            if isinstance(v, float | int) and not isinstance(v, bool):
+                why = check_range(name, float(v))
+                if why:
+                    raise bad(name, why)
 
     @property
     def hover_inflow(self) -> tuple[float, float]:

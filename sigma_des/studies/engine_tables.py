@@ -5,15 +5,9 @@ from __future__ import annotations
 from typing import Any
 
 from sigma_des.studies.engine_bench import BASELINE_RTOL, COMPARED, Check, col
-from sigma_des.studies.tables import text_table
+from sigma_des.tables import cell, text_table
 
 __all__ = ["check_table", "metric_table", "report_text", "speed_table", "speedup_table"]
-
-
-def _fmt(x: Any, spec: str) -> str:
-    if x == "" or x is None:
-        return "-"
-    return format(x, spec)
 
 
 def speed_table(rows: list[dict[str, Any]]) -> str:
@@ -41,13 +35,13 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
                 r["method"],
                 r["impl"] + ("~" if r["role"] == "twin" else ""),
                 r["engine_used"],
-                _fmt(r["sim_s"], "g"),
-                _fmt(r["wall_per_sim_s"], ".3f"),
-                _fmt(r["x_realtime"], ".2f"),
-                _fmt(r["cpu_per_sim_s"], ".3f"),
-                _fmt(r["x_realtime_cpu"], ".2f"),
-                _fmt(r["events_per_s"], ",.0f"),
-                _fmt(r["peak_rss_mb"], ".0f"),
+                cell(r["sim_s"], "g"),
+                cell(r["wall_per_sim_s"], ".3f"),
+                cell(r["x_realtime"], ".2f"),
+                cell(r["cpu_per_sim_s"], ".3f"),
+                cell(r["x_realtime_cpu"], ".2f"),
+                cell(r["events_per_s"], ",.0f"),
+                cell(r["peak_rss_mb"], ".0f"),
             ]
         )
     return text_table(lines)
@@ -88,9 +82,9 @@ def speedup_table(rows: list[dict[str, Any]]) -> str:
                 r["scenario"],
                 r["method"],
                 r["engine_used"],
-                _fmt(r["ratio_vs_events"], ".2f"),
-                _fmt(r["ratio_vs_baseline"], ".2f"),
-                _fmt(ev["ratio_vs_baseline"] if ev else "", ".2f"),
+                cell(r["ratio_vs_events"], ".2f"),
+                cell(r["ratio_vs_baseline"], ".2f"),
+                cell(ev["ratio_vs_baseline"] if ev else "", ".2f"),
             ]
         )
     return text_table(lines)

@@ -16,8 +16,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sigma_des.config import METHODS, NODES_PER_HOST, load
 from sigma_des.errors import ConfigError
+from sigma_des.plots import plot_lines
+from sigma_des.plotstyle import MIN_DPI, legend_outside, line_kw
 from sigma_des.sweep import RunReport, Sweep
 
 __all__ = [
@@ -27,7 +31,6 @@ __all__ = [
     "KEY_METRICS",
     "PLOTS",
     "QUICK_NODES",
-    "STYLES",
     "build_sweep",
     "degrade_line",
     "estimate_text",
@@ -50,13 +53,6 @@ PLOTS: tuple[tuple[str, str, str], ...] = (
     ("latency_state_mean", "latency_vs_nodes", "mean state latency, publish → delivery (ms)"),
     ("snapshot_rate_hz", "snapshot_rate_vs_nodes", "new aligned snapshots per second (Hz)"),
 )
-#: Marker and line style per method (overlapping curves stay visible).
-STYLES: dict[str, tuple[str, str]] = {
-    "none": ("o", ":"),
-    "lockstep": ("s", "--"),
-    "hlc": ("^", "-."),
-    "bides": ("D", "-"),
-}
 #: Key figures reported per (N, method) in summary.json and the printed table.
 KEY_METRICS: tuple[str, ...] = (
     "aoi_mean",
@@ -195,26 +191,17 @@ def _plot_metric(fig: Figures, metric: str, ylabel: str, all_n: list[int]) -> An
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-    f, ax = plt.subplots(figsize=(6.4, 4.2))
-    for method in [m for m in METHODS if m in fig]:
-        style = STYLES.get(method, ("o", "-"))
+    f, ax = plt.subplots(figsize=(7.6, 4.2), layout="constrained")
+    series = {}
+    for i, method in enumerate([m for m in METHODS if m in fig]):
         ns = sorted(n for n in fig[method] if metric in fig[method][n])
-        mean = [fig[method][n][metric]["mean"] for n in ns]
-        ci = [fig[method][n][metric]["ci95"] for n in ns]
-        ci = [0.0 if not math.isfinite(c) else c for c in ci]
-        hollow = method == "lockstep"  # drawn larger and hollow: it often equals BiDES
-        (line,) = ax.plot(
-            ns,
-            mean,
-            marker=style[0],
-            linestyle=style[1],
-            markersize=10 if hollow else 6,
-            markerfacecolor="none" if hollow else None,
-            label=method,
-        )
-        lo = [m - c for m, c in zip(mean, ci, strict=True)]
-        hi = [m + c for m, c in zip(mean, ci, strict=True)]
-        ax.fill_between(ns, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
+        mean = np.array([fig[method][n][metric]["mean"] for n in ns], dtype=float)
+        ci = np.array([fig[method][n][metric]["ci95"] for n in ns], dtype=float)
+        ci[~np.isfinite(ci)] = 0.0
+        series[method] = (np.array(ns, dtype=float), mean)
+        ax.fill_between(ns, mean - ci, mean + ci, color=line_kw(method, i)["color"], alpha=0.2,
+                        linewidth=0)
+    plot_lines(ax, series)
     ax.set_xscale("log")
     ax.set_xticks(all_n)
     ax.xaxis.set_major_formatter(ScalarFormatter())
@@ -224,8 +211,7 @@ def _plot_metric(fig: Figures, metric: str, ylabel: str, all_n: list[int]) -> An
     ax.set_title(f"{ylabel.split(' (')[0]} vs swarm size (mean ± 95 % CI over seeds)")
     ax.title.set_fontsize(10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(title="method")
-    f.tight_layout()
+    legend_outside(ax, title="method")
     return f
 
 
@@ -241,7 +227,7 @@ def plot_figures(fig: Figures, out: Path) -> list[Path]:
     for metric, stem, ylabel in PLOTS:
         f = _plot_metric(fig, metric, ylabel, all_n)
         path = out / f"{stem}.png"
-        f.savefig(path, dpi=120)
+        f.savefig(path, dpi=max(MIN_DPI, 120))
         plt.close(f)
         paths.append(path)
     return paths

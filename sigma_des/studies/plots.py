@@ -1,8 +1,11 @@
-"""Plots shared by the paper-study scripts: one colour per method, bars, AoI panels.
+"""Plots shared by the paper-study scripts: bars, AoI panels, rates — in the house style.
 
-:func:`plot_setup` imports pyplot with the non-interactive Agg backend; :func:`save`
-writes a figure as PNG (draft quality after ``plot_setup(fast=True)``, used by
-``--quick`` runs).
+Every method is drawn in its :mod:`sigma_des.plotstyle` colour, line style and marker,
+the same as in ``compare``'s plots (:data:`COLORS` *is* :data:`sigma_des.plotstyle.COLORS`).
+:func:`plot_setup` imports pyplot with the non-interactive Agg backend and constrained
+layout (titles and outside legends never overlap); :func:`save` writes a figure as PNG
+(at :data:`~sigma_des.plotstyle.MIN_DPI` after ``plot_setup(fast=True)``, used by
+``--quick`` runs, else at 110 dpi).
 """
 
 from __future__ import annotations
@@ -14,29 +17,32 @@ from typing import Any
 
 import numpy as np
 
-from sigma_des.plots import rate_series
+from sigma_des.plots import aoi_violins, moving_average, plot_lines, rate_series
+from sigma_des.plotstyle import (
+    COLORS,
+    MIN_DPI,
+    legend_outside,
+    line_kw,
+    metric_title,
+    rate_ylim,
+)
 from sigma_des.studies.model import Study
 
 __all__ = [
     "COLORS",
     "bar_metric",
     "bar_panels",
+    "legend_outside",
+    "line_kw",
+    "moving_average",
     "plot_aoi_dist",
     "plot_aoi_time",
+    "plot_lines",
     "plot_rate",
     "plot_setup",
+    "rate_ylim",
     "save",
 ]
-
-#: One colour per method label, the same in every plot.
-COLORS: dict[str, str] = {
-    "none": "#7f7f7f",
-    "lockstep": "#d62728",
-    "lockstep_evict": "#ff9896",
-    "hlc": "#1f77b4",
-    "bides": "#2ca02c",
-}
-
 
 _FAST_PLOTS = False  # set by plot_setup, read by save
 
@@ -45,8 +51,9 @@ def plot_setup(fast: bool = False) -> Any:
     """Import pyplot with the non-interactive Agg backend and a readable style.
 
     Args:
-        fast: draft quality (lower resolution, no tight layout) — for ``--quick``
-            runs, where drawing would otherwise take most of the run's time.
+        fast: draft quality (:data:`~sigma_des.plotstyle.MIN_DPI`, still legible) —
+            for ``--quick`` runs, where drawing would otherwise take much of the run's
+            time.
     """
     global _FAST_PLOTS
     _FAST_PLOTS = fast
@@ -64,6 +71,7 @@ def plot_setup(fast: bool = False) -> Any:
             "axes.titlesize": 11,
             "axes.labelsize": 10,
             "legend.fontsize": 8,
+            "figure.constrained_layout.use": True,
         }
     )
     return plt
@@ -72,11 +80,7 @@ def plot_setup(fast: bool = False) -> Any:
 def save(fig: Any, out: Path, name: str) -> Path:
     """Save ``fig`` as ``out/name`` (PNG) and close it."""
     path = Path(out) / name
-    if _FAST_PLOTS:
-        fig.savefig(path, dpi=50)
-    else:
-        fig.tight_layout()
-        fig.savefig(path)
+    fig.savefig(path, dpi=MIN_DPI if _FAST_PLOTS else 110)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
@@ -99,7 +103,8 @@ def bar_metric(
         means.append(float(np.nanmean(xs)) if xs.size else math.nan)
         errs.append(float(np.nanstd(xs)) if xs.size > 1 else 0.0)
     x = np.arange(len(labels))
-    ax.bar(x, means, yerr=errs, capsize=4, color=[COLORS.get(lab, "C0") for lab in labels])
+    ax.bar(x, means, yerr=errs, capsize=4,
+           color=[line_kw(lab, i)["color"] for i, lab in enumerate(labels)])
     ax.set_xticks(x, labels)
     for xi, m in zip(x, means, strict=True):
         if math.isfinite(m):
@@ -117,18 +122,17 @@ def bar_metric(
 def plot_aoi_time(ax: Any, study: Study, variant: str, labels: Sequence[str] | None = None) -> None:
     """AoI over time (first seed): per-tick mean AoI as a line, per-tick max as a band."""
     labels = list(labels) if labels is not None else study.labels(variant)
-    for lab in labels:
-        r = study.runs(variant, lab)[0]
-        ts = r.timeseries
+    series = {}
+    for i, lab in enumerate(labels):
+        ts = study.runs(variant, lab)[0].timeseries
         t = np.asarray(ts["t"], dtype=float)
-        mean = np.asarray(ts["aoi_mean"], dtype=float) * 1000.0
+        series[lab] = (t, np.asarray(ts["aoi_mean"], dtype=float) * 1000.0)
         mx = np.asarray(ts["aoi_max"], dtype=float) * 1000.0
-        c = COLORS.get(lab, None)
-        ax.plot(t, mean, color=c, lw=1.0, label=f"{lab} (mean over nodes)")
-        ax.fill_between(t, mean, mx, color=c, alpha=0.12, lw=0)
+        ax.fill_between(t, series[lab][1], mx, color=line_kw(lab, i)["color"], alpha=0.12, lw=0)
+    plot_lines(ax, series, " (mean over nodes)", lw=1.0)
     ax.set_xlabel("simulated time (s)")
     ax.set_ylabel("AoI (ms)")
-    ax.legend(loc="upper right", ncols=2)
+    legend_outside(ax)
 
 
 def plot_aoi_dist(ax: Any, study: Study, variant: str, labels: Sequence[str] | None = None) -> None:
@@ -138,43 +142,38 @@ def plot_aoi_dist(ax: Any, study: Study, variant: str, labels: Sequence[str] | N
     over seeds), so both the swarm-average wobble and the per-node tail are visible.
     """
     labels = list(labels) if labels is not None else study.labels(variant)
-    data = []
-    for lab in labels:
-        xs = np.concatenate(
+    data = {
+        lab: np.concatenate(
             [np.asarray(r.timeseries["aoi_mean"], dtype=float) for r in study.runs(variant, lab)]
         )
-        xs = xs[~np.isnan(xs)] * 1000.0
-        data.append(xs if xs.size else np.array([np.nan]))
-    pos = np.arange(1, len(labels) + 1)
-    ok = [i for i, d in enumerate(data) if np.isfinite(d).any()]
-    if ok:
-        parts = ax.violinplot([data[i] for i in ok], positions=pos[ok], showmedians=True)
-        for body, i in zip(parts["bodies"], ok, strict=True):
-            body.set_facecolor(COLORS.get(labels[i], "C0"))
-            body.set_alpha(0.5)
-    for q, mk in (("p50", "o"), ("p95", "^"), ("p99", "v")):
-        ys = [float(np.nanmean(study.values(variant, lab, f"aoi_{q}"))) for lab in labels]
-        ax.scatter(pos + 0.25, ys, marker=mk, color="k", s=18, label=f"{q} of node samples")
-    ax.set_xticks(pos, labels)
-    ax.set_ylabel("AoI (ms)")
-    ax.legend(loc="upper left")
+        * 1000.0
+        for lab in labels
+    }
+    tails = {
+        q: [float(np.nanmean(study.values(variant, lab, f"aoi_{q}"))) for lab in labels]
+        for q in ("p50", "p95", "p99")
+    }
+    aoi_violins(ax, data, tails)
 
 
 def bar_panels(
     axs: Any, study: Study, variant: str, panels: Sequence[tuple[str, float, str]]
 ) -> None:
-    """One :func:`bar_metric` panel per ``(metric, scale, ylabel)``, titled by the metric."""
+    """One :func:`bar_metric` panel per ``(metric, scale, ylabel)``, titled by the metric's
+    human name (:func:`~sigma_des.plotstyle.metric_title`)."""
     for ax, (metric, scale, ylabel) in zip(axs.flat, panels, strict=True):
         bar_metric(ax, study, variant, metric, scale)
         ax.set_ylabel(ylabel)
-        ax.set_title(metric)
+        ax.set_title(metric_title(metric))
 
 
 def plot_rate(
     ax: Any, study: Study, variant: str, key: str, window: float, lw: float = 1.0
 ) -> None:
-    """Per label (first seed): the advance rate of series ``key`` in ``window``-s windows."""
+    """Per label (first seed): the advance rate of series ``key`` in ``window``-s windows
+    (labels whose rates coincide are named so in the legend)."""
+    series = {}
     for lab in study.labels(variant):
         ts = study.runs(variant, lab)[0].timeseries
-        t, rate = rate_series(ts["t"], ts[key], window=window)
-        ax.plot(t, rate, color=COLORS.get(lab), lw=lw, label=lab)
+        series[lab] = rate_series(ts["t"], ts[key], window=window)
+    plot_lines(ax, series, lw=lw)

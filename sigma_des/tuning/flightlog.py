@@ -27,6 +27,7 @@ Which actuator columns are required depends on the aircraft kind
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.errors import ConfigError
+from sigma_des.guard import read_text
 
 __all__ = ["FlightLog", "STATE_COLUMNS", "ACTUATOR_COLUMNS", "read_csv", "write_csv",
            "resample", "check_log"]
@@ -154,11 +156,11 @@ def read_csv(path: str | Path, kind: str) -> FlightLog:
     src = str(path)
     if kind not in ACTUATOR_COLUMNS:
         raise ConfigError("--dynamics", f"must be one of {sorted(ACTUATOR_COLUMNS)}, got {kind!r}")
+    text = read_text(path, src, "CSV flight log")
     try:
-        with path.open(newline="") as f:
-            rows = list(csv.reader(f))
-    except OSError as e:
-        raise ConfigError(src, f"cannot read ({e.strerror})") from None
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as e:
+        raise ConfigError(src, f"not a CSV file: {e}") from None
     if not rows:
         raise ConfigError(src, "empty file (a header row is required)")
     head = [h.strip() for h in rows[0]]

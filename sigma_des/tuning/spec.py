@@ -21,11 +21,14 @@ paper-notes' default for CFD-derived values; reversed for a negative value).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from sigma_des.agents.fitted import PARAM_NAMES, get_value, with_values
-from sigma_des.agents.params import AircraftParams
+from sigma_des.agents.params import AeroCoeffs, AircraftParams, check_range
 from sigma_des.errors import ConfigError
+
+#: the aerodynamic coefficients' names (their range keys are ``aero.<name>``)
+_AERO = tuple(f.name for f in fields(AeroCoeffs))
 
 __all__ = ["TuneSpec", "GENE_NAMES", "DEFAULT_GENES", "DEFAULT_CHANNELS", "get_value",
            "with_values", "bounds"]
@@ -160,6 +163,18 @@ class TuneSpec:
         return self.channels or DEFAULT_CHANNELS[kind]
 
 
+def _check_bounds(spec: TuneSpec, i: int, gene: str, lo: float, hi: float) -> None:
+    """Both bounds of gene ``i`` inside the aircraft's plausible range (PARAM_RANGES):
+    the GA must never fly a candidate that the model refuses mid-run."""
+    name = f"aero.{gene}" if gene in _AERO else gene
+    for end, v in (("lower", lo), ("upper", hi)):
+        why = check_range(name, v)
+        if why:
+            key = f"tune.{end}[{i}]" if spec.lower else (
+                "tune.scale_low" if end == "lower" else "tune.scale_high")
+            raise ConfigError(key, f"{end} bound of {gene!r} {why}")
+
+
 def bounds(spec: TuneSpec, start: AircraftParams, kind: str
            ) -> tuple[tuple[str, ...], list[float], list[float]]:
     """Gene names and their lower / upper bounds for a GA started at ``start``."""
@@ -174,6 +189,7 @@ def bounds(spec: TuneSpec, start: AircraftParams, kind: str
             lo.append(min(a, b))
             hi.append(max(a, b))
     for i, g in enumerate(names):
+        _check_bounds(spec, i, g, lo[i], hi[i])
         v = get_value(start, g)
         if not lo[i] <= v <= hi[i]:
             raise ConfigError(f"tune.lower[{i}]", f"bounds [{lo[i]}, {hi[i]}] of {g!r} do not "

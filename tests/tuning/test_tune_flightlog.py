@@ -115,7 +115,7 @@ def test_bad_logs_name_the_column(tmp_path: Path) -> None:
 
 
 def test_missing_file_and_wrong_kind(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match="cannot read"):
+    with pytest.raises(ConfigError, match="CSV flight log not found"):
         read_csv(tmp_path / "nope.csv", "quadrotor")
     with pytest.raises(ConfigError, match="--dynamics"):
         read_csv(tmp_path / "nope.csv", "blimp")
