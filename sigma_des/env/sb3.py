@@ -31,7 +31,7 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import gymnasium
@@ -47,7 +47,7 @@ except ModuleNotFoundError as exc:  # pragma: no cover - depends on the install
         "sigma_des.env.sb3 needs stable-baselines3 (the 'learn' extra): "
         "pip install 'sigma-des[learn]'") from exc
 
-__all__ = ["SwarmSB3VecEnv"]
+__all__ = ["SwarmSB3VecEnv", "train_ppo"]
 
 _INFO_KEYS = ("aoi", "frame", "error", "t", "episode_index")
 
@@ -156,3 +156,54 @@ class SwarmSB3VecEnv(VecEnv):  # type: ignore[misc]
     def get_images(self) -> Sequence[np.ndarray | None]:
         """No rendering."""
         return [None] * self.num_envs
+
+
+def train_ppo(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, n_scenes: int = 4,
+              log: Callable[[dict[str, float]], None] | None = None, **ppo_kwargs: Any
+              ) -> tuple[Callable[[np.ndarray], np.ndarray], list[dict[str, float]]]:
+    """Train SB3 PPO (``MlpPolicy``, CPU, one torch thread) on ``n_scenes`` scenes.
+
+    Args:
+        env_kwargs: :class:`SwarmVec` arguments (without ``n_scenes``).
+        total_steps: agent-steps of training (SB3's ``total_timesteps``).
+        seed: PPO's seed (also the env's root seed).
+        n_scenes: scenes stepped together.
+        log: called with each history row.
+        **ppo_kwargs: passed to ``PPO`` (e.g. ``n_steps``, ``batch_size``).
+
+    Returns:
+        The deterministic policy (observations ``(S, A, D)`` -> actions ``(S, A, 3)``)
+        and the history: per rollout, ``agent_steps`` so far and ``fitness`` = mean
+        reward per agent-step of the latest ``num_envs`` finished episodes (NaN if none).
+    """
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    torch.set_num_threads(1)  # a shared machine: one core per training
+    env = VecMonitor(SwarmSB3VecEnv(n_scenes=n_scenes, **dict(env_kwargs)))
+    history: list[dict[str, float]] = []
+
+    class _Curve(BaseCallback):  # type: ignore[misc]
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_rollout_end(self) -> None:
+            eps = list(self.model.ep_info_buffer or [])
+            fit = (float(np.mean([e["r"] / e["l"] for e in eps[-env.num_envs:]]))
+                   if eps else float("nan"))
+            row = {"agent_steps": float(self.num_timesteps), "fitness": fit}
+            history.append(row)
+            if log is not None:
+                log(row)
+
+    model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0, **ppo_kwargs)
+    model.learn(total_timesteps=total_steps, callback=_Curve())
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        flat = obs.reshape(-1, obs.shape[-1])
+        a, _ = model.predict(flat, deterministic=True)
+        return np.asarray(a, dtype=np.float64).reshape(obs.shape[:-1] + (ACTION_DIM,))
+
+    return policy, history

@@ -209,7 +209,9 @@ class SwarmVec:
     def _observe(self, sc: Scene) -> NDArray[np.float32]:
         if sc.ended:
             return np.zeros((self.n_agents, self.obs_dim), dtype=np.float32)
-        return self.task.observe(self._view(sc), sc.ep, sc.now(), self.agent_nodes)
+        n = self.sc.nodes
+        age = np.zeros(n) if self.opts.perfect_info else sc.now() - sc.run.aligner.shown_gen
+        return self.task.observe(self._view(sc), sc.ep, sc.now(), self.agent_nodes, age)
 
     def _infos(self, err: Array | None) -> dict[str, Any]:
         S, A = self.n_scenes, self.n_agents
