@@ -206,8 +206,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"[{time.perf_counter() - t_start:7.0f} s] seed {seed} {cond:14s} trained "
                   f"({wall:.0f} s, {used / wall:,.0f} agent-steps/s); evaluated under it: "
                   f"{own['fitness']:.3f}", flush=True)
-    table = _stats(evals, conds, seeds)
-    _write(out, a, history, evals, cost, table, time.perf_counter() - t_start)
+        # outputs after every seed: an interrupted study keeps its finished seeds
+        table = _stats(evals, conds, seeds[: seed + 1])
+        _write(out, a, history, evals, cost, table, time.perf_counter() - t_start,
+               seeds[: seed + 1])
     for r in table:
         print(f"{r['cell']:14s} delay-trained {r['delay_trained_mean']:.3f} ± "
               f"{r['delay_trained_ci95']:.3f}  perfect-trained {r['perfect_trained_mean']:.3f} "
@@ -226,7 +228,7 @@ def _csv(path: Path, rows: list[dict[str, Any]], extra: dict[str, Any]) -> None:
 
 def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
            evals: list[dict[str, Any]], cost: list[dict[str, Any]],
-           table: list[dict[str, Any]], wall: float) -> None:
+           table: list[dict[str, Any]], wall: float, done: list[int]) -> None:
     tag = {"version": __version__, "learner": a.learner}
     _csv(out / "history.csv", history, tag)
     _csv(out / "eval.csv", evals, tag)
@@ -235,12 +237,13 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
     args = {k: v for k, v in vars(a).items()}
     (out / "summary.json").write_text(json.dumps({
         "version": __version__, "args": args, "cells": cells(a.delay_list, a.method_list),
+        "seeds_done": done,
         "stats": table, "eval": evals, "cost": cost, "wall_s": wall}, indent=2) + "\n")
-    _plots(out, a, history, table)
+    _plots(out, a, history, table, len(done))
 
 
 def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
-           table: list[dict[str, Any]]) -> None:
+           table: list[dict[str, Any]], n_seeds: int) -> None:
     plt = plot_setup(fast=a.quick)
     conds = cells(a.delay_list, a.method_list)
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -259,7 +262,7 @@ def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         ax.fill_between(xs, m_ - h_, m_ + h_, color=color, alpha=0.15)
     ax.set_xlabel("agent-steps of training")
     ax.set_ylabel("reward per agent-step (own condition)")
-    ax.set_title(f"tight task, {a.learner.upper()}: mean ± 95% CI over {a.seeds} seeds",
+    ax.set_title(f"tight task, {a.learner.upper()}: mean ± 95% CI over {n_seeds} seeds",
                  fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     save(fig, out, "learning_curves.png")
