@@ -1,8 +1,9 @@
-"""Regenerate docs/ENV.md from the env study outputs (bench_env.py, train_formation.py).
+"""Regenerate docs/ENV.md from the env study outputs (bench_env.py, train_formation.py,
+train_under_delay.py).
 
 Usage: ``python experiments/report_env.py --outputs /work/out/env [--doc docs/ENV.md]``
-(reads ``bench.json`` and ``train/summary.json`` under ``--outputs``; a missing one
-leaves its section saying so).
+(reads ``bench.json``, ``train/summary.json`` and every ``delay_*/summary.json`` under
+``--outputs``; a missing one leaves its section saying so).
 """
 
 from __future__ import annotations
@@ -179,10 +180,69 @@ def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:
     return text + "Training under delay gave no advantage under delay in this run."
 
 
+def delay_study(path: Path) -> str:
+    """The section of one ``train_under_delay.py`` run (its ``summary.json``)."""
+    d = json.loads(path.read_text())
+    a = d["args"]
+    ev = {(e["trained"], e["seed"], e["evaluated"]): e for e in d["eval"]}
+    done = d.get("seeds_done", list(range(a["seeds"])))
+    budget = (f"CEM: {a['iterations']} iterations × {a['population']} candidates × "
+              f"{a['episodes']} episodes" if a["learner"] == "cem" else
+              f"SB3 PPO (MlpPolicy), {a['ppo_steps']:,} agent-steps on {a['ppo_scenes']} "
+              f"scenes, n_steps {a['ppo_n_steps']}, batch {a['ppo_batch']}")
+    cmd = (f"python experiments/train_under_delay.py --learner {a['learner']} --seeds "
+           f"{a['seeds']} --max-steps {a['max_steps']} --iterations {a['iterations']} "
+           f"--ppo-steps {a['ppo_steps']}")
+    lines = [f"### `{path.parent.name}`: {a['learner'].upper()}, seeds {done}", "",
+             f"Command: `{cmd}` (delays {a['delays']} s, methods {a['methods']}, loss "
+             f"{a['loss']:.0%}, {a['nodes']} nodes, {a['max_steps']} decisions per episode, "
+             f"{a['eval_episodes']} held-out episodes of root seed {a['eval_seed']}); "
+             f"budget per policy: {budget}.", "",
+             "| cell | trained under it | trained perfect | difference | paired t p | "
+             "Wilcoxon p | untrained | naive | extrapolating |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in d["stats"]:
+        lines.append(
+            f"| {r['cell']} | {r['delay_trained_mean']:.3f} ± {r['delay_trained_ci95']:.3f} | "
+            f"{r['perfect_trained_mean']:.3f} ± {r['perfect_trained_ci95']:.3f} | "
+            f"{r['diff_mean']:+.3f} ± {r['diff_ci95']:.3f} | {r['t_p_greater']:.3g} | "
+            f"{r['wilcoxon_p_greater']:.3g} | {r['untrained_fitness']:.3f} | "
+            f"{r['naive_fitness']:.3f} | {r['extrapolating_fitness']:.3f} |")
+    pp = [ev[("perfect", s, "perfect")]["fitness"] for s in done if ("perfect", s, "perfect")
+          in ev]
+    base = {n: ev[(n, -1, "perfect")]["fitness"] for n in ("untrained", "naive",
+                                                          "extrapolating")}
+    lines += ["", "Under perfect information: trained-perfect "
+              f"{sum(pp) / max(len(pp), 1):.3f} (mean over seeds), untrained "
+              f"{base['untrained']:.3f}, naive {base['naive']:.3f}, extrapolating "
+              f"{base['extrapolating']:.3f}."]
+    cost = d["cost"]
+    if cost:
+        wall = sum(c["train_wall_s"] for c in cost)
+        steps = sum(c["agent_steps"] for c in cost)
+        lines += ["", f"Cost: {len(cost)} trainings, {wall:.0f} s of training wall time "
+                  f"({steps / wall:,.0f} agent-steps/s), {d['wall_s']:.0f} s in all (wall "
+                  "times: they depend on the machine's load)."]
+    shown = [r["cell"] for r in d["stats"]
+             if r["diff_mean"] > 0 and r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
+    lines += ["", f"Shown at p < 0.05 by both tests in: {', '.join(shown) or 'no cell'} "
+              f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells)."]
+    return "\n".join(lines) + "\n"
+
+
+def _delay_studies(outputs: Path) -> str:
+    paths = sorted(outputs.glob("delay_*/summary.json"))
+    head = TEMPLATES.text("env_delay")
+    if not paths:
+        return head + "\n(no `delay_*/summary.json` under the outputs: run " \
+            "`experiments/train_under_delay.py`)\n"
+    return head + "\n" + "\n".join(delay_study(p) for p in paths)
+
+
 def build(outputs: Path) -> str:
     """The whole of docs/ENV.md."""
     intro = TEMPLATES.text("env_intro")
-    return "\n".join([intro, _bench(outputs), _train(outputs)])
+    return "\n".join([intro, _bench(outputs), _train(outputs), _delay_studies(outputs)])
 
 
 def main(argv: list[str] | None = None) -> int:

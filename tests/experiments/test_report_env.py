@@ -33,3 +33,18 @@ def test_report_from_quick_outputs(tmp_path: Path) -> None:
     assert f"| `train_seed5` | 5 | 150 ms, 10% | 3 × 6 × 1 × 3 | {ev[('delay', 'delay')]:.3f} |" \
         in text
     assert "of these 1 further runs" in text
+
+
+def test_delay_study_section_from_a_quick_run(tmp_path: Path) -> None:
+    import train_under_delay
+
+    assert "no `delay_*/summary.json`" in report_env._delay_studies(tmp_path)
+    train_under_delay.main(["--quick", "--out", str(tmp_path / "delay_quick")])
+    text = report_env._delay_studies(tmp_path)
+    (r,) = json.loads((tmp_path / "delay_quick" / "summary.json").read_text())["stats"]
+    assert "### `delay_quick`: CEM, seeds [0, 1]" in text
+    assert (f"| bides@200ms | {r['delay_trained_mean']:.3f} ± {r['delay_trained_ci95']:.3f} | "
+            f"{r['perfect_trained_mean']:.3f} ± {r['perfect_trained_ci95']:.3f} | "
+            f"{r['diff_mean']:+.3f} ± {r['diff_ci95']:.3f} |") in text
+    assert "--learner cem --seeds 2 --max-steps 10 --iterations 2" in text
+    assert "Cost: 4 trainings" in text
