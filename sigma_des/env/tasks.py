@@ -152,9 +152,17 @@ class Task:
         """``(len(agents), obs_dim)`` observations from the shown swarm view.
 
         ``age`` (s, per node: now minus the generation time of its shown state; NaN
-        where none) is used by the tasks that observe it (``tight``).
+        where none; None = all 0) is used by the tasks that observe it (``tight``).
+        Columns come from :meth:`columns`; rows of agents with no shown state are 0.
         """
-        obs = view.obs
+        n = view.obs.shape[0]
+        age = np.zeros(n) if age is None else np.nan_to_num(age, nan=0.0)
+        out = np.concatenate(self.columns(view.obs, ep, t, age), axis=1)[agents]
+        out[~view.valid[agents]] = 0.0
+        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+
+    def columns(self, obs: Array, ep: Any, t: float, age: Array) -> list[Array]:
+        """Observation column blocks ``(n, k)`` of every node from shown states ``obs``."""
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
         tgt = self.targets(obs, ep, t)
         rel, _, _ = _nearest(pos[:, :2])
@@ -164,10 +172,7 @@ class Task:
             ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
         ]
         cols += self._extra_obs(obs)
-        cols += [_velocity(obs) / self.v_ref, rel / L]
-        out = np.concatenate(cols, axis=1)[agents]
-        out[~view.valid[agents]] = 0.0
-        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+        return cols + [_velocity(obs) / self.v_ref, rel / L]
 
     def _extra_obs(self, obs: Array) -> list[Array]:
         return []
@@ -349,22 +354,16 @@ class TightTask(FormationTask):
     name = "tight"
     obs_dim = 14
 
-    def observe(self, view: SwarmView, ep: Any, t: float, agents: list[int],
-                age: Array | None = None) -> NDArray[np.float32]:
-        obs = view.obs
+    def columns(self, obs: Array, ep: Any, t: float, age: Array) -> list[Array]:
         n = obs.shape[0]
-        age = np.zeros(n) if age is None else np.nan_to_num(age, nan=0.0)
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
         tgt = self.targets(obs, ep, t)
         vel = _velocity(obs) / self.v_ref
         a = (age / AGE_REF)[:, None]
         rel, _, j = _nearest(pos[:, :2])
-        cols = [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
+        return [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
                 vel, a, np.broadcast_to(vel[:1], (n, 2)), np.broadcast_to(a[:1], (n, 1)),
                 rel / self.d, vel[j], a[j]]
-        out = np.concatenate(cols, axis=1)[agents]
-        out[~view.valid[agents]] = 0.0
-        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
 
 
 #: Task name -> class.
