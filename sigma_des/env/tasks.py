@@ -37,6 +37,11 @@ Tasks:
   ``/ radius``. Reward ``-(e / radius)^2`` plus the same separation, effort,
   collision and divergence (``e > div * radius``) terms.
 
+* :class:`TightTask` (delay matters by construction): the formation task with a fast,
+  sharply turning leader and 6 m slots; its observation adds the *age* of every shown
+  state it uses (own, leader, nearest neighbour) and the neighbour's velocity, so a
+  policy can extrapolate (14 columns, see the class).
+
 An agent whose own state has not been shown yet observes zeros and its command is
 not sent (there is no altitude to command from).
 """
