@@ -226,8 +226,30 @@ def delay_study(path: Path) -> str:
     shown = [r["cell"] for r in d["stats"]
              if r["diff_mean"] > 0 and r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
     lines += ["", f"Shown at p < 0.05 by both tests in: {', '.join(shown) or 'no cell'} "
-              f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells)."]
+              f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells).",
+              "", _delay_verdict(d["stats"], len(done))]
     return "\n".join(lines) + "\n"
+
+
+def _delay_verdict(rows: list[dict[str, float]], n_seeds: int) -> str:
+    """What one run's table supports, in words (nothing beyond it)."""
+    if n_seeds < 5:
+        return (f"**Reading.** Only {n_seeds} seed(s) finished: below the 5 the protocol asks "
+                "for; no conclusion is drawn from this run.")
+    better = [r for r in rows if r["diff_mean"] > 0]
+    shown = [r for r in better if r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
+    under = [r for r in rows if max(r["delay_trained_mean"], r["perfect_trained_mean"])
+             < r["naive_fitness"]]
+    text = (f"**Reading.** Trained under delay beats trained with perfect information, "
+            f"evaluated under delay, in {len(better)} of {len(rows)} cells by the mean and in "
+            f"{len(shown)} by both paired tests at p < 0.05. ")
+    if under:
+        text += (f"In {len(under)} of {len(rows)} cells both trained policies score below the "
+                 "hand-written naive controller: at this budget the learner has not learned "
+                 "the task well enough for the comparison to show a delay-specific effect. ")
+    if not shown:
+        text += "A better policy under delay from training under delay is **not shown** here."
+    return text
 
 
 def _delay_studies(outputs: Path) -> str:
