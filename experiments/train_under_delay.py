@@ -125,7 +125,7 @@ def _stats(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
             row["wilcoxon_p_greater"] = float(
                 stats.wilcoxon(d, p, alternative="greater").pvalue)
         for name in ("untrained", "naive", "extrapolating"):
-            row[f"{name}_fitness"] = fit[(name, -1, cell)]
+            row[f"{name}_fitness"] = fit.get((name, -1, cell), float("nan"))
         rows.append(row)
     return rows
 
@@ -149,6 +149,12 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--ppo-scenes", type=int, default=4)
     ap.add_argument("--ppo-n-steps", type=int, default=128)
     ap.add_argument("--ppo-batch", type=int, default=256)
+    ap.add_argument("--seed-list", default=None,
+                    help="train these seeds (comma list) instead of 0..seeds-1: a shard")
+    ap.add_argument("--skip-baselines", action="store_true",
+                    help="do not evaluate the untrained and hand-written policies (a shard)")
+    ap.add_argument("--merge", nargs="+", default=None, metavar="DIR",
+                    help="merge the outputs of shards (same settings) into --out; no training")
     ap.add_argument("--out", default="out/env/delay_study")
     a = ap.parse_args(argv)
     if a.quick:
@@ -162,6 +168,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                      f"got {getattr(a, key)}")
     if not 0 <= a.loss < 1:
         ap.error(f"--loss: must be in [0, 1), got {a.loss}")
+    a.seed_ids = (list(range(a.seeds)) if a.seed_list is None
+                  else [int(x) for x in a.seed_list.split(",")])
     a.delay_list = [float(x) for x in a.delays.split(",")]
     a.method_list = a.methods.split(",")
     return a
@@ -171,7 +179,9 @@ def main(argv: list[str] | None = None) -> int:
     """Train every condition and seed, evaluate everything everywhere, write the outputs."""
     a = _parse(argv)
     conds = cells(a.delay_list, a.method_list)
-    seeds = list(range(a.seeds))
+    if a.merge:
+        return merge(a)
+    seeds = a.seed_ids
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     task = make_task("tight")
@@ -193,9 +203,9 @@ def main(argv: list[str] | None = None) -> int:
                           **{k: float(v.mean()) for k, v in r.items()},
                           "eval_wall_s": time.perf_counter() - t0})
 
-    for name, pol in baselines.items():
+    for name, pol in baselines.items() if not a.skip_baselines else ():
         evaluate(name, -1, pol, conds)
-    for seed in seeds:
+    for k, seed in enumerate(seeds):
         for cond in conds:
             pol, wall, used = _train_one(a, cond, seed, history)
             cost.append({"trained": cond, "seed": seed, "train_wall_s": wall,
@@ -207,9 +217,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"({wall:.0f} s, {used / wall:,.0f} agent-steps/s); evaluated under it: "
                   f"{own['fitness']:.3f}", flush=True)
         # outputs after every seed: an interrupted study keeps its finished seeds
-        table = _stats(evals, conds, seeds[: seed + 1])
+        table = _stats(evals, conds, seeds[: k + 1])
         _write(out, a, history, evals, cost, table, time.perf_counter() - t_start,
-               seeds[: seed + 1])
+               seeds[: k + 1])
     for r in table:
         print(f"{r['cell']:14s} delay-trained {r['delay_trained_mean']:.3f} ± "
               f"{r['delay_trained_ci95']:.3f}  perfect-trained {r['perfect_trained_mean']:.3f} "
@@ -218,9 +228,47 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def merge(a: argparse.Namespace) -> int:
+    """Combine shards (``--merge``): their seeds, evaluations, curves; statistics anew."""
+    keep = ("learner", "delays", "methods", "loss", "nodes", "max_steps", "eval_episodes",
+            "eval_seed", "iterations", "population", "episodes", "ppo_steps", "ppo_scenes",
+            "ppo_n_steps", "ppo_batch")
+    parts = [json.loads((Path(d) / "summary.json").read_text()) for d in a.merge]
+    first = parts[0]["args"]
+    for d, p in zip(a.merge, parts, strict=True):
+        bad = [k for k in keep if p["args"][k] != first[k]]
+        if bad:
+            raise SystemExit(f"--merge: {d} differs from {a.merge[0]} in {bad}")
+    for k in keep:
+        setattr(a, k, first[k])
+    a.delay_list = [float(x) for x in a.delays.split(",")]
+    a.method_list = a.methods.split(",")
+    done = sorted({s for p in parts for s in p["seeds_done"]})
+    if sum(len(p["seeds_done"]) for p in parts) != len(done):
+        raise SystemExit("--merge: the shards share a seed")
+    evals, history, cost = [], [], []
+    for d, p in zip(a.merge, parts, strict=True):
+        ok = set(p["seeds_done"]) | {-1}
+        evals += [e for e in p["eval"] if e["seed"] in ok and not (
+            e["seed"] == -1 and any(x["seed"] == -1 for x in evals))]
+        cost += [c for c in p["cost"] if c["seed"] in ok]
+        with (Path(d) / "history.csv").open() as fh:
+            history += [{**r, "seed": int(r["seed"]), "agent_steps": float(r["agent_steps"]),
+                         "fitness": float(r["fitness"])} for r in csv.DictReader(fh)
+                        if int(r["seed"]) in ok]
+    a.seeds, a.seed_ids, a.merged_from = len(done), done, list(a.merge)
+    history = [{k: v for k, v in r.items() if k not in ("version", "learner")}
+               | {"learner": a.learner} for r in history]
+    table = _stats(evals, cells(a.delay_list, a.method_list), done)
+    Path(a.out).mkdir(parents=True, exist_ok=True)
+    _write(Path(a.out), a, history, evals, cost, table,
+           sum(p["wall_s"] for p in parts), done)
+    return 0
+
+
 def _csv(path: Path, rows: list[dict[str, Any]], extra: dict[str, Any]) -> None:
     with path.open("w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=[*rows[0], *extra])
+        w = csv.DictWriter(fh, fieldnames=list(dict.fromkeys([*rows[0], *extra])))
         w.writeheader()
         for r in rows:
             w.writerow({**r, **extra})

@@ -71,3 +71,20 @@ def test_bad_arguments_exit_2_naming_the_option(args: list[str], msg: str,
     with pytest.raises(SystemExit) as exc:
         train_under_delay.main(args)
     assert exc.value.code == 2 and msg in capsys.readouterr().err
+
+
+def test_shards_merge_to_the_same_study(tmp_path: Path) -> None:
+    full, a, b, m = (tmp_path / x for x in ("full", "a", "b", "merged"))
+    assert train_under_delay.main(["--quick", "--out", str(full)]) == 0
+    assert train_under_delay.main(["--quick", "--seed-list", "1", "--out", str(a)]) == 0
+    assert train_under_delay.main(["--quick", "--seed-list", "0", "--skip-baselines",
+                                   "--out", str(b)]) == 0
+    assert train_under_delay.main(["--quick", "--merge", str(a), str(b), "--out", str(m)]) == 0
+    want = json.loads((full / "summary.json").read_text())
+    got = json.loads((m / "summary.json").read_text())
+    assert got["seeds_done"] == [0, 1] and got["stats"] == want["stats"]
+    with (m / "history.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 * 2 * 2 and rows[0]["learner"] == "cem"  # seeds x cells x iterations
+    with pytest.raises(SystemExit, match="share a seed"):
+        train_under_delay.main(["--merge", str(a), str(full), "--out", str(m)])
