@@ -49,11 +49,11 @@ def test_delay_study_section_from_a_quick_run(tmp_path: Path) -> None:
     assert "--learner cem --seeds 2 --max-steps 10 --iterations 2" in text
     assert "Cost: 4 trainings" in text
     assert "Only 2 seed(s) finished" in text  # below the protocol's 5: no conclusion
-    rows = [{"diff_mean": 0.1, "t_p_greater": 0.01, "wilcoxon_p_greater": 0.03,
+    rows = [{"cell": "none@50ms", "diff_mean": 0.1, "t_p_greater": 0.01, "wilcoxon_p_greater": 0.03,
              "delay_trained_mean": -0.5, "perfect_trained_mean": -0.6, "naive_fitness": -0.2},
-            {"diff_mean": -0.1, "t_p_greater": 0.9, "wilcoxon_p_greater": 0.9,
+            {"cell": "bides@50ms", "diff_mean": -0.1, "t_p_greater": 0.9, "wilcoxon_p_greater": 0.9,
              "delay_trained_mean": -0.1, "perfect_trained_mean": 0.0, "naive_fitness": -0.2}]
     verdict = report_env._delay_verdict(rows, 5)
     assert "in 1 of 2 cells by the mean and in 1 by both paired tests" in verdict
-    assert "In 1 of 2 cells both trained policies score below" in verdict
-    assert "not shown" not in verdict
+    assert "But in 1 of 2 cells both trained policies score below" in verdict
+    assert "gives the better policy under delay in" in verdict and "not shown" not in verdict
