@@ -230,6 +230,12 @@ def delay_study(path: Path) -> str:
                   "times: they depend on the machine's load)."]
     shown = [r["cell"] for r in d["stats"]
              if r["diff_mean"] > 0 and r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
+    name = path.parent.name
+    figs = [f"![{name}: {f}](img/env/{name}_{f}.png)" for f in ("learning_curves", "eval")
+            if (ROOT / "docs" / "img" / "env" / f"{name}_{f}.png").exists()]
+    lines += ["", f"Plots: `{name}/learning_curves.png` and `{name}/eval.png` under the "
+              "outputs" + (" (copies in `docs/img/env/`):" if figs else "."), *(
+                  ["", *figs] if figs else [])]
     lines += ["", f"Shown at p < 0.05 by both tests in: {', '.join(shown) or 'no cell'} "
               f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells).",
               "", _delay_verdict(d["stats"], len(done))]
