@@ -269,13 +269,39 @@ def _delay_verdict(rows: list[dict[str, float]], n_seeds: int) -> str:
     return text
 
 
+def ages_control(path: Path) -> str:
+    """The section of one ``train_ages_control.py`` run (its ``summary.json``)."""
+    d = json.loads(path.read_text())
+    lines = [f"Control (`python experiments/train_ages_control.py --study "
+             f"{Path(d['study']).name}`): the perfect-information policies retrained (same "
+             "seeds and budget; identical to the study's: "
+             f"{all(t['reproduces_study'] for t in d['table'])}) and evaluated under "
+             "each delay cell with their age columns set to 0:", "",
+             "| cell | trained under it | perfect, ages shown | perfect, ages hidden | "
+             "difference to hidden | paired t p |", "|---|---:|---:|---:|---:|---:|"]
+    for t in d["table"]:
+        lines.append(f"| {t['cell']} | {t['delay_trained_mean']:.3f} | "
+                     f"{t['perfect_shown_mean']:.3f} ± {t['perfect_shown_ci95']:.3f} | "
+                     f"{t['perfect_hidden_mean']:.3f} ± {t['perfect_hidden_ci95']:.3f} | "
+                     f"{t['diff_vs_hidden_mean']:+.3f} ± {t['diff_vs_hidden_ci95']:.3f} | "
+                     f"{t['t_p_delay_beats_hidden']:.3g} |")
+    return "\n".join(lines) + "\n"
+
+
 def _delay_studies(outputs: Path) -> str:
-    paths = sorted(outputs.glob("delay_*/summary.json"))
+    paths = sorted(p for p in outputs.glob("delay_*/summary.json")
+                   if not p.parent.name.endswith("_ages_control"))
     head = TEMPLATES.text("env_delay")
     if not paths:
         return head + "\n(no `delay_*/summary.json` under the outputs: run " \
             "`experiments/train_under_delay.py`)\n"
-    return head + "\n" + "\n".join(delay_study(p) for p in paths)
+    parts = []
+    for p in paths:
+        parts.append(delay_study(p))
+        ctl = p.parent.with_name(p.parent.name + "_ages_control") / "summary.json"
+        if ctl.exists():
+            parts.append(ages_control(ctl))
+    return head + "\n" + "\n".join(parts)
 
 
 def build(outputs: Path) -> str:

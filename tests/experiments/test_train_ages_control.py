@@ -16,7 +16,7 @@ import train_under_delay  # noqa: E402
 
 
 def test_control_reproduces_the_study_and_hides_the_ages(tmp_path: Path) -> None:
-    study, ctl = tmp_path / "study", tmp_path / "ctl"
+    study, ctl = tmp_path / "delay_q", tmp_path / "delay_q_ages_control"
     assert train_under_delay.main(["--quick", "--out", str(study)]) == 0
     assert train_ages_control.main(["--study", str(study), "--out", str(ctl)]) == 0
     data = json.loads((ctl / "summary.json").read_text())
@@ -27,3 +27,8 @@ def test_control_reproduces_the_study_and_hides_the_ages(tmp_path: Path) -> None
     assert row["perfect_hidden_mean"] == np.mean(hidden)
     # columns 5, 8, 13 are the tight task's ages: own, leader, nearest neighbour
     assert train_ages_control.AGE_COLUMNS == [5, 8, 13]
+    import report_env
+
+    text = report_env._delay_studies(tmp_path)  # the control follows its study
+    assert text.index("### `delay_q`") < text.index("--study delay_q`") and (
+        f"| {row['perfect_hidden_mean']:.3f} ± {row['perfect_hidden_ci95']:.3f} |" in text)
