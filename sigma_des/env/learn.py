@@ -31,7 +31,7 @@ from sigma_des.env.tasks import ACTION_DIM
 from sigma_des.env.vector import SwarmVec
 from sigma_des.errors import ConfigError
 
-__all__ = ["CEMConfig", "act", "rollout", "train", "evaluate"]
+__all__ = ["CEMConfig", "act", "rollout", "score", "train", "evaluate"]
 
 Array = NDArray[np.float64]
 
@@ -83,10 +83,26 @@ def rollout(theta: Array, env_kwargs: Mapping[str, Any], episodes: int, seed: in
         episodes that terminated).
     """
     P = theta.shape[0]
-    ids = [e for _ in range(P) for e in range(episodes)]
-    vec = SwarmVec(n_scenes=P * episodes, scene_ids=ids, **dict(env_kwargs))
     owner = np.repeat(np.arange(P), episodes)
     th = theta[owner]
+    res = score(lambda obs: act(th, obs), env_kwargs, episodes, seed, copies=P)
+    return {k: v.reshape(P, episodes).mean(axis=1) for k, v in res.items()}
+
+
+def score(policy: Callable[[NDArray[np.float32]], Array], env_kwargs: Mapping[str, Any],
+          episodes: int, seed: int, copies: int = 1) -> dict[str, Array]:
+    """Per-episode scores of ``policy`` (obs ``(S, A, D)`` -> actions ``(S, A, 3)``).
+
+    Runs ``copies x episodes`` scenes of one :class:`SwarmVec`; scene ``c * episodes +
+    e`` plays held-out episode ``e`` (scene id ``e``, root ``seed``), so every copy and
+    every policy scored with the same ``seed`` meets the same episodes.
+
+    Returns:
+        Per scene: ``fitness``, ``error`` (m) and ``failed`` (0 or 1), see the module
+        docstring.
+    """
+    ids = [e for _ in range(copies) for e in range(episodes)]
+    vec = SwarmVec(n_scenes=copies * episodes, scene_ids=ids, **dict(env_kwargs))
     obs, _ = vec.reset(seed=seed)
     S, A, T = vec.n_scenes, vec.n_agents, vec.opts.max_steps
     total = np.zeros(S)
@@ -96,7 +112,7 @@ def rollout(theta: Array, env_kwargs: Mapping[str, Any], episodes: int, seed: in
     failed = np.zeros(S, dtype=bool)
     worst = -vec.task.div**2
     for _ in range(T):  # finished scenes autoreset and are no longer scored
-        obs, r, term, trunc, info = vec.step(act(th, obs))
+        obs, r, term, trunc, info = vec.step(np.clip(policy(obs), -1.0, 1.0))
         total[alive] += r[alive].sum(axis=1)
         err_sum[alive] += np.nan_to_num(info["error"][alive]).sum(axis=1)
         flown[alive] += 1
@@ -104,10 +120,8 @@ def rollout(theta: Array, env_kwargs: Mapping[str, Any], episodes: int, seed: in
         failed |= newly
         alive &= ~(term[:, 0] | trunc[:, 0])
     total += (T - flown) * A * worst
-    fitness = (total / (T * A)).reshape(P, episodes).mean(axis=1)
-    error = (err_sum / np.maximum(flown * A, 1)).reshape(P, episodes).mean(axis=1)
-    return {"fitness": fitness, "error": error,
-            "failed": failed.reshape(P, episodes).mean(axis=1)}
+    return {"fitness": total / (T * A), "error": err_sum / np.maximum(flown * A, 1),
+            "failed": failed.astype(np.float64)}
 
 
 def train(env_kwargs: Mapping[str, Any], cfg: CEMConfig,

@@ -18,7 +18,10 @@ from typing import Any
 from sigma_des.config import METHODS, Scenario, load
 from sigma_des.errors import ConfigError
 
-__all__ = ["ENV_DEFAULTS", "EnvOptions", "build_scenario"]
+__all__ = ["AUTORESET_MODES", "ENV_DEFAULTS", "EnvOptions", "build_scenario"]
+
+#: Autoreset modes of the vectorised env (Gymnasium's names, lower case).
+AUTORESET_MODES = ("next_step", "same_step", "disabled")
 
 #: Scenario values of the env when the caller does not override them.
 ENV_DEFAULTS: dict[str, Any] = {
@@ -47,6 +50,10 @@ class EnvOptions:
         perfect_info: observe the true current state instead of the aligned view
             (what peer environments give; commands still travel over the network).
         n_scenes: scenes of a vectorised env (1 for the PettingZoo env).
+        autoreset: when a finished scene restarts: ``next_step`` (the next ``step``
+            ignores its actions and returns the new episode's first observation),
+            ``same_step`` (at once; the final observation goes into the infos) or
+            ``disabled`` (stepping a finished scene is an error).
     """
 
     task: str = "formation"
@@ -54,6 +61,7 @@ class EnvOptions:
     max_steps: int = 100
     perfect_info: bool = False
     n_scenes: int = 1
+    autoreset: str = "next_step"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -64,6 +72,9 @@ class EnvOptions:
                 raise ConfigError(key, f"must be an integer >= 1, got {v!r}")
         if not isinstance(self.perfect_info, bool):
             raise ConfigError("perfect_info", f"must be true or false, got {self.perfect_info!r}")
+        if self.autoreset not in AUTORESET_MODES:
+            raise ConfigError("autoreset", f"unknown mode {self.autoreset!r}; allowed: "
+                              f"{AUTORESET_MODES}")
 
 
 def build_scenario(opts: EnvOptions, scenario: Mapping[str, Any] | None) -> Scenario:

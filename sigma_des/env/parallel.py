@@ -51,7 +51,7 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None) -> None:
         self.vec = SwarmVec(task, method, 1, scenario, task_params, max_steps, perfect_info,
-                            seed, autoreset=False)
+                            seed, autoreset="disabled")
         self.possible_agents = [f"node_{i}" for i in self.vec.agent_nodes]
         self.agents: list[str] = []
         self.render_mode = None

@@ -160,11 +160,17 @@ class SceneBatch:
         self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
         self.advance(self.scenes)
 
-    def reset_scene(self, s: int) -> None:
-        """Restart scene ``s`` at its next episode."""
-        self.episode[s] += 1
-        self.scenes[s] = self._fresh(s)
-        self.advance([self.scenes[s]])
+    def restart(self, ids: list[int], advance: bool = True) -> None:
+        """Start the next episode of scenes ``ids`` (run to their first tick if ``advance``).
+
+        Without ``advance`` the fresh scenes wait for the next :meth:`advance` of the
+        whole batch (a scene's episode does not depend on which call runs it).
+        """
+        for s in ids:
+            self.episode[s] += 1
+            self.scenes[s] = self._fresh(s)
+        if advance and ids:
+            self.advance([self.scenes[s] for s in ids])
 
     def _fresh(self, s: int) -> Scene:
         sc = replace(self.sc, seed=scene_seed(self.root, self.ids[s], self.episode[s]))

@@ -37,6 +37,11 @@ Tasks:
   ``/ radius``. Reward ``-(e / radius)^2`` plus the same separation, effort,
   collision and divergence (``e > div * radius``) terms.
 
+* :class:`TightTask` (delay matters by construction): the formation task with a fast,
+  sharply turning leader and 6 m slots; its observation adds the *age* of every shown
+  state it uses (own, leader, nearest neighbour) and the neighbour's velocity, so a
+  policy can extrapolate (14 columns, see the class).
+
 An agent whose own state has not been shown yet observes zeros and its command is
 not sent (there is no altitude to command from).
 """
@@ -56,23 +61,26 @@ from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
 from sigma_des.errors import ConfigError
 
-__all__ = ["TASKS", "Task", "FormationTask", "GoalTask", "make_task", "ACTION_DIM"]
+__all__ = ["TASKS", "Task", "FormationTask", "GoalTask", "TightTask", "make_task", "ACTION_DIM",
+           "AGE_REF"]
 
 Array = NDArray[np.float64]
 
 #: Action columns per agent: north velocity, east velocity, altitude change (normalised).
 ACTION_DIM = 3
 OBS_CLIP = 10.0
+#: Age scale of the observed ages (s): an observed age of 1 is 100 ms.
+AGE_REF = 0.1
 
 
-def _nearest(pos: Array) -> tuple[Array, Array]:
-    """Offset to the nearest other node and its distance, per node (n small: O(n^2))."""
+def _nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
+    """Offset to the nearest other node, its distance and index, per node (O(n^2))."""
     diff = pos[None, :, :] - pos[:, None, :]
     dist = np.sqrt((diff**2).sum(-1))
     np.fill_diagonal(dist, np.inf)
     j = np.argmin(dist, axis=1)
     i = np.arange(len(pos))
-    return diff[i, j], dist[i, j]
+    return diff[i, j], dist[i, j], j
 
 
 def _velocity(obs: Array) -> Array:
@@ -144,23 +152,32 @@ class Task:
         return np.full((view.obs.shape[0], 4), np.nan)
 
     # ---------------------------------------------------------------- shared
-    def observe(self, view: SwarmView, ep: Any, t: float, agents: list[int]
-                ) -> NDArray[np.float32]:
-        """``(len(agents), obs_dim)`` observations from the shown swarm view."""
-        obs = view.obs
+    def observe(self, view: SwarmView, ep: Any, t: float, agents: list[int],
+                age: Array | None = None) -> NDArray[np.float32]:
+        """``(len(agents), obs_dim)`` observations from the shown swarm view.
+
+        ``age`` (s, per node: now minus the generation time of its shown state; NaN
+        where none; None = all 0) is used by the tasks that observe it (``tight``).
+        Columns come from :meth:`columns`; rows of agents with no shown state are 0.
+        """
+        n = view.obs.shape[0]
+        age = np.zeros(n) if age is None else np.nan_to_num(age, nan=0.0)
+        out = np.concatenate(self.columns(view.obs, ep, t, age), axis=1)[agents]
+        out[~view.valid[agents]] = 0.0
+        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+
+    def columns(self, obs: Array, ep: Any, t: float, age: Array) -> list[Array]:
+        """Observation column blocks ``(n, k)`` of every node from shown states ``obs``."""
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
         tgt = self.targets(obs, ep, t)
-        rel, _ = _nearest(pos[:, :2])
+        rel, _, _ = _nearest(pos[:, :2])
         L = self.scale()
         cols = [
             (tgt[:, 0:2] - obs[:, 9:11]) / L,
             ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
         ]
         cols += self._extra_obs(obs)
-        cols += [_velocity(obs) / self.v_ref, rel / L]
-        out = np.concatenate(cols, axis=1)[agents]
-        out[~view.valid[agents]] = 0.0
-        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+        return cols + [_velocity(obs) / self.v_ref, rel / L]
 
     def _extra_obs(self, obs: Array) -> list[Array]:
         return []
@@ -190,7 +207,7 @@ class Task:
         """Rewards, per-agent failure (collision or divergence), true errors (m)."""
         tgt = self.targets(truth, ep, t)
         e = np.linalg.norm(tgt - truth[:, 9:12], axis=1)[agents]
-        _, dmin = _nearest(truth[:, 9:12])
+        _, dmin, _ = _nearest(truth[:, 9:12])
         dmin = dmin[agents]
         L = self.scale()
         lim = self.div * L
@@ -315,8 +332,48 @@ class GoalTask(Task):
         return np.asarray(ep["goal"])
 
 
+@dataclass(frozen=True)
+class TightTask(FormationTask):
+    """Tight, fast formation under a manoeuvring leader: delay matters by construction.
+
+    The leader flies at 15 m/s and turns at up to 0.6 rad/s, changing turn rate every
+    second; slots are 6 m apart. 200 ms of age is 3 m of leader travel — half a slot
+    spacing — so a follower steering to the *shown* slot lags it. The observation
+    carries what a policy needs to extrapolate: each shown state's age and velocity.
+
+    Observation (14 columns, each clipped to [-10, 10]; ages ``/ AGE_REF`` = 0.1 s,
+    velocities ``/ v_ref``, offsets ``/ d``, from the shown states): slot error N/E,
+    altitude error ``/ 10 m``, own velocity N/E, own age; leader velocity N/E, leader
+    age; nearest neighbour's offset N/E, velocity N/E and age. Ages are 0 under
+    ``perfect_info`` (the true current state). Reward, termination: as the formation
+    task (slot error, separation with r_safe = 3 m, collision below 1 m, divergence
+    beyond ``div * d`` = 30 m).
+    """
+
+    d: float = 6.0
+    leader_speed: float = 15.0
+    turn_max: float = 0.6
+    segment: float = 1.0
+    r_safe: float = 3.0
+
+    name = "tight"
+    obs_dim = 14
+
+    def columns(self, obs: Array, ep: Any, t: float, age: Array) -> list[Array]:
+        n = obs.shape[0]
+        pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
+        tgt = self.targets(obs, ep, t)
+        vel = _velocity(obs) / self.v_ref
+        a = (age / AGE_REF)[:, None]
+        rel, _, j = _nearest(pos[:, :2])
+        return [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
+                vel, a, np.broadcast_to(vel[:1], (n, 2)), np.broadcast_to(a[:1], (n, 1)),
+                rel / self.d, vel[j], a[j]]
+
+
 #: Task name -> class.
-TASKS: dict[str, type[Task]] = {"formation": FormationTask, "goal": GoalTask}
+TASKS: dict[str, type[Task]] = {"formation": FormationTask, "goal": GoalTask,
+                                "tight": TightTask}
 
 
 def make_task(name: str, params: dict[str, Any] | None = None) -> Task:

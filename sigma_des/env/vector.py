@@ -4,11 +4,24 @@
 ``(n_scenes, n_agents, obs_dim)`` float32 and an info dict of ``(n_scenes,
 n_agents)`` arrays; ``step(actions)`` takes ``(n_scenes, n_agents, 3)`` actions in
 [-1, 1] and returns observations, rewards ``(S, A)``, terminations and truncations
-``(S, A)`` bool and infos. A scene whose episode ended is reset on the *next* step
-(Gymnasium's ``next-step`` autoreset: that step ignores its actions and returns its
-first observation with zero reward). Episode ends are per scene: a collision or a
-divergence of any agent terminates the scene's agents; ``max_steps`` (or the end
-of the scenario) truncates them.
+``(S, A)`` bool and infos. Episode ends are per scene: a collision or a divergence
+of any agent terminates the scene's agents; ``max_steps`` (or the end of the
+scenario) truncates them. A finished scene restarts by Gymnasium's autoreset modes
+(``autoreset=``):
+
+* ``next_step`` (default): the *next* step restarts it, ignores its actions and
+  returns the new episode's first observation with zero reward, no termination and
+  no truncation (a step that is no transition: learners must skip it, as Gymnasium's
+  own wrappers do);
+* ``same_step``: the step that ends the episode restarts the scene at once and
+  returns the new episode's first observation; the last observation of the finished
+  episode is in ``infos["final_obs"]`` and that step's infos in
+  ``infos["final_info"]`` (masks ``_final_obs``, ``_final_info``). Every step is a
+  transition (what Stable-Baselines3 expects, see :mod:`sigma_des.env.sb3`);
+* ``disabled``: stepping a finished scene raises ``RuntimeError``.
+
+Both restarting modes play the same episodes for the same actions (a restarted
+scene's episode does not depend on when it restarts).
 
 :class:`SwarmVectorEnv` adapts it to Gymnasium's :class:`~gymnasium.vector.VectorEnv`
 with one sub-environment per (scene, agent) pair, scene-major (SuperSuit's
@@ -16,7 +29,9 @@ convention for parameter-shared multi-agent training): ``num_envs = S * A``.
 
 Infos: ``aoi`` (s, age of the agent's own shown state: now - its generation
 time; NaN before any), ``frame`` (frame of the shown own state), ``error`` (true
-slot or goal error, m), ``t`` (simulated time, per scene), ``episode`` (per scene).
+slot or goal error, m; NaN on a step that is no transition), ``t`` (simulated time,
+per scene), ``episode_index`` (per scene: episodes it started before this one;
+``episode`` is left to the episode statistics of RL libraries).
 """
 
 from __future__ import annotations
@@ -77,7 +92,7 @@ class SwarmVec:
         max_steps: decisions per episode.
         perfect_info: observe the true state instead of the aligned view.
         seed: root seed (overrides ``scenario['seed']`` if given).
-        autoreset: reset finished scenes on the next step (else stepping one is an error).
+        autoreset: ``next_step``, ``same_step`` or ``disabled`` (module docstring).
         scene_ids: identity of each scene in its seed (default ``0..n_scenes-1``):
             scenes sharing an id replay the same episodes (common random numbers).
 
@@ -89,8 +104,8 @@ class SwarmVec:
                  scenario: Mapping[str, Any] | None = None,
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
-                 autoreset: bool = True, scene_ids: list[int] | None = None) -> None:
-        self.opts = EnvOptions(task, method, max_steps, perfect_info, n_scenes)
+                 autoreset: str = "next_step", scene_ids: list[int] | None = None) -> None:
+        self.opts = EnvOptions(task, method, max_steps, perfect_info, n_scenes, autoreset)
         self.task = make_task(task, dict(task_params or {}))
         self.sc = build_scenario(self.opts, scenario)
         self.dyn = make_dynamics(self.sc)
@@ -100,7 +115,6 @@ class SwarmVec:
         self.n_scenes = n_scenes
         self.n_agents = len(self.agent_nodes)
         self.obs_dim = self.task.obs_dim
-        self.autoreset = autoreset
         self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes, scene_ids)
         self._seed = self.sc.seed if seed is None else int(seed)
         self.steps = np.zeros(n_scenes, dtype=np.int64)
@@ -125,40 +139,62 @@ class SwarmVec:
         if not self._started:
             raise RuntimeError("step() before reset(): call reset() first")
         a = check_actions(actions, (self.n_scenes, self.n_agents, ACTION_DIM), self._names)
-        if self.done.any() and not self.autoreset:
+        if self.done.any() and self.opts.autoreset == "disabled":
             s = int(np.flatnonzero(self.done)[0])
             raise RuntimeError(f"scene {s}: the episode is finished; call reset()")
         scenes = self.batch.scenes
-        restart = np.flatnonzero(self.done)
-        live = [s for s in range(self.n_scenes) if not self.done[s]]
+        restart = np.flatnonzero(self.done)  # next-step mode only: finished last step
+        live = np.flatnonzero(~self.done).tolist()
         for s in live:
             sc = scenes[s]
             if sc.ended:  # nothing was ever shown before the scenario's end: truncated below
                 continue
-            view = self._view(sc)
-            nodes, cmds = self.task.commands(a[s], view, sc.ep, sc.now(), self.agent_nodes,
-                                             self.dyn)
+            nodes, cmds = self.task.commands(a[s], self._view(sc), sc.ep, sc.now(),
+                                             self.agent_nodes, self.dyn)
             sc.publish(nodes, cmds)
-        for s in restart.tolist():
-            self.batch.episode[s] += 1
-            scenes[s] = self.batch._fresh(s)
-        self.batch.advance([scenes[s] for s in range(self.n_scenes)])
+        self._restart(restart.tolist(), advance=False)
+        self.batch.advance(scenes)
+        rew, term, trunc, err = self._score(live, a)
+        self.steps[live] += 1
+        self.done[:] = term[:, 0] | trunc[:, 0]
+        if self.opts.autoreset != "same_step" or not self.done.any():
+            obs = np.stack([self._observe(sc) for sc in scenes])
+            return obs, rew, term, trunc, self._infos(err)
+        ended = np.flatnonzero(self.done)
+        final_obs = np.stack([self._observe(sc) for sc in scenes])
+        final_info = self._infos(err.copy())
+        self._restart(ended.tolist(), advance=True)
+        err[ended] = np.nan
+        obs = np.stack([self._observe(sc) for sc in scenes])
+        infos = self._infos(err)
+        mask = np.zeros((self.n_scenes, self.n_agents), dtype=bool)
+        mask[ended] = True
+        final_obs[~mask] = 0.0
+        infos.update(final_obs=final_obs, _final_obs=mask, final_info=final_info,
+                     _final_info=mask.copy())
+        return obs, rew, term, trunc, infos
+
+    def _restart(self, ended: list[int], advance: bool) -> None:
+        """Start the next episode of scenes ``ended`` (run to their first tick if ``advance``)."""
+        self.batch.restart(ended, advance)
+        self.steps[ended] = 0
+        self.done[ended] = False
+
+    def _score(self, live: list[int], a: Array
+               ) -> tuple[Array, NDArray[np.bool_], NDArray[np.bool_], Array]:
+        """Rewards, terminations, truncations and true errors of the ``live`` scenes."""
         S, A = self.n_scenes, self.n_agents
         rew = np.zeros((S, A))
         term = np.zeros((S, A), dtype=bool)
         trunc = np.zeros((S, A), dtype=bool)
         err = np.full((S, A), np.nan)
         for s in live:
-            sc = scenes[s]
+            sc = self.batch.scenes[s]
             r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
             rew[s], err[s] = r, e
-            self.steps[s] += 1
             term[s] = bool(fail.any())
-            trunc[s] = not term[s, 0] and (self.steps[s] >= self.opts.max_steps or sc.ended)
-        self.steps[restart] = 0
-        self.done[:] = term[:, 0] | trunc[:, 0]
-        obs = np.stack([self._observe(sc) for sc in scenes])
-        return obs, rew, term, trunc, self._infos(err)
+            trunc[s] = not term[s, 0] and (self.steps[s] + 1 >= self.opts.max_steps or sc.ended)
+        return rew, term, trunc, err
 
     # ------------------------------------------------------------ helpers
     def _view(self, sc: Scene) -> SwarmView:
@@ -173,7 +209,9 @@ class SwarmVec:
     def _observe(self, sc: Scene) -> NDArray[np.float32]:
         if sc.ended:
             return np.zeros((self.n_agents, self.obs_dim), dtype=np.float32)
-        return self.task.observe(self._view(sc), sc.ep, sc.now(), self.agent_nodes)
+        n = self.sc.nodes
+        age = np.zeros(n) if self.opts.perfect_info else sc.now() - sc.run.aligner.shown_gen
+        return self.task.observe(self._view(sc), sc.ep, sc.now(), self.agent_nodes, age)
 
     def _infos(self, err: Array | None) -> dict[str, Any]:
         S, A = self.n_scenes, self.n_agents
@@ -188,11 +226,20 @@ class SwarmVec:
                 frame[s] = sc.view.frame[self.agent_nodes]
         return {"aoi": aoi, "frame": frame, "t": t,
                 "error": err if err is not None else np.full((S, A), np.nan),
-                "episode": np.array(self.batch.episode, dtype=np.int64)}
+                "episode_index": np.array(self.batch.episode, dtype=np.int64)}
+
+
+_MODES = {"next_step": gymnasium.vector.AutoresetMode.NEXT_STEP,
+          "same_step": gymnasium.vector.AutoresetMode.SAME_STEP,
+          "disabled": gymnasium.vector.AutoresetMode.DISABLED}
 
 
 class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
     """Gymnasium vector adapter: one sub-env per (scene, agent), scene-major.
+
+    ``metadata["autoreset_mode"]`` is the :class:`SwarmVec`'s ``autoreset`` (default
+    next-step), so Gymnasium's vector wrappers (e.g. ``RecordEpisodeStatistics``)
+    count every transition once. Per-scene infos are repeated for its agents.
 
     Args:
         **kwargs: the arguments of :class:`SwarmVec`.
@@ -203,6 +250,7 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
     def __init__(self, **kwargs: Any) -> None:
         self.vec = SwarmVec(**kwargs)
         v = self.vec
+        self.metadata = {"autoreset_mode": _MODES[v.opts.autoreset]}
         self.num_envs = v.n_scenes * v.n_agents
         self.single_observation_space = gymnasium.spaces.Box(
             -OBS_CLIP, OBS_CLIP, (v.obs_dim,), dtype=np.float32)
@@ -214,8 +262,10 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
             self.single_action_space, self.num_envs)
 
     def _flat_infos(self, infos: dict[str, Any]) -> dict[str, Any]:
-        A = self.vec.n_agents
-        return {k: (np.repeat(v, A) if v.ndim == 1 else v.reshape(-1)) for k, v in infos.items()}
+        A, n = self.vec.n_agents, self.num_envs
+        return {k: (self._flat_infos(v) if isinstance(v, dict)
+                    else np.repeat(v, A) if v.ndim == 1 else v.reshape((n,) + v.shape[2:]))
+                for k, v in infos.items()}
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:

@@ -181,3 +181,19 @@ def test_a_scene_that_never_shows_a_state_is_truncated_not_crashed() -> None:
     assert all(np.isnan(i["aoi"]) for i in infos.values())
     _, _, te, tr, _ = env.step({a: np.zeros(3) for a in env.agents})
     assert all(tr.values()) and not any(te.values()) and env.agents == []
+
+
+def test_tight_task_observes_the_ages_the_env_reports() -> None:
+    from sigma_des.env.tasks import AGE_REF
+
+    kw = {"task": "tight", "scenario": {"nodes": 3, "net.host_link.latency": 0.05},
+          "max_steps": 5}
+    vec = SwarmVec(**kw)
+    obs, infos = vec.reset(seed=2)
+    for _ in range(3):
+        np.testing.assert_allclose(obs[0, :, 5] * AGE_REF, infos["aoi"][0], rtol=1e-6)
+        assert (infos["aoi"][0] > 0.05).all()  # at least the one-way link latency
+        obs, _, _, _, infos = vec.step(np.zeros((1, 2, 3)))
+    perfect = SwarmVec(perfect_info=True, **kw)
+    obs, _ = perfect.reset(seed=2)
+    assert obs.shape == (1, 2, 14) and (obs[0][:, [5, 8, 13]] == 0).all()

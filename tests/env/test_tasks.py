@@ -10,7 +10,8 @@ import pytest
 from sigma_des.agents.pointmass import PointMass
 from sigma_des.core.models import SwarmView
 from sigma_des.core.rng import Stream
-from sigma_des.env.tasks import FormationTask, GoalTask, make_task
+from sigma_des.env.controllers import extrapolating, naive
+from sigma_des.env.tasks import FormationTask, GoalTask, TightTask, make_task
 
 D = 15.0
 S = D * math.sqrt(0.5)  # slot offsets of a 45-degree V: (-S, +S) rank 1, (-S, -S) rank 2
@@ -88,3 +89,42 @@ def test_goal_task_and_unknown_names() -> None:
         make_task("x")
     with pytest.raises(ValueError, match="task.radius: must be > 0"):
         make_task("goal", {"radius": 0.0})
+
+
+def test_tight_observation_carries_ages_and_velocities() -> None:
+    task = make_task("tight")
+    assert isinstance(task, TightTask) and task.obs_dim == 14
+    d = task.d
+    s = d * math.sqrt(0.5)
+    # leader north at 15 m/s; node 1 in its slot flying east at 5 m/s; node 2 slot + (1, 0)
+    shown = _obs([(0, 0, 100, 15, 0), (-s, s, 100, 5, math.pi / 2), (-s + 1, -s, 97, 10, 0)])
+    view = SwarmView(obs=shown, frame=np.array([4, 4, 4]), valid=np.array([True, True, True]),
+                     aligned_frame=4)
+    age = np.array([0.2, 0.05, 0.3])
+    o = task.observe(view, None, 0.0, [1, 2], age)
+    rel1 = (shown[0, 9:11] - shown[1, 9:11]) / d  # node 1's nearest: the leader
+    np.testing.assert_allclose(
+        o[0], [0, 0, 0, 0, 0.5, 0.5, 1.5, 0, 2.0, *rel1, 1.5, 0, 2.0], atol=1e-6)
+    rel2 = (shown[0, 9:11] - shown[2, 9:11]) / d  # node 2's nearest: the leader too
+    np.testing.assert_allclose(
+        o[1], [-1 / d, 0, 0.3, 1.0, 0, 3.0, 1.5, 0, 2.0, *rel2, 1.5, 0, 2.0], atol=1e-6)
+    # no ages given (perfect information): age columns are 0
+    z = task.observe(view, None, 0.0, [1, 2])
+    assert (z[:, [5, 8, 13]] == 0).all()
+    np.testing.assert_array_equal(np.delete(z, [5, 8, 13], 1), np.delete(o, [5, 8, 13], 1))
+
+
+def test_controllers_hand_computed() -> None:
+    task = make_task("tight")
+    assert isinstance(task, TightTask)
+    o = np.zeros((1, 1, 14), dtype=np.float32)
+    o[0, 0, [0, 2, 3, 5, 6, 8]] = [0.5, 0.1, 1.0, 1.0, 1.5, 2.0]
+    # slot error 3 m north, 1 m up; own velocity 10 m/s north, age 0.1 s; leader 15 m/s
+    # north, age 0.2 s. naive: v = 15 + 1 * 3 = 18 m/s -> 0.9; dh = 1 m / 10 m
+    np.testing.assert_allclose(naive(o, task)[0, 0], [0.9, 0.0, 0.1], atol=1e-6)
+    # extrapolating (lead = own age 0.1 s): e = 3 + 15 * 0.3 - 10 * 0.2 = 5.5 -> 20.5 / 20
+    np.testing.assert_allclose(extrapolating(o, task)[0, 0], [1.0, 0.0, 0.1], atol=1e-6)
+    o[0, 0, 0] = 0.0
+    np.testing.assert_allclose(extrapolating(o, task)[0, 0], [17.5 / 20, 0.0, 0.1], atol=1e-6)
+    o[0, 0, [5, 8]] = 0.0  # ages 0: the two controllers agree
+    np.testing.assert_array_equal(naive(o, task), extrapolating(o, task))

@@ -33,3 +33,27 @@ def test_report_from_quick_outputs(tmp_path: Path) -> None:
     assert f"| `train_seed5` | 5 | 150 ms, 10% | 3 × 6 × 1 × 3 | {ev[('delay', 'delay')]:.3f} |" \
         in text
     assert "of these 1 further runs" in text
+
+
+def test_delay_study_section_from_a_quick_run(tmp_path: Path) -> None:
+    import train_under_delay
+
+    assert "no `delay_*/summary.json`" in report_env._delay_studies(tmp_path)
+    train_under_delay.main(["--quick", "--out", str(tmp_path / "delay_quick")])
+    text = report_env._delay_studies(tmp_path)
+    (r,) = json.loads((tmp_path / "delay_quick" / "summary.json").read_text())["stats"]
+    assert "### `delay_quick`: CEM, seeds [0, 1]" in text
+    assert (f"| bides@200ms | {r['delay_trained_mean']:.3f} ± {r['delay_trained_ci95']:.3f} | "
+            f"{r['perfect_trained_mean']:.3f} ± {r['perfect_trained_ci95']:.3f} | "
+            f"{r['diff_mean']:+.3f} ± {r['diff_ci95']:.3f} |") in text
+    assert "--learner cem --seeds 2 --max-steps 10 --iterations 2" in text
+    assert "Cost: 4 trainings" in text
+    assert "Only 2 seed(s) finished" in text  # below the protocol's 5: no conclusion
+    rows = [{"cell": "none@50ms", "diff_mean": 0.1, "t_p_greater": 0.01, "wilcoxon_p_greater": 0.03,
+             "delay_trained_mean": -0.5, "perfect_trained_mean": -0.6, "naive_fitness": -0.2},
+            {"cell": "bides@50ms", "diff_mean": -0.1, "t_p_greater": 0.9, "wilcoxon_p_greater": 0.9,
+             "delay_trained_mean": -0.1, "perfect_trained_mean": 0.0, "naive_fitness": -0.2}]
+    verdict = report_env._delay_verdict(rows, 5)
+    assert "in 1 of 2 cells by the mean and in 1 by both paired tests" in verdict
+    assert "But in 1 of 2 cells both trained policies score below" in verdict
+    assert "gives the better policy under delay in" in verdict and "not shown" not in verdict

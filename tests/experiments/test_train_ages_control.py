@@ -1,0 +1,34 @@
+"""experiments/train_ages_control.py: retraining reproduces the study; hidden ages are 0."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import train_ages_control  # noqa: E402
+import train_under_delay  # noqa: E402
+
+
+def test_control_reproduces_the_study_and_hides_the_ages(tmp_path: Path) -> None:
+    study, ctl = tmp_path / "delay_q", tmp_path / "delay_q_ages_control"
+    assert train_under_delay.main(["--quick", "--out", str(study)]) == 0
+    assert train_ages_control.main(["--study", str(study), "--out", str(ctl)]) == 0
+    data = json.loads((ctl / "summary.json").read_text())
+    (row,) = data["table"]
+    # the retrained perfect-information policies are the study's own (deterministic)
+    assert row["reproduces_study"] is True and row["n_seeds"] == 2
+    hidden = [r["fitness"] for r in data["rows"] if r["ages"] == "hidden"]
+    assert row["perfect_hidden_mean"] == np.mean(hidden)
+    # columns 5, 8, 13 are the tight task's ages: own, leader, nearest neighbour
+    assert train_ages_control.AGE_COLUMNS == [5, 8, 13]
+    import report_env
+
+    text = report_env._delay_studies(tmp_path)  # the control follows its study
+    assert text.index("### `delay_q`") < text.index("--study delay_q`") and (
+        f"| {row['perfect_hidden_mean']:.3f} ± {row['perfect_hidden_ci95']:.3f} |" in text)

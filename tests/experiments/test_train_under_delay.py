@@ -1,0 +1,90 @@
+"""experiments/train_under_delay.py: quick CEM run (no SB3 needed), the statistics, bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "experiments"))
+
+import train_under_delay  # noqa: E402
+
+
+def test_quick_study_writes_consistent_outputs(tmp_path: Path) -> None:
+    assert train_under_delay.main(["--quick", "--out", str(tmp_path)]) == 0
+    with (tmp_path / "eval.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    fit = {(r["trained"], int(r["seed"]), r["evaluated"]): float(r["fitness"]) for r in rows}
+    cells = ["perfect", "bides@200ms"]
+    for name in ("untrained", "naive", "extrapolating"):  # baselines everywhere, once
+        assert all((name, -1, c) in fit for c in cells)
+    for seed in (0, 1):  # perfect-trained: every cell; delay-trained: perfect and its own
+        assert all(("perfect", seed, c) in fit for c in cells)
+        assert ("bides@200ms", seed, "bides@200ms") in fit
+    assert len(rows) == 3 * 2 + 2 * 2 + 2 * 2
+    data = json.loads((tmp_path / "summary.json").read_text())
+    (row,) = data["stats"]
+    d = np.array([fit[("bides@200ms", s, "bides@200ms")] for s in (0, 1)])
+    p = np.array([fit[("perfect", s, "bides@200ms")] for s in (0, 1)])
+    assert row["cell"] == "bides@200ms" and row["n_seeds"] == 2
+    assert row["diff_mean"] == pytest.approx((d - p).mean(), rel=1e-12)
+    # 95 % CI half-width of two values: t(0.975, 1) * sd / sqrt(2) = 12.706 * |a - b| / 2
+    assert row["delay_trained_ci95"] == pytest.approx(12.7062047 * abs(d[0] - d[1]) / 2,
+                                                      rel=1e-6)
+    assert row["naive_fitness"] == fit[("naive", -1, "bides@200ms")]
+    # the hand-written controller holds the slot far better than the zero policy
+    assert row["naive_fitness"] > row["untrained_fitness"] + 1.0
+    curve = [r for r in data["cost"] if r["trained"] == "perfect"]
+    assert len(curve) == 2 and all(r["agent_steps"] == 2 * 4 * 1 * 10 * 2 for r in curve)
+    for png in ("learning_curves.png", "eval.png"):
+        assert (tmp_path / png).stat().st_size > 0
+
+
+def test_paired_statistics_hand_computed() -> None:
+    evals = []
+    for s, (dv, pv) in enumerate([(1.0, 0.0), (2.0, 0.0), (3.0, 1.0)]):
+        evals += [{"trained": "none@50ms", "seed": s, "evaluated": "none@50ms", "fitness": dv},
+                  {"trained": "perfect", "seed": s, "evaluated": "none@50ms", "fitness": pv}]
+    evals += [{"trained": n, "seed": -1, "evaluated": "none@50ms", "fitness": -1.0}
+              for n in ("untrained", "naive", "extrapolating")]
+    (row,) = train_under_delay._stats(evals, ["perfect", "none@50ms"], [0, 1, 2])
+    # differences 1, 2, 2: mean 5/3, sd 1/sqrt(3), t = 5; df 2: P(T > t) = 1/2 - t / (2
+    # sqrt(2 + t^2))
+    assert row["diff_mean"] == pytest.approx(5 / 3)
+    assert row["t_p_greater"] == pytest.approx(0.5 - 5 / (2 * math.sqrt(27)), rel=1e-9)
+    assert row["wilcoxon_p_greater"] == pytest.approx(1 / 8)  # exact: 3 positive of 3
+    assert row["diff_ci95"] == pytest.approx(stats.t.ppf(0.975, 2) / 3, rel=1e-12)
+
+
+@pytest.mark.parametrize(("args", "msg"), [(["--seeds", "0"], "--seeds: must be >= 1"),
+                                           (["--loss", "1.5"], "--loss: must be in")])
+def test_bad_arguments_exit_2_naming_the_option(args: list[str], msg: str,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        train_under_delay.main(args)
+    assert exc.value.code == 2 and msg in capsys.readouterr().err
+
+
+def test_shards_merge_to_the_same_study(tmp_path: Path) -> None:
+    full, a, b, m = (tmp_path / x for x in ("full", "a", "b", "merged"))
+    assert train_under_delay.main(["--quick", "--out", str(full)]) == 0
+    assert train_under_delay.main(["--quick", "--seed-list", "1", "--out", str(a)]) == 0
+    assert train_under_delay.main(["--quick", "--seed-list", "0", "--skip-baselines",
+                                   "--out", str(b)]) == 0
+    assert train_under_delay.main(["--quick", "--merge", str(a), str(b), "--out", str(m)]) == 0
+    want = json.loads((full / "summary.json").read_text())
+    got = json.loads((m / "summary.json").read_text())
+    assert got["seeds_done"] == [0, 1] and got["stats"] == want["stats"]
+    with (m / "history.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 2 * 2 * 2 and rows[0]["learner"] == "cem"  # seeds x cells x iterations
+    with pytest.raises(SystemExit, match="share a seed"):
+        train_under_delay.main(["--merge", str(a), str(full), "--out", str(m)])
