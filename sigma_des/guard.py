@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from sigma_des.errors import ConfigError
+from sigma_des.outputs import umask
 
 __all__ = [
     "atomic_write",
@@ -132,15 +133,7 @@ def output_file(path: str | Path, key: str = "--out", force: bool = True) -> Pat
 
 def file_mode() -> int:
     """The mode a new file gets from ``open`` under the current umask (0o666 & ~umask)."""
-    try:  # Linux reports the umask without changing it (no race with other threads)
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("Umask:"):
-                return 0o666 & ~int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return 0o666 & ~mask
+    return 0o666 & ~umask()
 
 
 @contextlib.contextmanager

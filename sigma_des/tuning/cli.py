@@ -94,7 +94,7 @@ def _read_log(path: str, kind: str, option: str) -> Any:
 
 def _start(path: str, kind: str) -> Any:
     """The ``--init`` parameters; errors name the option and the file."""
-    from sigma_des.tuning.fitted import fitted_params
+    from sigma_des.agents.fitted import fitted_params
 
     try:
         return fitted_params(path, kind)
