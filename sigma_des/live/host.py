@@ -37,8 +37,10 @@ from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
 from sigma_des.live.wire import (
     MAX_BUNDLE,
     Topics,
+    Window,
     WireError,
     decode_command,
+    decode_control,
     decode_rerequest,
     decode_trigger,
     encode_state,
@@ -120,6 +122,7 @@ class Host(ImpairedSender):
         self.bundle = bool(cfg.get("bundle", False))
         self._pending: list[tuple[bytes, int, int]] = []
         self.topics = topics
+        self.window = Window.of(sc.duration, sc.f_trig, sc.bides.f_trig_min)
         self.loop = Loop(t0) if loop is None else loop
         n = sc.nodes
         self.nodes = np.flatnonzero(np.asarray(sc.host_of) == host).astype(np.int64)
@@ -183,13 +186,13 @@ class Host(ImpairedSender):
         tp = self.topics
         try:
             if topic == tp.trig:
-                frame, t_send, dt, hl, hc = decode_trigger(payload)
+                frame, t_send, dt, hl, hc = decode_trigger(payload, self.window, t)
                 self._deliver(t, TRIGGER, self.sc.nodes, frame, t_send, len(topic), len(payload),
                               self._on_trigger, frame, t_send, dt, hl, hc)
             elif topic == tp.cmd(self.h):
                 self._commands(t, topic, payload)
             elif topic == tp.rereq(self.h):
-                node, frame, retry, t_send = decode_rerequest(payload)
+                node, frame, retry, t_send = decode_rerequest(payload, self.window)
                 j = self._local_index(node)
                 index = frame * 64 + min(retry, 63)
                 self._deliver(t, REREQUEST, node, index, t_send, len(topic), len(payload),
@@ -210,7 +213,7 @@ class Host(ImpairedSender):
         recs = []
         for r in range(len(payload) // size):
             node, stamp, tick, t_send, vals = decode_command(payload[r * size:(r + 1) * size],
-                                                             width)
+                                                             width, self.window)
             recs.append((self._local_index(node), stamp, tick, t_send, vals))
         if not recs:
             raise WireError("command: empty")
@@ -227,18 +230,17 @@ class Host(ImpairedSender):
         self.jobs.receive_rerequest(j, frame, index, t)
 
     def _control(self, payload: bytes) -> None:
-        """``go:<t0>`` sets the run's time origin (monotonic seconds); ``stop`` ends the run."""
-        if payload.startswith(b"go:"):
-            t0 = float(payload[3:])
-            if not math.isfinite(t0):
-                raise WireError("control: bad t0")
-            self.loop.t0 = t0
-            self.started = True
-        elif payload == b"stop":
+        """``go:<t0>`` sets the run's time origin (monotonic seconds), once; ``stop``
+        ends the run."""
+        what, t0 = decode_control(payload, time.monotonic())
+        if what == "stop":
             self.stop_requested = True
             self.loop.stop()
-        else:
-            raise WireError("control: unknown command")
+        elif not self.started:
+            self.loop.t0 = t0
+            self.started = True
+        elif t0 != self.loop.t0:  # a QoS 1 duplicate repeats it; anything else is forged
+            raise WireError("control: a second go with another t0")
 
     def _local_index(self, node: int) -> int:
         j = self.local.get(node)

@@ -268,6 +268,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         meter.mark("w1")
         srv.wall_seconds = time.perf_counter() - w0
         srv.running = False
+        srv.stats.clear()  # counters sent before stop are not the hosts' (forged)
         srv.client.publish(topics.ctl, b"stop", 1)
         alive = [h for h, p in enumerate(procs) if p.poll() is None]
         deadline = time.monotonic() + 5.0

@@ -10,7 +10,6 @@ Anything malformed or on an unknown topic is counted and dropped.
 
 from __future__ import annotations
 
-import json
 import math
 from types import SimpleNamespace
 from typing import Any
@@ -32,7 +31,9 @@ from sigma_des.live.wire import (
     MAX_BUNDLE,
     STATE_BYTES,
     Topics,
+    Window,
     WireError,
+    check_stats,
     decode_state,
     encode_command,
     encode_rerequest,
@@ -98,6 +99,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.qos = qos
         self.loop = Loop(0.0) if loop is None else loop
         self.host_of = sc.host_of
+        self.window = Window.of(sc.duration, sc.f_trig, sc.bides.f_trig_min)
         super().__init__(self.loop, sc.run_spec(), method, make_dynamics(sc),
                          make_behaviour(sc) if sc.commands.enabled else None)
         self.use_hlc = method == "hlc"
@@ -193,10 +195,12 @@ class LiveServer(AlignmentServer, ImpairedSender):
         if leaf == "ready":
             self.ready.add(host)
             return
-        if leaf == "stats":
+        if leaf == "stats":  # once per host, after stop (the runner clears earlier ones)
             try:
-                self.stats[host] = json.loads(payload)
-            except ValueError:
+                if self.running or host in self.stats:
+                    raise WireError("stats: while running, or a second time")
+                self.stats[host] = check_stats(payload, host)
+            except WireError:
                 self.rejected += 1
             return
         size = STATE_BYTES
@@ -207,11 +211,11 @@ class LiveServer(AlignmentServer, ImpairedSender):
         recs = []
         for r in range(count):
             try:
-                rec = decode_state(payload[r * size:(r + 1) * size], self.n)
+                rec = decode_state(payload[r * size:(r + 1) * size], self.n, self.window)
             except WireError:
                 self.rejected += 1
                 continue
-            if self.host_of[rec[1]] != host:
+            if self.host_of[rec[1]] != host or rec[2] > max(self.latest_trigger, 0):
                 self.rejected += 1
                 continue
             recs.append(rec)

@@ -29,13 +29,20 @@ precision); ours is 85 bytes because it carries the whole 12-column published
 state in float32 plus the time and HLC fields the measurements need. The DES
 counts ``payload_bits`` (default 150) on the wire; to compare wire throughput,
 set ``payload_bits = 680`` (85 bytes) in the DES. Every decoder checks length,
-kind, ranges and finiteness and raises :class:`WireError` on anything else.
+kind, ranges and finiteness and raises :class:`WireError` on anything else; given
+the run's :class:`Window`, also that frames and times lie within the run (a forged
+trigger for frame 2^32-1 would otherwise make a host step four billion frames).
+The control messages (``go:<t0>``, ``stop``) are parsed by :func:`decode_control`
+and the hosts' end-of-run counters checked field by field by :func:`check_stats`.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import struct
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,8 +55,12 @@ __all__ = [
     "REREQUEST",
     "STATE",
     "TRIGGER",
+    "STATS_FIELDS",
     "Topics",
+    "Window",
     "WireError",
+    "check_stats",
+    "decode_control",
     "decode_command",
     "decode_rerequest",
     "decode_state",
@@ -73,10 +84,60 @@ MAX_COMMAND_VALUES = 64
 #: Most states one PUBLISH may carry (``--bundle``: a host's states of one loop turn).
 MAX_BUNDLE = 4096
 _U32 = 2**32 - 1
+#: Largest magnitude accepted for a published state or command value, and HLC time.
+MAX_VALUE = 1e9
+#: Hosts wait this long after ``duration`` for ``stop`` (their loop's bound).
+LINGER_S = 120.0
+#: The server's ``go`` puts the time origin at most this far ahead (``idle_window``).
+MAX_IDLE_S = 60.0
 
 
 class WireError(ValueError):
     """A payload that is malformed, truncated, oversized, out of range or not finite."""
+
+
+@dataclass(frozen=True)
+class Window:
+    """What the messages of one run may carry.
+
+    Attributes:
+        max_frame: the last frame the run can trigger (``duration * f_trig`` + 2: the
+            rate never rises above the nominal ``f_trig``).
+        f_trig: the nominal trigger rate (Hz): frame ``k`` is issued no sooner than
+            ``k / f_trig`` s after the start.
+        t_lo: earliest time a message may carry (s since the run's start).
+        t_hi: latest time a message may carry.
+        dt_max: longest trigger step (s): ``1 / bides.f_trig_min``, with slack.
+    """
+
+    max_frame: int
+    f_trig: float
+    t_lo: float
+    t_hi: float
+    dt_max: float
+
+    @classmethod
+    def of(cls, duration: float, f_trig: float, f_trig_min: float) -> Window:
+        """The window of a run of ``duration`` s at nominal rate ``f_trig``."""
+        return cls(max_frame=int(math.ceil(duration * f_trig)) + 2, f_trig=f_trig,
+                   t_lo=-MAX_IDLE_S - 1.0, t_hi=duration + LINGER_S + 1.0,
+                   dt_max=1.5 / min(f_trig, f_trig_min))
+
+    def frame(self, what: str, k: int) -> None:
+        """Raise :class:`WireError` unless frame ``k`` lies in the run."""
+        if not 0 <= k <= self.max_frame:
+            raise WireError(f"{what}: frame {k} outside 0..{self.max_frame}")
+
+    def times(self, what: str, *ts: float) -> None:
+        """Raise :class:`WireError` unless every time lies in the run."""
+        for t in ts:
+            if not self.t_lo <= t <= self.t_hi:
+                raise WireError(f"{what}: time {t} outside {self.t_lo:g}..{self.t_hi:g} s")
+
+
+def _hlc_ok(hl: float) -> bool:
+    """An HLC time: ``-inf`` (HLC off) or a finite time of sane magnitude."""
+    return hl == -math.inf or (math.isfinite(hl) and abs(hl) <= MAX_VALUE)
 
 
 class Topics:
@@ -135,13 +196,28 @@ def encode_trigger(frame: int, t_send: float, dt: float, hlc_l: float, hlc_c: in
     return _TRIG.pack(TRIGGER, frame, t_send, dt, hlc_l, hlc_c)
 
 
-def decode_trigger(b: bytes) -> tuple[int, float, float, float, int]:
-    """``(frame, t_send, dt, hlc_l, hlc_c)`` of a trigger payload."""
+def decode_trigger(b: bytes, win: Window | None = None,
+                   t_recv: float | None = None) -> tuple[int, float, float, float, int]:
+    """``(frame, t_send, dt, hlc_l, hlc_c)`` of a trigger payload.
+
+    Args:
+        b: the payload.
+        win: the run's window (None: no frame/time range checks).
+        t_recv: when it arrived (s since the start; with ``win``): a trigger must not
+            be for a frame the server cannot have issued yet.
+    """
     if len(b) != _TRIG.size:
         raise WireError(f"trigger: {len(b)} bytes, expected {_TRIG.size}")
     kind, frame, t_send, dt, hl, hc = _TRIG.unpack(b)
     if kind != TRIGGER or not _finite(t_send, dt) or not dt > 0 or math.isnan(hl):
         raise WireError("trigger: bad kind, time or dt")
+    if win is not None:
+        win.frame("trigger", frame)
+        win.times("trigger", t_send)
+        if dt > win.dt_max or not _hlc_ok(hl):
+            raise WireError(f"trigger: dt {dt} above {win.dt_max:g} s or bad HLC time {hl}")
+        if t_recv is not None and frame > win.f_trig * (max(t_recv, 0.0) + 1.0) + 2:
+            raise WireError(f"trigger: frame {frame} cannot have been issued by {t_recv:.3f} s")
     return frame, t_send, dt, hl, hc
 
 
@@ -155,9 +231,10 @@ def encode_state(
 
 
 def decode_state(
-    b: bytes, n: int
+    b: bytes, n: int, win: Window | None = None
 ) -> tuple[int, int, int, float, float, float, int, NDArray[np.float64]]:
-    """``(kind, node, frame, t_gen, t_send, hlc_l, hlc_c, obs)``; ``node`` must be < ``n``."""
+    """``(kind, node, frame, t_gen, t_send, hlc_l, hlc_c, obs)``; ``node`` must be < ``n``
+    (and, given the run's window ``win``, frame and times within the run)."""
     if len(b) != _STATE.size:
         raise WireError(f"state: {len(b)} bytes, expected {_STATE.size}")
     v = _STATE.unpack(b)
@@ -167,6 +244,11 @@ def decode_state(
         raise WireError(f"state: bad kind {kind}, node {node} or frame {frame}")
     if not _finite(t_gen, t_send) or math.isnan(hl) or not np.isfinite(obs).all():
         raise WireError("state: NaN or infinite field")
+    if win is not None:
+        win.frame("state", frame)
+        win.times("state", t_gen, t_send)
+        if not _hlc_ok(hl) or np.abs(obs).max() > MAX_VALUE:
+            raise WireError(f"state: HLC time or a published value beyond {MAX_VALUE:g}")
     return kind, node, frame, t_gen, t_send, hl, hc, obs
 
 
@@ -180,8 +262,10 @@ def encode_command(
     )
 
 
-def decode_command(b: bytes, width: int) -> tuple[int, int, int, float, NDArray[np.float64]]:
-    """``(node, stamp_frame, tick, t_send, values)``; exactly ``width`` values expected."""
+def decode_command(b: bytes, width: int, win: Window | None = None
+                   ) -> tuple[int, int, int, float, NDArray[np.float64]]:
+    """``(node, stamp_frame, tick, t_send, values)``; exactly ``width`` values expected
+    (and, given the run's window ``win``, stamp, time and values within the run)."""
     h = _CMD_HEAD.size
     if len(b) < h:
         raise WireError(f"command: {len(b)} bytes, shorter than its {h}-byte header")
@@ -193,6 +277,12 @@ def decode_command(b: bytes, width: int) -> tuple[int, int, int, float, NDArray[
     values = np.frombuffer(b, dtype="<f8", count=m, offset=h).astype(np.float64)
     if np.isinf(values).any():
         raise WireError("command: infinite value")
+    if win is not None:
+        if stamp > win.max_frame or tick > _U32 // 2:
+            raise WireError(f"command: stamp {stamp} or tick {tick} outside the run")
+        win.times("command", t_send)
+        if (np.abs(values[~np.isnan(values)]) > MAX_VALUE).any():
+            raise WireError(f"command: a value beyond {MAX_VALUE:g}")
     return node, stamp, tick, t_send, values
 
 
@@ -201,11 +291,76 @@ def encode_rerequest(node: int, frame: int, retry: int, t_send: float) -> bytes:
     return _REREQ.pack(REREQUEST, node, frame, min(retry, _U32), t_send)
 
 
-def decode_rerequest(b: bytes) -> tuple[int, int, int, float]:
-    """``(node, frame, retry, t_send)`` of a re-request payload."""
+def decode_rerequest(b: bytes, win: Window | None = None) -> tuple[int, int, int, float]:
+    """``(node, frame, retry, t_send)`` of a re-request payload (given the run's window
+    ``win``: frame and time within the run)."""
     if len(b) != _REREQ.size:
         raise WireError(f"rerequest: {len(b)} bytes, expected {_REREQ.size}")
     kind, node, frame, retry, t_send = _REREQ.unpack(b)
     if kind != REREQUEST or not math.isfinite(t_send):
         raise WireError("rerequest: bad kind or time")
+    if win is not None:
+        win.frame("rerequest", frame)
+        win.times("rerequest", t_send)
     return node, frame, retry, t_send
+
+
+def decode_control(b: bytes, mono_now: float) -> tuple[str, float]:
+    """``("go", t0)`` or ``("stop", nan)`` of a control payload.
+
+    Args:
+        b: the payload: ``go:<t0>`` (``t0``: the run's time origin, monotonic seconds,
+            at most :data:`MAX_IDLE_S` s ahead) or ``stop``.
+        mono_now: ``time.monotonic()`` now (one clock for every process of a run).
+    """
+    if b == b"stop":
+        return "stop", math.nan
+    if not b.startswith(b"go:") or len(b) > 40:
+        raise WireError("control: neither go:<t0> nor stop")
+    try:
+        t0 = float(b[3:].decode("ascii"))
+    except (UnicodeDecodeError, ValueError):
+        raise WireError("control: go:<t0> needs a number") from None
+    if not mono_now - 10.0 <= t0 <= mono_now + MAX_IDLE_S + 1.0:
+        raise WireError(f"control: t0 {t0!r} is not within the next {MAX_IDLE_S:g} s")
+    return "go", t0
+
+
+#: The hosts' end-of-run counters: non-negative integers, but ``links`` (a dict of
+#: ``"<link>.<dir>": [bytes, packets]``), ``host`` and ``step_real_s`` (seconds).
+STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "lost", "gave_up",
+                "connects", "disconnects", "steps")
+
+
+def _count(x: Any) -> bool:
+    return type(x) is int and 0 <= x < 2**53
+
+
+def check_stats(payload: bytes, host: int) -> dict[str, Any]:
+    """The end-of-run counters of ``host`` from their JSON payload, checked field by field.
+
+    Raises:
+        WireError: not JSON, not an object, a field missing, extra, of the wrong type
+            or out of range, or ``host`` not the publishing host.
+    """
+    try:
+        st = json.loads(payload)
+    except (ValueError, RecursionError):
+        raise WireError("stats: not JSON") from None
+    keys = {"host", "links", "step_real_s", *STATS_FIELDS}
+    if not isinstance(st, dict) or set(st) != keys:
+        raise WireError(f"stats: must be an object with exactly the keys {sorted(keys)}")
+    if st["host"] != host or type(st["host"]) is not int:
+        raise WireError(f"stats: host {st['host']!r} is not {host}")
+    bad = [k for k in STATS_FIELDS if not _count(st[k])]
+    s = st["step_real_s"]
+    if type(s) not in (int, float) or not 0 <= s <= 1e9:
+        bad.append("step_real_s")
+    links = st["links"]
+    if not isinstance(links, dict) or len(links) > 1024 or not all(
+            isinstance(v, list) and len(v) == 2 and _count(v[0]) and _count(v[1])
+            for v in links.values()):
+        bad.append("links")
+    if bad:
+        raise WireError(f"stats: bad {', '.join(bad)}")
+    return st
