@@ -21,6 +21,7 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ __all__ = [
     "Broker",
     "BrokerAddress",
     "INSTALL_HINT",
+    "Janitor",
     "child_setup",
     "find_mosquitto",
     "free_port",
@@ -75,6 +77,59 @@ def child_setup() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
+
+
+#: The janitor: reads folder names, one a line, until its stdin closes (our exit, however
+#: we die: even SIGKILL closes the pipe), then removes them (retrying while a dying child
+#: may still be writing). It ignores the terminal's signals: it must outlive us.
+_JANITOR = """\
+import os, shutil, signal, sys, time
+for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+    signal.signal(s, signal.SIG_IGN)
+paths = [line.rstrip("\\n") for line in sys.stdin]
+for _ in range(50):
+    for p in paths:
+        shutil.rmtree(p, ignore_errors=True)
+    if not any(os.path.exists(p) for p in paths):
+        break
+    time.sleep(0.1)
+"""
+
+
+class Janitor:
+    """A small process that removes our temporary folders when we exit, however we exit.
+
+    Clean-up code does not run on SIGKILL; the janitor does, because the pipe we
+    hold to it closes when we die. It covers the run's folders (host configs, logs,
+    rows) and the broker's (its password file). Used as a context manager; on a
+    normal exit it is told to finish and waited for (bounded).
+    """
+
+    def __init__(self) -> None:
+        self.proc = subprocess.Popen([sys.executable, "-c", _JANITOR], stdin=subprocess.PIPE,
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                     start_new_session=True)
+
+    def watch(self, path: str | Path) -> None:
+        """Remove ``path`` (a folder) when we exit."""
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"{path}\n".encode())
+        self.proc.stdin.flush()
+
+    def close(self) -> None:
+        """Let the janitor remove what it watches now and wait for it (<= 6 s)."""
+        if self.proc.stdin is not None and not self.proc.stdin.closed:
+            self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=6)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+    def __enter__(self) -> Janitor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def find_mosquitto() -> str | None:
@@ -136,6 +191,7 @@ class Broker:
         port: TCP port (default: a free one).
         max_inflight: ``max_inflight_messages`` per client (QoS 1 window; 0 = unlimited).
         executable: path of ``mosquitto`` (default: :func:`find_mosquitto`).
+        janitor: removes the broker's folder (its password file) even if we are killed.
 
     Raises:
         ConfigError: ``mosquitto`` missing (the message says how to install it), or
@@ -143,7 +199,7 @@ class Broker:
     """
 
     def __init__(self, port: int | None = None, max_inflight: int = 0,
-                 executable: str | None = None) -> None:
+                 executable: str | None = None, janitor: Janitor | None = None) -> None:
         exe = executable or find_mosquitto()
         if exe is None:
             raise ConfigError("mosquitto", INSTALL_HINT)
@@ -154,6 +210,7 @@ class Broker:
         self.password = secrets.token_urlsafe(18)
         self.proc: subprocess.Popen[bytes] | None = None
         self._dir: tempfile.TemporaryDirectory[str] | None = None
+        self.janitor = janitor
 
     @property
     def address(self) -> BrokerAddress:
@@ -191,6 +248,8 @@ class Broker:
                                   f"127.0.0.1:{self.port} is in use ({e.strerror})") from None
         self._dir = tempfile.TemporaryDirectory(prefix="sigma-des-mqtt-")
         d = Path(self._dir.name)
+        if self.janitor is not None:
+            self.janitor.watch(d)
         passwd = d / "passwd"
         passwd.write_text(password_line(self.username, self.password) + "\n")
         passwd.chmod(0o600)

@@ -15,10 +15,17 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from sigma_des.config import METHODS, Scenario
 from sigma_des.errors import ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from sigma_des.api import Results
 
 __all__ = ["PASSWORD_ENV", "add_calibrate_args", "add_live_args", "password", "run_calibrate",
            "run_live_command"]
@@ -80,7 +87,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
 
     need("live", "paho", "pandas", extra="live")
     from sigma_des.live.broker import parse_broker
-    from sigma_des.live.runner import LiveOptions, run_live
+    from sigma_des.live.runner import Interrupts, LiveOptions, run_live
 
     methods = None
     if args.methods is not None:
@@ -114,38 +121,55 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
                        bundle=args.bundle,
                        record=rec_cls is not None)
-    try:
-        res, msgs, kept = run_live(sc, methods, opts, progress=not args.no_progress)
-    except KeyboardInterrupt:
-        print("sigma-des: interrupted before any method finished; broker and hosts stopped",
-              file=sys.stderr)
-        return 130
-    except (RuntimeError, ConnectionError) as e:
-        print(f"sigma-des: live run failed: {e}", file=sys.stderr)
-        return 1
-    print(res.table())
-    if res.interrupted:
-        print("interrupted: partial results", file=sys.stderr)
-    if args.out:
-        from sigma_des.live.cpu import write_cpu
-        from sigma_des.live.messages import write_messages
+    with Interrupts() as sig:
+        try:
+            res, msgs, kept = run_live(sc, methods, opts, progress=not args.no_progress,
+                                       on_method=_writer(args) if args.out else None)
+        except KeyboardInterrupt:
+            print("sigma-des: interrupted before any method finished; broker and hosts stopped",
+                  file=sys.stderr)
+            return 130
+        except (RuntimeError, ConnectionError) as e:
+            print(f"sigma-des: live run failed: {e}", file=sys.stderr)
+            return 1
+        sig.mask()  # the run is over: a signal now must not cut the writing short
+        print(res.table())
+        if res.interrupted:
+            print("interrupted: partial results", file=sys.stderr)
+        if args.out:
+            _write_out(args, res, msgs, plots=not args.no_plots)
+        if rec_cls is not None:
+            from sigma_des.live.messages import record_messages
 
-        csv_path, json_path = res.write(args.out)
-        mpath = write_messages(msgs, Path(args.out))
-        cpath = write_cpu(res.live, Path(args.out))
-        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path}, {mpath} "
-              f"and {cpath}")
-        if not args.no_plots:  # matplotlib was checked before the run
-            from sigma_des.plots import write_plots
-
-            paths = write_plots(res, args.out)
-            print(f"plots: {', '.join(p.name for p in paths)}")
-    if rec_cls is not None:
-        from sigma_des.live.messages import record_messages
-
-        record_messages(rec_cls, args.record, res, msgs, kept)
-        print(f"recorded {args.record}")
+            record_messages(rec_cls, args.record, res, msgs, kept)
+            print(f"recorded {args.record}")
     return 130 if res.interrupted else 0
+
+
+def _writer(args: argparse.Namespace) -> Callable[[Results, pd.DataFrame], None]:
+    """Write each finished method's results at once (a later signal or crash keeps them)."""
+    def write(res: Results, msgs: pd.DataFrame) -> None:
+        _write_out(args, res, msgs, plots=False, quiet=True)
+    return write
+
+
+def _write_out(args: argparse.Namespace, res: Results, msgs: pd.DataFrame, plots: bool,
+               quiet: bool = False) -> None:
+    from sigma_des.live.cpu import write_cpu
+    from sigma_des.live.messages import write_messages
+
+    csv_path, json_path = res.write(args.out)
+    mpath = write_messages(msgs, Path(args.out))
+    cpath = write_cpu(res.live, Path(args.out))
+    if quiet:
+        return
+    print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'}, {json_path}, {mpath} "
+          f"and {cpath}")
+    if plots:  # matplotlib was checked before the run
+        from sigma_des.plots import write_plots
+
+        paths = write_plots(res, args.out)
+        print(f"plots: {', '.join(p.name for p in paths)}")
 
 
 def password(args: argparse.Namespace) -> str:

@@ -400,7 +400,10 @@ def main(argv: list[str] | None = None) -> int:
     counters and writes its rows.
     """
     args = sys.argv[1:] if argv is None else argv
-    cfg = json.loads(open(args[0]).read())
+    with open(args[0]) as f:
+        cfg = json.loads(f.read())
+    if not os.environ.get("SIGMA_DES_LIVE_KEEP"):
+        os.unlink(args[0])  # it holds the broker's credentials: read once, not left on disk
     sc = from_dict(Scenario, cfg["scenario"])
     addr = BrokerAddress(**cfg["broker"])
     h = int(cfg["host"])

@@ -17,6 +17,7 @@ All times are seconds since the method's first trigger on one monotonic clock.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +37,9 @@ def write_messages(df: pd.DataFrame, out_dir: Path) -> Path:
     """Write ``messages.csv.gz`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / FILE
-    df.to_csv(path, index=False, float_format="%.9g")
+    tmp = out_dir / f".{FILE}.part"
+    df.to_csv(tmp, index=False, float_format="%.9g", compression="gzip")
+    os.replace(tmp, path)  # never a half-written table under the final name
     return path
 
 

@@ -8,6 +8,13 @@ every process merged into one timestamp table (``messages.csv.gz``). The broker
 is our own Mosquitto (started once for all methods) unless ``broker`` names one.
 Every child process and the broker are stopped on the way out, also on errors and
 Ctrl-C (then the partial results of the interrupted method are kept).
+
+Signals: SIGINT, SIGTERM and SIGHUP stop the run the same way (the first one;
+later ones are noted and ignored while the bounded clean-up runs, so a second
+Ctrl-C loses nothing). The methods that finished are always kept, whenever the
+signal comes; only if none finished does :class:`KeyboardInterrupt` reach the
+caller. A :class:`~sigma_des.live.broker.Janitor` removes the temporary folders
+(host configs and logs, the broker's password file) even if we are SIGKILLed.
 """
 
 from __future__ import annotations
@@ -15,12 +22,13 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import signal
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -31,14 +39,21 @@ import pandas as pd
 from sigma_des.api import Results
 from sigma_des.config import METHODS, Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.broker import Broker, BrokerAddress, child_setup, parse_broker, wait_port
+from sigma_des.live.broker import (
+    Broker,
+    BrokerAddress,
+    Janitor,
+    child_setup,
+    parse_broker,
+    wait_port,
+)
 from sigma_des.live.cpu import CpuMeter, message_counts
 from sigma_des.live.loop import Client
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
 from sigma_des.metrics.reports import MethodReport
 
-__all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
+__all__ = ["Interrupts", "LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
 MESSAGE_COLUMNS = ("method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig",
                    "cost", "republish")
@@ -94,6 +109,71 @@ class LiveOptions:
             raise ConfigError("kill_broker_at", "needs our own broker (no --broker)")
 
 
+class Interrupts:
+    """SIGINT, SIGTERM and SIGHUP raise :class:`KeyboardInterrupt` once; later ones are
+    noted on stderr and ignored (what follows is bounded clean-up that keeps results).
+
+    A context manager; a no-op off the main thread or when already installed.
+
+    Attributes:
+        count: signals received so far.
+    """
+
+    SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
+                    if hasattr(signal, n))
+    _active: Interrupts | None = None
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._old: dict[int, Any] = {}
+        self._hold = False
+        self._pending = False
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        self.count += 1
+        if self.count == 1:
+            if self._hold:
+                self._pending = True
+                return
+            raise KeyboardInterrupt
+        print(f"sigma-des: {signal.Signals(signum).name} again: still stopping (keeping "
+              "what finished)", file=sys.stderr, flush=True)
+
+    @contextmanager
+    def held(self) -> Iterator[None]:
+        """A first signal during the block is raised at its end (writing is not cut)."""
+        self._hold = True
+        try:
+            yield
+        finally:
+            self._hold = False
+            if self._pending:
+                self._pending = False
+                raise KeyboardInterrupt
+
+    def mask(self) -> None:
+        """From now on, signals are noted and ignored (e.g. while writing results)."""
+        self.count = max(self.count, 1)
+
+    def __enter__(self) -> Interrupts:
+        import threading
+
+        if Interrupts._active is not None:
+            return Interrupts._active
+        if threading.current_thread() is threading.main_thread():
+            # a signal ignored when we started (nohup, a background job) stays ignored
+            self._old = {s: signal.signal(s, self._handle) for s in self.SIGNALS
+                         if signal.getsignal(s) is not signal.SIG_IGN}
+            Interrupts._active = self
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if Interrupts._active is self:
+            for s, h in self._old.items():
+                signal.signal(s, h)
+            Interrupts._active = None
+
+
 def check_live(sc: Scenario) -> None:
     """Reject what live mode cannot do, naming the key."""
     for m in sc.methods:
@@ -111,11 +191,23 @@ def check_live(sc: Scenario) -> None:
                           "quadrotor, fixedwing), not JSBSim")
 
 
+Done = Callable[[Results, pd.DataFrame], None]
+
+
 def run_live(sc: Scenario, methods: list[str] | None = None,
              opts: LiveOptions | None = None,
-             progress: bool = False
+             progress: bool = False, on_method: Done | None = None,
              ) -> tuple[Results, pd.DataFrame, dict[str, dict[str, list[Any]]]]:
     """Run ``methods`` live on ``sc``.
+
+    Args:
+        sc: the scenario.
+        methods: the methods to run (None: the scenario's).
+        opts: live-only settings.
+        progress: print a line per method on stderr.
+        on_method: called as ``on_method(results, messages)`` after each method that
+            finished while more are to come (``results.interrupted`` is True then: they
+            are partial), e.g. to write them at once.
 
     Returns:
         The Results (as ``compare``'s, ``mode = "live"``), the message table and, per
@@ -124,6 +216,7 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
     Raises:
         ConfigError: unknown method, unsupported keys, mosquitto missing, broker
             unreachable or its port in use.
+        KeyboardInterrupt: SIGINT, SIGTERM or SIGHUP before any method finished.
     """
     opts = opts or LiveOptions()
     ms = tuple(methods) if methods is not None else sc.methods
@@ -133,20 +226,43 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
     res.mode = "live"
     tables: list[pd.DataFrame] = []
     kept: dict[str, dict[str, list[Any]]] = {}
+    with Interrupts() as sig, Janitor() as janitor:
+        try:
+            _run_all(sc, ms, opts, progress, on_method, sig, janitor, res, tables, kept)
+        except KeyboardInterrupt:
+            if not res.methods:
+                raise
+            res.interrupted = True
+    return res, _concat(tables), kept
+
+
+def _concat(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    return pd.concat(tables, ignore_index=True) if tables else pd.DataFrame(
+        columns=list(MESSAGE_COLUMNS))
+
+
+def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: bool,
+             on_method: Done | None, sig: Interrupts, janitor: Janitor, res: Results,
+             tables: list[pd.DataFrame], kept: dict[str, dict[str, list[Any]]]) -> None:
+    """The methods one after another on one broker and one set of host processes."""
     with ExitStack() as stack:
         broker: Broker | None = None
         if opts.broker is None:
-            broker = Broker(port=opts.broker_port, max_inflight=opts.max_inflight)
-            addr = broker.start()
+            broker = Broker(port=opts.broker_port, max_inflight=opts.max_inflight,
+                            janitor=janitor)
             stack.callback(broker.stop)
+            addr = broker.start()
         else:
             host, port = parse_broker(opts.broker)
             if not wait_port(host, port, 2.0):
                 raise ConfigError("--broker", f"nothing accepts connections at {host}:{port}")
             addr = BrokerAddress(host, port, opts.username, opts.password)
         keep = os.environ.get("SIGMA_DES_LIVE_KEEP")  # keep the hosts' logs for debugging
-        d = Path(keep) if keep else Path(stack.enter_context(
-            tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
+        if keep:
+            d = Path(keep)
+        else:
+            d = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
+            janitor.watch(d)
         d.mkdir(parents=True, exist_ok=True)
         runs = [(m, secrets.token_hex(4) + m) for m in ms]
         procs = _spawn_hosts(sc, runs, addr, opts, d, stack)
@@ -161,9 +277,11 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
             if interrupted:
                 res.interrupted = True
                 break
-    msgs = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame(
-        columns=list(MESSAGE_COLUMNS))
-    return res, msgs, kept
+            if on_method is not None and len(res.methods) < len(ms):
+                res.interrupted = True  # partial until the last method is in
+                with sig.held():
+                    on_method(res, _concat(tables))
+                res.interrupted = False
 
 
 def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
