@@ -60,6 +60,9 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
                    help="write results.csv, summary.json, messages.csv.gz and cpu.csv here")
     p.add_argument("--no-plots", action="store_true", help="with --out: no PNG plots")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--force", action="store_true",
+                   help="run even if there are too many host processes for the CPU cores or "
+                   "the memory estimate exceeds the available memory")
     p.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="record every message to an MCAP file (sigma_des.record; "
                    "settings: record.*)")
@@ -109,6 +112,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         from sigma_des.record.cli import check_record_path
 
         check_record_path(args.record)
+        _check_writable(args.record, "--record")
         rec_cls = Recorder
     if args.out:  # a bad output location must not cost the whole run
         from sigma_des.outputs import check_out_dir
@@ -119,8 +123,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
     opts = LiveOptions(broker=args.broker, username=args.username, password=password(args),
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
-                       bundle=args.bundle,
-                       record=rec_cls is not None)
+                       bundle=args.bundle, record=rec_cls is not None, force=args.force)
     with Interrupts() as sig:
         try:
             res, msgs, kept = run_live(sc, methods, opts, progress=not args.no_progress,
@@ -170,6 +173,23 @@ def _write_out(args: argparse.Namespace, res: Results, msgs: pd.DataFrame, plots
 
         paths = write_plots(res, args.out)
         print(f"plots: {', '.join(p.name for p in paths)}")
+
+
+def _check_writable(path: str, key: str) -> None:
+    """Create (and remove) a file next to ``path``: a folder we cannot write in, or one
+    like ``/proc``, is refused before the run, not after it.
+
+    Raises:
+        ConfigError: naming ``key`` and the reason.
+    """
+    import tempfile
+
+    folder = Path(path).parent
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".sigma-des-probe-"):
+            pass
+    except OSError as e:
+        raise ConfigError(key, f"{path}: cannot write in {folder}: {e.strerror or e}") from None
 
 
 def password(args: argparse.Namespace) -> str:

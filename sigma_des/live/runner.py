@@ -53,7 +53,8 @@ from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
 from sigma_des.metrics.reports import MethodReport
 
-__all__ = ["Interrupts", "LiveOptions", "MESSAGE_COLUMNS", "run_live"]
+__all__ = ["Interrupts", "LiveOptions", "MESSAGE_COLUMNS", "check_size", "estimate_live_bytes",
+           "run_live"]
 
 MESSAGE_COLUMNS = ("method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig",
                    "cost", "republish")
@@ -82,6 +83,8 @@ class LiveOptions:
         record: keep what ``live --record`` writes (states' poses, snapshots, renders).
         hook: called as ``hook(addr, topics, server)`` right after the first trigger is
             scheduled (tests use it to start a rogue client).
+        force: run even if :func:`check_size` refuses (too many host processes for the
+            CPU cores, or more memory than is available).
     """
 
     broker: str | None = None
@@ -99,6 +102,7 @@ class LiveOptions:
     idle_window: float = 1.0
     record: bool = False
     hook: Callable[[BrokerAddress, Topics, LiveServer], None] | None = None
+    force: bool = False
 
     def __post_init__(self) -> None:
         if not 0.3 <= self.idle_window <= 60.0:
@@ -174,6 +178,58 @@ class Interrupts:
             Interrupts._active = None
 
 
+#: Resident memory of one host process (Python, NumPy, numba, paho; measured ~190 MB)
+HOST_BYTES = 200 * 2**20
+#: ... and of the server process before its per-run arrays (measured ~235 MB)
+SERVER_BYTES = 256 * 2**20
+#: One message row as the processes keep it (a tuple of 9 Python numbers), bytes
+ROW_BYTES = 300
+#: Host processes per CPU core beyond which the hosts cannot keep real time
+HOSTS_PER_CORE = 4
+
+
+def estimate_live_bytes(sc: Scenario) -> int:
+    """Memory a live run of ``sc`` takes: every process's base, the server's arrays (as
+    ``compare`` estimates them) and the message rows (a state is a row on its host and
+    on the server; a trigger one per host; a command one)."""
+    from sigma_des.budget import estimate_bytes
+
+    frames = sc.duration * sc.f_trig
+    cmds = sc.duration * sc.f_align / sc.commands.every * sc.nodes if sc.commands.enabled else 0
+    rows = 2 * frames * sc.nodes + frames * (sc.hosts + 1) + cmds
+    return int(SERVER_BYTES + sc.hosts * HOST_BYTES + estimate_bytes(sc, 1) + rows * ROW_BYTES)
+
+
+def check_size(sc: Scenario, force: bool = False) -> int:
+    """Refuse, before anything is spawned, a live run this machine cannot hold.
+
+    Returns:
+        The memory estimate (bytes).
+
+    Raises:
+        ConfigError: (key ``hosts``) more host processes than ``HOSTS_PER_CORE`` per CPU
+            core, or (key ``nodes``) more memory than is available; not with ``force``.
+    """
+    from sigma_des.budget import available_bytes
+
+    need = estimate_live_bytes(sc)
+    if force:
+        return need
+    cores = os.cpu_count() or 1
+    if sc.hosts > HOSTS_PER_CORE * cores:
+        raise ConfigError("hosts", f"{sc.hosts} host processes (nodes={sc.nodes}) would be "
+                          f"spawned, but {cores} CPU cores keep at most "
+                          f"{HOSTS_PER_CORE * cores} in real time; lower nodes or hosts, "
+                          "or pass --force")
+    have = available_bytes()
+    if have is not None and need > have:
+        raise ConfigError("nodes", f"a live run of {sc.nodes} nodes on {sc.hosts} hosts over "
+                          f"{sc.duration:g} s needs about {need / 2**30:.3g} GiB, but "
+                          f"{have / 2**30:.3g} GiB is available; lower nodes, hosts or "
+                          "duration, or pass --force")
+    return need
+
+
 def check_live(sc: Scenario) -> None:
     """Reject what live mode cannot do, naming the key."""
     for m in sc.methods:
@@ -214,14 +270,15 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
         method, what the server kept for a recording (empty unless ``opts.record``).
 
     Raises:
-        ConfigError: unknown method, unsupported keys, mosquitto missing, broker
-            unreachable or its port in use.
+        ConfigError: unknown method, unsupported keys, a run too big for this machine
+            (:func:`check_size`), mosquitto missing, broker unreachable or its port in use.
         KeyboardInterrupt: SIGINT, SIGTERM or SIGHUP before any method finished.
     """
     opts = opts or LiveOptions()
     ms = tuple(methods) if methods is not None else sc.methods
     sc = replace(sc, methods=ms)
     check_live(sc)
+    check_size(sc, opts.force)
     res = Results(sc)
     res.mode = "live"
     tables: list[pd.DataFrame] = []
