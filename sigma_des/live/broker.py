@@ -192,6 +192,9 @@ class Broker:
         max_inflight: ``max_inflight_messages`` per client (QoS 1 window; 0 = unlimited).
         executable: path of ``mosquitto`` (default: :func:`find_mosquitto`).
         janitor: removes the broker's folder (its password file) even if we are killed.
+        users: more users (name: password) besides the per-run one, e.g. observers.
+        acl: the text of a Mosquitto ``acl_file`` (``user`` and ``topic`` lines; see
+            docs/LIVE.md); None: no ACL (every user may use every topic).
 
     Raises:
         ConfigError: ``mosquitto`` missing (the message says how to install it), or
@@ -199,7 +202,8 @@ class Broker:
     """
 
     def __init__(self, port: int | None = None, max_inflight: int = 0,
-                 executable: str | None = None, janitor: Janitor | None = None) -> None:
+                 executable: str | None = None, janitor: Janitor | None = None,
+                 users: dict[str, str] | None = None, acl: str | None = None) -> None:
         exe = executable or find_mosquitto()
         if exe is None:
             raise ConfigError("mosquitto", INSTALL_HINT)
@@ -211,14 +215,17 @@ class Broker:
         self.proc: subprocess.Popen[bytes] | None = None
         self._dir: tempfile.TemporaryDirectory[str] | None = None
         self.janitor = janitor
+        self.users = dict(users or {})
+        self.acl = acl
 
     @property
     def address(self) -> BrokerAddress:
         """Where clients connect, with the per-run credentials."""
         return BrokerAddress("127.0.0.1", self.port, self.username, self.password)
 
-    def config_text(self, passwd_path: str, log_path: str) -> str:
+    def config_text(self, passwd_path: str, log_path: str, acl_path: str | None = None) -> str:
         """The generated ``mosquitto.conf``."""
+        acl = [f"acl_file {acl_path}"] if acl_path else []
         return "\n".join(
             [
                 # run as whoever starts it: as root, mosquitto would otherwise drop to
@@ -234,6 +241,7 @@ class Broker:
                 f"log_dest file {log_path}",
                 "log_type error",
                 "log_type warning",
+                *acl,
                 "",
             ]
         )
@@ -251,10 +259,16 @@ class Broker:
         if self.janitor is not None:
             self.janitor.watch(d)
         passwd = d / "passwd"
-        passwd.write_text(password_line(self.username, self.password) + "\n")
+        users = {self.username: self.password, **self.users}
+        passwd.write_text("".join(password_line(u, p) + "\n" for u, p in users.items()))
         passwd.chmod(0o600)
+        acl = None
+        if self.acl is not None:
+            acl = d / "acl"
+            acl.write_text(self.acl)
         conf = d / "mosquitto.conf"
-        conf.write_text(self.config_text(str(passwd), str(d / "mosquitto.log")))
+        conf.write_text(self.config_text(str(passwd), str(d / "mosquitto.log"),
+                                         str(acl) if acl else None))
         self.proc = subprocess.Popen(
             [self.exe, "-c", str(conf)],
             stdin=subprocess.DEVNULL,
