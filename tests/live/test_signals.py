@@ -140,3 +140,33 @@ def test_ctrl_c_while_starting_prints_one_line(tmp_path: Path) -> None:
     assert code in (130, -2) and "Traceback" not in err
     assert err.startswith("sigma-des: interrupted") and err.count("\n") == 1
     assert _left(tmp_path) == []
+
+
+def test_record_and_out_after_ctrl_c_between_methods(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """``live --record --out`` interrupted between methods records and writes the first."""
+    from dataclasses import replace
+
+    from sigma_des.cli import main
+    from sigma_des.live import runner
+    from sigma_des.record import read_table
+
+    real = runner.run_live
+    calls: list[str] = []
+
+    def hook(addr: BrokerAddress, tp: Topics, srv: LiveServer) -> None:
+        calls.append(srv.method)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)
+
+    def with_hook(sc: Any, methods: Any, opts: LiveOptions, **kw: Any) -> Any:
+        return real(sc, methods, replace(opts, hook=hook), **kw)
+
+    monkeypatch.setattr(runner, "run_live", with_hook)
+    rec, out = tmp_path / "live.mcap", tmp_path / "out"
+    sets = [a for s in LIVE_SETS for a in ("--set", s)]
+    assert main(["live", *sets, "--methods", "none,bides", "--record", str(rec), "--out",
+                 str(out), "--no-plots", "--no-progress"]) == 130
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+    table = read_table(rec)
+    assert set(table["method"]) == {"none"} and len(table) > 0
