@@ -185,7 +185,7 @@ SERVER_BYTES = 256 * 2**20
 #: One message row as the processes keep it (a tuple of 9 Python numbers), bytes
 ROW_BYTES = 300
 #: Host processes per CPU core beyond which the hosts cannot keep real time
-HOSTS_PER_CORE = 4
+HOSTS_PER_CORE = 8
 
 
 def estimate_live_bytes(sc: Scenario) -> int:

@@ -53,10 +53,11 @@ def test_too_many_host_processes_are_refused_naming_hosts(
     err = _one_line_error(capsys, ["live", "--set", "nodes=100000"])  # 5000 hosts (20 each)
     assert err.startswith("sigma-des: error: hosts: 5000 host processes (nodes=100000)")
     assert f"at most {2 * HOSTS_PER_CORE}" in err and "--force" in err
-    sc = load(None, ["nodes=180", "hosts=9"])
-    with pytest.raises(ConfigError, match="^hosts: 9 host processes"):
+    sc = load(None, ["nodes=170", "hosts=17"])
+    with pytest.raises(ConfigError, match="^hosts: 17 host processes"):
         run_live(sc, ["none"])
-    check_size(load(None, ["nodes=160", "hosts=8"]))  # 8 = 4 per core: accepted
+    check_size(load(None, ["nodes=160", "hosts=16"]))  # 16 = 8 per core: accepted
+    check_size(load(None, []))  # the default scenario (200 nodes, 10 hosts) runs
 
 
 def test_memory_estimate_refuses_naming_nodes(
