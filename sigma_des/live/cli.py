@@ -112,7 +112,9 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         from sigma_des.record.cli import check_record_path
 
         check_record_path(args.record)
-        _check_writable(args.record, "--record")
+        from sigma_des.guard import output_file
+
+        output_file(args.record, "--record")  # /proc, a read-only folder: now, not after
         rec_cls = Recorder
     if args.out:  # a bad output location must not cost the whole run
         from sigma_des.outputs import check_out_dir
@@ -173,23 +175,6 @@ def _write_out(args: argparse.Namespace, res: Results, msgs: pd.DataFrame, plots
 
         paths = write_plots(res, args.out)
         print(f"plots: {', '.join(p.name for p in paths)}")
-
-
-def _check_writable(path: str, key: str) -> None:
-    """Create (and remove) a file next to ``path``: a folder we cannot write in, or one
-    like ``/proc``, is refused before the run, not after it.
-
-    Raises:
-        ConfigError: naming ``key`` and the reason.
-    """
-    import tempfile
-
-    folder = Path(path).parent
-    try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".sigma-des-probe-"):
-            pass
-    except OSError as e:
-        raise ConfigError(key, f"{path}: cannot write in {folder}: {e.strerror or e}") from None
 
 
 def password(args: argparse.Namespace) -> str:

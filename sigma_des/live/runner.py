@@ -208,9 +208,11 @@ def check_size(sc: Scenario, force: bool = False) -> int:
 
     Raises:
         ConfigError: (key ``hosts``) more host processes than ``HOSTS_PER_CORE`` per CPU
-            core, or (key ``nodes``) more memory than is available; not with ``force``.
+            core, or (key ``memory``, naming nodes, hosts and duration) more memory than
+            is available; not with ``force``.
     """
     from sigma_des.budget import available_bytes
+    from sigma_des.guard import require_memory
 
     need = estimate_live_bytes(sc)
     if force:
@@ -221,13 +223,9 @@ def check_size(sc: Scenario, force: bool = False) -> int:
                           f"spawned, but {cores} CPU cores keep at most "
                           f"{HOSTS_PER_CORE * cores} in real time; lower nodes or hosts, "
                           "or pass --force")
-    have = available_bytes()
-    if have is not None and need > have:
-        raise ConfigError("nodes", f"a live run of {sc.nodes} nodes on {sc.hosts} hosts over "
-                          f"{sc.duration:g} s needs about {need / 2**30:.3g} GiB, but "
-                          f"{have / 2**30:.3g} GiB is available; lower nodes, hosts or "
-                          "duration, or pass --force")
-    return need
+    return require_memory(need, available_bytes(),
+                          f"a live run of nodes={sc.nodes} on hosts={sc.hosts} over "
+                          f"duration={sc.duration:g} s", "lower nodes, hosts or duration")
 
 
 def check_live(sc: Scenario) -> None:

@@ -31,7 +31,7 @@ def test_record_where_nothing_can_be_written_fails_before_the_run(
 
     monkeypatch.setattr(runner, "run_live", no_run)
     err = _one_line_error(capsys, ["live", "--set", "nodes=4", "--record", path])
-    assert err.startswith(f"sigma-des: error: --record: {path}: cannot write in ")
+    assert err.startswith(f"sigma-des: error: --record: cannot write {path}: ")
 
 
 def test_record_probe_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -60,14 +60,15 @@ def test_too_many_host_processes_are_refused_naming_hosts(
     check_size(load(None, []))  # the default scenario (200 nodes, 10 hosts) runs
 
 
-def test_memory_estimate_refuses_naming_nodes(
+def test_memory_estimate_refuses_naming_the_keys(
         capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("sigma_des.budget.available_bytes", lambda: 2**30)  # 1 GiB free
     err = _one_line_error(capsys, ["live", "--set", "nodes=4", "--set", "hosts=2",
                                    "--set", "duration=3000"])
     # 2 hosts x 200 MiB + 256 MiB; rows: 3000 s x (100 Hz x (2 x 4 states + 3 triggers)
     # + 20 Hz x 4 commands) x 300 B = 967 MiB; compare's arrays 99.6 MiB: 1.727 GiB
-    assert "error: nodes: a live run of 4 nodes on 2 hosts over 3000 s needs about 1.73 " in err
+    assert ("error: memory: a live run of nodes=4 on hosts=2 over duration=3000 s needs "
+            "about 1.73 GiB") in err and "lower nodes, hosts or duration, or pass --force" in err
     assert "1 GiB is available" in err
     small = load(None, ["nodes=4", "hosts=2", "duration=1.5"])
     assert check_size(small) < 2**30  # the test scenarios fit
