@@ -90,7 +90,8 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
 
     need("live", "paho", "pandas", extra="live")
     from sigma_des.live.broker import parse_broker
-    from sigma_des.live.runner import Interrupts, LiveOptions, run_live
+    from sigma_des.live.interrupts import Interrupts
+    from sigma_des.live.runner import LiveOptions, run_live
 
     methods = None
     if args.methods is not None:

@@ -22,13 +22,12 @@ from __future__ import annotations
 import json
 import os
 import secrets
-import signal
 import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
-from contextlib import ExitStack, contextmanager
+from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -37,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from sigma_des.api import Results
-from sigma_des.config import METHODS, Scenario, to_dict
+from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import (
     Broker,
@@ -48,13 +47,14 @@ from sigma_des.live.broker import (
     wait_port,
 )
 from sigma_des.live.cpu import CpuMeter, message_counts
+from sigma_des.live.interrupts import Interrupts
+from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
 from sigma_des.metrics.reports import MethodReport
 
-__all__ = ["Interrupts", "LiveOptions", "MESSAGE_COLUMNS", "check_size", "estimate_live_bytes",
-           "run_live"]
+__all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
 MESSAGE_COLUMNS = ("method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig",
                    "cost", "republish")
@@ -111,138 +111,6 @@ class LiveOptions:
             raise ConfigError("--max-inflight", f"must be >= 0, got {self.max_inflight}")
         if self.broker is not None and self.kill_broker_at is not None:
             raise ConfigError("kill_broker_at", "needs our own broker (no --broker)")
-
-
-class Interrupts:
-    """SIGINT, SIGTERM and SIGHUP raise :class:`KeyboardInterrupt` once; later ones are
-    noted on stderr and ignored (what follows is bounded clean-up that keeps results).
-
-    A context manager; a no-op off the main thread or when already installed.
-
-    Attributes:
-        count: signals received so far.
-    """
-
-    SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
-                    if hasattr(signal, n))
-    _active: Interrupts | None = None
-
-    def __init__(self) -> None:
-        self.count = 0
-        self._old: dict[int, Any] = {}
-        self._hold = False
-        self._pending = False
-
-    def _handle(self, signum: int, frame: Any) -> None:
-        self.count += 1
-        if self.count == 1:
-            if self._hold:
-                self._pending = True
-                return
-            raise KeyboardInterrupt
-        print(f"sigma-des: {signal.Signals(signum).name} again: still stopping (keeping "
-              "what finished)", file=sys.stderr, flush=True)
-
-    @contextmanager
-    def held(self) -> Iterator[None]:
-        """A first signal during the block is raised at its end (writing is not cut)."""
-        self._hold = True
-        try:
-            yield
-        finally:
-            self._hold = False
-            if self._pending:
-                self._pending = False
-                raise KeyboardInterrupt
-
-    def mask(self) -> None:
-        """From now on, signals are noted and ignored (e.g. while writing results)."""
-        self.count = max(self.count, 1)
-
-    def __enter__(self) -> Interrupts:
-        import threading
-
-        if Interrupts._active is not None:
-            return Interrupts._active
-        if threading.current_thread() is threading.main_thread():
-            # a signal ignored when we started (nohup, a background job) stays ignored
-            self._old = {s: signal.signal(s, self._handle) for s in self.SIGNALS
-                         if signal.getsignal(s) is not signal.SIG_IGN}
-            Interrupts._active = self
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if Interrupts._active is self:
-            for s, h in self._old.items():
-                signal.signal(s, h)
-            Interrupts._active = None
-
-
-#: Resident memory of one host process (Python, NumPy, numba, paho; measured ~190 MB)
-HOST_BYTES = 200 * 2**20
-#: ... and of the server process before its per-run arrays (measured ~235 MB)
-SERVER_BYTES = 256 * 2**20
-#: One message row as the processes keep it (a tuple of 9 Python numbers), bytes
-ROW_BYTES = 300
-#: Host processes per CPU core beyond which the hosts cannot keep real time
-HOSTS_PER_CORE = 8
-
-
-def estimate_live_bytes(sc: Scenario) -> int:
-    """Memory a live run of ``sc`` takes: every process's base, the server's arrays (as
-    ``compare`` estimates them) and the message rows (a state is a row on its host and
-    on the server; a trigger one per host; a command one)."""
-    from sigma_des.budget import estimate_bytes
-
-    frames = sc.duration * sc.f_trig
-    cmds = sc.duration * sc.f_align / sc.commands.every * sc.nodes if sc.commands.enabled else 0
-    rows = 2 * frames * sc.nodes + frames * (sc.hosts + 1) + cmds
-    return int(SERVER_BYTES + sc.hosts * HOST_BYTES + estimate_bytes(sc, 1) + rows * ROW_BYTES)
-
-
-def check_size(sc: Scenario, force: bool = False) -> int:
-    """Refuse, before anything is spawned, a live run this machine cannot hold.
-
-    Returns:
-        The memory estimate (bytes).
-
-    Raises:
-        ConfigError: (key ``hosts``) more host processes than ``HOSTS_PER_CORE`` per CPU
-            core, or (key ``memory``, naming nodes, hosts and duration) more memory than
-            is available; not with ``force``.
-    """
-    from sigma_des.budget import available_bytes
-    from sigma_des.guard import require_memory
-
-    need = estimate_live_bytes(sc)
-    if force:
-        return need
-    cores = os.cpu_count() or 1
-    if sc.hosts > HOSTS_PER_CORE * cores:
-        raise ConfigError("hosts", f"{sc.hosts} host processes (nodes={sc.nodes}) would be "
-                          f"spawned, but {cores} CPU cores keep at most "
-                          f"{HOSTS_PER_CORE * cores} in real time; lower nodes or hosts, "
-                          "or pass --force")
-    return require_memory(need, available_bytes(),
-                          f"a live run of nodes={sc.nodes} on hosts={sc.hosts} over "
-                          f"duration={sc.duration:g} s", "lower nodes, hosts or duration")
-
-
-def check_live(sc: Scenario) -> None:
-    """Reject what live mode cannot do, naming the key."""
-    for m in sc.methods:
-        if m not in METHODS:
-            raise ConfigError("methods", f"live mode runs {', '.join(METHODS)}, not {m!r}")
-    if getattr(sc.net, "middleware", "mqtt") != "mqtt":
-        raise ConfigError("net.middleware", "live mode runs over MQTT (Mosquitto): must be "
-                          f"'mqtt', got {sc.net.middleware!r}")
-    for i, f in enumerate(sc.faults):
-        if f.kind not in ("crash", "slow"):
-            raise ConfigError(f"faults[{i}].kind", f"live mode runs 'crash' and 'slow' faults, "
-                              f"not {f.kind!r}")
-    if sc.dynamics.startswith("jsbsim:"):
-        raise ConfigError("dynamics", "live mode runs the built-in models (pointmass, "
-                          "quadrotor, fixedwing), not JSBSim")
 
 
 Done = Callable[[Results, pd.DataFrame], None]

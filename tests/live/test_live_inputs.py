@@ -13,7 +13,8 @@ from sigma_des.cli import main
 from sigma_des.config import load
 from sigma_des.errors import ConfigError
 from sigma_des.live import runner
-from sigma_des.live.runner import HOSTS_PER_CORE, LiveOptions, check_size, run_live
+from sigma_des.live.limits import HOSTS_PER_CORE, check_size
+from sigma_des.live.runner import LiveOptions, run_live
 
 
 def _one_line_error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
