@@ -58,6 +58,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +70,7 @@ from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.events.spec import ComputeSpec
 from sigma_des.factory import make_dynamics
+from sigma_des.guard import atomic_write, output_file, read_text
 from sigma_des.live.cpu import CPU_FILE
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, job_services, quantiles
@@ -161,6 +163,24 @@ def _mcap_scenario(path: Path) -> dict[str, Any] | None:
     return None
 
 
+def _summary_scenario(summ: Path) -> dict[str, Any]:
+    """The ``scenario`` table of a live run's ``summary.json``.
+
+    Raises:
+        ConfigError: naming the file if it is not UTF-8 JSON or has no ``scenario`` table.
+    """
+    text = read_text(summ, str(summ), "summary.json")
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ConfigError(str(summ), f"not valid JSON ({e.msg} at line {e.lineno}); expected "
+                          "the summary.json of a `sigma-des live --out` run") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("scenario"), dict):
+        raise ConfigError(str(summ), "has no 'scenario' table; expected the summary.json of "
+                          "a `sigma-des live --out` run")
+    return doc["scenario"]  # type: ignore[no-any-return]
+
+
 def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
     if source.suffix == ".mcap":
         d = _mcap_scenario(source)
@@ -168,8 +188,7 @@ def _base_scenario(source: Path, msgs: pd.DataFrame) -> Scenario:
             return from_dict(Scenario, d)  # type: ignore[no-any-return]
     summ = (source if source.is_dir() else source.parent) / "summary.json"
     if summ.exists():
-        d = json.loads(summ.read_text())["scenario"]
-        return from_dict(Scenario, d)  # type: ignore[no-any-return]
+        return from_dict(Scenario, _summary_scenario(summ))  # type: ignore[no-any-return]
     n = int(msgs["node"].max()) + 1
     return Scenario(nodes=n, hosts=min(n, max(1, int(msgs.get("host", pd.Series([0])).max()) + 1)))
 
@@ -229,13 +248,15 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float) -> dict[str, Any]:
     }
 
 
-def _write_latency_files(d: Path, files: dict[str, NDArray[np.float64]]) -> dict[str, Path]:
-    """Write each sample array as ``<name>.txt`` in ``d``; their paths by name."""
-    d.mkdir(parents=True, exist_ok=True)
+def _write_latency_files(d: Path, files: dict[str, NDArray[np.float64]], key: str
+                         ) -> dict[str, Path]:
+    """Write each sample array as ``<name>.txt`` in ``d`` (all or nothing per file:
+    :func:`~sigma_des.guard.atomic_write`); their paths by name. ``key`` is named in
+    an error."""
     out = {}
     for name, samples in files.items():
-        out[name] = d / f"{name}.txt"
-        np.savetxt(out[name], samples, fmt="%.9g")
+        out[name] = output_file(d / f"{name}.txt", key)
+        atomic_write(out[name], partial(np.savetxt, X=samples, fmt="%.9g"), key)
     return out
 
 
@@ -253,7 +274,8 @@ def _publish_costs(msgs: pd.DataFrame, base: Scenario) -> pd.DataFrame:
 
 
 def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: float,
-               d: Path, tol: float, warn: list[str]) -> tuple[NetSpec, dict[str, Any]]:
+               d: Path, tol: float, warn: list[str], key: str = "--out"
+               ) -> tuple[NetSpec, dict[str, Any]]:
     """Per-direction de-queued hop latencies (and the server's receive queue) as the
     links' empirical latency files (see the module doc)."""
     services = base.broker.publish_service.mean_value() + delivery
@@ -271,7 +293,7 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: 
     else:
         warn.append(f"only {p['down'].size} trigger/command latencies in the window "
                     f"(< {MIN_SAMPLES}): the down direction gets the states' hop latency")
-    paths = _write_latency_files(d, files)
+    paths = _write_latency_files(d, files, key)
     up = Dist(dist="empirical", file=str(paths["hop_up"]))
     down = Dist(dist="empirical", file=str(paths.get("hop_down", paths["hop_up"])))
     srv_down = Dist(dist="empirical", file=str(paths.get("server_down", paths["hop_up"])))
@@ -387,7 +409,8 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
     d = files_dir or (source if source.is_dir() else source.parent)
     if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
         raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
-    net, lat_report = _fit_links(base, w, states, delivery, d, hold_tol, warn)
+    net, lat_report = _fit_links(base, w, states, delivery, d, hold_tol, warn,
+                                 "--out" if files_dir else str(source))
     compute, step_report = _fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
                                         warn)
     topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")

@@ -16,8 +16,9 @@ import argparse
 import os
 import sys
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from sigma_des.config import METHODS, Scenario
 from sigma_des.errors import ConfigError
@@ -198,6 +199,10 @@ def password(args: argparse.Namespace) -> str:
     return os.environ.get(PASSWORD_ENV, "")
 
 
+def _put(body: str, fh: IO[str]) -> None:
+    fh.write(body)
+
+
 def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
     import json
@@ -206,9 +211,15 @@ def run_calibrate(args: argparse.Namespace) -> int:
     from sigma_des.live.insample import in_sample
 
     source = Path(args.source)
+    from sigma_des.guard import atomic_write, input_file, output_file
     from sigma_des.live.dequeue import HOLD_TOL
 
     tol = HOLD_TOL if args.hold_tol is None else args.hold_tol
+    if not source.is_dir():
+        input_file(source, str(source), "live run directory, messages.csv.gz or MCAP recording")
+    if args.out:  # a bad output location must cost nothing: checked before the fit
+        output_file(args.out, "--out")
+        output_file(Path(args.out).with_suffix(".json"), "--out")
     sc, report = calibrate(source, Path(args.out).parent if args.out else None,
                            strict=not args.allow_incomplete, hold_tol=tol)
     if not args.no_check:
@@ -220,9 +231,10 @@ def run_calibrate(args: argparse.Namespace) -> int:
         print(f"sigma-des: warning: {w}", file=sys.stderr)
     if args.out:
         out = Path(args.out)
-        out.write_text(text)
         rep = out.with_suffix(".json")
-        rep.write_text(json.dumps(report, indent=2, default=float) + "\n")
+        rep_text = json.dumps(report, indent=2, default=float) + "\n"
+        for path, body in ((out, text), (rep, rep_text)):
+            atomic_write(path, partial(_put, body))
         print(f"wrote {out} and {rep}")
         for line in report_lines(report):
             if not line.startswith("warning: "):

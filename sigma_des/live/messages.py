@@ -59,10 +59,26 @@ def read_messages(source: Path) -> pd.DataFrame:
     path = source / FILE if source.is_dir() else source
     if not path.exists():
         raise ConfigError(str(source), f"no {FILE} here: pass a `sigma-des live --out` directory")
-    df = pd.read_csv(path)
+    from sigma_des.guard import input_file
+
+    input_file(path, str(path), "live message table (messages.csv.gz)")
+    expected = "a gzip-compressed CSV written by `sigma-des live --out`"
+    try:
+        df = pd.read_csv(path)
+    except pd.errors.EmptyDataError:
+        raise ConfigError(str(path), f"is empty; expected {expected}") from None
+    except (OSError, EOFError, UnicodeDecodeError, pd.errors.ParserError, ValueError) as e:
+        why = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise ConfigError(str(path), f"not readable as {expected} ({why})") from None
     need = {"method", "kind", "node", "frame", "t_send", "t_recv"}
     if not need <= set(df.columns):
         raise ConfigError(str(path), f"missing columns {sorted(need - set(df.columns))}")
+    if df.empty:
+        raise ConfigError(str(path), "has a header but no message rows; expected the "
+                          "messages of a live run")
+    for col in ("node", "frame", "t_send", "t_recv"):
+        if not pd.api.types.is_numeric_dtype(df[col]):
+            raise ConfigError(str(path), f"column {col!r} is not numeric")
     return df
 
 
