@@ -89,6 +89,9 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
         if not self.agents:
             raise RuntimeError("step() on a finished episode (or before reset()): "
                                "call reset()")
+        if not isinstance(actions, Mapping):
+            raise TypeError(f"actions: must be a dict of agent name -> action (agents: "
+                            f"{self.agents}), got {type(actions).__name__}")
         for agent in actions:
             if agent not in self.agents:
                 self._index(agent)

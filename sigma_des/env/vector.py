@@ -49,9 +49,37 @@ from sigma_des.env.scenes import Scene, SceneBatch
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task
 from sigma_des.factory import make_dynamics
 
-__all__ = ["SwarmVec", "SwarmVectorEnv", "check_actions"]
+__all__ = ["SwarmVec", "SwarmVectorEnv", "check_actions", "check_mapping", "check_seed"]
 
 Array = NDArray[np.float64]
+
+
+def check_seed(seed: Any, name: str = "seed") -> int | None:
+    """``seed`` if it is None or a non-negative integer (Gymnasium's rule), else an error
+    naming ``name``.
+
+    Raises:
+        TypeError: not an integer (a bool is refused too).
+        ValueError: a negative integer.
+    """
+    if seed is None:
+        return None
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise TypeError(f"{name}: must be a non-negative int or None, got "
+                        f"{type(seed).__name__} {seed!r}")
+    if seed < 0:
+        raise ValueError(f"{name}: must be a non-negative int or None, got {seed}")
+    return int(seed)
+
+
+def check_mapping(value: Any, name: str, example: str) -> Mapping[str, Any]:
+    """``value`` (None: empty) if it is a mapping, else a TypeError naming ``name``."""
+    if value is None:
+        return {}
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{name}: must be a dict of keys to values (e.g. {example}), got "
+                        f"{type(value).__name__} {value!r}")
+    return value
 
 
 def check_actions(actions: Any, shape: tuple[int, ...], names: list[str]) -> Array:
@@ -105,8 +133,11 @@ class SwarmVec:
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
                  autoreset: str = "next_step", scene_ids: list[int] | None = None) -> None:
+        scenario = check_mapping(scenario, "scenario", "{'nodes': 8}")
+        task_params = check_mapping(task_params, "task_params", "{'w_u': 0.1}")
+        seed = check_seed(seed)
         self.opts = EnvOptions(task, method, max_steps, perfect_info, n_scenes, autoreset)
-        self.task = make_task(task, dict(task_params or {}))
+        self.task = make_task(task, dict(task_params))
         self.sc = build_scenario(self.opts, scenario)
         self.dyn = make_dynamics(self.sc)
         self.agent_nodes = self.task.agents(self.sc.nodes)
@@ -124,7 +155,12 @@ class SwarmVec:
 
     # ------------------------------------------------------------ API
     def reset(self, seed: int | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Restart every scene: episode 0 under ``seed``, else each scene's next episode."""
+        """Restart every scene: episode 0 under ``seed``, else each scene's next episode.
+
+        Raises:
+            TypeError, ValueError: ``seed`` is not None or a non-negative int.
+        """
+        seed = check_seed(seed)
         root = seed if seed is not None else (None if self._started else self._seed)
         self.batch.reset(root)
         self._started = True
