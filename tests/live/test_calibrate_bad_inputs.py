@@ -36,53 +36,37 @@ def _refused(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
     return err
 
 
-MESSAGES = {
-    "random bytes": (np.random.default_rng(5).bytes(4096),
+M, S = "messages.csv.gz", "summary.json"
+BROKEN = {  # the file, its content, the error
+    "random bytes": (M, np.random.default_rng(5).bytes(4096),
                      r"messages\.csv\.gz: not readable as a gzip-compressed CSV"),
-    "0 bytes": (b"", r"messages\.csv\.gz: is empty; expected a gzip-compressed CSV"),
-    "empty gzip": (gzip.compress(b""), r"messages\.csv\.gz: is empty; expected"),
-    "header only": (gzip.compress(b"method,kind,host,node,frame,t_send,t_recv\n"),
+    "0 bytes": (M, b"", r"messages\.csv\.gz: is empty; expected a gzip-compressed CSV"),
+    "empty gzip": (M, gzip.compress(b""), r"messages\.csv\.gz: is empty; expected"),
+    "header only": (M, gzip.compress(b"method,kind,host,node,frame,t_send,t_recv\n"),
                     r"messages\.csv\.gz: has a header but no message rows"),
+    "summary garbage": (S, b"\x00\xff garbage {",
+                        r"summary\.json: not a UTF-8 text summary\.json"),
+    "summary not JSON": (S, b"{scenario: 1",
+                         r"summary\.json: not valid JSON \(Expecting property name"),
+    "summary without scenario": (S, json.dumps({"methods": {}}).encode(),
+                                 r"summary\.json: has no 'scenario' table"),
+    "summary a list": (S, b"[1, 2]", r"summary\.json: has no 'scenario' table"),
 }
 
 
-@pytest.mark.parametrize("case", sorted(MESSAGES))
-def test_a_broken_message_table_is_refused(case: str, tmp_path: Path,
-                                           capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize("case", sorted(BROKEN))
+def test_a_broken_input_file_is_refused(case: str, tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
     run = _good(tmp_path / "run")
-    data, pattern = MESSAGES[case]
-    (run / "messages.csv.gz").write_bytes(data)
+    name, data, pattern = BROKEN[case]
+    (run / name).write_bytes(data)
     before = _files(tmp_path)
     out = tmp_path / "cal" / "c.toml"
     err = _refused(["calibrate", str(run), "--out", str(out), "--no-check"], capsys)
-    assert err.startswith(f"sigma-des: error: {run / 'messages.csv.gz'}: ")
+    assert err.startswith(f"sigma-des: error: {run / name}: ")
     with pytest.raises(ConfigError, match=pattern):
         calibrate(run, tmp_path / "f")
     assert _files(tmp_path) == before  # no scenario, report or sample file
-
-
-SUMMARIES = {
-    "garbage": (b"\x00\xff garbage {", r"summary\.json: not a UTF-8 text summary\.json"),
-    "not JSON": (b"{scenario: 1", r"summary\.json: not valid JSON \(Expecting property name"),
-    "no scenario": (json.dumps({"methods": {}}).encode(),
-                    r"summary\.json: has no 'scenario' table"),
-    "a list": (b"[1, 2]", r"summary\.json: has no 'scenario' table"),
-}
-
-
-@pytest.mark.parametrize("case", sorted(SUMMARIES))
-def test_a_broken_summary_is_refused(case: str, tmp_path: Path,
-                                     capsys: pytest.CaptureFixture[str]) -> None:
-    run = _good(tmp_path / "run")
-    data, pattern = SUMMARIES[case]
-    (run / "summary.json").write_bytes(data)
-    before = _files(tmp_path)
-    err = _refused(["calibrate", str(run), "--out", str(tmp_path / "c.toml"), "--no-check"],
-                   capsys)
-    assert err.startswith(f"sigma-des: error: {run / 'summary.json'}: ")
-    with pytest.raises(ConfigError, match=pattern):
-        calibrate(run, tmp_path / "f")
-    assert _files(tmp_path) == before
 
 
 def test_an_unwritable_out_is_refused_before_the_fit(tmp_path: Path,
