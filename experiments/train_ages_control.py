@@ -28,10 +28,11 @@ from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from train_under_delay import _ci, _train_one, cells, env_kwargs  # noqa: E402
+from train_under_delay import _train_one  # noqa: E402
 
 from sigma_des import __version__  # noqa: E402
 from sigma_des.env.learn import score  # noqa: E402
+from sigma_des.studies.delay import cells, ci95, env_kwargs  # noqa: E402
 
 #: Age columns of the ``tight`` observation (own, leader, nearest neighbour).
 AGE_COLUMNS = [5, 8, 13]
@@ -78,10 +79,10 @@ def main(argv: list[str] | None = None) -> int:
         table.append({
             "cell": cell, "n_seeds": len(seeds), "reproduces_study": bool(
                 np.array_equal(sh, study_p)),
-            "perfect_shown_mean": float(sh.mean()), "perfect_shown_ci95": _ci(sh),
-            "perfect_hidden_mean": float(hi.mean()), "perfect_hidden_ci95": _ci(hi),
+            "perfect_shown_mean": float(sh.mean()), "perfect_shown_ci95": ci95(sh),
+            "perfect_hidden_mean": float(hi.mean()), "perfect_hidden_ci95": ci95(hi),
             "delay_trained_mean": float(d.mean()),
-            "diff_vs_hidden_mean": float((d - hi).mean()), "diff_vs_hidden_ci95": _ci(d - hi),
+            "diff_vs_hidden_mean": float((d - hi).mean()), "diff_vs_hidden_ci95": ci95(d - hi),
             "t_p_delay_beats_hidden": float(stats.ttest_rel(d, hi, alternative="greater").pvalue)})
     with (out / "control.csv").open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=[*table[0], "learner", "version"])

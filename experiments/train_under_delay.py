@@ -37,34 +37,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from sigma_des import __version__
 from sigma_des.env.controllers import extrapolating, naive
 from sigma_des.env.learn import CEMConfig, act, score, train
 from sigma_des.env.tasks import TightTask, make_task
 from sigma_des.studies import plot_setup, save
+from sigma_des.studies.delay import cells, ci95, env_kwargs, paired_cells
 
 Policy = Callable[[np.ndarray], np.ndarray]
-
-
-def cells(delays: list[float], methods: list[str]) -> list[str]:
-    """Condition names: ``perfect`` then ``<method>@<ms>ms`` per delay cell."""
-    return ["perfect"] + [f"{m}@{round(d * 1000)}ms" for d in delays for m in methods]
-
-
-def env_kwargs(cond: str, nodes: int, max_steps: int, loss: float) -> dict[str, Any]:
-    """SwarmVec arguments of a condition (see :func:`cells`)."""
-    sc: dict[str, Any] = {"nodes": nodes}
-    if cond == "perfect":
-        return {"task": "tight", "method": "none", "max_steps": max_steps,
-                "perfect_info": True, "scenario": sc}
-    method, ms = cond.split("@")
-    lat = float(ms.removesuffix("ms")) / 1000.0
-    sc["net.host_link.latency"] = {"dist": "normal", "mean": lat, "std": lat / 5}
-    sc["net.host_link.loss"] = {"p": loss}
-    return {"task": "tight", "method": method, "max_steps": max_steps, "perfect_info": False,
-            "scenario": sc}
 
 
 def _train_one(a: argparse.Namespace, cond: str, seed: int, history: list[dict[str, Any]]
@@ -94,40 +75,6 @@ def _train_one(a: argparse.Namespace, cond: str, seed: int, history: list[dict[s
         history += [{"learner": "ppo", "trained": cond, "seed": seed, **r} for r in hist]
         used = hist[-1]["agent_steps"] if hist else float(a.ppo_steps)
     return policy, time.perf_counter() - t0, used
-
-
-def _ci(x: np.ndarray) -> float:
-    """Half-width of the 95 % t interval of the mean (0 for one value)."""
-    n = len(x)
-    if n < 2:
-        return 0.0
-    return float(stats.t.ppf(0.975, n - 1) * x.std(ddof=1) / np.sqrt(n))
-
-
-def _stats(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
-           ) -> list[dict[str, Any]]:
-    """Per delay cell: both trainings under that delay, CI and the paired tests."""
-    fit = {(e["trained"], e["seed"], e["evaluated"]): e["fitness"] for e in evals}
-    rows = []
-    for cell in conds[1:]:
-        d = np.array([fit[(cell, s, cell)] for s in seeds])
-        p = np.array([fit[("perfect", s, cell)] for s in seeds])
-        diff = d - p
-        row: dict[str, Any] = {
-            "cell": cell, "n_seeds": len(seeds),
-            "delay_trained_mean": float(d.mean()), "delay_trained_ci95": _ci(d),
-            "perfect_trained_mean": float(p.mean()), "perfect_trained_ci95": _ci(p),
-            "diff_mean": float(diff.mean()), "diff_ci95": _ci(diff),
-            "t_p_greater": float("nan"), "wilcoxon_p_greater": float("nan")}
-        if len(seeds) >= 2 and np.ptp(diff) > 0:
-            row["t_p_greater"] = float(stats.ttest_rel(d, p, alternative="greater").pvalue)
-        if len(seeds) >= 2 and np.any(diff != 0):
-            row["wilcoxon_p_greater"] = float(
-                stats.wilcoxon(d, p, alternative="greater").pvalue)
-        for name in ("untrained", "naive", "extrapolating"):
-            row[f"{name}_fitness"] = fit.get((name, -1, cell), float("nan"))
-        rows.append(row)
-    return rows
 
 
 def _parse(argv: list[str] | None) -> argparse.Namespace:
@@ -217,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"({wall:.0f} s, {used / wall:,.0f} agent-steps/s); evaluated under it: "
                   f"{own['fitness']:.3f}", flush=True)
         # outputs after every seed: an interrupted study keeps its finished seeds
-        table = _stats(evals, conds, seeds[: k + 1])
+        table = paired_cells(evals, conds, seeds[: k + 1])
         _write(out, a, history, evals, cost, table, time.perf_counter() - t_start,
                seeds[: k + 1])
     for r in table:
@@ -259,7 +206,7 @@ def merge(a: argparse.Namespace) -> int:
     a.seeds, a.seed_ids, a.merged_from = len(done), done, list(a.merge)
     history = [{k: v for k, v in r.items() if k not in ("version", "learner")}
                | {"learner": a.learner} for r in history]
-    table = _stats(evals, cells(a.delay_list, a.method_list), done)
+    table = paired_cells(evals, cells(a.delay_list, a.method_list), done)
     Path(a.out).mkdir(parents=True, exist_ok=True)
     _write(Path(a.out), a, history, evals, cost, table,
            sum(p["wall_s"] for p in parts), done)
@@ -303,7 +250,7 @@ def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
             v = np.array([r["fitness"] for r in rows if r["agent_steps"] == x], dtype=float)
             v = v[np.isfinite(v)]
             m.append(v.mean() if v.size else np.nan)
-            h.append(_ci(v) if v.size else np.nan)
+            h.append(ci95(v) if v.size else np.nan)
         m_, h_ = np.array(m), np.array(h)
         color = f"C{i}"
         ax.plot(xs, m_, color=color, marker="o", ms=3, label=f"trained {cond}")

@@ -11,6 +11,7 @@ share lives here:
 * :mod:`~sigma_des.studies.output` — ``results.csv``, ``timeseries.csv``, ``summary.json``;
 * :mod:`~sigma_des.studies.plots` — colours, bars, AoI panels (matplotlib, Agg);
 * :mod:`~sigma_des.studies.tables` — the one table formatter (text and Markdown).
+* :mod:`~sigma_des.studies.delay` — the delay study's conditions and paired statistics.
 """
 
 from sigma_des.studies.args import (
