@@ -218,7 +218,7 @@ class MethodRun(AlignmentServer):
 
     def tick_cost(self, t: float) -> None:
         """An alignment tick: a ``deployment.server_tick`` burst on the server's process."""
-        self.net.server_tick(t)
+        self.core.server_tick(t)  # the CPU state lives in the message core
 
     def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
         """True positions of ``frame`` (None once it left the truth ring)."""

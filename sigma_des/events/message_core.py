@@ -48,6 +48,11 @@ class MessageCore(Protocol):
         """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
         ...
 
+    def server_tick(self, t: float) -> None:
+        """An alignment tick at ``t`` spends the server process's CPU (a
+        ``deployment.server_tick`` burst; nothing without a CPU stage)."""
+        ...
+
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Run the messages the core holds up to ``bound`` (``< bound`` if ``strict``).
 
@@ -99,6 +104,10 @@ class EventCore:
         """One PUBLISH to ``node`` (payload ``frame``, index ``frame * 64 + min(retry, 63)``)."""
         self.net.publish(self.server, REREQUEST, node, frame * 64 + min(retry, 63), frame,
                          self.trigger_bits, (node,))
+
+    def server_tick(self, t: float) -> None:
+        """The network's CPU stage takes the tick's burst."""
+        self.net.server_tick(t)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Nothing to run: the messages are events of the engine's own kernel."""

@@ -108,6 +108,15 @@ class Process:
         if hi > lo:
             self.busy += hi - lo
 
+    def carried(self, free: float, busy: float, max_wait: float, bursts: int) -> None:
+        """Bursts served elsewhere (the compiled core): free again at ``free`` at the
+        latest, ``busy`` more CPU seconds, a longest wait of ``max_wait``, ``bursts``
+        more bursts in the window."""
+        self.free = max(self.free, free)
+        self.busy += busy
+        self.max_wait = max(self.max_wait, max_wait)
+        self.bursts += bursts
+
     def burst(self, a: float, demand: float) -> float:
         """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its end."""
         s, c = self.acquire(a)

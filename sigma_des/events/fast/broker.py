@@ -3,12 +3,22 @@
 One FIFO server (the Lindley recursion, one departure after another): a PUBLISH
 takes its publish service, then each matching subscriber its delivery service,
 and every delivery leaves over the subscriber's down link — the same operations,
-in the same order, as :mod:`sigma_des.net.network`.
+in the same order, as :mod:`sigma_des.net.network` and :mod:`sigma_des.net.broker`.
+With a CPU stage the broker is a process (:mod:`~sigma_des.events.fast.cpu`): a
+service starts on its machine's core, its times are scaled by the background
+slow-down, and the core is held until the last delivery leaves.
 """
 
 from __future__ import annotations
 
+from sigma_des.events.fast.cpu import acquire, hold
 from sigma_des.events.fast.layout import (
+    BCAST,
+    CL_OF,
+    CP_BROKER,
+    CP_NSUB,
+    CPU_IP,
+    CPU_SCALE,
     E_ATT,
     E_AUX,
     E_FRAME,
@@ -77,15 +87,25 @@ def _work(S, a, b):  # type: ignore[no-untyped-def]
 
 @jit
 def broker(S, s, now):  # type: ignore[no-untyped-def]
-    """The PUBLISH in slot ``s`` reaches the broker at ``now``."""
+    """The PUBLISH in slot ``s`` reaches the broker at ``now`` (Broker.serve_publish and
+    Network._broker_receive; with a CPU stage the broker's process takes a core)."""
     kind, subject, index = key_of(S, s)
     ff = S[FLOATS]
     q = S[IPARAMS]
     n = q[Q_N]
     att = S[EV_INT][s, E_ATT]  # the PUBLISH's attempt keys the service draws
     s_pub = draw_at(S, SVC_PUB, kind, subject, index, att, False)
-    busy = ff[F_BUSY]
-    start = now if now > busy else busy
+    bp = S[CPU_IP][CP_BROKER]
+    scaled = bp >= 0
+    c = 0
+    sc = 1.0
+    if scaled:
+        start, c = acquire(S, bp, now)  # its thread is free at F_BUSY
+        sc = S[CPU_SCALE][bp]
+        s_pub = s_pub * sc
+    else:
+        busy = ff[F_BUSY]
+        start = now if now > busy else busy
     if in_window(S, now):
         ff[F_MAXWAIT] = max(ff[F_MAXWAIT], start - now)
     if q[Q_QOS1S]:
@@ -93,15 +113,25 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     elif S[TR_PARAMS][T_QOS1D]:
         puback_broker(S, s, start + s_pub, now)
     d = start + s_pub
-    if subject == n:  # a broadcast: one delivery per node, keyed by the subscriber
-        for sub in range(n):
-            d += draw_at(S, SVC_DEL, kind, sub, index, att, False)
+    if subject == n:  # a broadcast: one delivery per subscriber, keyed by the subscriber
+        bc = S[BCAST]
+        for j in range(S[CPU_IP][CP_NSUB]):
+            sub = bc[j]
+            x = draw_at(S, SVC_DEL, kind, sub, index, att, False)
+            if scaled:
+                x = x * sc
+            d += x
             _deliver(S, s, sub, sub, d)
-    else:
-        sub = n if kind == K_STATE or kind == K_REPUB else subject
-        d += draw_at(S, SVC_DEL, kind, subject, index, att, False)
+    else:  # to the server, or to the client of the node it is about
+        sub = n if kind == K_STATE or kind == K_REPUB else S[CL_OF][subject]
+        x = draw_at(S, SVC_DEL, kind, subject, index, att, False)
+        if scaled:
+            x = x * sc
+        d += x
         _deliver(S, s, sub, subject, d)
     ff[F_BUSY] = d
+    if scaled:
+        hold(S, bp, now, start, c, d)
     _work(S, start, d)
 
 
@@ -110,8 +140,15 @@ def serve_delivery(S, kind, subject, index, attempt, now):  # type: ignore[no-un
     """Broker.serve_delivery: one QoS 1 redelivery asked for ``now``; its departure."""
     ff = S[FLOATS]
     s_del = draw_at(S, SVC_DEL, kind, subject, index, attempt, False)
-    busy = ff[F_BUSY]
-    start = now if now > busy else busy
-    ff[F_BUSY] = start + s_del
-    _work(S, start, start + s_del)
-    return start + s_del
+    bp = S[CPU_IP][CP_BROKER]
+    if bp < 0:
+        busy = ff[F_BUSY]
+        start = now if now > busy else busy
+        end = start + s_del
+    else:
+        start, c = acquire(S, bp, now)
+        end = start + s_del * S[CPU_SCALE][bp]
+        hold(S, bp, now, start, c, end)
+    ff[F_BUSY] = end
+    _work(S, start, end)
+    return end

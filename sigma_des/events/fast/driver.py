@@ -119,6 +119,7 @@ class CompiledCore:
         pay = L.EF_PAY + max(OBS_WIDTH, M)
         dup_all = self.attempts.qos1d
         seen = self._lockstep or dup_all
+        cpu = h.net.cpu
         cap = 4 * (n + 1) + SLACK
         return {
             "cap": cap, "arena": ARENA * cap, "n": n, "clients": n + 1, "links": spec.hosts + 1,
@@ -134,6 +135,10 @@ class CompiledCore:
             "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
             "deg": max(1, len(spec.net.degrades)), "drops": max(1, len(spec.net.drops)),
             "ntp_j": ntp_syncs(spec),
+            # deployment: processes (broker, server, hosts), machines, their cores
+            "procs": spec.hosts + 2, "clients_1": n + 2,
+            "machines": len(cpu.machines) if cpu is not None else 1,
+            "cpu_cores": cpu.cores if cpu is not None else 1,
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -191,6 +196,49 @@ class CompiledCore:
             "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
         }
 
+    def _deployment(self) -> dict[str, NDArray[Any]]:
+        """Processes, machines and MQTT clients (what Network and Cpu hold)."""
+        h = self.host
+        net, n = h.net, h.n
+        dep = h.spec.net.deployment
+        topo = h.spec.net.topology
+        cpu = net.cpu
+        H = topo.hosts
+        ip = np.zeros(L.CP_LEN, dtype=np.int64)
+        proc = np.full(n + 1, -1, dtype=np.int64)
+        demand = np.zeros(n + 1)
+        mach = np.zeros(H + 2, dtype=np.int64)
+        scale = np.ones(H + 2)
+        if cpu is not None:
+            # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
+            assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
+            for p, pr in enumerate(cpu.processes):
+                mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
+                scale[p] = pr.scale
+            ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
+            for i in range(n + 1):  # Network._proc: no burst for a zero demand
+                d = dep.host_demand if i < n else dep.server_demand
+                if d > 0.0:
+                    proc[i] = L.P_HOST0 + topo.host_of[i] if i < n else L.P_SERVER
+                    demand[i] = d
+        else:
+            ip[L.CP_BROKER] = -1
+        ip[L.CP_HOSTS] = int(net.host_clients)
+        ip[L.CP_APP] = int(net.host_clients or bool((proc >= 0).any()))
+        cl_of = np.array(net.client_of, dtype=np.int64)
+        subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
+        ip[L.CP_NSUB] = len(subs)
+        bcast = np.full(n + 1, -1, dtype=np.int64)
+        bcast[: len(subs)] = subs
+        ptr = np.zeros(n + 2, dtype=np.int64)
+        mem: list[int] = []
+        for c in range(n + 1):
+            mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
+            ptr[c + 1] = len(mem)
+        return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
+                "cpu_scale": scale, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
+                "mem": np.array(mem, dtype=np.int64)}
+
     def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
         h = self.host
         spec = h.spec
@@ -202,7 +250,7 @@ class CompiledCore:
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
-            **self._links(), **self._nodes(), **self.attempts.given(),
+            **self._links(), **self._nodes(), **self.attempts.given(), **self._deployment(),
             **link_tables(h.net, spec), **clock_tables(h.nodes.clocks, spec),
         }
 
@@ -284,6 +332,14 @@ class CompiledCore:
         self.attempts.fill_ack(REPUBLISH, index)
         self.ensure_space(2)
         loop.publish_rerequest(self.S, node, frame, index, self.host.kernel.now)
+
+    def server_tick(self, t: float) -> None:
+        """An alignment tick at ``t``: a ``deployment.server_tick`` burst on the server's
+        process (Network.server_tick), after every message at or before ``t``."""
+        h = self.host
+        tick = h.spec.net.deployment.server_tick
+        if h.net.cpu is not None and tick > 0.0:
+            loop.tick(self.S, L.P_SERVER, tick, t)
 
     # ------------------------------------------------------------ nodes
 
@@ -441,6 +497,15 @@ class CompiledCore:
         tr[L.T_RETX] = tr[L.T_GAVE] = 0
         h.net.broker.carried(float(fv[L.F_BUSY]), float(fv[L.F_WORK]), float(fv[L.F_MAXWAIT]))
         fv[L.F_WORK] = fv[L.F_MAXWAIT] = 0.0
+        cpu = h.net.cpu
+        if cpu is not None:  # every burst of the run was served here (server ticks too)
+            acc = S[L.CPU_ACC]
+            nb = S[L.CPU_BURSTS]
+            for p, proc in enumerate(cpu.processes):
+                proc.carried(float(S[L.CPU_FREE][p]), float(acc[p, L.CA_BUSY]),
+                             float(acc[p, L.CA_WAIT]), int(nb[p]))
+            acc[:] = 0.0
+            nb[:] = 0
         h.nodes.count_history_misses(int(iv[L.I_HMISS]))
         h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]), int(iv[L.I_DUPS]))
         h.kernel.count(int(iv[L.I_NEV]))

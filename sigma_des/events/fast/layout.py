@@ -107,6 +107,17 @@ T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
 T_ILEN = 6
 C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
+# F3 — deployment (issue 24, docs/MODEL.md "Deployment and CPU"): event types of a
+# publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to
+# the application (after its receive burst, or at once with per-host clients), the
+# deployment's int parameters (S.cpu_ip) and the processes' rows (S.cpu_acc)
+EV_SEND, EV_APP = 4, 5
+CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB = range(4)
+CP_LEN = 4
+#: process indices (the spec's ``Cpu.processes`` order): broker, server, host h at 2 + h
+P_BROKER, P_SERVER, P_HOST0 = 0, 1, 2
+CA_BUSY, CA_WAIT = range(2)
+
 
 @dataclass(frozen=True)
 class Field:
@@ -225,6 +236,21 @@ FIELDS: tuple[Field, ...] = (
     Field("conn", _i, (4, 2, "clients"), None,
           "stream connections (down, up) per client: next seq, next to deliver, pending list"),
     Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
+    # F3 — deployment: processes on machines' cores (``procs`` = hosts + 2, ``machines``,
+    # ``cpu_cores``) and per-host MQTT clients (``clients_1`` = clients + 1)
+    Field("cpu_ip", _i, (CP_LEN,), None, "deployment int parameters CP_*"),
+    Field("cpu_proc", _i, ("clients",), None, "process of each client's bursts (-1: none)"),
+    Field("cpu_dem", _f, ("clients",), None, "CPU demand of each client's bursts (s)"),
+    Field("cpu_mach", _i, ("procs",), None, "machine of each process"),
+    Field("cpu_scale", _f, ("procs",), None, "background slow-down of each process"),
+    Field("cpu_free", _f, ("procs",), 0.0, "process thread: free again at"),
+    Field("cpu_core", _f, ("machines", "cpu_cores"), 0.0, "machine cores: free again at"),
+    Field("cpu_acc", _f, ("procs", 2), 0.0, "process CPU seconds and longest wait in window"),
+    Field("cpu_bursts", _i, ("procs",), 0.0, "bursts arriving in the window, per process"),
+    Field("cl_of", _i, ("clients",), None, "MQTT client of each node (the server's: itself)"),
+    Field("bcast", _i, ("clients",), None, "a broadcast's subscribers (first CP_NSUB)"),
+    Field("mem_ptr", _i, ("clients_1",), None, "nodes of client c: mem[ptr[c]:ptr[c+1]]"),
+    Field("mem", _i, ("n",), None, "nodes of each client, in node order"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -307,6 +333,19 @@ X_VAL = INDEX["x_val"]
 X_TAG = INDEX["x_tag"]
 CONN = INDEX["conn"]
 TR_FLOATS = INDEX["tr_floats"]
+CPU_IP = INDEX["cpu_ip"]
+CPU_PROC = INDEX["cpu_proc"]
+CPU_DEM = INDEX["cpu_dem"]
+CPU_MACH = INDEX["cpu_mach"]
+CPU_SCALE = INDEX["cpu_scale"]
+CPU_FREE = INDEX["cpu_free"]
+CPU_CORE = INDEX["cpu_core"]
+CPU_ACC = INDEX["cpu_acc"]
+CPU_BURSTS = INDEX["cpu_bursts"]
+CL_OF = INDEX["cl_of"]
+BCAST = INDEX["bcast"]
+MEM_PTR = INDEX["mem_ptr"]
+MEM = INDEX["mem"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

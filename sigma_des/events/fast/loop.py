@@ -25,7 +25,11 @@ specification uses, and the loop reads them.
 from __future__ import annotations
 
 from sigma_des.events.fast.broker import broker
+from sigma_des.events.fast.clients import hand_over, receive
+from sigma_des.events.fast.cpu import tick
 from sigma_des.events.fast.layout import (
+    CP_APP,
+    CPU_IP,
     DRAW_MISS,
     E_AUX,
     E_FRAME,
@@ -40,6 +44,7 @@ from sigma_des.events.fast.layout import (
     EV_FLOAT,
     EV_INT,
     EV_RESEND,
+    EV_SEND,
     HEAP_K,
     HEAP_R,
     HEAP_T,
@@ -92,9 +97,10 @@ from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.stream import next_ready
-from sigma_des.events.fast.transport import puback_client, send_up
+from sigma_des.events.fast.transport import puback_client, send_burst_done, send_up
 
-__all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve"]
+__all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve",
+           "tick"]
 
 
 @jit
@@ -106,6 +112,9 @@ def _client(S, s, now):  # type: ignore[no-untyped-def]
         count(S, sub, 1, q[Q_ACK], now)
     elif S[TR_PARAMS][T_QOS1D]:
         puback_client(S, s, now)
+    if S[CPU_IP][CP_APP]:  # a receive burst or a host client's hand-over (clients.py)
+        receive(S, s, now)
+        return
     delivered(S, s, now)
     if sub == q[Q_N]:
         at_server(S, s, now)
@@ -256,8 +265,12 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             broker(S, s, t)
         elif typ == EV_RESEND:
             resend(S, s, t)
-        else:
+        elif typ == EV_DONE:
             done(S, s, t)
+        elif typ == EV_SEND:
+            send_burst_done(S, s, t)
+        else:
+            hand_over(S, s, t)  # EV_APP: the receive burst ended
         release(S, s)
         if iv[I_ERR]:
             return DRAW_MISS

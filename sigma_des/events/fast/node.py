@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from sigma_des.events.fast.clock import local_time
 from sigma_des.events.fast.layout import (
+    CL_OF,
     CMD,
     CORES,
     CRASH,
@@ -171,7 +172,7 @@ def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
         lf[i, 1] = evf[ns, EF_L]
         for j in range(w):
             lf[i, 2 + j] = evf[ns, EF_PAY + j]
-    send_up(S, ns, i, K_STATE, i, target, now)
+    send_up(S, ns, S[CL_OF][i], K_STATE, i, target, now)  # through i's MQTT client
 
 
 @jit
@@ -230,7 +231,7 @@ def _rerequest(S, s, i, now):  # type: ignore[no-untyped-def]
             evf[ns, EF_PAY + j] = lf[i, 2 + j]
         evi[ns, E_AUX] = li[i, 1]
         evi[ns, E_FRAME] = frame
-        send_up(S, ns, i, K_REPUB, i, evi[s, E_INDEX], now)
+        send_up(S, ns, S[CL_OF][i], K_REPUB, i, evi[s, E_INDEX], now)
     elif S[NODE][N_REQ, i] < frame:
         _request(S, i, frame, now)
 

@@ -76,10 +76,6 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
         why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
     if method == "rpc":
         why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
-    dep = sc.net.deployment
-    if dep.cpu:
-        why.append(f"deployment.preset {dep.preset!r} (the CPU stage: bursts on machines' cores)")
-    if dep.clients == "host":
-        why.append("deployment.clients 'host' (per-host MQTT clients"
-                   + (", bundled states)" if dep.bundle else ")"))
+    if sc.net.deployment.bundle:
+        why.append("deployment.bundle (a host's states of one instant as one PUBLISH)")
     return "; ".join(why) if why else None

@@ -16,7 +16,10 @@ Without QoS 1 over datagram :func:`send` is one hop
 
 from __future__ import annotations
 
+from sigma_des.events.fast.cpu import burst
 from sigma_des.events.fast.layout import (
+    CPU_DEM,
+    CPU_PROC,
     E_ATT,
     E_RTYPE,
     E_TACT,
@@ -27,6 +30,7 @@ from sigma_des.events.fast.layout import (
     EV_FLOAT,
     EV_INT,
     EV_RESEND,
+    EV_SEND,
     IPARAMS,
     Q_ACK,
     Q_N,
@@ -54,7 +58,7 @@ from sigma_des.events.fast.primitives import (
 )
 from sigma_des.events.fast.stream import stream_send
 
-__all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_up"]
+__all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_burst_done", "send_up"]
 
 
 @jit
@@ -110,9 +114,26 @@ def send(S, slot, t):  # type: ignore[no-untyped-def]
 
 @jit
 def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untyped-def]
-    """A PUBLISH (payload already in ``slot``) leaves ``client`` for the broker."""
+    """``client`` publishes the PUBLISH in ``slot`` (payload already there) at ``t``
+    (Network._send): after its process's burst, if its demand is not zero, it leaves
+    for the broker (an ``EV_SEND`` event at the burst's end: :func:`send_burst_done`)."""
     address(S, slot, EV_BROKER, client, kind, subject, index)
-    send(S, slot, t)
+    p = S[CPU_PROC][client]
+    if p < 0:
+        send(S, slot, t)
+        return
+    S[EV_INT][slot, E_TYPE] = EV_SEND
+    push(S, burst(S, p, S[CPU_DEM][client], t), slot)
+
+
+@jit
+def send_burst_done(S, s, now):  # type: ignore[no-untyped-def]
+    """The publish burst of the PUBLISH in slot ``s`` ends: its first try leaves
+    (Network._publish_try; the event's slot is freed after it, so a copy travels)."""
+    ns = alloc(S)
+    copy_slot(S, s, ns)
+    S[EV_INT][ns, E_TYPE] = EV_BROKER
+    send(S, ns, now)
 
 
 @jit

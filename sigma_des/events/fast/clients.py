@@ -1,0 +1,88 @@
+"""What a client's application gets, in the compiled message core (docs/MODEL.md,
+"Deployment and CPU").
+
+``Network._client_receive`` and ``_hand_over``, with the same operations in the
+same order: a copy that reaches its client (after the PUBACK) is a burst of the
+client's process when its demand is not zero — the application gets it at the
+burst's end, an ``EV_APP`` event (:func:`receive`) — and is then handed over
+(:func:`hand_over`): to the server's aligner, to the node it reached, or, with
+per-host clients, from the host's client to its nodes (a trigger to each in node
+order, a command or re-request to the node it is about), each hand-over counted
+as a delivery (``Collector.delivered``) to that node.
+"""
+
+from __future__ import annotations
+
+from sigma_des.events.fast.cpu import burst
+from sigma_des.events.fast.layout import (
+    CP_HOSTS,
+    CPU_DEM,
+    CPU_IP,
+    CPU_PROC,
+    E_ATT,
+    E_KIND,
+    E_SUBJ,
+    E_TYPE,
+    E_WHO,
+    EV_APP,
+    EV_INT,
+    IPARAMS,
+    K_TRIGGER,
+    MEM,
+    MEM_PTR,
+    Q_N,
+)
+from sigma_des.events.fast.node import at_node
+from sigma_des.events.fast.primitives import alloc, jit, push
+from sigma_des.events.fast.server import at_server, delivered
+from sigma_des.events.fast.transport import copy_slot
+
+__all__ = ["hand_over", "receive"]
+
+
+@jit
+def _to_node(S, s, j, now):  # type: ignore[no-untyped-def]
+    """Hand the copy in slot ``s`` to node ``j`` (its receiver and draw subject)."""
+    evi = S[EV_INT]
+    evi[s, E_WHO] = j
+    evi[s, E_SUBJ] = j
+    delivered(S, s, now)
+    at_node(S, s, now)
+
+
+@jit
+def hand_over(S, s, now):  # type: ignore[no-untyped-def]
+    """Network._hand_over: the receiving client's application gets the copy in ``s``."""
+    evi = S[EV_INT]
+    c = evi[s, E_WHO]
+    if c == S[IPARAMS][Q_N]:
+        delivered(S, s, now)
+        at_server(S, s, now)
+    elif not S[CPU_IP][CP_HOSTS]:
+        delivered(S, s, now)
+        at_node(S, s, now)
+    elif evi[s, E_KIND] == K_TRIGGER:  # the broadcast: to every node of the host
+        ptr = S[MEM_PTR]
+        mem = S[MEM]
+        for m in range(ptr[c], ptr[c + 1]):
+            _to_node(S, s, mem[m], now)
+    else:  # a message about one node (command, re-request): to that node
+        _to_node(S, s, evi[s, E_SUBJ], now)
+
+
+@jit
+def receive(S, s, now):  # type: ignore[no-untyped-def]
+    """The copy in ``s`` reached its client at ``now`` (its PUBACK already sent): a burst
+    of the client's process, then the hand-over (an ``EV_APP`` event), or the
+    hand-over at once for a zero demand."""
+    c = S[EV_INT][s, E_WHO]
+    p = S[CPU_PROC][c]
+    if p < 0:
+        hand_over(S, s, now)
+        return
+    ns = alloc(S)  # the event's slot is freed after it: a copy waits for the burst
+    copy_slot(S, s, ns)
+    evi = S[EV_INT]
+    evi[ns, E_TYPE] = EV_APP
+    evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
+    push(S, burst(S, p, S[CPU_DEM][c], now), ns)
