@@ -1,0 +1,118 @@
+"""The cohort core reproduces the deployment exactly (docs/MODEL.md, "Engines",
+"Deployment and CPU").
+
+The CPU stage (bursts at publish, receive, broker service and the server's alignment
+tick, on colocated or dedicated machines, with background load) and per-host MQTT
+clients, alone and on top of the lossy transports of ``test_cohort_transport``. Each
+case runs on both engines, whose whole results (every metric, the CPU metrics
+included, links, time series) must be identical, and checks that it really exercises
+what it claims to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import pytest
+
+from sigma_des.api import run_method
+from sigma_des.events.fast.support import unsupported
+from tests.conftest import tiny
+from tests.events.test_cohort import run_both
+from tests.events.test_cohort_transport import _LOSSY, _STREAM
+
+METHODS = ["none", "lockstep", "hlc", "bides"]
+
+#: Six nodes on two hosts, random latency and step times, commands, a busy broker: every
+#: process spends CPU per message, the server per tick too, on one core's worth of
+#: machine slowed by background load, so bursts queue for the thread and the cores.
+_BASE: dict[str, Any] = {
+    "nodes": 6,
+    "net.host_link.latency": {"dist": "uniform", "low": 0.0002, "high": 0.002},
+    "compute.step_time": {"dist": "lognormal", "mean": 0.002, "std": 0.001},
+    "commands.enabled": True,
+    "broker.publish_service": {"dist": "exponential", "mean": 0.0001},
+    "broker.delivery_service": 0.00004,
+}
+_CPU: dict[str, Any] = {
+    "deployment.preset": "colocated",
+    "deployment.cores": 1,
+    "deployment.background": 0.25,
+    "deployment.host_demand": 0.0003,
+    "deployment.server_demand": 0.0002,
+    "deployment.server_tick": 0.002,
+}
+
+
+def _exercised(m: dict[str, Any]) -> None:
+    """The CPU stage did something: bursts waited for the server's thread or a core."""
+    assert m["server_cpu_util"] > 0.0 and m["host_cpu_util_max"] > 0.0
+    assert m["server_cpu_max_wait_ms"] > 0.0
+
+
+@pytest.mark.parametrize("preset", ["colocated", "dedicated"])
+@pytest.mark.parametrize("method", METHODS)
+def test_cpu_stage_identical(method: str, preset: str) -> None:
+    sc = tiny(**{**_BASE, **_CPU, "deployment.preset": preset})
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    _exercised(ev["metrics"])
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_host_clients_without_cpu_stage_identical(method: str) -> None:
+    """Per-host clients alone: H trigger deliveries handed to the nodes, states, commands
+    and re-requests through the host's client (one stream connection per host)."""
+    sc = tiny(**{**_BASE, **_STREAM, "nodes": 5, "deployment.clients": "host"})
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] > 0
+
+
+@pytest.mark.parametrize("clients", ["node", "host"])
+@pytest.mark.parametrize("method", METHODS)
+def test_cpu_stage_over_qos1_datagram_identical(method: str, clients: str) -> None:
+    """Bursts on top of QoS 1 resends, lost and late PUBACKs, redeliveries, duplicates
+    (each copy received costs a burst; a resend costs none)."""
+    sc = tiny(**{**_BASE, **_LOSSY, **_CPU, "deployment.clients": clients})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    _exercised(m)
+    assert m["retransmissions"] > 0 and m["duplicates"] > 0
+    if method == "lockstep":
+        assert m["rerequests"] > 0
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_dedicated_host_clients_over_lossy_stream_identical(method: str) -> None:
+    sc = tiny(**{**_BASE, **_STREAM, **_CPU, "deployment.preset": "dedicated",
+                 "deployment.cores": 2, "deployment.clients": "host", "net.qos": 1})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    _exercised(ev["metrics"])
+    assert ev["metrics"]["retransmissions"] > 0
+
+
+def test_zero_demands_make_no_events() -> None:
+    """A CPU stage whose demands are all zero and whose broker spends nothing changes no
+    result and creates no event: the compiled run is the run without a stage."""
+    idle = {**_BASE, "broker.publish_service": 0.0, "broker.delivery_service": 0.0}
+    sc = tiny(**idle)
+    stage = tiny(**idle, **{"deployment.preset": "dedicated"})
+    ev, co = run_both(stage, "bides")
+    plain = run_method(replace(sc, engine="cohort"), "bides")
+    assert co["wall"]["events"] == plain["wall"]["events"]
+    assert {k: v for k, v in co["metrics"].items() if "cpu" not in k} == plain["metrics"]
+    assert co["metrics"]["server_cpu_util"] == 0.0
+
+
+def test_bundles_fall_back_to_the_spec_engine() -> None:
+    sc = tiny(**{"deployment.clients": "host", "deployment.bundle": True})
+    why = unsupported(sc.run_spec(), "none")
+    assert why is not None and "deployment.bundle" in why
+    out = run_method(replace(sc, engine="cohort"), "none")
+    assert out["engine"] == {"requested": "cohort", "used": "events", "fallback": why}
