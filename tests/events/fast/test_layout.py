@@ -19,6 +19,7 @@ DIMS = {
     "slow": 1, "seen_k": 2, "seen_n": 1, "seen_h": 1,
     "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
     "ack_tables": 1, "x_tables": 1, "x_rows": 1,
+    "procs": 4, "machines": 1, "cpu_cores": 2, "clients_1": 5,
 }
 
 
@@ -32,10 +33,11 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    assert len(set(names)) == len(names) == 72  # 39 + 11 queue + 8 link + 1 resim + 13 transport
+    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 13 deployment
+    assert len(set(names)) == len(names) == 85
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(72))
+    assert [getattr(L, name.upper()) for name in names] == list(range(85))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
@@ -118,3 +120,36 @@ def test_exit_codes_are_distinct_and_all_registered() -> None:
     named = {k for k, v in vars(L).items() if k.startswith("NEED_") and isinstance(v, int)}
     assert named | {"OK", "DRAW_MISS", "BARRIER"} == set(codes)
     assert all(getattr(L, k) == v for k, v in codes.items())
+
+
+def test_event_types_are_distinct() -> None:
+    types = (L.EV_BROKER, L.EV_CLIENT, L.EV_DONE, L.EV_RESEND, L.EV_SEND, L.EV_APP)
+    assert sorted(types) == list(range(6))
+
+
+def test_a_deployment_follows_the_network() -> None:
+    """Processes, machines, demands and per-host clients as the spec's Network and Cpu
+    hold them (3 nodes on 2 hosts: host 0 holds nodes 0 and 1, host 1 node 2)."""
+    sc = replace(tiny(**{"deployment.preset": "dedicated", "deployment.cores": 3,
+                         "deployment.background": 1.0, "deployment.server_demand": 0.001,
+                         "deployment.clients": "host",
+                         "broker.publish_service": 0.0001}), engine="cohort")
+    run = MethodRun(sc.run_spec(), "none", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    core = run.core
+    assert isinstance(core, CompiledCore)
+    S = core.S
+    assert sc.run_spec().net.topology.host_of == (0, 0, 1)
+    ip = S[L.CPU_IP]
+    assert ip[L.CP_BROKER] == L.P_BROKER and ip[L.CP_HOSTS] == 1 and ip[L.CP_APP] == 1
+    # dedicated: broker, server, host 0, host 1 on machines 0..3 of 3 cores; 3 / (3 - 1)
+    assert S[L.CPU_MACH].tolist() == [0, 1, 2, 3] and S[L.CPU_CORE].shape == (4, 3)
+    assert S[L.CPU_SCALE].tolist() == [1.5] * 4
+    # host demand 0: the nodes' clients make no bursts; the server's do
+    assert S[L.CPU_PROC].tolist() == [-1, -1, -1, L.P_SERVER]
+    assert S[L.CPU_DEM].tolist() == [0.0, 0.0, 0.0, 0.001]
+    # host h's client is its first node; a trigger goes to clients 0 and 2, and client 0
+    # hands it to nodes 0 and 1, client 2 to node 2
+    assert S[L.CL_OF].tolist() == [0, 0, 2, 3]
+    assert ip[L.CP_NSUB] == 2 and S[L.BCAST][:2].tolist() == [0, 2]
+    ptr, mem = S[L.MEM_PTR], S[L.MEM]
+    assert [mem[ptr[c]:ptr[c + 1]].tolist() for c in range(4)] == [[0, 1], [], [2], []]

@@ -18,15 +18,9 @@ from sigma_des.events.fast.primitives import push
 from sigma_des.events.fast.queue import peek, take
 from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
+from tests.events.fast.test_layout import DIMS  # the layout's dimensions, one place
 from tests.events.test_cohort import run_both
 
-DIMS = {
-    "cap": 5, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
-    "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
-    "slow": 1, "seen_k": 2, "seen_n": 1, "seen_h": 1,
-    "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
-    "ack_tables": 1, "x_tables": 1, "x_rows": 1,
-}
 
 
 def _state(cap: int, arena: int) -> tuple[Any, ...]:
