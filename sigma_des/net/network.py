@@ -289,11 +289,10 @@ class Network(Links):
                             m.t_sent))
         elif not self.host_clients or c == self.server:
             deliver(m)
-        elif m.kind == TRIGGER:  # the broadcast: to every node of the host
-            for j in self.members[c]:
+        else:
+            # the broadcast (a trigger) to every node of the host; a message about one
+            # node (command, re-request) to that node
+            nodes = self.members[c] if m.kind == TRIGGER else (m.subject,)
+            for j in nodes:
                 deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
                             m.t_sent))
-        else:  # a message about one node (command, re-request): to that node
-            j = m.subject
-            deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
-                        m.t_sent))
