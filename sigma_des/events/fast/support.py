@@ -53,15 +53,16 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: the DDS
-    middleware and the ``rpc`` method (issue 16: per-message models only); a
-    deployment with a CPU stage or per-host clients (``[deployment]``, issue 24: the
-    spec engine first); a
+    middleware and the ``rpc`` method (issue 16: per-message models only); bundled
+    states (``deployment.bundle``: a variable number of records in one PUBLISH); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
     degrade and drop faults and NTP-corrected clocks, MQTT QoS 1 over datagrams
     (PUBACK hops, resends, redelivery: :mod:`~sigma_des.events.fast.transport`) and
     the stream transport on a link with loss or random latency (in-order hold-back,
-    RTO retries, give-ups: :mod:`~sigma_des.events.fast.stream`).
+    RTO retries, give-ups: :mod:`~sigma_des.events.fast.stream`), the CPU stage
+    (:mod:`~sigma_des.events.fast.cpu`) and per-host clients
+    (:mod:`~sigma_des.events.fast.clients`).
     """
     why: list[str] = []
     net = sc.net.net
