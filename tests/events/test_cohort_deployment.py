@@ -16,6 +16,8 @@ from typing import Any
 
 import pytest
 
+import sigma_des.events.fast.driver as driver
+from sigma_des import load
 from sigma_des.api import run_method
 from sigma_des.events.fast.support import unsupported
 from tests.conftest import tiny
@@ -95,6 +97,36 @@ def test_dedicated_host_clients_over_lossy_stream_identical(method: str) -> None
     assert co["engine"]["used"] == "cohort"
     _exercised(ev["metrics"])
     assert ev["metrics"]["retransmissions"] > 0
+
+
+def test_growth_and_flush_paths_with_bursts_identical(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No spare capacity: the event table grows and the buffers flush while bursts and
+    host hand-overs hold slots."""
+    monkeypatch.setattr(driver, "SLACK", 0)
+    sc = tiny(**{**_BASE, **_CPU, "deployment.clients": "host", "deployment.cores": 2})
+    for method in ("none", "bides"):
+        _ev, co = run_both(sc, method)
+        assert co["engine"]["used"] == "cohort"
+
+
+def test_saturated_server_with_adaptation_and_rollbacks_identical() -> None:
+    """60 nodes on 4 host processes and the server on one 2-core machine: the server's
+    receive bursts saturate its thread, BiDES adapts its rate and rolls nodes back
+    (job starts and rollbacks handed to Python from host hand-overs and commands)."""
+    sc = load(None, [
+        "nodes=60", "hosts=4", "duration=1.5", "warmup=0.5",
+        "deployment.preset='colocated'", "deployment.cores=2", "deployment.background=0.5",
+        "deployment.host_demand=0.0001", "deployment.server_demand=0.0002",
+        "deployment.server_tick=0.001", "deployment.clients='host'",
+        "bides.theta_warp=2", "bides.hold_down=1",
+    ])
+    for method in METHODS:
+        ev, co = run_both(sc, method)
+        assert co["engine"]["used"] == "cohort"
+        m = ev["metrics"]
+        assert m["server_cpu_util"] > 0.5  # the server's thread is busy most of the window
+        if method == "bides":
+            assert m["f_trig_min_hz"] < 100.0 and m["rollbacks"] > 0
 
 
 def test_zero_demands_make_no_events() -> None:

@@ -228,6 +228,7 @@ class CompiledCore:
         cl_of = np.array(net.client_of, dtype=np.int64)
         subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
         ip[L.CP_NSUB] = len(subs)
+        ip[L.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
         bcast = np.full(n + 1, -1, dtype=np.int64)
         bcast[: len(subs)] = subs
         ptr = np.zeros(n + 2, dtype=np.int64)

@@ -112,8 +112,10 @@ C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 # the application (after its receive burst, or at once with per-host clients), the
 # deployment's int parameters (S.cpu_ip) and the processes' rows (S.cpu_acc)
 EV_SEND, EV_APP = 4, 5
-CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB = range(4)
-CP_LEN = 4
+# CP_MAXMEM: the most nodes one client hands a message to (room a delivery event
+# needs in the latency buffers)
+CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB, CP_MAXMEM = range(5)
+CP_LEN = 5
 #: process indices (the spec's ``Cpu.processes`` order): broker, server, host h at 2 + h
 P_BROKER, P_SERVER, P_HOST0 = 0, 1, 2
 CA_BUSY, CA_WAIT = range(2)

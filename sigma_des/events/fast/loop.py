@@ -29,6 +29,7 @@ from sigma_des.events.fast.clients import hand_over, receive
 from sigma_des.events.fast.cpu import tick
 from sigma_des.events.fast.layout import (
     CP_APP,
+    CP_MAXMEM,
     CPU_IP,
     DRAW_MISS,
     E_AUX,
@@ -161,9 +162,10 @@ def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
 
 @jit
 def _full(S):  # type: ignore[no-untyped-def]
-    """Whether a delivery buffer is full (Python must flush it)."""
+    """Whether a delivery buffer is full (Python must flush it): the next event may add
+    one latency per node its client hands the message to (CP_MAXMEM; 1 per node client)."""
     iv = S[INTS]
-    lat_cap = S[LAT_BUF].shape[1]
+    lat_cap = S[LAT_BUF].shape[1] + 1 - S[CPU_IP][CP_MAXMEM]
     return (
         iv[I_OUT] >= S[OUT_INT].shape[0]
         or iv[I_LAT] >= lat_cap

@@ -151,5 +151,6 @@ def test_a_deployment_follows_the_network() -> None:
     # hands it to nodes 0 and 1, client 2 to node 2
     assert S[L.CL_OF].tolist() == [0, 0, 2, 3]
     assert ip[L.CP_NSUB] == 2 and S[L.BCAST][:2].tolist() == [0, 2]
+    assert ip[L.CP_MAXMEM] == 2  # a trigger's hand-over adds up to 2 latencies at once
     ptr, mem = S[L.MEM_PTR], S[L.MEM]
     assert [mem[ptr[c]:ptr[c + 1]].tolist() for c in range(4)] == [[0, 1], [], [2], []]

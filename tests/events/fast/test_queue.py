@@ -22,7 +22,6 @@ from tests.events.fast.test_layout import DIMS  # the layout's dimensions, one p
 from tests.events.test_cohort import run_both
 
 
-
 def _state(cap: int, arena: int) -> tuple[Any, ...]:
     dims = {**DIMS, "cap": cap, "arena": arena}
     given = {
