@@ -40,6 +40,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from sigma_des.live.cpu import CPU_FILE
@@ -74,8 +75,9 @@ def pooled_demand(table: pd.DataFrame, kind: str) -> tuple[float, float, float]:
     """``(Σ busy / Σ messages, Σ busy, Σ messages)`` over the rows of ``kind``
     (``server``, ``broker``, or ``host`` for every ``host<H>``) with a measured demand."""
     proc = table["process"].astype(str)
-    rows = table[(proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind)]
-    rows = rows[rows["demand_s"].map(math.isfinite)]
+    mine = (proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind).to_numpy(bool)
+    ok = np.isfinite(table["demand_s"].to_numpy(dtype=np.float64))
+    rows = table.loc[mine & ok]
     busy, msgs = float(rows["busy_s"].sum()), float(rows["messages"].sum())
     return (busy / msgs if msgs > 0 else math.nan), busy, msgs
 

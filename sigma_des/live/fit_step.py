@@ -77,6 +77,9 @@ def icc(values: ArrayLike, groups: ArrayLike) -> float:
 def host_share(pub: pd.DataFrame) -> float:
     """ICC of the normal scores of ``pub["cost"]`` grouped by (method, host, frame).
 
+    The scores are ``Φ⁻¹(rank / (n + 1))`` of the services rounded to 1 ns (mid-ranks
+    for ties).
+
     Args:
         pub: per-node rows with ``host``, ``frame``, ``cost`` (and ``method``, if several).
 
@@ -86,7 +89,8 @@ def host_share(pub: pd.DataFrame) -> float:
     from scipy.special import ndtri
     from scipy.stats import rankdata
 
-    c = pub["cost"].to_numpy(dtype=np.float64)
+    # to the ns: services are differences of timestamps, and equal timings must tie
+    c = np.round(pub["cost"].to_numpy(dtype=np.float64), 9)
     if c.size < 2:
         return float("nan")
     z = ndtri(rankdata(c) / (c.size + 1.0))
