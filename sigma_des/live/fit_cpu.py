@@ -155,6 +155,11 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     here = len(os.sched_getaffinity(0))
     cores = int(_recorded(info, "cores", here, f"this machine's {here} CPUs taken", warn))
     bundle = bool(_recorded(info, "bundle", False, "bundle = false taken", warn))
+    if bundle:
+        warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
+                    "a bundle of a loop turn's states; the DES bundles only states whose "
+                    "jobs complete at the same instant, so with random step times it sends "
+                    "(and charges) one PUBLISH per state (docs/LIVE.md)")
     background, measured, busy = _background(cpu, cores, warn)
     host, server = _demand(table, "host", warn), _demand(table, "server", warn)
     broker, b_busy, b_msgs = pooled_demand(table, "broker")
