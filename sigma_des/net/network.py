@@ -175,9 +175,10 @@ class Network(Links):
                 return
         else:
             subs = tuple(subscribers)
-        self._send(Msg(client, kind, subject, index, payload, payload_bits, subs, 0, now, now))
+        self._client_publish(
+            Msg(client, kind, subject, index, payload, payload_bits, subs, 0, now, now))
 
-    def _send(self, m: Msg) -> None:
+    def _client_publish(self, m: Msg) -> None:
         """``m.client``'s process spends its publish burst; then the PUBLISH leaves."""
         proc = self._proc[m.client]
         if proc is None:
@@ -202,7 +203,7 @@ class Network(Links):
         kind, subject, index, _p, _b = pend[0][0]
         recs = Bundle(r for r, _s in pend)
         bits = sum(r[4] for r in recs)
-        self._send(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
+        self._client_publish(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
 
     def _publish_try(self, m: Msg) -> None:
         """A try of the publisher → broker hop, leaving now."""
@@ -288,11 +289,10 @@ class Network(Links):
                             m.t_sent))
         elif not self.host_clients or c == self.server:
             deliver(m)
-        elif m.kind == TRIGGER:  # the broadcast: to every node of the host
-            for j in self.members[c]:
+        else:
+            # the broadcast (a trigger) to every node of the host; a message about one
+            # node (command, re-request) to that node
+            nodes = self.members[c] if m.kind == TRIGGER else (m.subject,)
+            for j in nodes:
                 deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
                             m.t_sent))
-        else:  # a message about one node (command, re-request): to that node
-            j = m.subject
-            deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
-                        m.t_sent))

@@ -42,7 +42,7 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
     (["deployment.cpus=2"], "deployment.cpus: unknown key"),
     (["deployment.clients='host'", "methods='rpc'"], "deployment.clients: 'host' does not"),
     (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
-      "net.qos=0"], "deployment.preset: .* needs net.middleware 'mqtt'"),
+      "net.qos=0"], "deployment.preset: needs net.middleware 'mqtt'"),
 ])
 def test_refusals_name_the_key(override: list[str], message: str) -> None:
     with pytest.raises(ConfigError, match=message):

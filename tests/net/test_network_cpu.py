@@ -146,3 +146,28 @@ def test_zero_demands_touch_nothing() -> None:
     assert cpu is not None
     assert all(p.bursts == 0 and p.free == 0.0 for p in cpu.processes)
     assert cpu.machines[0].free == [0.0, 0.0]
+
+
+
+@pytest.mark.parametrize("cores", [1, 2])
+def test_two_hosts_receiving_at_the_same_instant_share_one_core(cores: int) -> None:
+    """A trigger reaches hosts 0 and 1 at the same instant (equal links, instantaneous
+    broker). On one core host 1's receive waits for host 0's: it ends exactly one
+    demand later; on two cores both end together."""
+    dh = 3e-4
+    k, net, got = _net(["nodes=2", "hosts=2", "broker.publish_service=0.0",
+                        "broker.delivery_service=0.0", "deployment.preset='colocated'",
+                        f"deployment.cores={cores}", f"deployment.host_demand={dh}",
+                        "deployment.server_demand=1e-4"])
+    net.publish(net.server, TRIGGER, net.server, 0, (0, None), 64, [0, 1])
+    k.env.run()
+    t0, t1 = got[0][5], got[1][5]
+    rep = net.cpu_report()
+    assert rep is not None
+    host0, host1 = rep.processes[2:]
+    assert host0.max_wait == 0.0 and host0.busy == dh
+    if cores == 1:
+        assert t1 == t0 + dh
+        assert host1.max_wait == pytest.approx(dh, rel=1e-9)
+    else:
+        assert t1 == t0 and host1.max_wait == 0.0
