@@ -7,7 +7,7 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
   ``colocated``, the machine's ``cores``, the ``background`` CPU of other processes,
   ``host_demand`` and ``server_demand`` by the Utilization Law, ``clients = "host"``,
   ``bundle`` as run; the broker's demand as both ``broker.publish_service`` and
-  ``broker.delivery_service`` (constants). Without a ``cpu.csv`` (or from a recording):
+  ``broker.delivery_service`` (constants). Without a ``cpu.csv`` next to the source:
   no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
   between consecutive receivers of a trigger (:func:`delivery_floor`: scheduling noise
   only adds to a gap), its publish service the base scenario's; the least-squares
@@ -330,8 +330,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
     d = files_dir or (source if source.is_dir() else source.parent)
     if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
         raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
-    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn) \
-        if source.suffix != ".mcap" else None
+    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn)
     # the fan-out's figures are reported; they set the broker only without a CPU fit
     delivery, slope = _fit_delivery(base, w, warn if fit is None else [])
     if fit is None:  # no CPU stage: the fan-out's per-client delivery, the base's publish
