@@ -375,6 +375,8 @@ def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
             d["hosts"] = 0
         if getattr(s, "warmup_auto", False):
             d["warmup"] = WARMUP_AUTO
+    if d["compute"]["host_share"] == 0.0:  # independent step draws: as before the key existed
+        del d["compute"]["host_share"]
     return d
 
 

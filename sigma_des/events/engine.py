@@ -132,7 +132,7 @@ class MethodRun(AlignmentServer):
             host_of=spec.host_of,
             hosts=spec.hosts,
             cores_per_host=spec.cores_per_host,
-            step_time=step_draws(spec.compute.step_time, self.streams.stream("compute"), self.n),
+            step_time=step_draws(spec.compute, self.streams, spec.host_of),
             faults=spec.faults,
             clocks=NodeClocks(spec.clocks, self.streams.stream("clocks"), self.n),
             hlc=self.method == "hlc",

@@ -3,7 +3,8 @@
 A job steps a node from its newest computed frame to the requested ``target``:
 one ``step_time`` draw per frame (keyed ``(STEP_DRAW, node, frame, 0)``), plus one
 draw per re-simulated step after a time-warp rollback (keyed
-``(ROLLBACK_DRAW, node, target, j)``), scaled by every slow fault active at the
+``(ROLLBACK_DRAW, node, target, j)``) — independent per node, or tied within a host by
+``compute.host_share`` (:func:`step_draws`) — scaled by every slow fault active at the
 start (docs/MODEL.md, "Physics nodes"). The per-message engine and the compiled
 core's driver both compute :func:`job_cost` (the driver through :class:`JobCosts`,
 the same sum with a target's rollback draws fetched as one block); the compiled
@@ -12,15 +13,16 @@ loop sums the same draws in the same order for jobs with no rollback steps.
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
-from sigma_des.core.rng import Stream
-from sigma_des.net.latency import Dist
+from sigma_des.core.rng import RandomStreams
+from sigma_des.events.spec import ComputeSpec
 
 __all__ = ["ROLLBACK_DRAW", "STEP_DRAW", "JobCosts", "job_cost", "step_draws"]
 
@@ -29,19 +31,52 @@ STEP_DRAW = 0
 ROLLBACK_DRAW = 1
 
 
-def step_draws(step: Dist, stream: Stream, n: int) -> DrawCache:
-    """The step-time draws of ``n`` nodes from the compute stream (both engines, live too).
+#: Largest ``u`` a copula draw is clipped to: the largest float below 1 (``ndtr`` of a
+#: normal beyond ~8.3 rounds to 1.0, whose quantile would be infinite).
+_U_MAX = float(np.nextafter(1.0, 0.0))
+#: Smallest ``u`` (a uniform of the streams is never below this).
+_U_MIN = 2.0**-54
+
+
+def step_draws(compute: ComputeSpec, streams: RandomStreams,
+               host_of: Sequence[int]) -> DrawCache:
+    """The step-time draws of every node (both engines, live too).
+
+    With ``compute.host_share`` ρ = 0 each draw is ``step_time`` sampled from the
+    ``compute`` stream at ``(kind, node, index, attempt)``, independently per node. With
+    ρ > 0 a Gaussian copula ties the nodes of one host: ``z = √ρ·z_host + √(1−ρ)·z_node``
+    with ``z_host`` the standard normal of stream ``compute.host`` at ``(kind, host,
+    index, attempt)`` (one per host and frame; per host, rollback target and step for
+    the re-simulated steps) and ``z_node`` that of stream ``compute`` at ``(kind, node,
+    index, attempt)``; the draw is ``step_time``'s quantile at ``Φ(z)``. Each draw keeps
+    the ``step_time`` distribution; two nodes of one host have normal scores correlated
+    ρ, nodes of different hosts none.
 
     Args:
-        step: the ``compute.step_time`` distribution.
-        stream: the ``compute`` stream of the run's root seed.
-        n: number of nodes (all of the run's, whatever part a live host serves).
+        compute: the scenario's ``compute`` section.
+        streams: the run's root-seed streams.
+        host_of: host of every node (all of the run's, whatever part a live host serves).
     """
-    return DrawCache(
-        n,
-        lambda s, k, i, a: step.sample(stream, k, s, i, a),
-        constant=step.value if step.dist == "constant" else None,
-    )
+    step = compute.step_time
+    stream = streams.stream("compute")
+    n = len(host_of)
+    constant = step.value if step.dist == "constant" else None
+    rho = compute.host_share
+    if rho == 0.0:  # today's draws, bit for bit
+        return DrawCache(n, lambda s, k, i, a: step.sample(stream, k, s, i, a), constant=constant)
+    from scipy.special import ndtr
+
+    hosts_of = np.asarray(host_of, dtype=np.int64)
+    hosts = np.arange(int(hosts_of.max()) + 1, dtype=np.int64)
+    host_stream = streams.stream("compute.host")
+    a_host, a_node = math.sqrt(rho), math.sqrt(1.0 - rho)
+
+    def sampler(s: NDArray[np.int64], k: int, i: int, a: int) -> NDArray[np.float64]:
+        z_host = host_stream.normal(k, hosts, i, a)[hosts_of[s]]
+        z = a_host * z_host + a_node * stream.normal(k, s, i, a)
+        return step.quantile(np.clip(ndtr(z), _U_MIN, _U_MAX))
+
+    return DrawCache(n, sampler, constant=constant)
 
 
 def job_cost(

@@ -33,11 +33,34 @@ __all__ = [
 ]
 
 
+#: Largest ``compute.host_share`` (1 would make a host's nodes step in lock-step exactly:
+#: no node component at all; the copula needs ``1 - ρ > 0``).
+HOST_SHARE_MAX = 1.0
+
+
 @dataclass(frozen=True)
 class ComputeSpec:
-    """Per-node computation: one physics step's CPU time, contending for host cores."""
+    """Per-node computation: one physics step's CPU time, contending for host cores.
+
+    Attributes:
+        step_time: distribution of one frame's step (s).
+        host_share: ρ in [0, 1): correlation of the normal scores of two nodes' step
+            draws of one host and frame (a Gaussian copula, ``sigma_des.events.jobs.
+            step_draws``); each draw keeps ``step_time``. 0 (the default): independent
+            nodes, today's draws bit for bit, and the key is not written out (the
+            scenario's hash is as before it existed).
+    """
 
     step_time: Dist = field(default_factory=lambda: Dist(dist="lognormal", mean=0.0008, std=0.0002))
+    host_share: float = 0.0
+
+    def __post_init__(self) -> None:
+        v = self.host_share
+        require(not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+                and 0.0 <= v < HOST_SHARE_MAX, "host_share",
+                f"must be in [0, 1) (the share of a step's variance common to its host), "
+                f"got {v!r}")
+        object.__setattr__(self, "host_share", float(v))
 
 
 

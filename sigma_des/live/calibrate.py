@@ -1,53 +1,50 @@
-"""Fit the DES's network, broker and compute parameters from a live run.
+"""Fit the DES's network, broker, CPU and compute parameters from a live run.
 
-From the message table (``messages.csv.gz`` or an MCAP recording), inside the
-metrics window:
+From the message table (``messages.csv.gz`` or an MCAP recording) inside the metrics
+window, and the run's ``cpu.csv`` and ``summary.json``:
 
-* **broker per-delivery service** ``broker.delivery_service``: from how a trigger's
-  delivery delay grows along its fan-out (the k-th host to receive frame f waited
-  for k-1 deliveries before it). The least-squares slope of delay against position
-  is reported, but on a loaded machine it mostly measures how late the OS wakes
-  each host process, which the hop latency already holds; the fitted service is
-  the 5th percentile of the gaps between consecutive receivers
-  (:func:`delivery_floor`: scheduling noise only adds to a gap, so a low quantile
-  approaches the broker's own per-delivery time);
+* **the deployment** (:mod:`sigma_des.live.fit_cpu`): ``[deployment]`` with preset
+  ``colocated``, the machine's ``cores``, the ``background`` CPU of other processes,
+  ``host_demand`` and ``server_demand`` by the Utilization Law, ``clients = "host"``,
+  ``bundle`` as run; the broker's demand as both ``broker.publish_service`` and
+  ``broker.delivery_service`` (constants). Without a ``cpu.csv`` next to the source:
+  no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
+  between consecutive receivers of a trigger (:func:`delivery_floor`: scheduling noise
+  only adds to a gap), its publish service the base scenario's; the least-squares
+  fan-out slope (:func:`fanout_slope`) is reported either way;
 * **per-hop latency per direction** (empirical sample files): a state travels
   host -> broker -> server (``net.host_link.latency`` and
   ``net.server_link.latency_down``), a trigger or command server -> broker -> host
   (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
-  ``(path latency - publish_service - delivery_service) / 2``, the path latency
-  **de-queued** first (:mod:`sigma_des.live.dequeue`: the DES's stream keeps order
-  itself, so the in-order wait in the measured latencies must not be drawn again).
-  The broker's publish service is not separable from the hop latency from outside
-  the broker, so the base scenario's value is kept;
-* **the server's receive cost** (time from the client's receipt to the loop
-  handling the state): the DES has no such stage, so it is folded into the
-  server link's down latency (fitted as a hop from each state's path latency plus
-  twice its receive queueing, so that hop carries the whole queueing) when its mean
-  exceeds 5 % of the hop's;
-* **node step time** ``compute.step_time``: a lognormal with the mean and standard
-  deviation of each job's service, i.e. its publish minus the time it got one of the
-  host's ``cores_per_host`` cores (replayed FCFS, :func:`~sigma_des.live.dequeue.
-  job_services`; the DES adds the wait for a core itself); the report also gives the
-  share of the publish delay's variance common to a host's nodes in one frame
-  (:func:`host_share`; the DES draws every node independently);
-* **CPU service demands** of every process by the Utilization Law, and the
-  background CPU (:mod:`sigma_des.live.demands`, from the run's ``cpu.csv``):
-  reported only, the DES has no CPU stage yet.
+  ``(path latency - CPU services on the path) / 2``, the CPU services being what the
+  DES adds itself (:func:`~sigma_des.live.fit_cpu.path_services`: the broker's two
+  services, and with a CPU stage the sender's and the receiver's bursts, slowed by the
+  background). The path latency is **de-queued** first (:mod:`sigma_des.live.dequeue`):
+  a delivery closer to the previous one into its receiver than ``hold_tol`` plus the
+  receiver's burst may have waited (behind the stream's order, or for the receiving
+  thread, both of which the DES adds itself), so it is a left-censored sample;
+* **the server's receive cost** (time from the client's receipt to the loop handling
+  the state): with a CPU stage it is the server's receive burst and its thread's
+  queue, modelled; without one it is folded into the server link's down latency
+  (fitted as a hop from each state's path latency plus twice its receive queueing)
+  when its mean exceeds 5 % of the hop's;
+* **node step time** (:mod:`sigma_des.live.fit_step`): ``compute.step_time`` from each
+  job's service without its wait for a core, ``compute.host_share`` as the
+  intraclass correlation of the services' normal scores within a host and frame;
+* **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
+  and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
+  so the DES counts the same bytes.
 
 What cannot be fitted is said, never filled in silently: hosts whose states arrived
 without their per-node publish rows are refused (``strict``) or warned about, and too
 few samples, a single receiver per trigger or a missing ``cpu.csv`` are warnings in
 ``report["warnings"]``. :mod:`sigma_des.live.insample` checks the result against the
 run it came from.
-* **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
-  and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
-  so the DES counts the same bytes.
 
-The DES broker delivers a trigger to every *node*; live, one client per host
-receives it. :func:`for_target` therefore scales the fitted per-client delivery
-service by ``hosts / nodes`` of the scenario it prepares, so a trigger's total
-fan-out time is the measured one.
+With one client per host (a CPU fit) the broker's per-delivery service is per
+receiving client, as measured. Without (one DES client per node, live one per host)
+:func:`for_target` scales it by ``hosts / nodes`` of the scenario it prepares, so a
+trigger's total fan-out time is the measured one.
 
 The result is the live run's scenario with these parameters replaced, written as
 TOML that ``sigma-des compare`` runs (the sample files sit next to it).
@@ -68,17 +65,16 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
-from sigma_des.events.spec import ComputeSpec
 from sigma_des.factory import make_dynamics
 from sigma_des.guard import atomic_write, output_file, read_text
-from sigma_des.live.cpu import CPU_FILE
-from sigma_des.live.demands import fit_demands, read_cpu
-from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, job_services, quantiles
+from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, quantiles
+from sigma_des.live.fit_cpu import fit_deployment, path_services
+from sigma_des.live.fit_step import MIN_SAMPLES, fit_compute
 from sigma_des.live.messages import read_messages
 from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
 from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist
-from sigma_des.net.spec import BrokerSpec, NetSpec
+from sigma_des.net.spec import BrokerSpec, DeploymentSpec, NetSpec
 
 __all__ = ["MIN_SAMPLES", "calibrate", "calibrated_toml", "delivery_floor", "fanout_slope",
            "for_target", "report_lines"]
@@ -118,24 +114,6 @@ def delivery_floor(trig: pd.DataFrame, q: float = 0.05) -> float:
     same = t["frame"].to_numpy()[1:] == t["frame"].to_numpy()[:-1]
     gaps = np.diff(t["t_recv"].to_numpy())[same]
     return float(np.quantile(gaps, q)) if gaps.size else 0.0
-
-
-def host_share(pub: pd.DataFrame) -> float:
-    """Share of the step-time variance that is common to a host's nodes in one frame.
-
-    Args:
-        pub: ``state_pub`` rows with ``host``, ``frame`` and ``cost`` = publish minus
-            trigger receipt (s).
-
-    Returns:
-        ``var(per host-and-frame means) / var(all)``: 0 if the nodes of a host vary
-        independently, 1 if they always finish together; NaN with fewer than 2 rows.
-    """
-    c = pub["cost"]
-    if len(c) < 2 or float(c.var(ddof=0)) == 0.0:
-        return float("nan")
-    means = pub.groupby(["host", "frame"])["cost"].transform("mean")
-    return float(means.var(ddof=0) / c.var(ddof=0))
 
 
 def apply_overrides(sc: Scenario, overrides: list[str]) -> Scenario:
@@ -213,10 +191,6 @@ def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame, pd.Data
     return base, msgs, w, states
 
 
-#: Fewer samples than this in a fit is warned about (the fit uses them all the same).
-MIN_SAMPLES = 20
-
-
 def _hop_samples(x: NDArray[np.float64], held_: NDArray[np.bool_], services: float
                  ) -> NDArray[np.float64]:
     """Per-hop draws from path latencies ``x`` (host -> broker -> receiver): the
@@ -226,13 +200,16 @@ def _hop_samples(x: NDArray[np.float64], held_: NDArray[np.bool_], services: flo
     return np.clip((quantiles(xs, w, x.size) - services) / 2.0, 0.0, None)
 
 
-def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float) -> dict[str, Any]:
+def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
+           ) -> dict[str, Any]:
     """Path latencies of both directions, with the in-order holds flagged.
 
     Up (states): one in-order stream per method into the server (the DES's server
-    connection carries every state). Down (triggers and commands): one per method and
-    receiving host. Rows of one receipt (a recording repeats a host's trigger per node)
-    count once.
+    connection carries every state, and the server's one thread receives them). Down
+    (triggers and commands): one per method and receiving host. Rows of one receipt (a
+    recording repeats a host's trigger per node) count once. A delivery within
+    ``tol_up`` / ``tol_down`` after the previous one into its receiver may have waited
+    (:func:`~sigma_des.live.dequeue.held`).
     """
     up_conn = pd.factorize(states["method"])[0]
     lat_up = (states["t_recv"] - states["t_send"]).to_numpy()
@@ -242,9 +219,9 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float) -> dict[str, Any]:
     down_conn = pd.factorize(down["method"].astype(str) + "/" + down["host"].astype(str))[0]
     return {
         "up": lat_up,
-        "up_held": held(up_conn, states["t_send"], states["t_recv"], tol),
+        "up_held": held(up_conn, states["t_send"], states["t_recv"], tol_up),
         "down": (down["t_recv"] - down["t_send"]).to_numpy(),
-        "down_held": held(down_conn, down["t_send"], down["t_recv"], tol),
+        "down_held": held(down_conn, down["t_send"], down["t_recv"], tol_down),
     }
 
 
@@ -260,36 +237,27 @@ def _write_latency_files(d: Path, files: dict[str, NDArray[np.float64]], key: st
     return out
 
 
-def _publish_costs(msgs: pd.DataFrame, base: Scenario) -> pd.DataFrame:
-    """The window's ``state_pub`` rows with ``raw`` = publish minus trigger receipt and
-    ``cost`` = the job's service without its wait for one of the host's
-    ``cores_per_host`` cores (:func:`~sigma_des.live.dequeue.job_services`, replayed over
-    the whole run per method, so jobs queued before the window count)."""
-    pub = msgs[msgs["kind"] == "state_pub"]
-    pub = pub[np.isfinite(pub["t_trig"]) & (pub["t_send"] >= pub["t_trig"])]
-    host = pub["method"].astype(str) + "/" + pub["host"].astype(str)
-    cost = job_services(host, pub["node"], pub["t_trig"], pub["t_send"], base.cores_per_host)
-    pub = pub.assign(raw=pub["t_send"] - pub["t_trig"], cost=cost)
-    return pub[(pub["t_send"] >= base.warmup) & (pub["t_send"] < base.duration)]
+def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
+               cpu: dict[str, float], d: Path, tol: float, fold_ok: bool, warn: list[str],
+               key: str = "--out") -> tuple[NetSpec, dict[str, Any]]:
+    """Per-direction de-queued hop latencies (and, without a CPU stage, the server's
+    receive queue) as the links' empirical latency files (see the module doc).
 
-
-def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: float,
-               d: Path, tol: float, warn: list[str], key: str = "--out"
-               ) -> tuple[NetSpec, dict[str, Any]]:
-    """Per-direction de-queued hop latencies (and the server's receive queue) as the
-    links' empirical latency files (see the module doc)."""
-    services = base.broker.publish_service.mean_value() + delivery
-    p = _paths(w, states, tol)
+    ``cpu`` is :func:`~sigma_des.live.fit_cpu.path_services`: the CPU services the DES
+    adds on each path (taken out of every sample) and each receiver's burst (a delivery
+    closer than ``tol`` plus that burst after the previous one into its receiver may
+    have waited for it: censored)."""
+    p = _paths(w, states, tol + cpu["up_rx"], tol + cpu["down_rx"])
     if p["up"].size < MIN_SAMPLES:
         warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
-    hop_up = _hop_samples(p["up"], p["up_held"], services)
+    hop_up = _hop_samples(p["up"], p["up_held"], cpu["up"])
     queue = np.nan_to_num(np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None))
-    fold = float(queue.mean()) > 0.05 * float(hop_up.mean())
+    fold = fold_ok and float(queue.mean()) > 0.05 * float(hop_up.mean())
     files = {"hop_up": hop_up}
-    if fold:  # the DES has no server receive stage: the server link's down hop carries it
-        files["server_down"] = _hop_samples(p["up"] + 2.0 * queue, p["up_held"], services)
+    if fold:  # no CPU stage: the server link's down hop carries the server's receive queue
+        files["server_down"] = _hop_samples(p["up"] + 2.0 * queue, p["up_held"], cpu["up"])
     if p["down"].size >= MIN_SAMPLES:
-        files["hop_down"] = _hop_samples(p["down"], p["down_held"], services)
+        files["hop_down"] = _hop_samples(p["down"], p["down_held"], cpu["down"])
     else:
         warn.append(f"only {p['down'].size} trigger/command latencies in the window "
                     f"(< {MIN_SAMPLES}): the down direction gets the states' hop latency")
@@ -313,47 +281,12 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame, delivery: 
         "hop_down_latency_mean_s": float(hop_down.mean()),
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
         "hold_tol_s": tol,
+        "path_cpu_service_up_s": cpu["up"],
+        "path_cpu_service_down_s": cpu["down"],
         "server_receive_queue_mean_s": float(queue.mean()),
         "server_queue_folded_into_server_link": fold,
     }
     return net, report
-
-
-def _fit_compute(base: Scenario, msgs: pd.DataFrame, states: pd.DataFrame, recording: bool,
-                 strict: bool, warn: list[str]) -> tuple[ComputeSpec, dict[str, Any]]:
-    """The node step time from the hosts' per-node publish rows, refusing (``strict``)
-    or warning when hosts whose states arrived left none."""
-    pub = _publish_costs(msgs, base)
-    keep = base.compute.step_time
-    kept = f"compute.step_time kept from the base scenario ({keep.dist}, mean " \
-           f"{keep.mean_value() * 1e3:.3g} ms)"
-    if recording:
-        warn.append(f"an MCAP recording has no per-node publish rows: {kept}")
-    else:
-        sent = set(zip(states["method"], states["host"], strict=True))
-        rows = set(zip(pub["method"], pub["host"], strict=True))
-        missing = sorted(f"{m}/host{int(h)}" for m, h in sent - rows)
-        if missing:
-            msg = (f"no per-node publish rows (state_pub) from {', '.join(missing)} although "
-                   "their states arrived")
-            if strict:
-                raise ConfigError("state_pub", msg + "; rerun the live run, or pass "
-                                  "--allow-incomplete to fit without them")
-            warn.append(msg + ("; fitted from the other hosts" if len(pub) else f"; {kept}"))
-    cost = pub["cost"].to_numpy()
-    if 0 < cost.size < MIN_SAMPLES:
-        warn.append(f"only {cost.size} per-node publish rows (< {MIN_SAMPLES}) for the "
-                    "step time")
-    if not cost.size:
-        return base.compute, {"step_time_mean_s": keep.mean_value(),
-                              "step_time_std_s": keep.std, "step_time_host_share": float("nan"),
-                              "step_time_samples": 0}
-    mean, std = float(cost.mean()), float(cost.std()) if cost.size > 1 else 0.0
-    spec = ComputeSpec(step_time=Dist(dist="lognormal", mean=max(mean, 1e-7), std=std))
-    return spec, {"step_time_mean_s": mean, "step_time_std_s": std,
-                  "step_time_with_core_wait_mean_s": float(pub["raw"].mean()),
-                  "step_time_host_share": host_share(pub.assign(cost=pub["raw"])),
-                  "step_time_samples": int(cost.size)}
 
 
 def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[float, float]:
@@ -368,17 +301,6 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
                     f"measured from the fan-out; kept the base's {per * 1e6:.3g} µs per client")
         return per, slope
     return max(delivery_floor(trig), 0.0), slope
-
-
-def _fit_demands(source: Path, warn: list[str]) -> dict[str, Any]:
-    """The Utilization-Law demands (:mod:`sigma_des.live.demands`) as report entries."""
-    cpu = read_cpu(source)
-    if cpu is None:
-        warn.append(f"no {CPU_FILE} next to the source: CPU service demands not fitted")
-        return {}
-    table, bg, w = fit_demands(cpu)
-    warn.extend(w)
-    return {"cpu_demands": table.to_dict("records"), "background_cores": bg}
 
 
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
@@ -405,14 +327,27 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
     """
     base, msgs, w, states = _window(source)
     warn: list[str] = []
-    delivery, slope = _fit_delivery(base, w, warn)
     d = files_dir or (source if source.is_dir() else source.parent)
     if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
         raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
-    net, lat_report = _fit_links(base, w, states, delivery, d, hold_tol, warn,
+    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn)
+    # the fan-out's figures are reported; they set the broker only without a CPU fit
+    delivery, slope = _fit_delivery(base, w, warn if fit is None else [])
+    if fit is None:  # no CPU stage: the fan-out's per-client delivery, the base's publish
+        dep = replace(base.deployment, preset="none", background=0.0, host_demand=0.0,
+                      server_demand=0.0, server_tick=0.0)
+        publish = base.broker.publish_service
+        per_client = delivery
+        cpu_report: dict[str, Any] = {}
+    else:  # the broker's demand per inbound PUBLISH and per delivery; one client per host
+        dep, publish = fit.deployment, Dist(dist="constant", value=fit.broker_service)
+        per_client = fit.broker_service
+        cpu_report = fit.report
+    services = path_services(dep, publish.mean_value(), per_client)
+    net, lat_report = _fit_links(base, w, states, services, d, hold_tol, fit is None, warn,
                                  "--out" if files_dir else str(source))
-    compute, step_report = _fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
-                                        warn)
+    compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
+                                       warn)
     topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
@@ -423,30 +358,40 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         trigger_payload_bits=TRIGGER_BYTES * 8,
         commands=replace(base.commands, payload_bits=(23 + 8 * width) * 8),
         net=replace(net, topic_bytes=topic_len),
-        broker=BrokerSpec(publish_service=base.broker.publish_service,
+        broker=BrokerSpec(publish_service=publish,
                           delivery_service=Dist(dist="constant",
-                                                value=delivery * base.hosts / base.nodes)),
+                                                value=_per_delivery(per_client, base, dep))),
         compute=compute,
+        deployment=dep,
     )
     report = {
         "states": int(len(states)),
-        "delivery_service_per_client_s": delivery,
+        "delivery_service_per_client_s": per_client,
         **lat_report,
-        "delivery_service_s": delivery,
+        "delivery_service_s": per_client,
+        "delivery_floor_s": delivery,
         "fanout_slope_s": slope,
-        "publish_service_s": base.broker.publish_service.mean_value(),
+        "publish_service_s": publish.mean_value(),
         **step_report,
-        **_fit_demands(source, warn),
+        **cpu_report,
         "warnings": warn,
     }
     return sc, report
 
 
+def _per_delivery(per_client: float, sc: Scenario, dep: DeploymentSpec) -> float:
+    """The broker's per-delivery service for ``sc``: per client as measured with one
+    client per host; spread over a host's nodes (× hosts / nodes) when the DES
+    delivers to every node, so a trigger's fan-out takes the measured time."""
+    return per_client if dep.clients == "host" else per_client * sc.hosts / sc.nodes
+
+
 def for_target(cal: Scenario, report: dict[str, Any], overrides: list[str]) -> Scenario:
     """The calibrated scenario with ``overrides`` (``key=value``) applied, the broker's
-    delivery service rescaled to the target's ``hosts / nodes`` (see the module doc)."""
+    delivery service set for the target (:func:`_per_delivery`: rescaled to its
+    ``hosts / nodes`` unless the DES has one client per host)."""
     sc = apply_overrides(cal, overrides)
-    per = float(report["delivery_service_per_client_s"]) * sc.hosts / sc.nodes
+    per = _per_delivery(float(report["delivery_service_per_client_s"]), sc, sc.deployment)
     return replace(sc, broker=replace(sc.broker,
                                       delivery_service=Dist(dist="constant", value=per)))
 

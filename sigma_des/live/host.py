@@ -152,7 +152,7 @@ class Host(ImpairedSender):
             host_of=[0] * m,
             hosts=1,
             cores_per_host=sc.cores_per_host,
-            step_time=step_draws(sc.compute.step_time, streams.stream("compute"), n),
+            step_time=step_draws(sc.compute, streams, sc.host_of),
             faults=sc.faults,
             clocks=NodeClocks(sc.clocks, streams.stream("clocks"), n),
             hlc=self.use_hlc,

@@ -43,7 +43,7 @@ def missed_frac(table: pd.DataFrame, nodes: int, warmup: float, duration: float)
 
     Args:
         table: a recording's table (``sigma_des.record.read_table``): ``trigger`` rows
-            (``node`` -1 for the issue, ``frame``, ``t_send``) and ``state`` rows.
+            (``frame``, ``t_send``: the issue, or every delivery) and ``state`` rows.
         nodes: number of nodes.
         warmup: the window starts here (s).
         duration: and ends here (s).
@@ -51,9 +51,10 @@ def missed_frac(table: pd.DataFrame, nodes: int, warmup: float, duration: float)
     Returns:
         ``1 - delivered / (triggers x nodes)``; NaN without a trigger in the window.
     """
-    trig = table[(table["kind"] == "trigger") & (table["node"] < 0)]
-    frames = set(trig[(trig["t_send"] >= warmup) & (trig["t_send"] < duration)]["frame"]
-                 .astype(int).tolist())
+    # a frame's issue is its first trigger row (the cohort engine writes the issue, node
+    # -1; the per-message engine every delivery, re-requests later with the same frame)
+    first = table[table["kind"] == "trigger"].groupby("frame")["t_send"].min()
+    frames = set(first[(first >= warmup) & (first < duration)].index.astype(int).tolist())
     if not frames:
         return math.nan
     st = table[table["kind"] == "state"]

@@ -326,6 +326,9 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
     out["kept"] = srv.kept
     out["live"] = _live_info(srv, procs, table, sc)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos))
+    # what `calibrate` writes into [deployment]: the machine's CPUs, the bundling, the load
+    out["live"].update(cores=len(os.sched_getaffinity(0)), bundle=opts.bundle,
+                       load1=os.getloadavg()[0])
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
     return out, table, interrupted
 

@@ -215,28 +215,50 @@ class Dist:
             *ids: integer ids (scalars or arrays, broadcast together).
 
         Returns:
-            A float64 array of the broadcast shape (at least 1-d).
+            A float64 array of the broadcast shape (at least 1-d): :meth:`quantile` of
+            the stream's uniforms (none drawn for a degenerate distribution).
         """
+        if self.dist == "constant":
+            return np.full(_broadcast_shape(ids), self.value)
+        return self.quantile(stream.uniform(*ids))
+
+    def quantile(self, u: ArrayLike) -> NDArray[np.float64]:
+        """The inverse CDF at ``u`` in (0, 1): what :meth:`sample` returns for uniforms ``u``.
+
+        Exposed so that a caller can build dependent draws with this marginal (the
+        host-correlated step times of ``sigma_des.events.jobs``, a Gaussian copula).
+
+        Args:
+            u: probabilities in the open interval (0, 1).
+
+        Returns:
+            A float64 array of ``u``'s shape (at least 1-d).
+        """
+        uv = np.atleast_1d(np.asarray(u, dtype=np.float64))
         d = self.dist
         if d == "constant":
-            return np.full(_broadcast_shape(ids), self.value)
+            return np.full(uv.shape, self.value)
         if d == "uniform":
             if self.low == self.high:
-                return np.full(_broadcast_shape(ids), self.low)
-            return self.low + (self.high - self.low) * stream.uniform(*ids)
-        if d == "normal":
-            return stream.truncated_normal(self.mean, self.std, 0.0, *ids)
-        if d == "lognormal":
-            if self.std == 0.0:
-                return np.full(_broadcast_shape(ids), self.mean)
-            mu, sigma = self._lognormal_params()
-            return np.exp(mu + sigma * stream.normal(*ids))
+                return np.full(uv.shape, self.low)
+            return self.low + (self.high - self.low) * uv
         if d == "exponential":
-            return self.mean * stream.exponential(*ids)
-        samples = load_samples(self.file)
-        idx = (stream.uniform(*ids) * samples.size).astype(np.int64)
-        np.minimum(idx, samples.size - 1, out=idx)
-        return samples[idx]
+            return self.mean * -np.log1p(-uv)
+        if d == "empirical":
+            samples = load_samples(self.file)
+            idx = (uv * samples.size).astype(np.int64)
+            np.minimum(idx, samples.size - 1, out=idx)
+            return samples[idx]
+        if self.std == 0.0:  # a degenerate normal (mean >= 0) or lognormal
+            return np.full(uv.shape, self.mean)
+        from scipy.special import ndtr, ndtri  # here: SciPy is slow to import (the CLI's start)
+
+        if d == "normal":  # conditioned on x >= 0: exact inverse-CDF truncation
+            a = float(ndtr((0.0 - self.mean) / self.std))
+            x = self.mean + self.std * ndtri(a + uv * (1.0 - a))
+            return np.maximum(np.asarray(x, dtype=np.float64), 0.0)
+        mu, sigma = self._lognormal_params()
+        return np.exp(mu + sigma * np.asarray(ndtri(uv), dtype=np.float64))
 
 
 _DIST_FIELDS = frozenset(f.name for f in fields(Dist))

@@ -85,7 +85,8 @@ def test_calibrate_fits_each_direction_and_the_step_time(tmp_path: Path) -> None
     # node i publishes 1 + 0.5 i ms after its trigger: mean 1.75 ms (no core wait)
     assert rep["step_time_mean_s"] == pytest.approx(0.00175, rel=1e-9)
     assert sc_cal.compute.step_time.mean == pytest.approx(0.00175, rel=1e-9)
-    assert rep["warnings"] == ["no cpu.csv next to the source: CPU service demands not fitted"]
+    assert rep["warnings"] == ["no cpu.csv next to the source: no CPU stage fitted "
+                               "(deployment.preset 'none')"]
 
 
 def test_missing_per_node_rows_are_refused_or_warned_about(tmp_path: Path,
@@ -136,6 +137,13 @@ def test_missed_frac_counts_node_frames_of_the_window() -> None:
     rows += [{"kind": "state", "node": n, "frame": f, "t_send": 0.0} for n, f in got]
     assert missed_frac(pd.DataFrame(rows), 2, 0.1, 0.5) == pytest.approx(1 - 5 / 8)
     assert math.isnan(missed_frac(pd.DataFrame(rows), 2, 5.0, 6.0))
+    # the per-message engine's table: a trigger row per delivery (node >= 0), and a
+    # Lock-Step re-request of frame 0 sent inside the window: the same frames count
+    per_node = [{"kind": "trigger", "node": n, "frame": f, "t_send": 0.1 * f}
+                for f in range(6) for n in range(2)]
+    per_node += [{"kind": "trigger", "node": 1, "frame": 0, "t_send": 0.3}]
+    states = [r for r in rows if r["kind"] == "state"]
+    assert missed_frac(pd.DataFrame(per_node + states), 2, 0.1, 0.5) == pytest.approx(1 - 5 / 8)
 
 
 def test_in_sample_errors_are_zero_on_the_des_itself_and_flag_a_miss(tmp_path: Path) -> None:

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from sigma_des import Scenario
-from sigma_des.live.calibrate import delivery_floor, fanout_slope, host_share
+from sigma_des.live.calibrate import delivery_floor, fanout_slope
 from sigma_des.live.ledger import Ledger
 
 
@@ -45,14 +45,3 @@ def test_delivery_floor_is_the_low_quantile_of_consecutive_gaps() -> None:
     gaps = np.array([0.0021] * 10 + [0.0001] * 70)
     assert delivery_floor(df, q=0.99) == pytest.approx(np.quantile(gaps, 0.99))
     assert delivery_floor(df.iloc[:1]) == 0.0
-
-
-def test_host_share_separates_common_and_individual_delays() -> None:
-    # host 0 frame f: common delay f*1ms, nodes add +-0.5 ms: between var 1.25e-6 (f=0..3
-    # -> means 0,1,2,3 ms), within var 0.25e-6; share = 1.25 / 1.5
-    rows = [{"host": 0, "frame": f, "cost": f * 1e-3 + d} for f in range(4)
-            for d in (-0.5e-3, 0.5e-3)]
-    assert host_share(pd.DataFrame(rows)) == pytest.approx(1.25 / 1.5)
-    same = pd.DataFrame([{"host": 0, "frame": f, "cost": f * 1e-3} for f in range(4)] * 2)
-    assert host_share(same) == pytest.approx(1.0)
-    assert np.isnan(host_share(same.iloc[:1]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -96,8 +97,22 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
     down = sc.net.host_link.latency_down
     assert down is not None and down.file != sc.net.host_link.latency.file  # per direction
     assert sc.compute.step_time.dist == "lognormal"
+    # the CPU stage is on: the live machine's deployment, fitted (docs/LIVE.md)
+    summ = json.loads((live_dir / "summary.json").read_text())["live"]
+    dep = sc.deployment
+    assert (dep.preset, dep.clients, dep.server_tick) == ("colocated", "host", 0.0)
+    assert dep.cores == len(os.sched_getaffinity(0)) == summ["bides"]["cores"]
+    assert dep.bundle is False and summ["bides"]["bundle"] is False
+    assert all(summ[m]["load1"] >= 0 for m in summ)
+    assert 0 < dep.host_demand < 0.01 and 0 < dep.server_demand < 0.01
+    assert 0 <= dep.background < dep.cores
+    pub, dlv = sc.broker.publish_service, sc.broker.delivery_service
+    assert pub.dist == dlv.dist == "constant" and pub.value == dlv.value > 0
+    assert 0.0 <= sc.compute.host_share <= 0.95
     # the report: CPU demands of every process and the in-sample errors of every method
     rep = json.loads(out.with_suffix(".json").read_text())
+    assert rep["host_demand_s"] == dep.host_demand and rep["broker_demand_s"] == pub.value
+    assert rep["server_queue_folded_into_server_link"] is False
     methods = {"none", "lockstep", "hlc", "bides"}
     assert {(r["method"], r["metric"]) for r in rep["in_sample"]} == {
         (m, k) for m in methods for k in IN_SAMPLE_METRICS}
@@ -111,8 +126,13 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
         if p == "broker":  # every PUBLISH a client sent or received went through it
             assert r["messages"] == sum(dem[m, q]["messages"] for q in ("server", "host0", "host1"))
     assert set(rep["background_cores"]) == methods
+    # the prediction: the calibrated scenario runs with its CPU stage (the DES's CPU
+    # metrics exist only then)
+    pred = tmp_path / "pred"
     assert main(["compare", str(out), "--set", "duration=0.5", "--set", "warmup=0.1",
-                 "--methods", "bides", "--no-progress"]) == 0
+                 "--methods", "bides", "--no-progress", "--no-plots", "--out", str(pred)]) == 0
+    got = json.loads((pred / "summary.json").read_text())["methods"]["bides"]
+    assert 0 < got["server_cpu_util"] <= 1
 
 
 @pytest.mark.parametrize(

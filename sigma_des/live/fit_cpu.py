@@ -1,0 +1,202 @@
+"""The deployment of a live run: ``[deployment]`` and the broker's services, fitted.
+
+``sigma-des live`` runs the broker, the alignment server and every host process on
+this one machine, so the calibrated scenario gets ``deployment.preset = "colocated"``
+and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
+
+* ``cores``: the CPUs the live runner could use (``os.sched_getaffinity``);
+* ``background``: the cores' worth of CPU other processes took during the metrics
+  windows (machine busy CPU minus ours, :mod:`sigma_des.live.cpu`), pooled over the
+  methods (total CPU seconds / total window seconds), at most
+  :data:`BACKGROUND_CAP` × ``cores`` (the deployment needs ``background < cores``).
+  On a saturated machine (busy ≥ :data:`SATURATED` × ``cores``) this is ``cores``
+  minus what our processes got, which puts the DES's CPU at utilization ≈ 1 by
+  construction: warned about;
+* ``host_demand``, ``server_demand``: the Utilization Law (:mod:`sigma_des.live.demands`)
+  pooled over the processes of one kind and the methods, ``D = Σ busy / Σ messages``
+  (one demand per process per message, whatever its kind). A host's messages are the
+  PUBLISHes its ledger counted with a send time in the metrics window: triggers,
+  commands and Lock-Step re-requests received, states sent (a bundle once); the
+  server's: states received, triggers, commands and re-requests sent;
+* the broker's demand ``D_b`` (its busy CPU over every PUBLISH that came in plus every
+  delivery that went out) as **both** ``broker.publish_service`` and
+  ``broker.delivery_service`` (constants): one run gives one equation,
+  ``busy = D_pub · inbound + D_del · deliveries``, so the split is the one that charges
+  an inbound PUBLISH and each delivery the same;
+* ``server_tick = 0``: the server's per-tick CPU cannot be told apart from its
+  per-message CPU in one run; it is inside ``server_demand``;
+* ``clients = "host"`` (live runs one MQTT client per host process), ``bundle`` as the
+  live run had it (``summary.json``).
+
+Without a ``cpu.csv`` nothing is fitted (no CPU stage; a warning says so).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sigma_des.live.cpu import CPU_FILE
+from sigma_des.live.demands import fit_demands, read_cpu
+from sigma_des.net.spec import DeploymentSpec
+
+__all__ = ["BACKGROUND_CAP", "SATURATED", "CpuFit", "fit_deployment", "path_services",
+           "pooled_demand"]
+
+#: Largest ``background`` a calibration writes, as a share of ``cores``.
+BACKGROUND_CAP = 0.95
+#: A machine this busy (share of its cores, ours + background) is warned about.
+SATURATED = 0.95
+
+
+@dataclass(frozen=True)
+class CpuFit:
+    """What :func:`fit_deployment` fitted.
+
+    Attributes:
+        deployment: the ``[deployment]`` table.
+        broker_service: the broker's demand per inbound PUBLISH and per delivery (s).
+        report: the fitted figures and what they came from.
+    """
+
+    deployment: DeploymentSpec
+    broker_service: float
+    report: dict[str, Any]
+
+
+def pooled_demand(table: pd.DataFrame, kind: str) -> tuple[float, float, float]:
+    """``(Σ busy / Σ messages, Σ busy, Σ messages)`` over the rows of ``kind``
+    (``server``, ``broker``, or ``host`` for every ``host<H>``) with a measured demand."""
+    proc = table["process"].astype(str)
+    mine = (proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind).to_numpy(bool)
+    ok = np.isfinite(table["demand_s"].to_numpy(dtype=np.float64))
+    rows = table.loc[mine & ok]
+    busy, msgs = float(rows["busy_s"].sum()), float(rows["messages"].sum())
+    return (busy / msgs if msgs > 0 else math.nan), busy, msgs
+
+
+def _live_info(source: Path) -> dict[str, dict[str, Any]]:
+    """``summary.json``'s ``live`` table per method (empty if absent)."""
+    summ = (source if source.is_dir() else source.parent) / "summary.json"
+    if not summ.exists():
+        return {}
+    live = json.loads(summ.read_text(encoding="utf-8")).get("live", {})
+    return {str(m): v for m, v in live.items() if isinstance(v, dict)}
+
+
+def _recorded(info: dict[str, dict[str, Any]], key: str, default: Any, what: str,
+              warn: list[str]) -> Any:
+    vals = [v[key] for v in info.values() if key in v]
+    if not vals:
+        warn.append(f"the live run's summary.json does not record {key!r}: {what}")
+        return default
+    return vals[0]
+
+
+def _background(cpu: pd.DataFrame, cores: int, warn: list[str]) -> tuple[float, float, float]:
+    """Pooled background cores (capped), the measured value and the machine's busy cores
+    (ours + background) over the metrics windows."""
+    bg = cpu[cpu["process"] == "background"]
+    win = float(bg["window_s"].sum())
+    measured = float(bg["cpu_s"].sum()) / win if win > 0 else 0.0
+    ours = cpu[(cpu["process"] != "background") & cpu["cpu_s"].map(math.isfinite)]
+    busy = measured + (float(ours["cpu_s"].sum()) / win if win > 0 else 0.0)
+    cap = BACKGROUND_CAP * cores
+    if measured > cap:
+        warn.append(f"background CPU {measured:.3f} cores clamped to {cap:g} "
+                    f"({BACKGROUND_CAP:g} of {cores} cores): the machine had no capacity left")
+    if busy >= SATURATED * cores:
+        warn.append(f"the machine was saturated during the run ({busy:.2f} of {cores} cores "
+                    "busy): the background then is cores minus what our processes got, so the "
+                    "DES's CPU runs at utilization ~1 by construction; calibrate on a "
+                    "quieter machine")
+    return min(max(measured, 0.0), cap), measured, busy
+
+
+def _demand(table: pd.DataFrame, kind: str, warn: list[str]) -> float:
+    d, busy, msgs = pooled_demand(table, kind)
+    if not math.isfinite(d):
+        warn.append(f"no {kind} CPU demand could be measured: deployment.{kind}_demand 0")
+        return 0.0
+    if d < 0:
+        warn.append(f"{kind} CPU demand {d * 1e6:.1f} µs < 0 ({busy:.3f} s busy over "
+                    f"{msgs:.0f} messages) set to 0")
+        return 0.0
+    return d
+
+
+def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit | None:
+    """The colocated deployment of the live run at ``source`` (see the module doc).
+
+    Args:
+        source: the live ``--out`` directory (its ``cpu.csv`` and ``summary.json``).
+        base_broker: the base scenario's broker service, kept if the broker was not
+            measured (an external broker).
+        warn: warnings are appended here.
+
+    Returns:
+        The fit, or None without a ``cpu.csv`` (no CPU stage).
+    """
+    cpu = read_cpu(source)
+    if cpu is None:
+        warn.append(f"no {CPU_FILE} next to the source: no CPU stage fitted "
+                    "(deployment.preset 'none')")
+        return None
+    table, bg_per_method, w = fit_demands(cpu)
+    warn.extend(w)
+    info = _live_info(source)
+    here = len(os.sched_getaffinity(0))
+    cores = int(_recorded(info, "cores", here, f"this machine's {here} CPUs taken", warn))
+    bundle = bool(_recorded(info, "bundle", False, "bundle = false taken", warn))
+    if bundle:
+        warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
+                    "a bundle of a loop turn's states; the DES bundles only states whose "
+                    "jobs complete at the same instant, so with random step times it sends "
+                    "(and charges) one PUBLISH per state (docs/LIVE.md)")
+    background, measured, busy = _background(cpu, cores, warn)
+    host, server = _demand(table, "host", warn), _demand(table, "server", warn)
+    broker, b_busy, b_msgs = pooled_demand(table, "broker")
+    if not math.isfinite(broker) or broker < 0:
+        warn.append("the broker's CPU was not measured (an external broker?): its "
+                    f"services kept from the base scenario ({base_broker * 1e6:.3g} µs)")
+        broker = base_broker
+    dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
+                         host_demand=host, server_demand=server, server_tick=0.0,
+                         clients="host", bundle=bundle)
+    report = {
+        "deployment_cores": cores, "deployment_background_cores": background,
+        "background_cores_measured": measured, "machine_busy_cores": busy,
+        "host_demand_s": host,
+        "server_demand_s": server, "broker_demand_s": broker,
+        "broker_messages": b_msgs, "broker_busy_s": b_busy,
+        "background_cores": bg_per_method, "cpu_demands": table.to_dict("records"),
+        "live_load1": {m: v.get("load1") for m, v in info.items()},
+    }
+    return CpuFit(dep, broker, report)
+
+
+def path_services(dep: DeploymentSpec, publish: float, delivery: float) -> dict[str, float]:
+    """CPU service the DES spends on one message's path, per direction (s).
+
+    ``up`` (a state: the host's publish burst, the broker's publish and delivery, the
+    server's receive burst) and ``down`` (a trigger or command: server, broker, host),
+    every burst slowed by the background (``cores / (cores - background)``); and the
+    receiving process's burst (``up_rx``, ``down_rx``): deliveries into one process
+    closer together than it may have waited for its thread. Without a CPU stage only
+    the broker's services, unscaled.
+    """
+    if not dep.cpu:
+        return {"up": publish + delivery, "down": publish + delivery, "up_rx": 0.0,
+                "down_rx": 0.0}
+    scale = dep.cores / (dep.cores - dep.background)
+    broker = (publish + delivery) * scale
+    return {"up": broker + (dep.host_demand + dep.server_demand) * scale,
+            "down": broker + (dep.server_demand + dep.host_demand) * scale,
+            "up_rx": dep.server_demand * scale, "down_rx": dep.host_demand * scale}

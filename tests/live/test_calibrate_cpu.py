@@ -1,0 +1,191 @@
+"""`calibrate` feeds the CPU stage: the deployment from a synthetic ``cpu.csv`` and
+``summary.json`` (hand-computed), the Utilization Law pooled exactly, the hop latencies
+net of the path's CPU services, and ``compute.host_share`` by the intraclass correlation."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.special import ndtri
+
+from sigma_des import load
+from sigma_des.live.calibrate import calibrate, calibrated_toml, for_target
+from sigma_des.live.cpu import write_cpu
+from sigma_des.live.demands import fit_demands
+from sigma_des.live.fit_cpu import path_services, pooled_demand
+from sigma_des.live.fit_step import HOST_SHARE_CAP, host_share, icc
+from sigma_des.net.spec import DeploymentSpec
+from tests.live.test_calibrate_inputs import SETS, STATE_LAT, TRIG_LAT, _run, _write
+
+WINDOW, IDLE = 4.0, 1.0
+#: process -> (idle CPU rate, messages, busy CPU seconds in the window)
+PROCS = {"server": (0.01, 5000, 0.4), "host0": (0.0, 2000, 0.3),
+         "host1": (0.02, 2500, 0.5), "broker": (0.005, 9000, 0.09)}
+BACKGROUND_CPU = 1.2  # CPU seconds other processes took in the window: 0.3 cores
+CORES = 4
+
+
+def _cpu_rows(procs: dict[str, tuple[float, int, float]], bg: float) -> list[dict[str, object]]:
+    rows: list[dict[str, object]] = []
+    for pid, (name, (idle, msgs, busy)) in enumerate(procs.items()):
+        rows.append({"process": name, "pid": pid, "idle_s": IDLE, "idle_cpu_s": idle * IDLE,
+                     "window_s": WINDOW, "cpu_s": idle * WINDOW + busy, "messages": msgs})
+    rows.append({"process": "background", "pid": -1, "idle_s": IDLE, "idle_cpu_s": 0.1,
+                 "window_s": WINDOW, "cpu_s": bg, "messages": math.nan})
+    return rows
+
+
+def _cpu_run(tmp: Path, live: dict[str, object] | None = None) -> Path:
+    """The synthetic live run of test_calibrate_inputs with a cpu.csv and the live table."""
+    sc = load(None, SETS)
+    d = _write(tmp, sc, _run(sc))
+    write_cpu({"bides": {"cpu": _cpu_rows(PROCS, BACKGROUND_CPU)}}, d)
+    summ = json.loads((d / "summary.json").read_text())
+    summ["live"] = {"bides": live if live is not None else
+                    {"cores": CORES, "bundle": True, "load1": 0.5}}
+    (d / "summary.json").write_text(json.dumps(summ))
+    return d
+
+
+def test_pooled_utilization_law_recovers_known_demands_exactly() -> None:
+    """Two methods, two hosts: every host spends 150 µs per message whatever its idle
+    rate and count, so the pooled demand Σ busy / Σ messages is 150 µs exactly."""
+    rows = []
+    for m, counts in (("none", (1000, 3000)), ("bides", (2000, 500))):
+        procs = {f"host{h}": (0.01 * h, n, 150e-6 * n) for h, n in enumerate(counts)}
+        procs["server"] = (0.0, 4000, 80e-6 * 4000)
+        rows += [{"method": m, **r} for r in _cpu_rows(procs, 0.4)]
+    table, _bg, warn = fit_demands(pd.DataFrame(rows))
+    assert warn == []
+    d, busy, msgs = pooled_demand(table, "host")
+    assert msgs == 6500 and busy == pytest.approx(150e-6 * 6500, rel=1e-12)
+    assert d == pytest.approx(150e-6, rel=1e-12)
+    assert pooled_demand(table, "server")[0] == pytest.approx(80e-6, rel=1e-12)
+    assert math.isnan(pooled_demand(table, "broker")[0])  # no broker row: no demand
+
+
+def test_calibrate_writes_the_deployment_with_the_fitted_values(tmp_path: Path) -> None:
+    sc, rep = calibrate(_cpu_run(tmp_path / "run"), tmp_path / "files")
+    host = (0.3 + 0.5) / (2000 + 2500)  # 177.8 µs: pooled over both hosts
+    server, broker = 0.4 / 5000, 0.09 / 9000  # 80 µs, 10 µs
+    want = DeploymentSpec(preset="colocated", cores=CORES, background=BACKGROUND_CPU / WINDOW,
+                          host_demand=host, server_demand=server, server_tick=0.0,
+                          clients="host", bundle=True)
+    dep = sc.deployment
+    for key in ("preset", "cores", "clients", "bundle", "server_tick"):
+        assert getattr(dep, key) == getattr(want, key), key
+    for key in ("background", "host_demand", "server_demand"):
+        assert getattr(dep, key) == pytest.approx(getattr(want, key), rel=1e-12), key
+    for svc in (sc.broker.publish_service, sc.broker.delivery_service):
+        assert svc.dist == "constant" and svc.value == pytest.approx(broker, rel=1e-12)
+    # written out and read back: the same keys and values
+    path = tmp_path / "cal.toml"
+    path.write_text(calibrated_toml(sc, rep))
+    back = load(str(path))
+    assert back.deployment == sc.deployment and back.broker == sc.broker
+    assert back.compute.host_share == sc.compute.host_share
+    text = path.read_text()
+    assert '[deployment]\npreset = "colocated"' in text and 'clients = "host"' in text
+    # the hop: the path latency less the CPU services the DES adds on it (the broker's
+    # two, the sender's and the receiver's bursts), all slowed by 4 / (4 - 0.3)
+    scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
+    cpu = scale * (2 * broker + host + server)
+    up = np.loadtxt(sc.net.host_link.latency.file)  # type: ignore[union-attr]
+    down = np.loadtxt(sc.net.server_link.latency.file)  # type: ignore[union-attr]
+    assert up.mean() == pytest.approx((STATE_LAT - cpu) / 2, rel=1e-9)
+    assert down.mean() == pytest.approx((np.mean(TRIG_LAT) - cpu) / 2, rel=1e-6)
+    assert rep["path_cpu_service_up_s"] == pytest.approx(cpu, rel=1e-12)
+    assert rep["server_queue_folded_into_server_link"] is False
+    assert rep["state_held_frac"] == 0.0  # states 0.5 ms apart > 0.1 ms + the server's burst
+    assert not any("cpu.csv" in w for w in rep["warnings"])
+
+
+def test_per_client_delivery_is_not_rescaled_with_one_client_per_host(tmp_path: Path) -> None:
+    sc, rep = calibrate(_cpu_run(tmp_path / "run"), tmp_path / "files")
+    tgt = for_target(sc, rep, ["nodes=40", "hosts=4"])
+    assert tgt.broker.delivery_service.value == pytest.approx(0.09 / 9000, rel=1e-12)
+    node_clients = for_target(sc, rep, ["nodes=40", "hosts=4", 'deployment.clients="node"',
+                                        "deployment.bundle=false"])
+    assert node_clients.broker.delivery_service.value == pytest.approx(
+        0.09 / 9000 * 4 / 40, rel=1e-12)
+
+
+def test_missing_live_table_and_saturation_are_said(tmp_path: Path) -> None:
+    import os
+
+    _sc, rep = calibrate(_cpu_run(tmp_path / "a", live={}), tmp_path / "fa")
+    w = " | ".join(rep["warnings"])
+    here = len(os.sched_getaffinity(0))
+    assert f"does not record 'cores': this machine's {here} CPUs taken" in w
+    assert "does not record 'bundle': bundle = false taken" in w
+    assert _sc.deployment.cores == here and _sc.deployment.bundle is False
+    # a machine busy with others: 3.9 of 4 cores' background is capped at 3.8
+    d = _cpu_run(tmp_path / "b")
+    write_cpu({"bides": {"cpu": _cpu_rows(PROCS, 3.9 * WINDOW)}}, d)
+    sc, rep = calibrate(d, tmp_path / "fb")
+    assert sc.deployment.background == pytest.approx(0.95 * CORES)
+    w = " | ".join(rep["warnings"])
+    assert "background CPU 3.900 cores clamped to 3.8" in w
+    assert "the machine was saturated during the run" in w
+
+
+def test_without_cpu_csv_no_cpu_stage_is_fitted(tmp_path: Path) -> None:
+    sc0 = load(None, SETS)
+    sc, rep = calibrate(_write(tmp_path / "run", sc0, _run(sc0)), tmp_path / "f")
+    assert sc.deployment == DeploymentSpec()
+    assert "no cpu.csv next to the source: no CPU stage fitted" in rep["warnings"][0]
+    assert path_services(DeploymentSpec(), 1e-5, 2e-5) == {
+        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5, "up_rx": 0.0, "down_rx": 0.0}
+
+
+def test_icc_hand_computed() -> None:
+    """4 groups of 2: means 0, 1, 2, 3 ms, each ±0.5 ms. SSB = 2·Σ(m − 1.5)² = 10,
+    MSB = 10/3; SSW = 8·0.25 = 2, MSW = 2/4 = 0.5; n0 = 2: ICC = (10/3 − 1/2)/(10/3 + 1/2)
+    = 17/23 (ms², scale-free)."""
+    x = [f + d for f in range(4) for d in (-0.5, 0.5)]
+    g = [f for f in range(4) for _ in range(2)]
+    assert icc(np.array(x) * 1e-3, g) == pytest.approx(17 / 23, rel=1e-12)
+    assert icc([1.0, 1.0, 2.0, 2.0], [0, 0, 1, 1]) == pytest.approx(1.0)
+    assert icc([1.0, 2.0, 1.0, 2.0], [0, 0, 1, 1]) == pytest.approx(-1.0)  # (0 - 0.5)/(0.5)
+    assert math.isnan(icc([1.0, 2.0], [0, 1]))  # no group of two
+    assert math.isnan(icc([1.0, 2.0], [0, 0]))  # one group
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.3, 0.8])
+def test_host_share_recovers_a_known_copula_rho(rho: float) -> None:
+    """Services drawn as the DES draws them (lognormal marginal, normal scores
+    correlated ρ within a host and frame), 1500 frames x 2 hosts x 5 nodes: the ICC of
+    the rank normal scores is ρ within 4 standard errors of the ICC (large-sample
+    variance 2(1−ρ)²(1+(k−1)ρ)² / (k(k−1)(g−1)), k = 5, g = 3000: ±0.026 at ρ = 0.3)."""
+    rng = np.random.default_rng(11)
+    frames, hosts, k = 1500, 2, 5
+    zh = rng.standard_normal((frames, hosts, 1))
+    zn = rng.standard_normal((frames, hosts, k))
+    z = math.sqrt(rho) * zh + math.sqrt(1 - rho) * zn
+    cost = np.exp(-6.0 + 0.7 * z)  # any increasing marginal: the ranks are what count
+    f, h, _ = np.meshgrid(range(frames), range(hosts), range(k), indexing="ij")
+    pub = pd.DataFrame({"method": "bides", "frame": f.ravel(), "host": h.ravel(),
+                        "cost": cost.ravel()})
+    g = frames * hosts
+    se = math.sqrt(2 * (1 - rho) ** 2 * (1 + (k - 1) * rho) ** 2 / (k * (k - 1) * (g - 1)))
+    assert host_share(pub) == pytest.approx(rho, abs=4 * se)
+
+
+def test_fitted_host_share_from_the_synthetic_run(tmp_path: Path) -> None:
+    """The synthetic run's nodes publish 1, 1.5 ms (host 0) and 2, 2.5 ms (host 1) after
+    every trigger: four score levels ±Φ⁻¹(1/8), ±Φ⁻¹(3/8) (mid-ranks of four equal
+    quarters), groups {z1, z2} and {−z2, −z1}. With g groups of 2 (N = 2g):
+    MSB = 2g·m²/(g−1) → 2m², MSW = 2g·h²/g = 2h² (m, h the mean and half-difference
+    of z1, z2), n0 = 2: ICC = (m² − h²)/(m² + h²) = 0.515."""
+    sc0 = load(None, SETS)
+    sc, rep = calibrate(_write(tmp_path / "run", sc0, _run(sc0)), tmp_path / "f")
+    z1, z2 = float(ndtri(1 / 8)), float(ndtri(3 / 8))
+    m, h = (z1 + z2) / 2, (z2 - z1) / 2
+    assert rep["step_time_host_share"] == pytest.approx((m * m - h * h) / (m * m + h * h),
+                                                        abs=0.01)
+    assert sc.compute.host_share == rep["step_time_host_share"] < HOST_SHARE_CAP
