@@ -33,6 +33,7 @@ from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.spec import (
     BrokerSpec,
     DdsSpec,
+    DeploymentSpec,
     LinkDegrade,
     LinkSpec,
     NetSetup,
@@ -46,6 +47,7 @@ __all__ = [
     "BrokerSpec",
     "CommandSpec",
     "ComputeSpec",
+    "DeploymentSpec",
     "FaultSpec",
     "FidelitySpec",
     "HLCSpec",
@@ -133,6 +135,9 @@ class Scenario:
         history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
         record: how ``--record`` stores runs (not part of the config hash).
+        deployment: machines, per-message CPU demands and MQTT clients (``[deployment]``,
+            docs/MODEL.md "Deployment and CPU"); all defaults (no CPU stage, one client
+            per node) is not written out and leaves the config hash as before it existed.
     """
 
     seed: int = 1
@@ -168,6 +173,7 @@ class Scenario:
     rpc: RpcSpec = field(default_factory=RpcSpec)
     record: RecordSpec = field(default_factory=RecordSpec)
     faults: tuple[FaultSpec, ...] = ()
+    deployment: DeploymentSpec = field(default_factory=DeploymentSpec)
 
     def __post_init__(self) -> None:
         require(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
@@ -239,6 +245,20 @@ class Scenario:
             f"must be <= f_trig ({self.f_trig}), got {self.bides.f_trig_min}",
         )
         self._check_faults()
+        self._check_deployment()
+
+    def _check_deployment(self) -> None:
+        """The CPU stage and per-host clients are modelled for MQTT and the four methods."""
+        dep = self.deployment
+        if dep == DeploymentSpec():
+            return
+        key = "deployment.preset" if dep.cpu else "deployment.clients"
+        require(self.net.middleware == "mqtt", key,
+                "a deployment other than the default needs net.middleware 'mqtt' (the DDS "
+                "model has its own participant threads)")
+        require(dep.clients == "node" or "rpc" not in self.methods, "deployment.clients",
+                "'host' does not apply to the rpc method (per-vehicle calls): drop 'rpc' "
+                "from methods or use clients 'node'")
 
     def _check_dynamics(self) -> None:
         """``dynamics`` names a model; ``dynamics_params`` a fit of it."""
@@ -284,7 +304,7 @@ class Scenario:
     def run_spec(self) -> RunSpec:
         """The engine's view of this scenario (:class:`~sigma_des.events.spec.RunSpec`):
         the fields both share by name, the placement, and the layers' own specs."""
-        own = ("host_of", "net")
+        own = ("host_of", "net", "deployment")
         same = {f.name: getattr(self, f.name) for f in dataclasses.fields(RunSpec)
                 if f.name in self.__dataclass_fields__ and f.name not in own}
         return RunSpec(
@@ -317,6 +337,7 @@ class Scenario:
             drops=frozenset(
                 (kinds[f.message], f.node, f.frame) for f in self.faults if f.kind == "drop"
             ),
+            deployment=self.deployment,
         )
 
     def align_params(self) -> AlignParams:
@@ -356,6 +377,10 @@ def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
             False: the resolved values (what the run uses, and what the hash covers).
     """
     d = dict(plain(s))
+    if s.deployment == DeploymentSpec():
+        # like an absent ``latency_down``: the default deployment (no CPU stage) is
+        # today's model, so it is not written and every existing hash is unchanged
+        d.pop("deployment")
     if keep_auto:
         if getattr(s, "hosts_auto", False):
             d["hosts"] = 0

@@ -216,6 +216,10 @@ class MethodRun(AlignmentServer):
 
     # ------------------------------------------------------------ server hooks
 
+    def tick_cost(self, t: float) -> None:
+        """An alignment tick: a ``deployment.server_tick`` burst on the server's process."""
+        self.net.server_tick(t)
+
     def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
         """True positions of ``frame`` (None once it left the truth ring)."""
         return self.truth.positions(frame)
@@ -272,7 +276,8 @@ class MethodRun(AlignmentServer):
             wall_seconds=self.wall_seconds,
             events=self.kernel.events,
         )
-        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))
+        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net),
+                                     self.net.cpu_report())
 
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""

@@ -10,6 +10,8 @@ transport, in the spirit of SimPy's ``BaseResource`` (``_do_put``/``_do_get``):
   Lock-Step re-request leave the server;
 * :meth:`AlignmentServer.on_frame`: what else happens at an issue (the DES steps
   its physics truth there);
+* :meth:`AlignmentServer.tick_cost`: the CPU an alignment tick spends (the DES
+  charges a burst on the server's process; live spends real CPU);
 * :meth:`AlignmentServer.truth_positions`, :meth:`~AlignmentServer.snapshot_taken`,
   :meth:`~AlignmentServer.rendered`: the truth a render tick compares with (the
   live server has none) and what is recorded.
@@ -105,6 +107,9 @@ class AlignmentServer:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
         raise NotImplementedError
 
+    def tick_cost(self, t: float) -> None:
+        """The alignment tick at ``t`` spends the server's CPU (nothing by default)."""
+
     def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
         """True ``(n, 3)`` positions of ``frame`` for the render tick (None: unknown)."""
         return None
@@ -158,6 +163,7 @@ class AlignmentServer:
         t = self.clock.now
         if t >= self.spec.duration:
             return
+        self.tick_cost(t)  # before the tick's commands: they queue behind it
         al = self.aligner
         al.align(t)
         self.collector.shown(t, al.shown_gen)

@@ -26,9 +26,10 @@ from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import summarize
 from sigma_des.metrics.throughput import link_mbps, throughput
+from sigma_des.net.cpu import CpuReport
 from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
 
-__all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS"]
+__all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS", "cpu_metrics"]
 
 #: latency series of each message kind (a republished state is a state)
 _KINDS = {**KIND_NAMES, REPUBLISH: KIND_NAMES[STATE]}
@@ -62,6 +63,11 @@ METRIC_UNITS: dict[str, str] = {
     "gave_up": "count",
     "broker_util": "1",
     "broker_max_wait_ms": "ms",
+    # only with a CPU stage (deployment.preset colocated or dedicated; absent otherwise)
+    "server_cpu_util": "1",
+    "server_cpu_max_wait_ms": "ms",
+    "host_cpu_util_max": "1",
+    "machine_cpu_util_max": "1",
     "buffer_bytes_peak": "B",
     "rollbacks": "count",
     "resim_steps": "count",
@@ -291,13 +297,16 @@ class Collector:
 
     # ------------------------------------------------------------ results
 
-    def finish(self, run: RunReport, aligner: AlignerReport, net: NetReport) -> dict[str, Any]:
+    def finish(self, run: RunReport, aligner: AlignerReport, net: NetReport,
+               cpu: CpuReport | None = None) -> dict[str, Any]:
         """Metrics of the finished run (see :data:`METRIC_UNITS`, :data:`WALL_METRICS`).
 
         Args:
             run: the engine's (or live server's) report on the run itself.
             aligner: the alignment method's report.
             net: the network's counters.
+            cpu: the CPU stage's counters (None: no CPU stage; its metrics are then
+                absent, not NaN, so a run without one has exactly the rows it had).
 
         Returns:
             ``{"metrics", "wall", "links_mbps", "timeseries"}``.
@@ -352,6 +361,8 @@ class Collector:
         m["rejoined"] = aligner.rejoined
         m["rerequests"] = aligner.rerequests
         m["history_misses"] = run.history_misses
+        if cpu is not None:
+            m.update(cpu_metrics(cpu, window))
         wall = {
             "wall_s": run.wall_seconds,
             "events": run.events,
@@ -365,6 +376,25 @@ class Collector:
             "links_mbps": link_mbps(net.links, window),
             "timeseries": whole_ticks(self.ts),
         }
+
+
+def cpu_metrics(cpu: CpuReport, window: float) -> dict[str, float]:
+    """The CPU stage's metrics: the server's utilisation (CPU seconds held per second of
+    the window) and longest wait, the busiest host process's utilisation, and the
+    busiest machine's (its processes' CPU seconds over cores x window, background
+    excluded)."""
+    procs = {p.name: p for p in cpu.processes}
+    server = procs["server"]
+    hosts = [p.busy for p in cpu.processes if p.name.startswith("host")]
+    per_machine: dict[str, float] = {}
+    for p in cpu.processes:
+        per_machine[p.machine] = per_machine.get(p.machine, 0.0) + p.busy
+    return {
+        "server_cpu_util": server.busy / window,
+        "server_cpu_max_wait_ms": server.max_wait * 1000.0,
+        "host_cpu_util_max": max(hosts, default=0.0) / window,
+        "machine_cpu_util_max": max(per_machine.values()) / (cpu.cores * window),
+    }
 
 
 def whole_ticks(ts: dict[str, list[Any]]) -> dict[str, NDArray[Any]]:

@@ -7,6 +7,11 @@ broker nothing. A QoS 1 redelivery is one more ``delivery_service``. Every
 service time is drawn by ``(kind, subject, index, attempt)`` from the streams
 ``svc.publish`` and ``svc.delivery``, so results do not depend on event order.
 
+With a CPU stage (:mod:`sigma_des.net.cpu`) the broker is a process on its
+machine's cores: a service starts at ``max(now, busy, core_free)`` on the
+lowest-index core with the smallest free time, every service time is multiplied
+by the background slow-down, and the core is held until the last delivery leaves.
+
 The broker only computes times: the client side (links, transports, QoS) is in
 :mod:`sigma_des.net.network`, which sends what the broker's times say.
 """
@@ -17,6 +22,7 @@ from collections.abc import Sequence
 
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.rng import RandomStreams
+from sigma_des.net.cpu import Process
 from sigma_des.net.links import dist_cache
 from sigma_des.net.spec import BrokerSpec
 
@@ -32,6 +38,8 @@ class Broker:
         clients: number of clients (nodes plus the server).
         warmup: service before this time is not counted.
         end: service at or after this time is not counted.
+        process: the broker's process on its machine's cores (None: no CPU stage, the
+            broker has a core of its own).
 
     Attributes:
         busy: time the server is free again (s).
@@ -42,8 +50,13 @@ class Broker:
     """
 
     def __init__(
-        self, spec: BrokerSpec, streams: RandomStreams, clients: int, warmup: float, end: float
+        self, spec: BrokerSpec, streams: RandomStreams, clients: int, warmup: float,
+        end: float, process: Process | None = None,
     ) -> None:
+        # a broker that spends nothing holds no core (a zero demand is no burst)
+        idle = all(d.dist == "constant" and d.value == 0.0
+                   for d in (spec.publish_service, spec.delivery_service))
+        self.process = None if idle else process
         self.warmup = warmup
         self.end = end
         self.publish_draws: DrawCache = dist_cache(
@@ -80,7 +93,15 @@ class Broker:
         """
         s_pub = self.publish_draws.get(kind, subject, index, attempt)
         s_del = [self.delivery_draws.get(kind, d, index, attempt) for d in delivery_subjects]
-        start = now if now > self.busy else self.busy
+        proc = self.process
+        c = 0
+        if proc is None:
+            start = now if now > self.busy else self.busy
+        else:
+            start, c = proc.acquire(now)  # its thread is free at ``busy``
+            sc = proc.scale
+            s_pub = s_pub * sc
+            s_del = [x * sc for x in s_del]
         if self.warmup <= now < self.end:
             self.max_wait = max(self.max_wait, start - now)
         t_ack = start + s_pub
@@ -91,6 +112,8 @@ class Broker:
             departs.append(d)
         # free exactly when the last delivery leaves (same float as that departure)
         self.busy = d
+        if proc is not None:
+            proc.hold(now, start, c, d)
         self._count_work(start, d)
         return t_ack, departs
 
@@ -99,10 +122,17 @@ class Broker:
     ) -> float:
         """Serve one redelivery (QoS 1 resend) asked for ``now``; its departure time."""
         s_del = self.delivery_draws.get(kind, subject, index, attempt)
-        start = now if now > self.busy else self.busy
-        self.busy = start + s_del
-        self._count_work(start, start + s_del)
-        return start + s_del
+        proc = self.process
+        if proc is None:
+            start = now if now > self.busy else self.busy
+            end = start + s_del
+        else:
+            start, c = proc.acquire(now)
+            end = start + s_del * proc.scale
+            proc.hold(now, start, c, end)
+        self.busy = end
+        self._count_work(start, end)
+        return end
 
     def carried(self, busy: float, work: float, max_wait: float) -> None:
         """Service given elsewhere (the compiled core): free again at ``busy`` at the

@@ -9,6 +9,17 @@ PUBACKs and resends, receive. QoS 1 over ``datagram`` resends with DUP after
 broker in service order, so downlink FIFO reservations are made when the broker
 serves.
 
+With a CPU stage (``deployment.preset`` other than ``none``, :mod:`sigma_des.net.cpu`),
+a client's publish is a burst of its process's demand (the PUBLISH leaves at the
+burst's end) and every copy it receives is a burst at its arrival (the application
+gets it at the burst's end; the PUBACK leaves at the arrival). A zero demand is no
+burst and no event. With per-host clients (``deployment.clients = "host"``) the MQTT
+clients are the physics hosts (client id: the host's first node) and the server: a
+node's state leaves through its host's client, and what a host client receives is
+handed to its nodes (a trigger, the only broadcast, to each in node order; a message
+about node ``i`` to ``i``). With ``bundle`` a host client's publishes of one instant are one PUBLISH
+(:class:`Bundle`), handed over record by record at the receiver.
+
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
 """
@@ -21,16 +32,26 @@ from typing import Any
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.broker import Broker
-from sigma_des.net.kinds import ACK
+from sigma_des.net.cpu import Cpu, CpuReport
+from sigma_des.net.kinds import ACK, TRIGGER
 from sigma_des.net.links import Links
 from sigma_des.net.message import Msg
 from sigma_des.net.spec import NetSetup
 from sigma_des.net.wire import PUBACK_BYTES, frame_bytes, payload_bytes, publish_bytes
 
-__all__ = ["Network"]
+__all__ = ["Bundle", "Network"]
 
 #: called with every message that reaches its receiver (duplicates included)
 Deliver = Callable[[Msg], None]
+#: one record of a bundle: ``(kind, subject, index, payload, payload_bits)``
+Record = tuple[int, int, int, Any, int]
+
+
+class Bundle(tuple[Record, ...]):
+    """The payload of a bundled PUBLISH: the records a host client published at one
+    instant, in publish order (handed to the receiving application one by one)."""
+
+    __slots__ = ()
 
 
 class Network(Links):
@@ -54,9 +75,35 @@ class Network(Links):
         self.qos1 = net.qos == 1
         self.timeout = net.qos1_timeout
         self._topic = net.topic_bytes
-        self.broker = Broker(setup.broker, streams, self.n + 1, self.warmup, self.end)
+        dep = setup.deployment
+        topo = setup.topology
+        self.cpu = Cpu(dep, topo.hosts, self.warmup, self.end) if dep.cpu else None
+        cpu = self.cpu
+        self.broker = Broker(setup.broker, streams, self.n + 1, self.warmup, self.end,
+                             cpu.broker if cpu is not None else None)
         self._wire_cache: dict[int, int] = {}
         self._ack_b = frame_bytes(PUBACK_BYTES, net.tcpip_bytes, net.ethernet_bytes)
+        # each client's process and demand (None: no burst, as without a CPU stage)
+        self._demand = [dep.host_demand] * self.n + [dep.server_demand]
+        self._proc = [None] * (self.n + 1) if cpu is None else [
+            p if d > 0.0 else None
+            for p, d in zip([*(cpu.hosts[h] for h in topo.host_of), cpu.server], self._demand,
+                            strict=True)
+        ]
+        self._tick = dep.server_tick if cpu is not None else 0.0
+        # per-host clients: host h's client is its first node; members: its nodes in order
+        self.host_clients = dep.clients == "host"
+        self.bundle = dep.bundle
+        first: dict[int, int] = {}
+        self.members: dict[int, list[int]] = {}
+        for i, h in enumerate(topo.host_of):
+            first.setdefault(h, i)
+            self.members.setdefault(first[h], []).append(i)
+        self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
+                          else list(range(self.n))) + [self.server]
+        self._pending: dict[int, list[tuple[Record, tuple[int, ...]]]] = {}
+        # the application receives through a burst or a hand-over (else: deliver at once)
+        self._app_stage = self.host_clients or any(p is not None for p in self._proc)
 
     # ------------------------------------------------------------ sizes
 
@@ -86,6 +133,19 @@ class Network(Links):
         """Longest wait of a PUBLISH at the broker in the metrics window (s)."""
         return self.broker.max_wait
 
+    def cpu_report(self) -> CpuReport | None:
+        """The CPU stage's counters (None: the deployment has no CPU stage)."""
+        return self.cpu.report() if self.cpu is not None else None
+
+    # ------------------------------------------------------------ CPU
+
+    def server_tick(self, t: float) -> None:
+        """An alignment tick at ``t``: a burst of ``server_tick`` on the server's process
+        (it delays the server's later bursts; nothing else waits for it)."""
+        if self._tick > 0.0:
+            assert self.cpu is not None
+            self.cpu.server.burst(t, self._tick)
+
     # ------------------------------------------------------------ MQTT publish
 
     def publish(
@@ -101,13 +161,49 @@ class Network(Links):
         """``client`` publishes now; the broker fans the message out to ``subscribers``.
 
         ``subject`` is the node the message is about (the server ``n`` for a
-        broadcast, whose deliveries are then keyed by each subscriber).
+        broadcast, whose deliveries are then keyed by each subscriber). With per-host
+        clients, a node publishes through its host's client and a subscriber node is
+        reached through its host's client.
         """
         now = self.k.now
-        self._publish_try(
-            Msg(client, kind, subject, index, payload, payload_bits, tuple(subscribers), 0,
-                now, now)
-        )
+        if self.host_clients:
+            cl = self.client_of
+            client = cl[client]
+            subs = tuple(dict.fromkeys(cl[s] for s in subscribers))
+            if self.bundle and client != self.server:
+                self._add_to_bundle(client, (kind, subject, index, payload, payload_bits), subs)
+                return
+        else:
+            subs = tuple(subscribers)
+        self._client_publish(
+            Msg(client, kind, subject, index, payload, payload_bits, subs, 0, now, now))
+
+    def _client_publish(self, m: Msg) -> None:
+        """``m.client``'s process spends its publish burst; then the PUBLISH leaves."""
+        proc = self._proc[m.client]
+        if proc is None:
+            self._publish_try(m)
+        else:
+            self.k.at(proc.burst(m.t_pub, self._demand[m.client]), self._publish_try, m)
+
+    def _add_to_bundle(self, client: int, rec: Record, subs: tuple[int, ...]) -> None:
+        """Bundle: keep ``rec`` for host ``client``'s PUBLISH of this instant."""
+        pend = self._pending.get(client)
+        if not pend:
+            pend = self._pending[client] = []
+            # after every event already due now (the jobs completing at this instant)
+            self.k.at(self.k.now, self._flush, client)
+        pend.append((rec, subs))
+
+    def _flush(self, client: int) -> None:
+        """Bundle: host ``client``'s records of this instant leave as one PUBLISH (the
+        first record's kind, subject and index key its draws; its payload the sum)."""
+        pend = self._pending.pop(client)
+        now = self.k.now
+        kind, subject, index, _p, _b = pend[0][0]
+        recs = Bundle(r for r, _s in pend)
+        bits = sum(r[4] for r in recs)
+        self._client_publish(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
 
     def _publish_try(self, m: Msg) -> None:
         """A try of the publisher → broker hop, leaving now."""
@@ -173,4 +269,31 @@ class Network(Links):
         now = self.k.env.now
         if self.qos1 and self._puback(m, True, now, now):
             self._resend(m, self._redeliver)
-        self.deliver(m)
+        if not self._app_stage:
+            self.deliver(m)
+            return
+        proc = self._proc[m.client]
+        if proc is None:
+            self._hand_over(m)
+        else:
+            self.k.at(proc.burst(now, self._demand[m.client]), self._hand_over, m)
+
+    def _hand_over(self, m: Msg) -> None:
+        """The receiving client's application gets ``m``: a bundle record by record; a
+        host client's message to each of its nodes it is for (in node order)."""
+        deliver = self.deliver
+        c = m.client
+        if isinstance(m.payload, Bundle):
+            for kind, subject, index, payload, bits in m.payload:
+                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, m.t_pub,
+                            m.t_sent))
+        elif not self.host_clients or c == self.server:
+            deliver(m)
+        elif m.kind == TRIGGER:  # the broadcast: to every node of the host
+            for j in self.members[c]:
+                deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
+                            m.t_sent))
+        else:  # a message about one node (command, re-request): to that node
+            j = m.subject
+            deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
+                        m.t_sent))

@@ -28,6 +28,7 @@ Sources:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from sigma_des.core.validate import require, require_in, require_nonneg, require_positive
@@ -36,13 +37,16 @@ from sigma_des.net.loss import LossSpec
 
 __all__ = [
     "BrokerSpec",
+    "CLIENTS",
     "DdsSpec",
+    "DeploymentSpec",
     "LinkDegrade",
     "LinkSpec",
     "MAX_RETRIES",
     "MIDDLEWARES",
     "NetSetup",
     "NetSpec",
+    "PRESETS",
     "Topology",
 ]
 
@@ -50,6 +54,14 @@ __all__ = [
 MAX_RETRIES = 100
 #: ``net.middleware`` choices: an MQTT broker, or brokerless DDS/RTPS.
 MIDDLEWARES: tuple[str, ...] = ("mqtt", "dds")
+#: ``deployment.preset`` choices (docs/MODEL.md, "Deployment and CPU").
+PRESETS: tuple[str, ...] = ("none", "colocated", "dedicated")
+#: ``deployment.clients`` choices: one MQTT client per node, or per physics host.
+CLIENTS: tuple[str, ...] = ("node", "host")
+#: Largest ``deployment.cores``.
+MAX_CORES = 4096
+#: Largest per-message or per-tick CPU demand (s).
+MAX_DEMAND = 1.0
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,68 @@ class BrokerSpec:
     publish_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=4e-6))
     delivery_service: Dist = field(default_factory=lambda: Dist(dist="constant", value=3e-6))
 
+
+
+@dataclass(frozen=True)
+class DeploymentSpec:
+    """Where the processes run and the CPU they spend (docs/MODEL.md, "Deployment and CPU").
+
+    Each process (the broker, the alignment server, each physics host's client
+    process) is one thread; its CPU bursts are served first come first served on
+    its machine's cores (:mod:`sigma_des.net.cpu`). All defaults: no CPU stage,
+    today's model exactly (the table is then not written out nor hashed).
+
+    Attributes:
+        preset: ``none`` (no CPU stage), ``colocated`` (broker, server and every host
+            process on one machine of ``cores`` cores: ``sigma-des live`` on a laptop)
+            or ``dedicated`` (broker, server and each host on a machine of its own).
+        cores: cores of each machine, 1..4096.
+        background: cores' worth of CPU other processes use on each machine, in
+            ``[0, cores)``: every burst takes ``cores / (cores - background)`` longer.
+        host_demand: CPU a physics host's client process spends per PUBLISH it sends
+            or receives (s), 0..1.
+        server_demand: CPU the server's process spends per PUBLISH it sends or
+            receives (s), 0..1.
+        server_tick: CPU the server's process spends per alignment tick (s), 0..1.
+        clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
+            host process, as live runs).
+        bundle: a host's states whose jobs complete at the same instant leave as one
+            PUBLISH (live ``--bundle``); needs ``clients = "host"``.
+    """
+
+    preset: str = "none"
+    cores: int = 2
+    background: float = 0.0
+    host_demand: float = 0.0
+    server_demand: float = 0.0
+    server_tick: float = 0.0
+    clients: str = "node"
+    bundle: bool = False
+
+    def __post_init__(self) -> None:
+        require(self.preset in PRESETS, "preset",
+                f"must be one of {', '.join(PRESETS)}, got {self.preset!r}")
+        require(1 <= self.cores <= MAX_CORES, "cores",
+                f"must be in 1..{MAX_CORES}, got {self.cores}")
+        require(0.0 <= self.background < self.cores and math.isfinite(self.background),
+                "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
+        for name in ("host_demand", "server_demand", "server_tick"):
+            require_in(self, name, 0.0, MAX_DEMAND, " s")
+        if self.preset == "none":
+            for name in ("background", "host_demand", "server_demand", "server_tick"):
+                v = getattr(self, name)
+                require(v == 0.0, name,
+                        f"needs deployment.preset colocated or dedicated (got {v} with "
+                        "preset 'none', which has no CPU stage)")
+        require(self.clients in CLIENTS, "clients",
+                f"must be one of {', '.join(CLIENTS)}, got {self.clients!r}")
+        require(not self.bundle or self.clients == "host", "bundle",
+                "needs deployment.clients = 'host' (a bundle is one host client's PUBLISH)")
+
+    @property
+    def cpu(self) -> bool:
+        """True if the run has a CPU stage (a preset other than ``none``)."""
+        return self.preset != "none"
 
 
 @dataclass(frozen=True)
@@ -328,6 +402,8 @@ class NetSetup:
         degrades: link degradations (``degrade`` faults).
         drops: ``(kind, subject, index)`` of messages whose first transmission on the
             broker-to-receiver hop is lost (``drop`` faults).
+        deployment: machines, CPU demands and MQTT clients (default: no CPU stage,
+            one client per node).
     """
 
     net: NetSpec
@@ -338,6 +414,7 @@ class NetSetup:
     end: float
     degrades: tuple[LinkDegrade, ...] = ()
     drops: frozenset[tuple[int, int, int]] = frozenset()
+    deployment: DeploymentSpec = field(default_factory=DeploymentSpec)
 
     def __post_init__(self) -> None:
         require(0 <= self.warmup, "warmup", f"must be >= 0 s, got {self.warmup}")

@@ -54,6 +54,8 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
 
     These features fall back to the per-message engine for the whole run: the DDS
     middleware and the ``rpc`` method (issue 16: per-message models only); a
+    deployment with a CPU stage or per-host clients (``[deployment]``, issue 24: the
+    spec engine first); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
     degrade and drop faults and NTP-corrected clocks, MQTT QoS 1 over datagrams
@@ -74,4 +76,10 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
         why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
     if method == "rpc":
         why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
+    dep = sc.net.deployment
+    if dep.cpu:
+        why.append(f"deployment.preset {dep.preset!r} (the CPU stage: bursts on machines' cores)")
+    if dep.clients == "host":
+        why.append("deployment.clients 'host' (per-host MQTT clients"
+                   + (", bundled states)" if dep.bundle else ")"))
     return "; ".join(why) if why else None

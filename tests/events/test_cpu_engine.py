@@ -1,0 +1,164 @@
+"""The CPU stage, per-host clients and bundles in the per-message engine (engine = events).
+
+Scenario of the closed forms: one host whose cores outnumber its nodes, constant
+step time and latencies, an instantaneous broker (so it holds no core), QoS 0, no
+commands: every node of a frame publishes at the same instant.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from conftest import tiny
+
+from sigma_des import Scenario, load
+from sigma_des.events.cohort import execute
+from sigma_des.events.engine import MethodRun
+from sigma_des.factory import make_behaviour, make_dynamics
+
+F = 100.0
+BATCH = ["dynamics='pointmass'", "engine='events'", "hosts=1", "cores_per_host=64",
+         f"f_trig={F}", "duration=1.5", "warmup=0.5", "net.qos=0", "net.transport='stream'",
+         "broker.publish_service=0.0", "broker.delivery_service=0.0",
+         "compute.step_time=0.0008", "commands.enabled=false", "fidelity.enabled=false",
+         "net.host_link.latency=0.0005", "net.server_link.latency=0.0005"]
+
+
+def _run(sc: Scenario, method: str = "none") -> tuple[MethodRun, dict[str, Any]]:
+    run, out, engine = execute(sc.run_spec(), method, lambda: make_dynamics(sc),
+                               lambda: make_behaviour(sc))
+    assert engine["used"] == "events"
+    return run, out
+
+
+def _shared(m: dict[str, float]) -> dict[str, Any]:
+    """The metrics a run without a CPU stage has too (NaN as a comparable token)."""
+    return {k: ("nan" if v != v else v) for k, v in m.items() if "cpu" not in k}
+
+
+@pytest.mark.parametrize("method", ["none", "lockstep", "hlc", "bides"])
+def test_zero_demands_are_todays_model_bit_for_bit(method: str) -> None:
+    over = {"engine": "events", "broker__publish_service": 4e-6,
+            "broker__delivery_service": 3e-6, "commands__enabled": True}
+    sc = tiny(**over)
+    on = tiny(**over, deployment__preset="colocated", deployment__cores=1)
+    base = _run(sc, method)[1]["metrics"]
+    got = _run(on, method)[1]["metrics"]
+    assert "server_cpu_util" not in base and "server_cpu_util" in got
+    assert _shared(got) == _shared(base)  # the broker alone on its core: the same Lindley recursion
+    assert got["server_cpu_util"] == 0.0 and got["host_cpu_util_max"] == 0.0
+
+
+def test_server_queue_adds_the_batch_wait_exactly_to_first_order() -> None:
+    """N states of a frame reach the server together (spaced by their serialization
+    ``ser`` on its link); its one thread serves them one by one, so the j-th waits
+    ``j·Ds − j·ser`` more and holds ``Ds``: the mean latency grows by
+    ``(N+1)/2·Ds − (N−1)/2·ser``. The server's utilisation is ``(N+1)·f·Ds`` (each
+    frame's N receives and its trigger publish)."""
+    ds = 1e-4
+    for n in (20, 40, 60):
+        plain = load(None, [*BATCH, f"nodes={n}"])
+        cpu = load(None, [*BATCH, f"nodes={n}", "deployment.preset='colocated'",
+                          "deployment.cores=1", f"deployment.server_demand={ds}"])
+        run0, out0 = _run(plain)
+        _run1, out1 = _run(cpu)
+        ser = run0.net.wire_bytes(plain.payload_bits) * 8 / 1e9
+        grow = ((n + 1) / 2 * ds - (n - 1) / 2 * ser) * 1e3
+        lat0 = out0["metrics"]["latency_state_mean"]
+        lat1 = out1["metrics"]["latency_state_mean"]
+        assert lat1 - lat0 == pytest.approx(grow, rel=1e-6)
+        assert out1["metrics"]["server_cpu_util"] == pytest.approx((n + 1) * F * ds, rel=1e-3)
+        assert out1["metrics"]["server_cpu_max_wait_ms"] == pytest.approx(
+            (n - 1) * (ds - ser) * 1e3, rel=1e-6)
+
+
+def test_overloaded_server_latency_grows_with_n() -> None:
+    """Server demand 0.4 ms: load (N+1)·f·Ds = 0.84, 1.24, 1.64 at N = 20, 30, 40.
+    Below 1 the latency is at least the batch wait (a frame's batch then spills into
+    the next trigger's burst, so more); beyond 1 the server's backlog grows for the
+    whole run: the latency leaves the batch-wait figure far behind and the server's
+    thread is busy all the time (measured: 7.5, 71, 108 ms against 1.0 ms without a
+    CPU stage)."""
+    ds = 4e-4
+    lat = []
+    for n in (20, 30, 40):
+        sc = load(None, [*BATCH, f"nodes={n}", "deployment.preset='colocated'",
+                         "deployment.cores=1", f"deployment.server_demand={ds}"])
+        m = _run(sc)[1]["metrics"]
+        lat.append(m["latency_state_mean"])
+        rho = (n + 1) * F * ds
+        batch = (n + 1) / 2 * ds * 1e3
+        if rho < 1:
+            assert m["server_cpu_util"] == pytest.approx(rho, rel=1e-3)
+            assert batch + 1.0 < m["latency_state_mean"] < batch + 5.0
+        else:
+            assert m["server_cpu_util"] > 0.99
+            assert m["latency_state_mean"] > batch + 20.0
+    assert lat[0] < lat[1] < lat[2]
+
+
+def test_background_doubles_the_server_queue() -> None:
+    """Background 1 of 2 cores: every demand takes twice as long, so the batch wait
+    (Ds scaled) is that of twice the demand."""
+    n, ds = 20, 1e-4
+    a = load(None, [*BATCH, f"nodes={n}", "deployment.preset='dedicated'",
+                    "deployment.cores=2", "deployment.background=1.0",
+                    f"deployment.server_demand={ds}"])
+    b = load(None, [*BATCH, f"nodes={n}", "deployment.preset='dedicated'",
+                    "deployment.cores=1", f"deployment.server_demand={2 * ds}"])
+    assert _shared(_run(a)[1]["metrics"]) == _shared(_run(b)[1]["metrics"])
+
+
+def test_host_clients_cut_the_brokers_trigger_fan_out_to_h_deliveries() -> None:
+    n, h, d = 6, 2, 3e-5
+    over = [*BATCH, f"nodes={n}", f"hosts={h}", "broker.delivery_service=3e-5"]
+    node_run, node = _run(load(None, over))
+    host_run, host = _run(load(None, [*over, "deployment.clients='host'"]))
+    # every node still gets every trigger: the same deliveries at the application
+    assert host["metrics"]["deliveries_per_s"] == node["metrics"]["deliveries_per_s"]
+    # the broker spends (N - H) fewer delivery parts per trigger, nothing else changes
+    saved = node_run.net.broker.work - host_run.net.broker.work
+    triggers = node["metrics"]["trigger_rate_hz"] * (1.5 - 0.5)
+    assert saved == pytest.approx(triggers * (n - h) * d, rel=1e-6)
+
+
+def test_bundle_one_state_publish_per_host_per_completion_instant() -> None:
+    n, h = 6, 2
+    over = [*BATCH, f"nodes={n}", f"hosts={h}", "net.transport='datagram'",
+            "deployment.clients='host'"]
+    run1, out1 = _run(load(None, over))
+    run2, out2 = _run(load(None, [*over, "deployment.bundle=true"]))
+    up1 = {ld.name: ld.packets for ld in run1.net.links()}
+    up2 = {ld.name: ld.packets for ld in run2.net.links()}
+    frames = round(out1["metrics"]["trigger_rate_hz"] * 1.0)
+    # QoS 0: the uplinks carry only states; 3 nodes a host, one completion instant a frame
+    assert up1["host0.up"] == up1["host1.up"] == 3 * frames
+    assert up2["host0.up"] == up2["host1.up"] == frames
+    # the server still gets every node's state of every frame
+    assert out2["metrics"]["deliveries_per_s"] == out1["metrics"]["deliveries_per_s"]
+    assert out2["metrics"]["latency_state_mean"] < out1["metrics"]["latency_state_mean"]
+
+
+def test_server_tick_burst_delays_the_states_behind_it() -> None:
+    """An alignment tick's burst on the server's thread: states arriving during it
+    wait; with no tick cost they do not."""
+    base = [*BATCH, "nodes=4", "deployment.preset='dedicated'", "deployment.server_demand=1e-5"]
+    m0 = _run(load(None, base))[1]["metrics"]
+    m1 = _run(load(None, [*base, "deployment.server_tick=0.005"]))[1]["metrics"]
+    assert m1["latency_state_mean"] > m0["latency_state_mean"]
+    assert m1["server_cpu_util"] == pytest.approx(m0["server_cpu_util"] + 60 * 0.005, rel=1e-2)
+
+
+@pytest.mark.parametrize("over", [
+    ["deployment.preset='colocated'", "deployment.host_demand=5e-5",
+     "deployment.server_demand=5e-5", "deployment.server_tick=1e-4"],
+    ["deployment.preset='dedicated'", "deployment.clients='host'", "deployment.bundle=true",
+     "deployment.host_demand=5e-5", "deployment.server_demand=5e-5"],
+])
+def test_same_seed_same_results(over: list[str]) -> None:
+    sc = load(None, ["nodes=12", "hosts=3", "duration=1.0", "engine='events'",
+                     "fidelity.enabled=false", "net.transport='datagram'",
+                     "net.host_link.loss.p=0.05", *over])
+    for method in ("lockstep", "bides"):
+        assert _run(sc, method)[1]["metrics"] == _run(sc, method)[1]["metrics"]

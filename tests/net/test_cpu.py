@@ -1,0 +1,84 @@
+"""The CPU stage's discipline (net/cpu.py) against hand-computed bursts."""
+
+from __future__ import annotations
+
+import pytest
+
+from sigma_des.net.cpu import Cpu, Machine, Process
+from sigma_des.net.spec import DeploymentSpec
+
+
+def _colocated(cores: int, background: float = 0.0, hosts: int = 1) -> Cpu:
+    return Cpu(DeploymentSpec(preset="colocated", cores=cores, background=background), hosts,
+               0.0, 100.0)
+
+
+def test_one_core_two_processes_same_instant_second_waits_the_first_demand() -> None:
+    cpu = _colocated(1)
+    a, b = cpu.server, cpu.hosts[0]
+    assert a.burst(1.0, 0.25) == 1.25
+    # the second burst arrives at the same instant: the one core is held until 1.25
+    assert b.burst(1.0, 0.5) == 1.75
+    assert b.max_wait == 0.25 and a.max_wait == 0.0
+    assert (a.busy, b.busy) == (0.25, 0.5)
+    assert (a.bursts, b.bursts) == (1, 1)
+
+
+def test_two_cores_run_two_processes_at_once_but_one_thread_serially() -> None:
+    cpu = _colocated(2)
+    a, b = cpu.server, cpu.hosts[0]
+    assert a.burst(0.0, 1.0) == 1.0  # core 0
+    assert b.burst(0.0, 1.0) == 1.0  # core 1: no wait
+    # the same thread: FCFS even though a core frees at 1.0 for both
+    assert a.burst(0.0, 0.5) == 1.5
+    assert a.max_wait == 1.0 and b.max_wait == 0.0
+
+
+def test_lowest_index_core_with_the_smallest_free_time() -> None:
+    m = Machine("all", 3)
+    m.free = [2.0, 1.0, 1.0]
+    assert m.pick() == 1
+    m.free = [0.5, 0.5, 0.5]
+    assert m.pick() == 0
+    p = Process("p", m, 1.0, 0.0, 10.0)
+    assert p.burst(0.0, 1.0) == 1.5  # core 0, free at 0.5
+    assert m.free == [1.5, 0.5, 0.5]
+
+
+def test_background_one_of_two_cores_doubles_every_demand_exactly() -> None:
+    cpu = _colocated(2, background=1.0)
+    for d in (1e-4, 3.7e-5, 0.25):
+        p = cpu.hosts[0]
+        t = p.free
+        assert p.burst(t, d) == t + 2.0 * d
+    assert cpu.server.scale == 2.0
+    # 3 of 4 cores busy elsewhere: four times as long
+    assert _colocated(4, background=3.0).broker.burst(0.0, 0.125) == 0.5
+
+
+def test_dedicated_machines_do_not_share_cores() -> None:
+    cpu = Cpu(DeploymentSpec(preset="dedicated", cores=1), 2, 0.0, 100.0)
+    ends = [p.burst(0.0, 1.0) for p in cpu.processes]
+    assert ends == [1.0] * 4
+    assert [m.name for m in cpu.machines] == ["broker", "server", "host0", "host1"]
+    rep = cpu.report()
+    assert [p.name for p in rep.processes] == ["broker", "server", "host0", "host1"]
+    assert [p.machine for p in rep.processes] == ["broker", "server", "host0", "host1"]
+
+
+def test_counters_only_inside_the_metrics_window() -> None:
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=1), 1, 1.0, 2.0)
+    p = cpu.server
+    p.burst(0.5, 1.0)  # arrives before the window, runs [0.5, 1.5): 0.5 s counted
+    p.burst(1.0, 1.0)  # waits 0.5, runs [1.5, 2.5): 0.5 s counted
+    p.burst(3.0, 1.0)  # after the window: nothing
+    assert p.busy == 1.0
+    assert p.bursts == 1
+    assert p.max_wait == 0.5
+    rep = cpu.report().processes[1]
+    assert (rep.name, rep.busy, rep.max_wait, rep.bursts) == ("server", 1.0, 0.5, 1)
+
+
+def test_no_cpu_stage_has_no_cpu() -> None:
+    with pytest.raises(ValueError, match="preset 'none'"):
+        Cpu(DeploymentSpec(), 1, 0.0, 1.0)

@@ -1,0 +1,63 @@
+"""``[deployment]``: validation naming the key, and defaults that change nothing."""
+
+from __future__ import annotations
+
+import pytest
+
+from sigma_des import load
+from sigma_des.config import config_hash, to_toml
+from sigma_des.errors import ConfigError
+from sigma_des.events.fast.support import unsupported
+
+
+def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
+    sc = load(None, [])
+    assert "deployment" not in to_toml(sc)
+    same = load(None, ["deployment.preset='none'", "deployment.cores=2",
+                       "deployment.clients='node'"])
+    assert config_hash(same) == config_hash(sc)
+    on = load(None, ["deployment.preset='colocated'"])
+    assert "[deployment]" in to_toml(on)
+    assert config_hash(on) != config_hash(sc)
+    # written out, it loads back the same
+    assert load(None, ["deployment.preset='colocated'", "deployment.cores=8"]).deployment \
+        .cores == 8
+
+
+@pytest.mark.parametrize(("override", "message"), [
+    (["deployment.host_demand=1e-4"],
+     "deployment.host_demand: needs deployment.preset colocated or dedicated"),
+    (["deployment.server_tick=1e-4"],
+     "deployment.server_tick: needs deployment.preset colocated or dedicated"),
+    (["deployment.background=0.5"],
+     "deployment.background: needs deployment.preset colocated or dedicated"),
+    (["deployment.bundle=true"], "deployment.bundle: needs deployment.clients = 'host'"),
+    (["deployment.cores=0"], r"deployment.cores: must be in 1..4096, got 0"),
+    (["deployment.preset='colocated'", "deployment.cores=2", "deployment.background=2"],
+     r"deployment.background: must be in \[0, cores=2\)"),
+    (["deployment.preset='colocated'", "deployment.server_demand=2"],
+     r"deployment.server_demand: must be in \[0, 1\] s"),
+    (["deployment.preset='cluster'"], "deployment.preset: must be one of none, colocated"),
+    (["deployment.clients='process'"], "deployment.clients: must be one of node, host"),
+    (["deployment.cpus=2"], "deployment.cpus: unknown key"),
+    (["deployment.clients='host'", "methods='rpc'"], "deployment.clients: 'host' does not"),
+    (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
+      "net.qos=0"], "deployment.preset: .* needs net.middleware 'mqtt'"),
+])
+def test_refusals_name_the_key(override: list[str], message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        load(None, override)
+
+
+def test_clients_and_bundle_are_allowed_without_a_cpu_stage() -> None:
+    sc = load(None, ["deployment.clients='host'", "deployment.bundle=true"])
+    assert not sc.deployment.cpu
+
+
+def test_the_compiled_core_falls_back_and_says_why() -> None:
+    assert unsupported(load(None, []).run_spec(), "none") is None
+    why = unsupported(load(None, ["deployment.preset='dedicated'"]).run_spec(), "none")
+    assert why is not None and "deployment.preset 'dedicated'" in why
+    why = unsupported(load(None, ["deployment.clients='host'", "deployment.bundle=true"])
+                      .run_spec(), "bides")
+    assert why is not None and "per-host MQTT clients, bundled states" in why

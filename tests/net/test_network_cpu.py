@@ -1,0 +1,148 @@
+"""Bursts, per-host clients and bundles on the network (net/network.py, net/broker.py)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import pytest
+
+from sigma_des import load
+from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import Kernel
+from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
+from sigma_des.net.message import Msg
+from sigma_des.net.network import Network
+
+P, D, L = 3e-4, 2e-4, 1e-4  # broker publish and delivery service, link latency (s)
+BASE = ["net.qos=0", "net.transport='datagram'", f"net.host_link.latency={L}",
+        f"net.server_link.latency={L}", f"broker.publish_service={P}",
+        f"broker.delivery_service={D}"]
+
+
+def _net(overrides: list[str]) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
+    got: list[tuple[Any, ...]] = []
+    k = Kernel()
+
+    def deliver(m: Msg) -> None:
+        got.append((m.client, m.kind, m.subject, m.index, m.payload, k.now))
+
+    sc = load(None, [*BASE, *overrides])
+    setup = replace(sc.net_setup(), warmup=0.0)
+    return k, Network(k, setup, RandomStreams(sc.seed), deliver), got
+
+
+def _two_states(net: Network) -> None:
+    """Nodes 0 and 1 publish a state each at t = 0."""
+    for i in (0, 1):
+        net.publish(i, STATE, i, 7, f"s{i}", 150, (net.server,))
+
+
+def test_broker_holding_the_one_core_delays_the_servers_receive_exactly() -> None:
+    ds = 5e-5
+    k0, net0, got0 = _net(["nodes=2", "hosts=2"])
+    _two_states(net0)
+    k0.env.run()
+    k1, net1, got1 = _net(["nodes=2", "hosts=2", "deployment.preset='colocated'",
+                           "deployment.cores=1", f"deployment.server_demand={ds}"])
+    _two_states(net1)
+    k1.env.run()
+    # without a CPU stage the server has node 0's state when it arrives ...
+    arrive = got0[0][5]
+    # ... with one core, the broker still serves node 1's state (publish + delivery)
+    # when node 0's arrives at the server, and holds the core until it is done
+    broker_done = net1.broker.busy
+    assert broker_done > arrive  # the case is what it claims (L < P + D)
+    assert got1[0][5] == broker_done + ds
+    ser = net1.wire_bytes(150) * 8 / 1e9  # the state's serialization onto the server link
+    assert got1[0][5] - arrive == pytest.approx(P + D - L - ser + ds, rel=1e-9)
+    # node 1's state: behind node 0's burst on the server's thread
+    assert got1[1][5] == max(got0[1][5], got1[0][5]) + ds
+    rep = net1.cpu_report()
+    assert rep is not None
+    server = rep.processes[1]
+    assert server.bursts == 2 and server.busy == pytest.approx(2 * ds, rel=1e-12)
+
+
+def test_publish_burst_delays_the_packet_by_the_demand() -> None:
+    dh = 2.5e-4
+    k0, net0, got0 = _net(["nodes=1", "hosts=1"])
+    net0.publish(0, STATE, 0, 1, None, 150, (net0.server,))
+    k0.env.run()
+    k1, net1, got1 = _net(["nodes=1", "hosts=1", "deployment.preset='dedicated'",
+                           f"deployment.host_demand={dh}"])
+    net1.publish(0, STATE, 0, 1, None, 150, (net1.server,))
+    assert k1.peek() == dh  # the PUBLISH leaves at the end of the host's burst
+    k1.env.run()
+    assert got1[0][5] - got0[0][5] == pytest.approx(dh, rel=1e-9)
+
+
+def test_host_clients_get_one_trigger_delivery_per_host_handed_to_every_node() -> None:
+    k, net, got = _net(["nodes=6", "hosts=2", "deployment.clients='host'"])
+    net.publish(net.server, TRIGGER, net.server, 3, (3, None), 64, list(range(6)))
+    k.env.run()
+    # the broker: one publish part and H = 2 delivery parts (not N = 6)
+    assert net.broker.work == pytest.approx(P + 2 * D, rel=1e-12)
+    assert [g[0] for g in got] == [0, 1, 2, 3, 4, 5]  # every node, host by host, in order
+    assert {g[2] for g in got} == {0, 1, 2, 3, 4, 5}  # each handed over as its own subject
+    # the nodes of one host get it at the same instant; host 1's after one more delivery part
+    t = [g[5] for g in got]
+    assert t[0] == t[1] == t[2] and t[3] == t[4] == t[5]
+    assert t[3] - t[0] == pytest.approx(D, rel=1e-9)
+    # node-per-client: N = 6 deliveries
+    k2, net2, got2 = _net(["nodes=6", "hosts=2"])
+    net2.publish(net2.server, TRIGGER, net2.server, 3, (3, None), 64, list(range(6)))
+    k2.env.run()
+    assert net2.broker.work == pytest.approx(P + 6 * D, rel=1e-12)
+
+
+def test_host_clients_send_a_command_to_its_node_through_the_host() -> None:
+    k, net, got = _net(["nodes=6", "hosts=2", "deployment.clients='host'"])
+    net.publish(net.server, COMMAND, 4, 9, "cmd", 96, (4,))
+    k.env.run()
+    assert [(g[0], g[1], g[2], g[3], g[4]) for g in got] == [(4, COMMAND, 4, 9, "cmd")]
+    # it travelled on host 1's link (down), host 0's carried nothing
+    links = {ld.name: ld.packets for ld in net.links()}
+    assert links["host1.down"] == 1 and links["host0.down"] == 0
+
+
+def test_bundle_one_publish_per_host_and_instant() -> None:
+    k, net, got = _net(["nodes=6", "hosts=2", "deployment.clients='host'",
+                        "deployment.bundle=true"])
+    for i in (0, 1, 2, 4):
+        net.publish(i, STATE, i, 5, f"s{i}", 150, (net.server,))
+    k.at(1.0, net.publish, 0, STATE, 0, 6, "late", 150, (net.server,))
+    k.env.run()
+    links = {ld.name: ld.packets for ld in net.links()}
+    assert links["host0.up"] == 2  # nodes 0-2 at t = 0 in one PUBLISH, node 0 at t = 1
+    assert links["host1.up"] == 1
+    assert links["server.down"] == 3
+    # the broker served three PUBLISHes with one delivery each
+    assert net.broker.work == pytest.approx(3 * (P + D), rel=1e-12)
+    # the server's application gets every state, record by record, in publish order
+    # (host 1's one-record PUBLISH is shorter on the wire: it arrives first)
+    assert [(g[2], g[3], g[4]) for g in got] == [
+        (4, 5, "s4"), (0, 5, "s0"), (1, 5, "s1"), (2, 5, "s2"), (0, 6, "late")]
+    assert got[1][5] == got[2][5] == got[3][5] > got[0][5]
+
+
+def test_bundle_wire_size_is_the_records_together() -> None:
+    k, net, _got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
+                         "deployment.bundle=true"])
+    for i in range(3):
+        net.publish(i, STATE, i, 5, None, 150, (net.server,))
+    k.env.run()
+    up = {ld.name: ld.bytes for ld in net.links()}["host0.up"]
+    assert up == net.wire_bytes(3 * 150)
+
+
+def test_zero_demands_touch_nothing() -> None:
+    _k, net, _got = _net(["nodes=2", "hosts=1", "deployment.preset='colocated'",
+                          "broker.publish_service=0.0", "broker.delivery_service=0.0"])
+    assert net.broker.process is None
+    _two_states(net)
+    net.k.env.run()
+    cpu = net.cpu
+    assert cpu is not None
+    assert all(p.bursts == 0 and p.free == 0.0 for p in cpu.processes)
+    assert cpu.machines[0].free == [0.0, 0.0]
