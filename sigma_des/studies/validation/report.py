@@ -29,7 +29,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from sigma_des.plotstyle import MIN_DPI, legend_outside, line_kw, metric_title
+from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.studies.validation.grid import Plan
 from sigma_des.studies.validation.scoring import (
     BAND,
@@ -263,9 +263,9 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(METRICS), figsize=(4.2 * len(METRICS), 4.4),
-                             layout="constrained")
-    for ax, k in zip(axes, METRICS, strict=True):
+    fig, grid = plt.subplots(2, 3, figsize=(13, 8.5), layout="constrained")
+    axes = list(grid.flat)
+    for ax, k in zip(axes, METRICS, strict=False):
         sel = [r for r in rows if r["metric"] == k and math.isfinite(r["live"])
                and math.isfinite(r["des"])]
         scale = 100.0 if k == "missed_frac" else 1.0
@@ -295,7 +295,9 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
         ax.set_xlabel(f"live ({unit})")
         ax.set_ylabel(f"DES ({unit})")
         ax.set_title(f"{metric_title(k)} (band {band})", fontsize=9)
-    legend_outside(axes[-1], fontsize=8, title="hollow: under load")
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[-1].axis("off")
+    axes[-1].legend(handles, labels, loc="center", title="filled: idle; hollow: under load")
     fig.savefig(path, dpi=max(MIN_DPI, 110))
     plt.close(fig)
 

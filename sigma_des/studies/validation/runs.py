@@ -41,8 +41,9 @@ from sigma_des.studies.validation.grid import EXTRA_LATENCY_S, Cell, Plan
 from sigma_des.studies.validation.scoring import METRICS
 from sigma_des.version import __version__
 
-__all__ = ["MissedTap", "background_cores", "calibrate_run", "des_cell", "live_cell",
-           "live_timeout", "read_json", "shift_host_link", "write_json"]
+__all__ = ["MissedTap", "background_cores", "bounded_run", "calibrate_run", "des_cell",
+           "des_figures", "des_scenario", "live_cell", "live_timeout", "load_calibration",
+           "read_json", "shift_host_link", "write_json"]
 
 #: Keys every live run gets besides the cell's own (no fidelity: not compared).
 LIVE_BASE = ("fidelity.enabled=false",)
@@ -70,7 +71,7 @@ def _cli() -> list[str]:
             "sys.exit(main(sys.argv[1:]))"]
 
 
-def _bounded(cmd: list[str], log: Path, timeout: float) -> tuple[int, bool]:
+def bounded_run(cmd: list[str], log: Path, timeout: float) -> tuple[int, bool]:
     """Run ``cmd`` with stdout and stderr to ``log``; past ``timeout`` s SIGTERM, then
     after :data:`GRACE_S` SIGKILL. Returns the exit status and whether it timed out."""
     with log.open("wb") as fh:
@@ -125,7 +126,7 @@ def live_cell(cell: Cell, plan: Plan, out: Path) -> dict[str, Any]:
         cmd.append("--bundle")
     before = os.getloadavg()[0]
     t0 = time.perf_counter()
-    status, timed_out = _bounded(cmd, out / "live.log", live_timeout(plan))
+    status, timed_out = bounded_run(cmd, out / "live.log", live_timeout(plan))
     wall = time.perf_counter() - t0
     summ = read_json(out / "summary.json") or {}
     methods = {m: {k: _num(v.get(k)) for k in METRICS} for m, v in summ.get("methods", {}).items()}
@@ -151,7 +152,7 @@ def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0
     cal_dir.mkdir(parents=True, exist_ok=True)
     toml = cal_dir / "calibrated.toml"
     log = cal_dir / "calibrate.log"
-    status, timed_out = _bounded([*_cli(), "calibrate", str(source), "--out", str(toml)],
+    status, timed_out = bounded_run([*_cli(), "calibrate", str(source), "--out", str(toml)],
                                  log, timeout)
     if status != 0 or timed_out:
         tail = log.read_text(errors="replace").strip().splitlines()[-1:] or [""]
