@@ -69,8 +69,15 @@ def main(argv: list[str] | None = None) -> int:
     if a.estimate:
         return 0
     out = Path(a.out).resolve()
-    outcome = run_suite(plan, out)
-    cal, _ = load_calibration(out / "cal")
+    try:
+        outcome = run_suite(plan, out)
+        cal, _ = load_calibration(out / "cal")
+    except ConfigError as e:
+        print(f"live_vs_des: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"live_vs_des: interrupted; the same command resumes from {out}", file=sys.stderr)
+        return 130
     command = "python experiments/live_vs_des.py " + shlex.join(argv or sys.argv[1:])
     write_outputs(plan, outcome, out, cal.f_trig, command)
     print((out / "summary.md").read_text())

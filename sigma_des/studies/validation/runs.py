@@ -79,16 +79,20 @@ def bounded_run(cmd: list[str], log: Path, timeout: float) -> tuple[int, bool]:
         try:
             return p.wait(timeout=timeout), False
         except subprocess.TimeoutExpired:
-            p.send_signal(signal.SIGTERM)
-            try:
-                return p.wait(timeout=GRACE_S), True
-            except subprocess.TimeoutExpired:
-                p.kill()
-                return p.wait(timeout=GRACE_S), True
+            return _stop(p), True
         except BaseException:  # Ctrl-C of the suite: stop the run, then pass it on
-            p.send_signal(signal.SIGTERM)
-            p.wait(timeout=GRACE_S)
+            _stop(p)
             raise
+
+
+def _stop(p: subprocess.Popen[bytes]) -> int:
+    """SIGTERM (``sigma-des live`` then keeps its finished methods), SIGKILL if need be."""
+    p.send_signal(signal.SIGTERM)
+    try:
+        return p.wait(timeout=GRACE_S)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        return p.wait(timeout=GRACE_S)
 
 
 def live_timeout(plan: Plan) -> float:
