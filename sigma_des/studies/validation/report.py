@@ -278,28 +278,42 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
                        label=None if r["method"] in seen else r["method"])
             seen.add(r["method"])
         vals = [scale * v for r in sel for v in (r["live"], r["des"])]
-        hi = max(vals + [1.0]) * 1.05
-        xs = [0.0, hi]
-        if k == "missed_frac":
-            ax.fill_between(xs, [-PP_BAND, hi - PP_BAND], [PP_BAND, hi + PP_BAND],
-                            color="0.9", zorder=0)
-            band = f"±{PP_BAND:g} pp"
-        else:
-            b = RATE_BAND if k == "trigger_rate_hz" else BAND
-            ax.fill_between(xs, [0, (1 - b) * hi], [0, (1 + b) * hi], color="0.9", zorder=0)
-            band = f"±{b:.0%}"
-        ax.plot(xs, xs, "k-", lw=0.8)
-        ax.set_xlim(0, hi)
-        ax.set_ylim(0, hi)
+        _band(ax, k, [v for v in vals if v > 0])
         unit = "%" if k == "missed_frac" else ("Hz" if k == "trigger_rate_hz" else "ms")
         ax.set_xlabel(f"live ({unit})")
         ax.set_ylabel(f"DES ({unit})")
-        ax.set_title(f"{metric_title(k)} (band {band})", fontsize=9)
     handles, labels = axes[0].get_legend_handles_labels()
     axes[-1].axis("off")
     axes[-1].legend(handles, labels, loc="center", title="filled: idle; hollow: under load")
     fig.savefig(path, dpi=max(MIN_DPI, 110))
     plt.close(fig)
+
+
+def _band(ax: Any, k: str, vals: list[float]) -> None:
+    """The diagonal and the metric's band; AoI and latency on log axes (they span
+    decades between an idle cell and a collapsed one)."""
+    if k == "missed_frac":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [-PP_BAND, hi - PP_BAND], [PP_BAND, hi + PP_BAND],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{PP_BAND:g} pp"
+    elif k == "trigger_rate_hz":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [0, (1 - RATE_BAND) * hi], [0, (1 + RATE_BAND) * hi],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{RATE_BAND:.0%}"
+    else:
+        lo, hi = min(vals or [1.0]) / 1.3, max(vals or [1.0]) * 1.3
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        xs = [lo * (hi / lo) ** (i / 40) for i in range(41)]
+        ax.fill_between(xs, [(1 - BAND) * x for x in xs], [(1 + BAND) * x for x in xs],
+                        color="0.9", zorder=0)
+        title = f"±{BAND:.0%}"
+    ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(lo, hi)
+    ax.set_title(f"{metric_title(k)} (band {title})", fontsize=9)
 
 
 def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, command: str
