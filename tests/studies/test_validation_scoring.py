@@ -49,6 +49,10 @@ def test_judge_band_and_the_live_range_rule() -> None:
     # the rule is the mean metrics' only: p99 stays on the plain band
     assert judge("aoi_p99", 100.0, 125.0, floor=0.30) == Verdict(True, False, False, "band")
     assert judge("aoi_mean", math.nan, 1.0) == Verdict(False, False, False, "n/a")
+    assert judge("aoi_mean", 0.0, 1.0) == Verdict(False, False, False, "n/a")
+    # the DES delivered nothing where live did: a miss, not a cell left out
+    assert judge("latency_state_mean", 5.0, math.nan) == Verdict(True, False, False,
+                                                                 "no DES value")
 
 
 def test_judge_trigger_rate_only_where_live_holds_it() -> None:

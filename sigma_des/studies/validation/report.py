@@ -249,7 +249,7 @@ def _cell_table(rows: list[dict[str, Any]]) -> list[list[str]]:
             mark = "" if r["passed"] == "" else (" ✔" if r["passed"] else " ✘")
             txt.append(f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])} "
                        f"({scale * e:+.0f} {unit}{mark}; {scale * f:.0f})"
-                       if math.isfinite(e) else f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])}")
+                       if math.isfinite(e) else f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])}{mark}")
         load = f"{first['load']:.1f}" + (" *" if first["under_load"] else "")
         out.append([cell + ("" if first["held_out"] else " (in-sample)"), m, load, *txt])
     return out

@@ -15,7 +15,8 @@ Pure functions of numbers (no runs, no files), so each rule is tested by hand:
   the calibration setting itself, ``min <= DES <= max`` of the repeats); p99 AoI
   within 15 %; the achieved trigger rate within 5 % wherever live holds its rate
   (``>= 95 %`` of the nominal ``f_trig``; elsewhere not scored); the missed-frame
-  fraction within 10 percentage points.
+  fraction within 10 percentage points. A live value without a DES one (no state
+  reached the DES's server in the window) is a miss.
 * **knee** (:func:`knee`): the smallest N at which more than 5 % of frames are
   missed; :func:`knee_verdict` compares the DES's with live's (within ±25 %).
 """
@@ -92,7 +93,8 @@ class Verdict:
         ok: passed (False when not scored).
         within_band: inside the plain band (15 %, 5 %, 10 pp), whatever the noise.
         rule: how it was decided: ``band``, ``live range`` (a noisy cell), ``rate not
-            held`` or ``n/a``.
+            held``, ``no DES value`` (live has one, the DES none: a miss) or ``n/a``
+            (no live value, or a relative error of a zero live value).
     """
 
     scored: bool
@@ -114,6 +116,8 @@ def judge(metric: str, live: float, des: float, floor: float = math.nan,
         repeats: the live repeats, for a cell of the calibration setting itself.
     """
     e = error(metric, live, des)
+    if _finite(live) and not _finite(des):  # e.g. no state reached the DES's server
+        return Verdict(True, False, False, "no DES value")
     if not math.isfinite(e):
         return Verdict(False, False, False, "n/a")
     if metric == "trigger_rate_hz":
