@@ -196,6 +196,17 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
              "", "## Shares of held-out cells", ""]
     table, ticks = _share_table(rows)
     lines += table
+    by_range = sum(r["held_out"] and r["rule"] == "live range" and r["passed"] is True
+                   for r in rows)
+    wide = [r for r in noise if math.isfinite(r["noise_floor"]) and r["unit"] == "rel"
+            and r["noise_floor"] > 0.5]
+    lines += ["", f"{by_range} passes are by the live-range rule (the method's live noise "
+              "floor above 10 %); 'within the band' is the strict count."]
+    if wide:
+        lines.append(f"**Live did not reproduce itself**: the noise floor exceeds 50 % for "
+                     f"{len(wide)} of {sum(r['unit'] == 'rel' for r in noise)} method x "
+                     "metric pairs, which makes the live-range rule nearly vacuous: rerun "
+                     "on an idle machine.")
     quiet = [r for r in rows if not r["under_load"]]
     if len(quiet) != len(rows):
         lines += ["", "Cells not under load only:", ""] + _share_table(quiet)[0]
