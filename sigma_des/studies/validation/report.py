@@ -1,0 +1,342 @@
+"""The suite's outputs: ``cells.csv``, ``noise.csv``, ``knee.csv``, ``summary.md`` and the plot.
+
+* ``cells.csv`` — tidy, one row per cell x method x metric: live, DES, error
+  (relative; percentage points for ``missed_frac``: see ``error_unit``), the live
+  noise floor of that method and metric, the verdict (``passed``, ``within_band``,
+  ``rule``), the load (1-min load average, mean of before and after the live run),
+  the background CPU, ``under_load``, seed, the DES scenario's config hash, the live
+  run's config hash and the version. The calibration run's own rows (``cal-r1``,
+  ``held_out`` False) are the out-of-suite in-sample check.
+* ``noise.csv`` — the repeats of the calibration setting per method and metric and
+  their noise floor.
+* ``knee.csv`` — per message mode and method: live's knee (its grid), the DES's
+  knee on its finer grid and on live's grid, and the verdict.
+* ``summary.md`` — shares per metric, the issue's targets ticked or not, the knee
+  table, the in-sample errors and the cells.
+* ``live_vs_des.png`` — DES against live per metric, with each metric's band.
+
+A run is **under load** when the background CPU during its metrics window (other
+processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
+cores, or, without that table, when the 1-min load average before it exceeds the
+core count.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
+from sigma_des.studies.validation.grid import Plan
+from sigma_des.studies.validation.scoring import (
+    BAND,
+    KNEE_MISSED,
+    METRICS,
+    PP_BAND,
+    RATE_BAND,
+    TARGETS,
+    Verdict,
+    error,
+    judge,
+    knee,
+    knee_verdict,
+    noise_floor,
+    share,
+)
+from sigma_des.studies.validation.suite import Outcome, des_key
+from sigma_des.tables import md_table
+
+__all__ = ["UNDER_LOAD", "cell_rows", "knee_rows", "noise_rows", "under_load", "write_outputs"]
+
+#: Background CPU above this share of the cores marks a live run as under load.
+UNDER_LOAD = 0.25
+COLUMNS = ("cell", "mode", "nodes", "hosts", "impairment", "held_out", "method", "metric",
+           "live", "des", "rel_error", "error_unit", "noise_floor", "passed", "within_band",
+           "rule", "load", "background_cores", "under_load", "seed", "config_hash",
+           "live_config_hash", "version")
+
+
+def under_load(live: dict[str, Any], cores: int) -> bool:
+    """See the module doc."""
+    bg = live.get("background_cores", math.nan)
+    if isinstance(bg, float) and math.isfinite(bg):
+        return bg > UNDER_LOAD * cores
+    return float(live.get("load_before", 0.0)) > cores
+
+
+def _repeats(plan: Plan, live: dict[str, dict[str, Any]], method: str, metric: str
+             ) -> list[float]:
+    return [float(live[c.name]["methods"].get(method, {}).get(metric, math.nan))
+            for c in plan.cells if c.repeat and c.name in live]
+
+
+def noise_rows(plan: Plan, live: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per method and metric: the repeats of the calibration setting and the floor."""
+    rows = []
+    for m in plan.methods:
+        for k in METRICS:
+            xs = _repeats(plan, live, m, k)
+            rows.append({"method": m, "metric": k, "repeats": " ".join(f"{x:.6g}" for x in xs),
+                         "noise_floor": noise_floor(k, xs),
+                         "unit": "pp" if k == "missed_frac" else "rel"})
+    return rows
+
+
+def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
+              cores: int | None = None) -> list[dict[str, Any]]:
+    """The tidy rows of ``cells.csv`` (see the module doc)."""
+    live, des, _ = outcome
+    cores = cores or os.cpu_count() or 1
+    floors = {(r["method"], r["metric"]): r["noise_floor"] for r in noise_rows(plan, live)}
+    rows = []
+    for cell in plan.cells:
+        if cell.repeat > 1 or cell.name not in live or des_key(cell) not in des:
+            continue
+        lv, dv = live[cell.name], des[des_key(cell)]
+        load = (lv["load_before"] + lv["load_after"]) / 2.0
+        for m in plan.methods:
+            for k in METRICS:
+                x = float(lv["methods"].get(m, {}).get(k, math.nan))
+                y = float(dv["methods"][m][k])
+                reps = _repeats(plan, live, m, k) if cell.repeat else []
+                v = judge(k, x, y, floors[(m, k)], f_trig, reps)
+                rows.append({
+                    "cell": cell.name, "mode": cell.mode, "nodes": cell.nodes,
+                    "hosts": cell.hosts, "impairment": cell.impairment,
+                    "held_out": cell.held_out, "method": m, "metric": k, "live": x,
+                    "des": y, "rel_error": error(k, x, y),
+                    "error_unit": "pp" if k == "missed_frac" else "rel",
+                    "noise_floor": floors[(m, k)], "passed": v.ok if v.scored else "",
+                    "within_band": v.within_band, "rule": v.rule, "load": load,
+                    "background_cores": lv["background_cores"],
+                    "under_load": under_load(lv, cores), "seed": dv["seed"],
+                    "config_hash": dv["config_hash"], "live_config_hash": lv["config_hash"],
+                    "version": dv["version"]})
+    return rows
+
+
+def knee_rows(plan: Plan, outcome: Outcome) -> list[dict[str, Any]]:
+    """Per mode and method: live's knee, the DES's (fine grid and live's grid), verdict."""
+    live, des, _ = outcome
+    rows = []
+    for mode in ("node", "bundle"):
+        pts = [c for c in plan.cells if c.mode == mode and not c.impairment
+               and c.repeat <= 1 and c.name in live]
+        if not pts:
+            continue
+        ns = [c.nodes for c in pts]
+        fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode} | set(ns))
+        for m in plan.methods:
+            lk = knee(ns, [live[c.name]["methods"].get(m, {}).get("missed_frac", math.nan)
+                           for c in pts])
+            dk = knee(fine, [_des_missed(des, n, mode, m) for n in fine])
+            dg = knee(ns, [_des_missed(des, n, mode, m) for n in ns])
+            rows.append({"mode": mode, "method": m, "live_grid": " ".join(map(str, sorted(ns))),
+                         "live_knee": lk, "des_knee": dk, "des_knee_on_live_grid": dg,
+                         "verdict": knee_verdict(lk, dk, max(ns))})
+    return rows
+
+
+def _des_missed(des: dict[str, dict[str, Any]], n: int, mode: str, method: str) -> float:
+    d = des.get(f"n{n}-{mode}")
+    return float(d["methods"][method]["missed_frac"]) if d else math.nan
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]], cols: tuple[str, ...] | None = None
+               ) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(cols or (rows[0] if rows else ["empty"])))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _fmt(k: str, x: float) -> str:
+    if not math.isfinite(x):
+        return "nan"
+    return f"{100 * x:.1f} %" if k == "missed_frac" else f"{x:.3g}"
+
+
+def _share_table(rows: list[dict[str, Any]]) -> tuple[list[str], list[bool]]:
+    head = ["metric", "rule", "cells scored", "passed", "within the band", "target", "met"]
+    out, ticks = [], []
+    for k in METRICS:
+        sel = [r for r in rows if r["held_out"] and r["metric"] == k]
+        vs = [judge_row(r) for r in sel]
+        n, ok, band = share(vs)
+        frac = ok / n if n else math.nan
+        met = bool(n) and frac >= TARGETS[k]
+        ticks.append(met)
+        band_txt = {"trigger_rate_hz": f"±{RATE_BAND:.0%} where live holds its rate",
+                    "missed_frac": f"±{PP_BAND:g} pp"}.get(k, f"±{BAND:.0%}")
+        out.append([k, band_txt, str(n), f"{ok} ({100 * frac:.0f} %)" if n else "-",
+                    f"{band}", f"≥ {TARGETS[k]:.0%}" if TARGETS[k] < 1 else "all",
+                    "✔" if met else "✘"])
+    return [md_table(head, out)], ticks
+
+
+def judge_row(r: dict[str, Any]) -> Verdict:
+    """The verdict stored in a ``cells.csv`` row (scored = ``passed`` not empty)."""
+    return Verdict(r["passed"] != "", bool(r["passed"]), bool(r["within_band"]), r["rule"])
+
+
+def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any]],
+               noise: list[dict[str, Any]], report: dict[str, Any], command: str) -> str:
+    """``summary.md`` (see the module doc)."""
+    loads = [r["load"] for r in rows if r["metric"] == METRICS[0]]
+    held = [r for r in rows if r["held_out"] and r["metric"] == METRICS[0]]
+    lines = ["# Live vs DES validation", "", f"`{command}`", "",
+             f"{len(plan.cells)} live cells, methods {', '.join(plan.methods)}, "
+             f"{plan.duration:g} s runs (warmup {plan.warmup:g} s). Load (1-min average) "
+             f"{min(loads, default=math.nan):.1f}–{max(loads, default=math.nan):.1f}; "
+             f"{sum(bool(r['under_load']) for r in held)} of {len(held)} held-out "
+             f"cell x method runs under load (background CPU > {UNDER_LOAD:.0%} of the cores).",
+             "", "## Shares of held-out cells", ""]
+    table, ticks = _share_table(rows)
+    lines += table
+    by_range = sum(r["held_out"] and r["rule"] == "live range" and r["passed"] is True
+                   for r in rows)
+    wide = [r for r in noise if math.isfinite(r["noise_floor"]) and r["unit"] == "rel"
+            and r["noise_floor"] > 0.5]
+    lines += ["", f"{by_range} passes are by the live-range rule (the method's live noise "
+              "floor above 10 %); 'within the band' is the strict count."]
+    if wide:
+        lines.append(f"**Live did not reproduce itself**: the noise floor exceeds 50 % for "
+                     f"{len(wide)} of {sum(r['unit'] == 'rel' for r in noise)} method x "
+                     "metric pairs, which makes the live-range rule nearly vacuous: rerun "
+                     "on an idle machine.")
+    quiet = [r for r in rows if not r["under_load"]]
+    if len(quiet) != len(rows):
+        lines += ["", "Cells not under load only:", ""] + _share_table(quiet)[0]
+    lines += ["", "## Knee (smallest N with > "
+              f"{KNEE_MISSED:.0%} of frames missed)", ""]
+    lines.append(md_table(["mode", "method", "live grid", "live knee", "DES knee",
+                           "DES knee on live grid", "within ±25 %"],
+                          [[r["mode"], r["method"], r["live_grid"], str(r["live_knee"] or "-"),
+                            str(r["des_knee"] or "-"), str(r["des_knee_on_live_grid"] or "-"),
+                            r["verdict"]] for r in knees]))
+    knee_ok = {mode: all(r["verdict"] == "met" for r in knees if r["mode"] == mode)
+               and any(r["mode"] == mode for r in knees) for mode in ("node", "bundle")}
+    ins = [r for r in report.get("in_sample", []) if math.isfinite(r.get("error", math.nan))
+           and r["metric"] in METRICS]
+    ins_ok = bool(ins) and not any(r["flagged"] for r in ins)
+    lines += ["", "## Targets", ""]
+    names = ["≥ 80 % mean AoI", "≥ 60 % p99 AoI", "≥ 80 % mean state latency",
+             "trigger rate within 5 % where live holds it", "missed frames within 10 pp"]
+    order = [METRICS.index(k) for k in ("aoi_mean", "aoi_p99", "latency_state_mean",
+                                        "trigger_rate_hz", "missed_frac")]
+    lines += [f"- [{'x' if ticks[i] else ' '}] {n}" for n, i in zip(names, order, strict=True)]
+    lines += [f"- [{'x' if knee_ok[m] else ' '}] knee within ±25 % ({m} messages)"
+              for m in ("node", "bundle")]
+    lines += [f"- [{'x' if ins_ok else ' '}] in-sample error ≤ 10 % on every metric "
+              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells)"]
+    lines += ["", "## Live noise floor (calibration setting, repeats)", "",
+              md_table(["method", "metric", "repeats", "floor"],
+                       [[r["method"], r["metric"], r["repeats"],
+                         (f"{r['noise_floor']:.1f} pp" if r["unit"] == "pp"
+                          else f"{100 * r['noise_floor']:.0f} %")
+                         if math.isfinite(r["noise_floor"]) else "nan"] for r in noise])]
+    lines += ["", "## Cells (live / DES, error; floor in brackets)", ""]
+    lines.append(md_table(["cell", "method", "load", *METRICS], _cell_table(rows)))
+    lines += ["", "Warnings of the calibration:", ""]
+    lines += [f"- {w}" for w in report.get("warnings", [])] or ["- none"]
+    return "\n".join(lines) + "\n"
+
+
+def _cell_table(rows: list[dict[str, Any]]) -> list[list[str]]:
+    out = []
+    keys = list(dict.fromkeys((r["cell"], r["method"]) for r in rows))
+    for cell, m in keys:
+        sel = {r["metric"]: r for r in rows if r["cell"] == cell and r["method"] == m}
+        first = sel[METRICS[0]]
+        txt = []
+        for k in METRICS:
+            r = sel[k]
+            e, f = r["rel_error"], r["noise_floor"]
+            unit = "pp" if k == "missed_frac" else "%"
+            scale = 1.0 if k == "missed_frac" else 100.0
+            mark = "" if r["passed"] == "" else (" ✔" if r["passed"] else " ✘")
+            txt.append(f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])} "
+                       f"({scale * e:+.0f} {unit}{mark}; {scale * f:.0f})"
+                       if math.isfinite(e) else f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])}{mark}")
+        load = f"{first['load']:.1f}" + (" *" if first["under_load"] else "")
+        out.append([cell + ("" if first["held_out"] else " (in-sample)"), m, load, *txt])
+    return out
+
+
+def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    """DES against live, one panel per metric, with the metric's band; runs under load
+    hollow."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, grid = plt.subplots(2, 3, figsize=(13, 8.5), layout="constrained")
+    axes = list(grid.flat)
+    for ax, k in zip(axes, METRICS, strict=False):
+        sel = [r for r in rows if r["metric"] == k and math.isfinite(r["live"])
+               and math.isfinite(r["des"])]
+        scale = 100.0 if k == "missed_frac" else 1.0
+        seen: set[str] = set()
+        for r in sel:
+            kw = line_kw(r["method"], n_points=1)
+            ax.scatter(scale * r["live"], scale * r["des"], marker=kw["marker"], s=36,
+                       edgecolors=kw["color"],
+                       facecolors="none" if r["under_load"] else kw["color"],
+                       label=None if r["method"] in seen else r["method"])
+            seen.add(r["method"])
+        vals = [scale * v for r in sel for v in (r["live"], r["des"])]
+        _band(ax, k, [v for v in vals if v > 0])
+        unit = "%" if k == "missed_frac" else ("Hz" if k == "trigger_rate_hz" else "ms")
+        ax.set_xlabel(f"live ({unit})")
+        ax.set_ylabel(f"DES ({unit})")
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[-1].axis("off")
+    axes[-1].legend(handles, labels, loc="center", title="filled: idle; hollow: under load")
+    fig.savefig(path, dpi=max(MIN_DPI, 110))
+    plt.close(fig)
+
+
+def _band(ax: Any, k: str, vals: list[float]) -> None:
+    """The diagonal and the metric's band; AoI and latency on log axes (they span
+    decades between an idle cell and a collapsed one)."""
+    if k == "missed_frac":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [-PP_BAND, hi - PP_BAND], [PP_BAND, hi + PP_BAND],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{PP_BAND:g} pp"
+    elif k == "trigger_rate_hz":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [0, (1 - RATE_BAND) * hi], [0, (1 + RATE_BAND) * hi],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{RATE_BAND:.0%}"
+    else:
+        lo, hi = min(vals or [1.0]) / 1.3, max(vals or [1.0]) * 1.3
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        xs = [lo * (hi / lo) ** (i / 40) for i in range(41)]
+        ax.fill_between(xs, [(1 - BAND) * x for x in xs], [(1 + BAND) * x for x in xs],
+                        color="0.9", zorder=0)
+        title = f"±{BAND:.0%}"
+    ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(lo, hi)
+    ax.set_title(f"{metric_title(k)} (band {title})", fontsize=9)
+
+
+def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, command: str
+                  ) -> list[dict[str, Any]]:
+    """Write every output file into ``out``; the ``cells.csv`` rows."""
+    rows = cell_rows(plan, outcome, f_trig)
+    noise = noise_rows(plan, outcome[0])
+    knees = knee_rows(plan, outcome)
+    _write_csv(out / "cells.csv", rows, COLUMNS)
+    _write_csv(out / "noise.csv", noise)
+    _write_csv(out / "knee.csv", knees)
+    (out / "summary.md").write_text(summary_md(plan, rows, knees, noise, outcome[2], command))
+    plot(rows, out / "live_vs_des.png")
+    return rows
+

@@ -1,0 +1,141 @@
+"""Run the validation plan: live cells, the calibration, the DES predictions — resumably.
+
+Every finished piece is a file in ``--out`` and is kept when the suite is run again
+with the same ``--out`` (an interrupted run picks up where it stopped):
+
+* ``live/<cell>/`` — the live run's ``sigma-des live --out`` files, and
+  ``cells/<cell>.live.json`` — its figures, load and background CPU;
+* ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
+  included), the latency sample files and ``calibrate.log``;
+* ``cells/des-<key>.json`` — one DES prediction (every method), stamped with the
+  calibration it used (a new calibration makes it stale: it is run again).
+
+All live cells run first (the DES runs would load the machine under them), then
+the calibration's predictions. Progress goes to stderr, one line per piece.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from sigma_des.studies.validation.grid import Cell, Plan
+from sigma_des.studies.validation.runs import (
+    calibrate_run,
+    des_cell,
+    live_cell,
+    load_calibration,
+    read_json,
+    write_json,
+)
+
+__all__ = ["Outcome", "des_key", "run_suite"]
+
+Say = Callable[[str], None]
+#: What the report needs: live figures per cell, DES figures per key, the calibration.
+Outcome = tuple[dict[str, dict[str, Any]], dict[str, dict[str, Any]], dict[str, Any]]
+
+
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def des_key(cell: Cell) -> str:
+    """The DES prediction a cell needs (repeats share one; knee and grid cells too)."""
+    return f"n{cell.nodes}-{cell.mode}" + (f"-{cell.impairment}" if cell.impairment else "")
+
+
+def _clock(s: float) -> str:
+    return f"{int(s // 60)}:{int(s % 60):02d}"
+
+
+def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
+    live: dict[str, dict[str, Any]] = {}
+    per = plan.estimate() / max(1, len(plan.cells))
+    for i, cell in enumerate(plan.cells, 1):
+        path = out / "cells" / f"{cell.name}.live.json"
+        kept = read_json(path)
+        if kept is not None and kept.get("methods"):
+            live[cell.name] = kept
+            say(f"[{i}/{len(plan.cells)}] live {cell.name}: kept from an earlier run")
+        else:
+            say(f"[{i}/{len(plan.cells)}] live {cell.name}: N = {cell.nodes} on {cell.hosts} "
+                f"hosts, {cell.mode} messages{', ' + cell.impairment if cell.impairment else ''}"
+                f", {len(plan.methods)} methods x {plan.duration:g} s ...")
+            res = live_cell(cell, plan, out / "live" / cell.name)
+            write_json(path, res)
+            live[cell.name] = res
+            note = " TIMED OUT" if res["timed_out"] else ""
+            note += f" exit {res['exit']}" if res["exit"] else ""
+            say(f"    done in {res['wall_s']:.0f} s{note}; load {res['load_before']:.1f} -> "
+                f"{res['load_after']:.1f}, background {res['background_cores']:.2f} cores; "
+                f"elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
+                f"{_clock(per * (len(plan.cells) - i))}")
+        if cell.repeat == 1:
+            _calibration(cell, out, say)
+    return live
+
+
+def _calibration(cell: Cell, out: Path, say: Say) -> None:
+    if read_json(out / "cal" / "calibrated.json") is not None:
+        say("    calibration: kept from an earlier run")
+        return
+    say(f"    calibrating on {cell.name} (`sigma-des calibrate`, with its in-sample check) ...")
+    t = time.perf_counter()
+    calibrate_run(out / "live" / cell.name, out / "cal")
+    say(f"    calibrated in {time.perf_counter() - t:.0f} s")
+
+
+def _cal_stamp(out: Path) -> str:
+    h = hashlib.sha256()
+    for name in ("calibrated.toml", "calibrated.json"):
+        h.update((out / "cal" / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _des_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
+    cal, report = load_calibration(out / "cal")
+    stamp = _cal_stamp(out)
+    wanted: dict[str, Cell] = {}
+    for c in (*plan.cells, *plan.knee_cells()):
+        wanted.setdefault(des_key(c), c)
+    des: dict[str, dict[str, Any]] = {}
+    for i, (key, cell) in enumerate(wanted.items(), 1):
+        path = out / "cells" / f"des-{key}.json"
+        kept = read_json(path)
+        if kept is not None and kept.get("calibration") == stamp:
+            des[key] = kept
+            continue
+        res = des_cell(cal, report, cell, plan, out / "cells" / "samples")
+        res["calibration"] = stamp
+        write_json(path, res)
+        des[key] = res
+        fb = {v["fallback"] for v in res["methods"].values() if v["fallback"]}
+        say(f"[des {i}/{len(wanted)}] {key}: {res['wall_s']:.1f} s"
+            + (f" (engine fallback: {'; '.join(sorted(fb))[:120]})" if fb else "")
+            + f"; elapsed {_clock(time.perf_counter() - t0)}")
+    return des
+
+
+def run_suite(plan: Plan, out: Path, say: Say = _say) -> Outcome:
+    """Run (or pick up) every piece of ``plan`` in ``out``.
+
+    Returns:
+        Live figures per cell name, DES figures per :func:`des_key`, and the
+        calibration report.
+    """
+    for d in ("cells", "live", "cal"):
+        (out / d).mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    say(f"validation: {len(plan.cells)} live cells x {len(plan.methods)} methods, "
+        f"{plan.duration:g} s runs; {len(plan.knee_cells())} knee-grid DES cells; expected "
+        f"wall time ~{_clock(plan.estimate())} on an idle 2-core machine")
+    live = _live_all(plan, out, say, t0)
+    des = _des_all(plan, out, say, t0)
+    report = read_json(out / "cal" / "calibrated.json") or {}
+    say(f"validation: all runs done in {_clock(time.perf_counter() - t0)}")
+    return live, des, report

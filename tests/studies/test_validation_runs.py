@@ -1,0 +1,146 @@
+"""The validation suite's run helpers and report, on hand-made inputs (no live runs)."""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sigma_des.api import run_method
+from sigma_des.config import load
+from sigma_des.live.insample import missed_frac
+from sigma_des.net.latency import Dist, load_samples
+from sigma_des.record import read_table
+from sigma_des.studies.validation.grid import Plan
+from sigma_des.studies.validation.report import (
+    cell_rows,
+    knee_rows,
+    noise_rows,
+    under_load,
+    write_outputs,
+)
+from sigma_des.studies.validation.runs import (
+    MissedTap,
+    background_cores,
+    bounded_run,
+    des_figures,
+    shift_host_link,
+)
+
+
+def test_missed_tap_hand_computed() -> None:
+    tap = MissedTap(0.2, 0.7)
+    for k in range(10):  # one trigger every 0.1 s: frames 2..6 leave in the window
+        tap.trigger(-1, k, k * 0.1, math.nan)
+    got = [(n, f) for f in range(1, 8) for n in (0, 1) if (n, f) != (1, 4)] + [(0, 3)]
+    nodes = np.array([n for n, _ in got])
+    frames = np.array([f for _, f in got])
+    tap.states(np.zeros(len(got)), nodes, frames, np.zeros(len(got)), np.zeros((len(got), 12)))
+    assert tap.missed_frac(2) == pytest.approx(1.0 - 9 / 10)  # (1, 4) never arrived
+    assert math.isnan(MissedTap(5.0, 6.0).missed_frac(2))
+
+
+def test_des_missed_frac_is_the_recordings(tmp_path: Path) -> None:
+    """The tap's count equals the live runner's definition applied to an MCAP recording."""
+    sc = load(None, ["nodes=4", "hosts=2", "duration=1.5", "warmup=0.5", "net.qos=0",
+                     'net.transport="datagram"', "net.host_link.loss.p=0.2",
+                     "fidelity.enabled=false"])
+    figs = des_figures(sc, "none")
+    run_method(sc, "none", record=tmp_path / "r.mcap")
+    want = missed_frac(read_table(tmp_path / "r.mcap"), 4, 0.5, 1.5)
+    assert 0.1 < want < 0.5
+    assert figs["missed_frac"] == pytest.approx(want, abs=1e-12)
+
+
+def test_shift_host_link_both_directions(tmp_path: Path) -> None:
+    sc = load(None, [])
+    shifted = shift_host_link(sc, 0.005, tmp_path)
+    assert shifted.net.host_link.latency == Dist(dist="constant", value=0.00525)
+    assert shifted.net.host_link.latency_down == Dist(dist="constant", value=0.00525)
+    f = tmp_path / "hop.txt"
+    f.write_text("0.001\n0.002\n")
+    emp = Dist(dist="empirical", file=str(f))
+    sc2 = load(None, [f'net.host_link.latency={{dist="empirical", file="{f}"}}'])
+    assert sc2.net.host_link.latency == emp
+    out = shift_host_link(sc2, 0.005, tmp_path / "s")
+    assert np.allclose(load_samples(out.net.host_link.latency.file), [0.006, 0.007])
+    assert np.allclose(load_samples(out.net.host_link.latency_down.file), [0.006, 0.007])
+    assert out.net.server_link == sc2.net.server_link
+
+
+def test_bounded_run_stops_a_hanging_process(tmp_path: Path) -> None:
+    t0 = time.monotonic()
+    status, timed_out = bounded_run([sys.executable, "-c", "import time; time.sleep(60)"],
+                                    tmp_path / "log", 0.5)
+    assert timed_out and status != 0
+    assert time.monotonic() - t0 < 30
+    status, timed_out = bounded_run([sys.executable, "-c", "print('hi')"], tmp_path / "log", 30)
+    assert (status, timed_out) == (0, False)
+    assert (tmp_path / "log").read_text() == "hi\n"
+
+
+def test_background_cores_and_under_load() -> None:
+    summ = {"live": {m: {"cpu": [{"process": "server", "cpu_s": 9.0, "window_s": 2.0},
+                                 {"process": "background", "cpu_s": c, "window_s": 2.0}]}
+                     for m, c in (("none", 0.4), ("bides", 1.2))}}
+    assert background_cores(summ) == pytest.approx((0.2 + 0.6) / 2)
+    assert math.isnan(background_cores({}))
+    assert under_load({"background_cores": 0.6, "load_before": 0.0}, 2)
+    assert not under_load({"background_cores": 0.4, "load_before": 9.0}, 2)
+    assert under_load({"background_cores": math.nan, "load_before": 3.0}, 2)
+
+
+def _live(missed: float, aoi: float, load: float = 1.0) -> dict[str, object]:
+    m = {"aoi_mean": aoi, "aoi_p99": 2 * aoi, "latency_state_mean": 3.0,
+         "trigger_rate_hz": 100.0, "missed_frac": missed}
+    return {"methods": {"none": m}, "load_before": load, "load_after": load + 1.0,
+            "background_cores": 0.1, "config_hash": "live0", "exit": 0, "timed_out": False}
+
+
+def _des(missed: float, aoi: float) -> dict[str, object]:
+    m = {"aoi_mean": aoi, "aoi_p99": 2 * aoi, "latency_state_mean": 3.3,
+         "trigger_rate_hz": 100.0, "missed_frac": missed, "engine": "cohort", "fallback": ""}
+    return {"methods": {"none": m}, "seed": 1, "config_hash": "des0", "version": "x"}
+
+
+def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
+    plan = Plan(("none",), 2.0, 0.5, cal_nodes=20, nodes=(10, 30), extra_nodes=30,
+                repeats=2, knee_nodes=(10, 20, 30)).select("cal-r*,n10-node,n30-node")
+    live = {"cal-r1": _live(0.0, 20.0), "cal-r2": _live(0.0, 30.0),
+            "n10-node": _live(0.0, 10.0), "n30-node": _live(0.20, 40.0, load=5.0)}
+    des = {"n20-node": _des(0.0, 22.0), "n10-node": _des(0.01, 13.0),
+           "n30-node": _des(0.02, 48.0)}
+    for n in (10, 20, 30):
+        des.setdefault(f"n{n}-bundle", _des(0.0, 1.0))
+    des["n20-node"]["methods"]["none"]["missed_frac"] = 0.08  # the DES's knee: 20
+    outcome = (live, des, {"in_sample": [], "warnings": []})
+    floor = {(r["method"], r["metric"]): r["noise_floor"] for r in noise_rows(plan, live)}
+    assert floor[("none", "aoi_mean")] == pytest.approx(10.0 / 25.0)
+    rows = cell_rows(plan, outcome, 100.0, cores=2)
+    assert len(rows) == 3 * 5  # cal-r1 (in-sample) and two held-out cells; cal-r2 not a row
+    r = {(x["cell"], x["metric"]): x for x in rows}
+    assert r[("n10-node", "aoi_mean")]["rel_error"] == pytest.approx(0.3)
+    assert r[("n10-node", "aoi_mean")]["passed"] is True  # 30 % <= the 40 % floor
+    assert r[("n10-node", "aoi_mean")]["rule"] == "live range"
+    assert r[("n30-node", "aoi_mean")]["passed"] is True  # +20 %, floor 40 %
+    assert r[("n30-node", "missed_frac")]["rel_error"] == pytest.approx(-18.0)
+    assert r[("n30-node", "missed_frac")]["passed"] is False
+    assert r[("n30-node", "latency_state_mean")]["within_band"] is True  # +10 %
+    assert r[("n30-node", "aoi_mean")]["load"] == 5.5
+    assert r[("cal-r1", "aoi_mean")]["held_out"] is False
+    assert r[("cal-r1", "aoi_mean")]["passed"] is True  # 22 inside the repeats' 20..30
+    (k,) = knee_rows(plan, outcome)
+    assert (k["live_knee"], k["des_knee"], k["des_knee_on_live_grid"]) == (30, 20, 20)
+    assert k["live_grid"] == "10 20 30" and k["verdict"] == "missed"  # 20 is 33 % early
+    write_outputs(plan, outcome, tmp_path, 100.0, "test")
+    got = list(csv.DictReader((tmp_path / "cells.csv").open()))
+    assert len(got) == 15 and got[0]["config_hash"] == "des0"
+    md = (tmp_path / "summary.md").read_text()
+    assert "| aoi_mean | ±15% | 2 | 2 (100 %) | 0 | ≥ 80% | ✔ |" in md
+    assert "- [ ] knee within ±25 % (node messages)" in md
+    assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
