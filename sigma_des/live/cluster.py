@@ -182,14 +182,26 @@ class DaskHosts:
                                   f"{i['version']}, this process {__version__}: install the "
                                   "same version on every machine")
 
+    def _call(self, h: int, method: str, *args: Any) -> Any:
+        """Call ``method`` of host ``h``'s actor (a future), None once its worker is lost."""
+        if h in self.lost:
+            return None
+        try:
+            return getattr(self.actors[h], method)(*args)
+        except Exception:  # Dask: "Worker holding Actor was lost"
+            self.lost.add(h)
+            return None
+
     def _poll(self, fresh: bool = False) -> dict[int, Any]:
         """Every host's status (exit code or None), lost hosts marked; cached 0.5 s."""
         when, seen = self._seen
         if not fresh and time.monotonic() - when < 0.5:
             return seen
-        calls = {h: a.poll() for h, a in enumerate(self.actors) if h not in self.lost}
+        calls = {h: self._call(h, "poll") for h in range(len(self.actors))}
         out: dict[int, Any] = {}
         for h, c in calls.items():
+            if c is None:
+                continue
             try:
                 out[h] = c.result(timeout=CALL_S)
             except Exception:  # the worker is gone (or does not answer): its host too
@@ -215,7 +227,9 @@ class DaskHosts:
 
     def kill(self, h: int) -> None:
         """SIGKILL host ``h``'s process (its worker stays)."""
-        self.actors[h].kill().result(timeout=CALL_S)
+        c = self._call(h, "kill")
+        if c is not None:
+            c.result(timeout=CALL_S)
 
     def pids(self) -> dict[str, int]:
         """None of the hosts runs here (their CPU is not metered from this machine)."""
@@ -223,11 +237,12 @@ class DaskHosts:
 
     def rows(self, run: str, h: int, dest: Path, deadline: float) -> bool:
         """Fetch host ``h``'s rows of ``run`` from its actor into ``dest``."""
-        if h in self.lost:
-            return False
         wait = max(0.0, deadline - time.monotonic())
+        c = self._call(h, "rows", run, wait)
+        if c is None:
+            return False
         try:
-            data = self.actors[h].rows(run, wait).result(timeout=wait + CALL_S)
+            data = c.result(timeout=wait + CALL_S)
         except Exception:
             self.lost.add(h)
             return False
@@ -244,14 +259,10 @@ class DaskHosts:
 
     def stop(self) -> None:
         """Stop every host process and release the actors (bounded: ~``2 CALL_S``)."""
-        calls = []
-        for h, a in enumerate(self.actors):
-            if h not in self.lost:
-                try:
-                    calls.append(a.stop())
-                except Exception:
-                    pass
+        calls = [self._call(h, "stop") for h in range(len(self.actors))]
         for c in calls:
+            if c is None:
+                continue
             try:
                 c.result(timeout=2 * CALL_S)
             except Exception:
