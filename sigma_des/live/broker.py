@@ -60,12 +60,15 @@ class BrokerAddress:
         port: TCP port.
         username: MQTT user name ('' for none).
         password: MQTT password ('' for none).
+        tls_ca: PEM text of the CA certificate(s) the broker's certificate must chain to
+            ('' : plain TCP). The text, not a path: hosts on other machines get it too.
     """
 
     host: str
     port: int
     username: str = ""
     password: str = ""
+    tls_ca: str = ""
 
 
 def child_setup() -> None:

@@ -47,6 +47,9 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
                    f"list: prefer --password-file or ${PASSWORD_ENV})")
     p.add_argument("--password-file", default=None, metavar="FILE",
                    help="read the MQTT password from the first line of FILE")
+    p.add_argument("--tls-ca", default=None, metavar="FILE",
+                   help="connect to --broker over TLS, its certificate checked against the CA "
+                   "certificate(s) in FILE (PEM)")
     p.add_argument("--broker-port", type=int, default=None, metavar="PORT",
                    help="port of our own broker (default: a free one)")
     p.add_argument("--max-inflight", type=int, default=0, metavar="N",
@@ -132,6 +135,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
     opts = LiveOptions(broker=args.broker, username=args.username, password=password(args),
+                       tls_ca=_tls_ca(args),
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
                        bundle=args.bundle, record=rec_cls is not None, force=args.force,
@@ -159,6 +163,20 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             record_messages(rec_cls, args.record, res, msgs, kept)
             print(f"recorded {args.record}")
     return 130 if res.interrupted else 0
+
+
+def _tls_ca(args: argparse.Namespace) -> str:
+    """The PEM text of ``--tls-ca`` ('' without it)."""
+    if args.tls_ca is None:
+        return ""
+    try:
+        text = Path(args.tls_ca).read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError("--tls-ca", f"cannot read {args.tls_ca}: "
+                          f"{getattr(e, 'strerror', None) or e}") from None
+    if "-----BEGIN CERTIFICATE-----" not in text:
+        raise ConfigError("--tls-ca", f"{args.tls_ca} holds no PEM certificate")
+    return text
 
 
 def _check_scheduler(args: argparse.Namespace) -> None:

@@ -21,6 +21,7 @@ times from its host's clock to its own (:mod:`sigma_des.live.clocksync`).
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import socket
@@ -34,6 +35,7 @@ from numpy.typing import NDArray
 
 from sigma_des.errors import ConfigError
 from sigma_des.live.clocksync import ClockBook
+from sigma_des.live.cpu import CpuMeter
 from sigma_des.live.placement import Pin, Worker
 from sigma_des.live.procs import log_tail, reap, spawn_host
 from sigma_des.live.server import LiveServer
@@ -128,6 +130,16 @@ class HostActor:
         """SIGKILL the host process (fault injection)."""
         self.proc.kill()
 
+    def cpu(self) -> float:
+        """CPU seconds (user + system, all threads) of the host process so far (NaN: gone)."""
+        import psutil
+
+        try:
+            t = psutil.Process(self.proc.pid).cpu_times()
+        except psutil.Error:
+            return math.nan
+        return float(t.user + t.system)
+
     def stop(self) -> int | None:
         """Terminate (then kill) the process, remove the folder; the exit status."""
         if self.proc is not None:
@@ -156,7 +168,7 @@ class DaskHosts:
         self.info: list[dict[str, Any]] = []
         self.lost: set[int] = set()
         self.codes: dict[int, int] = {}
-        self._seen = (0.0, {})  # (when, {host: status}) of the last poll
+        self._seen: tuple[float, dict[int, Any]] = (0.0, {})  # when, statuses: last poll
 
     def start(self, cfgs: list[dict[str, Any]]) -> None:
         """Create every actor on its worker, then start every host process."""
@@ -231,9 +243,10 @@ class DaskHosts:
         if c is not None:
             c.result(timeout=CALL_S)
 
-    def pids(self) -> dict[str, int]:
-        """None of the hosts runs here (their CPU is not metered from this machine)."""
-        return {}
+    def meter(self, procs: dict[str, int]) -> CpuMeter:
+        """A meter of ``procs`` (this machine) that also asks every host's actor for its
+        process's CPU at each mark."""
+        return RemoteCpuMeter(procs, self)
 
     def rows(self, run: str, h: int, dest: Path, deadline: float) -> bool:
         """Fetch host ``h``'s rows of ``run`` from its actor into ``dest``."""
@@ -273,6 +286,55 @@ class DaskHosts:
             except Exception:
                 pass
         self.actors, self.futures = [], []
+
+
+class RemoteCpuMeter(CpuMeter):
+    """A :class:`~sigma_des.live.cpu.CpuMeter` whose marks also read each host's CPU on its
+    worker (calls that do not wait: the answers are collected in :meth:`rows`; a mark
+    of the metrics window runs on the server's loop). A host on this machine (loopback
+    workers) counts as ours, not as background.
+
+    Args:
+        procs: this machine's processes (name -> pid).
+        hosts: the run's hosts on the cluster.
+    """
+
+    def __init__(self, procs: dict[str, int], hosts: DaskHosts) -> None:
+        super().__init__(procs)
+        self.hosts = hosts
+        self.remote: dict[str, dict[int, Any]] = {}
+
+    def mark(self, label: str) -> None:
+        """This machine's CPU now, and a request for every host's."""
+        super().mark(label)
+        self.remote[label] = {h: self.hosts._call(h, "cpu") for h in range(len(self.hosts.info))}
+
+    def _host_cpu(self, label: str, h: int) -> float:
+        c = self.remote.get(label, {}).get(h)
+        try:
+            return float(c.result(timeout=CALL_S)) if c is not None else math.nan
+        except Exception:
+            return math.nan
+
+    def rows(self, messages: dict[str, int]) -> list[dict[str, Any]]:
+        """This machine's rows with a row per host (as a local run has) before the broker's."""
+        base = super().rows(messages)
+        here = socket.gethostname()
+        out = base[:1]
+        local = [0.0, 0.0]
+        for h, info in enumerate(self.hosts.info):
+            idle = self._host_cpu("idle1", h) - self._host_cpu("idle0", h)
+            win = self._host_cpu("w1", h) - self._host_cpu("w0", h)
+            out.append({"process": f"host{h}", "pid": info["pid"], "idle_s": base[0]["idle_s"],
+                        "idle_cpu_s": idle, "window_s": base[0]["window_s"], "cpu_s": win,
+                        "messages": messages.get(f"host{h}", math.nan)})
+            if info["machine"] == here:
+                local = [local[0] + (idle if math.isfinite(idle) else 0.0),
+                         local[1] + (win if math.isfinite(win) else 0.0)]
+        bg = dict(base[-1])
+        bg["idle_cpu_s"] = max(bg["idle_cpu_s"] - local[0], 0.0)
+        bg["cpu_s"] = max(bg["cpu_s"] - local[1], 0.0)
+        return out + base[1:-1] + [bg]
 
 
 class ClockedServer(LiveServer):

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from sigma_des.live.broker import child_setup
+from sigma_des.live.cpu import CpuMeter
 
 __all__ = ["HostGroup", "LocalHosts", "reap", "spawn_host"]
 
@@ -43,8 +44,8 @@ class HostGroup(Protocol):
     def kill(self, h: int) -> None:
         """Kill host ``h``'s process (fault injection)."""
 
-    def pids(self) -> dict[str, int]:
-        """``host<H>`` -> pid of the processes on this machine (for the CPU meter)."""
+    def meter(self, procs: dict[str, int]) -> CpuMeter:
+        """A CPU meter of ``procs`` (this machine's: server, broker) and of the hosts."""
 
     def rows(self, run: str, h: int, dest: Path, deadline: float) -> bool:
         """Put host ``h``'s rows of ``run`` at ``dest`` (wait until ``deadline``,
@@ -128,9 +129,11 @@ class LocalHosts:
         """SIGKILL host ``h``."""
         self.procs[h].kill()
 
-    def pids(self) -> dict[str, int]:
-        """Every live host's pid."""
-        return {f"host{h}": p.pid for h, p in enumerate(self.procs) if p.poll() is None}
+    def meter(self, procs: dict[str, int]) -> CpuMeter:
+        """A meter of ``procs`` and every live host (the hosts before the broker)."""
+        hosts = {f"host{h}": p.pid for h, p in enumerate(self.procs) if p.poll() is None}
+        first = dict(list(procs.items())[:1])
+        return CpuMeter({**first, **hosts, **procs})
 
     def rows(self, run: str, h: int, dest: Path, deadline: float) -> bool:
         """The host writes its rows into our folder: wait for the file."""

@@ -62,6 +62,7 @@ class LiveOptions:
         broker: ``HOST:PORT`` of a running broker; None: start our own Mosquitto.
         username: MQTT user for an external broker.
         password: MQTT password for an external broker.
+        tls_ca: PEM text of the CA of an external broker's TLS certificate ('' : no TLS).
         broker_port: port for our own broker (None: a free one).
         impair: apply the scenario's link latency/loss in the clients.
         step_delay: add the scenario's drawn ``compute.step_time`` to each node's real step.
@@ -90,6 +91,7 @@ class LiveOptions:
     broker: str | None = None
     username: str = ""
     password: str = ""
+    tls_ca: str = ""
     broker_port: int | None = None
     impair: bool = True
     step_delay: bool = True
@@ -114,6 +116,8 @@ class LiveOptions:
             raise ConfigError("--max-inflight", f"must be >= 0, got {self.max_inflight}")
         if self.broker is not None and self.kill_broker_at is not None:
             raise ConfigError("kill_broker_at", "needs our own broker (no --broker)")
+        if self.tls_ca and self.broker is None:
+            raise ConfigError("--tls-ca", "is for a broker of yours (--broker HOST:PORT)")
         if not 0.05 <= self.sync_interval <= 60.0:
             raise ConfigError("sync_interval", f"must be in 0.05..60 s, got {self.sync_interval}")
 
@@ -184,7 +188,7 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
             host, port = parse_broker(opts.broker)
             if not wait_port(host, port, 2.0):
                 raise ConfigError("--broker", f"nothing accepts connections at {host}:{port}")
-            addr = BrokerAddress(host, port, opts.username, opts.password)
+            addr = BrokerAddress(host, port, opts.username, opts.password, opts.tls_ca)
         keep = os.environ.get("SIGMA_DES_LIVE_KEEP")  # keep the hosts' logs for debugging
         if keep:
             d = Path(keep)
@@ -283,7 +287,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         srv.warm_up()
         live = group.alive()
         _wait_ready(srv, group, len(live), opts.ready_timeout)
-        meter = _cpu_meter(group.pids(), broker)
+        meter = _cpu_meter(group, broker)
         t0 = _go(srv, opts, addr, run, live, book, stack)
         meter.mark("idle0")
         while time.monotonic() < t0:
@@ -362,12 +366,12 @@ def _go(srv: LiveServer, opts: LiveOptions, addr: BrokerAddress, run: str, live:
     return t0
 
 
-def _cpu_meter(pids: dict[str, int], broker: Broker | None) -> CpuMeter:
-    """CPU meter of this process (the server), the hosts on this machine and our broker."""
-    procs = {"server": os.getpid(), **pids}
+def _cpu_meter(group: HostGroup, broker: Broker | None) -> CpuMeter:
+    """CPU meter of this process (the server), the hosts and our broker."""
+    procs = {"server": os.getpid()}
     if broker is not None and broker.proc is not None:
         procs["broker"] = broker.proc.pid
-    return CpuMeter(procs)
+    return group.meter(procs)
 
 
 def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:

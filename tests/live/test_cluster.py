@@ -121,10 +121,13 @@ def test_hosts_on_both_workers_clocks_reconciled_and_calibrate_accepts(
     for h in (0, 1):
         trig = msgs[(msgs["kind"] == "trigger") & (msgs["host"] == h)]
         lat = trig["t_recv"] - trig["t_send"]
-        assert len(trig) > 100 and abs(float(lat.median())) < 0.1, h
+        assert len(trig) > 20 and abs(float(lat.median())) < 0.1, h
         rows = msgs[(msgs["host"] == h) & msgs["kind"].isin(["state", "trigger", "command"])]
         neg = int((rows["t_recv"] < rows["t_send"]).sum())
         assert clock[str(h)]["negative_latencies"] == neg
+    cpu = pd.read_csv(out / "cpu.csv")  # each host's CPU, read on its worker
+    assert list(cpu["process"]) == ["server", "host0", "host1", "broker", "background"]
+    assert (cpu[cpu["process"].str.startswith("host")]["cpu_s"] > 0).all()
     assert main(["calibrate", str(out), "--out", str(tmp_path / "cal.toml"),
                  "--no-check"]) == 0
 
