@@ -40,8 +40,8 @@ from sigma_des.live.placement import Pin, Worker
 from sigma_des.live.procs import log_tail, reap, spawn_host
 from sigma_des.live.server import LiveServer
 
-__all__ = ["ClockedServer", "DaskHosts", "HostActor", "connect", "correct_rows",
-           "parse_scheduler", "workers_of"]
+__all__ = ["ClockedServer", "DaskHosts", "HostActor", "RemoteCpuMeter", "check_reachable",
+           "connect", "correct_rows", "parse_scheduler", "workers_of"]
 
 #: Bound on one call to a host's actor (s): longer, and the host counts as lost.
 CALL_S = 5.0
@@ -85,6 +85,23 @@ def workers_of(client: Any) -> list[Worker]:
     info = client.scheduler_info(n_workers=-1)["workers"]
     return [Worker(a, str(w.get("name", a)), dict(w.get("resources") or {}))
             for a, w in info.items()]
+
+
+def check_reachable(workers: list[Worker], own_broker: bool) -> None:
+    """Our own broker listens on 127.0.0.1 only: every worker must then be on loopback.
+
+    Raises:
+        ConfigError: naming ``--broker`` and the first worker elsewhere.
+    """
+    if not own_broker:
+        return
+    for w in workers:
+        host = w.address.split("://", 1)[-1].rpartition(":")[0].strip("[]")
+        if not (host.startswith("127.") or host in ("localhost", "::1")):
+            raise ConfigError("--broker", f"worker {w.name} ({w.address}) is on another "
+                              "machine, and the broker this command starts listens on "
+                              "127.0.0.1 only; run Mosquitto where every machine reaches it "
+                              "and pass --broker HOST:PORT (docs/LIVE.md, 'On a cluster')")
 
 
 class HostActor:

@@ -225,12 +225,14 @@ def _host_group(sc: Scenario, opts: LiveOptions, d: Path, stack: ExitStack) -> H
         local = LocalHosts(d)
         stack.callback(local.stop)
         return local
-    from sigma_des.live.cluster import DaskHosts, connect, workers_of
+    from sigma_des.live.cluster import DaskHosts, check_reachable, connect, workers_of
     from sigma_des.live.placement import assign, read_placement
 
     client = connect(opts.scheduler)
     stack.callback(client.close, 5)
-    pins = assign(sc.hosts, workers_of(client), read_placement(opts.placement), opts.placement)
+    workers = workers_of(client)
+    check_reachable(workers, opts.broker is None)
+    pins = assign(sc.hosts, workers, read_placement(opts.placement), opts.placement)
     hosts = DaskHosts(client, pins, secrets.token_hex(4))
     stack.callback(hosts.stop)
     return hosts

@@ -9,7 +9,7 @@ import pytest
 
 from sigma_des.errors import ConfigError
 from sigma_des.live.clocksync import MAX_DRIFT, ClockBook, Exchange, fit_clock, min_rtt_filter
-from sigma_des.live.cluster import correct_rows, parse_scheduler
+from sigma_des.live.cluster import check_reachable, correct_rows, parse_scheduler
 from sigma_des.live.placement import Pin, Worker, assign, read_placement
 
 
@@ -127,3 +127,11 @@ def test_scheduler_address_forms() -> None:
     for bad in ("tcp://x", "http://a:1", "a:0", "a:99999"):
         with pytest.raises(ConfigError, match="--scheduler"):
             parse_scheduler(bad)
+
+
+def test_our_own_broker_needs_every_worker_on_loopback() -> None:
+    check_reachable([Worker("tcp://127.0.0.1:40000", "a")], own_broker=True)
+    far = [Worker("tcp://127.0.0.1:40000", "a"), Worker("tcp://10.0.0.9:40000", "rack-b")]
+    check_reachable(far, own_broker=False)  # --broker given: the user's broker
+    with pytest.raises(ConfigError, match="--broker: worker rack-b"):
+        check_reachable(far, own_broker=True)
