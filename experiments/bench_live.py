@@ -33,6 +33,7 @@ import sys
 from pathlib import Path
 
 from sigma_des.config import METHODS, load
+from sigma_des.live.cli import PASSWORD_ENV
 from sigma_des.live.runner import LiveOptions, run_live
 
 COLUMNS = ("nodes", "hosts", "method", "mode", "path", "missed_frac", "latency_state_mean",
@@ -55,14 +56,18 @@ def held(row: dict[str, object]) -> bool:
 
 def _one(n: int, hosts: int, method: str, bundle: bool, duration: float,
          commands: bool, scheduler: str | None = None,
-         placement: str = "spread") -> dict[str, object]:
+         placement: str = "spread", broker: str | None = None,
+         username: str = "") -> dict[str, object]:
     sc = load(None, [f"nodes={n}", f"hosts={hosts}", f"duration={duration}",
                      f"warmup={min(1.0, duration / 4)}", "fidelity.enabled=false",
                      "net.qos=1", f"commands.enabled={'true' if commands else 'false'}"])
     before = os.getloadavg()[0]
     res, _msgs, _ = run_live(sc, [method], LiveOptions(impair=False, step_delay=False,
                                                         bundle=bundle, scheduler=scheduler,
-                                                        placement=placement))
+                                                        placement=placement, broker=broker,
+                                                        username=username,
+                                                        password=os.environ.get(PASSWORD_ENV,
+                                                                                "")))
     after = os.getloadavg()[0]
     m = res.methods[method]
     row: dict[str, object] = {"nodes": n, "hosts": hosts, "method": method,
@@ -90,6 +95,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="also run every cell with the hosts on this Dask cluster")
     p.add_argument("--placement", default="spread", help="with --scheduler: spread|pack|FILE")
+    p.add_argument("--broker", default=None, metavar="HOST:PORT",
+                   help=f"a running broker (user --username, password ${PASSWORD_ENV}); "
+                   "default: our own on 127.0.0.1")
+    p.add_argument("--username", default="")
     p.add_argument("--paths", default=None,
                    help="local,dask (default: both with --scheduler, else local)")
     a = p.parse_args(argv)
@@ -112,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
                 for path in paths:
                     row = _one(n, min(hosts, n), method, mode == "bundle", duration,
                                not a.no_commands, a.scheduler if path == "dask" else None,
-                               a.placement)
+                               a.placement, a.broker, a.username)
                     rows.append(row)
                     print("  ".join(str(row[c]) for c in COLUMNS), flush=True)
     with (out / "bench_live.csv").open("w", newline="") as fh:
