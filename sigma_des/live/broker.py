@@ -40,6 +40,7 @@ __all__ = [
     "free_port",
     "parse_broker",
     "password_line",
+    "reap",
     "wait_port",
 ]
 
@@ -80,6 +81,17 @@ def child_setup() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
+
+
+def reap(p: subprocess.Popen[bytes]) -> None:
+    """Terminate ``p`` (then kill it): at most 6 s."""
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(timeout=3)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(timeout=3)
 
 
 #: The janitor: reads folder names, one a line, until its stdin closes (our exit, however
@@ -319,13 +331,8 @@ class Broker:
     def stop(self) -> None:
         """Terminate (then kill) the process and remove its files; safe to call twice."""
         p = self.proc
-        if p is not None and p.poll() is None:
-            p.terminate()
-            try:
-                p.wait(timeout=3)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(timeout=3)
+        if p is not None:
+            reap(p)
         if p is not None and p.stderr is not None:
             p.stderr.close()
         self.proc = None

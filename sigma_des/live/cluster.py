@@ -34,10 +34,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.errors import ConfigError
+from sigma_des.live.broker import reap
 from sigma_des.live.clocksync import ClockBook
 from sigma_des.live.cpu import CpuMeter
 from sigma_des.live.placement import Pin, Worker
-from sigma_des.live.procs import log_tail, reap, spawn_host
+from sigma_des.live.procs import log_tail, spawn_host
 from sigma_des.live.server import LiveServer
 
 __all__ = ["ClockedServer", "DaskHosts", "HostActor", "RemoteCpuMeter", "check_reachable",

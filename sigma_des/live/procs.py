@@ -17,10 +17,10 @@ import time
 from pathlib import Path
 from typing import Any, Protocol
 
-from sigma_des.live.broker import child_setup
+from sigma_des.live.broker import child_setup, reap
 from sigma_des.live.cpu import CpuMeter
 
-__all__ = ["HostGroup", "LocalHosts", "reap", "spawn_host"]
+__all__ = ["HostGroup", "LocalHosts", "log_tail", "spawn_host"]
 
 
 class HostGroup(Protocol):
@@ -72,17 +72,6 @@ def spawn_host(cfg: dict[str, Any], d: Path, h: int, **popen: Any) -> subprocess
         return subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
                                 stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                 env=env, preexec_fn=child_setup, **popen)
-
-
-def reap(p: subprocess.Popen[bytes]) -> None:
-    """Terminate ``p`` (then kill it): at most 6 s."""
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(timeout=3)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait(timeout=3)
 
 
 def log_tail(d: Path, h: int) -> str:
