@@ -99,6 +99,9 @@ def main(argv: list[str] | None = None) -> int:
                    help=f"a running broker (user --username, password ${PASSWORD_ENV}); "
                    "default: our own on 127.0.0.1")
     p.add_argument("--username", default="")
+    p.add_argument("--repeat", type=int, default=1,
+                   help="run each cell this many times (paths interleaved: on a shared "
+                   "machine the load drifts; a cell is held if every repeat held)")
     p.add_argument("--paths", default=None,
                    help="local,dask (default: both with --scheduler, else local)")
     a = p.parse_args(argv)
@@ -118,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     for n in nodes:
         for mode in modes:
             for method in methods:
-                for path in paths:
+                for path in [q for _ in range(max(1, a.repeat)) for q in paths]:
                     row = _one(n, min(hosts, n), method, mode == "bundle", duration,
                                not a.no_commands, a.scheduler if path == "dask" else None,
                                a.placement, a.broker, a.username)
@@ -130,8 +133,9 @@ def main(argv: list[str] | None = None) -> int:
         w.writerows(rows)
     print(f"wrote {out / 'bench_live.csv'}", file=sys.stderr)
     for key in sorted({(str(r["path"]), str(r["mode"]), str(r["method"])) for r in rows}):
-        ns = [int(str(r["nodes"])) for r in rows
-              if (r["path"], r["mode"], r["method"]) == key and held(r)]
+        cell = [r for r in rows if (r["path"], r["mode"], r["method"]) == key]
+        ns = [n for n in {int(str(r["nodes"])) for r in cell}
+              if all(held(r) for r in cell if int(str(r["nodes"])) == n)]
         print(f"largest N held at 100 Hz: {' '.join(key)}: {max(ns) if ns else 'none'}")
     return 0
 
