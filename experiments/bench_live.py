@@ -8,7 +8,8 @@ each), one live run of ``--duration`` s on our own Mosquitto (no client
 impairment, nodes publish right after their real step) is made, and printed:
 missed frames (fraction of node x frame states of the window that never reached
 the server), mean and p99 state latency, mean AoI, achieved trigger and snapshot
-rates, Mbps, and the 1-minute load average before and after the run (the machine
+rates, Mbps, the CPU of the server process and of all hosts over the metrics window
+(cores), and the 1-minute load average before and after the run (the machine
 is shared: read every figure next to its load). The goal of issue 11 is N >= 100 at
 100 Hz (achieved trigger rate >= 99 Hz), QoS 1, < 1 % missed frames and mean
 state latency < 5 ms; a row ``meets_goal`` or not. Nothing here asserts on timing.
@@ -38,7 +39,8 @@ from sigma_des.live.runner import LiveOptions, run_live
 
 COLUMNS = ("nodes", "hosts", "method", "mode", "path", "missed_frac", "latency_state_mean",
            "latency_state_p99", "aoi_mean", "trigger_rate_hz", "snapshot_rate_hz",
-           "throughput_mbps", "load_before", "load_after", "meets_goal")
+           "throughput_mbps", "server_cores", "hosts_cores", "load_before", "load_after",
+           "meets_goal")
 
 
 def meets_goal(nodes: int, trigger_rate_hz: float, missed_frac: float,
@@ -76,6 +78,12 @@ def _one(n: int, hosts: int, method: str, bundle: bool, duration: float,
                               "load_before": round(before, 2), "load_after": round(after, 2)}
     for k in COLUMNS[5:12]:
         row[k] = round(float(m[k]), 4)
+    # CPU of the server process and of all hosts over the metrics window (cores)
+    cpu = {r["process"]: r for r in res.live[method]["cpu"]}
+    win = float(cpu["server"]["window_s"]) or float("nan")
+    row["server_cores"] = round(float(cpu["server"]["cpu_s"]) / win, 3)
+    row["hosts_cores"] = round(sum(float(r["cpu_s"]) for p, r in cpu.items()
+                                   if p.startswith("host")) / win, 3)
     row["meets_goal"] = meets_goal(n, m["trigger_rate_hz"], m["missed_frac"],
                                    m["latency_state_mean"])
     return row
