@@ -198,14 +198,20 @@ def test_bench_live_runs_each_cell_locally_and_on_the_cluster(cluster: Cluster,
 
 def test_worker_killed_mid_run_its_hosts_crash_and_the_run_goes_on(cluster: Cluster) -> None:
     w1 = cluster.procs["w1"]
+    killed_at: list[float] = []
 
-    def kill_w1_soon(*_: Any) -> None:
-        threading.Timer(0.8, w1.kill).start()
+    def kill_w1_soon(_addr: Any, _topics: Any, srv: Any) -> None:
+        def kill() -> None:
+            killed_at.append(srv.loop.now)
+            w1.kill()
+        threading.Timer(0.8, kill).start()
 
-    sc = live_scenario("duration=2.5", "warmup=0.2")
+    sc = live_scenario("duration=3.0", "warmup=0.2")
     res, msgs, _ = run_live(sc, ["bides"], LiveOptions(scheduler=cluster.address,
                                                        hook=kill_w1_soon))
     w1.wait(timeout=10)
+    (t_kill,) = killed_at
+    assert t_kill < 2.0, t_kill
     info = res.live["bides"]
     assert info["hosts_killed"] == [1] and info["hosts_reported"] == [0]
     host1 = info["where"][1]["pid"]
@@ -215,8 +221,8 @@ def test_worker_killed_mid_run_its_hosts_crash_and_the_run_goes_on(cluster: Clus
     assert not _alive(host1)  # died with its worker
     # host 1's nodes (2 and 3) fell silent; BiDES excludes them and keeps advancing
     st = msgs[msgs["kind"] == "state"]
-    assert st[st["node"] >= 2]["t_recv"].max() < 1.2
-    assert st[st["node"] < 2]["t_recv"].max() > 2.0
+    assert st[st["node"] >= 2]["t_recv"].max() < t_kill + 0.5
+    assert st[st["node"] < 2]["t_recv"].max() > t_kill + 0.8
     ts = res.timeseries["bides"]
-    assert ts["aligned_frame"][-1] > ts["aligned_frame"][np.searchsorted(ts["t"], 1.2)] + 20
-    assert res.methods["bides"]["missed_frac"] > 0.2
+    assert ts["aligned_frame"][-1] > ts["aligned_frame"][np.searchsorted(ts["t"], t_kill)] + 20
+    assert res.methods["bides"]["missed_frac"] > 0.1
