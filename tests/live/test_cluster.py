@@ -24,7 +24,7 @@ import pandas as pd
 import pytest
 
 from sigma_des.cli import main
-from sigma_des.live.broker import free_port, wait_port
+from sigma_des.live.broker import child_setup, free_port, wait_port
 from sigma_des.live.runner import LiveOptions, run_live
 from tests.live.live_helpers import LIVE_SETS, live_scenario, needs_mosquitto
 
@@ -61,7 +61,8 @@ class Cluster:
         log = open(d / f"{name}.log", "wb")
         self.procs[name] = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                             stdin=subprocess.DEVNULL,
-                                            env={**os.environ, **env}, start_new_session=True)
+                                            env={**os.environ, **env},
+                                            preexec_fn=child_setup)  # dies with the tests
         log.close()
 
     def close(self) -> None:
@@ -147,11 +148,13 @@ def test_unreachable_scheduler_exits_2_at_once_writing_nothing(
 def test_ctrl_c_keeps_partial_results_and_stops_every_remote_host(
         cluster: Cluster, tmp_path: Path) -> None:
     out = tmp_path / "out"
+    placement = tmp_path / "placement.toml"  # pinned by name, the other way round
+    placement.write_text('[hosts]\n0 = "w1"\n1 = { worker = "w0" }\n')
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
     p = subprocess.Popen([sys.executable, "-m", "sigma_des.cli", "live", *_sets("duration=30"),
-                          "--methods", "none", "--scheduler", cluster.address, "--out",
-                          str(out), "--no-plots"], env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE)
+                          "--methods", "none", "--scheduler", cluster.address, "--placement",
+                          str(placement), "--out", str(out), "--no-plots"], env=env,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         assert p.stderr is not None
         line = p.stderr.readline().decode()
@@ -165,6 +168,7 @@ def test_ctrl_c_keeps_partial_results_and_stops_every_remote_host(
     assert code == 130
     summ = json.loads((out / "summary.json").read_text())
     assert summ["interrupted"] is True
+    assert [w["name"] for w in summ["live"]["none"]["where"]] == ["w1", "w0"]
     pids = [w["pid"] for w in summ["live"]["none"]["where"]]
     assert len(pids) == 2 and all(pid > 0 for pid in pids)
     assert [pid for pid in pids if _alive(pid)] == []  # the hosts' processes are gone
