@@ -40,8 +40,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ClockBook", "ClockFit", "Exchange", "PING", "PONG", "SyncTopics", "fit_clock",
-           "min_rtt_filter"]
+__all__ = ["MAX_DRIFT", "MIN_SPAN", "PING", "PONG", "ClockBook", "ClockFit", "Exchange",
+           "SyncClient", "SyncTopics", "fit_clock", "host_clock", "min_rtt_filter", "now_fn"]
 
 #: ping: seq u32, t1 f64 (server clock); pong: seq u32, t1 f64, t2 f64, t3 f64 (host clock)
 PING = struct.Struct("<Id")
