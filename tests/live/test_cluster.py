@@ -151,7 +151,7 @@ def test_ctrl_c_keeps_partial_results_and_stops_every_remote_host(
     placement = tmp_path / "placement.toml"  # pinned by name, the other way round
     placement.write_text('[hosts]\n0 = "w1"\n1 = { worker = "w0" }\n')
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
-    p = subprocess.Popen([sys.executable, "-m", "sigma_des.cli", "live", *_sets("duration=30"),
+    p = subprocess.Popen([sys.executable, "-m", "sigma_des.cli", "live", *_sets("duration=60"),
                           "--methods", "none", "--scheduler", cluster.address, "--placement",
                           str(placement), "--out", str(out), "--no-plots"], env=env,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
