@@ -40,6 +40,7 @@ __all__ = [
     "free_port",
     "parse_broker",
     "password_line",
+    "reap",
     "wait_port",
 ]
 
@@ -60,12 +61,15 @@ class BrokerAddress:
         port: TCP port.
         username: MQTT user name ('' for none).
         password: MQTT password ('' for none).
+        tls_ca: PEM text of the CA certificate(s) the broker's certificate must chain to
+            ('' : plain TCP). The text, not a path: hosts on other machines get it too.
     """
 
     host: str
     port: int
     username: str = ""
     password: str = ""
+    tls_ca: str = ""
 
 
 def child_setup() -> None:
@@ -77,6 +81,17 @@ def child_setup() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
+
+
+def reap(p: subprocess.Popen[bytes]) -> None:
+    """Terminate ``p`` (then kill it): at most 6 s."""
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(timeout=3)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(timeout=3)
 
 
 #: The janitor: reads folder names, one a line, until its stdin closes (our exit, however
@@ -316,13 +331,8 @@ class Broker:
     def stop(self) -> None:
         """Terminate (then kill) the process and remove its files; safe to call twice."""
         p = self.proc
-        if p is not None and p.poll() is None:
-            p.terminate()
-            try:
-                p.wait(timeout=3)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait(timeout=3)
+        if p is not None:
+            reap(p)
         if p is not None and p.stderr is not None:
             p.stderr.close()
         self.proc = None

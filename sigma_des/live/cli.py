@@ -47,6 +47,9 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
                    f"list: prefer --password-file or ${PASSWORD_ENV})")
     p.add_argument("--password-file", default=None, metavar="FILE",
                    help="read the MQTT password from the first line of FILE")
+    p.add_argument("--tls-ca", default=None, metavar="FILE",
+                   help="connect to --broker over TLS, its certificate checked against the CA "
+                   "certificate(s) in FILE (PEM)")
     p.add_argument("--broker-port", type=int, default=None, metavar="PORT",
                    help="port of our own broker (default: a free one)")
     p.add_argument("--max-inflight", type=int, default=0, metavar="N",
@@ -67,6 +70,12 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--record", default=None, metavar="FILE.mcap",
                    help="record every message to an MCAP file (sigma_des.record; "
                    "settings: record.*)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run each physics host on a worker of this Dask scheduler (clocks "
+                   "reconciled over the broker; docs/LIVE.md, 'On a cluster')")
+    p.add_argument("--placement", default="spread", metavar="spread|pack|FILE",
+                   help="with --scheduler: hosts round-robin over the workers (spread), all "
+                   "on one (pack), or a TOML host -> worker map (default: spread)")
 
 
 def add_calibrate_args(p: argparse.ArgumentParser) -> None:
@@ -107,6 +116,7 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
         raise ConfigError("--broker-port", f"must be in 1..65535, got {args.broker_port}")
     if args.broker is not None and args.broker_port is not None:
         raise ConfigError("--broker-port", "is for our own broker; it cannot go with --broker")
+    _check_scheduler(args)
     rec_cls = None
     if args.record is not None:
         need("--record", "mcap", "orjson")
@@ -125,9 +135,11 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
     opts = LiveOptions(broker=args.broker, username=args.username, password=password(args),
+                       tls_ca=_tls_ca(args),
                        broker_port=args.broker_port, impair=not args.no_impair,
                        step_delay=not args.no_step_delay, max_inflight=args.max_inflight,
-                       bundle=args.bundle, record=rec_cls is not None, force=args.force)
+                       bundle=args.bundle, record=rec_cls is not None, force=args.force,
+                       scheduler=args.scheduler, placement=args.placement)
     with Interrupts() as sig:
         try:
             res, msgs, kept = run_live(sc, methods, opts, progress=not args.no_progress,
@@ -151,6 +163,41 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             record_messages(rec_cls, args.record, res, msgs, kept)
             print(f"recorded {args.record}")
     return 130 if res.interrupted else 0
+
+
+def _tls_ca(args: argparse.Namespace) -> str:
+    """The PEM text of ``--tls-ca`` ('' without it)."""
+    if args.tls_ca is None:
+        return ""
+    try:
+        text = Path(args.tls_ca).read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError("--tls-ca", f"cannot read {args.tls_ca}: "
+                          f"{getattr(e, 'strerror', None) or e}") from None
+    if "-----BEGIN CERTIFICATE-----" not in text:
+        raise ConfigError("--tls-ca", f"{args.tls_ca} holds no PEM certificate")
+    return text
+
+
+def _check_scheduler(args: argparse.Namespace) -> None:
+    """``--scheduler`` and ``--placement``, before anything is written: the scheduler must
+    accept connections within 3 s (else exit 2 at once)."""
+    if args.scheduler is None:
+        if args.placement != "spread":
+            raise ConfigError("--placement", "needs --scheduler")
+        return
+    from sigma_des.extras import need
+
+    need("--scheduler", "distributed", extra="experiments")
+    from sigma_des.live.broker import wait_port
+    from sigma_des.live.cluster import parse_scheduler
+    from sigma_des.live.placement import read_placement
+
+    read_placement(args.placement)
+    host, port = parse_scheduler(args.scheduler)
+    if not wait_port(host, port, 3.0):
+        raise ConfigError("--scheduler", f"no Dask scheduler accepts connections at "
+                          f"{host}:{port} (within 3 s)")
 
 
 def _writer(args: argparse.Namespace) -> Callable[[Results, pd.DataFrame], None]:

@@ -31,6 +31,7 @@ from sigma_des.events.jobs import step_draws
 from sigma_des.events.node import NodeRules, Published
 from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
+from sigma_des.live.clocksync import PING, PONG, SyncTopics, host_clock, now_fn
 from sigma_des.live.ledger import Ledger
 from sigma_des.live.loop import Client, Loop
 from sigma_des.live.shim import DOWN, ImpairedSender, Impairment
@@ -49,7 +50,21 @@ from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.kinds import COMMAND, REREQUEST, STATE, TRIGGER
 
-__all__ = ["Host", "HostNodes", "main"]
+__all__ = ["ClockLoop", "Host", "HostNodes", "main"]
+
+
+class ClockLoop(Loop):
+    """A :class:`Loop` on another clock than ``time.monotonic()`` (a host whose clock
+    a test sets off: :func:`~sigma_des.live.clocksync.host_clock`)."""
+
+    def __init__(self, t0: float, mono: Any) -> None:
+        super().__init__(t0)
+        self._mono = mono
+
+    @property
+    def now(self) -> float:
+        """Seconds since the run's start on this host's clock."""
+        return float(self._mono()) - self.t0
 
 
 class HostNodes(NodeRules):
@@ -123,7 +138,11 @@ class Host(ImpairedSender):
         self._pending: list[tuple[bytes, int, int]] = []
         self.topics = topics
         self.window = Window.of(sc.duration, sc.f_trig, sc.bides.f_trig_min)
-        self.loop = Loop(t0) if loop is None else loop
+        skew = host_clock()
+        self.mono = now_fn(*skew)
+        if loop is None:
+            loop = ClockLoop(t0, self.mono) if skew != (0.0, 0.0) else Loop(t0)
+        self.loop = loop
         n = sc.nodes
         self.nodes = np.flatnonzero(np.asarray(sc.host_of) == host).astype(np.int64)
         self.local = {int(g): j for j, g in enumerate(self.nodes)}
@@ -171,6 +190,10 @@ class Host(ImpairedSender):
         self.stop_requested = False
         self.started = False
         subs = [(topics.trig, self.qos), (topics.host_down(host), self.qos), (topics.ctl, 1)]
+        # across machines (--scheduler): clock exchanges and a go on this host's own clock
+        self.sync = SyncTopics(topics.run) if cfg.get("sync") else None
+        if self.sync is not None:
+            subs.append((self.sync.down(host), 1))
         if client_factory is None:
             self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
                                  int(cfg["max_inflight"]))
@@ -180,7 +203,26 @@ class Host(ImpairedSender):
     # ------------------------------------------------------------ messages
 
     def _on_message(self, topic: str, payload: bytes) -> None:
+        if self.sync is not None and topic.startswith(self.sync.base):
+            self._sync(topic, payload)
+            return
         self.loop.post(self._arrive, topic, payload, self.loop.now)
+
+    def _sync(self, topic: str, payload: bytes) -> None:
+        """A clock ping is answered at once from paho's thread (receipt and reply stamped
+        on this host's clock); ``go`` carries the origin on this host's clock."""
+        assert self.sync is not None
+        if topic == self.sync.ping(self.h) and len(payload) == PING.size:
+            t2 = self.mono()
+            seq, t1 = PING.unpack(payload)
+            self.client.publish(self.sync.pong(self.h), PONG.pack(seq, t1, t2, self.mono()), 0)
+        elif topic == self.sync.go(self.h):
+            self.loop.post(self._arrive, self.topics.ctl, payload, self.loop.now)
+        else:
+            self.loop.post(self._reject)
+
+    def _reject(self) -> None:
+        self.rejected += 1
 
     def _arrive(self, topic: str, payload: bytes, t: float) -> None:
         tp = self.topics
@@ -232,7 +274,7 @@ class Host(ImpairedSender):
     def _control(self, payload: bytes) -> None:
         """``go:<t0>`` sets the run's time origin (monotonic seconds), once; ``stop``
         ends the run."""
-        what, t0 = decode_control(payload, time.monotonic())
+        what, t0 = decode_control(payload, self.mono())
         if what == "stop":
             self.stop_requested = True
             self.loop.stop()
@@ -409,7 +451,7 @@ def main(argv: list[str] | None = None) -> int:
     h = int(cfg["host"])
     for i, (method, run) in enumerate(cfg["runs"]):
         topics = Topics(run)
-        host = Host(sc, method, h, cfg, topics, addr, time.monotonic())
+        host = Host(sc, method, h, cfg, topics, addr, now_fn(*host_clock())())
         if i == 0:
             host.warm_up()
         host.client.start(timeout=10.0)

@@ -36,8 +36,11 @@ def estimate_live_bytes(sc: Scenario) -> int:
     return int(SERVER_BYTES + sc.hosts * HOST_BYTES + estimate_bytes(sc, 1) + rows * ROW_BYTES)
 
 
-def check_size(sc: Scenario, force: bool = False) -> int:
+def check_size(sc: Scenario, force: bool = False, remote_hosts: bool = False) -> int:
     """Refuse, before anything is spawned, a live run this machine cannot hold.
+
+    With ``remote_hosts`` (the hosts run on a Dask cluster) the host processes' own memory
+    is not this machine's (their rows, fetched at the end, are).
 
     Returns:
         The memory estimate (bytes).
@@ -51,10 +54,12 @@ def check_size(sc: Scenario, force: bool = False) -> int:
     from sigma_des.guard import require_memory
 
     need = estimate_live_bytes(sc)
+    if remote_hosts:
+        need -= sc.hosts * HOST_BYTES
     if force:
         return need
     cores = os.cpu_count() or 1
-    if sc.hosts > HOSTS_PER_CORE * cores:
+    if not remote_hosts and sc.hosts > HOSTS_PER_CORE * cores:
         raise ConfigError("hosts", f"{sc.hosts} host processes (nodes={sc.nodes}) would be "
                           f"spawned, but {cores} CPU cores keep at most "
                           f"{HOSTS_PER_CORE * cores} in real time; lower nodes or hosts, "

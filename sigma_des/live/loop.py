@@ -166,6 +166,10 @@ class Client:
         )
         if addr.username:
             c.username_pw_set(addr.username, addr.password)
+        if addr.tls_ca:  # TLS, the broker's certificate checked against this CA and its name
+            import ssl
+
+            c.tls_set_context(ssl.create_default_context(cadata=addr.tls_ca))
         c.max_inflight_messages_set(max_inflight if max_inflight > 0 else 65535)
         c.max_queued_messages_set(0)
         c.reconnect_delay_set(min_delay=1, max_delay=2)
@@ -208,7 +212,11 @@ class Client:
         Raises:
             ConnectionError: refused (e.g. wrong credentials) or no answer in ``timeout``.
         """
-        self.mqtt.connect(self.addr.host, self.addr.port, keepalive=5)
+        try:
+            self.mqtt.connect(self.addr.host, self.addr.port, keepalive=5)
+        except OSError as e:  # refused, unreachable, a TLS certificate that does not verify
+            raise ConnectionError(f"MQTT connect to {self.addr.host}:{self.addr.port}: "
+                                  f"{e}") from None
         self.mqtt.loop_start()
         deadline = time.monotonic() + timeout
         while self.connects == 0 and time.monotonic() < deadline:

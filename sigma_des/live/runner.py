@@ -19,10 +19,8 @@ caller. A :class:`~sigma_des.live.broker.Janitor` removes the temporary folders
 
 from __future__ import annotations
 
-import json
 import os
 import secrets
-import subprocess
 import sys
 import tempfile
 import time
@@ -38,18 +36,13 @@ import pandas as pd
 from sigma_des.api import Results
 from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.broker import (
-    Broker,
-    BrokerAddress,
-    Janitor,
-    child_setup,
-    parse_broker,
-    wait_port,
-)
+from sigma_des.live.broker import Broker, BrokerAddress, Janitor, parse_broker, wait_port
+from sigma_des.live.clocksync import ClockBook, SyncClient, SyncTopics
 from sigma_des.live.cpu import CpuMeter, message_counts
 from sigma_des.live.interrupts import Interrupts
 from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
+from sigma_des.live.procs import HostGroup, LocalHosts
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
 from sigma_des.metrics.reports import MethodReport
@@ -69,6 +62,7 @@ class LiveOptions:
         broker: ``HOST:PORT`` of a running broker; None: start our own Mosquitto.
         username: MQTT user for an external broker.
         password: MQTT password for an external broker.
+        tls_ca: PEM text of the CA of an external broker's TLS certificate ('' : no TLS).
         broker_port: port for our own broker (None: a free one).
         impair: apply the scenario's link latency/loss in the clients.
         step_delay: add the scenario's drawn ``compute.step_time`` to each node's real step.
@@ -85,11 +79,19 @@ class LiveOptions:
             scheduled (tests use it to start a rogue client).
         force: run even if :func:`check_size` refuses (too many host processes for the
             CPU cores, or more memory than is available).
+        scheduler: address of a Dask scheduler (``tcp://HOST:PORT``): each host runs on
+            one of its workers (:mod:`sigma_des.live.cluster`), the clocks are reconciled
+            (:mod:`sigma_des.live.clocksync`); None: host processes on this machine.
+        placement: with ``scheduler``: ``spread``, ``pack`` or a placement TOML file
+            (:mod:`sigma_des.live.placement`).
+        sync_interval: with ``scheduler``: seconds between two clock exchanges with a host
+            during the run.
     """
 
     broker: str | None = None
     username: str = ""
     password: str = ""
+    tls_ca: str = ""
     broker_port: int | None = None
     impair: bool = True
     step_delay: bool = True
@@ -103,6 +105,9 @@ class LiveOptions:
     record: bool = False
     hook: Callable[[BrokerAddress, Topics, LiveServer], None] | None = None
     force: bool = False
+    scheduler: str | None = None
+    placement: str = "spread"
+    sync_interval: float = 0.5
 
     def __post_init__(self) -> None:
         if not 0.3 <= self.idle_window <= 60.0:
@@ -111,6 +116,10 @@ class LiveOptions:
             raise ConfigError("--max-inflight", f"must be >= 0, got {self.max_inflight}")
         if self.broker is not None and self.kill_broker_at is not None:
             raise ConfigError("kill_broker_at", "needs our own broker (no --broker)")
+        if self.tls_ca and self.broker is None:
+            raise ConfigError("--tls-ca", "is for a broker of yours (--broker HOST:PORT)")
+        if not 0.05 <= self.sync_interval <= 60.0:
+            raise ConfigError("sync_interval", f"must be in 0.05..60 s, got {self.sync_interval}")
 
 
 Done = Callable[[Results, pd.DataFrame], None]
@@ -144,7 +153,7 @@ def run_live(sc: Scenario, methods: list[str] | None = None,
     ms = tuple(methods) if methods is not None else sc.methods
     sc = replace(sc, methods=ms)
     check_live(sc)
-    check_size(sc, opts.force)
+    check_size(sc, opts.force, remote_hosts=opts.scheduler is not None)
     res = Results(sc)
     res.mode = "live"
     tables: list[pd.DataFrame] = []
@@ -179,7 +188,7 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
             host, port = parse_broker(opts.broker)
             if not wait_port(host, port, 2.0):
                 raise ConfigError("--broker", f"nothing accepts connections at {host}:{port}")
-            addr = BrokerAddress(host, port, opts.username, opts.password)
+            addr = BrokerAddress(host, port, opts.username, opts.password, opts.tls_ca)
         keep = os.environ.get("SIGMA_DES_LIVE_KEEP")  # keep the hosts' logs for debugging
         if keep:
             d = Path(keep)
@@ -188,10 +197,13 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
             janitor.watch(d)
         d.mkdir(parents=True, exist_ok=True)
         runs = [(m, secrets.token_hex(4) + m) for m in ms]
-        procs = _spawn_hosts(sc, runs, addr, opts, d, stack)
+        group = _host_group(sc, opts, d, stack)
+        group.start([_host_cfg(sc, runs, addr, opts, h, group.own_clocks)
+                     for h in range(sc.hosts)])
+        book = ClockBook(sc.hosts) if group.own_clocks else None  # kept over the methods
         for m, run in runs:
-            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, procs, d,
-                                                  progress)
+            out, table, interrupted = _run_method(sc, m, run, addr, opts, broker, group, d,
+                                                  progress, book)
             kept[m] = out.pop("kept")
             res.add(m, MethodReport.of(out, {"requested": "live", "used": "live",
                                              "fallback": ""}))
@@ -207,46 +219,40 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
                 res.interrupted = False
 
 
-def _spawn_hosts(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
-                 opts: LiveOptions, d: Path, stack: ExitStack) -> list[subprocess.Popen[bytes]]:
-    """One process per host, serving every run (method) in turn."""
-    env = dict(os.environ)
-    here = str(Path(__file__).resolve().parents[2])
-    env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    procs = []
-    for h in range(sc.hosts):
-        cfg = {
-            "scenario": to_dict(sc),
-            "runs": runs,
-            "host": h,
-            "broker": addr.__dict__,
-            "qos": sc.net.qos,
-            "impair": opts.impair,
-            "step_delay": opts.step_delay,
-            "max_inflight": opts.max_inflight,
-            "bundle": opts.bundle,
-            "rows_path": str(d / ("rows_{run}" + f"_h{h}.npz")),
-        }
-        path = d / f"host{h}.json"
-        path.write_text(json.dumps(cfg, default=float))
-        log = open(d / f"host{h}.log", "wb")
-        stack.callback(log.close)
-        p = subprocess.Popen([sys.executable, "-m", "sigma_des.live.host", str(path)],
-                             stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                             env=env, preexec_fn=child_setup)  # Ctrl-C: we stop them
-        stack.callback(_reap, p)
-        procs.append(p)
-    return procs
+def _host_group(sc: Scenario, opts: LiveOptions, d: Path, stack: ExitStack) -> HostGroup:
+    """The host processes: here, or (``opts.scheduler``) on the Dask cluster's workers."""
+    if opts.scheduler is None:
+        local = LocalHosts(d)
+        stack.callback(local.stop)
+        return local
+    from sigma_des.live.cluster import DaskHosts, check_reachable, connect, workers_of
+    from sigma_des.live.placement import assign, read_placement
+
+    client = connect(opts.scheduler)
+    stack.callback(client.close, 5)
+    workers = workers_of(client)
+    check_reachable(workers, opts.broker is None)
+    pins = assign(sc.hosts, workers, read_placement(opts.placement), opts.placement)
+    hosts = DaskHosts(client, pins, secrets.token_hex(4))
+    stack.callback(hosts.stop)
+    return hosts
 
 
-def _reap(p: subprocess.Popen[bytes]) -> None:
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(timeout=3)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait(timeout=3)
+def _host_cfg(sc: Scenario, runs: list[tuple[str, str]], addr: BrokerAddress,
+              opts: LiveOptions, h: int, sync: bool) -> dict[str, Any]:
+    """Host ``h``'s config: it serves every run (method) in turn."""
+    return {
+        "scenario": to_dict(sc),
+        "runs": runs,
+        "host": h,
+        "broker": addr.__dict__,
+        "qos": sc.net.qos,
+        "impair": opts.impair,
+        "step_delay": opts.step_delay,
+        "max_inflight": opts.max_inflight,
+        "bundle": opts.bundle,
+        "sync": sync,
+    }
 
 
 def _pump(srv: LiveServer, seconds: float) -> None:
@@ -254,47 +260,43 @@ def _pump(srv: LiveServer, seconds: float) -> None:
     srv.loop.run(until=srv.loop.now + seconds)
 
 
-def _wait_ready(srv: LiveServer, procs: list[subprocess.Popen[bytes]], expected: int,
-                timeout: float, d: Path) -> None:
+def _wait_ready(srv: LiveServer, group: HostGroup, expected: int, timeout: float) -> None:
     deadline = time.monotonic() + timeout
     while len(srv.ready) < expected:
-        for h, p in enumerate(procs):
-            if p.poll() is not None and p.returncode != -9:
-                log = (d / f"host{h}.log").read_text(errors="replace")[-800:]
-                raise RuntimeError(f"live host {h} exited at start (status {p.returncode}):\n{log}")
+        bad = group.exited()
+        if bad is not None:
+            raise RuntimeError(f"live host {bad[0]} exited at start ({bad[1]})")
         if time.monotonic() > deadline:
             raise RuntimeError(f"live hosts not ready after {timeout} s: {sorted(srv.ready)}")
         _pump(srv, 0.05)
 
 
 def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveOptions,
-                broker: Broker | None, procs: list[subprocess.Popen[bytes]], d: Path,
-                progress: bool) -> tuple[dict[str, Any], pd.DataFrame, bool]:
+                broker: Broker | None, group: HostGroup, d: Path, progress: bool,
+                book: ClockBook | None) -> tuple[dict[str, Any], pd.DataFrame, bool]:
     topics = Topics(run)
     interrupted = False
     with ExitStack() as stack:
         def factory(subs: list[tuple[str, int]], cb: Any) -> Client:
             return Client(addr, f"{run}-srv", subs, cb, opts.max_inflight)
 
-        srv = LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record,
-                         opts.bundle)
+        srv = _server(sc, m, factory, topics, opts, book)
         try:
             srv.client.start(timeout=5.0)
         except ConnectionError as e:
             raise ConfigError("--broker", str(e)) from None
         stack.callback(srv.client.stop)
         srv.warm_up()
-        live = [p for p in procs if p.poll() is None]
-        _wait_ready(srv, procs, len(live), opts.ready_timeout, d)
-        meter = _cpu_meter(procs, broker)
-        t0 = time.monotonic() + opts.idle_window
-        srv.client.publish(topics.ctl, f"go:{t0!r}".encode(), 1)
+        live = group.alive()
+        _wait_ready(srv, group, len(live), opts.ready_timeout)
+        meter = _cpu_meter(group, broker)
+        t0 = _go(srv, opts, addr, run, live, book, stack)
         meter.mark("idle0")
         while time.monotonic() < t0:
             _pump(srv, 0.02)
         meter.mark("idle1")
         srv.loop.call_at(sc.warmup, meter.mark, "w0")
-        _inject(srv, opts, broker, procs)
+        _inject(srv, opts, broker, group)
         if progress:
             print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
                   file=sys.stderr, flush=True)
@@ -311,20 +313,20 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         srv.running = False
         srv.stats.clear()  # counters sent before stop are not the hosts' (forged)
         srv.client.publish(topics.ctl, b"stop", 1)
-        alive = [h for h, p in enumerate(procs) if p.poll() is None]
+        alive = group.alive()
         deadline = time.monotonic() + 5.0
         while time.monotonic() < deadline and not set(alive) <= set(srv.stats):
             _pump(srv, 0.05)
         for h in alive:  # the rows file follows the stats message
-            f = d / f"rows_{run}_h{h}.npz"
-            while time.monotonic() < deadline and not f.exists():
-                time.sleep(0.01)
+            group.rows(run, h, d / f"rows_{run}_h{h}.npz", deadline)
         out = srv.finish()
-        table = _messages(run, m, srv, d, sc.hosts)
+        table = _messages(run, m, srv, d, sc.hosts, book)
         if sc.fidelity.enabled:
             _fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
-    out["live"] = _live_info(srv, procs, table, sc)
+    out["live"] = _live_info(srv, group, table, sc)
+    if book is not None:
+        out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos))
     # what `calibrate` writes into [deployment]: the machine's CPUs, the bundling, the load
     out["live"].update(cores=len(os.sched_getaffinity(0)), bundle=opts.bundle,
@@ -333,13 +335,48 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
     return out, table, interrupted
 
 
-def _cpu_meter(procs: list[subprocess.Popen[bytes]], broker: Broker | None) -> CpuMeter:
-    """CPU meter of this process (the server), the live hosts and our broker."""
-    pids = {"server": os.getpid()}
-    pids.update({f"host{h}": p.pid for h, p in enumerate(procs) if p.poll() is None})
+def _server(sc: Scenario, m: str, factory: Any, topics: Topics, opts: LiveOptions,
+            book: ClockBook | None) -> LiveServer:
+    """The alignment server; with hosts on clocks of their own (``book``), one that
+    corrects their times."""
+    if book is None:
+        return LiveServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record,
+                          opts.bundle)
+    from sigma_des.live.cluster import ClockedServer
+
+    srv = ClockedServer(sc, m, factory, topics, sc.net.qos, opts.impair, opts.record,
+                        opts.bundle)
+    srv.book = book
+    book.new_method()
+    return srv
+
+
+def _go(srv: LiveServer, opts: LiveOptions, addr: BrokerAddress, run: str, live: list[int],
+        book: ClockBook | None, stack: ExitStack) -> float:
+    """Publish ``go`` with the time origin ``t0`` (returned, this machine's clock) one
+    idle window ahead: on the shared clock, or (hosts on clocks of their own) each host's
+    origin on its clock after a burst of clock exchanges, which go on during the run."""
+    if book is None:
+        t0 = time.monotonic() + opts.idle_window
+        srv.client.publish(srv.topics.ctl, f"go:{t0!r}".encode(), 1)
+        return t0
+    sync = SyncClient(addr, run, book, opts.max_inflight)
+    sync.start()
+    stack.callback(sync.stop)
+    sync.burst(rounds=8, gap=0.02, timeout=5.0, hosts=live)
+    t0 = time.monotonic() + opts.idle_window
+    for h, t0_h in book.start(t0, live).items():
+        srv.client.publish(SyncTopics(run).go(h), f"go:{t0_h!r}".encode(), 1)
+    sync.periodic(opts.sync_interval)
+    return t0
+
+
+def _cpu_meter(group: HostGroup, broker: Broker | None) -> CpuMeter:
+    """CPU meter of this process (the server), the hosts and our broker."""
+    procs = {"server": os.getpid()}
     if broker is not None and broker.proc is not None:
-        pids["broker"] = broker.proc.pid
-    return CpuMeter(pids)
+        procs["broker"] = broker.proc.pid
+    return group.meter(procs)
 
 
 def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:
@@ -379,16 +416,17 @@ def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: 
 
 
 def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,
-            procs: list[subprocess.Popen[bytes]]) -> None:
+            group: HostGroup) -> None:
     if opts.kill_broker_at is not None and broker is not None:
         srv.loop.call_at(opts.kill_broker_at, broker.kill)
         srv.loop.call_at(opts.kill_broker_at + opts.broker_down_s, broker.restart)
     if opts.kill_host_at is not None:
         h, t = opts.kill_host_at
-        srv.loop.call_at(t, procs[h].kill)
+        srv.loop.call_at(t, group.kill, h)
 
 
-def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int) -> pd.DataFrame:
+def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int,
+              book: ClockBook | None = None) -> pd.DataFrame:
     kinds: list[np.ndarray] = [np.array([r[0] for r in srv.rows], dtype="U12")]
     vals: list[np.ndarray] = [np.array([r[1:] for r in srv.rows], dtype=np.float64).reshape(-1, 8)]
     for h in range(hosts):
@@ -397,6 +435,10 @@ def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int) -> pd.Data
             with np.load(p) as z:
                 kinds.append(z["kinds"].astype("U12"))
                 vals.append(z["values"])
+            if book is not None:  # host clock -> ours, with every exchange of the run
+                from sigma_des.live.cluster import correct_rows
+
+                vals[-1] = correct_rows(kinds[-1], vals[-1], h, book)
     v = np.concatenate(vals)
     df = pd.DataFrame(v, columns=list(MESSAGE_COLUMNS[2:]))
     df.insert(0, "kind", np.concatenate(kinds))
@@ -407,7 +449,7 @@ def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int) -> pd.Data
     return df.sort_values(["kind", "frame", "node"], kind="stable").reset_index(drop=True)
 
 
-def _live_info(srv: LiveServer, procs: list[subprocess.Popen[bytes]], table: pd.DataFrame,
+def _live_info(srv: LiveServer, group: HostGroup, table: pd.DataFrame,
                sc: Scenario) -> dict[str, Any]:
     st = srv.stats
     states = table[(table["kind"] == "state") & ~table["republish"]]
@@ -424,7 +466,8 @@ def _live_info(srv: LiveServer, procs: list[subprocess.Popen[bytes]], table: pd.
         "missed_frac": 1.0 - len(got) / expected if expected else float("nan"),
         "late": srv.late,
         "hosts_reported": sorted(st),
-        "hosts_killed": [h for h, p in enumerate(procs) if p.returncode == -9],
+        "hosts_killed": group.killed(),
+        "where": group.where(),
         "step_real_ms": 1000.0 * sum(float(s.get("step_real_s", 0)) for s in st.values())
         / max(1, sum(int(s.get("steps", 0)) for s in st.values())),
     }
