@@ -16,11 +16,11 @@ call is re-raised in the caller.
 
 Workers never outlive the caller: on Linux each asks the kernel for SIGKILL when its
 parent dies (``PR_SET_PDEATHSIG``, so even a SIGKILLed ``sigma-des`` takes them
-along; elsewhere a watcher thread polls the parent's pid). They ignore SIGINT: the
-terminal's Ctrl-C reaches the whole process group, and the caller decides; when an
-exception (Ctrl-C included) leaves the pool's block, the calls not started are
-cancelled and the workers still running are terminated at once (nothing half-done
-is waited for).
+along); under ``forkserver`` and off Linux a thread in each worker watches the
+caller. They ignore SIGINT: the terminal's Ctrl-C reaches the whole process group,
+and the caller decides; when an exception (Ctrl-C included) leaves the pool's block,
+the calls not started are cancelled and the workers still running are terminated at
+once (nothing half-done is waited for).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ import contextlib
 import ctypes
 import multiprocessing as mp
 import os
+import select
 import signal
 import sys
 import threading
@@ -60,31 +61,52 @@ def _completed(futures: dict[Future[Any], int]) -> Iterator[tuple[int, Any]]:
 _PR_SET_PDEATHSIG = 1
 
 
-def _watch_parent(parent: int) -> None:
-    while os.getppid() == parent:
-        time.sleep(0.5)
-    os._exit(1)
+def _pdeathsig() -> bool:
+    """Ask Linux for SIGKILL when our parent dies; True if granted."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return bool(libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0)
+    except (OSError, AttributeError):
+        return False
 
 
-def die_with_parent(parent: int | None) -> None:
-    """Worker initializer: SIGKILL this process when its parent dies; ignore SIGINT.
+def _watch(caller: int) -> None:
+    """Block until ``caller`` ends, then SIGKILL this process."""
+    try:
+        fd = os.pidfd_open(caller)  # readable once the process has ended (Linux >= 5.3)
+    except (OSError, AttributeError):
+        while True:
+            try:
+                os.kill(caller, 0)
+            except ProcessLookupError:
+                break
+            except PermissionError:
+                pass
+            time.sleep(0.5)
+    else:
+        select.select([fd], [], [])
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def die_with_parent(caller: int, direct: bool = True) -> None:
+    """Worker initializer: die (SIGKILL) when the caller dies; ignore SIGINT.
 
     Args:
-        parent: the pid the worker's parent must have (None: not checked, e.g. under
-            ``forkserver``, whose server dies with the caller and takes the workers
-            along); a worker whose parent is already gone exits at once.
+        caller: the pid of the process that made the pool.
+        direct: ``caller`` is this worker's parent (``fork``, ``spawn``): Linux's
+            ``PR_SET_PDEATHSIG`` does the job, and a worker whose caller is already
+            gone exits at once. Otherwise (``forkserver``: the server is the parent,
+            and it lives as long as its children do) and off Linux, a thread watches
+            the caller.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    armed = False
-    if sys.platform.startswith("linux"):
-        with contextlib.suppress(OSError, AttributeError):
-            libc = ctypes.CDLL(None, use_errno=True)
-            armed = libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
-    if parent is not None:
-        if os.getppid() != parent:  # the parent died before the request took effect
-            os._exit(1)
-        if not armed:
-            threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+    armed = direct and _pdeathsig()
+    if direct and os.getppid() != caller:  # died before the request took effect
+        os._exit(1)
+    if not armed:
+        threading.Thread(target=_watch, args=(caller,), daemon=True).start()
 
 
 def _stop(pool: ProcessPoolExecutor) -> None:
@@ -130,11 +152,10 @@ def local_pool(
     ctx = mp.get_context(start_method)
     if preload and ctx.get_start_method() == "forkserver":
         ctx.set_forkserver_preload(list(preload))
-    # under forkserver the workers' parent is the server (it dies with us): not checked
-    parent = None if ctx.get_start_method() == "forkserver" else os.getpid()
     pool = ProcessPoolExecutor(
         max_workers=jobs, mp_context=ctx, max_tasks_per_child=1 if fresh else None,
-        initializer=die_with_parent, initargs=(parent,),
+        initializer=die_with_parent,
+        initargs=(os.getpid(), ctx.get_start_method() != "forkserver"),
     )
 
     def submit(

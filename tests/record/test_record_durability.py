@@ -200,7 +200,10 @@ def test_sigkill_of_compare_takes_its_workers_along(tmp_path: Path) -> None:
     workers = _children(p.pid)
     assert len(workers) >= 2
     p.kill()
-    p.communicate(timeout=60)
+    p.wait(timeout=60)  # not communicate(): living workers would hold its pipes open
+    for fh in (p.stdout, p.stderr):
+        if fh is not None:
+            fh.close()
     end = time.monotonic() + 30.0  # a bound, not a speed target
     while not all(_gone(w) for w in workers) and time.monotonic() < end:
         time.sleep(0.1)
