@@ -35,7 +35,10 @@ def _wait_gone(pids: list[int], limit: float = 30.0) -> bool:
 def sleep_and_tell(d: str, i: int) -> int:
     """A worker call: write this worker's pid, then sleep (far longer than any test)."""
     Path(d, f"{i}.pid").write_text(str(os.getpid()))
-    time.sleep(600)
+    try:
+        time.sleep(600)
+    finally:  # a KeyboardInterrupt would end the call here
+        Path(d, f"{i}.end").write_text("")
     return i
 
 
@@ -86,5 +89,6 @@ def test_workers_ignore_the_terminal_s_ctrl_c(tmp_path: Path) -> None:
             os.kill(w, signal.SIGINT)
         time.sleep(0.5)
         assert not any(_gone(w) for w in workers)
+        assert not list(tmp_path.glob("*.end"))  # the calls go on
         for w in workers:  # end the calls (they would sleep 600 s)
             os.kill(w, signal.SIGKILL)
