@@ -106,3 +106,66 @@ def test_store_directory_and_empty_file(tmp_path: Path, capsys: pytest.CaptureFi
     assert main([*argv, "--store", str(empty)]) == 2
     assert "is an empty file" in capsys.readouterr().err
     assert empty.stat().st_size == 0  # left untouched
+
+
+# ---------------------------------------------------------------- issue 26
+
+SMALL = ["--set", "nodes=3", "--set", "duration=1.0", "--set", "warmup=0.2", "--set",
+         "dynamics=pointmass", "--set", "fidelity.enabled=false", "--no-progress",
+         "--methods", "none,bides"]
+
+
+def test_compare_out_where_the_tables_fit_but_the_plots_do_not(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 40 KiB disk: the tables (a few KiB) are written whole, the first PNG fails; one
+    line naming --out and the PNG, no partial PNG, no temporary file."""
+    pytest.importorskip("matplotlib")
+    import pandas as pd
+    from tmpfs import tmpfs
+
+    with tmpfs(tmp_path / "tiny", size="40k") as tiny:
+        out = tiny / "o"
+        assert main(["compare", *SMALL, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1, err
+        assert err.startswith(f"sigma-des: error: --out: cannot write {out}/")
+        assert err.rstrip().endswith(".png: No space left on device")
+        assert sorted(os.listdir(out)) == ["results.csv", "summary.json", "wall.csv"]
+        assert set(pd.read_csv(out / "results.csv")["method"]) == {"none", "bides"}
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("rec") / "r.mcap"
+    assert main(["compare", *SMALL, "--record", str(path)]) == 0
+    return path
+
+
+@pytest.mark.parametrize("command", ["replay", "tune"])
+def test_force_overrides_the_memory_estimate(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch, command: str,
+) -> None:
+    """1 KiB available: refused naming ``memory`` and --force; with --force it runs."""
+    import sigma_des.budget as budget
+
+    monkeypatch.setattr(budget, "available_bytes", lambda: 1024)
+    if command == "replay":
+        argv = ["replay", str(recording), "--rate", "10", "--out", str(tmp_path / "t.csv")]
+        made = tmp_path / "t.csv"
+    else:
+        from sigma_des.tuning.flightlog import write_csv
+        from sigma_des.tuning.synth import fly
+
+        log = write_csv(fly("quadrotor", "quadrotor", duration=3.0, seed=1), tmp_path / "l.csv")
+        argv = ["tune", "--dynamics", "quadrotor", "--log", str(log), "--set",
+                "tune.population=4", "--set", "tune.generations=1", "--out", str(tmp_path / "o")]
+        made = tmp_path / "o" / "fitted.toml"
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sigma-des: error: memory: ") and err.count("\n") == 1
+    assert "but 9.54e-07 GiB is available" in err and err.rstrip().endswith("or pass --force")
+    assert not made.exists()
+    assert main([*argv, "--force"]) == 0
+    assert made.stat().st_size > 0
