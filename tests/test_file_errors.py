@@ -169,3 +169,69 @@ def test_force_overrides_the_memory_estimate(
     assert not made.exists()
     assert main([*argv, "--force"]) == 0
     assert made.stat().st_size > 0
+
+
+def _fixtures(recording: Path, d: Path) -> dict[str, Path]:
+    """A flight log and a live-run directory for tune and calibrate."""
+    from sigma_des.tuning.flightlog import write_csv
+    from sigma_des.tuning.synth import fly
+
+    log = write_csv(fly("quadrotor", "quadrotor", duration=3.0, seed=1), d / "l.csv")
+    from tests.live.test_calibrate_inputs import SETS, _run, _write
+
+    sc = load(None, SETS)
+    return {"log": log, "live": _write(d / "live", sc, _run(sc)), "rec": recording}
+
+
+def _argv(command: str, fx: dict[str, Path], out: Path) -> list[str]:
+    return {
+        "replay": ["replay", str(fx["rec"]), "--rate", "2000", "--out", str(out / "t.csv")],
+        "calibrate": ["calibrate", str(fx["live"]), "--no-check", "--out", str(out / "c.toml")],
+        "tune": ["tune", "--dynamics", "quadrotor", "--log", str(fx["log"]), "--set",
+                 "tune.population=4", "--set", "tune.generations=1", "--out", str(out / "o")],
+        "compare --out": ["compare", *SMALL, "--no-plots", "--out", str(out / "o")],
+        "compare --record": ["compare", *SMALL, "--record", str(out / "x.mcap")],
+    }[command]
+
+
+COMMANDS = ["replay", "calibrate", "tune", "compare --out", "compare --record"]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_an_output_on_a_read_only_file_system(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """Root writes into chmod-0555 folders; a read-only mount stops everyone: one line
+    naming the option, before any work."""
+    from tmpfs import tmpfs
+
+    fx = _fixtures(recording, tmp_path)
+    with tmpfs(tmp_path / "ro", read_only=True) as ro:
+        assert main(_argv(command, fx, ro)) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    key = "--record" if command == "compare --record" else "--out"
+    assert err.startswith(f"sigma-des: error: {key}: cannot write")
+    assert err.rstrip().endswith(": Read-only file system")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_full_disk_on_a_real_tmpfs(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """8 KiB: one line naming the option and ENOSPC; no hidden temporary file is left
+    and nothing truncated under a final name."""
+    from tmpfs import tmpfs
+
+    fx = _fixtures(recording, tmp_path)
+    with tmpfs(tmp_path / "tiny", size="8k") as tiny:
+        assert main(_argv(command, fx, tiny)) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1, err
+        key = "--record" if command == "compare --record" else "--out"
+        assert err.startswith(f"sigma-des: error: {key}: cannot write")
+        assert err.rstrip().endswith(": No space left on device")
+        left = [p for p in tiny.rglob("*") if p.is_file()]
+    assert not [p for p in left if p.name.startswith(".")], left
+    # calibrate writes its sample files one by one: a whole hop_up.txt may remain
+    assert [p.name for p in left] in ([], ["hop_up.txt"]), left
