@@ -12,24 +12,9 @@ import time
 from pathlib import Path
 
 import pytest
+from procs import gone, wait_gone
 
 from sigma_des.pool import local_pool
-
-
-def _gone(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return True
-    with open(f"/proc/{pid}/stat") as fh:  # a zombie not yet reaped by its new parent
-        return fh.read().rsplit(")", 1)[1].split()[0] == "Z"
-
-
-def _wait_gone(pids: list[int], limit: float = 30.0) -> bool:
-    end = time.monotonic() + limit  # a bound, not a speed target
-    while not all(_gone(p) for p in pids) and time.monotonic() < end:
-        time.sleep(0.1)
-    return all(_gone(p) for p in pids)
 
 
 def sleep_and_tell(d: str, i: int) -> int:
@@ -70,7 +55,7 @@ def test_sigkill_of_the_caller_takes_the_workers_along(tmp_path: Path, method: s
     finally:
         p.kill()
         p.wait(timeout=60)
-    assert _wait_gone(workers), workers
+    assert wait_gone(workers), workers
 
 
 def test_an_exception_in_the_caller_stops_the_running_workers(tmp_path: Path) -> None:
@@ -78,7 +63,7 @@ def test_an_exception_in_the_caller_stops_the_running_workers(tmp_path: Path) ->
         submit(sleep_and_tell, [(str(tmp_path), 0), (str(tmp_path), 1)])
         workers = _pids(tmp_path, 2)
         raise RuntimeError("stop")
-    assert all(_gone(w) for w in workers)  # terminated and reaped before the block ended
+    assert all(gone(w) for w in workers)  # terminated and reaped before the block ended
 
 
 def test_workers_ignore_the_terminal_s_ctrl_c(tmp_path: Path) -> None:
@@ -88,7 +73,7 @@ def test_workers_ignore_the_terminal_s_ctrl_c(tmp_path: Path) -> None:
         for w in workers:
             os.kill(w, signal.SIGINT)
         time.sleep(0.5)
-        assert not any(_gone(w) for w in workers)
+        assert not any(gone(w) for w in workers)
         assert not list(tmp_path.glob("*.end"))  # the calls go on
         for w in workers:  # end the calls (they would sleep 600 s)
             os.kill(w, signal.SIGKILL)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from procs import wait_gone
 from tmpfs import tmpfs
 
 import sigma_des.api
@@ -184,15 +185,6 @@ def _children(pid: int) -> list[int]:
     return [int(c) for c, pp in zip(ps[::2], ps[1::2], strict=True) if int(pp) == pid]
 
 
-def _gone(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return True
-    with open(f"/proc/{pid}/stat") as fh:  # a zombie waiting for its new parent is gone
-        return fh.read().rsplit(")", 1)[1].split()[0] == "Z"
-
-
 def test_sigkill_of_compare_takes_its_workers_along(tmp_path: Path) -> None:
     p = _start([*LONG, "--jobs", "2", "--record", "x.mcap"], tmp_path)
     for m in ("none", "bides"):
@@ -204,7 +196,4 @@ def test_sigkill_of_compare_takes_its_workers_along(tmp_path: Path) -> None:
     for fh in (p.stdout, p.stderr):
         if fh is not None:
             fh.close()
-    end = time.monotonic() + 30.0  # a bound, not a speed target
-    while not all(_gone(w) for w in workers) and time.monotonic() < end:
-        time.sleep(0.1)
-    assert all(_gone(w) for w in workers), workers
+    assert wait_gone(workers), workers
