@@ -371,6 +371,10 @@ def compare(
         if parts is None:
             raise
         raise parts.error(e) from None
+    except BaseException:
+        if parts is not None:  # no part file outlives a failed run
+            parts.remove()
+        raise
     finally:
         if bar is not None:
             bar.close()

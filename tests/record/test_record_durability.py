@@ -197,3 +197,19 @@ def test_sigkill_of_compare_takes_its_workers_along(tmp_path: Path) -> None:
         if fh is not None:
             fh.close()
     assert wait_gone(workers), workers
+
+
+def test_a_run_that_fails_leaves_no_part_file(tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any error (here the recorder's close raising) removes the parts and propagates."""
+    import sigma_des.record.writer as writer
+
+    def broken(self: object) -> None:
+        raise RuntimeError("broken recorder")
+
+    monkeypatch.setattr(writer.Recorder, "close", broken)
+    sc = load(None, ["nodes=3", "duration=1.0", "warmup=0.2", "dynamics='pointmass'",
+                     "fidelity.enabled=false"])
+    with pytest.raises(RuntimeError, match="broken recorder"):
+        compare(sc, ["none"], progress=False, record=tmp_path / "x.mcap")
+    assert os.listdir(tmp_path) == []
