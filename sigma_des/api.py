@@ -15,7 +15,7 @@ import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,6 +33,9 @@ from sigma_des.metrics.reports import MethodReport
 from sigma_des.outputs import check_out_dir, write_files
 from sigma_des.tables import text_table
 from sigma_des.version import __version__
+
+if TYPE_CHECKING:
+    from sigma_des.record.parts import RecordParts
 
 __all__ = ["Results", "compare", "ideal_run", "run_method"]
 
@@ -54,7 +57,8 @@ class Results:
             to the per-message engine (``fallback``, empty if it did not).
         mode: ``des`` (simulated) or ``live`` (``sigma_des.live``: real processes and broker).
         live: live mode only: per method, its live counters (rejected messages, reconnects, …).
-        interrupted: live mode only: the run was stopped early (Ctrl-C); results are partial.
+        interrupted: the run was stopped early (Ctrl-C): only the methods that finished
+            are here.
     """
 
     scenario: Scenario
@@ -134,6 +138,8 @@ class Results:
         extra: dict[str, Any] = {}
         if self.mode == "live":
             extra = {"live": self.live, "interrupted": self.interrupted}
+        elif self.interrupted:
+            extra = {"interrupted": True}
         return _json_safe(
             {
                 **extra,
@@ -311,6 +317,10 @@ def compare(
 ) -> Results:
     """Run every method on the same scenario and seed (identical random draws).
 
+    Ctrl-C (``KeyboardInterrupt``) stops the runs; the methods that finished are kept:
+    they are returned (``interrupted`` set) and recorded, the unfinished ones dropped.
+    If none finished, the ``KeyboardInterrupt`` propagates.
+
     Args:
         sc: the scenario.
         methods: methods to run (default: ``sc.methods``), in the given order;
@@ -319,57 +329,83 @@ def compare(
         jobs: run up to this many methods at once in worker processes (results are
             identical; only the wall-time figures change).
         record: also record every method's run into this MCAP file (replaced if it
-            exists; settings from ``sc.record``; see :mod:`sigma_des.record`).
+            exists, only once the recording is complete; settings from ``sc.record``;
+            see :mod:`sigma_des.record`). Checked writable before the runs.
         force: run even when the memory estimate exceeds the available memory.
 
     Raises:
-        ConfigError: ``jobs`` < 1, an unknown method, or (key ``memory``) the run's
-            memory estimate exceeds the available memory (see :mod:`sigma_des.budget`).
+        ConfigError: ``jobs`` < 1, an unknown method, ``record`` cannot be written
+            (key ``--record``: before the runs, or a write failing during them, the
+            disk full included), or (key ``memory``) the run's memory estimate exceeds
+            the available memory (see :mod:`sigma_des.budget`).
     """
     if jobs < 1:
         raise ConfigError("jobs", f"must be >= 1, got {jobs}")
     ms: Sequence[str] = tuple(methods) if methods is not None else sc.methods
     sc = replace(sc, methods=tuple(ms))  # validates the names
     check_memory(sc, min(jobs, len(ms)), force)
+    parts = None
+    if record is not None:
+        from sigma_des.record.cli import check_record_path
+        from sigma_des.record.parts import RecordParts
+
+        check_record_path(record)
+        parts = RecordParts(record, ms)
     res = Results(sc)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(
-            total=round(sc.duration * len(ms), 3),
-            unit="sim-s",
-            delay=2.0,
-            leave=False,
-            desc="sigma-des",
-        )
-    parts = _record_parts(record, ms)
-    outs = _run_methods(sc, ms, jobs, parts, bar)
-    for m in ms:  # the caller's order, whatever order the workers finished in
+        bar = tqdm(total=round(sc.duration * len(ms), 3), unit="sim-s", delay=2.0,
+                   leave=False, desc="sigma-des")
+    outs: dict[str, dict[str, Any]] = {}
+    try:
+        _run_methods(sc, ms, jobs, parts, bar, outs)
+    except KeyboardInterrupt:
+        if not outs:
+            if parts is not None:
+                parts.remove()
+            raise
+        res.interrupted = True
+    except OSError as e:
+        if parts is None:
+            raise
+        raise parts.error(e) from None
+    except BaseException:
+        if parts is not None:  # no part file outlives a failed run
+            parts.remove()
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    done = [m for m in ms if m in outs]  # the caller's order, whatever finished first
+    for m in done:
         res.add(m, MethodReport.of(outs[m]))
-    if bar is not None:
-        bar.close()
-    if record is not None:
-        _join_parts(sc, Path(record), [parts[m] for m in ms])
+    if parts is not None:
+        parts.join(done, to_dict(sc), sc.record)
     return res
 
 
 def _run_methods(
-    sc: Scenario, ms: Sequence[str], jobs: int, parts: dict[str, Path], bar: Any
-) -> dict[str, dict[str, Any]]:
-    """Every method's raw result: here in turn, or on ``jobs`` workers of the local executor."""
-    outs: dict[str, dict[str, Any]] = {}
+    sc: Scenario, ms: Sequence[str], jobs: int, parts: RecordParts | None, bar: Any,
+    outs: dict[str, dict[str, Any]],
+) -> None:
+    """Every method's raw result into ``outs`` as it finishes: here in turn, or on
+    ``jobs`` workers of the local executor (an interrupted call leaves the others)."""
+    def part(m: str) -> Path | None:
+        return None if parts is None else parts.get(m)
+
     if jobs > 1 and len(ms) > 1:
         from sigma_des.pool import local_pool
 
         with local_pool(min(jobs, len(ms))) as submit:
             if cache_dir() is None:
                 ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
-                done = submit(run_method, [(sc, m, None, ideal, parts.get(m)) for m in ms])
+                done = submit(run_method, [(sc, m, None, ideal, part(m)) for m in ms])
             else:
                 # the workers read the ideal run from the cache once they need it (after
                 # their simulation); meanwhile this process flies and stores it
-                done = submit(run_method, [(sc, m, None, None, parts.get(m)) for m in ms])
+                done = submit(run_method, [(sc, m, None, None, part(m)) for m in ms])
                 if sc.fidelity.enabled:
                     ideal_run(sc)
             for i, out in done:
@@ -377,48 +413,16 @@ def _run_methods(
                 if bar is not None:
                     bar.set_postfix_str(ms[i])
                     bar.update(sc.duration)
-    else:
-        ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
-        for m in ms:
-            last = [0.0]
-
-            def tick(t: float, last: list[float] = last) -> None:
-                if bar is not None:
-                    bar.update(round(t - last[0], 6))
-                    last[0] = t
-
-            if bar is not None:
-                bar.set_postfix_str(m)
-            outs[m] = run_method(sc, m, tick, ideal, parts.get(m))
-    return outs
-
-
-def _record_parts(record: str | Path | None, ms: Sequence[str]) -> dict[str, Path]:
-    """Per-method part files next to ``record`` (joined into it after the runs)."""
-    if record is None:
-        return {}
-    p = Path(record)
-    return {m: p.with_name(f".{p.name}.{m}.part") for m in ms}
-
-
-def _join_parts(sc: Scenario, out: Path, parts: list[Path]) -> None:
-    """Join the per-method recordings into ``out`` (one method: the file is renamed)."""
-    from sigma_des.record.writer import Recorder
-
-    if len(parts) == 1:
-        parts[0].replace(out)
         return
-    r = sc.record
-    with Recorder(
-        out,
-        scenario=to_dict(sc),
-        mode=r.mode,
-        deadband_pos=r.deadband_pos,
-        deadband_vel=r.deadband_vel,
-        deadband_att=r.deadband_att,
-        keyframe_every=r.keyframe_every,
-    ) as rec:
-        for part in parts:
-            rec.copy_from(part)
-    for part in parts:
-        part.unlink()
+    ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
+    for m in ms:
+        last = [0.0]
+
+        def tick(t: float, last: list[float] = last) -> None:
+            if bar is not None:
+                bar.update(round(t - last[0], 6))
+                last[0] = t
+
+        if bar is not None:
+            bar.set_postfix_str(m)
+        outs[m] = run_method(sc, m, tick, ideal, part(m))

@@ -238,6 +238,9 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
         record=args.record,
     )
     print(res.table())
+    if res.interrupted:
+        print(f"sigma-des: interrupted; kept the {len(res.methods)} finished method(s): "
+              f"{', '.join(res.methods)}", file=sys.stderr)
     if args.out:
         csv_path, json_path = res.write(args.out)
         print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
@@ -246,7 +249,7 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
 
             paths = write_plots(res, args.out)
             print(f"plots: {', '.join(p.name for p in paths)}")
-    return 0
+    return 130 if res.interrupted else 0
 
 
 if __name__ == "__main__":

@@ -106,3 +106,132 @@ def test_store_directory_and_empty_file(tmp_path: Path, capsys: pytest.CaptureFi
     assert main([*argv, "--store", str(empty)]) == 2
     assert "is an empty file" in capsys.readouterr().err
     assert empty.stat().st_size == 0  # left untouched
+
+
+# ---------------------------------------------------------------- issue 26
+
+SMALL = ["--set", "nodes=3", "--set", "duration=1.0", "--set", "warmup=0.2", "--set",
+         "dynamics=pointmass", "--set", "fidelity.enabled=false", "--no-progress",
+         "--methods", "none,bides"]
+
+
+def test_compare_out_where_the_tables_fit_but_the_plots_do_not(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 40 KiB disk: the tables (a few KiB) are written whole, the first PNG fails; one
+    line naming --out and the PNG, no partial PNG, no temporary file."""
+    pytest.importorskip("matplotlib")
+    import pandas as pd
+    from tmpfs import tmpfs
+
+    with tmpfs(tmp_path / "tiny", size="40k") as tiny:
+        out = tiny / "o"
+        assert main(["compare", *SMALL, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1, err
+        assert err.startswith(f"sigma-des: error: --out: cannot write {out}/")
+        assert err.rstrip().endswith(".png: No space left on device")
+        assert sorted(os.listdir(out)) == ["results.csv", "summary.json", "wall.csv"]
+        assert set(pd.read_csv(out / "results.csv")["method"]) == {"none", "bides"}
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("rec") / "r.mcap"
+    assert main(["compare", *SMALL, "--record", str(path)]) == 0
+    return path
+
+
+@pytest.mark.parametrize("command", ["replay", "tune"])
+def test_force_overrides_the_memory_estimate(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch, command: str,
+) -> None:
+    """1 KiB available: refused naming ``memory`` and --force; with --force it runs."""
+    import sigma_des.budget as budget
+
+    monkeypatch.setattr(budget, "available_bytes", lambda: 1024)
+    if command == "replay":
+        argv = ["replay", str(recording), "--rate", "10", "--out", str(tmp_path / "t.csv")]
+        made = tmp_path / "t.csv"
+    else:
+        from sigma_des.tuning.flightlog import write_csv
+        from sigma_des.tuning.synth import fly
+
+        log = write_csv(fly("quadrotor", "quadrotor", duration=3.0, seed=1), tmp_path / "l.csv")
+        argv = ["tune", "--dynamics", "quadrotor", "--log", str(log), "--set",
+                "tune.population=4", "--set", "tune.generations=1", "--out", str(tmp_path / "o")]
+        made = tmp_path / "o" / "fitted.toml"
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sigma-des: error: memory: ") and err.count("\n") == 1
+    assert "but 9.54e-07 GiB is available" in err and err.rstrip().endswith("or pass --force")
+    assert not made.exists()
+    assert main([*argv, "--force"]) == 0
+    assert made.stat().st_size > 0
+
+
+def _fixtures(recording: Path, d: Path) -> dict[str, Path]:
+    """A flight log and a live-run directory for tune and calibrate."""
+    from sigma_des.tuning.flightlog import write_csv
+    from sigma_des.tuning.synth import fly
+
+    log = write_csv(fly("quadrotor", "quadrotor", duration=3.0, seed=1), d / "l.csv")
+    from tests.live.test_calibrate_inputs import SETS, _run, _write
+
+    sc = load(None, SETS)
+    return {"log": log, "live": _write(d / "live", sc, _run(sc)), "rec": recording}
+
+
+def _argv(command: str, fx: dict[str, Path], out: Path) -> list[str]:
+    return {
+        "replay": ["replay", str(fx["rec"]), "--rate", "2000", "--out", str(out / "t.csv")],
+        "calibrate": ["calibrate", str(fx["live"]), "--no-check", "--out", str(out / "c.toml")],
+        "tune": ["tune", "--dynamics", "quadrotor", "--log", str(fx["log"]), "--set",
+                 "tune.population=4", "--set", "tune.generations=1", "--out", str(out / "o")],
+        "compare --out": ["compare", *SMALL, "--no-plots", "--out", str(out / "o")],
+        "compare --record": ["compare", *SMALL, "--record", str(out / "x.mcap")],
+    }[command]
+
+
+COMMANDS = ["replay", "calibrate", "tune", "compare --out", "compare --record"]
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_an_output_on_a_read_only_file_system(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """Root writes into chmod-0555 folders; a read-only mount stops everyone: one line
+    naming the option, before any work."""
+    from tmpfs import tmpfs
+
+    fx = _fixtures(recording, tmp_path)
+    with tmpfs(tmp_path / "ro", read_only=True) as ro:
+        assert main(_argv(command, fx, ro)) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    key = "--record" if command == "compare --record" else "--out"
+    assert err.startswith(f"sigma-des: error: {key}: cannot write")
+    assert err.rstrip().endswith(": Read-only file system")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_full_disk_on_a_real_tmpfs(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """8 KiB: one line naming the option and ENOSPC; no hidden temporary file is left
+    and nothing truncated under a final name."""
+    from tmpfs import tmpfs
+
+    fx = _fixtures(recording, tmp_path)
+    with tmpfs(tmp_path / "tiny", size="8k") as tiny:
+        assert main(_argv(command, fx, tiny)) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1, err
+        key = "--record" if command == "compare --record" else "--out"
+        assert err.startswith(f"sigma-des: error: {key}: cannot write")
+        assert err.rstrip().endswith(": No space left on device")
+        left = [p for p in tiny.rglob("*") if p.is_file()]
+    assert not [p for p in left if p.name.startswith(".")], left
+    # calibrate writes its sample files one by one: a whole hop_up.txt may remain
+    assert [p.name for p in left] in ([], ["hop_up.txt"]), left

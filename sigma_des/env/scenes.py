@@ -39,9 +39,24 @@ Array = NDArray[np.float64]
 _SEED_KEY = np.uint64(0x5CE7E5EED0000001)
 
 
+_MASK63 = 2**63 - 1
+
+
+def _root_ids(root: int) -> list[int]:
+    """``root`` as hash ids: itself below 2^63; above, a marker, its number of 32-bit
+    limbs and the limbs (Gymnasium takes any non-negative int: 2^63 must not be 0)."""
+    if root <= _MASK63:
+        return [root]
+    limbs = [(root >> (32 * i)) & 0xFFFFFFFF for i in range((root.bit_length() + 31) // 32)]
+    return [-1, len(limbs), *limbs]
+
+
 def scene_seed(root: int, scene: int, episode: int) -> int:
-    """The scenario seed of ``episode`` of ``scene`` under ``root`` (63-bit)."""
-    key = mix(_SEED_KEY, int(root) & 0x7FFFFFFFFFFFFFFF, scene, episode)
+    """The scenario seed of ``episode`` of ``scene`` under ``root`` (63-bit).
+
+    ``root`` is any non-negative int; every bit of it counts.
+    """
+    key = mix(_SEED_KEY, *_root_ids(int(root)), scene, episode)
     return int(key[0] >> np.uint64(1))
 
 

@@ -34,6 +34,7 @@ from __future__ import annotations
 import heapq
 import json
 import math
+import os
 from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -267,6 +268,8 @@ class Recorder:
             for name, data in self._copied.items():
                 self._w.add_metadata(name, data)
             self._w.finish()
+            self._fh.flush()
+            os.fsync(self._fh.fileno())  # complete on disk before anyone renames it
         finally:
             self._fh.close()
 
