@@ -70,6 +70,15 @@ def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, lates
         accepted[j] = True
 
 
+def _as_rows(x: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """``x`` broadcast to ``shape`` as contiguous float64 (no copy when it already is one:
+    the compiled core's delivery batches, several per frame)."""
+    if isinstance(x, np.ndarray) and x.shape == shape and x.dtype == np.float64 \
+            and x.flags.c_contiguous:
+        return x
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=np.float64), shape))
+
+
 class RingBuffers:
     """The last ``k`` states of each of ``n`` nodes.
 
@@ -120,11 +129,9 @@ class RingBuffers:
             return np.array([self._insert_one(int(np.asarray(nodes).item()), int(fr1.item()),
                                               float(np.asarray(gen_times).item()), obs)])
         nd = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
-        fr = np.ascontiguousarray(frames, dtype=np.int64).ravel()
-        gt = np.ascontiguousarray(np.broadcast_to(np.asarray(gen_times, dtype=np.float64),
-                                                  nd.shape))
-        ob = np.ascontiguousarray(np.broadcast_to(np.asarray(obs, dtype=np.float64),
-                                                  (nd.size, self.width)))
+        fr = np.ascontiguousarray(fr1, dtype=np.int64).ravel()
+        gt = _as_rows(gen_times, nd.shape)
+        ob = _as_rows(obs, (nd.size, self.width))
         if fr.size and fr.min() < 0:
             raise ValueError("frames must be >= 0")
         accepted = np.zeros(nd.size, dtype=np.bool_)
