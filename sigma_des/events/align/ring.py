@@ -71,11 +71,10 @@ def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, lates
 
 
 def _as_rows(x: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
-    """``x`` broadcast to ``shape`` as contiguous float64 (no copy when it already is one:
-    the compiled core's delivery batches, several per frame)."""
-    if isinstance(x, np.ndarray) and x.shape == shape and x.dtype == np.float64 \
-            and x.flags.c_contiguous:
-        return x
+    """``x`` broadcast to ``shape`` as contiguous float64 (a column view of that shape and
+    dtype, as the compiled core's delivery batches are, is copied without broadcasting)."""
+    if isinstance(x, np.ndarray) and x.shape == shape and x.dtype == np.float64:
+        return np.ascontiguousarray(x)
     return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=np.float64), shape))
 
 
