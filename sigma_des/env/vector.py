@@ -228,8 +228,8 @@ class SwarmVec:
                 np.stack([scenes[s].truth() for s in live]), [scenes[s].ep for s in live],
                 np.array([scenes[s].now() for s in live]), self.agent_nodes, a[live])
             rew[live], err[live] = r, e
-            term[live] = fail.any(axis=1)[:, None]
-        for k, s in enumerate(live):
+            term[live] = np.any(fail, axis=1, keepdims=True)
+        for s in live:
             sc = scenes[s]
             if not self.batched:
                 r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
