@@ -38,9 +38,6 @@ def _finalise(z: NDArray[np.uint64]) -> NDArray[np.uint64]:
 
 _MASK = (1 << 64) - 1
 _I64 = (-(1 << 63), 1 << 63)
-#: Arrays at least this long take the compiled path of :func:`mix` (shorter ones: numpy,
-#: whose few calls cost less than a compiled call's argument checks).
-_COMPILED_FROM = 8
 
 
 def _absorb_int(h: int, i: int) -> int:
@@ -57,7 +54,7 @@ def _mix_column(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.
     col = -1
     for j, i in enumerate(ids):
         if isinstance(i, np.ndarray):
-            if col >= 0 or i.ndim != 1 or i.dtype.kind != "i" or i.size < _COMPILED_FROM:
+            if col >= 0 or i.ndim != 1 or i.dtype.kind != "i":
                 return None
             col = j
         elif not (isinstance(i, int | np.integer) and _I64[0] <= int(i) < _I64[1]):
