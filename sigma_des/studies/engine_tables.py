@@ -10,6 +10,11 @@ from sigma_des.tables import cell, text_table
 __all__ = ["check_table", "metric_table", "report_text", "speed_table", "speedup_table"]
 
 
+def _num(x: Any, spec: str) -> str:
+    """``cell`` with NaN (not measured, e.g. no reference) shown as ``-``."""
+    return "-" if isinstance(x, float) and x != x else cell(x, spec)
+
+
 def _target(r: dict[str, Any]) -> str:
     t = r["target_x"]
     return f">= {t:g}x" if t == t else "-"
@@ -57,7 +62,7 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
                 cell(r["cpu_per_sim_s"], ".3f"),
                 cell(r["x_realtime_cpu"], ".2f"),
                 cell(r["load1"], ".1f"),
-                cell(r["x_realtime_norm"], ".2f"),
+                _num(r["x_realtime_norm"], ".2f"),
                 _target(r),
                 _met(r),
                 cell(r["events_per_s"], ",.0f"),
