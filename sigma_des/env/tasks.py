@@ -226,12 +226,17 @@ class Task:
         tgt = self.targets(truth, ep, t)
         e = np.linalg.norm(tgt - truth[:, 9:12], axis=1)[agents]
         _, dmin, _ = _nearest(truth[:, 9:12])
-        dmin = dmin[agents]
+        return self._scored(e, dmin[agents], actions)
+
+    def _scored(self, e: Array, dmin: Array, actions: Array
+                ) -> tuple[Array, NDArray[np.bool_], Array]:
+        """Rewards and failures from true errors ``e`` and nearest distances ``dmin`` (any
+        leading shape, one scene or many; ``actions`` has one more axis, the last)."""
         L = self.scale()
         lim = self.div * L
         r = -(np.minimum(e, lim) / L) ** 2
         r -= self.w_sep * np.maximum(0.0, 1.0 - dmin / self.r_safe) ** 2
-        r -= self.w_u * (np.asarray(actions, dtype=np.float64) ** 2).sum(axis=1) / 3.0
+        r -= self.w_u * (np.asarray(actions, dtype=np.float64) ** 2).sum(axis=-1) / 3.0
         fail = (dmin < self.r_col) | (e > lim) | ~np.isfinite(e)
         r = np.where(fail, r - self.penalty, r)
         return r, fail, e
@@ -297,15 +302,7 @@ class Task:
         tgt = self.targets_many(truth, eps, t)
         e = np.linalg.norm(tgt - truth[..., 9:12], axis=2)[:, agents]
         _, dmin, _ = _nearest_many(truth[..., 9:12])
-        dmin = dmin[:, agents]
-        L = self.scale()
-        lim = self.div * L
-        r = -(np.minimum(e, lim) / L) ** 2
-        r -= self.w_sep * np.maximum(0.0, 1.0 - dmin / self.r_safe) ** 2
-        r -= self.w_u * (np.asarray(actions, dtype=np.float64) ** 2).sum(axis=2) / 3.0
-        fail = (dmin < self.r_col) | (e > lim) | ~np.isfinite(e)
-        r = np.where(fail, r - self.penalty, r)
-        return r, fail, e
+        return self._scored(e, dmin[:, agents], actions)
 
 
 @dataclass(frozen=True)
