@@ -8,7 +8,9 @@ which simultaneous events happen to be processed, and the per-message and the
 batched engines see the very same numbers for the same (stream, entity, index).
 
 All draws go through numpy arrays (even single ones) so that scalar and
-vectorised callers execute the same ufunc loops and get bit-identical floats.
+vectorised callers execute the same ufunc loops and get bit-identical floats. The
+integer hash itself is exact arithmetic modulo 2**64, so :func:`mix` may compute it
+in Python integers or compiled code (its common shape) and give the same bits.
 """
 
 from __future__ import annotations
