@@ -59,6 +59,7 @@ from sigma_des.agents.behaviours import to_command
 from sigma_des.agents.formation import formation_slots
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
+from sigma_des.env.scene_axis import formation_targets_many, nearest_many, velocity_many
 from sigma_des.errors import ConfigError
 
 __all__ = ["TASKS", "Task", "FormationTask", "GoalTask", "TightTask", "make_task", "ACTION_DIM",
@@ -86,24 +87,6 @@ def _nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
 def _velocity(obs: Array) -> Array:
     """North/east velocity from the published body speed and heading."""
     return np.stack([obs[:, 0] * np.cos(obs[:, 5]), obs[:, 0] * np.sin(obs[:, 5])], axis=1)
-
-
-def _nearest_many(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
-    """:func:`_nearest` of every scene of ``(S, n, k)`` positions (the same operations)."""
-    diff = pos[:, None, :, :] - pos[:, :, None, :]
-    dist = np.sqrt((diff**2).sum(-1))
-    n = pos.shape[1]
-    dist[:, np.arange(n), np.arange(n)] = np.inf
-    j = np.argmin(dist, axis=2)
-    s = np.arange(pos.shape[0])[:, None]
-    i = np.arange(n)[None, :]
-    return diff[s, i, j], dist[s, i, j], j
-
-
-def _velocity_many(obs: Array) -> Array:
-    """:func:`_velocity` of ``(S, n, 12)`` states: ``(S, n, 2)``."""
-    return np.stack([obs[..., 0] * np.cos(obs[..., 5]), obs[..., 0] * np.sin(obs[..., 5])],
-                    axis=-1)
 
 
 @dataclass(frozen=True)
@@ -258,14 +241,14 @@ class Task:
         """:meth:`columns` of every scene: blocks ``(S, n, k)``."""
         pos = np.nan_to_num(obs[..., 9:12], nan=1e9)
         tgt = self.targets_many(obs, eps, t)
-        rel, _, _ = _nearest_many(pos[..., :2])
+        rel, _, _ = nearest_many(pos[..., :2])
         L = self.scale()
         cols = [
             (tgt[..., 0:2] - obs[..., 9:11]) / L,
             ((tgt[..., 2] - obs[..., 11]) / 10.0)[..., None],
         ]
         cols += self._extra_obs_many(obs)
-        return cols + [_velocity_many(obs) / self.v_ref, rel / L]
+        return cols + [velocity_many(obs) / self.v_ref, rel / L]
 
     def _extra_obs_many(self, obs: Array) -> list[Array]:
         return []
@@ -301,7 +284,7 @@ class Task:
         """:meth:`reward` of every scene (``truth`` ``(S, n, 12)``): ``(S, A)`` arrays."""
         tgt = self.targets_many(truth, eps, t)
         e = np.linalg.norm(tgt - truth[..., 9:12], axis=2)[:, agents]
-        _, dmin, _ = _nearest_many(truth[..., 9:12])
+        _, dmin, _ = nearest_many(truth[..., 9:12])
         return self._scored(e, dmin[:, agents], actions)
 
 
@@ -375,28 +358,10 @@ class FormationTask(Task):
         return g
 
     def targets_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
-        S, n = obs.shape[:2]
-        theta = math.radians(self.theta_deg)
-        # formation_slots' arithmetic over scenes (its cos/sin of each leader heading
-        # with math, as there)
-        i = np.arange(n)
-        rank = np.where(i < 0, i + 1, i)
-        rank[0] = 0
-        row = np.ceil(rank / 2.0)
-        side = np.where(rank % 2 == 1, 1.0, -1.0)
-        dx = -row * self.d * math.cos(theta)
-        dy = side * row * self.d * math.sin(theta)
-        psi = obs[:, 0, 5]
-        c = np.array([math.cos(p) for p in psi])[:, None]
-        sn = np.array([math.sin(p) for p in psi])[:, None]
-        out = np.empty((S, n, 3))
-        out[..., 0] = obs[:, 0, 9][:, None] + c * dx - sn * dy
-        out[..., 1] = obs[:, 0, 10][:, None] + sn * dx + c * dy
-        out[..., 2] = obs[:, 0, 11][:, None]
-        return out
+        return formation_targets_many(obs, self.d, math.radians(self.theta_deg))
 
     def _extra_obs_many(self, obs: Array) -> list[Array]:
-        return [np.broadcast_to(_velocity_many(obs[:, :1]) / self.v_ref, obs.shape[:2] + (2,))]
+        return [np.broadcast_to(velocity_many(obs[:, :1]) / self.v_ref, obs.shape[:2] + (2,))]
 
     def scripted_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
         g = np.full(obs.shape[:2] + (4,), np.nan)
@@ -494,9 +459,9 @@ class TightTask(FormationTask):
         S, n = obs.shape[:2]
         pos = np.nan_to_num(obs[..., 9:12], nan=1e9)
         tgt = self.targets_many(obs, eps, t)
-        vel = _velocity_many(obs) / self.v_ref
+        vel = velocity_many(obs) / self.v_ref
         a = (age / AGE_REF)[..., None]
-        rel, _, j = _nearest_many(pos[..., :2])
+        rel, _, j = nearest_many(pos[..., :2])
         s = np.arange(S)[:, None]
         return [(tgt[..., 0:2] - obs[..., 9:11]) / self.d,
                 ((tgt[..., 2] - obs[..., 11]) / 10.0)[..., None],

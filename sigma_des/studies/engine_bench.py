@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 
 from sigma_des import config
 from sigma_des.pool import run_all
+from sigma_des.studies.engine_norm import target_of
 
 __all__ = [
     "ALL_METHODS",
@@ -66,17 +67,11 @@ __all__ = [
     "Case",
     "Check",
     "Sim",
-    "REF_CPU_PER_SIM_S",
-    "REF_NODES",
-    "REF_SIM_S",
     "annotate",
     "baseline_estimate_s",
     "col",
     "make_row",
     "max_rel_diff",
-    "normalise",
-    "reference_row",
-    "target_of",
     "overrides_for",
     "plan",
     "run_case",
@@ -126,15 +121,6 @@ def col(name: str, unit: str) -> str:
     return f"{name}_{unit}" if unit else name
 
 
-#: The reference machine of the speed targets (issue 27, docs/BENCHMARKS.md): there the
-#: in-repo SimPy baseline (:mod:`sigma_des.reference.process_model`) costs this many CPU
-#: seconds per simulated second at ``REF_NODES`` nodes, restricted scenario, ``REF_SIM_S``
-#: simulated seconds. A figure measured here is scaled by ``REF_CPU_PER_SIM_S / b``, ``b``
-#: the baseline of the same benchmark run, so machines of different speed compare.
-REF_CPU_PER_SIM_S = 10.0
-REF_NODES = 1000
-REF_SIM_S = 2.0
-
 #: CSV columns, one row per case.
 COLUMNS: tuple[str, ...] = (
     "n",
@@ -150,10 +136,7 @@ COLUMNS: tuple[str, ...] = (
     "x_realtime",
     "cpu_per_sim_s",
     "x_realtime_cpu",
-    "load1",
-    "cpu_per_sim_s_norm",
-    "x_realtime_norm",
-    "target_x",
+    "load1", "cpu_per_sim_s_norm", "x_realtime_norm", "target_x",  # engine_norm
     "events",
     "events_per_s",
     "peak_rss_mb",
@@ -179,7 +162,7 @@ class Case(NamedTuple):
         role: ``main`` (a timed case of the tables) or ``twin`` (a cohort run at
             the capped duration of an ``events`` or ``baseline`` case, so that
             metrics are compared between runs of equal duration) or ``reference``
-            (the baseline run only to normalise the figures, see :func:`normalise`).
+            (a baseline run only to normalise the figures: ``engine_norm``).
     """
 
     impl: str
@@ -445,8 +428,7 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
         "cpu_per_sim_s": cpu / sim,
         "x_realtime_cpu": sim / cpu if cpu > 0 else math.nan,
         "load1": res.get("load1", math.nan),
-        "cpu_per_sim_s_norm": math.nan,
-        "x_realtime_norm": math.nan,
+        "cpu_per_sim_s_norm": math.nan, "x_realtime_norm": math.nan,  # engine_norm
         "target_x": target_of(case, n),
         "events": res["events"],
         "events_per_s": res["events"] / wall,
@@ -515,52 +497,3 @@ def annotate(rows: list[dict[str, Any]]) -> list[Check]:
                 Check(n, scenario, method, impl, other["sim_s"], diff, where, diff <= tol)
             )
     return checks
-
-
-# ---------------------------------------------------------------- normalised figures
-
-
-def target_of(case: Case, n: int) -> float:
-    """The issue's real-time target (times real time, normalised) of a case; NaN: none.
-
-    N = 1 000 full scenario BiDES: 20x (10x for a run of 1 s or less, fixed costs
-    included); N = 10 000 full BiDES: 2x; restricted loop N = 1 000: 50x. Only
-    cohort cases of the ``main`` role carry one.
-    """
-    if case.impl != "cohort" or case.role != "main":
-        return math.nan
-    if case.scenario == "full" and case.method == "bides":
-        if n == 1000:
-            return 10.0 if case.sim_s <= 1.0 else 20.0
-        if n == 10000:
-            return 2.0
-    if case.scenario == "restricted" and case.method == "none" and n == 1000:
-        return 50.0
-    return math.nan
-
-
-def reference_row(
-    rows: Iterable[dict[str, Any]], n: int = REF_NODES, sim_s: float = REF_SIM_S
-) -> dict[str, Any] | None:
-    """The baseline row that normalises the run: ``n`` nodes, restricted, ``sim_s`` s."""
-    for r in rows:
-        if (r["impl"], r["scenario"], r["n"], r["sim_s"]) == ("baseline", "restricted", n, sim_s):
-            return r
-    return None
-
-
-def normalise(rows: list[dict[str, Any]], ref: dict[str, Any] | None) -> float:
-    """Fill ``cpu_per_sim_s_norm`` and ``x_realtime_norm`` of every row; return the factor.
-
-    The factor is ``REF_CPU_PER_SIM_S / ref["cpu_per_sim_s"]`` (NaN without a reference
-    row: the columns stay NaN): a machine where the baseline is 3x slower than on the
-    reference machine has its figures divided by 3.
-    """
-    if ref is None or not ref["cpu_per_sim_s"] > 0:
-        return math.nan
-    factor = REF_CPU_PER_SIM_S / float(ref["cpu_per_sim_s"])
-    for r in rows:
-        norm = float(r["cpu_per_sim_s"]) * factor
-        r["cpu_per_sim_s_norm"] = norm
-        r["x_realtime_norm"] = 1.0 / norm if norm > 0 else math.nan
-    return factor

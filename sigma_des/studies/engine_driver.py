@@ -27,19 +27,21 @@ from sigma_des.studies.engine_bench import (
     ALL_METHODS,
     COLUMNS,
     NODES_PER_HOST,
-    REF_CPU_PER_SIM_S,
-    REF_NODES,
-    REF_SIM_S,
     Case,
     Check,
     annotate,
     baseline_estimate_s,
     make_row,
-    normalise,
     overrides_for,
     plan,
-    reference_row,
     run_fresh,
+)
+from sigma_des.studies.engine_norm import (
+    REF_CPU_PER_SIM_S,
+    REF_NODES,
+    REF_SIM_S,
+    normalise,
+    reference_row,
 )
 
 __all__ = [
