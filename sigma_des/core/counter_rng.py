@@ -49,6 +49,19 @@ def to_uniform(h: np.uint64) -> float:
 
 
 @njit(cache=True)
+def mix_column(h: np.uint64, ids: np.ndarray, tail: np.ndarray) -> np.ndarray:
+    """``rng.mix(key, *prefix, ids, *tail)`` for a 1-d ``ids`` and scalar ``tail``, ``h``
+    the hash of the key and the scalar prefix: the same SplitMix64 steps per element."""
+    out = np.empty(ids.shape[0], dtype=np.uint64)
+    for j in range(ids.shape[0]):
+        z = absorb(h, ids[j])
+        for t in tail:
+            z = absorb(z, t)
+        out[j] = _fin(z)
+    return out
+
+
+@njit(cache=True)
 def uniform3(key: np.uint64, a: np.int64, b: np.int64, c: np.int64) -> float:
     """``Stream.uniform(a, b, c)`` for the stream whose key is ``key``."""
     return to_uniform(absorb(absorb(absorb(key, a), b), c))

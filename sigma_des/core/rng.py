@@ -8,7 +8,9 @@ which simultaneous events happen to be processed, and the per-message and the
 batched engines see the very same numbers for the same (stream, entity, index).
 
 All draws go through numpy arrays (even single ones) so that scalar and
-vectorised callers execute the same ufunc loops and get bit-identical floats.
+vectorised callers execute the same ufunc loops and get bit-identical floats. The
+integer hash itself is exact arithmetic modulo 2**64, so :func:`mix` may compute it
+in Python integers or compiled code (its common shape) and give the same bits.
 """
 
 from __future__ import annotations
@@ -36,8 +38,47 @@ def _finalise(z: NDArray[np.uint64]) -> NDArray[np.uint64]:
     return z ^ (z >> _S31)
 
 
+_MASK = (1 << 64) - 1
+_I64 = (-(1 << 63), 1 << 63)
+
+
+def _absorb_int(h: int, i: int) -> int:
+    """One step of :func:`mix` in Python integers modulo 2**64 (the same bits)."""
+    z = h ^ (((i + 1) * 0x9E3779B97F4A7C15) & _MASK)
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
+    return z ^ (z >> 31)
+
+
+def _mix_column(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.uint64] | None:
+    """:func:`mix` compiled when ``ids`` are int64-range scalars around one 1-d integer
+    array (the draw tables' ``(kind, subjects, index, attempt)``); None otherwise."""
+    col = -1
+    for j, i in enumerate(ids):
+        if isinstance(i, np.ndarray):
+            if col >= 0 or i.ndim != 1 or i.dtype.kind != "i":
+                return None
+            col = j
+        elif not (isinstance(i, int | np.integer) and _I64[0] <= int(i) < _I64[1]):
+            return None
+    if col < 0:
+        return None
+    from sigma_des.core.counter_rng import mix_column  # numba: imported on first use
+
+    h = int(key)
+    for i in ids[:col]:
+        h = _absorb_int(h, int(i))  # type: ignore[arg-type]
+    tail = np.array([int(i) for i in ids[col + 1:]], dtype=np.int64)  # type: ignore[arg-type]
+    arr = np.ascontiguousarray(ids[col], dtype=np.int64)
+    return mix_column(np.uint64(h), arr, tail)  # type: ignore[no-any-return]
+
+
 def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     """Hash a 64-bit key and any number of integer id arrays (broadcast together).
+
+    Scalars around one 1-d array (the per-frame draw fills) are hashed in compiled code
+    (:func:`sigma_des.core.counter_rng.mix_column`), the same SplitMix64 steps modulo
+    2**64, so the bits are those of the numpy path.
 
     Args:
         key: the stream key.
@@ -46,6 +87,9 @@ def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     Returns:
         A uint64 array of the broadcast shape (at least 1-d).
     """
+    fast = _mix_column(key, ids)
+    if fast is not None:
+        return fast
     arrays = [np.atleast_1d(np.asarray(i)).astype(np.int64).view(np.uint64) for i in ids]
     shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else (1,)
     h = np.full(shape, np.uint64(key), dtype=np.uint64)

@@ -59,6 +59,7 @@ from sigma_des.agents.behaviours import to_command
 from sigma_des.agents.formation import formation_slots
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
+from sigma_des.env.scene_axis import formation_targets_many, nearest_many, velocity_many
 from sigma_des.errors import ConfigError
 
 __all__ = ["TASKS", "Task", "FormationTask", "GoalTask", "TightTask", "make_task", "ACTION_DIM",
@@ -208,15 +209,83 @@ class Task:
         tgt = self.targets(truth, ep, t)
         e = np.linalg.norm(tgt - truth[:, 9:12], axis=1)[agents]
         _, dmin, _ = _nearest(truth[:, 9:12])
-        dmin = dmin[agents]
+        return self._scored(e, dmin[agents], actions)
+
+    def _scored(self, e: Array, dmin: Array, actions: Array
+                ) -> tuple[Array, NDArray[np.bool_], Array]:
+        """Rewards and failures from true errors ``e`` and nearest distances ``dmin`` (any
+        leading shape, one scene or many; ``actions`` has one more axis, the last)."""
         L = self.scale()
         lim = self.div * L
         r = -(np.minimum(e, lim) / L) ** 2
         r -= self.w_sep * np.maximum(0.0, 1.0 - dmin / self.r_safe) ** 2
-        r -= self.w_u * (np.asarray(actions, dtype=np.float64) ** 2).sum(axis=1) / 3.0
+        r -= self.w_u * (np.asarray(actions, dtype=np.float64) ** 2).sum(axis=-1) / 3.0
         fail = (dmin < self.r_col) | (e > lim) | ~np.isfinite(e)
         r = np.where(fail, r - self.penalty, r)
         return r, fail, e
+
+    # ------------------------------------------- many scenes at once (numpy over scenes)
+    # The same operations as the one-scene methods above on arrays with a leading scene
+    # axis, so every figure is the same bits (tests/env/test_batched.py); the env's
+    # control plane then makes a few numpy calls per step instead of a few per scene.
+    def targets_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
+        """``(S, n, 3)`` :meth:`targets` of every scene (``obs`` ``(S, n, 12)``)."""
+        return np.stack([self.targets(o, ep, float(tt)) for o, ep, tt in zip(obs, eps, t,
+                                                                              strict=True)])
+
+    def scripted_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
+        """``(S, n, 4)`` :meth:`scripted` guidance of every scene."""
+        return np.full(obs.shape[:2] + (4,), np.nan)
+
+    def columns_many(self, obs: Array, eps: list[Any], t: Array, age: Array) -> list[Array]:
+        """:meth:`columns` of every scene: blocks ``(S, n, k)``."""
+        pos = np.nan_to_num(obs[..., 9:12], nan=1e9)
+        tgt = self.targets_many(obs, eps, t)
+        rel, _, _ = nearest_many(pos[..., :2])
+        L = self.scale()
+        cols = [
+            (tgt[..., 0:2] - obs[..., 9:11]) / L,
+            ((tgt[..., 2] - obs[..., 11]) / 10.0)[..., None],
+        ]
+        cols += self._extra_obs_many(obs)
+        return cols + [velocity_many(obs) / self.v_ref, rel / L]
+
+    def _extra_obs_many(self, obs: Array) -> list[Array]:
+        return []
+
+    def observe_many(self, obs: Array, valid: NDArray[np.bool_], eps: list[Any], t: Array,
+                     agents: list[int], age: Array | None = None) -> NDArray[np.float32]:
+        """``(S, len(agents), obs_dim)`` :meth:`observe` of every scene."""
+        age = np.zeros(obs.shape[:2]) if age is None else np.nan_to_num(age, nan=0.0)
+        out = np.concatenate(self.columns_many(obs, eps, t, age), axis=2)[:, agents]
+        out[~valid[:, agents]] = 0.0
+        return np.clip(np.nan_to_num(out, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+
+    def commands_many(
+        self, actions: Array, obs: Array, valid: NDArray[np.bool_], eps: list[Any], t: Array,
+        agents: list[int], dyn: DynamicsModel,
+    ) -> tuple[NDArray[np.bool_], Array]:
+        """:meth:`commands` of every scene: ``(S, n)`` send mask, ``(S, n, dim)`` rows."""
+        g = self.scripted_many(obs, eps, t)
+        a = np.asarray(actions, dtype=np.float64)
+        vn, ve = a[..., 0] * self.v_max, a[..., 1] * self.v_max
+        g[:, agents, 0] = np.hypot(vn, ve)
+        g[:, agents, 1] = np.arctan2(ve, vn)
+        g[:, agents, 2] = obs[:, agents, 11] + a[..., 2] * self.dh_max
+        send = ~np.isnan(g[..., 0]) & ~np.isnan(g[..., 2]) & valid
+        cmds = np.zeros(obs.shape[:2] + (dyn.command_dim,))
+        if send.any():
+            cmds[send] = to_command(g[send], dyn, obs[send])
+        return send, cmds
+
+    def reward_many(
+        self, truth: Array, eps: list[Any], t: Array, agents: list[int], actions: Array
+    ) -> tuple[Array, NDArray[np.bool_], Array]:
+        """:meth:`reward` of every scene (``truth`` ``(S, n, 12)``): ``(S, A)`` arrays."""
+        tgt = self.targets_many(truth, eps, t)
+        e = np.linalg.norm(tgt - truth[..., 9:12], axis=2)[:, agents]
+        _, dmin, _ = nearest_many(truth[..., 9:12])
+        return self._scored(e, dmin[:, agents], actions)
 
 
 @dataclass(frozen=True)
@@ -288,6 +357,19 @@ class FormationTask(Task):
         g[0, :3] = (self.leader_speed, self._heading(ep, t), ep["h0"])
         return g
 
+    def targets_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
+        return formation_targets_many(obs, self.d, math.radians(self.theta_deg))
+
+    def _extra_obs_many(self, obs: Array) -> list[Array]:
+        return [np.broadcast_to(velocity_many(obs[:, :1]) / self.v_ref, obs.shape[:2] + (2,))]
+
+    def scripted_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
+        g = np.full(obs.shape[:2] + (4,), np.nan)
+        g[:, 0, 0] = self.leader_speed
+        g[:, 0, 1] = [self._heading(ep, float(tt)) for ep, tt in zip(eps, t, strict=True)]
+        g[:, 0, 2] = [ep["h0"] for ep in eps]
+        return g
+
 
 @dataclass(frozen=True)
 class GoalTask(Task):
@@ -331,6 +413,9 @@ class GoalTask(Task):
     def targets(self, obs: Array, ep: Any, t: float) -> Array:
         return np.asarray(ep["goal"])
 
+    def targets_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
+        return np.stack([np.asarray(ep["goal"]) for ep in eps])
+
 
 @dataclass(frozen=True)
 class TightTask(FormationTask):
@@ -369,6 +454,19 @@ class TightTask(FormationTask):
         return [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
                 vel, a, np.broadcast_to(vel[:1], (n, 2)), np.broadcast_to(a[:1], (n, 1)),
                 rel / self.d, vel[j], a[j]]
+
+    def columns_many(self, obs: Array, eps: list[Any], t: Array, age: Array) -> list[Array]:
+        S, n = obs.shape[:2]
+        pos = np.nan_to_num(obs[..., 9:12], nan=1e9)
+        tgt = self.targets_many(obs, eps, t)
+        vel = velocity_many(obs) / self.v_ref
+        a = (age / AGE_REF)[..., None]
+        rel, _, j = nearest_many(pos[..., :2])
+        s = np.arange(S)[:, None]
+        return [(tgt[..., 0:2] - obs[..., 9:11]) / self.d,
+                ((tgt[..., 2] - obs[..., 11]) / 10.0)[..., None],
+                vel, a, np.broadcast_to(vel[:, :1], (S, n, 2)),
+                np.broadcast_to(a[:, :1], (S, n, 1)), rel / self.d, vel[s, j], a[s, j]]
 
 
 #: Task name -> class.

@@ -123,6 +123,9 @@ class SwarmVec:
         autoreset: ``next_step``, ``same_step`` or ``disabled`` (module docstring).
         scene_ids: identity of each scene in its seed (default ``0..n_scenes-1``):
             scenes sharing an id replay the same episodes (common random numbers).
+        batched: the control plane (commands, observations, rewards) as numpy over all
+            scenes at once (the task's ``*_many`` methods); False: scene by scene (the
+            reference; both give the same bits).
 
     Raises:
         ConfigError: (a ValueError) an unknown task, key or out-of-range option.
@@ -132,7 +135,8 @@ class SwarmVec:
                  scenario: Mapping[str, Any] | None = None,
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
-                 autoreset: str = "next_step", scene_ids: list[int] | None = None) -> None:
+                 autoreset: str = "next_step", scene_ids: list[int] | None = None,
+                 batched: bool = True) -> None:
         scenario = check_mapping(scenario, "scenario", "{'nodes': 8}")
         task_params = check_mapping(task_params, "task_params", "{'w_u': 0.1}")
         seed = check_seed(seed)
@@ -151,6 +155,7 @@ class SwarmVec:
         self.steps = np.zeros(n_scenes, dtype=np.int64)
         self.done = np.ones(n_scenes, dtype=bool)
         self._started = False
+        self.batched = bool(batched)
         self._names = [f"scene {s} node_{i}" for s in range(n_scenes) for i in self.agent_nodes]
 
     # ------------------------------------------------------------ API
@@ -166,8 +171,7 @@ class SwarmVec:
         self._started = True
         self.steps[:] = 0
         self.done[:] = False
-        obs = np.stack([self._observe(s) for s in self.batch.scenes])
-        return obs, self._infos(None)
+        return self._observe_all(), self._infos(None)
 
     def step(self, actions: Any) -> tuple[NDArray[np.float32], Array, NDArray[np.bool_],
                                           NDArray[np.bool_], dict[str, Any]]:
@@ -181,27 +185,21 @@ class SwarmVec:
         scenes = self.batch.scenes
         restart = np.flatnonzero(self.done)  # next-step mode only: finished last step
         live = np.flatnonzero(~self.done).tolist()
-        for s in live:
-            sc = scenes[s]
-            if sc.ended:  # nothing was ever shown before the scenario's end: truncated below
-                continue
-            nodes, cmds = self.task.commands(a[s], self._view(sc), sc.ep, sc.now(),
-                                             self.agent_nodes, self.dyn)
-            sc.publish(nodes, cmds)
+        # a scene that ended before anything was shown sends nothing: truncated below
+        self._publish([s for s in live if not scenes[s].ended], a)
         self._restart(restart.tolist(), advance=False)
         self.batch.advance(scenes)
         rew, term, trunc, err = self._score(live, a)
         self.steps[live] += 1
         self.done[:] = term[:, 0] | trunc[:, 0]
         if self.opts.autoreset != "same_step" or not self.done.any():
-            obs = np.stack([self._observe(sc) for sc in scenes])
-            return obs, rew, term, trunc, self._infos(err)
+            return self._observe_all(), rew, term, trunc, self._infos(err)
         ended = np.flatnonzero(self.done)
-        final_obs = np.stack([self._observe(sc) for sc in scenes])
+        final_obs = self._observe_all()
         final_info = self._infos(err.copy())
         self._restart(ended.tolist(), advance=True)
         err[ended] = np.nan
-        obs = np.stack([self._observe(sc) for sc in scenes])
+        obs = self._observe_all()
         infos = self._infos(err)
         mask = np.zeros((self.n_scenes, self.n_agents), dtype=bool)
         mask[ended] = True
@@ -224,13 +222,61 @@ class SwarmVec:
         term = np.zeros((S, A), dtype=bool)
         trunc = np.zeros((S, A), dtype=bool)
         err = np.full((S, A), np.nan)
+        scenes = self.batch.scenes
+        if self.batched and live:
+            r, fail, e = self.task.reward_many(
+                np.stack([scenes[s].truth() for s in live]), [scenes[s].ep for s in live],
+                np.array([scenes[s].now() for s in live]), self.agent_nodes, a[live])
+            rew[live], err[live] = r, e
+            term[live] = np.any(fail, axis=1, keepdims=True)
         for s in live:
-            sc = self.batch.scenes[s]
-            r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
-            rew[s], err[s] = r, e
-            term[s] = bool(fail.any())
+            sc = scenes[s]
+            if not self.batched:
+                r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
+                rew[s], err[s] = r, e
+                term[s] = bool(fail.any())
             trunc[s] = not term[s, 0] and (self.steps[s] + 1 >= self.opts.max_steps or sc.ended)
         return rew, term, trunc, err
+
+    def _publish(self, ids: list[int], a: Array) -> None:
+        """The agents' (and scripted nodes') commands of scenes ``ids``, sent."""
+        scenes = self.batch.scenes
+        if not self.batched:
+            for s in ids:
+                sc = scenes[s]
+                nodes, cmds = self.task.commands(a[s], self._view(sc), sc.ep, sc.now(),
+                                                 self.agent_nodes, self.dyn)
+                sc.publish(nodes, cmds)
+            return
+        if not ids:
+            return
+        views = [self._view(scenes[s]) for s in ids]
+        send, cmds = self.task.commands_many(
+            a[ids], np.stack([v.obs for v in views]), np.stack([v.valid for v in views]),
+            [scenes[s].ep for s in ids], np.array([scenes[s].now() for s in ids]),
+            self.agent_nodes, self.dyn)
+        for k, s in enumerate(ids):
+            scenes[s].publish(np.flatnonzero(send[k]).astype(np.int64), cmds[k])
+
+    def _observe_all(self) -> NDArray[np.float32]:
+        """``(S, A, obs_dim)`` observations of every scene (zeros for an ended one)."""
+        scenes = self.batch.scenes
+        if not self.batched:
+            return np.stack([self._observe(sc) for sc in scenes])
+        out = np.zeros((self.n_scenes, self.n_agents, self.obs_dim), dtype=np.float32)
+        ids = [s for s, sc in enumerate(scenes) if not sc.ended]
+        if not ids:
+            return out
+        views = [self._view(scenes[s]) for s in ids]
+        t = np.array([scenes[s].now() for s in ids])
+        if self.opts.perfect_info:
+            age = np.zeros((len(ids), self.sc.nodes))
+        else:
+            age = t[:, None] - np.stack([scenes[s].run.aligner.shown_gen for s in ids])
+        out[ids] = self.task.observe_many(
+            np.stack([v.obs for v in views]), np.stack([v.valid for v in views]),
+            [scenes[s].ep for s in ids], t, self.agent_nodes, age)
+        return out
 
     # ------------------------------------------------------------ helpers
     def _view(self, sc: Scene) -> SwarmView:

@@ -66,7 +66,10 @@ class SwarmTruth:
         # zeroed array of this size faults its pages in one by one at first touch,
         # ~10x the cost of np.empty's (huge-page) memory on Linux
         self.ckpt = np.empty(((H if checkpoints else 0),) + self.state.shape)
-        self.obs_hist = np.full((H, n, OBS_COLUMNS), np.nan)
+        # likewise uninitialised: a slot is read only once its frame was stepped (every
+        # reader checks ``slot_frame``, and a node publishes only frames already issued);
+        # a NaN fill touched every page at set-up (49 MB at N = 1000: 10-130 ms)
+        self.obs_hist = np.empty((H, n, OBS_COLUMNS))
         self.slot_frame = np.full(H, -1, dtype=np.int64)
         self.frame_dt = np.zeros(H)
         self.latest = -1

@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 
 from sigma_des import config
 from sigma_des.pool import run_all
+from sigma_des.studies.engine_norm import target_of
 
 __all__ = [
     "ALL_METHODS",
@@ -135,6 +136,7 @@ COLUMNS: tuple[str, ...] = (
     "x_realtime",
     "cpu_per_sim_s",
     "x_realtime_cpu",
+    "load1", "cpu_per_sim_s_norm", "x_realtime_norm", "target_x",  # engine_norm
     "events",
     "events_per_s",
     "peak_rss_mb",
@@ -159,7 +161,8 @@ class Case(NamedTuple):
         sim_s: simulated seconds.
         role: ``main`` (a timed case of the tables) or ``twin`` (a cohort run at
             the capped duration of an ``events`` or ``baseline`` case, so that
-            metrics are compared between runs of equal duration).
+            metrics are compared between runs of equal duration) or ``reference``
+            (a baseline run only to normalise the figures: ``engine_norm``).
     """
 
     impl: str
@@ -282,6 +285,7 @@ def run_case(
     sim = simulate(impl, method, sc)
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
     return {
+        "load1": os.getloadavg()[0],
         "sim_s": sc.duration,
         "wall_s": sim.wall_s,
         "cpu_s": sim.cpu_s,
@@ -423,6 +427,9 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
         "x_realtime": sim / wall,
         "cpu_per_sim_s": cpu / sim,
         "x_realtime_cpu": sim / cpu if cpu > 0 else math.nan,
+        "load1": res.get("load1", math.nan),
+        "cpu_per_sim_s_norm": math.nan, "x_realtime_norm": math.nan,  # engine_norm
+        "target_x": target_of(case, n),
         "events": res["events"],
         "events_per_s": res["events"] / wall,
         "peak_rss_mb": res["peak_rss_mb"],

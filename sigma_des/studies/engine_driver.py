@@ -27,6 +27,7 @@ from sigma_des.studies.engine_bench import (
     ALL_METHODS,
     COLUMNS,
     NODES_PER_HOST,
+    Case,
     Check,
     annotate,
     baseline_estimate_s,
@@ -34,6 +35,13 @@ from sigma_des.studies.engine_bench import (
     overrides_for,
     plan,
     run_fresh,
+)
+from sigma_des.studies.engine_norm import (
+    REF_CPU_PER_SIM_S,
+    REF_NODES,
+    REF_SIM_S,
+    normalise,
+    reference_row,
 )
 
 __all__ = [
@@ -81,6 +89,10 @@ class BenchOptions:
         cpu: the CPU every case is pinned to (None: not pinned).
         start_method: ``forkserver`` or ``spawn`` (see ``run_fresh``).
         out: the CSV file the rows are written to (None: none).
+        reference: measure the baseline that normalises the figures (``ref_nodes``
+            nodes, restricted, ``ref_sim_s`` s; reused if a case of the run is it).
+        ref_nodes: its node count.
+        ref_sim_s: its simulated seconds.
     """
 
     nodes: tuple[int, ...]
@@ -95,6 +107,9 @@ class BenchOptions:
     cpu: int | None = None
     start_method: str = "forkserver"
     out: Path | None = None
+    reference: bool = True
+    ref_nodes: int = REF_NODES
+    ref_sim_s: float = REF_SIM_S
 
 
 def machine_info(cwd: Path) -> str:
@@ -150,6 +165,12 @@ def bench_parser(description: str) -> argparse.ArgumentParser:
     add("--start-method", choices=("forkserver", "spawn"), default="forkserver",
         help="how each case's fresh process is started (default: forkserver)")
     add("--out", type=Path, default=None, help="write the rows to this CSV file")
+    add("--reference", action=argparse.BooleanOptionalAction, default=True,
+        help="also run the SimPy baseline that normalises every figure (N = --ref-nodes, "
+        "restricted, --ref-duration s; reused if the run has that case)")
+    add("--ref-nodes", type=int, default=REF_NODES, help="node count of the reference")
+    add("--ref-duration", type=float, default=REF_SIM_S,
+        help="simulated seconds of the reference")
     return p
 
 
@@ -188,29 +209,34 @@ def bench_options(p: argparse.ArgumentParser, argv: Sequence[str] | None = None)
     ``--quick`` is N = 10,50 for 1 s.
     """
     a = p.parse_args(argv)
-    if a.quick:
-        a.nodes, a.duration = "10,50", 1.0
+    if a.quick:  # the reference is then the N = 50 baseline case itself
+        a.nodes, a.duration, a.ref_nodes, a.ref_duration = "10,50", 1.0, 50, 1.0
     try:
         nodes = parse_nodes(a.nodes)
         methods = parse_methods(a.methods)
     except ValueError as err:
         p.error(str(err))
-    for opt in ("duration", "events_cap", "baseline_cap"):
+    if a.ref_nodes < 1:
+        p.error("--ref-nodes must be >= 1")
+    for opt in ("duration", "events_cap", "baseline_cap", "ref_duration"):
         if not getattr(a, opt) > 0:
             p.error(f"--{opt.replace('_', '-')} must be > 0")
     return BenchOptions(
         tuple(nodes), tuple(methods), a.duration, a.baseline, a.events_cap, a.baseline_cap,
         a.baseline_max_n, a.large_n, tuple(a.set), a.cpu, a.start_method, a.out,
+        a.reference, a.ref_nodes, a.ref_duration,
     )
 
 
 def header_lines(opts: BenchOptions, machine: str) -> list[str]:
     """The two lines printed before the first case: machine, scenario and overrides."""
     sets = list(opts.sets) or "none"
+    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     return [
         f"sigma_des engine benchmark: cohort vs events vs baseline  ({machine})",
         f"scenario: defaults + {NODES_PER_HOST} nodes/host, duration {opts.duration:g} s "
         f"(warm-up {min(1.0, 0.2 * opts.duration):g} s); overrides: {sets}",
+        f"load average at the start (1, 5, 15 min): {load}",
     ]
 
 
@@ -305,7 +331,40 @@ def run_bench(
     for n in opts.nodes:
         notes += node_notes(opts, n, rows, log)
         run_node(opts, n, rows, notes, run, log)
-    return rows, annotate(rows), notes
+    checks = annotate(rows)
+    if opts.reference:
+        notes.append(reference_note(opts, rows, run, log))
+    return rows, checks, notes
+
+
+def reference_note(
+    opts: BenchOptions, rows: list[dict[str, Any]], run: Runner = run_fresh,
+    log: Callable[[str], None] = echo,
+) -> str:
+    """Normalise ``rows`` by the reference baseline (run here unless a row is it); the note.
+
+    The reference is the default restricted scenario, whatever ``--set`` says (it
+    measures the machine, not the scenario): a baseline case of the run is reused only
+    without ``--set``. It runs with ``--no-baseline`` too; ``--no-reference`` skips it.
+    The reference case is appended to ``rows`` with the role ``reference``.
+    """
+    ref = None if opts.sets else reference_row(rows, opts.ref_nodes, opts.ref_sim_s)
+    if ref is None:
+        case = Case("baseline", "none", "restricted", opts.ref_sim_s, "reference")
+        ov = overrides_for(opts.ref_nodes, opts.ref_sim_s, True, (), case.impl)
+        res = run(case.impl, case.method, ov, opts.cpu, opts.start_method)
+        ref = make_row(case, opts.ref_nodes, res)
+        rows.append(ref)
+        log(f"  N={opts.ref_nodes:<6} baseline  none     reference  {opts.ref_sim_s:5g} s sim "
+            f"{res['wall_s']:9.2f} s wall  (normalises the figures)")
+    factor = normalise(rows, ref)
+    return (
+        f"normalised figures (norm columns, targets): CPU-s per simulated s x {factor:.3f} "
+        f"= {REF_CPU_PER_SIM_S:g} / {float(ref['cpu_per_sim_s']):.3f}, the CPU-s/s of the "
+        f"SimPy baseline of this run (N = {opts.ref_nodes}, restricted, {opts.ref_sim_s:g} s; "
+        f"load {float(ref['load1']):.2f}) against {REF_CPU_PER_SIM_S:g} on the reference "
+        "machine of the targets"
+    )
 
 
 def write_csv(rows: list[dict[str, Any]], path: Path) -> None:

@@ -10,8 +10,25 @@ from sigma_des.tables import cell, text_table
 __all__ = ["check_table", "metric_table", "report_text", "speed_table", "speedup_table"]
 
 
+def _num(x: Any, spec: str) -> str:
+    """``cell`` with NaN (not measured, e.g. no reference) shown as ``-``."""
+    return "-" if isinstance(x, float) and x != x else cell(x, spec)
+
+
+def _target(r: dict[str, Any]) -> str:
+    t = r["target_x"]
+    return f">= {t:g}x" if t == t else "-"
+
+
+def _met(r: dict[str, Any]) -> str:
+    t, x = r["target_x"], r["x_realtime_norm"]
+    if t != t or x != x:
+        return "-"
+    return "yes" if x >= t else "no"
+
+
 def speed_table(rows: list[dict[str, Any]]) -> str:
-    """One line per case (cohort twins marked ``cohort~``)."""
+    """One line per case (cohort twins marked ``cohort~``, the reference baseline ``ref``)."""
     head = [
         "N",
         "scenario",
@@ -23,6 +40,10 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
         "xRT",
         "cpu s/s",
         "xRT cpu",
+        "load",
+        "xRT norm",
+        "target",
+        "met",
         "ev/s",
         "RSS MB",
     ]
@@ -33,13 +54,17 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
                 str(r["n"]),
                 r["scenario"],
                 r["method"],
-                r["impl"] + ("~" if r["role"] == "twin" else ""),
+                r["impl"] + {"twin": "~", "reference": " ref"}.get(r["role"], ""),
                 r["engine_used"],
                 cell(r["sim_s"], "g"),
                 cell(r["wall_per_sim_s"], ".3f"),
                 cell(r["x_realtime"], ".2f"),
                 cell(r["cpu_per_sim_s"], ".3f"),
                 cell(r["x_realtime_cpu"], ".2f"),
+                cell(r["load1"], ".1f"),
+                _num(r["x_realtime_norm"], ".2f"),
+                _target(r),
+                _met(r),
                 cell(r["events_per_s"], ",.0f"),
                 cell(r["peak_rss_mb"], ".0f"),
             ]
@@ -62,6 +87,8 @@ def speedup_table(rows: list[dict[str, Any]]) -> str:
             "cohort/events",
             "cohort/baseline",
             "events/baseline",
+            "cohort/baseline cpu",
+            "target",
         ]
     ]
     for r in rows:
@@ -85,9 +112,22 @@ def speedup_table(rows: list[dict[str, Any]]) -> str:
                 cell(r["ratio_vs_events"], ".2f"),
                 cell(r["ratio_vs_baseline"], ".2f"),
                 cell(ev["ratio_vs_baseline"] if ev else "", ".2f"),
+                cell(_cpu_ratio(rows, r), ".1f"),
+                ">= 300x" if r["scenario"] == "restricted" and r["ratio_vs_baseline"] != ""
+                else "-",
             ]
         )
     return text_table(lines)
+
+
+def _cpu_ratio(rows: list[dict[str, Any]], r: dict[str, Any]) -> float | str:
+    """Baseline CPU-s/s over this cohort row's (same N, method, scenario); "" if none."""
+    for b in rows:
+        if (b["impl"], b["role"], b["n"], b["method"], b["scenario"]) == (
+            "baseline", "main", r["n"], r["method"], r["scenario"]
+        ):
+            return float(b["cpu_per_sim_s"]) / float(r["cpu_per_sim_s"])
+    return ""
 
 
 def check_table(checks: list[Check]) -> str:
@@ -117,7 +157,7 @@ def metric_table(rows: list[dict[str, Any]]) -> str:
     """One line per N: cohort (method none) vs baseline on the restricted scenario."""
     pairs: list[tuple[dict[str, Any], dict[str, Any]]] = []
     for b in rows:
-        if b["impl"] != "baseline":
+        if b["impl"] != "baseline" or b["role"] == "reference":
             continue
         for c in rows:
             if (c["impl"], c["scenario"], c["n"], c["sim_s"]) == (
@@ -161,7 +201,10 @@ def report_text(rows: list[dict[str, Any]], checks: list[Check], notes: list[str
         "Speed (s/s = wall seconds per simulated second, xRT = times real time, "
         "ev/s = events per wall second;",
         "full = commands on; restricted = commands off, the baseline's scenario class; "
-        "cohort~ = cohort twin at a capped duration)",
+        "cohort~ = cohort twin at a capped duration;",
+        "load = 1-min load average at the case's end; xRT norm = times real time by CPU, "
+        "normalised by the reference baseline (note below); target = the issue's, on that "
+        "normalised figure)",
         speed_table(rows),
         "",
         "Speed-up (ratio of wall seconds per simulated second; - = not measured)",

@@ -63,6 +63,10 @@ EXPECTED_COLUMNS = [
     "x_realtime",
     "cpu_per_sim_s",
     "x_realtime_cpu",
+    "load1",
+    "cpu_per_sim_s_norm",
+    "x_realtime_norm",
+    "target_x",
     "events",
     "events_per_s",
     "peak_rss_mb",
@@ -99,6 +103,20 @@ def test_quick_run_writes_tables_and_csv_and_engines_agree(tmp_path: Path) -> No
         reader = csv.DictReader(fh)
         assert reader.fieldnames == EXPECTED_COLUMNS
         rows = list(reader)
+    # --set: the reference (the default restricted scenario, N = 50, 1 s under --quick)
+    # runs on its own and normalises every figure: its own normalised CPU-s/s is 10
+    [ref] = [r for r in rows if r["role"] == "reference"]
+    rows = [r for r in rows if r["role"] != "reference"]
+    assert (ref["impl"], ref["n"], ref["sim_s"]) == ("baseline", "50", "1.0")
+    assert math.isclose(float(ref["cpu_per_sim_s_norm"]), 10.0, rel_tol=1e-12)
+    factor = 10.0 / float(ref["cpu_per_sim_s"])
+    for r in rows:
+        assert math.isclose(float(r["cpu_per_sim_s_norm"]), float(r["cpu_per_sim_s"]) * factor,
+                            rel_tol=1e-12)
+        assert math.isclose(float(r["x_realtime_norm"]) * float(r["cpu_per_sim_s_norm"]), 1.0)
+        assert float(r["load1"]) >= 0.0
+        assert math.isnan(float(r["target_x"]))  # targets are set at N = 1000 and 10000
+    assert "normalised figures" in proc.stdout and "load average at the start" in proc.stdout
     cases = {(int(r["n"]), r["impl"], r["method"], r["scenario"]): r for r in rows}
     assert len(cases) == len(rows)
     assert set(cases) == {

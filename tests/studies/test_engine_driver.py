@@ -56,8 +56,44 @@ class FakeRunner:
 
 
 def _opts(**kw: Any) -> BenchOptions:
-    base: dict[str, Any] = {"nodes": (10,), "methods": ("bides",), "duration": 1.0}
+    base: dict[str, Any] = {"nodes": (10,), "methods": ("bides",), "duration": 1.0,
+                            "reference": False}
     return BenchOptions(**(base | kw))
+
+
+def test_reference_baseline_normalises_every_figure_and_sets_the_targets() -> None:
+    fake = FakeRunner()  # CPU-s/s: cohort 0.5, events 1, baseline 4
+    lines: list[str] = []
+    rows, _checks, notes = run_bench(_opts(reference=True), fake, lines.append)
+    ref = rows[-1]
+    # not a case of the run (N = 10): run on its own, default restricted scenario
+    assert (ref["impl"], ref["role"], ref["n"], ref["sim_s"]) == ("baseline", "reference",
+                                                                 1000, 2.0)
+    assert fake.calls[-1][2] == ["nodes=1000", "hosts=50", "duration=2.0", "warmup=0.4",
+                                 "commands.enabled=false"]
+    assert "(normalises the figures)" in lines[-1]
+    # factor 10 / 4 = 2.5: the cohort's 0.5 CPU-s/s is 1.25 on the reference machine
+    cohort = rows[0]
+    assert (cohort["cpu_per_sim_s_norm"], cohort["x_realtime_norm"]) == (1.25, 0.8)
+    assert ref["cpu_per_sim_s_norm"] == 10.0
+    assert notes[-1].startswith("normalised figures (norm columns, targets): CPU-s per "
+                                "simulated s x 2.500 = 10 / 4.000")
+    # a case of the run that is the reference is reused (no --set): no extra run
+    fake = FakeRunner()
+    rows, _checks, _notes = run_bench(
+        _opts(reference=True, nodes=(1000,), duration=2.0), fake, lambda _line: None)
+    assert [r["role"] for r in rows].count("reference") == 0
+    assert len(fake.calls) == len(rows)
+    assert rows[0]["x_realtime_norm"] == 0.8
+    # the targets: N = 1000 full BiDES 20x (10x for a 1 s run), restricted 50x
+    text = report_text(rows, _checks, _notes)
+    assert ">= 20x" in text and ">= 50x" in text and ">= 300x" in text
+    assert [r["target_x"] for r in rows if r["impl"] == "cohort" and r["role"] == "main"] == [
+        20.0, 50.0]
+    one = run_bench(_opts(reference=True, nodes=(1000,)), FakeRunner(), lambda _l: None)[0]
+    assert one[0]["target_x"] == 10.0
+    assert all(math.isnan(r["cpu_per_sim_s_norm"])
+               for r in run_bench(_opts(), FakeRunner(), lambda _l: None)[0])
 
 
 def test_max_rel_diff_names_the_one_metric_that_differs() -> None:
@@ -177,10 +213,11 @@ def test_options_from_the_command_line() -> None:
 
 def test_header_lines_and_csv(tmp_path: Path) -> None:
     opts = _opts(duration=3.0, sets=("a=1",))
-    assert header_lines(opts, "CPU X") == [
+    assert header_lines(opts, "CPU X")[:2] == [
         "sigma_des engine benchmark: cohort vs events vs baseline  (CPU X)",
         "scenario: defaults + 20 nodes/host, duration 3 s (warm-up 0.6 s); overrides: ['a=1']",
     ]
+    assert header_lines(opts, "CPU X")[2].startswith("load average at the start (1, 5, 15 min): ")
     assert header_lines(_opts(), "m")[1].endswith("overrides: none")
     rows, _checks, _notes = run_bench(_opts(), FakeRunner(), lambda _line: None)
     path = tmp_path / "sub" / "bench.csv"

@@ -70,6 +70,14 @@ def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, lates
         accepted[j] = True
 
 
+def _as_rows(x: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """``x`` broadcast to ``shape`` as contiguous float64 (a column view of that shape and
+    dtype, as the compiled core's delivery batches are, is copied without broadcasting)."""
+    if isinstance(x, np.ndarray) and x.shape == shape and x.dtype == np.float64:
+        return np.ascontiguousarray(x)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=np.float64), shape))
+
+
 class RingBuffers:
     """The last ``k`` states of each of ``n`` nodes.
 
@@ -120,11 +128,9 @@ class RingBuffers:
             return np.array([self._insert_one(int(np.asarray(nodes).item()), int(fr1.item()),
                                               float(np.asarray(gen_times).item()), obs)])
         nd = np.ascontiguousarray(nodes, dtype=np.int64).ravel()
-        fr = np.ascontiguousarray(frames, dtype=np.int64).ravel()
-        gt = np.ascontiguousarray(np.broadcast_to(np.asarray(gen_times, dtype=np.float64),
-                                                  nd.shape))
-        ob = np.ascontiguousarray(np.broadcast_to(np.asarray(obs, dtype=np.float64),
-                                                  (nd.size, self.width)))
+        fr = np.ascontiguousarray(fr1, dtype=np.int64).ravel()
+        gt = _as_rows(gen_times, nd.shape)
+        ob = _as_rows(obs, (nd.size, self.width))
         if fr.size and fr.min() < 0:
             raise ValueError("frames must be >= 0")
         accepted = np.zeros(nd.size, dtype=np.bool_)

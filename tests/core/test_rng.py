@@ -1,0 +1,70 @@
+"""core/rng.py's mix: the compiled path and the numpy path give the SplitMix64 bits.
+
+The reference below is the hash written out in Python integers modulo 2**64 (the
+module's definition: each id ``i`` absorbed as ``fin(h ^ ((i + 1) * golden))``, then one
+more ``fin``), independent of numpy and numba.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sigma_des.core.rng import Stream, mix
+
+MASK = (1 << 64) - 1
+
+
+def _fin(z: int) -> int:
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK
+    return z ^ (z >> 31)
+
+
+def _ref(key: int, *ids: int) -> int:
+    h = key
+    for i in ids:
+        h = _fin(h ^ (((i + 1) * 0x9E3779B97F4A7C15) & MASK))
+    return _fin(h)
+
+
+I64 = (-(1 << 63), (1 << 63) - 1)
+
+
+@pytest.mark.parametrize("size", [0, 1, 7, 40])
+@pytest.mark.parametrize("where", [0, 1, 3])  # the array first, second, last of four ids
+def test_mix_of_scalars_around_one_array_is_splitmix64(size: int, where: int) -> None:
+    rng = np.random.default_rng(size * 10 + where)
+    for _ in range(20):
+        key = int(rng.integers(0, 1 << 63)) * 2 + 1
+        col = rng.integers(*I64, size=size, endpoint=True)
+        if size:
+            col[0] = I64[0]  # the extremes and -1 (whose id + 1 wraps to 0)
+        if size > 2:
+            col[1], col[2] = I64[1], -1
+        scalars = [int(x) for x in rng.integers(*I64, size=3, endpoint=True)]
+        ids: list[object] = list(scalars)
+        ids.insert(where, col)
+        got = mix(np.uint64(key), *ids)
+        assert got.dtype == np.uint64 and got.shape == (size,)
+        for j in range(size):
+            row = list(scalars)
+            row.insert(where, int(col[j]))
+            assert int(got[j]) == _ref(key, *row)
+
+
+def test_other_shapes_and_dtypes_hash_the_same_way() -> None:
+    key = 0x0123456789ABCDEF
+    grid = mix(key, np.arange(3)[:, None], np.arange(20, dtype=np.int32)[None, :], 5)
+    assert grid.shape == (3, 20)
+    assert all(int(grid[a, b]) == _ref(key, a, b, 5) for a in range(3) for b in range(20))
+    assert [int(x) for x in mix(key, np.arange(12, dtype=np.int16), np.int64(4))] == [
+        _ref(key, b, 4) for b in range(12)]
+    assert int(mix(key, 3, 4)[0]) == _ref(key, 3, 4) and int(mix(key)[0]) == _ref(key)
+
+
+def test_stream_uniform_is_the_top_53_bits_of_the_hash() -> None:
+    s = Stream(3, "latency")
+    u = s.uniform(2, np.arange(50), 9, 0)
+    h = [_ref(int(s.key), 2, b, 9, 0) for b in range(50)]
+    assert u.tolist() == [((x >> 11) + 0.5) / 2.0**53 for x in h]
