@@ -46,6 +46,7 @@ from sigma_des.events.fast.support import (
 from sigma_des.events.fast.tables import (
     DrawTables,
     clock_tables,
+    deployment_tables,
     link_tables,
     lossy_classes,
     network_sources,
@@ -196,50 +197,6 @@ class CompiledCore:
             "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
         }
 
-    def _deployment(self) -> dict[str, NDArray[Any]]:
-        """Processes, machines and MQTT clients (what Network and Cpu hold)."""
-        h = self.host
-        net, n = h.net, h.n
-        dep = h.spec.net.deployment
-        topo = h.spec.net.topology
-        cpu = net.cpu
-        H = topo.hosts
-        ip = np.zeros(L.CP_LEN, dtype=np.int64)
-        proc = np.full(n + 1, -1, dtype=np.int64)
-        demand = np.zeros(n + 1)
-        mach = np.zeros(H + 2, dtype=np.int64)
-        scale = np.ones(H + 2)
-        if cpu is not None:
-            # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
-            assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
-            for p, pr in enumerate(cpu.processes):
-                mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
-                scale[p] = pr.scale
-            ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
-            for i in range(n + 1):  # Network._proc: no burst for a zero demand
-                d = dep.host_demand if i < n else dep.server_demand
-                if d > 0.0:
-                    proc[i] = L.P_HOST0 + topo.host_of[i] if i < n else L.P_SERVER
-                    demand[i] = d
-        else:
-            ip[L.CP_BROKER] = -1
-        ip[L.CP_HOSTS] = int(net.host_clients)
-        ip[L.CP_APP] = int(net.host_clients or bool((proc >= 0).any()))
-        cl_of = np.array(net.client_of, dtype=np.int64)
-        subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
-        ip[L.CP_NSUB] = len(subs)
-        ip[L.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
-        bcast = np.full(n + 1, -1, dtype=np.int64)
-        bcast[: len(subs)] = subs
-        ptr = np.zeros(n + 2, dtype=np.int64)
-        mem: list[int] = []
-        for c in range(n + 1):
-            mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
-            ptr[c + 1] = len(mem)
-        return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
-                "cpu_scale": scale, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
-                "mem": np.array(mem, dtype=np.int64)}
-
     def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
         h = self.host
         spec = h.spec
@@ -251,8 +208,9 @@ class CompiledCore:
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
-            **self._links(), **self._nodes(), **self.attempts.given(), **self._deployment(),
-            **link_tables(h.net, spec), **clock_tables(h.nodes.clocks, spec),
+            **self._links(), **self._nodes(), **self.attempts.given(),
+            **deployment_tables(h.net, spec), **link_tables(h.net, spec),
+            **clock_tables(h.nodes.clocks, spec),
         }
 
     def ensure_space(self, k: int) -> None:

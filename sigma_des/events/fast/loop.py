@@ -197,6 +197,24 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _handle(S, s, t):  # type: ignore[no-untyped-def]
+    """Run event ``s``'s handler at ``t``, by its type."""
+    typ = S[EV_INT][s, E_TYPE]
+    if typ == EV_CLIENT:
+        _client(S, s, t)
+    elif typ == EV_BROKER:
+        broker(S, s, t)
+    elif typ == EV_RESEND:
+        resend(S, s, t)
+    elif typ == EV_DONE:
+        done(S, s, t)
+    elif typ == EV_SEND:
+        send_burst_done(S, s, t)
+    else:
+        hand_over(S, s, t)  # EV_APP: the receive burst ended
+
+
+@jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done, else
     the reason Python must act first. A draining stream's segments first, then the queue's head."""
@@ -260,19 +278,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             pos[c] = p + 1  # take the head
             if p + 1 == S[RUN_END][c]:
                 qi[QI_HAS] = 0
-        typ = S[EV_INT][s, E_TYPE]
-        if typ == EV_CLIENT:
-            _client(S, s, t)
-        elif typ == EV_BROKER:
-            broker(S, s, t)
-        elif typ == EV_RESEND:
-            resend(S, s, t)
-        elif typ == EV_DONE:
-            done(S, s, t)
-        elif typ == EV_SEND:
-            send_burst_done(S, s, t)
-        else:
-            hand_over(S, s, t)  # EV_APP: the receive burst ended
+        _handle(S, s, t)
         release(S, s)
         if iv[I_ERR]:
             return DRAW_MISS

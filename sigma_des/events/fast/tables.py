@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
+from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.layout import (
     K_COMMAND,
     K_REPUB,
@@ -47,6 +48,7 @@ __all__ = [
     "DrawTables",
     "Fill",
     "clock_tables",
+    "deployment_tables",
     "fill_rows",
     "link_tables",
     "lossy_classes",
@@ -233,3 +235,47 @@ def clock_tables(clocks: NodeClocks, spec: RunSpec) -> dict[str, NDArray[Any]]:
         js = np.arange(cols, dtype=np.int64)[None, :]
         res = np.ascontiguousarray(cs.ntp_residual_std * clocks.stream.normal(ids, 2, js))
     return {"ntp_period": np.array([cs.ntp_period]), "ntp_res": res}
+
+
+def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
+    """Processes, machines and MQTT clients (what Network and Cpu hold)."""
+    dep = spec.net.deployment
+    topo = spec.net.topology
+    n = topo.nodes
+    cpu = net.cpu
+    H = topo.hosts
+    ip = np.zeros(L.CP_LEN, dtype=np.int64)
+    proc = np.full(n + 1, -1, dtype=np.int64)
+    demand = np.zeros(n + 1)
+    mach = np.zeros(H + 2, dtype=np.int64)
+    scale = np.ones(H + 2)
+    if cpu is not None:
+        # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
+        assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
+        for p, pr in enumerate(cpu.processes):
+            mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
+            scale[p] = pr.scale
+        ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
+        for i in range(n + 1):  # Network._proc: no burst for a zero demand
+            d = dep.host_demand if i < n else dep.server_demand
+            if d > 0.0:
+                proc[i] = L.P_HOST0 + topo.host_of[i] if i < n else L.P_SERVER
+                demand[i] = d
+    else:
+        ip[L.CP_BROKER] = -1
+    ip[L.CP_HOSTS] = int(net.host_clients)
+    ip[L.CP_APP] = int(net.host_clients or bool((proc >= 0).any()))
+    cl_of = np.array(net.client_of, dtype=np.int64)
+    subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
+    ip[L.CP_NSUB] = len(subs)
+    ip[L.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
+    bcast = np.full(n + 1, -1, dtype=np.int64)
+    bcast[: len(subs)] = subs
+    ptr = np.zeros(n + 2, dtype=np.int64)
+    mem: list[int] = []
+    for c in range(n + 1):
+        mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
+        ptr[c + 1] = len(mem)
+    return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
+            "cpu_scale": scale, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
+            "mem": np.array(mem, dtype=np.int64)}
