@@ -157,9 +157,9 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     bundle = bool(_recorded(info, "bundle", False, "bundle = false taken", warn))
     if bundle:
         warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
-                    "a bundle of a loop turn's states; the DES bundles only states whose "
-                    "jobs complete at the same instant, so with random step times it sends "
-                    "(and charges) one PUBLISH per state (docs/LIVE.md)")
+                    "a bundle of a loop turn's states; the DES bundles the states published "
+                    "while a host's process is busy, so its bundles are as large as its "
+                    "host demand makes them (docs/MODEL.md, Bundles)")
     background, measured, busy = _background(cpu, cores, warn)
     host, server = _demand(table, "host", warn), _demand(table, "server", warn)
     broker, b_busy, b_msgs = pooled_demand(table, "broker")

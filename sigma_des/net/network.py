@@ -17,8 +17,10 @@ burst and no event. With per-host clients (``deployment.clients = "host"``) the 
 clients are the physics hosts (client id: the host's first node) and the server: a
 node's state leaves through its host's client, and what a host client receives is
 handed to its nodes (a trigger, the only broadcast, to each in node order; a message
-about node ``i`` to ``i``). With ``bundle`` a host client's publishes of one instant are one PUBLISH
-(:class:`Bundle`), handed over record by record at the receiver.
+about node ``i`` to ``i``). With ``bundle`` a host client's publishes of one loop turn are
+one PUBLISH (:class:`Bundle`), handed over record by record at the receiver: the
+publishes of one instant or, with a CPU stage, every publish made while the host's
+process is busy joins the PUBLISH that leaves when it is free.
 
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
@@ -43,13 +45,14 @@ __all__ = ["Bundle", "Network"]
 
 #: called with every message that reaches its receiver (duplicates included)
 Deliver = Callable[[Msg], None]
-#: one record of a bundle: ``(kind, subject, index, payload, payload_bits)``
-Record = tuple[int, int, int, Any, int]
+#: one record of a bundle: ``(kind, subject, index, payload, payload_bits, t_pub)``
+Record = tuple[int, int, int, Any, int, float]
 
 
 class Bundle(tuple[Record, ...]):
-    """The payload of a bundled PUBLISH: the records a host client published at one
-    instant, in publish order (handed to the receiving application one by one)."""
+    """The payload of a bundled PUBLISH: the records a host client published in one loop
+    turn, in publish order (handed to the receiving application one by one, each with
+    its own publish time)."""
 
     __slots__ = ()
 
@@ -171,7 +174,8 @@ class Network(Links):
             client = cl[client]
             subs = tuple(dict.fromkeys(cl[s] for s in subscribers))
             if self.bundle and client != self.server:
-                self._add_to_bundle(client, (kind, subject, index, payload, payload_bits), subs)
+                rec = (kind, subject, index, payload, payload_bits, now)
+                self._add_to_bundle(client, rec, subs)
                 return
         else:
             subs = tuple(subscribers)
@@ -187,20 +191,29 @@ class Network(Links):
             self.k.at(proc.burst(m.t_pub, self._demand[m.client]), self._publish_try, m)
 
     def _add_to_bundle(self, client: int, rec: Record, subs: tuple[int, ...]) -> None:
-        """Bundle: keep ``rec`` for host ``client``'s PUBLISH of this instant."""
+        """Bundle: keep ``rec`` for host ``client``'s PUBLISH of this loop turn.
+
+        The first record of a turn schedules the send when the host's process is next
+        free (now, without a CPU stage or when idle), after every event already due
+        then: records published meanwhile (jobs completing while the process serves a
+        burst, as a live host's loop handles the timers that fell due while it was
+        busy) join it. The send's own burst then makes the next turn.
+        """
         pend = self._pending.get(client)
         if not pend:
             pend = self._pending[client] = []
-            # after every event already due now (the jobs completing at this instant)
-            self.k.at(self.k.now, self._flush, client)
+            proc = self._proc[client]
+            now = self.k.now
+            at = proc.free if proc is not None and proc.free > now else now
+            self.k.at(at, self._flush, client)
         pend.append((rec, subs))
 
     def _flush(self, client: int) -> None:
-        """Bundle: host ``client``'s records of this instant leave as one PUBLISH (the
+        """Bundle: host ``client``'s records of this turn leave as one PUBLISH (the
         first record's kind, subject and index key its draws; its payload the sum)."""
         pend = self._pending.pop(client)
         now = self.k.now
-        kind, subject, index, _p, _b = pend[0][0]
+        kind, subject, index, _p, _b, _t = pend[0][0]
         recs = Bundle(r for r, _s in pend)
         bits = sum(r[4] for r in recs)
         self._client_publish(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
@@ -284,8 +297,8 @@ class Network(Links):
         deliver = self.deliver
         c = m.client
         if isinstance(m.payload, Bundle):
-            for kind, subject, index, payload, bits in m.payload:
-                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, m.t_pub,
+            for kind, subject, index, payload, bits, t_pub in m.payload:
+                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, t_pub,
                             m.t_sent))
         elif not self.host_clients or c == self.server:
             deliver(m)

@@ -203,8 +203,9 @@ class DeploymentSpec:
         server_tick: CPU the server's process spends per alignment tick (s), 0..1.
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
-        bundle: a host's states whose jobs complete at the same instant leave as one
-            PUBLISH (live ``--bundle``); needs ``clients = "host"``.
+        bundle: a host's states of one loop turn leave as one PUBLISH (live
+            ``--bundle``): those of one instant, and with a CPU stage those published
+            while the host's process is busy; needs ``clients = "host"``.
     """
 
     preset: str = "none"

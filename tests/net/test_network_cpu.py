@@ -25,7 +25,7 @@ def _net(overrides: list[str]) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
     k = Kernel()
 
     def deliver(m: Msg) -> None:
-        got.append((m.client, m.kind, m.subject, m.index, m.payload, k.now))
+        got.append((m.client, m.kind, m.subject, m.index, m.payload, k.now, m.t_pub))
 
     sc = load(None, [*BASE, *overrides])
     setup = replace(sc.net_setup(), warmup=0.0)
@@ -124,6 +124,30 @@ def test_bundle_one_publish_per_host_and_instant() -> None:
     assert [(g[2], g[3], g[4]) for g in got] == [
         (4, 5, "s4"), (0, 5, "s0"), (1, 5, "s1"), (2, 5, "s2"), (0, 6, "late")]
     assert got[1][5] == got[2][5] == got[3][5] > got[0][5]
+
+
+def test_bundle_takes_the_publishes_made_while_the_host_process_is_busy() -> None:
+    """The loop-turn rule: node 0's state at t = 0 leaves at once (its burst holds the
+    host's thread for ``dh``); nodes 1 and 2 publish during that burst, so they leave
+    together when the thread is free, at ``dh``, in one burst. Each record keeps its
+    own publish time (the latency is measured from it)."""
+    dh = 1e-3
+    k, net, got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
+                        "deployment.bundle=true", "deployment.preset='dedicated'",
+                        f"deployment.host_demand={dh}", "broker.publish_service=0.0",
+                        "broker.delivery_service=0.0"])
+    net.publish(0, STATE, 0, 5, "s0", 150, (net.server,))
+    k.at(0.4 * dh, net.publish, 1, STATE, 1, 5, "s1", 150, (net.server,))
+    k.at(0.8 * dh, net.publish, 2, STATE, 2, 5, "s2", 150, (net.server,))
+    k.env.run()
+    links = {ld.name: ld.packets for ld in net.links()}
+    assert links["host0.up"] == 2
+    cpu = net.cpu
+    assert cpu is not None
+    assert cpu.hosts[0].free == pytest.approx(2 * dh, abs=1e-15)  # two bursts, back to back
+    assert [(g[2], g[6]) for g in got] == [(0, 0.0), (1, 0.4 * dh), (2, 0.8 * dh)]
+    # the second PUBLISH left at 2 dh: its records arrive together, one PUBLISH later
+    assert got[1][5] == got[2][5] > got[0][5]
 
 
 def test_bundle_wire_size_is_the_records_together() -> None:

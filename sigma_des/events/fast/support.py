@@ -78,5 +78,5 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     if method == "rpc":
         why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
     if sc.net.deployment.bundle:
-        why.append("deployment.bundle (a host's states of one instant as one PUBLISH)")
+        why.append("deployment.bundle (a host's states of one loop turn as one PUBLISH)")
     return "; ".join(why) if why else None
