@@ -184,7 +184,9 @@ class MethodRun(AlignmentServer):
     def deliver(self, m: Msg) -> None:
         """The network delivered message ``m`` to ``m.client`` (a node or the server)."""
         t = self.kernel.now
-        self.collector.delivered(m.kind, m.subject, m.index, m.t_pub, t)
+        # the latency ends at the client's receipt (before its CPU burst), or now
+        t_recv = t if math.isnan(m.t_recv) else m.t_recv
+        self.collector.delivered(m.kind, m.subject, m.index, m.t_pub, t_recv)
         if m.client == self.server:
             frame, gen, obs, stamp = m.payload
             self.aligner.on_states(self.one.fill(t, m.subject, frame, gen, obs, stamp))

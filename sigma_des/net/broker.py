@@ -98,10 +98,13 @@ class Broker:
         if proc is None:
             start = now if now > self.busy else self.busy
         else:
-            start, c = proc.acquire(now)  # its thread is free at ``busy``
             sc = proc.scale
             s_pub = s_pub * sc
             s_del = [x * sc for x in s_del]
+            length = s_pub
+            for x in s_del:
+                length += x
+            start, c = proc.acquire(now, length)  # its thread is free at ``busy``
         if self.warmup <= now < self.end:
             self.max_wait = max(self.max_wait, start - now)
         t_ack = start + s_pub
@@ -127,8 +130,9 @@ class Broker:
             start = now if now > self.busy else self.busy
             end = start + s_del
         else:
-            start, c = proc.acquire(now)
-            end = start + s_del * proc.scale
+            length = s_del * proc.scale
+            start, c = proc.acquire(now, length)
+            end = start + length
             proc.hold(now, start, c, end)
         self.busy = end
         self._count_work(start, end)

@@ -2,20 +2,26 @@
 
 Every process of a deployment (the broker, the alignment server, each physics
 host's client process) is ONE thread on a machine of ``cores`` cores. A *burst*
-of CPU demand ``D`` of a process arriving at ``a`` is allocated at its arrival,
-first come first served, the way the broker's Lindley recursion is:
+of CPU demand ``D`` of a process arriving at ``a`` is placed at its arrival:
 
-* the core: the lowest-index core of the machine with the smallest free time;
-* ``s = a if a > thread_free else thread_free; s = s if s > core_free else core_free``;
-* ``end = s + D * scale``, where ``scale = cores / (cores - background)`` is
+* it is ready at ``r = a if a > thread_free else thread_free`` (its thread serves
+  one burst at a time, in arrival order);
+* it runs for ``L = D * scale``, where ``scale = cores / (cores - background)`` is
   computed once per process (background load slows every burst down);
-* the thread and the core are free again at ``end``.
+* it starts at the earliest ``s >= r`` at which some core has ``[s, s + L)`` free of
+  the reservations already made (the lowest-index core on ties): a core idle in a
+  gap before a later reservation takes a burst that fits in the gap (backfilling),
+  so a thread's backlog never keeps a core idle;
+* the thread is free again at ``s + L``; the core holds ``[s, s + L)``.
 
 Live processes are single-threaded loops that serve one message at a time, and
 a message's demand (~0.1 ms) is far below a scheduler quantum, so bursts run to
-completion (non-preemptive FCFS); processor sharing would re-time every burst in
-service at every arrival. A zero demand is no burst: callers do not call
-:meth:`Process.burst` for it, so nothing is touched.
+completion (non-preemptive); processor sharing would re-time every burst in
+service at every arrival. A core keeps at most :data:`RESERVATIONS` reservations
+(those ended by the arrival are dropped first); beyond that its two earliest merge
+into one (the gap between them is then not used), the same rule as the compiled
+core's. A zero demand is no burst: callers do not call :meth:`Process.burst` for
+it, so nothing is touched.
 
 Like SimPy's resources, this module only computes times; the network
 (:mod:`sigma_des.net.network`) and the broker (:mod:`sigma_des.net.broker`)
@@ -30,27 +36,55 @@ from dataclasses import dataclass
 
 from sigma_des.net.spec import DeploymentSpec
 
-__all__ = ["Cpu", "CpuReport", "Machine", "Process", "ProcessReport"]
+__all__ = ["RESERVATIONS", "Cpu", "CpuReport", "Machine", "Process", "ProcessReport"]
+
+#: most reservations a core keeps (beyond: its two earliest merge into one)
+RESERVATIONS = 64
 
 
 class Machine:
-    """A machine's cores: the time each is free again (FCFS, non-preemptive).
+    """A machine's cores: each core's reservations ``[start, end)``, in start order.
 
     Args:
         name: the machine's name (``all``, ``broker``, ``server``, ``host<h>``).
         cores: number of cores.
     """
 
-    __slots__ = ("name", "free")
+    __slots__ = ("name", "cores")
 
     def __init__(self, name: str, cores: int) -> None:
         self.name = name
-        self.free = [0.0] * cores
+        self.cores: list[list[tuple[float, float]]] = [[] for _ in range(cores)]
 
-    def pick(self) -> int:
-        """The lowest-index core with the smallest free time."""
-        free = self.free
-        return free.index(min(free))
+    def place(self, a: float, r: float, length: float) -> tuple[float, int]:
+        """The earliest start ``s >= r`` of a burst of ``length`` arriving at ``a``, and
+        its core (the lowest index on ties); nothing is reserved yet."""
+        best = -1.0
+        core = 0
+        for c, ivs in enumerate(self.cores):
+            while ivs and ivs[0][1] <= a:  # ended by now: no later burst can meet it
+                del ivs[0]
+            s = r
+            for st, en in ivs:
+                if en <= s:
+                    continue
+                if s + length <= st:  # fits in the gap before this reservation
+                    break
+                s = en
+            if c == 0 or s < best:
+                best = s
+                core = c
+        return best, core
+
+    def reserve(self, c: int, s: float, end: float) -> None:
+        """Core ``c`` holds ``[s, end)`` (a gap :meth:`place` found)."""
+        ivs = self.cores[c]
+        i = len(ivs)
+        while i > 0 and ivs[i - 1][0] > s:
+            i -= 1
+        ivs.insert(i, (s, end))
+        if len(ivs) > RESERVATIONS:
+            ivs[0:2] = [(ivs[0][0], ivs[1][1])]
 
 
 class Process:
@@ -85,19 +119,17 @@ class Process:
         self.max_wait = 0.0
         self.bursts = 0
 
-    def acquire(self, a: float) -> tuple[float, int]:
-        """Start time and core of a burst arriving at ``a`` (nothing is held yet)."""
-        c = self.machine.pick()
+    def acquire(self, a: float, length: float) -> tuple[float, int]:
+        """Start time and core of a burst of ``length`` arriving at ``a`` (nothing is
+        held yet)."""
         tf = self.free
-        cf = self.machine.free[c]
-        s = a if a > tf else tf
-        s = s if s > cf else cf
-        return s, c
+        r = a if a > tf else tf
+        return self.machine.place(a, r, length)
 
     def hold(self, a: float, s: float, c: int, end: float) -> None:
         """A burst arrived at ``a``, started at ``s`` on core ``c`` and ends at ``end``."""
         self.free = end
-        self.machine.free[c] = end
+        self.machine.reserve(c, s, end)
         if self.warmup <= a < self.end:
             self.bursts += 1
             w = s - a
@@ -119,8 +151,9 @@ class Process:
 
     def burst(self, a: float, demand: float) -> float:
         """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its end."""
-        s, c = self.acquire(a)
-        end = s + demand * self.scale
+        length = demand * self.scale
+        s, c = self.acquire(a, length)
+        end = s + length
         self.hold(a, s, c, end)
         return end
 

@@ -96,9 +96,10 @@ def acknack_bytes() -> int:
 @dataclass(slots=True, eq=False, repr=False)
 class Sample(Msg):
     """A writer's sample: the message (``client``: the writer) and its sequence number
-    among that writer's samples (the reader's delivery order)."""
+    among that writer's samples (the reader's delivery order; always given, by
+    keyword: it follows ``Msg``'s defaulted ``t_recv``)."""
 
-    seq: int
+    seq: int = -1
 
 
 def make_network(
@@ -231,7 +232,7 @@ class DdsNetwork(Network):
         for sub in subs:  # a reader's first sample from this writer starts its order
             self._next.setdefault((client, kind, subject, sub), seq)
         msg = Sample(client, kind, subject, index, payload, payload_bits, tuple(subs), 0, t, t,
-                     seq)
+                     seq=seq)
         if self.spec.multicast and len(subs) > 1:
             done = self._cpu(client, t, self._w_cost.get(kind, subject, index, 0))
             nbytes = self.wire_bytes(payload_bits, False)

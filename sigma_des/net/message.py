@@ -12,6 +12,7 @@ of the hop.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,6 +35,9 @@ class Msg:
         attempt: transmission attempt of this hop (0: the first).
         t_pub: when the application published it.
         t_sent: when this try left (the publisher, or the broker downstream).
+        t_recv: when it reached the receiving MQTT client, before that client's CPU
+            burst: the instant live stamps a receipt, to which its latency is measured
+            (NaN until then, and for middlewares that deliver at receipt).
     """
 
     client: int
@@ -46,6 +50,7 @@ class Msg:
     attempt: int
     t_pub: float
     t_sent: float
+    t_recv: float = math.nan
 
     def resent(self) -> Msg:
         """The next try of this hop (``t_sent``: set when it leaves)."""

@@ -280,6 +280,7 @@ class Network(Links):
     def _client_receive(self, m: Msg) -> None:
         """The subscriber receives ``m``: PUBACK (QoS 1), then hand it to the application."""
         now = self.k.env.now
+        m.t_recv = now  # the latency ends here, before the client's burst (live's stamp)
         if self.qos1 and self._puback(m, True, now, now):
             self._resend(m, self._redeliver)
         if not self._app_stage:
@@ -299,7 +300,7 @@ class Network(Links):
         if isinstance(m.payload, Bundle):
             for kind, subject, index, payload, bits, t_pub in m.payload:
                 deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, t_pub,
-                            m.t_sent))
+                            m.t_sent, m.t_recv))
         elif not self.host_clients or c == self.server:
             deliver(m)
         else:
@@ -308,4 +309,4 @@ class Network(Links):
             nodes = self.members[c] if m.kind == TRIGGER else (m.subject,)
             for j in nodes:
                 deliver(Msg(j, m.kind, j, m.index, m.payload, m.bits, (), m.attempt, m.t_pub,
-                            m.t_sent))
+                            m.t_sent, m.t_recv))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sigma_des.net.cpu import Cpu, Machine, Process
+from sigma_des.net.cpu import RESERVATIONS, Cpu, Machine
 from sigma_des.net.spec import DeploymentSpec
 
 
@@ -34,15 +34,35 @@ def test_two_cores_run_two_processes_at_once_but_one_thread_serially() -> None:
     assert a.max_wait == 1.0 and b.max_wait == 0.0
 
 
-def test_lowest_index_core_with_the_smallest_free_time() -> None:
-    m = Machine("all", 3)
-    m.free = [2.0, 1.0, 1.0]
-    assert m.pick() == 1
-    m.free = [0.5, 0.5, 0.5]
-    assert m.pick() == 0
-    p = Process("p", m, 1.0, 0.0, 10.0)
-    assert p.burst(0.0, 1.0) == 1.5  # core 0, free at 0.5
-    assert m.free == [1.5, 0.5, 0.5]
+def test_a_burst_fits_in_a_cores_gap_before_a_later_reservation() -> None:
+    """Backfilling, by hand: W's second burst is ready only at 3 (its thread), so core 0
+    (free from 1) holds [3, 4) and stays idle in [1, 3); Z, arriving at 0.5, fits there
+    and starts at 1, not at 3 (the earliest a core would be free if reservations were
+    made end to end)."""
+    cpu = _colocated(2)
+    x, w, z = cpu.broker, cpu.server, cpu.hosts[0]
+    assert x.burst(0.0, 1.0) == 1.0  # core 0: [0, 1)
+    assert w.burst(0.0, 3.0) == 3.0  # core 1: [0, 3)
+    assert w.burst(0.0, 1.0) == 4.0  # ready at 3: both cores give 3, core 0 (lowest)
+    assert z.burst(0.5, 1.0) == 2.0  # core 0's gap [1, 3)
+    assert z.max_wait == 0.5
+    m = cpu.machines[0]
+    assert m.cores == [[(0.0, 1.0), (1.0, 2.0), (3.0, 4.0)], [(0.0, 3.0)]]
+    # a burst longer than the gap waits for the first core free long enough
+    # (core 0: the gap [2, 3) is too short, then 4; core 1: free at 3)
+    assert x.burst(1.5, 1.5) == 4.5
+    assert m.cores[1] == [(0.0, 3.0), (3.0, 4.5)]
+
+
+def test_reservations_ended_by_an_arrival_are_dropped_and_the_cap_merges() -> None:
+    m = Machine("all", 1)
+    for k in range(RESERVATIONS + 1):
+        m.reserve(0, 2.0 * k, 2.0 * k + 1.0)
+    ivs = m.cores[0]
+    assert len(ivs) == RESERVATIONS
+    assert ivs[0] == (0.0, 3.0) and ivs[1] == (4.0, 5.0)  # the two earliest merged
+    assert m.place(10.0, 10.0, 1.0) == (11.0, 0)  # [10, 11) is reserved, [11, 12) free
+    assert m.cores[0][0] == (10.0, 11.0)  # those ended by 10 are gone
 
 
 def test_background_one_of_two_cores_doubles_every_demand_exactly() -> None:

@@ -169,7 +169,7 @@ def test_zero_demands_touch_nothing() -> None:
     cpu = net.cpu
     assert cpu is not None
     assert all(p.bursts == 0 and p.free == 0.0 for p in cpu.processes)
-    assert cpu.machines[0].free == [0.0, 0.0]
+    assert cpu.machines[0].cores == [[], []]
 
 
 

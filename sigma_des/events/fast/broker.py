@@ -86,6 +86,21 @@ def _work(S, a, b):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _length(S, kind, subject, index, att, s_pub, sc):  # type: ignore[no-untyped-def]
+    """A PUBLISH's whole service on the broker's core (Broker.serve_publish's ``length``:
+    the scaled publish service, then each scaled delivery added in delivery order)."""
+    n = S[IPARAMS][Q_N]
+    length = s_pub
+    if subject == n:
+        bc = S[BCAST]
+        for j in range(S[CPU_IP][CP_NSUB]):
+            length += draw_at(S, SVC_DEL, kind, bc[j], index, att, False) * sc
+    else:
+        length += draw_at(S, SVC_DEL, kind, subject, index, att, False) * sc
+    return length
+
+
+@jit
 def broker(S, s, now):  # type: ignore[no-untyped-def]
     """The PUBLISH in slot ``s`` reaches the broker at ``now`` (Broker.serve_publish and
     Network._broker_receive; with a CPU stage the broker's process takes a core)."""
@@ -100,9 +115,9 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     c = 0
     sc = 1.0
     if scaled:
-        start, c = acquire(S, bp, now)  # its thread is free at F_BUSY
         sc = S[CPU_SCALE][bp]
         s_pub = s_pub * sc
+        start, c = acquire(S, bp, now, _length(S, kind, subject, index, att, s_pub, sc))
     else:
         busy = ff[F_BUSY]
         start = now if now > busy else busy
@@ -146,8 +161,9 @@ def serve_delivery(S, kind, subject, index, attempt, now):  # type: ignore[no-un
         start = now if now > busy else busy
         end = start + s_del
     else:
-        start, c = acquire(S, bp, now)
-        end = start + s_del * S[CPU_SCALE][bp]
+        length = s_del * S[CPU_SCALE][bp]
+        start, c = acquire(S, bp, now, length)
+        end = start + length
         hold(S, bp, now, start, c, end)
     ff[F_BUSY] = end
     _work(S, start, end)

@@ -24,7 +24,9 @@ from sigma_des.events.fast.layout import (
     E_SUBJ,
     E_TYPE,
     E_WHO,
+    EF_TRECV,
     EV_APP,
+    EV_FLOAT,
     EV_INT,
     IPARAMS,
     K_TRIGGER,
@@ -41,33 +43,34 @@ __all__ = ["hand_over", "receive"]
 
 
 @jit
-def _to_node(S, s, j, now):  # type: ignore[no-untyped-def]
+def _to_node(S, s, j, now, t_recv):  # type: ignore[no-untyped-def]
     """Hand the copy in slot ``s`` to node ``j`` (its receiver and draw subject)."""
     evi = S[EV_INT]
     evi[s, E_WHO] = j
     evi[s, E_SUBJ] = j
-    delivered(S, s, now)
+    delivered(S, s, t_recv)
     at_node(S, s, now)
 
 
 @jit
-def hand_over(S, s, now):  # type: ignore[no-untyped-def]
-    """Network._hand_over: the receiving client's application gets the copy in ``s``."""
+def hand_over(S, s, now, t_recv):  # type: ignore[no-untyped-def]
+    """Network._hand_over: the receiving client's application gets the copy in ``s`` at
+    ``now``; it reached the client at ``t_recv`` (where its latency ends)."""
     evi = S[EV_INT]
     c = evi[s, E_WHO]
     if c == S[IPARAMS][Q_N]:
-        delivered(S, s, now)
+        delivered(S, s, t_recv)
         at_server(S, s, now)
     elif not S[CPU_IP][CP_HOSTS]:
-        delivered(S, s, now)
+        delivered(S, s, t_recv)
         at_node(S, s, now)
     elif evi[s, E_KIND] == K_TRIGGER:  # the broadcast: to every node of the host
         ptr = S[MEM_PTR]
         mem = S[MEM]
         for m in range(ptr[c], ptr[c + 1]):
-            _to_node(S, s, mem[m], now)
+            _to_node(S, s, mem[m], now, t_recv)
     else:  # a message about one node (command, re-request): to that node
-        _to_node(S, s, evi[s, E_SUBJ], now)
+        _to_node(S, s, evi[s, E_SUBJ], now, t_recv)
 
 
 @jit
@@ -78,11 +81,12 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     c = S[EV_INT][s, E_WHO]
     p = S[CPU_PROC][c]
     if p < 0:
-        hand_over(S, s, now)
+        hand_over(S, s, now, now)
         return
     ns = alloc(S)  # the event's slot is freed after it: a copy waits for the burst
     copy_slot(S, s, ns)
     evi = S[EV_INT]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
+    S[EV_FLOAT][ns, EF_TRECV] = now  # the receipt, where the latency ends
     push(S, burst(S, p, S[CPU_DEM][c], now), ns)

@@ -1,13 +1,15 @@
 """The CPU stage in the compiled message core (docs/MODEL.md, "Deployment and CPU").
 
 Every process (the broker, the server, each physics host's client process) is one
-thread on a machine's cores; a burst is allocated at its arrival, first come first
-served — :mod:`sigma_des.net.cpu` (``Process.acquire``, ``hold``, ``burst``) with the
-same floating point operations in the same order: the lowest-index core with the
-smallest free time, ``s = a if a > thread_free else thread_free; s = s if s >
-core_free else core_free``, ``end = s + demand * scale``. Process ``p`` is the
-spec's ``Cpu.processes[p]`` (broker, server, hosts); its counters (CPU seconds and
-longest wait in the metrics window, bursts) are handed back at the end of the run.
+thread on a machine's cores; a burst is placed at its arrival —
+:mod:`sigma_des.net.cpu` (``Process.acquire``, ``hold``, ``burst``, ``Machine.place``,
+``reserve``) with the same floating point operations in the same order: ready at ``r
+= a if a > thread_free else thread_free``, length ``L = demand * scale``, the earliest
+start ``s >= r`` at which a core has ``[s, s + L)`` free of its reservations (lowest
+index on ties), at most ``RESERVATIONS`` a core (beyond: the two earliest merge).
+Process ``p`` is the spec's ``Cpu.processes[p]`` (broker, server, hosts); its
+counters (CPU seconds and longest wait in the metrics window, bursts) are handed
+back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
 """
 
@@ -18,9 +20,10 @@ from sigma_des.events.fast.layout import (
     CA_WAIT,
     CPU_ACC,
     CPU_BURSTS,
-    CPU_CORE,
     CPU_FREE,
+    CPU_IV,
     CPU_MACH,
+    CPU_NIV,
     CPU_SCALE,
     FPARAMS,
     G_END,
@@ -28,30 +31,78 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.primitives import jit
 from sigma_des.events.fast.stateref import ref
+from sigma_des.net.cpu import RESERVATIONS
 
 __all__ = ["acquire", "burst", "hold", "tick"]
 
 
 @jit
-def acquire(S, p, a):  # type: ignore[no-untyped-def]
-    """Process.acquire: start time and core of a burst of process ``p`` arriving at ``a``."""
-    row = S[CPU_CORE][S[CPU_MACH][p]]
-    c = 0
-    for j in range(1, row.shape[0]):  # free.index(min(free)): the first smallest
-        if row[j] < row[c]:
-            c = j
+def acquire(S, p, a, length):  # type: ignore[no-untyped-def]
+    """Process.acquire and Machine.place: start time and core of a burst of ``length``
+    of process ``p`` arriving at ``a`` (ended reservations dropped, nothing held)."""
+    m = S[CPU_MACH][p]
+    iv = S[CPU_IV][m]
+    niv = S[CPU_NIV][m]
     tf = S[CPU_FREE][p]
-    cf = row[c]
-    s = a if a > tf else tf
-    s = s if s > cf else cf
-    return s, c
+    r = a if a > tf else tf
+    best = -1.0
+    core = 0
+    for c in range(niv.shape[0]):
+        k = 0
+        while k < niv[c] and iv[c, k, 1] <= a:  # ended by now
+            k += 1
+        if k:
+            nk = niv[c] - k
+            for j in range(nk):
+                iv[c, j, 0] = iv[c, j + k, 0]
+                iv[c, j, 1] = iv[c, j + k, 1]
+            niv[c] = nk
+        s = r
+        for j in range(niv[c]):
+            st = iv[c, j, 0]
+            en = iv[c, j, 1]
+            if en <= s:
+                continue
+            if s + length <= st:  # fits in the gap before this reservation
+                break
+            s = en
+        if c == 0 or s < best:
+            best = s
+            core = c
+    return best, core
+
+
+@jit
+def _reserve(S, m, c, s, end):  # type: ignore[no-untyped-def]
+    """Machine.reserve: core ``c`` of machine ``m`` holds ``[s, end)``."""
+    iv = S[CPU_IV][m]
+    niv = S[CPU_NIV][m]
+    n = niv[c]
+    i = n
+    while i > 0 and iv[c, i - 1, 0] > s:
+        i -= 1
+    j = n
+    while j > i:
+        iv[c, j, 0] = iv[c, j - 1, 0]
+        iv[c, j, 1] = iv[c, j - 1, 1]
+        j -= 1
+    iv[c, i, 0] = s
+    iv[c, i, 1] = end
+    n += 1
+    if n > RESERVATIONS:  # the two earliest merge (a row of room for the insert)
+        iv[c, 0, 1] = iv[c, 1, 1]
+        for j in range(1, n - 1):
+            iv[c, j, 0] = iv[c, j + 1, 0]
+            iv[c, j, 1] = iv[c, j + 1, 1]
+        n -= 1
+    niv[c] = n
 
 
 @jit
 def hold(S, p, a, s, c, end):  # type: ignore[no-untyped-def]
     """Process.hold: the burst arrived at ``a``, started at ``s`` on core ``c``, ends at ``end``."""
     S[CPU_FREE][p] = end
-    S[CPU_CORE][S[CPU_MACH][p], c] = end
+    _reserve(S, S[CPU_MACH][p], c, s, end)
     g = S[FPARAMS]
     acc = S[CPU_ACC]
     if g[G_WARMUP] <= a and a < g[G_END]:
@@ -69,8 +120,9 @@ def hold(S, p, a, s, c, end):  # type: ignore[no-untyped-def]
 def burst(S, p, demand, a):  # type: ignore[no-untyped-def]
     """Process.burst: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
     ``a``; its end."""
-    s, c = acquire(S, p, a)
-    end = s + demand * S[CPU_SCALE][p]
+    length = demand * S[CPU_SCALE][p]
+    s, c = acquire(S, p, a, length)
+    end = s + length
     hold(S, p, a, s, c, end)
     return end
 

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.net.cpu import RESERVATIONS
 from sigma_des.net.kinds import Kind
 
 __all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
@@ -87,6 +88,9 @@ E_ATT, E_RTYPE, E_TACT, E_SEQ, E_NEXT, E_PREV = range(7, 13)
 E_COLS = 13
 # event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
 EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
+#: an application copy's (EV_APP) receipt time at its client, where the latency ends:
+#: its departure column, no longer needed once the copy has arrived
+EF_TRECV = EF_TDEP
 # draw sources: latency and loss uniforms per (link class, direction), broker, compute
 LAT_SU, LAT_SD, LAT_HU, LAT_HD = 0, 1, 2, 3
 U_OFFSET = 4
@@ -246,7 +250,9 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_mach", _i, ("procs",), None, "machine of each process"),
     Field("cpu_scale", _f, ("procs",), None, "background slow-down of each process"),
     Field("cpu_free", _f, ("procs",), 0.0, "process thread: free again at"),
-    Field("cpu_core", _f, ("machines", "cpu_cores"), 0.0, "machine cores: free again at"),
+    Field("cpu_iv", _f, ("machines", "cpu_cores", RESERVATIONS + 1, 2), 0.0,
+          "machine cores' reservations [start, end), in start order (+1: room to insert)"),
+    Field("cpu_niv", _i, ("machines", "cpu_cores"), 0, "reservations each core holds"),
     Field("cpu_acc", _f, ("procs", 2), 0.0, "process CPU seconds and longest wait in window"),
     Field("cpu_bursts", _i, ("procs",), 0.0, "bursts arriving in the window, per process"),
     Field("cl_of", _i, ("clients",), None, "MQTT client of each node (the server's: itself)"),
@@ -341,7 +347,8 @@ CPU_DEM = INDEX["cpu_dem"]
 CPU_MACH = INDEX["cpu_mach"]
 CPU_SCALE = INDEX["cpu_scale"]
 CPU_FREE = INDEX["cpu_free"]
-CPU_CORE = INDEX["cpu_core"]
+CPU_IV = INDEX["cpu_iv"]
+CPU_NIV = INDEX["cpu_niv"]
 CPU_ACC = INDEX["cpu_acc"]
 CPU_BURSTS = INDEX["cpu_bursts"]
 CL_OF = INDEX["cl_of"]

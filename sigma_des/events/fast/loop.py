@@ -39,6 +39,7 @@ from sigma_des.events.fast.layout import (
     EF_L,
     EF_PAY,
     EF_TPUB,
+    EF_TRECV,
     EV_BROKER,
     EV_CLIENT,
     EV_DONE,
@@ -211,7 +212,7 @@ def _handle(S, s, t):  # type: ignore[no-untyped-def]
     elif typ == EV_SEND:
         send_burst_done(S, s, t)
     else:
-        hand_over(S, s, t)  # EV_APP: the receive burst ended
+        hand_over(S, s, t, S[EV_FLOAT][s, EF_TRECV])  # EV_APP: the receive burst ended
 
 
 @jit

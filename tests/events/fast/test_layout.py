@@ -11,6 +11,7 @@ from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.factory import make_behaviour, make_dynamics
+from sigma_des.net.cpu import RESERVATIONS
 from tests.conftest import tiny
 
 DIMS = {
@@ -33,11 +34,11 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 13 deployment
-    assert len(set(names)) == len(names) == 85
+    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 14 deployment
+    assert len(set(names)) == len(names) == 86
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(85))
+    assert [getattr(L, name.upper()) for name in names] == list(range(86))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
@@ -142,7 +143,8 @@ def test_a_deployment_follows_the_network() -> None:
     ip = S[L.CPU_IP]
     assert ip[L.CP_BROKER] == L.P_BROKER and ip[L.CP_HOSTS] == 1 and ip[L.CP_APP] == 1
     # dedicated: broker, server, host 0, host 1 on machines 0..3 of 3 cores; 3 / (3 - 1)
-    assert S[L.CPU_MACH].tolist() == [0, 1, 2, 3] and S[L.CPU_CORE].shape == (4, 3)
+    assert S[L.CPU_MACH].tolist() == [0, 1, 2, 3]
+    assert S[L.CPU_IV].shape == (4, 3, RESERVATIONS + 1, 2) and S[L.CPU_NIV].shape == (4, 3)
     assert S[L.CPU_SCALE].tolist() == [1.5] * 4
     # host demand 0: the nodes' clients make no bursts; the server's do
     assert S[L.CPU_PROC].tolist() == [-1, -1, -1, L.P_SERVER]
