@@ -18,11 +18,13 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
   (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
   ``(path latency - CPU services on the path) / 2``, the CPU services being what the
   DES adds itself (:func:`~sigma_des.live.fit_cpu.path_services`: the broker's two
-  services, and with a CPU stage the sender's and the receiver's bursts, slowed by the
-  background). The path latency is **de-queued** first (:mod:`sigma_des.live.dequeue`):
-  a delivery closer to the previous one into its receiver than ``hold_tol`` plus the
-  receiver's burst may have waited (behind the stream's order, or for the receiving
-  thread, both of which the DES adds itself), so it is a left-censored sample;
+  services, and with a CPU stage the sender's publish burst, slowed by the
+  background; the receiver's burst comes after the receipt live stamps). The down hop
+  is fitted from triggers only: a tick's commands leave the server together and their
+  latencies hold its publish queue, which the DES adds itself. The path latency is
+  **de-queued** first (:mod:`sigma_des.live.dequeue`): a delivery closer to the
+  previous one into its receiver than ``hold_tol`` may have waited behind the stream's
+  order (which the DES adds itself), so it is a left-censored sample;
 * **the server's receive cost** (time from the client's receipt to the loop handling
   the state): with a CPU stage it is the server's receive burst and its thread's
   queue, modelled; without one it is folded into the server link's down latency
@@ -205,15 +207,17 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
     """Path latencies of both directions, with the in-order holds flagged.
 
     Up (states): one in-order stream per method into the server (the DES's server
-    connection carries every state, and the server's one thread receives them). Down
-    (triggers and commands): one per method and receiving host. Rows of one receipt (a
-    recording repeats a host's trigger per node) count once. A delivery within
-    ``tol_up`` / ``tol_down`` after the previous one into its receiver may have waited
+    connection carries every state). Down (triggers): one per method and receiving
+    host. Commands are left out: a tick's commands leave the server together, so
+    their latencies hold the server's publish queue, which the DES adds itself (they
+    take the triggers' hops). Rows of one receipt (a recording repeats a host's trigger
+    per node) count once. A delivery within ``tol_up`` / ``tol_down`` after the
+    previous one into its receiver may have waited behind it on the stream
     (:func:`~sigma_des.live.dequeue.held`).
     """
     up_conn = pd.factorize(states["method"])[0]
     lat_up = (states["t_recv"] - states["t_send"]).to_numpy()
-    down = w[w["kind"].isin(("trigger", "command"))].drop_duplicates(
+    down = w[w["kind"] == "trigger"].drop_duplicates(
         ["method", "kind", "frame", "host", "t_recv"])
     down = down[np.isfinite(down["t_recv"])]
     down_conn = pd.factorize(down["method"].astype(str) + "/" + down["host"].astype(str))[0]
@@ -244,10 +248,9 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     receive queue) as the links' empirical latency files (see the module doc).
 
     ``cpu`` is :func:`~sigma_des.live.fit_cpu.path_services`: the CPU services the DES
-    adds on each path (taken out of every sample) and each receiver's burst (a delivery
-    closer than ``tol`` plus that burst after the previous one into its receiver may
-    have waited for it: censored)."""
-    p = _paths(w, states, tol + cpu["up_rx"], tol + cpu["down_rx"])
+    adds on each path (taken out of every sample). A delivery closer than ``tol`` after
+    the previous one into its receiver may have waited for it: censored."""
+    p = _paths(w, states, tol, tol)
     if p["up"].size < MIN_SAMPLES:
         warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
     hop_up = _hop_samples(p["up"], p["up_held"], cpu["up"])
@@ -259,7 +262,7 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     if p["down"].size >= MIN_SAMPLES:
         files["hop_down"] = _hop_samples(p["down"], p["down_held"], cpu["down"])
     else:
-        warn.append(f"only {p['down'].size} trigger/command latencies in the window "
+        warn.append(f"only {p['down'].size} trigger latencies in the window "
                     f"(< {MIN_SAMPLES}): the down direction gets the states' hop latency")
     paths = _write_latency_files(d, files, key)
     up = Dist(dist="empirical", file=str(paths["hop_up"]))

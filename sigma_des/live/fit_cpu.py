@@ -183,20 +183,17 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
 
 
 def path_services(dep: DeploymentSpec, publish: float, delivery: float) -> dict[str, float]:
-    """CPU service the DES spends on one message's path, per direction (s).
+    """CPU service the DES spends on one message's measured path, per direction (s).
 
-    ``up`` (a state: the host's publish burst, the broker's publish and delivery, the
-    server's receive burst) and ``down`` (a trigger or command: server, broker, host),
-    every burst slowed by the background (``cores / (cores - background)``); and the
-    receiving process's burst (``up_rx``, ``down_rx``): deliveries into one process
-    closer together than it may have waited for its thread. Without a CPU stage only
-    the broker's services, unscaled.
+    The latency ends at the receiving client's receipt (where live stamps it, before
+    the receiver's burst; MODEL.md "Deployment and CPU"), so a path holds the sender's
+    publish burst and the broker's two services: ``up`` (a state: the host's burst) and
+    ``down`` (a trigger: the server's), every burst slowed by the background
+    (``cores / (cores - background)``). Without a CPU stage only the broker's services,
+    unscaled.
     """
     if not dep.cpu:
-        return {"up": publish + delivery, "down": publish + delivery, "up_rx": 0.0,
-                "down_rx": 0.0}
+        return {"up": publish + delivery, "down": publish + delivery}
     scale = dep.cores / (dep.cores - dep.background)
     broker = (publish + delivery) * scale
-    return {"up": broker + (dep.host_demand + dep.server_demand) * scale,
-            "down": broker + (dep.server_demand + dep.host_demand) * scale,
-            "up_rx": dep.server_demand * scale, "down_rx": dep.host_demand * scale}
+    return {"up": broker + dep.host_demand * scale, "down": broker + dep.server_demand * scale}

@@ -92,16 +92,19 @@ def test_calibrate_writes_the_deployment_with_the_fitted_values(tmp_path: Path) 
     text = path.read_text()
     assert '[deployment]\npreset = "colocated"' in text and 'clients = "host"' in text
     # the hop: the path latency less the CPU services the DES adds on it (the broker's
-    # two, the sender's and the receiver's bursts), all slowed by 4 / (4 - 0.3)
+    # two and the sender's burst: the host's for a state, the server's for a trigger),
+    # all slowed by 4 / (4 - 0.3)
     scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
-    cpu = scale * (2 * broker + host + server)
+    cpu_up = scale * (2 * broker + host)
+    cpu_down = scale * (2 * broker + server)
     up = np.loadtxt(sc.net.host_link.latency.file)  # type: ignore[union-attr]
     down = np.loadtxt(sc.net.server_link.latency.file)  # type: ignore[union-attr]
-    assert up.mean() == pytest.approx((STATE_LAT - cpu) / 2, rel=1e-9)
-    assert down.mean() == pytest.approx((np.mean(TRIG_LAT) - cpu) / 2, rel=1e-6)
-    assert rep["path_cpu_service_up_s"] == pytest.approx(cpu, rel=1e-12)
+    assert up.mean() == pytest.approx((STATE_LAT - cpu_up) / 2, rel=1e-8)  # %.9g files
+    assert down.mean() == pytest.approx((np.mean(TRIG_LAT) - cpu_down) / 2, rel=1e-6)
+    assert rep["path_cpu_service_up_s"] == pytest.approx(cpu_up, rel=1e-12)
+    assert rep["path_cpu_service_down_s"] == pytest.approx(cpu_down, rel=1e-12)
     assert rep["server_queue_folded_into_server_link"] is False
-    assert rep["state_held_frac"] == 0.0  # states 0.5 ms apart > 0.1 ms + the server's burst
+    assert rep["state_held_frac"] == 0.0  # states 0.5 ms apart > 0.1 ms
     assert not any("cpu.csv" in w for w in rep["warnings"])
 
 
@@ -140,7 +143,18 @@ def test_without_cpu_csv_no_cpu_stage_is_fitted(tmp_path: Path) -> None:
     assert sc.deployment == DeploymentSpec()
     assert "no cpu.csv next to the source: no CPU stage fitted" in rep["warnings"][0]
     assert path_services(DeploymentSpec(), 1e-5, 2e-5) == {
-        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5, "up_rx": 0.0, "down_rx": 0.0}
+        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5}
+
+
+def test_path_services_hold_the_senders_burst_not_the_receivers() -> None:
+    """Background 1 of 4 cores: every service × 4/3. A state's path: the broker's two
+    services and the host's publish burst; a trigger's: the broker's and the server's
+    (the receiver's burst comes after the receipt, where the latency ends)."""
+    dep = DeploymentSpec(preset="colocated", cores=4, background=1.0, host_demand=3e-4,
+                         server_demand=6e-4)
+    got = path_services(dep, 1.5e-5, 3e-5)
+    assert got["up"] == pytest.approx((4.5e-5 + 3e-4) * 4 / 3, rel=1e-12)
+    assert got["down"] == pytest.approx((4.5e-5 + 6e-4) * 4 / 3, rel=1e-12)
 
 
 def test_icc_hand_computed() -> None:
