@@ -149,13 +149,18 @@ class Process:
         self.max_wait = max(self.max_wait, max_wait)
         self.bursts += bursts
 
-    def burst(self, a: float, demand: float) -> float:
-        """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its end."""
+    def span(self, a: float, demand: float) -> tuple[float, float]:
+        """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its start and
+        end."""
         length = demand * self.scale
         s, c = self.acquire(a, length)
         end = s + length
         self.hold(a, s, c, end)
-        return end
+        return s, end
+
+    def burst(self, a: float, demand: float) -> float:
+        """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its end."""
+        return self.span(a, demand)[1]
 
 
 @dataclass(frozen=True)

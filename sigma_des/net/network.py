@@ -45,14 +45,14 @@ __all__ = ["Bundle", "Network"]
 
 #: called with every message that reaches its receiver (duplicates included)
 Deliver = Callable[[Msg], None]
-#: one record of a bundle: ``(kind, subject, index, payload, payload_bits, t_pub)``
-Record = tuple[int, int, int, Any, int, float]
+#: one record of a bundle: ``(kind, subject, index, payload, payload_bits)``
+Record = tuple[int, int, int, Any, int]
 
 
 class Bundle(tuple[Record, ...]):
     """The payload of a bundled PUBLISH: the records a host client published in one loop
     turn, in publish order (handed to the receiving application one by one, each with
-    its own publish time)."""
+    the bundle's publish time: live stamps them in the turn that sends them)."""
 
     __slots__ = ()
 
@@ -174,8 +174,7 @@ class Network(Links):
             client = cl[client]
             subs = tuple(dict.fromkeys(cl[s] for s in subscribers))
             if self.bundle and client != self.server:
-                rec = (kind, subject, index, payload, payload_bits, now)
-                self._add_to_bundle(client, rec, subs)
+                self._add_to_bundle(client, (kind, subject, index, payload, payload_bits), subs)
                 return
         else:
             subs = tuple(subscribers)
@@ -183,12 +182,16 @@ class Network(Links):
             Msg(client, kind, subject, index, payload, payload_bits, subs, 0, now, now))
 
     def _client_publish(self, m: Msg) -> None:
-        """``m.client``'s process spends its publish burst; then the PUBLISH leaves."""
+        """``m.client``'s process spends its publish burst; then the PUBLISH leaves. The
+        publish time becomes the burst's start: a live process stamps a message when its
+        thread gets to the handler that sends it, so the wait for the thread is before
+        the stamp, not in the latency."""
         proc = self._proc[m.client]
         if proc is None:
             self._publish_try(m)
         else:
-            self.k.at(proc.burst(m.t_pub, self._demand[m.client]), self._publish_try, m)
+            m.t_pub, end = proc.span(m.t_pub, self._demand[m.client])
+            self.k.at(end, self._publish_try, m)
 
     def _add_to_bundle(self, client: int, rec: Record, subs: tuple[int, ...]) -> None:
         """Bundle: keep ``rec`` for host ``client``'s PUBLISH of this loop turn.
@@ -213,7 +216,7 @@ class Network(Links):
         first record's kind, subject and index key its draws; its payload the sum)."""
         pend = self._pending.pop(client)
         now = self.k.now
-        kind, subject, index, _p, _b, _t = pend[0][0]
+        kind, subject, index, _p, _b = pend[0][0]
         recs = Bundle(r for r, _s in pend)
         bits = sum(r[4] for r in recs)
         self._client_publish(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
@@ -298,8 +301,8 @@ class Network(Links):
         deliver = self.deliver
         c = m.client
         if isinstance(m.payload, Bundle):
-            for kind, subject, index, payload, bits, t_pub in m.payload:
-                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, t_pub,
+            for kind, subject, index, payload, bits in m.payload:
+                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, m.t_pub,
                             m.t_sent, m.t_recv))
         elif not self.host_clients or c == self.server:
             deliver(m)

@@ -79,8 +79,9 @@ def test_overloaded_server_falls_behind_with_n() -> None:
     """Server demand 0.4 ms: load (N+1)·f·Ds = 0.84, 1.24, 1.64 at N = 20, 30, 40.
     Below 1 the server keeps up (its longest wait is below a frame's batch plus a
     trigger period); beyond 1 its backlog grows for the whole run: it is busy all the
-    time, its triggers leave ever later (their latency counts the publish burst's wait)
-    and the age of what it shows grows (measured: AoI 22, 83, 120 ms)."""
+    time, its triggers leave ever later (stamped when its thread gets to them, as live
+    stamps them, so their latency stays one burst and a trip) and the age of what it
+    shows grows."""
     ds = 4e-4
     aoi = []
     for n in (20, 30, 40):
@@ -94,7 +95,7 @@ def test_overloaded_server_falls_behind_with_n() -> None:
             assert m["server_cpu_max_wait_ms"] < (n + 1) * ds * 1e3 + 1e3 / F
         else:
             assert m["server_cpu_util"] > 0.99
-            assert m["latency_trigger_mean"] > 20.0
+            assert m["latency_trigger_mean"] < ds * 1e3 + 2.0
             assert m["server_cpu_max_wait_ms"] > 100.0
     assert aoi[0] < aoi[1] < aoi[2]
 

@@ -129,8 +129,9 @@ def test_bundle_one_publish_per_host_and_instant() -> None:
 def test_bundle_takes_the_publishes_made_while_the_host_process_is_busy() -> None:
     """The loop-turn rule: node 0's state at t = 0 leaves at once (its burst holds the
     host's thread for ``dh``); nodes 1 and 2 publish during that burst, so they leave
-    together when the thread is free, at ``dh``, in one burst. Each record keeps its
-    own publish time (the latency is measured from it)."""
+    together when the thread is free, at ``dh``, in one burst. Their publish time (where
+    the latency starts) is that burst's start, as live stamps the records of the turn
+    that sends them."""
     dh = 1e-3
     k, net, got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
                         "deployment.bundle=true", "deployment.preset='dedicated'",
@@ -145,9 +146,23 @@ def test_bundle_takes_the_publishes_made_while_the_host_process_is_busy() -> Non
     cpu = net.cpu
     assert cpu is not None
     assert cpu.hosts[0].free == pytest.approx(2 * dh, abs=1e-15)  # two bursts, back to back
-    assert [(g[2], g[6]) for g in got] == [(0, 0.0), (1, 0.4 * dh), (2, 0.8 * dh)]
+    assert [(g[2], g[6]) for g in got] == [(0, 0.0), (1, dh), (2, dh)]
     # the second PUBLISH left at 2 dh: its records arrive together, one PUBLISH later
     assert got[1][5] == got[2][5] > got[0][5]
+
+
+def test_a_publish_waiting_for_its_thread_is_stamped_when_the_thread_starts_it() -> None:
+    """Two states of one host at t = 0: the second waits ``dh`` for the host's thread.
+    Live stamps a message when its handler runs, so its publish time (where its latency
+    starts) is the burst's start, ``dh``; the first's is 0. Both arrive one burst apart."""
+    dh = 1e-3
+    k, net, got = _net(["nodes=2", "hosts=1", "deployment.preset='dedicated'",
+                        f"deployment.host_demand={dh}", "broker.publish_service=0.0",
+                        "broker.delivery_service=0.0"])
+    _two_states(net)
+    k.env.run()
+    assert [(g[2], g[6]) for g in got] == [(0, 0.0), (1, dh)]
+    assert got[1][5] - got[0][5] == pytest.approx(dh, rel=1e-9)
 
 
 def test_bundle_wire_size_is_the_records_together() -> None:

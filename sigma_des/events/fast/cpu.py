@@ -33,7 +33,7 @@ from sigma_des.events.fast.primitives import jit
 from sigma_des.events.fast.stateref import ref
 from sigma_des.net.cpu import RESERVATIONS
 
-__all__ = ["acquire", "burst", "hold", "tick"]
+__all__ = ["acquire", "burst", "hold", "span", "tick"]
 
 
 @jit
@@ -117,14 +117,20 @@ def hold(S, p, a, s, c, end):  # type: ignore[no-untyped-def]
 
 
 @jit
-def burst(S, p, demand, a):  # type: ignore[no-untyped-def]
-    """Process.burst: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
-    ``a``; its end."""
+def span(S, p, demand, a):  # type: ignore[no-untyped-def]
+    """Process.span: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
+    ``a``; its start and end."""
     length = demand * S[CPU_SCALE][p]
     s, c = acquire(S, p, a, length)
     end = s + length
     hold(S, p, a, s, c, end)
-    return end
+    return s, end
+
+
+@jit
+def burst(S, p, demand, a):  # type: ignore[no-untyped-def]
+    """Process.burst: a burst's end (:func:`span`)."""
+    return span(S, p, demand, a)[1]
 
 
 @jit

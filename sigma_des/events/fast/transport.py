@@ -16,7 +16,7 @@ Without QoS 1 over datagram :func:`send` is one hop
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import burst
+from sigma_des.events.fast.cpu import span
 from sigma_des.events.fast.layout import (
     CPU_DEM,
     CPU_PROC,
@@ -26,6 +26,7 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     E_WHO,
     EF_TDEP,
+    EF_TPUB,
     EV_BROKER,
     EV_FLOAT,
     EV_INT,
@@ -123,7 +124,9 @@ def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untype
         send(S, slot, t)
         return
     S[EV_INT][slot, E_TYPE] = EV_SEND
-    push(S, burst(S, p, S[CPU_DEM][client], t), slot)
+    start, end = span(S, p, S[CPU_DEM][client], t)
+    S[EV_FLOAT][slot, EF_TPUB] = start  # Network._client_publish: stamped at the start
+    push(S, end, slot)
 
 
 @jit
