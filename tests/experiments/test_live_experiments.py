@@ -46,6 +46,9 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
            str(tmp_path)]
     first = subprocess.run(cmd, check=True, env=env, timeout=600, capture_output=True, text=True)
     assert "expected wall time" in first.stderr
+    # the kernels compiled before the first live run (a cold cache stalls it)
+    assert "compiling the numba kernels first" in first.stderr
+    assert "warm-up done" in (tmp_path / "warmup.log").read_text()
     rows = list(csv.DictReader((tmp_path / "cells.csv").open()))
     assert {r["cell"] for r in rows} == {"cal-r1", "n6-node", "n6-bundle"}
     assert {r["method"] for r in rows} == {"none", "bides"}

@@ -43,12 +43,14 @@ from sigma_des.version import __version__
 
 __all__ = ["MissedTap", "background_cores", "bounded_run", "calibrate_run", "des_cell",
            "des_figures", "des_scenario", "live_cell", "live_timeout", "load_calibration",
-           "read_json", "shift_host_link", "write_json"]
+           "read_json", "shift_host_link", "warm_up", "write_json"]
 
 #: Keys every live run gets besides the cell's own (no fidelity: not compared).
 LIVE_BASE = ("fidelity.enabled=false",)
 #: Seconds between SIGTERM and SIGKILL of a live run past its time limit.
 GRACE_S = 20.0
+#: Time limit of ``sigma-des warmup`` (a cold numba cache compiles in ~1-2 min).
+WARMUP_S = 600.0
 
 
 def write_json(path: Path, obj: Any) -> None:
@@ -69,6 +71,16 @@ def read_json(path: Path) -> Any:
 def _cli() -> list[str]:
     return [sys.executable, "-c", "import sys; from sigma_des.cli import main; "
             "sys.exit(main(sys.argv[1:]))"]
+
+
+def warm_up(log: Path) -> int:
+    """``sigma-des warmup`` (bounded by :data:`WARMUP_S`), before the first live run: on
+    a cold numba cache the live processes compile their kernels inside the first run's
+    window, a start-up stall the calibration would then fit (measured on a fresh
+    checkout: ``none`` of the calibration run missed 9.4 % of frames, p99 AoI 215 ms,
+    against 0 % and 23 ms in its repeats). Returns its exit status (124 if timed out)."""
+    code, timed_out = bounded_run([*_cli(), "warmup"], log, WARMUP_S)
+    return 124 if timed_out else code
 
 
 def bounded_run(cmd: list[str], log: Path, timeout: float) -> tuple[int, bool]:

@@ -30,6 +30,7 @@ from sigma_des.studies.validation.runs import (
     live_cell,
     load_calibration,
     read_json,
+    warm_up,
     write_json,
 )
 
@@ -134,6 +135,11 @@ def run_suite(plan: Plan, out: Path, say: Say = _say) -> Outcome:
     say(f"validation: {len(plan.cells)} live cells x {len(plan.methods)} methods, "
         f"{plan.duration:g} s runs; {len(plan.knee_cells())} knee-grid DES cells; expected "
         f"wall time ~{_clock(plan.estimate())} on an idle 2-core machine")
+    say("compiling the numba kernels first (`sigma-des warmup`) ...")
+    code = warm_up(out / "warmup.log")
+    if code:
+        say(f"    warmup exited {code} (see {out / 'warmup.log'}): the first live run may "
+            "hold compile stalls")
     live = _live_all(plan, out, say, t0)
     des = _des_all(plan, out, say, t0)
     report = read_json(out / "cal" / "calibrated.json") or {}
