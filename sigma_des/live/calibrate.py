@@ -78,8 +78,11 @@ from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist
 from sigma_des.net.spec import BrokerSpec, DeploymentSpec, NetSpec
 
-__all__ = ["MIN_SAMPLES", "calibrate", "calibrated_toml", "delivery_floor", "fanout_slope",
-           "for_target", "report_lines"]
+__all__ = ["MIN_SAMPLES", "STALL_FACTOR", "calibrate", "calibrated_toml", "delivery_floor",
+           "fanout_slope", "for_target", "report_lines", "stalls"]
+
+#: a path latency above this multiple of its 99th percentile is a process stall
+STALL_FACTOR = 10.0
 
 
 def fanout_slope(trig: pd.DataFrame) -> tuple[float, float]:
@@ -193,13 +196,38 @@ def _window(source: Path) -> tuple[Scenario, pd.DataFrame, pd.DataFrame, pd.Data
     return base, msgs, w, states
 
 
+def stalls(x: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The path latencies taken as stalls of a process, not per-message delays: above
+    :data:`STALL_FACTOR` times their 99th percentile. The DES draws each hop
+    independently and delivers a stream in order, so one live stall (every message of
+    a moment late together) drawn as a per-message latency would recur at random and
+    hold every later message of its connection behind it."""
+    if x.size == 0:
+        return np.zeros(0, dtype=bool)
+    return np.asarray(x > STALL_FACTOR * np.percentile(x, 99), dtype=bool)
+
+
 def _hop_samples(x: NDArray[np.float64], held_: NDArray[np.bool_], services: float
                  ) -> NDArray[np.float64]:
     """Per-hop draws from path latencies ``x`` (host -> broker -> receiver): the
     de-queued path latency (:mod:`sigma_des.live.dequeue`) less the broker's services,
-    split evenly over the two hops; one sample per message, ascending."""
-    xs, w = censored_weights(x, held_)
-    return np.clip((quantiles(xs, w, x.size) - services) / 2.0, 0.0, None)
+    split evenly over the two hops, stalls (:func:`stalls`) left out; one sample per
+    message kept, ascending."""
+    keep = ~stalls(x)
+    xs, w = censored_weights(x[keep], held_[keep])
+    return np.clip((quantiles(xs, w, int(keep.sum())) - services) / 2.0, 0.0, None)
+
+
+def _stall_note(x: NDArray[np.float64], what: str, warn: list[str]) -> int:
+    """Say how many of ``x`` were left out as stalls; their number."""
+    cut = stalls(x)
+    k = int(cut.sum())
+    if k:
+        warn.append(f"{k} of {x.size} {what} latencies above {STALL_FACTOR:g} x their 99th "
+                    f"percentile (> {STALL_FACTOR * np.percentile(x, 99) * 1e3:.3g} ms, mean "
+                    f"{x[cut].mean() * 1e3:.3g} ms) taken as process stalls and left out of "
+                    "the hop draws (the DES has no stall model; docs/LIVE.md)")
+    return k
 
 
 def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
@@ -254,13 +282,16 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     if p["up"].size < MIN_SAMPLES:
         warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
     hop_up = _hop_samples(p["up"], p["up_held"], cpu["up"])
+    stalls_up = _stall_note(p["up"], "state", warn)
     queue = np.nan_to_num(np.clip((states["t_trig"] - states["t_recv"]).to_numpy(), 0.0, None))
     fold = fold_ok and float(queue.mean()) > 0.05 * float(hop_up.mean())
     files = {"hop_up": hop_up}
     if fold:  # no CPU stage: the server link's down hop carries the server's receive queue
         files["server_down"] = _hop_samples(p["up"] + 2.0 * queue, p["up_held"], cpu["up"])
+    stalls_down = 0
     if p["down"].size >= MIN_SAMPLES:
         files["hop_down"] = _hop_samples(p["down"], p["down_held"], cpu["down"])
+        stalls_down = _stall_note(p["down"], "trigger", warn)
     else:
         warn.append(f"only {p['down'].size} trigger latencies in the window "
                     f"(< {MIN_SAMPLES}): the down direction gets the states' hop latency")
@@ -281,6 +312,8 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
         "down_latency_mean_s": float(p["down"].mean()) if p["down"].size else float("nan"),
         "down_held_frac": float(p["down_held"].mean()) if p["down"].size else float("nan"),
         "down_latencies": int(p["down"].size),
+        "stalls_up": stalls_up,
+        "stalls_down": stalls_down,
         "hop_down_latency_mean_s": float(hop_down.mean()),
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
         "hold_tol_s": tol,

@@ -17,7 +17,7 @@ from sigma_des.api import run_method
 from sigma_des.cli import main
 from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.calibrate import calibrate, report_lines
+from sigma_des.live.calibrate import STALL_FACTOR, calibrate, report_lines, stalls
 from sigma_des.live.dequeue import job_services
 from sigma_des.live.insample import TOLERANCE, in_sample, missed_frac
 from sigma_des.live.messages import write_messages
@@ -197,3 +197,28 @@ def test_commands_leave_the_down_hop_to_the_triggers(tmp_path: Path) -> None:
     assert rep1["hop_down_latency_mean_s"] == rep0["hop_down_latency_mean_s"]
     assert rep1["down_latencies"] == rep0["down_latencies"]
     assert rep0["down_latency_mean_s"] == pytest.approx(np.mean(TRIG_LAT), rel=1e-9)
+
+
+def test_stalls_hand_computed() -> None:
+    """100 latencies: 99 at 1 ms and one at 50 ms. The 99th percentile (linear) is
+    1 + 0.01·49 = 1.49 ms, the fence 14.9 ms: only the 50 ms one is a stall."""
+    x = np.array([0.001] * 99 + [0.050])
+    assert stalls(x).tolist() == [False] * 99 + [True]
+    assert STALL_FACTOR * np.percentile(x, 99) == pytest.approx(0.0149)
+    assert stalls(np.zeros(0)).size == 0
+
+
+def test_a_stall_is_left_out_of_the_hop_draws_and_said(tmp_path: Path) -> None:
+    """Three triggers of host 1 delayed 80 ms (one stall of its process): without the
+    rule they would be drawn as per-hop latencies, recur at random and hold the stream
+    behind them; they are left out (the hop is the clean run's) and reported."""
+    sc = load(None, SETS)
+    t = _run(sc)
+    _sc0, rep0 = calibrate(_write(tmp_path / "a", sc, t), tmp_path / "fa")
+    hit = t.index[(t["kind"] == "trigger") & (t["host"] == 1) & t["frame"].isin([100, 101, 102])]
+    t.loc[hit, "t_recv"] += 0.080
+    _sc1, rep1 = calibrate(_write(tmp_path / "b", sc, t), tmp_path / "fb")
+    assert rep1["stalls_down"] == 3 and rep0["stalls_down"] == 0
+    assert rep1["hop_down_latency_mean_s"] == pytest.approx(rep0["hop_down_latency_mean_s"],
+                                                            rel=1e-3)
+    assert any("3 of" in w and "process stalls" in w for w in rep1["warnings"])
