@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
@@ -79,7 +80,8 @@ from sigma_des.net.latency import Dist
 from sigma_des.net.spec import BrokerSpec, DeploymentSpec, NetSpec
 
 __all__ = ["MIN_SAMPLES", "STALL_FACTOR", "calibrate", "calibrated_toml", "delivery_floor",
-           "fanout_slope", "for_target", "report_lines", "stalls"]
+           "fanout_slope", "for_target", "remove_files", "report_lines", "sample_files",
+           "stalls"]
 
 #: a path latency above this multiple of its 99th percentile is a process stall
 STALL_FACTOR = 10.0
@@ -262,11 +264,29 @@ def _write_latency_files(d: Path, files: dict[str, NDArray[np.float64]], key: st
     """Write each sample array as ``<name>.txt`` in ``d`` (all or nothing per file:
     :func:`~sigma_des.guard.atomic_write`); their paths by name. ``key`` is named in
     an error."""
-    out = {}
-    for name, samples in files.items():
-        out[name] = output_file(d / f"{name}.txt", key)
-        atomic_write(out[name], partial(np.savetxt, X=samples, fmt="%.9g"), key)
+    out: dict[str, Path] = {}
+    try:
+        for name, samples in files.items():
+            out[name] = output_file(d / f"{name}.txt", key)
+            atomic_write(out[name], partial(np.savetxt, X=samples, fmt="%.9g"), key)
+    except ConfigError:  # the set, all or none: a later file failed, the earlier go too
+        remove_files(out.values())
+        raise
     return out
+
+
+def remove_files(paths: Iterable[Path]) -> None:
+    """Remove the files a failed calibration wrote (a set is written all or none)."""
+    for p in paths:
+        p.unlink(missing_ok=True)
+
+
+def sample_files(sc: Scenario) -> list[Path]:
+    """The latency sample files the calibrated scenario ``sc`` reads (its empirical
+    link latencies), each once."""
+    links = (sc.net.host_link, sc.net.server_link)
+    dists = [d for ln in links for d in (ln.latency, ln.latency_down) if d is not None]
+    return list(dict.fromkeys(Path(d.file) for d in dists if d.dist == "empirical"))
 
 
 def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,

@@ -254,7 +254,13 @@ def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
     import json
 
-    from sigma_des.live.calibrate import calibrate, calibrated_toml, report_lines
+    from sigma_des.live.calibrate import (
+        calibrate,
+        calibrated_toml,
+        remove_files,
+        report_lines,
+        sample_files,
+    )
     from sigma_des.live.insample import in_sample
 
     source = Path(args.source)
@@ -274,18 +280,29 @@ def run_calibrate(args: argparse.Namespace) -> int:
         report["in_sample"] = rows
         report["warnings"] += warn
     text = calibrated_toml(sc, report)
-    for w in report["warnings"]:
-        print(f"sigma-des: warning: {w}", file=sys.stderr)
     if args.out:
         out = Path(args.out)
         rep = out.with_suffix(".json")
         rep_text = json.dumps(report, indent=2, default=float) + "\n"
-        for path, body in ((out, text), (rep, rep_text)):
-            atomic_write(path, partial(_put, body))
+        written = sample_files(sc)  # the set is the samples, the scenario, the report
+        try:
+            for path, body in ((out, text), (rep, rep_text)):
+                atomic_write(path, partial(_put, body))
+                written.append(path)
+        except ConfigError:
+            remove_files(written)
+            raise
+        _warn(report["warnings"])  # after the writes: a failed one is then the one line
         print(f"wrote {out} and {rep}")
         for line in report_lines(report):
             if not line.startswith("warning: "):
                 print(f"  {line}")
     else:
+        _warn(report["warnings"])
         sys.stdout.write(text)
     return 0
+
+
+def _warn(warnings: list[str]) -> None:
+    for w in warnings:
+        print(f"sigma-des: warning: {w}", file=sys.stderr)

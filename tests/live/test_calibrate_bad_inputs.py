@@ -82,25 +82,27 @@ def test_an_unwritable_out_is_refused_before_the_fit(tmp_path: Path,
     assert _files(tmp_path) == before  # not even the sample files next to the source
 
 
+@pytest.mark.parametrize("nth", [2, 3, 4])  # hop_down.txt, the scenario, its report
 def test_a_failed_write_leaves_nothing_under_the_final_names(
         tmp_path: Path, capsys: pytest.CaptureFixture[str],
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        monkeypatch: pytest.MonkeyPatch, nth: int) -> None:
+    """The sample files, the scenario and its report are one set: whichever file the
+    disk fills up on, none of them is left (no complete-looking half calibration)."""
     run = _good(tmp_path / "run")
     out = tmp_path / "cal" / "c.toml"
     real = os.fsync
     calls = {"n": 0}
 
-    def full(fd: int) -> None:  # the disk fills up on the second file's fsync
+    def full(fd: int) -> None:  # the disk fills up on the nth file's fsync
         calls["n"] += 1
-        if calls["n"] == 2:
+        if calls["n"] == nth:
             raise OSError(28, "No space left on device")
         real(fd)
 
     monkeypatch.setattr(os, "fsync", full)
     err = _refused(["calibrate", str(run), "--out", str(out), "--no-check"], capsys)
     assert "--out: cannot write" in err and "No space left on device" in err
-    names = sorted(p.name for p in (tmp_path / "cal").iterdir())
-    assert names == ["hop_up.txt"]  # the first, complete; no part file, no half hop_down
+    assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == []  # no part file either
     monkeypatch.setattr(os, "fsync", real)
     assert main(["calibrate", str(run), "--out", str(out), "--no-check"]) == 0
     assert sorted(p.name for p in (tmp_path / "cal").iterdir()) == [
