@@ -17,10 +17,11 @@ burst and no event. With per-host clients (``deployment.clients = "host"``) the 
 clients are the physics hosts (client id: the host's first node) and the server: a
 node's state leaves through its host's client, and what a host client receives is
 handed to its nodes (a trigger, the only broadcast, to each in node order; a message
-about node ``i`` to ``i``). With ``bundle`` a host client's publishes of one loop turn are
-one PUBLISH (:class:`Bundle`), handed over record by record at the receiver: the
-publishes of one instant or, with a CPU stage, every publish made while the host's
-process is busy joins the PUBLISH that leaves when it is free.
+about node ``i`` to ``i``). With ``bundle`` a host client's state publishes of one loop
+turn are one PUBLISH (:class:`Bundle`), and so are the server's commands of one turn to
+one host, handed over record by record at the receiver: the publishes of one instant
+or, with a CPU stage, every publish made while the sender's process is busy joins the
+PUBLISH that leaves when it is free.
 
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
@@ -35,7 +36,7 @@ from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.broker import Broker
 from sigma_des.net.cpu import Cpu, CpuReport
-from sigma_des.net.kinds import ACK, TRIGGER
+from sigma_des.net.kinds import ACK, COMMAND, TRIGGER
 from sigma_des.net.links import Links
 from sigma_des.net.message import Msg
 from sigma_des.net.spec import NetSetup
@@ -50,9 +51,10 @@ Record = tuple[int, int, int, Any, int]
 
 
 class Bundle(tuple[Record, ...]):
-    """The payload of a bundled PUBLISH: the records a host client published in one loop
-    turn, in publish order (handed to the receiving application one by one, each with
-    the bundle's publish time: live stamps them in the turn that sends them)."""
+    """The payload of a bundled PUBLISH: the records one client published to one
+    receiver in one loop turn (a host's states; the server's commands to a host), in
+    publish order, handed to the receiving application one by one, each with the
+    bundle's publish time (live stamps them in the turn that sends them)."""
 
     __slots__ = ()
 
@@ -104,7 +106,7 @@ class Network(Links):
             self.members.setdefault(first[h], []).append(i)
         self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
                           else list(range(self.n))) + [self.server]
-        self._pending: dict[int, list[tuple[Record, tuple[int, ...]]]] = {}
+        self._pending: dict[tuple[int, int], list[tuple[Record, tuple[int, ...]]]] = {}
         # the application receives through a burst or a hand-over (else: deliver at once)
         self._app_stage = self.host_clients or any(p is not None for p in self._proc)
 
@@ -173,8 +175,11 @@ class Network(Links):
             cl = self.client_of
             client = cl[client]
             subs = tuple(dict.fromkeys(cl[s] for s in subscribers))
-            if self.bundle and client != self.server:
-                self._add_to_bundle(client, (kind, subject, index, payload, payload_bits), subs)
+            if self.bundle and (client != self.server or kind == COMMAND):
+                # a host's states to the server, or the server's commands to one host
+                to = subs[0] if client == self.server else self.server
+                self._add_to_bundle((client, to), (kind, subject, index, payload,
+                                                   payload_bits), subs)
                 return
         else:
             subs = tuple(subscribers)
@@ -193,33 +198,37 @@ class Network(Links):
             m.t_pub, end = proc.span(m.t_pub, self._demand[m.client])
             self.k.at(end, self._publish_try, m)
 
-    def _add_to_bundle(self, client: int, rec: Record, subs: tuple[int, ...]) -> None:
-        """Bundle: keep ``rec`` for host ``client``'s PUBLISH of this loop turn.
+    def _add_to_bundle(self, key: tuple[int, int], rec: Record, subs: tuple[int, ...]
+                       ) -> None:
+        """Bundle: keep ``rec`` for the PUBLISH of this loop turn from client ``key[0]``
+        to ``key[1]`` (a host's states to the server; the server's commands to a host).
 
-        The first record of a turn schedules the send when the host's process is next
+        The first record of a turn schedules the send when the sender's process is next
         free (now, without a CPU stage or when idle), after every event already due
         then: records published meanwhile (jobs completing while the process serves a
         burst, as a live host's loop handles the timers that fell due while it was
         busy) join it. The send's own burst then makes the next turn.
         """
-        pend = self._pending.get(client)
+        pend = self._pending.get(key)
         if not pend:
-            pend = self._pending[client] = []
-            proc = self._proc[client]
+            pend = self._pending[key] = []
+            proc = self._proc[key[0]]
             now = self.k.now
             at = proc.free if proc is not None and proc.free > now else now
-            self.k.at(at, self._flush, client)
+            self.k.at(at, self._flush, key)
         pend.append((rec, subs))
 
-    def _flush(self, client: int) -> None:
-        """Bundle: host ``client``'s records of this turn leave as one PUBLISH (the
-        first record's kind, subject and index key its draws; its payload the sum)."""
-        pend = self._pending.pop(client)
+    def _flush(self, key: tuple[int, int]) -> None:
+        """Bundle: the records of this turn from ``key[0]`` to ``key[1]`` leave as one
+        PUBLISH (the first record's kind, subject and index key its draws; its payload
+        the sum)."""
+        pend = self._pending.pop(key)
         now = self.k.now
         kind, subject, index, _p, _b = pend[0][0]
         recs = Bundle(r for r, _s in pend)
         bits = sum(r[4] for r in recs)
-        self._client_publish(Msg(client, kind, subject, index, recs, bits, pend[0][1], 0, now, now))
+        self._client_publish(Msg(key[0], kind, subject, index, recs, bits, pend[0][1], 0, now,
+                                 now))
 
     def _publish_try(self, m: Msg) -> None:
         """A try of the publisher → broker hop, leaving now."""
@@ -300,9 +309,10 @@ class Network(Links):
         host client's message to each of its nodes it is for (in node order)."""
         deliver = self.deliver
         c = m.client
-        if isinstance(m.payload, Bundle):
+        if isinstance(m.payload, Bundle):  # to the server, or commands to a host's nodes
             for kind, subject, index, payload, bits in m.payload:
-                deliver(Msg(c, kind, subject, index, payload, bits, (), m.attempt, m.t_pub,
+                to = c if c == self.server else subject
+                deliver(Msg(to, kind, subject, index, payload, bits, (), m.attempt, m.t_pub,
                             m.t_sent, m.t_recv))
         elif not self.host_clients or c == self.server:
             deliver(m)

@@ -203,9 +203,10 @@ class DeploymentSpec:
         server_tick: CPU the server's process spends per alignment tick (s), 0..1.
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
-        bundle: a host's states of one loop turn leave as one PUBLISH (live
-            ``--bundle``): those of one instant, and with a CPU stage those published
-            while the host's process is busy; needs ``clients = "host"``.
+        bundle: a host's states of one loop turn leave as one PUBLISH, and the
+            server's commands of one turn to one host (live ``--bundle``): those of one
+            instant, and with a CPU stage those published while the sender's process
+            is busy; needs ``clients = "host"``.
     """
 
     preset: str = "none"

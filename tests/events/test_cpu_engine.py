@@ -167,3 +167,22 @@ def test_same_seed_same_results(over: list[str]) -> None:
                      "net.host_link.loss.p=0.05", *over])
     for method in ("lockstep", "bides"):
         assert _run(sc, method)[1]["metrics"] == _run(sc, method)[1]["metrics"]
+
+
+def test_bundle_sends_a_ticks_commands_once_per_host() -> None:
+    """Commands every 3rd alignment tick (60 Hz): 20 ticks a second. Per node, the server
+    sends N commands a tick; bundled, H PUBLISHes a tick (live ``--bundle``). The
+    server's uplink, counted in the 1 s metrics window, carries 100 triggers plus those:
+    100 + 20 N packets against 100 + 20 H; every node still gets its commands."""
+    n, h = 6, 2
+    over = [*BATCH, f"nodes={n}", f"hosts={h}", "commands.enabled=true",
+            "deployment.clients='host'"]
+    run1, out1 = _run(load(None, over))
+    run2, out2 = _run(load(None, [*over, "deployment.bundle=true"]))
+    up1 = {ld.name: ld.packets for ld in run1.net.links()}["server.up"]
+    up2 = {ld.name: ld.packets for ld in run2.net.links()}["server.up"]
+    ticks = (up1 - up2) / (n - h)
+    assert ticks == 20  # 20 Hz over the 1 s window
+    assert up2 == pytest.approx(100 + h * ticks, abs=1)
+    assert out2["metrics"]["latency_command_mean"] > 0.0
+    assert out2["metrics"]["deliveries_per_s"] == out1["metrics"]["deliveries_per_s"]

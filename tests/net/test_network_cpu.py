@@ -165,6 +165,25 @@ def test_a_publish_waiting_for_its_thread_is_stamped_when_the_thread_starts_it()
     assert got[1][5] - got[0][5] == pytest.approx(dh, rel=1e-9)
 
 
+def test_bundle_takes_the_servers_commands_of_one_instant_to_each_host() -> None:
+    """Six nodes on two hosts: the server's six commands of one tick leave as two
+    PUBLISHes, one per host client (live ``--bundle``), each delivered once and handed to
+    its nodes record by record; a trigger is not bundled."""
+    k, net, got = _net(["nodes=6", "hosts=2", "deployment.clients='host'",
+                        "deployment.bundle=true"])
+    for i in range(6):
+        net.publish(net.server, COMMAND, i, 3, f"c{i}", 110, (i,))
+    k.env.run()
+    links = {ld.name: ld.packets for ld in net.links()}
+    assert links["server.up"] == 2
+    assert links["host0.down"] == 1 and links["host1.down"] == 1
+    assert net.broker.work == pytest.approx(2 * (P + D), rel=1e-12)
+    # each node gets its own command (receiver = the node), host by host in node order
+    assert sorted((g[0], g[2], g[4]) for g in got) == [(i, i, f"c{i}") for i in range(6)]
+    # the two bundles' wire sizes: three 110-bit records each
+    assert {ld.name: ld.bytes for ld in net.links()}["server.up"] == 2 * net.wire_bytes(330)
+
+
 def test_bundle_wire_size_is_the_records_together() -> None:
     k, net, _got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
                          "deployment.bundle=true"])
