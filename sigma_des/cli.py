@@ -237,18 +237,22 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
         sc, methods, progress=not args.no_progress, jobs=args.jobs, force=args.force,
         record=args.record,
     )
-    print(res.table())
-    if res.interrupted:
-        print(f"sigma-des: interrupted; kept the {len(res.methods)} finished method(s): "
-              f"{', '.join(res.methods)}", file=sys.stderr)
-    if args.out:
-        csv_path, json_path = res.write(args.out)
-        print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
-        if not args.no_plots:  # matplotlib was checked before the run
-            from sigma_des.plots import write_plots
+    from sigma_des.live.interrupts import Interrupts
 
-            paths = write_plots(res, args.out)
-            print(f"plots: {', '.join(p.name for p in paths)}")
+    with Interrupts() as sig:
+        sig.mask()  # the results are in hand: a Ctrl-C now is noted, never cuts the writes
+        print(res.table())
+        if res.interrupted:
+            print(f"sigma-des: interrupted; kept the {len(res.methods)} finished method(s): "
+                  f"{', '.join(res.methods)}", file=sys.stderr)
+        if args.out:
+            csv_path, json_path = res.write(args.out)
+            print(f"wrote {csv_path}, {csv_path.parent / 'wall.csv'} and {json_path}")
+            if not args.no_plots:  # matplotlib was checked before the run
+                from sigma_des.plots import write_plots
+
+                paths = write_plots(res, args.out)
+                print(f"plots: {', '.join(p.name for p in paths)}")
     return 130 if res.interrupted else 0
 
 

@@ -100,3 +100,28 @@ def test_a_failed_write_leaves_nothing(tmp_path: Path, failing: int) -> None:
     assert list(d.iterdir()) == []
     assert [p.name for p in write_files(d, dict.fromkeys(files, ok))] == list(files)
     assert sorted(p.name for p in d.iterdir()) == sorted(files)
+
+
+def test_a_ctrl_c_while_compare_writes_is_noted_and_every_file_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The runs are done and the tables written when SIGINT arrives (while the plots are
+    drawn): it is noted on stderr, the writes go on, nothing finished is lost."""
+    import signal
+
+    import sigma_des.plots as plots
+
+    real = plots.write_plots
+
+    def interrupted(res: api.Results, out: Path) -> list[Path]:
+        os.kill(os.getpid(), signal.SIGINT)
+        return real(res, out)
+
+    monkeypatch.setattr(plots, "write_plots", interrupted)
+    out = tmp_path / "o"
+    rc = main(["compare", "--set", "duration=1", "--set", "warmup=0.2", "--set", "nodes=4",
+               "--methods", "none", "--no-progress", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert "sigma-des: SIGINT: noted; finishing the clean-up and writes first" in err
+    assert (out / "results.csv").exists() and list(out.glob("*.png"))

@@ -43,8 +43,8 @@ class Interrupts:
                 self._pending = True
                 return
             raise KeyboardInterrupt
-        print(f"sigma-des: {signal.Signals(signum).name} again: still stopping (keeping "
-              "what finished)", file=sys.stderr, flush=True)
+        print(f"sigma-des: {signal.Signals(signum).name}: noted; finishing the clean-up "
+              "and writes first (keeping what finished)", file=sys.stderr, flush=True)
 
     @contextmanager
     def held(self) -> Iterator[None]:
