@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import ctypes
 import os
 import resource
 import subprocess
@@ -34,6 +35,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from tree_rss import load1, watch
 
@@ -129,22 +131,40 @@ def detail(a: argparse.Namespace) -> None:
                    ("arena",))) / cap
         return f"event table {cap} slots ({slot:.0f} B each), {live} in flight"
 
-    last: list[tuple[int, str, tuple[str | int, ...]]] = []
+    last: list[tuple[float, int, str, tuple[str | int, ...]]] = []
 
     def tick(t: float) -> None:
         if t + 1e-9 >= nxt[0]:
             nxt[0] += a.every
             print(f"  t = {t:g} s: RSS {rss_mb():.0f} MB, {table()}", flush=True)
         if t >= sc.duration:  # the last call, before the run lets go of its event table
-            last[:] = [(core.array(f.name).nbytes, f.name, f.shape) for f in L.FIELDS]
+            last[:] = [(resident(core.array(f.name)), core.array(f.name).nbytes, f.name,
+                        f.shape) for f in L.FIELDS]
+            print(f"  at the end of the simulation: RSS {rss_mb():.0f} MB, {table()}")
 
     run.run(tick)
     print(f"{a.detail} at the end: RSS {rss_mb():.0f} MB, peak "
           f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB; the core's "
-          "arrays of 1 MB or more at the run's end:")
-    for nbytes, name, shape in sorted(last, reverse=True):
+          "arrays of 1 MB or more at the end of the simulation (resident / allocated):")
+    for res, nbytes, name, shape in sorted(last, reverse=True):
         if nbytes >= 2**20:
-            print(f"  {nbytes / 2**20:7.1f} MB  {name} {shape}")
+            print(f"  {res:7.1f} / {nbytes / 2**20:7.1f} MB  {name} {shape}")
+
+
+def resident(arr: Any) -> float:
+    """Resident MB of ``arr``'s pages (``mincore``: pages never touched are not resident)."""
+    page = os.sysconf("SC_PAGE_SIZE")
+    lo = arr.ctypes.data // page * page
+    n = (arr.ctypes.data + arr.nbytes - lo + page - 1) // page
+    if arr.nbytes == 0:
+        return 0.0
+    vec = (ctypes.c_ubyte * n)()
+    if LIBC.mincore(ctypes.c_void_p(lo), ctypes.c_size_t(n * page), vec) != 0:
+        return float("nan")
+    return sum(v & 1 for v in vec) * page / 2**20
+
+
+LIBC = ctypes.CDLL(None, use_errno=True)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,7 +10,14 @@ import pytest
 from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
-from sigma_des.events.fast.growth import IN_PLACE, PREFIX, SCRATCH, grow, grown_capacity
+from sigma_des.events.fast.growth import (
+    IN_PLACE,
+    PREFIX,
+    SCRATCH,
+    fresh,
+    grow,
+    grown_capacity,
+)
 from sigma_des.events.fast.primitives import put_int
 from sigma_des.events.fast.support import CohortFallback, checked_int
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -115,3 +122,12 @@ def test_a_finished_run_lets_go_of_its_event_table() -> None:
     assert core.array("obs_hist").size > 0  # the engine's physics ring is not the core's
     with pytest.raises(RuntimeError, match="the run is over: its message core is closed"):
         core.publish_trigger(10**6, None)
+
+
+@pytest.mark.parametrize("shape", [(3, 4), (1 << 18, 2)])  # below and above FRESH_MIN
+def test_a_fresh_array_is_zeroed_writable_and_c_contiguous(shape: tuple[int, int]) -> None:
+    a = fresh(shape, np.int64)
+    assert a.shape == shape and a.dtype == np.int64 and a.flags.c_contiguous
+    assert a.flags.writeable and not a.any()
+    a[-1, -1] = 7
+    assert a.sum() == 7
