@@ -26,9 +26,8 @@ compiled loop only), which is what makes the in-place reallocation safe.
 
 from __future__ import annotations
 
-from typing import Any
-
 import mmap
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
