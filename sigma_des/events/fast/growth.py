@@ -5,7 +5,7 @@ Every queued message holds an event slot. When a method saturates the broker
 the whole run: ≈ 10^6 slots after 60 simulated seconds. Growing such a table by
 allocating a larger one and copying held the old and the new table at once, twice
 the table at the moment of each growth, which set the run's peak memory
-(docs/BENCHMARKS.md, "Event-table growth"). Here each array of ``cap`` (or
+(docs/BENCHMARKS.md, issue 27, part "memory"). Here each array of ``cap`` (or
 ``arena``) rows keeps its contents in one of three ways:
 
 * **in place** (:data:`IN_PLACE`: the event slots, the free list, the run arena):
