@@ -24,6 +24,8 @@ import resource
 import subprocess
 import sys
 import time
+from dataclasses import dataclass, field
+from typing import Any
 
 
 def children(pid: int) -> list[int]:
@@ -58,6 +60,38 @@ def memory_kb(pid: int) -> tuple[int, int]:
         return 0, 0
 
 
+def load1() -> float:
+    """The 1-minute load average."""
+    with open("/proc/loadavg") as fh:
+        return float(fh.read().split()[0])
+
+
+@dataclass
+class Watched:
+    """What :func:`watch` saw of a process tree: peaks in kB, the load's maximum."""
+
+    peak: dict[int, int] = field(default_factory=dict)
+    sum_rss: int = 0
+    sum_pss: int = 0
+    load_max: float = 0.0
+
+
+def watch(proc: subprocess.Popen[Any], interval: float) -> Watched:
+    """Sample ``proc``'s tree every ``interval`` s until it exits."""
+    w = Watched(load_max=load1())
+    while proc.poll() is None:
+        rss_t = pss_t = 0
+        for pid in tree(proc.pid):
+            rss, pss = memory_kb(pid)
+            w.peak[pid] = max(w.peak.get(pid, 0), rss)
+            rss_t += rss
+            pss_t += pss
+        w.sum_rss, w.sum_pss = max(w.sum_rss, rss_t), max(w.sum_pss, pss_t)
+        w.load_max = max(w.load_max, load1())
+        time.sleep(interval)
+    return w
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--interval", type=float, default=0.25)
@@ -68,29 +102,20 @@ def main(argv: list[str] | None = None) -> int:
         p.error("no command")
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd)
-    peak: dict[int, int] = {}
-    sum_rss = sum_pss = 0
-    while proc.poll() is None:
-        rss_t = pss_t = 0
-        for pid in tree(proc.pid):
-            rss, pss = memory_kb(pid)
-            peak[pid] = max(peak.get(pid, 0), rss)
-            rss_t += rss
-            pss_t += pss
-        sum_rss, sum_pss = max(sum_rss, rss_t), max(sum_pss, pss_t)
-        time.sleep(a.interval)
+    w = watch(proc, a.interval)
     wall = time.perf_counter() - t0
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = ru.ru_utime + ru.ru_stime
     print(f"tree_rss: exit {proc.returncode}, wall {wall:.1f} s, CPU {cpu:.1f} s"
           f" (user {ru.ru_utime:.1f}), largest process (time -v) {ru.ru_maxrss / 1024:.0f} MB",
           file=sys.stderr)
-    order = sorted(peak, key=lambda q: -peak[q])
+    order = sorted(w.peak, key=lambda q: -w.peak[q])
     print("tree_rss: per-process peak RSS MB: " + ", ".join(
-        f"{q}{' (parent)' if q == proc.pid else ''} {peak[q] / 1024:.0f}" for q in order),
+        f"{q}{' (parent)' if q == proc.pid else ''} {w.peak[q] / 1024:.0f}" for q in order),
         file=sys.stderr)
-    print(f"tree_rss: peak summed RSS {sum_rss / 1024:.0f} MB, peak summed PSS "
-          f"{sum_pss / 1024:.0f} MB (sampled every {a.interval:g} s)", file=sys.stderr)
+    print(f"tree_rss: peak summed RSS {w.sum_rss / 1024:.0f} MB, peak summed PSS "
+          f"{w.sum_pss / 1024:.0f} MB (sampled every {a.interval:g} s); 1-minute load "
+          f"average up to {w.load_max:.2f}", file=sys.stderr)
     return proc.returncode
 
 

@@ -266,6 +266,7 @@ class MethodRun(AlignmentServer):
                 gc.enable()
             gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
+        self.core.close()  # the messages still in flight: no result reads them
         return self.finish()
 
     def finish(self) -> dict[str, Any]:

@@ -66,6 +66,11 @@ class MessageCore(Protocol):
         """The run ended: hand the core's counters to the components that report them."""
         ...
 
+    def close(self) -> None:
+        """The run is over (after :meth:`write_back`): let go of the messages still in
+        flight, which no result reads; the core carries no more messages."""
+        ...
+
 
 class EventCore:
     """Every message a SimPy event on the run's network (the specification).
@@ -115,3 +120,6 @@ class EventCore:
 
     def write_back(self) -> None:
         """Nothing to hand over: the components counted every message themselves."""
+
+    def close(self) -> None:
+        """Nothing to let go of: the messages in flight are events of the run's kernel."""

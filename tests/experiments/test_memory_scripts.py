@@ -33,3 +33,15 @@ def test_tree_rss_without_a_command_is_an_error() -> None:
     r = subprocess.run([sys.executable, str(EXP / "tree_rss.py")],
                        capture_output=True, text=True, cwd=ROOT, timeout=60)
     assert r.returncode == 2 and "no command" in r.stderr
+
+
+def test_bench_memory_quick_prints_a_row_per_method_and_the_core_arrays() -> None:
+    r = subprocess.run([sys.executable, str(EXP / "bench_memory.py"), "--quick", "--methods",
+                        "none", "--no-whole", "--detail", "none"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stderr
+    row = re.search(r"^none \| (\d+) \| (\d+) \| [\d.]+ \| [\d.]+ \| [\d.]+ / [\d.]+ / [\d.]+$",
+                    r.stdout, re.M)
+    assert row is not None, r.stdout
+    assert int(row.group(2)) > 0  # the run's own peak_rss_mb from wall.csv
+    assert "none at the end: RSS" in r.stdout and "in flight" in r.stdout

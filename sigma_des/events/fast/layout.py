@@ -161,7 +161,8 @@ _f, _i = np.float64, np.int64
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
-    Field("ev_int", _i, ("cap", E_COLS), 0.0, "event slots: int columns E_*"),
+    Field("ev_int", np.int32, ("cap", E_COLS), 0.0,
+          "event slots: int columns E_* (int32: every value is checked, EV_INT_MAX)"),
     Field("ev_float", _f, ("cap", "pay"), 0.0, "event slots: float columns EF_* + payload"),
     Field("free", _i, ("cap",), None, "free list of event slots"),
     Field("ints", _i, (I_LEN,), 0.0, "int scalars I_*"),
@@ -327,6 +328,14 @@ NTP_RES = INDEX["ntp_res"]
 #: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
 #: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
 ERR_HORIZON = 2
+#: ``S.ints[I_ERR]`` when a value the loop makes (an HLC counter, a stream sequence
+#: number) does not fit the event table's int32 columns
+ERR_RANGE = 3
+#: Largest value an event slot's int column holds (``ev_int`` is int32: 52 B a slot,
+#: not 104; a saturated broker's backlog holds 10^6 slots). Values that could exceed it
+#: are checked where they enter: frame and tick indices and stamps at the driver's
+#: publishes, HLC counters and stream sequence numbers in the loop (``ERR_RANGE``).
+EV_INT_MAX = (1 << 31) - 1
 RESIM_PEND = INDEX["resim_pend"]
 TR_PARAMS = INDEX["tr_params"]
 TR_FPARAMS = INDEX["tr_fparams"]

@@ -68,7 +68,7 @@ from sigma_des.events.fast.layout import (
     SLOW_PTR,
     STEP,
 )
-from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, row_of
+from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, put_int, row_of
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.transport import send_up
 
@@ -161,7 +161,7 @@ def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
         S[HLC_C][i] = S[HLC_C][i] + 1 if new == old else 0
         hl[i] = new
         evf[ns, EF_L] = new
-        evi[ns, E_AUX] = S[HLC_C][i]
+        put_int(S, ns, E_AUX, S[HLC_C][i])
     evi[ns, E_FRAME] = target
     if S[IPARAMS][Q_LOCK]:  # kept for re-requests (MethodRun.last_pub)
         li = S[LAST_INT]

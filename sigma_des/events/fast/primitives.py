@@ -27,8 +27,10 @@ from sigma_des.events.fast.layout import (
     E_SUBJ,
     E_TYPE,
     E_WHO,
+    ERR_RANGE,
     EV_BROKER,
     EV_INT,
+    EV_INT_MAX,
     FPARAMS,
     FREE,
     G_END,
@@ -142,6 +144,20 @@ def address(S, slot, typ, who, kind, subject, index):  # type: ignore[no-untyped
     evi[slot, E_SUBJ] = subject
     evi[slot, E_INDEX] = index
     evi[slot, E_ATT] = 0  # a first transmission (resends set their attempt)
+
+
+@jit
+def put_int(S, slot, col, value):  # type: ignore[no-untyped-def]
+    """Store ``value`` in int column ``col`` of ``slot``, if the int32 column holds it.
+
+    For values the loop makes that have no bound of their own (an HLC counter, a
+    stream sequence number); a value beyond the column is not stored (it would wrap)
+    but is an error, ``ERR_RANGE``: the driver runs the whole run per message.
+    """
+    if value > EV_INT_MAX or value < -EV_INT_MAX - 1:
+        S[INTS][I_ERR] = ERR_RANGE
+        return
+    S[EV_INT][slot, col] = value
 
 
 # ---------------------------------------------------------------- draws and links

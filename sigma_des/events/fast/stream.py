@@ -47,7 +47,7 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
     WIRE_BYTES,
 )
-from sigma_des.events.fast.primitives import count, fly, jit, key_of, push, release
+from sigma_des.events.fast.primitives import count, fly, jit, key_of, push, put_int, release
 
 __all__ = ["next_ready", "stream_arrive", "stream_send", "stream_try"]
 
@@ -93,7 +93,7 @@ def stream_send(S, slot, t):  # type: ignore[no-untyped-def]
     up = _up(S, slot)
     client = evi[slot, E_WHO]
     cn = S[CONN]
-    evi[slot, E_SEQ] = cn[C_SEQ, up, client]
+    put_int(S, slot, E_SEQ, cn[C_SEQ, up, client])
     cn[C_SEQ, up, client] += 1
     stream_try(S, slot, t)
 

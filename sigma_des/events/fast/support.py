@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import math
 
+from sigma_des.events.fast.layout import EV_INT_MAX
 from sigma_des.events.spec import RunSpec
 
-__all__ = ["MAX_TABLE_BYTES", "TABLE_MARGIN", "CohortFallback", "ge_slots", "ntp_syncs",
-           "unsupported"]
+__all__ = ["MAX_TABLE_BYTES", "TABLE_MARGIN", "CohortFallback", "checked_int", "ge_slots",
+           "ntp_syncs", "unsupported"]
 
 #: Seconds past the run's end covered by the Gilbert–Elliott and NTP tables (a send
 #: later than that, behind a broker backlog this long, stops the compiled run and
@@ -27,6 +28,20 @@ MAX_TABLE_BYTES = 1 << 26
 
 class CohortFallback(RuntimeError):
     """The cohort core met something it cannot reproduce exactly (run per message)."""
+
+
+def checked_int(value: int, what: str) -> int:
+    """``value``, which the driver stores in an event slot's int32 column.
+
+    Raises:
+        CohortFallback: it lies beyond the column (``what`` names it): the whole run is
+            made per message, where Python integers have no bound.
+    """
+    if not -EV_INT_MAX - 1 <= value <= EV_INT_MAX:
+        raise CohortFallback(
+            f"{what} {value} beyond the event table's int32 columns (largest {EV_INT_MAX})"
+        )
+    return value
 
 
 def ge_slots(sc: RunSpec) -> int:

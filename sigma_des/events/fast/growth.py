@@ -1,0 +1,119 @@
+"""How the compiled core's event table grows (docs/MODEL.md, "Engines").
+
+Every queued message holds an event slot. When a method saturates the broker
+(``none`` and ``hlc`` at N = 1 000) the broker's backlog is model state that grows for
+the whole run: ≈ 10^6 slots after 60 simulated seconds. Growing such a table by
+allocating a larger one and copying held the old and the new table at once, twice
+the table at the moment of each growth, which set the run's peak memory
+(docs/BENCHMARKS.md, issue 27, part "memory"). Here each array of ``cap`` (or
+``arena``) rows keeps its contents in one of three ways:
+
+* **in place** (:data:`IN_PLACE`: the event slots, the free list, the run arena):
+  every row may hold live data, so the array is reallocated where it lies
+  (``ndarray.resize``; for a large array the C library moves its pages with
+  ``mremap`` instead of copying them), and nothing is held twice;
+* **live prefix** (:data:`PREFIX`: the heap of run heads, the pending buffer, the
+  run table): only the first rows, as many as the queue scalar named, hold data; a
+  new zeroed array (:func:`fresh`: its pages untouched until used) receives them;
+* **scratch** (:data:`SCRATCH`): filled and read within one call, a new zeroed array.
+
+As nothing is copied whole, the table can grow in smaller steps
+(:func:`grown_capacity`: by an eighth), so less of it lies unused.
+
+The core hands out no views of these arrays (Python reads them between calls of the
+compiled loop only), which is what makes the in-place reallocation safe.
+"""
+
+from __future__ import annotations
+
+import mmap
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast.support import CohortFallback
+
+__all__ = ["GROWTH", "IN_PLACE", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
+           "grown_capacity"]
+
+#: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
+#: whole, so small steps cost little and leave less unused room).
+GROWTH = 8
+#: Arrays reallocated where they lie (every row may be live).
+IN_PLACE = ("ev_int", "ev_float", "free", "run_t", "run_k")
+#: Arrays whose first ``S[Q_INT][scalar]`` rows are live: their only contents.
+PREFIX = {"heap_t": L.QI_HEAP, "heap_k": L.QI_HEAP, "heap_r": L.QI_HEAP,
+          "pend_t": L.QI_PN, "pend_k": L.QI_PN, "run_pos": L.QI_NRUN, "run_end": L.QI_NRUN}
+#: Scratch arrays of the queue's sealing and compaction (no contents between calls).
+SCRATCH = ("run_fwd", "bounds")
+#: Every array of the event table (``cap`` or ``arena`` rows).
+TABLE = (*IN_PLACE, *PREFIX, *SCRATCH)
+
+
+#: Arrays from this many bytes on get their own mapping (:func:`fresh`).
+FRESH_MIN = 1 << 20
+
+
+def fresh(shape: tuple[int, ...], dtype: Any) -> NDArray[Any]:
+    """A zeroed array whose pages cost no memory until they are written.
+
+    ``np.zeros`` of a few MB may get reused heap memory from the C library, which
+    ``calloc`` then writes zeros over: measured at N = 1 000, the heap of run heads and
+    the pending buffer (a few thousand rows in use) were resident in whole, 46 MB at 10^6
+    slots. A large array here is its own anonymous mapping (zero pages, unmapped when
+    the array goes).
+    """
+    nbytes = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    if nbytes < FRESH_MIN:
+        return np.zeros(shape, dtype=dtype)
+    return np.frombuffer(mmap.mmap(-1, nbytes), dtype=dtype).reshape(shape)
+
+
+def grown_capacity(old: int, need: int) -> int:
+    """The event table's slots after growing from ``old`` slots, ``need`` more at least
+    (an eighth more if that is more; no more than a queue key can address).
+
+    Raises:
+        CohortFallback: ``need`` more slots are more than a queue key can address
+            (:data:`~sigma_des.events.fast.layout.MAX_SLOTS`).
+    """
+    if old + need > L.MAX_SLOTS:
+        raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
+    return min(old + max(old // GROWTH, need), L.MAX_SLOTS)
+
+
+def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
+    """The state ``S`` with ``need`` free event slots more at least.
+
+    The queue's order and every slot's contents are kept; the new slots join the free
+    list on top, so they are taken first (lowest first).
+
+    Returns:
+        The state: the in-place arrays are the same objects, the others new ones.
+    """
+    old = S[L.EV_INT].shape[0]
+    new = grown_capacity(old, need)
+    qi = S[L.Q_INT]
+    made: dict[str, NDArray[Any]] = {}
+    for f in L.FIELDS:
+        if not f.shape or f.shape[0] not in ("cap", "arena"):
+            continue
+        a = S[L.INDEX[f.name]]
+        shape = (new * (a.shape[0] // old), *a.shape[1:])  # arena: the same multiple
+        if f.name in IN_PLACE:
+            a.resize(shape, refcheck=False)  # no views exist (module docstring)
+            continue
+        b = fresh(shape, a.dtype)
+        if f.name in PREFIX:
+            m = int(qi[PREFIX[f.name]])
+            b[:m] = a[:m]
+        elif f.name not in SCRATCH:
+            raise AssertionError(f"state field {f.name!r}: no growth rule")
+        made[f.name] = b
+    iv = S[L.INTS]
+    nfree = int(iv[L.I_FREE])
+    S[L.FREE][nfree : nfree + new - old] = np.arange(new - 1, old - 1, -1, dtype=np.int64)
+    iv[L.I_FREE] = nfree + new - old
+    return L.replaced(S, made)

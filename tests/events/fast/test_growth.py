@@ -1,0 +1,133 @@
+"""The event table's growth and the range checks of its int32 columns, by hand."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast.driver import CompiledCore
+from sigma_des.events.fast.growth import (
+    IN_PLACE,
+    PREFIX,
+    SCRATCH,
+    fresh,
+    grow,
+    grown_capacity,
+)
+from sigma_des.events.fast.primitives import put_int
+from sigma_des.events.fast.support import CohortFallback, checked_int
+from sigma_des.factory import make_behaviour, make_dynamics
+from tests.conftest import tiny
+from tests.events.fast.test_layout import DIMS as LAYOUT_DIMS
+
+DIMS = {**LAYOUT_DIMS, "cap": 5, "arena": 10}  # the arena twice the table, as in a run
+
+
+def _state() -> tuple[np.ndarray, ...]:
+    given = {f.name: np.zeros(L.shape_of(f, DIMS), dtype=f.dtype)
+             for f in L.FIELDS if f.fill is None}
+    given["free"] = np.arange(5, dtype=np.int64)[::-1].copy()
+    return L.allocate(DIMS, given)
+
+
+def test_capacity_grows_by_an_eighth_or_what_is_needed() -> None:
+    assert grown_capacity(1000, 10) == 1125  # 1000 // 8
+    assert grown_capacity(1000, 300) == 1300  # the need is larger
+    assert grown_capacity(7, 3) == 10  # 7 // 8 = 0
+    assert grown_capacity(L.MAX_SLOTS - 8, 1) == L.MAX_SLOTS  # an eighth would be more
+    assert grown_capacity(L.MAX_SLOTS - 8, 8) == L.MAX_SLOTS
+    with pytest.raises(CohortFallback, match=f"more than {L.MAX_SLOTS} messages in flight"):
+        grown_capacity(L.MAX_SLOTS - 8, 9)
+
+
+def test_every_array_of_table_rows_has_exactly_one_growth_rule() -> None:
+    rows = {f.name for f in L.FIELDS if f.shape[:1] in (("cap",), ("arena",))}
+    rules = [*IN_PLACE, *PREFIX, *SCRATCH]
+    assert len(rules) == len(set(rules)) and set(rules) == rows
+
+
+def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
+    S = _state()
+    evi, evf, run_t = S[L.EV_INT], S[L.EV_FLOAT], S[L.RUN_T]
+    evi[:] = np.arange(5 * L.E_COLS).reshape(5, L.E_COLS)
+    evf[:] = np.arange(5 * 17).reshape(5, 17) / 4
+    run_t[:] = np.arange(10) + 0.5
+    S[L.HEAP_T][:] = [1.0, 2.0, 9.0, 9.0, 9.0]  # two live heap entries, then stale ones
+    S[L.PEND_K][:] = [7, 8, 8, 8, 8]
+    S[L.RUN_POS][:] = [3, 4, 5, 6, 6]
+    S[L.BOUNDS][:] = 1
+    qi = S[L.Q_INT]
+    qi[L.QI_HEAP], qi[L.QI_PN], qi[L.QI_NRUN] = 2, 1, 3
+    S[L.INTS][L.I_FREE] = 2  # slots 4 and 3 free, 0..2 in flight
+    T = grow(S, 3)  # 5 slots + max(5 // 8, 3) = 8
+    assert T[L.EV_INT] is evi and T[L.EV_FLOAT] is evf and T[L.RUN_T] is run_t  # in place
+    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 17) and run_t.shape == (16,)
+    assert evi[:5].ravel().tolist() == list(range(5 * L.E_COLS)) and not evi[5:].any()
+    assert evf[4, 16] == 84 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
+    assert T[L.HEAP_T].tolist() == [1.0, 2.0, 0, 0, 0, 0, 0, 0]
+    assert T[L.PEND_K].tolist() == [7, 0, 0, 0, 0, 0, 0, 0]
+    assert T[L.RUN_POS].tolist() == [3, 4, 5, 0, 0, 0, 0, 0]
+    assert T[L.BOUNDS].shape == (16,) and not T[L.BOUNDS].any()
+    # the new slots on top of the free list, lowest taken first
+    assert T[L.INTS][L.I_FREE] == 5 and T[L.FREE][:5].tolist() == [4, 3, 7, 6, 5]
+
+
+def test_a_run_state_grows_and_keeps_its_results() -> None:
+    sc = replace(tiny(nodes=6, **{"broker.delivery_service": 0.0008}), engine="cohort")
+    run = MethodRun(sc.run_spec(), "none", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    core = run.core
+    assert isinstance(core, CompiledCore)
+    cap0 = core.array("ev_int").shape[0]
+    core.ensure_space(cap0)  # more free slots than the table has: it grows
+    assert core.array("ev_int").shape[0] == grown_capacity(cap0, cap0 + 6 + 4)
+    assert int(core.array("ints")[L.I_FREE]) == core.array("ev_int").shape[0]
+
+
+def test_a_value_beyond_int32_is_an_error_not_a_wrapped_store() -> None:
+    S = _state()
+    put_int(S, 2, L.E_AUX, L.EV_INT_MAX)
+    put_int(S, 3, L.E_SEQ, -L.EV_INT_MAX - 1)
+    assert S[L.EV_INT][2, L.E_AUX] == 2**31 - 1 and S[L.EV_INT][3, L.E_SEQ] == -(2**31)
+    assert S[L.INTS][L.I_ERR] == 0
+    put_int(S, 2, L.E_AUX, 2**31)
+    assert S[L.INTS][L.I_ERR] == L.ERR_RANGE and S[L.EV_INT][2, L.E_AUX] == 2**31 - 1
+
+
+def test_a_publish_index_beyond_int32_falls_back_with_its_name() -> None:
+    assert checked_int(2**31 - 1, "trigger index") == 2**31 - 1
+    with pytest.raises(CohortFallback, match=r"re-request index 2147483648 beyond the event "
+                       r"table's int32 columns \(largest 2147483647\)"):
+        checked_int(2**31, "re-request index")
+    sc = replace(tiny(), engine="cohort")
+    run = MethodRun(sc.run_spec(), "none", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    assert isinstance(run.core, CompiledCore)
+    with pytest.raises(CohortFallback, match="trigger index 2147483648 beyond"):
+        run.core.publish_trigger(2**31, None)
+
+
+def test_a_finished_run_lets_go_of_its_event_table() -> None:
+    sc = replace(tiny(nodes=6, **{"broker.delivery_service": 0.002}), engine="cohort")
+    run = MethodRun(sc.run_spec(), "none", make_dynamics(sc), make_behaviour(sc), compiled=True)
+    core = run.core
+    assert isinstance(core, CompiledCore)
+    in_flight: list[int] = []
+    run.run(lambda t: in_flight.append(
+        core.array("ev_int").shape[0] - int(core.array("ints")[L.I_FREE])))
+    assert in_flight[-1] > 100  # the broker's backlog at the end, not read by any result
+    assert core.array("ev_int").shape == (0, L.E_COLS) and core.array("run_t").size == 0
+    assert core.array("obs_hist").size > 0  # the engine's physics ring is not the core's
+    with pytest.raises(RuntimeError, match="the run is over: its message core is closed"):
+        core.publish_trigger(10**6, None)
+
+
+@pytest.mark.parametrize("shape", [(3, 4), (1 << 18, 2)])  # below and above FRESH_MIN
+def test_a_fresh_array_is_zeroed_writable_and_c_contiguous(shape: tuple[int, int]) -> None:
+    a = fresh(shape, np.int64)
+    assert a.shape == shape and a.dtype == np.int64 and a.flags.c_contiguous
+    assert a.flags.writeable and not a.any()
+    a[-1, -1] = 7
+    assert a.sum() == 7
