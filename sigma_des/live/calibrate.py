@@ -5,7 +5,8 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
 
 * **the deployment** (:mod:`sigma_des.live.fit_cpu`): ``[deployment]`` with preset
   ``colocated``, the machine's ``cores``, the ``background`` CPU of other processes,
-  ``host_demand`` and ``server_demand`` by the Utilization Law, ``clients = "host"``,
+  ``host_wake``/``server_wake`` from the live loops' wake-ups and ``host_demand`` and
+  ``server_demand`` by the Utilization Law, ``clients = "host"``,
   ``bundle`` as run; the broker's demand as both ``broker.publish_service`` and
   ``broker.delivery_service`` (constants). Without a ``cpu.csv`` next to the source:
   no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
@@ -18,13 +19,14 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
   (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
   ``(path latency - CPU services on the path) / 2``, the CPU services being what the
   DES adds itself (:func:`~sigma_des.live.fit_cpu.path_services`: the broker's two
-  services, and with a CPU stage the sender's publish burst, slowed by the
-  background; the receiver's burst comes after the receipt live stamps). The down hop
+  services, and with a CPU stage the sender's publish burst with its expected wake-up,
+  slowed by the background; the receiver's burst comes after the receipt live stamps). The down hop
   is fitted from triggers only: a tick's commands leave the server together and their
   latencies hold its publish queue, which the DES adds itself. The path latency is
   **de-queued** first (:mod:`sigma_des.live.dequeue`): a delivery closer to the
-  previous one into its receiver than ``hold_tol`` may have waited behind the stream's
-  order (which the DES adds itself), so it is a left-censored sample;
+  previous one into its receiver than ``hold_tol`` plus the receiver's burst may have
+  waited behind the stream's order or for the receiver's thread (both of which the DES
+  adds itself), so it is a left-censored sample;
 * **the server's receive cost** (time from the client's receipt to the loop handling
   the state): with a CPU stage it is the server's receive burst and its thread's
   queue, modelled; without one it is folded into the server link's down latency
@@ -296,9 +298,13 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     receive queue) as the links' empirical latency files (see the module doc).
 
     ``cpu`` is :func:`~sigma_des.live.fit_cpu.path_services`: the CPU services the DES
-    adds on each path (taken out of every sample). A delivery closer than ``tol`` after
-    the previous one into its receiver may have waited for it: censored."""
-    p = _paths(w, states, tol, tol)
+    adds on each path (taken out of every sample). A delivery closer than ``tol`` plus
+    the receiver's burst (``recv_up``/``recv_down``) after the previous one into its
+    receiver may have waited for it (on the stream or for the receiver's thread):
+    censored. ``tol = 0`` keeps the measured latencies."""
+    up_tol = tol + cpu.get("recv_up", 0.0) if tol > 0 else 0.0
+    down_tol = tol + cpu.get("recv_down", 0.0) if tol > 0 else 0.0
+    p = _paths(w, states, up_tol, down_tol)
     if p["up"].size < MIN_SAMPLES:
         warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
     hop_up = _hop_samples(p["up"], p["up_held"], cpu["up"])
@@ -337,6 +343,8 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
         "hop_down_latency_mean_s": float(hop_down.mean()),
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
         "hold_tol_s": tol,
+        "hold_tol_up_s": up_tol,
+        "hold_tol_down_s": down_tol,
         "path_cpu_service_up_s": cpu["up"],
         "path_cpu_service_down_s": cpu["down"],
         "server_receive_queue_mean_s": float(queue.mean()),
@@ -399,7 +407,8 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         dep, publish = fit.deployment, Dist(dist="constant", value=fit.broker_service)
         per_client = fit.broker_service
         cpu_report = fit.report
-    services = path_services(dep, publish.mean_value(), per_client)
+    services = path_services(dep, publish.mean_value(), per_client,
+                             fit.wake_share if fit is not None else None)
     net, lat_report = _fit_links(base, w, states, services, d, hold_tol, fit is None, warn,
                                  "--out" if files_dir else str(source))
     compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,

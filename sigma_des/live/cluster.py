@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import reap
 from sigma_des.live.clocksync import ClockBook
-from sigma_des.live.cpu import CpuMeter
+from sigma_des.live.cpu import CpuMeter, wake_columns
 from sigma_des.live.placement import Pin, Worker
 from sigma_des.live.procs import log_tail, spawn_host
 from sigma_des.live.server import LiveServer
@@ -334,9 +334,10 @@ class RemoteCpuMeter(CpuMeter):
         except Exception:
             return math.nan
 
-    def rows(self, messages: dict[str, int]) -> list[dict[str, Any]]:
+    def rows(self, messages: dict[str, int],
+             wakes: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
         """This machine's rows with a row per host (as a local run has) before the broker's."""
-        base = super().rows(messages)
+        base = super().rows(messages, wakes)
         here = socket.gethostname()
         out = base[:1]
         local = [0.0, 0.0]
@@ -345,7 +346,8 @@ class RemoteCpuMeter(CpuMeter):
             win = self._host_cpu("w1", h) - self._host_cpu("w0", h)
             out.append({"process": f"host{h}", "pid": info["pid"], "idle_s": base[0]["idle_s"],
                         "idle_cpu_s": idle, "window_s": base[0]["window_s"], "cpu_s": win,
-                        "messages": messages.get(f"host{h}", math.nan)})
+                        "messages": messages.get(f"host{h}", math.nan),
+                        **wake_columns(wakes, f"host{h}")})
             if info["machine"] == here:
                 local = [local[0] + (idle if math.isfinite(idle) else 0.0),
                          local[1] + (win if math.isfinite(win) else 0.0)]

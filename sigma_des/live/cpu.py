@@ -25,13 +25,18 @@ import psutil
 
 from sigma_des.live.ledger import publishes
 
-__all__ = ["CPU_COLUMNS", "CPU_FILE", "CpuMeter", "machine_busy", "message_counts", "write_cpu"]
+__all__ = ["CPU_COLUMNS", "CPU_FILE", "WAKE_COLUMNS", "CpuMeter", "machine_busy",
+           "message_counts", "wake_columns", "wake_sums", "write_cpu"]
 
 #: The CPU table of a ``sigma-des live --out`` directory.
 CPU_FILE = "cpu.csv"
 
 #: Columns of a CPU row (``cpu.csv``; ``summary.json``'s ``live.<method>.cpu``).
 CPU_COLUMNS = ("process", "pid", "idle_s", "idle_cpu_s", "window_s", "cpu_s", "messages")
+#: The loop thread's wake-up sums of a process (:class:`~sigma_des.live.loop.WakeStats`:
+#: wake-ups, calls, the loop thread's CPU seconds in them, the sums of ``k**2`` and
+#: ``k * cpu``); NaN for the broker (not our loop) and in files written before them.
+WAKE_COLUMNS = ("wakes", "calls", "loop_cpu_s", "skk", "skc")
 
 
 def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dict[str, Any]],
@@ -44,6 +49,26 @@ def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dic
         out[f"host{h}"] = publishes(st.get("links", {}), qos)
     out["broker"] = sum(out.values())
     return out
+
+
+def wake_sums(server: dict[str, Any], host_stats: dict[int, dict[str, Any]]
+              ) -> dict[str, dict[str, Any]]:
+    """The wake-up sums of the server's loop and each reporting host's (``stats["wake"]``),
+    by process name (``server``, ``host<H>``)."""
+    out = {"server": server}
+    for h, st in sorted(host_stats.items()):
+        if "wake" in st:
+            out[f"host{h}"] = st["wake"]
+    return out
+
+
+def wake_columns(wakes: dict[str, dict[str, Any]] | None, name: str) -> dict[str, Any]:
+    """The :data:`WAKE_COLUMNS` of process ``name`` from :func:`wake_sums` (NaN if absent)."""
+    w = (wakes or {}).get(name)
+    if w is None:
+        return dict.fromkeys(WAKE_COLUMNS, math.nan)
+    return {"wakes": w["wakes"], "calls": w["calls"], "loop_cpu_s": w["cpu_s"],
+            "skk": w["skk"], "skc": w["skc"]}
 
 
 def machine_busy() -> float:
@@ -93,12 +118,16 @@ class CpuMeter:
         (t0, m0, c0), (t1, m1, c1) = self.marks[a], self.marks[b]
         return t1 - t0, m1 - m0, {n: c1[n] - c0[n] for n in self._ps}
 
-    def rows(self, messages: dict[str, int]) -> list[dict[str, Any]]:
-        """One row per process (columns :data:`CPU_COLUMNS`) and a ``background`` row.
+    def rows(self, messages: dict[str, int],
+             wakes: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+        """One row per process (columns :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`) and
+        a ``background`` row.
 
         Args:
             messages: PUBLISH messages each process handled (sent + received) in the
                 metrics window; a process without an entry gets NaN.
+            wakes: each process's loop wake-up sums (:func:`wake_sums`); a process
+                without an entry gets NaN.
 
         The idle window is marks ``idle0``..``idle1``, the metrics window ``w0``..``w1``.
         """
@@ -108,23 +137,27 @@ class CpuMeter:
         for name in self._ps:
             out.append({"process": name, "pid": self.pids[name], "idle_s": idle_s,
                         "idle_cpu_s": idle[name], "window_s": win_s, "cpu_s": win[name],
-                        "messages": messages.get(name, math.nan)})
+                        "messages": messages.get(name, math.nan),
+                        **wake_columns(wakes, name)})
         ours_idle = sum(v for v in idle.values() if math.isfinite(v))
         ours_win = sum(v for v in win.values() if math.isfinite(v))
         out.append({"process": "background", "pid": -1, "idle_s": idle_s,
                     "idle_cpu_s": max(idle_m - ours_idle, 0.0), "window_s": win_s,
-                    "cpu_s": max(win_m - ours_win, 0.0), "messages": math.nan})
+                    "cpu_s": max(win_m - ours_win, 0.0), "messages": math.nan,
+                    **wake_columns(None, "background")})
         return out
 
 
 def write_cpu(live: dict[str, dict[str, Any]], out_dir: Path) -> Path:
     """Write every method's CPU rows (``live[method]["cpu"]``) to ``out_dir/cpu.csv``
-    (columns ``method`` + :data:`CPU_COLUMNS`; NaN where not measured)."""
+    (columns ``method`` + :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`; NaN where not
+    measured)."""
     path = out_dir / CPU_FILE
+    cols = CPU_COLUMNS + WAKE_COLUMNS
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(("method", *CPU_COLUMNS))
+        w.writerow(("method", *cols))
         for method, info in live.items():
             for r in info.get("cpu", []):
-                w.writerow((method, *(r[c] for c in CPU_COLUMNS)))
+                w.writerow((method, *(r.get(c, math.nan) for c in cols)))
     return path

@@ -12,12 +12,21 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   On a saturated machine (busy ≥ :data:`SATURATED` × ``cores``) this is ``cores``
   minus what our processes got, which puts the DES's CPU at utilization ≈ 1 by
   construction: warned about;
-* ``host_demand``, ``server_demand``: the Utilization Law (:mod:`sigma_des.live.demands`)
-  pooled over the processes of one kind and the methods, ``D = Σ busy / Σ messages``
-  (one demand per process per message, whatever its kind). A host's messages are the
-  PUBLISHes its ledger counted with a send time in the metrics window: triggers,
-  commands and Lock-Step re-requests received, states sent (a bundle once); the
-  server's: states received, triggers, commands and re-requests sent;
+* ``host_wake``, ``server_wake`` and ``host_demand``, ``server_demand``: a process's
+  CPU is split into a cost per *wake-up* (a burst that finds its loop idle) and a cost
+  per message. Each live loop records its wake-ups in the metrics window (``cpu.csv``'s
+  :data:`~sigma_des.live.cpu.WAKE_COLUMNS`: wake-ups ``W``, calls ``K``, the loop
+  thread's CPU ``C`` and the moments of a least-squares line ``cpu = a + b·k`` of a
+  wake-up's CPU against its ``k`` calls). Pooled over the processes of one kind and
+  the methods, the loop thread's intercept ``a`` is its per-wake-up cost; the process
+  (paho's network thread too) spends ``Σ busy / C`` times its loop thread's CPU, so
+  ``wake = a · Σ busy / C``, and the Utilization Law gives the rest per message,
+  ``D = (Σ busy − wake · W) / Σ messages``. A host's messages are the PUBLISHes its
+  ledger counted with a send time in the metrics window: triggers, commands and
+  Lock-Step re-requests received, states sent (a bundle once); the server's: states
+  received, triggers, commands and re-requests sent. Without wake-up columns (a run
+  recorded before them), or with a line that gives no positive wake-up cost, the
+  wake-up is 0 and ``D = Σ busy / Σ messages`` (said in a warning);
 * the broker's demand ``D_b`` (its busy CPU over every PUBLISH that came in plus every
   delivery that went out) as **both** ``broker.publish_service`` and
   ``broker.delivery_service`` (constants): one run gives one equation,
@@ -36,15 +45,16 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from sigma_des.live.cpu import CPU_FILE
+from sigma_des.live.cpu import CPU_FILE, WAKE_COLUMNS
 from sigma_des.live.demands import fit_demands, read_cpu
+from sigma_des.live.loop import WakeStats
 from sigma_des.net.spec import DeploymentSpec
 
 __all__ = ["BACKGROUND_CAP", "SATURATED", "CpuFit", "fit_deployment", "path_services",
@@ -64,11 +74,14 @@ class CpuFit:
         deployment: the ``[deployment]`` table.
         broker_service: the broker's demand per inbound PUBLISH and per delivery (s).
         report: the fitted figures and what they came from.
+        wake_share: per kind (``host``, ``server``), the live loops' wake-ups per call:
+            the share of bursts :func:`path_services` charges the wake-up cost.
     """
 
     deployment: DeploymentSpec
     broker_service: float
     report: dict[str, Any]
+    wake_share: dict[str, float] = field(default_factory=dict)
 
 
 def pooled_demand(table: pd.DataFrame, kind: str) -> tuple[float, float, float]:
@@ -120,8 +133,48 @@ def _background(cpu: pd.DataFrame, cores: int, warn: list[str]) -> tuple[float, 
     return min(max(measured, 0.0), cap), measured, busy
 
 
-def _demand(table: pd.DataFrame, kind: str, warn: list[str]) -> float:
+def _kind_rows(cpu: pd.DataFrame, kind: str) -> pd.DataFrame:
+    proc = cpu["process"].astype(str)
+    mine = proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind
+    return cpu.loc[mine.to_numpy(bool)]
+
+
+def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
+          warn: list[str]) -> tuple[float, float, dict[str, float]]:
+    """``(wake, demand, report)`` of one process kind (see the module doc); ``wake`` 0
+    when the wake-up columns are missing or give no positive cost."""
     d, busy, msgs = pooled_demand(table, kind)
+    rows = _kind_rows(cpu, kind)
+    cols = [c for c in WAKE_COLUMNS if c in rows.columns]
+    ok = (rows[cols].map(math.isfinite).all(axis=1) if len(cols) == len(WAKE_COLUMNS)
+          else pd.Series(False, index=rows.index))
+    if not ok.any():
+        warn.append(f"no {kind} loop wake-ups recorded (a live run before them?): "
+                    f"deployment.{kind}_wake 0, the whole CPU per message")
+        return 0.0, _demand(d, busy, msgs, kind, warn), {}
+    w = WakeStats.pooled([{"wakes": int(r.wakes), "calls": int(r.calls),
+                           "cpu_s": r.loop_cpu_s, "skk": r.skk, "skc": r.skc}
+                          for r in rows.loc[ok].itertuples(index=False)])
+    a, b = w.line()
+    rep = {f"{kind}_wakes": float(w.wakes), f"{kind}_calls": float(w.calls),
+           f"{kind}_loop_cpu_s": w.cpu_s, f"{kind}_loop_wake_s": a, f"{kind}_loop_call_s": b}
+    if not (math.isfinite(a) and a > 0 and w.cpu_s > 0 and math.isfinite(busy) and busy > 0):
+        warn.append(f"{kind} loop: no positive per-wake-up CPU (line {a * 1e6:.3g} µs + "
+                    f"{b * 1e6:.3g} µs a call over {w.wakes} wake-ups): deployment."
+                    f"{kind}_wake 0, the whole CPU per message")
+        return 0.0, _demand(d, busy, msgs, kind, warn), rep
+    wake = a * busy / w.cpu_s
+    per_msg = (busy - wake * w.wakes) / msgs if msgs > 0 else math.nan
+    if not (math.isfinite(per_msg) and per_msg > 0):
+        warn.append(f"{kind}: the wake-ups ({wake * 1e6:.1f} µs x {w.wakes}) explain all of "
+                    f"its {busy:.3f} CPU s: deployment.{kind}_wake 0, the whole CPU per "
+                    "message")
+        return 0.0, _demand(d, busy, msgs, kind, warn), rep
+    rep[f"{kind}_wake_share"] = w.wakes / w.calls
+    return wake, per_msg, rep
+
+
+def _demand(d: float, busy: float, msgs: float, kind: str, warn: list[str]) -> float:
     if not math.isfinite(d):
         warn.append(f"no {kind} CPU demand could be measured: deployment.{kind}_demand 0")
         return 0.0
@@ -161,7 +214,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
                     "while a host's process is busy, so its bundles are as large as its "
                     "host demand makes them (docs/MODEL.md, Bundles)")
     background, measured, busy = _background(cpu, cores, warn)
-    host, server = _demand(table, "host", warn), _demand(table, "server", warn)
+    host_wake, host, host_rep = _wake(cpu, table, "host", warn)
+    server_wake, server, server_rep = _wake(cpu, table, "server", warn)
     broker, b_busy, b_msgs = pooled_demand(table, "broker")
     if not math.isfinite(broker) or broker < 0:
         warn.append("the broker's CPU was not measured (an external broker?): its "
@@ -169,31 +223,48 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         broker = base_broker
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
+                         host_wake=host_wake, server_wake=server_wake,
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
         "background_cores_measured": measured, "machine_busy_cores": busy,
-        "host_demand_s": host,
-        "server_demand_s": server, "broker_demand_s": broker,
+        "host_demand_s": host, "host_wake_s": host_wake,
+        "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
+        **host_rep, **server_rep,
         "broker_messages": b_msgs, "broker_busy_s": b_busy,
         "background_cores": bg_per_method, "cpu_demands": table.to_dict("records"),
         "live_load1": {m: v.get("load1") for m, v in info.items()},
     }
-    return CpuFit(dep, broker, report)
+    share = {k: r[f"{k}_wake_share"] for k, r in (("host", host_rep), ("server", server_rep))
+             if f"{k}_wake_share" in r}
+    return CpuFit(dep, broker, report, share)
 
 
-def path_services(dep: DeploymentSpec, publish: float, delivery: float) -> dict[str, float]:
+def path_services(dep: DeploymentSpec, publish: float, delivery: float,
+                  wake_share: dict[str, float] | None = None) -> dict[str, float]:
     """CPU service the DES spends on one message's measured path, per direction (s).
 
     The latency ends at the receiving client's receipt (where live stamps it, before
     the receiver's burst; MODEL.md "Deployment and CPU"), so a path holds the sender's
     publish burst and the broker's two services: ``up`` (a state: the host's burst) and
     ``down`` (a trigger: the server's), every burst slowed by the background
-    (``cores / (cores - background)``). Without a CPU stage only the broker's services,
-    unscaled.
+    (``cores / (cores - background)``). A sender's burst holds its wake-up cost when its
+    thread was idle: on average ``wake_share`` (the live loops' wake-ups per call) of
+    it. Without a CPU stage only the broker's services, unscaled.
+
+    Also ``recv_up`` and ``recv_down``: the receiver's burst for a message that waited
+    for its thread (the server's demand for a state, a host's for a trigger; no
+    wake-up, the thread was busy). A receipt within that (and the hold tolerance) of
+    the previous one at the receiver may have waited for the thread, which the DES
+    adds itself (the latency ends when the process takes the message).
     """
     if not dep.cpu:
-        return {"up": publish + delivery, "down": publish + delivery}
+        return {"up": publish + delivery, "down": publish + delivery, "recv_up": 0.0,
+                "recv_down": 0.0}
+    share = wake_share or {}
     scale = dep.cores / (dep.cores - dep.background)
     broker = (publish + delivery) * scale
-    return {"up": broker + dep.host_demand * scale, "down": broker + dep.server_demand * scale}
+    host = dep.host_demand + dep.host_wake * share.get("host", 0.0)
+    server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
+    return {"up": broker + host * scale, "down": broker + server * scale,
+            "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale}

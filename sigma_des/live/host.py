@@ -143,6 +143,7 @@ class Host(ImpairedSender):
         if loop is None:
             loop = ClockLoop(t0, self.mono) if skew != (0.0, 0.0) else Loop(t0)
         self.loop = loop
+        self.loop.wake.lo, self.loop.wake.hi = sc.warmup, sc.duration
         n = sc.nodes
         self.nodes = np.flatnonzero(np.asarray(sc.host_of) == host).astype(np.int64)
         self.local = {int(g): j for j, g in enumerate(self.nodes)}
@@ -430,6 +431,7 @@ class Host(ImpairedSender):
             "disconnects": self.client.disconnects,
             "steps": self.steps,
             "step_real_s": self.step_real_s,
+            "wake": self.loop.wake.as_dict(),
         }
 
 

@@ -20,10 +20,12 @@ exponential backoff (paho's ``reconnect_delay_set``).
 from __future__ import annotations
 
 import heapq
+import math
 import queue
 import socket
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -31,9 +33,72 @@ import paho.mqtt.client as mqtt
 from sigma_des.core.clock import ARRIVAL
 from sigma_des.live.broker import BrokerAddress
 
-__all__ = ["Client", "Loop", "VirtualLoop"]
+__all__ = ["Client", "Loop", "VirtualLoop", "WakeStats"]
 
 _Timer = tuple[float, int, int, Callable[..., Any], tuple[Any, ...]]
+
+
+@dataclass
+class WakeStats:
+    """The loop thread's wake-ups in a window, for the per-wake-up CPU demand.
+
+    A *wake-up* is one busy period of the loop thread: from the return of a wait
+    (the inbox or a timer due) to the next wait, handling ``k >= 1`` calls. Over the
+    wake-ups that start inside ``[lo, hi)`` of the loop's clock it sums the count,
+    the calls and the thread's CPU seconds (``time.thread_time``), and the moments a
+    least-squares line ``cpu = wake + per_call * k`` needs: a busy period's fixed
+    cost (leaving the wait, looking at the timers, going back to wait) is its
+    intercept, each call's cost its slope.
+
+    Attributes:
+        lo, hi: the window (s since the run's start).
+        wakes, calls: wake-ups and calls handled in them.
+        cpu_s: the loop thread's CPU seconds in them.
+        skk, skc: sums of ``k**2`` and ``k * cpu`` over the wake-ups.
+    """
+
+    lo: float = math.inf
+    hi: float = math.inf
+    wakes: int = 0
+    calls: int = 0
+    cpu_s: float = 0.0
+    skk: float = 0.0
+    skc: float = 0.0
+
+    def add(self, k: int, cpu: float) -> None:
+        """One wake-up of ``k`` calls that took ``cpu`` thread CPU seconds."""
+        self.wakes += 1
+        self.calls += k
+        self.cpu_s += cpu
+        self.skk += k * k
+        self.skc += k * cpu
+
+    def line(self) -> tuple[float, float]:
+        """``(wake, per_call)``: the least-squares intercept and slope of a wake-up's
+        CPU against its calls; NaN when the calls do not vary (not identifiable)."""
+        n = self.wakes
+        den = n * self.skk - self.calls * self.calls
+        if n < 2 or den <= 0:
+            return math.nan, math.nan
+        slope = (n * self.skc - self.calls * self.cpu_s) / den
+        return (self.cpu_s - slope * self.calls) / n, slope
+
+    def as_dict(self) -> dict[str, float]:
+        """The sums (a host's end-of-run stats; sums of several loops pool by adding)."""
+        return {"wakes": self.wakes, "calls": self.calls, "cpu_s": self.cpu_s,
+                "skk": self.skk, "skc": self.skc}
+
+    @classmethod
+    def pooled(cls, parts: list[dict[str, Any]]) -> WakeStats:
+        """The sums of several loops' :meth:`as_dict` (one line fitted to all of them)."""
+        out = cls()
+        for d in parts:
+            out.wakes += int(d["wakes"])
+            out.calls += int(d["calls"])
+            out.cpu_s += float(d["cpu_s"])
+            out.skk += float(d["skk"])
+            out.skc += float(d["skc"])
+        return out
 
 
 class Loop:
@@ -41,6 +106,10 @@ class Loop:
 
     Args:
         t0: ``time.monotonic()`` at the run's start.
+
+    Attributes:
+        wake: the wake-ups of the metrics window (:class:`WakeStats`; set its ``lo``
+            and ``hi`` to count them).
     """
 
     def __init__(self, t0: float) -> None:
@@ -52,6 +121,7 @@ class Loop:
         )
         self.stopped = False
         self.handled = 0
+        self.wake = WakeStats()
 
     @property
     def now(self) -> float:
@@ -81,20 +151,34 @@ class Loop:
         """Process timers and inbox until :meth:`stop` or time ``until`` (s since t0)."""
         heap = self._heap
         inbox = self.inbox
+        wake = self.wake
+        cpu = time.thread_time
+        k = 0  # calls of the current wake-up
+        c0 = cpu()
+        t_wake = self.now
         while not self.stopped:
             now = self.now
             if now >= until:
-                return
+                break
             while heap and heap[0][0] <= now and not self.stopped:
                 _t, _p, _s, fn, args = heapq.heappop(heap)
                 fn(*args)
+                k += 1
+            if k and wake.lo <= t_wake < wake.hi:  # a wake-up ends: the thread waits
+                wake.add(k, cpu() - c0)
             wait = min(until, heap[0][0] if heap else until) - self.now
             try:
                 fn, args = inbox.get(timeout=min(0.05, max(wait, 0.0)))
             except queue.Empty:
+                k = 0
+                c0 = cpu()
+                t_wake = self.now
                 continue
+            c0 = cpu()
+            t_wake = self.now
             fn(*args)
             self.handled += 1
+            k = 1
             for _ in range(256):  # drain what is there before looking at timers again
                 try:
                     fn, args = inbox.get_nowait()
@@ -102,6 +186,9 @@ class Loop:
                     break
                 fn(*args)
                 self.handled += 1
+                k += 1
+        if k and wake.lo <= t_wake < wake.hi:
+            wake.add(k, cpu() - c0)
 
 
 class VirtualLoop(Loop):

@@ -38,7 +38,7 @@ from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
 from sigma_des.live.broker import Broker, BrokerAddress, Janitor, parse_broker, wait_port
 from sigma_des.live.clocksync import ClockBook, SyncClient, SyncTopics
-from sigma_des.live.cpu import CpuMeter, message_counts
+from sigma_des.live.cpu import CpuMeter, message_counts, wake_sums
 from sigma_des.live.interrupts import Interrupts
 from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
@@ -327,7 +327,8 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
     out["live"] = _live_info(srv, group, table, sc)
     if book is not None:
         out["live"]["clock"] = book.report(sc.duration)
-    out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos))
+    out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),
+                                    wake_sums(srv.loop.wake.as_dict(), srv.stats))
     # what `calibrate` writes into [deployment]: the machine's CPUs, the bundling, the load
     out["live"].update(cores=len(os.sched_getaffinity(0)), bundle=opts.bundle,
                        load1=os.getloadavg()[0])

@@ -98,6 +98,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.topics = topics
         self.qos = qos
         self.loop = Loop(0.0) if loop is None else loop
+        self.loop.wake.lo, self.loop.wake.hi = sc.warmup, sc.duration
         self.host_of = sc.host_of
         self.window = Window.of(sc.duration, sc.f_trig, sc.bides.f_trig_min)
         super().__init__(self.loop, sc.run_spec(), method, make_dynamics(sc),

@@ -336,6 +336,16 @@ def _count(x: Any) -> bool:
     return type(x) is int and 0 <= x < 2**53
 
 
+def _wake_ok(w: Any) -> bool:
+    """A loop's wake-up sums (:class:`~sigma_des.live.loop.WakeStats`): two counts and
+    three non-negative finite floats."""
+    if not isinstance(w, dict) or set(w) != {"wakes", "calls", "cpu_s", "skk", "skc"}:
+        return False
+    if not (_count(w["wakes"]) and _count(w["calls"])):
+        return False
+    return all(type(w[k]) in (int, float) and 0 <= w[k] < 1e18 for k in ("cpu_s", "skk", "skc"))
+
+
 def check_stats(payload: bytes, host: int) -> dict[str, Any]:
     """The end-of-run counters of ``host`` from their JSON payload, checked field by field.
 
@@ -347,7 +357,7 @@ def check_stats(payload: bytes, host: int) -> dict[str, Any]:
         st = json.loads(payload)
     except (ValueError, RecursionError):
         raise WireError("stats: not JSON") from None
-    keys = {"host", "links", "step_real_s", *STATS_FIELDS}
+    keys = {"host", "links", "step_real_s", "wake", *STATS_FIELDS}
     if not isinstance(st, dict) or set(st) != keys:
         raise WireError(f"stats: must be an object with exactly the keys {sorted(keys)}")
     if st["host"] != host or type(st["host"]) is not int:
@@ -356,6 +366,8 @@ def check_stats(payload: bytes, host: int) -> dict[str, Any]:
     s = st["step_real_s"]
     if type(s) not in (int, float) or not 0 <= s <= 1e9:
         bad.append("step_real_s")
+    if not _wake_ok(st["wake"]):
+        bad.append("wake")
     links = st["links"]
     if not isinstance(links, dict) or len(links) > 1024 or not all(
             isinstance(v, list) and len(v) == 2 and _count(v[0]) and _count(v[1])

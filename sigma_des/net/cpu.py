@@ -7,7 +7,10 @@ of CPU demand ``D`` of a process arriving at ``a`` is placed at its arrival:
 * it is ready at ``r = a if a > thread_free else thread_free`` (its thread serves
   one burst at a time, in arrival order);
 * it runs for ``L = D * scale``, where ``scale = cores / (cores - background)`` is
-  computed once per process (background load slows every burst down);
+  computed once per process (background load slows every burst down); a burst that
+  finds its thread idle (``a > thread_free``) is a *wake-up* and runs for
+  ``L = (D + wake) * scale``: a live loop pays a fixed cost to leave its wait and
+  come back to it, shared by every message it handles before it waits again;
 * it starts at the earliest ``s >= r`` at which some core has ``[s, s + L)`` free of
   the reservations already made (the lowest-index core on ties): a core idle in a
   gap before a later reservation takes a burst that fits in the gap (backfilling),
@@ -32,6 +35,7 @@ wait in the metrics window; :meth:`Cpu.report` hands them over in one
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from sigma_des.net.spec import DeploymentSpec
@@ -96,6 +100,7 @@ class Process:
         scale: the slow-down of every burst, ``cores / (cores - background)``.
         warmup: bursts (and busy time) before this time are not counted.
         end: busy time at or after this time is not counted.
+        wake: CPU seconds a burst that finds the thread idle costs more (0: none).
 
     Attributes:
         free: time the thread is free again (s).
@@ -104,17 +109,18 @@ class Process:
         bursts: bursts arriving in the window.
     """
 
-    __slots__ = ("name", "machine", "scale", "warmup", "end", "free", "busy", "max_wait",
-                 "bursts")
+    __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "free", "busy",
+                 "max_wait", "bursts")
 
     def __init__(self, name: str, machine: Machine, scale: float, warmup: float,
-                 end: float) -> None:
+                 end: float, wake: float = 0.0) -> None:
         self.name = name
         self.machine = machine
         self.scale = scale
+        self.wake = wake
         self.warmup = warmup
         self.end = end
-        self.free = 0.0
+        self.free = -math.inf  # never busy yet: the first burst is a wake-up
         self.busy = 0.0
         self.max_wait = 0.0
         self.bursts = 0
@@ -150,9 +156,11 @@ class Process:
         self.bursts += bursts
 
     def span(self, a: float, demand: float) -> tuple[float, float]:
-        """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a``; its start and
-        end."""
-        length = demand * self.scale
+        """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a`` (plus ``wake``
+        if the thread is idle then); its start and end."""
+        w = self.wake
+        idle = w > 0.0 and a > self.free
+        length = (demand + w) * self.scale if idle else demand * self.scale
         s, c = self.acquire(a, length)
         end = s + length
         self.hold(a, s, c, end)
@@ -228,7 +236,9 @@ class Cpu:
         else:
             machines = [Machine(n, c) for n in names]
             self.machines = machines
-        procs = [Process(n, m, scale, warmup, end) for n, m in zip(names, machines, strict=True)]
+        wakes = [0.0, spec.server_wake, *([spec.host_wake] * hosts)]
+        procs = [Process(n, m, scale, warmup, end, w)
+                 for n, m, w in zip(names, machines, wakes, strict=True)]
         self.cores = c
         self.broker = procs[0]
         self.server = procs[1]

@@ -12,7 +12,9 @@ serves.
 With a CPU stage (``deployment.preset`` other than ``none``, :mod:`sigma_des.net.cpu`),
 a client's publish is a burst of its process's demand (the PUBLISH leaves at the
 burst's end) and every copy it receives is a burst at its arrival (the application
-gets it at the burst's end; the PUBACK leaves at the arrival). A zero demand is no
+gets it at the burst's end; the PUBACK leaves at the arrival; the latency ends at the
+burst's start, when the process takes it). A burst that finds its process's thread idle
+costs the process's wake-up more (:class:`~sigma_des.net.cpu.Process`). A zero demand is no
 burst and no event. With per-host clients (``deployment.clients = "host"``) the MQTT
 clients are the physics hosts (client id: the host's first node) and the server: a
 node's state leaves through its host's client, and what a host client receives is
@@ -290,9 +292,14 @@ class Network(Links):
         self._deliver_try(m)
 
     def _client_receive(self, m: Msg) -> None:
-        """The subscriber receives ``m``: PUBACK (QoS 1), then hand it to the application."""
+        """The subscriber receives ``m``: PUBACK (QoS 1), then hand it to the application
+        (after its process's burst, if any). The latency ends when the process takes
+        the message, the burst's start: live stamps a receipt in paho's network thread,
+        which needs the interpreter lock the loop thread holds while it serves its
+        backlog, so the receipt waits for the process (receipts at the server come one
+        service apart, measured)."""
         now = self.k.env.now
-        m.t_recv = now  # the latency ends here, before the client's burst (live's stamp)
+        m.t_recv = now
         if self.qos1 and self._puback(m, True, now, now):
             self._resend(m, self._redeliver)
         if not self._app_stage:
@@ -301,8 +308,9 @@ class Network(Links):
         proc = self._proc[m.client]
         if proc is None:
             self._hand_over(m)
-        else:
-            self.k.at(proc.burst(now, self._demand[m.client]), self._hand_over, m)
+        else:  # the latency ends when the process gets to it (live's stamp), not later
+            m.t_recv, end = proc.span(now, self._demand[m.client])
+            self.k.at(end, self._hand_over, m)
 
     def _hand_over(self, m: Msg) -> None:
         """The receiving client's application gets ``m``: a bundle record by record; a

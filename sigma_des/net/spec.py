@@ -201,6 +201,10 @@ class DeploymentSpec:
         server_demand: CPU the server's process spends per PUBLISH it sends or
             receives (s), 0..1.
         server_tick: CPU the server's process spends per alignment tick (s), 0..1.
+        host_wake: CPU a physics host's process spends more on a burst that finds its
+            thread idle (a *wake-up*: leaving the wait, the loop's own work), 0..1 s;
+            needs ``host_demand > 0``.
+        server_wake: the same for the server's process; needs ``server_demand > 0``.
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
         bundle: a host's states of one loop turn leave as one PUBLISH, and the
@@ -215,6 +219,8 @@ class DeploymentSpec:
     host_demand: float = 0.0
     server_demand: float = 0.0
     server_tick: float = 0.0
+    host_wake: float = 0.0
+    server_wake: float = 0.0
     clients: str = "node"
     bundle: bool = False
 
@@ -225,10 +231,17 @@ class DeploymentSpec:
                 f"must be in 1..{MAX_CORES}, got {self.cores}")
         require(0.0 <= self.background < self.cores and math.isfinite(self.background),
                 "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
-        for name in ("host_demand", "server_demand", "server_tick"):
+        for name in ("host_demand", "server_demand", "server_tick", "host_wake",
+                     "server_wake"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
+        for who in ("host", "server"):
+            wake, demand = getattr(self, f"{who}_wake"), getattr(self, f"{who}_demand")
+            require(wake == 0.0 or demand > 0.0, f"{who}_wake",
+                    f"needs deployment.{who}_demand > 0 (a wake-up is charged on a burst, "
+                    f"and a zero demand is no burst; got {who}_wake = {wake})")
         if self.preset == "none":
-            for name in ("background", "host_demand", "server_demand", "server_tick"):
+            for name in ("background", "host_demand", "server_demand", "server_tick",
+                         "host_wake", "server_wake"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

@@ -65,6 +65,19 @@ def test_cpu_stage_identical(method: str, preset: str) -> None:
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_wake_up_costs_identical(method: str) -> None:
+    """Bursts that find their thread idle cost the process's wake-up more (hosts and
+    server): both engines tell idle from busy threads alike."""
+    sc = tiny(**{**_BASE, **_CPU, "deployment.host_wake": 0.0004,
+                 "deployment.server_wake": 0.0003})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    _exercised(ev["metrics"])
+    plain = run_both(tiny(**{**_BASE, **_CPU}), method)[0]["metrics"]
+    assert ev["metrics"]["server_cpu_util"] > plain["server_cpu_util"]
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_host_clients_without_cpu_stage_identical(method: str) -> None:
     """Per-host clients alone: H trigger deliveries handed to the nodes, states, commands
     and re-requests through the host's client (one stream connection per host)."""

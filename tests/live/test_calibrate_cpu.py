@@ -143,18 +143,93 @@ def test_without_cpu_csv_no_cpu_stage_is_fitted(tmp_path: Path) -> None:
     assert sc.deployment == DeploymentSpec()
     assert "no cpu.csv next to the source: no CPU stage fitted" in rep["warnings"][0]
     assert path_services(DeploymentSpec(), 1e-5, 2e-5) == {
-        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5}
+        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5, "recv_up": 0.0, "recv_down": 0.0}
 
 
 def test_path_services_hold_the_senders_burst_not_the_receivers() -> None:
     """Background 1 of 4 cores: every service × 4/3. A state's path: the broker's two
     services and the host's publish burst; a trigger's: the broker's and the server's
-    (the receiver's burst comes after the receipt, where the latency ends)."""
+    (the receiver's burst comes after the receipt, where the latency ends). A sender's
+    burst holds its wake-up for the live share of calls that were wake-ups (host 0.4 of
+    200 µs, server 0.25 of 400 µs). The receiver's burst (no wake-up: it waited) is the
+    hold tolerance's addition."""
     dep = DeploymentSpec(preset="colocated", cores=4, background=1.0, host_demand=3e-4,
-                         server_demand=6e-4)
+                         server_demand=6e-4, host_wake=2e-4, server_wake=4e-4)
     got = path_services(dep, 1.5e-5, 3e-5)
     assert got["up"] == pytest.approx((4.5e-5 + 3e-4) * 4 / 3, rel=1e-12)
     assert got["down"] == pytest.approx((4.5e-5 + 6e-4) * 4 / 3, rel=1e-12)
+    got = path_services(dep, 1.5e-5, 3e-5, {"host": 0.4, "server": 0.25})
+    assert got["up"] == pytest.approx((4.5e-5 + 3e-4 + 0.4 * 2e-4) * 4 / 3, rel=1e-12)
+    assert got["down"] == pytest.approx((4.5e-5 + 6e-4 + 0.25 * 4e-4) * 4 / 3, rel=1e-12)
+    assert got["recv_up"] == pytest.approx(6e-4 * 4 / 3, rel=1e-12)
+    assert got["recv_down"] == pytest.approx(3e-4 * 4 / 3, rel=1e-12)
+
+
+def _wake_cols(a: float, b: float, wakes: list[int]) -> dict[str, float]:
+    """Loop wake-up sums of wake-ups with the given call counts, each costing exactly
+    ``a + b·k`` loop-thread CPU seconds."""
+    return {"wakes": len(wakes), "calls": sum(wakes),
+            "loop_cpu_s": sum(a + b * k for k in wakes), "skk": float(sum(k * k for k in wakes)),
+            "skc": sum(k * (a + b * k) for k in wakes)}
+
+
+def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> None:
+    """Each host's loop spends 50 µs per wake-up and 10 µs per call (wake-ups of 1, 2
+    and 5 calls), the server's 80 and 20 µs; a process spends 2.5× its loop thread's
+    CPU (paho's network thread too). Pooled over both hosts the line is exact, so
+    ``host_wake = 50 µs · 2.5`` and the per-message demand is the rest of the busy CPU
+    over the messages: ``(busy − wake·W) / M``."""
+    d = _cpu_run(tmp_path / "run")
+    hosts = {"host0": _wake_cols(50e-6, 10e-6, [1, 2, 5] * 300),
+             "host1": _wake_cols(50e-6, 10e-6, [1, 1, 2, 5] * 250),
+             "server": _wake_cols(80e-6, 20e-6, [1, 3, 4] * 400)}
+    procs = {"server": (0.01, 5000, 2.5 * hosts["server"]["loop_cpu_s"]),
+             "host0": (0.0, 2000, 2.5 * hosts["host0"]["loop_cpu_s"]),
+             "host1": (0.02, 2500, 2.5 * hosts["host1"]["loop_cpu_s"]),
+             "broker": PROCS["broker"]}
+    rows = _cpu_rows(procs, BACKGROUND_CPU)
+    for r in rows:
+        r.update(hosts.get(str(r["process"]), {}))
+    write_cpu({"bides": {"cpu": rows}}, d)
+    sc, rep = calibrate(d, tmp_path / "files")
+    dep = sc.deployment
+    busy_h = procs["host0"][2] + procs["host1"][2]
+    w_h = hosts["host0"]["wakes"] + hosts["host1"]["wakes"]
+    assert dep.host_wake == pytest.approx(2.5 * 50e-6, rel=1e-9)
+    assert dep.host_demand == pytest.approx((busy_h - 2.5 * 50e-6 * w_h) / 4500, rel=1e-9)
+    assert dep.server_wake == pytest.approx(2.5 * 80e-6, rel=1e-9)
+    assert dep.server_demand == pytest.approx(
+        (procs["server"][2] - 2.5 * 80e-6 * 1200) / 5000, rel=1e-9)
+    assert rep["host_loop_call_s"] == pytest.approx(10e-6, rel=1e-9)
+    assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
+    # the sender's expected wake-up is on the path the hop samples are net of
+    scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
+    assert rep["path_cpu_service_up_s"] == pytest.approx(
+        scale * (2 * 0.09 / 9000 + dep.host_demand + dep.host_wake * rep["host_wake_share"]),
+        rel=1e-12)
+    # without the wake-up columns (a run recorded before them): the whole CPU per message
+    write_cpu({"bides": {"cpu": _cpu_rows(procs, BACKGROUND_CPU)}}, d)
+    sc0, rep0 = calibrate(d, tmp_path / "files0")
+    assert sc0.deployment.host_wake == 0.0
+    assert sc0.deployment.host_demand == pytest.approx(busy_h / 4500, rel=1e-12)
+    assert any("no host loop wake-ups recorded" in w for w in rep0["warnings"])
+
+
+def test_receipts_paced_by_the_servers_thread_count_as_held(tmp_path: Path) -> None:
+    """The synthetic run's states reach the server 0.5 ms apart. With a server demand
+    of 80 µs that is more than the tolerance plus its burst (none held); with 450 µs
+    (× 4/3.7 background) a receipt 0.5 ms after the previous one may have waited for
+    the server's thread: held (censored)."""
+    _sc, rep = calibrate(_cpu_run(tmp_path / "a"), tmp_path / "fa")
+    assert rep["state_held_frac"] == 0.0
+    scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
+    assert rep["hold_tol_up_s"] == pytest.approx(1e-4 + 0.4 / 5000 * scale, rel=1e-12)
+    d = _cpu_run(tmp_path / "b")
+    slow = {**PROCS, "server": (0.01, 5000, 450e-6 * 5000)}
+    write_cpu({"bides": {"cpu": _cpu_rows(slow, BACKGROUND_CPU)}}, d)
+    _sc, rep = calibrate(d, tmp_path / "fb")
+    assert rep["hold_tol_up_s"] == pytest.approx(1e-4 + 450e-6 * scale, rel=1e-12)
+    assert rep["state_held_frac"] > 0.4
 
 
 def test_icc_hand_computed() -> None:

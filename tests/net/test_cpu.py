@@ -54,6 +54,24 @@ def test_a_burst_fits_in_a_cores_gap_before_a_later_reservation() -> None:
     assert m.cores[1] == [(0.0, 3.0), (3.0, 4.5)]
 
 
+def test_a_wake_up_is_charged_only_to_a_burst_that_finds_its_thread_idle() -> None:
+    """Server wake 0.1, demand 0.25, on two cores: the first burst wakes the thread
+    (0.35 long); one arriving while it runs queues and costs its demand only; one
+    arriving exactly when the thread is free again is no wake-up either (the thread
+    has not waited); one after an idle gap wakes it again."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, server_demand=0.25,
+                             server_wake=0.1, host_demand=0.5), 1, 0.0, 100.0)
+    s, h = cpu.server, cpu.hosts[0]
+    assert s.span(0.0, 0.25) == (0.0, 0.35)
+    assert s.span(0.1, 0.25) == (0.35, 0.6)
+    assert s.span(0.6, 0.25) == (0.6, 0.85)
+    assert s.span(1.0, 0.25) == (1.0, 1.35)
+    assert s.busy == pytest.approx(0.35 + 0.25 + 0.25 + 0.35, abs=1e-15)
+    assert s.max_wait == pytest.approx(0.25, abs=1e-15)
+    assert h.burst(0.0, 0.5) == 0.5  # host_wake 0: its bursts are their demand
+    assert cpu.broker.wake == 0.0
+
+
 def test_reservations_ended_by_an_arrival_are_dropped_and_the_cap_merges() -> None:
     m = Machine("all", 1)
     for k in range(RESERVATIONS + 1):

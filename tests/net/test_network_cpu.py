@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import Any
 
@@ -202,7 +203,7 @@ def test_zero_demands_touch_nothing() -> None:
     net.k.env.run()
     cpu = net.cpu
     assert cpu is not None
-    assert all(p.bursts == 0 and p.free == 0.0 for p in cpu.processes)
+    assert all(p.bursts == 0 and p.free == -math.inf for p in cpu.processes)
     assert cpu.machines[0].cores == [[], []]
 
 

@@ -3,8 +3,9 @@
 
 ``Network._client_receive`` and ``_hand_over``, with the same operations in the
 same order: a copy that reaches its client (after the PUBACK) is a burst of the
-client's process when its demand is not zero — the application gets it at the
-burst's end, an ``EV_APP`` event (:func:`receive`) — and is then handed over
+client's process when its demand is not zero — its latency ends at the burst's start,
+the application gets it at the burst's end, an ``EV_APP`` event (:func:`receive`) —
+and is then handed over
 (:func:`hand_over`): to the server's aligner, to the node it reached, or, with
 per-host clients, from the host's client to its nodes (a trigger to each in node
 order, a command or re-request to the node it is about), each hand-over counted
@@ -13,7 +14,7 @@ as a delivery (``Collector.delivered``) to that node.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import burst
+from sigma_des.events.fast.cpu import span
 from sigma_des.events.fast.layout import (
     CP_HOSTS,
     CPU_DEM,
@@ -88,5 +89,6 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EV_INT]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
-    S[EV_FLOAT][ns, EF_TRECV] = now  # the receipt, where the latency ends
-    push(S, burst(S, p, S[CPU_DEM][c], now), ns)
+    start, end = span(S, p, S[CPU_DEM][c], now)
+    S[EV_FLOAT][ns, EF_TRECV] = start  # the process gets to it: where the latency ends
+    push(S, end, ns)

@@ -25,6 +25,7 @@ from sigma_des.events.fast.layout import (
     CPU_MACH,
     CPU_NIV,
     CPU_SCALE,
+    CPU_WAKE,
     FPARAMS,
     G_END,
     G_WARMUP,
@@ -119,8 +120,12 @@ def hold(S, p, a, s, c, end):  # type: ignore[no-untyped-def]
 @jit
 def span(S, p, demand, a):  # type: ignore[no-untyped-def]
     """Process.span: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
-    ``a``; its start and end."""
-    length = demand * S[CPU_SCALE][p]
+    ``a`` (plus the process's wake-up cost if its thread is idle then); its start and end."""
+    w = S[CPU_WAKE][p]
+    if w > 0.0 and a > S[CPU_FREE][p]:
+        length = (demand + w) * S[CPU_SCALE][p]
+    else:
+        length = demand * S[CPU_SCALE][p]
     s, c = acquire(S, p, a, length)
     end = s + length
     hold(S, p, a, s, c, end)

@@ -250,7 +250,7 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_dem", _f, ("clients",), None, "CPU demand of each client's bursts (s)"),
     Field("cpu_mach", _i, ("procs",), None, "machine of each process"),
     Field("cpu_scale", _f, ("procs",), None, "background slow-down of each process"),
-    Field("cpu_free", _f, ("procs",), 0.0, "process thread: free again at"),
+    Field("cpu_free", _f, ("procs",), -np.inf, "process thread: free again at"),
     Field("cpu_iv", _f, ("machines", "cpu_cores", RESERVATIONS + 1, 2), 0.0,
           "machine cores' reservations [start, end), in start order (+1: room to insert)"),
     Field("cpu_niv", _i, ("machines", "cpu_cores"), 0, "reservations each core holds"),
@@ -260,6 +260,7 @@ FIELDS: tuple[Field, ...] = (
     Field("bcast", _i, ("clients",), None, "a broadcast's subscribers (first CP_NSUB)"),
     Field("mem_ptr", _i, ("clients_1",), None, "nodes of client c: mem[ptr[c]:ptr[c+1]]"),
     Field("mem", _i, ("n",), None, "nodes of each client, in node order"),
+    Field("cpu_wake", _f, ("procs",), None, "CPU a burst finding its thread idle costs more"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -364,6 +365,7 @@ CL_OF = INDEX["cl_of"]
 BCAST = INDEX["bcast"]
 MEM_PTR = INDEX["mem_ptr"]
 MEM = INDEX["mem"]
+CPU_WAKE = INDEX["cpu_wake"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -249,12 +249,14 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     demand = np.zeros(n + 1)
     mach = np.zeros(H + 2, dtype=np.int64)
     scale = np.ones(H + 2)
+    wake = np.zeros(H + 2)
     if cpu is not None:
         # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
         assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
         for p, pr in enumerate(cpu.processes):
             mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
             scale[p] = pr.scale
+            wake[p] = pr.wake
         ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
         for i in range(n + 1):  # Network._proc: no burst for a zero demand
             d = dep.host_demand if i < n else dep.server_demand
@@ -277,5 +279,5 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
-            "cpu_scale": scale, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
+            "cpu_scale": scale, "cpu_wake": wake, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}
