@@ -4,9 +4,10 @@ Each live process owns one access link (a host's ``net.host_link`` or the server
 ``net.server_link``). Its :class:`Impairment` decides, per message and direction,
 the extra one-way delay drawn from the link's ``latency`` distribution and whether
 the message is lost (the link's Bernoulli or Gilbert–Elliott ``loss``). A lost
-message is resent the way the DES transport would: ``stream`` adds ``rto`` per
-lost attempt (TCP retransmission; order is kept), ``datagram`` with QoS 1 adds
-``qos1_timeout`` per attempt, ``datagram`` with QoS 0 drops it; after
+message is resent the way the DES transport would: ``stream`` adds ``rto · 2^a`` for
+lost attempt ``a`` (TCP retransmission with its doubling timeout, as
+``Links._stream_try``; order is kept), ``datagram`` with QoS 1 adds ``qos1_timeout``
+per attempt, ``datagram`` with QoS 0 drops it; after
 ``max_retries`` lost attempts it is gone. Draws use the counter-based streams
 keyed by (link, direction, kind, subject, index, attempt): same seed, same
 impairment decisions. Outgoing messages are delayed before they are published,
@@ -89,7 +90,10 @@ class Impairment:
                 self.lost += 1
                 if net.transport == "datagram" and net.qos == 0:
                     return math.inf
-                penalty += net.rto if net.transport == "stream" else net.qos1_timeout
+                # the DES's stream doubles its RTO on each try (until session 10 this
+                # added rto per try: a twice-lost message waited 0.4 s here, 0.6 s there)
+                penalty += (net.rto * 2**attempt if net.transport == "stream"
+                            else net.qos1_timeout)
             else:
                 self.gave_up += 1
                 return math.inf

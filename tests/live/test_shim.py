@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from sigma_des.core.rng import RandomStreams
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.net.latency import Dist
@@ -46,3 +48,26 @@ def test_loss_follows_the_link_loss_process() -> None:
         expect = math.inf if n_lost == 6 else 0.002 + 0.05 * n_lost
         assert d1 == expect or abs(d1 - expect) < 1e-12
     assert drop.lost > 0 and resend.lost >= drop.lost
+
+
+def test_stream_resends_after_the_des_doubling_rto() -> None:
+    """Over ``stream`` a message lost ``a`` times waits ``rto·(2^a − 1)`` more (the DES's
+    ``Links._stream_try`` resends try ``a`` after ``rto·2^a``), and one lost on every one
+    of its ``max_retries + 1`` tries is gone. Messages far apart, so order adds nothing."""
+    spec = LossSpec(p=0.5)
+    link = LinkSpec(latency=Dist(dist="constant", value=0.002), loss=spec)
+    ref = LossProcess(spec, RandomStreams(4).stream("live.loss"), 1)
+    imp = Impairment(link, NetSpec(transport="stream", rto=0.1, max_retries=3),
+                     RandomStreams(4), 1)
+    seen = set()
+    for k in range(300):
+        t = 10.0 * k
+        lost = [bool(ref.lost(t, UP, 2, 0, k, a)[0]) for a in range(4)]
+        n = next((a for a, x in enumerate(lost) if not x), 4)
+        d = imp.delay(t, UP, 2, 0, k)
+        if n == 4:
+            assert d == math.inf
+        else:
+            assert d == pytest.approx(0.002 + 0.1 * (2**n - 1), abs=1e-9)
+        seen.add(n)
+    assert seen >= {0, 1, 2, 3}  # every case met
