@@ -371,7 +371,7 @@ def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
     if s.deployment == DeploymentSpec():  # today's model: not written, hashes unchanged
         d.pop("deployment")
     else:
-        for key in ("host_wake", "server_wake"):  # no wake-up cost: as before they existed
+        for key in ("host_wake", "server_wake", "lock_switch"):  # 0: as before they existed
             if d["deployment"][key] == 0.0:
                 del d["deployment"][key]
     if keep_auto:

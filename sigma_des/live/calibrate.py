@@ -72,7 +72,7 @@ from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
 from sigma_des.guard import atomic_write, output_file, read_text
-from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, quantiles
+from sigma_des.live.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
 from sigma_des.live.fit_cpu import fit_deployment, path_services
 from sigma_des.live.fit_step import MIN_SAMPLES, fit_compute
 from sigma_des.live.messages import read_messages
@@ -305,6 +305,10 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     up_tol = tol + cpu.get("recv_up", 0.0) if tol > 0 else 0.0
     down_tol = tol + cpu.get("recv_down", 0.0) if tol > 0 else 0.0
     p = _paths(w, states, up_tol, down_tol)
+    # a state left its host when the host's thread was next idle (the DES adds that)
+    wait_up = sender_waits(states["method"].astype(str) + "/" + states["host"].astype(str),
+                           states["t_send"], cpu.get("send_up", 0.0), tol)
+    p["up"] = p["up"] - wait_up
     if p["up"].size < MIN_SAMPLES:
         warn.append(f"only {p['up'].size} state latencies in the window (< {MIN_SAMPLES})")
     hop_up = _hop_samples(p["up"], p["up_held"], cpu["up"])
@@ -343,6 +347,7 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
         "hop_down_latency_mean_s": float(hop_down.mean()),
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
         "hold_tol_s": tol,
+        "sender_wait_up_mean_s": float(wait_up.mean()),
         "hold_tol_up_s": up_tol,
         "hold_tol_down_s": down_tol,
         "path_cpu_service_up_s": cpu["up"],

@@ -29,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["HOLD_TOL", "censored_weights", "dequeued", "held", "job_services", "quantiles"]
+__all__ = ["HOLD_TOL", "censored_weights", "dequeued", "held", "job_services", "quantiles",
+           "sender_waits"]
 
 #: A delivery at most this long after an earlier-sent message's counts as held behind
 #: it (s). Live, the loops take ~5–25 µs per message of a backlog (the gaps between
@@ -69,6 +70,43 @@ def held(conn: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike,
     gap[0] = np.inf
     gap[1:] = ds[1:] - ds[:-1]
     out[order] = same & (gap <= tol)
+    return out
+
+
+def sender_waits(sender: ArrayLike, t_send: ArrayLike, length: float,
+                 tol: float = HOLD_TOL) -> NDArray[np.float64]:
+    """How long each message waited, after its publish burst, for its sender's thread
+    to go idle (when the DES lets it leave: MODEL.md "Deployment and CPU").
+
+    Each sender's publishes are replayed in time order: a publish stamped at ``t`` (its
+    handler's start) holds the thread for ``length``; the next one stamped within
+    ``tol`` of that burst's end belongs to the same busy period. Every message of a
+    busy period leaves at its end, so its wait is the period's end less its own
+    burst's end. Receives also keep a thread busy; the rows do not time them, so they
+    are not counted (the estimate is a lower bound).
+
+    Args:
+        sender: sender id of each message.
+        t_send: publish stamps (s).
+        length: one publish burst (s, >= 0).
+        tol: largest gap that still continues a busy period (s).
+
+    Returns:
+        The waits (s, >= 0), in the input order.
+    """
+    c = np.asarray(sender)
+    t = np.asarray(t_send, dtype=np.float64)
+    out = np.zeros(t.size)
+    if t.size == 0:
+        return out
+    order = np.lexsort((t, c))
+    cs, ts = c[order], t[order]
+    start = np.ones(t.size, dtype=bool)  # a busy period starts here
+    start[1:] = (cs[1:] != cs[:-1]) | (ts[1:] > ts[:-1] + length + tol)
+    period = np.cumsum(start) - 1
+    last = np.zeros(int(period[-1]) + 1)
+    np.maximum.at(last, period, ts)
+    out[order] = last[period] - ts
     return out
 
 

@@ -18,10 +18,14 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   :data:`~sigma_des.live.cpu.WAKE_COLUMNS`: wake-ups ``W``, calls ``K``, the loop
   thread's CPU ``C`` and the moments of a least-squares line ``cpu = a + b·k`` of a
   wake-up's CPU against its ``k`` calls). Pooled over the processes of one kind and
-  the methods, the loop thread's intercept ``a`` is its per-wake-up cost; the process
-  (paho's network thread too) spends ``Σ busy / C`` times its loop thread's CPU, so
-  ``wake = a · Σ busy / C``, and the Utilization Law gives the rest per message,
-  ``D = (Σ busy − wake · W) / Σ messages``. A host's messages are the PUBLISHes its
+  the methods, the loop thread's intercept ``a`` is the process's per-wake-up cost,
+  ``wake = a``, and the Utilization Law gives the rest per message,
+  ``D = (Σ busy − wake · W) / Σ messages``: the rest of the process's CPU, paho's
+  network thread above all (≈ 55 % of it here), reads, parses and hands over each
+  message (the server's receipts of one frame come one such cost apart, 110–150 µs;
+  scaling the intercept by the process's CPU over its loop thread's instead, as the
+  first version did, put the server's per-message demand at 59 µs and the DES's
+  receipts half as far apart). A host's messages are the PUBLISHes its
   ledger counted with a send time in the metrics window: triggers, commands and
   Lock-Step re-requests received, states sent (a bundle once); the server's: states
   received, triggers, commands and re-requests sent. Without wake-up columns (a run
@@ -32,6 +36,9 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   ``broker.delivery_service`` (constants): one run gives one equation,
   ``busy = D_pub · inbound + D_del · deliveries``, so the split is the one that charges
   an inbound PUBLISH and each delivery the same;
+* ``lock_switch`` = :data:`LIVE_LOCK_SWITCH`: a live process's PUBLISH is written by
+  paho's network thread when the loop thread gives up the interpreter lock (when it
+  waits, or at Python's 5 ms switch interval);
 * ``server_tick = 0``: the server's per-tick CPU cannot be told apart from its
   per-message CPU in one run; it is inside ``server_demand``;
 * ``clients = "host"`` (live runs one MQTT client per host process), ``bundle`` as the
@@ -57,11 +64,15 @@ from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.loop import WakeStats
 from sigma_des.net.spec import DeploymentSpec
 
-__all__ = ["BACKGROUND_CAP", "SATURATED", "CpuFit", "fit_deployment", "path_services",
+__all__ = ["BACKGROUND_CAP", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
+           "path_services",
            "pooled_demand"]
 
 #: Largest ``background`` a calibration writes, as a share of ``cores``.
 BACKGROUND_CAP = 0.95
+#: ``deployment.lock_switch`` of a live run: Python's interpreter-lock switch interval,
+#: which the live processes do not change (``sys.getswitchinterval()``'s default)
+LIVE_LOCK_SWITCH = 0.005
 #: A machine this busy (share of its cores, ours + background) is warned about.
 SATURATED = 0.95
 
@@ -163,7 +174,7 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
                     f"{b * 1e6:.3g} µs a call over {w.wakes} wake-ups): deployment."
                     f"{kind}_wake 0, the whole CPU per message")
         return 0.0, _demand(d, busy, msgs, kind, warn), rep
-    wake = a * busy / w.cpu_s
+    wake = a  # the rest of the process (paho's network thread) works per message
     per_msg = (busy - wake * w.wakes) / msgs if msgs > 0 else math.nan
     if not (math.isfinite(per_msg) and per_msg > 0):
         warn.append(f"{kind}: the wake-ups ({wake * 1e6:.1f} µs x {w.wakes}) explain all of "
@@ -224,6 +235,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=host_wake, server_wake=server_wake,
+                         lock_switch=LIVE_LOCK_SWITCH,
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
@@ -260,11 +272,12 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     """
     if not dep.cpu:
         return {"up": publish + delivery, "down": publish + delivery, "recv_up": 0.0,
-                "recv_down": 0.0}
+                "recv_down": 0.0, "send_up": 0.0}
     share = wake_share or {}
     scale = dep.cores / (dep.cores - dep.background)
     broker = (publish + delivery) * scale
     host = dep.host_demand + dep.host_wake * share.get("host", 0.0)
     server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
     return {"up": broker + host * scale, "down": broker + server * scale,
-            "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale}
+            "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
+            "send_up": dep.host_demand * scale}

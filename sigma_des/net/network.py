@@ -109,6 +109,10 @@ class Network(Links):
         self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
                           else list(range(self.n))) + [self.server]
         self._pending: dict[tuple[int, int], list[tuple[Record, tuple[int, ...]]]] = {}
+        # publishes whose burst ended while their process was busy, in burst order, and
+        # the latest time the first of them leaves (lock_switch after its burst's end)
+        self._lock_switch = dep.lock_switch if cpu is not None else 0.0
+        self._outbox: dict[str, tuple[float, list[Msg]]] = {}
         # the application receives through a burst or a hand-over (else: deliver at once)
         self._app_stage = self.host_clients or any(p is not None for p in self._proc)
 
@@ -198,7 +202,43 @@ class Network(Links):
             self._publish_try(m)
         else:
             m.t_pub, end = proc.span(m.t_pub, self._demand[m.client])
-            self.k.at(end, self._publish_try, m)
+            self.k.at(end, self._burst_done if self._lock_switch > 0.0 else self._publish_try, m)
+
+    def _burst_done(self, m: Msg) -> None:
+        """(``lock_switch > 0``) The publish burst of ``m`` has ended: the PUBLISH leaves
+        now if its process's thread is idle and nothing of it waits to leave, else
+        after those, when the thread next waits or ``lock_switch`` after the first
+        waiting one's burst ended (:meth:`_leave`). Live, paho's network thread writes
+        the packet and needs the interpreter lock, which the loop thread gives up when
+        it next waits, or when the interpreter makes it switch: what a busy process
+        publishes leaves after its backlog, in order."""
+        proc = self._proc[m.client]
+        assert proc is not None
+        now = self.k.now
+        box = self._outbox.get(proc.name)
+        if box is not None:  # a check is pending for the earlier ones: join them
+            box[1].append(m)
+        elif proc.free > now:
+            due = now + self._lock_switch
+            self._outbox[proc.name] = (due, [m])
+            self.k.at(min(proc.free, due), self._leave, m.client)
+        else:
+            self._publish_try(m)
+
+    def _leave(self, client: int) -> None:
+        """The process of ``client`` was due to be idle or to switch: if it is idle or
+        the switch is due, every PUBLISH waiting in its outbox leaves, in order; else
+        look again when it is next free (or the switch is due)."""
+        proc = self._proc[client]
+        assert proc is not None
+        now = self.k.now
+        due, box = self._outbox[proc.name]
+        if proc.free > now and due > now:
+            self.k.at(min(proc.free, due), self._leave, client)
+            return
+        del self._outbox[proc.name]
+        for m in box:
+            self._publish_try(m)
 
     def _add_to_bundle(self, key: tuple[int, int], rec: Record, subs: tuple[int, ...]
                        ) -> None:

@@ -205,6 +205,11 @@ class DeploymentSpec:
             thread idle (a *wake-up*: leaving the wait, the loop's own work), 0..1 s;
             needs ``host_demand > 0``.
         server_wake: the same for the server's process; needs ``server_demand > 0``.
+        lock_switch: a PUBLISH whose burst ends while its process's thread is busy
+            leaves when the thread next waits, at most this long after its burst's
+            end (Python's interpreter-lock switch interval: live's paho network thread
+            writes it), in publish order; 0 (default): it leaves at its burst's end.
+            0..1 s.
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
         bundle: a host's states of one loop turn leave as one PUBLISH, and the
@@ -221,6 +226,7 @@ class DeploymentSpec:
     server_tick: float = 0.0
     host_wake: float = 0.0
     server_wake: float = 0.0
+    lock_switch: float = 0.0
     clients: str = "node"
     bundle: bool = False
 
@@ -232,7 +238,7 @@ class DeploymentSpec:
         require(0.0 <= self.background < self.cores and math.isfinite(self.background),
                 "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
         for name in ("host_demand", "server_demand", "server_tick", "host_wake",
-                     "server_wake"):
+                     "server_wake", "lock_switch"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
         for who in ("host", "server"):
             wake, demand = getattr(self, f"{who}_wake"), getattr(self, f"{who}_demand")
@@ -241,7 +247,7 @@ class DeploymentSpec:
                     f"and a zero demand is no burst; got {who}_wake = {wake})")
         if self.preset == "none":
             for name in ("background", "host_demand", "server_demand", "server_tick",
-                         "host_wake", "server_wake"):
+                         "host_wake", "server_wake", "lock_switch"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

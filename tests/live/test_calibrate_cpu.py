@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -81,6 +82,7 @@ def test_calibrate_writes_the_deployment_with_the_fitted_values(tmp_path: Path) 
         assert getattr(dep, key) == getattr(want, key), key
     for key in ("background", "host_demand", "server_demand"):
         assert getattr(dep, key) == pytest.approx(getattr(want, key), rel=1e-12), key
+    assert dep.lock_switch == 0.005 == sys.getswitchinterval()  # live's Python default
     for svc in (sc.broker.publish_service, sc.broker.delivery_service):
         assert svc.dist == "constant" and svc.value == pytest.approx(broker, rel=1e-12)
     # written out and read back: the same keys and values
@@ -143,7 +145,8 @@ def test_without_cpu_csv_no_cpu_stage_is_fitted(tmp_path: Path) -> None:
     assert sc.deployment == DeploymentSpec()
     assert "no cpu.csv next to the source: no CPU stage fitted" in rep["warnings"][0]
     assert path_services(DeploymentSpec(), 1e-5, 2e-5) == {
-        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5, "recv_up": 0.0, "recv_down": 0.0}
+        "up": 1e-5 + 2e-5, "down": 1e-5 + 2e-5, "recv_up": 0.0, "recv_down": 0.0,
+        "send_up": 0.0}
 
 
 def test_path_services_hold_the_senders_burst_not_the_receivers() -> None:
@@ -177,7 +180,7 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     """Each host's loop spends 50 µs per wake-up and 10 µs per call (wake-ups of 1, 2
     and 5 calls), the server's 80 and 20 µs; a process spends 2.5× its loop thread's
     CPU (paho's network thread too). Pooled over both hosts the line is exact, so
-    ``host_wake = 50 µs · 2.5`` and the per-message demand is the rest of the busy CPU
+    ``host_wake = 50 µs`` and the per-message demand is the rest of the busy CPU
     over the messages: ``(busy − wake·W) / M``."""
     d = _cpu_run(tmp_path / "run")
     hosts = {"host0": _wake_cols(50e-6, 10e-6, [1, 2, 5] * 300),
@@ -195,11 +198,11 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     dep = sc.deployment
     busy_h = procs["host0"][2] + procs["host1"][2]
     w_h = hosts["host0"]["wakes"] + hosts["host1"]["wakes"]
-    assert dep.host_wake == pytest.approx(2.5 * 50e-6, rel=1e-9)
-    assert dep.host_demand == pytest.approx((busy_h - 2.5 * 50e-6 * w_h) / 4500, rel=1e-9)
-    assert dep.server_wake == pytest.approx(2.5 * 80e-6, rel=1e-9)
+    assert dep.host_wake == pytest.approx(50e-6, rel=1e-9)
+    assert dep.host_demand == pytest.approx((busy_h - 50e-6 * w_h) / 4500, rel=1e-9)
+    assert dep.server_wake == pytest.approx(80e-6, rel=1e-9)
     assert dep.server_demand == pytest.approx(
-        (procs["server"][2] - 2.5 * 80e-6 * 1200) / 5000, rel=1e-9)
+        (procs["server"][2] - 80e-6 * 1200) / 5000, rel=1e-9)
     assert rep["host_loop_call_s"] == pytest.approx(10e-6, rel=1e-9)
     assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
     # the sender's expected wake-up is on the path the hop samples are net of

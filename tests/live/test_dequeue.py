@@ -9,7 +9,7 @@ import pytest
 from numpy.typing import NDArray
 
 from sigma_des.core.rng import RandomStreams
-from sigma_des.live.dequeue import censored_weights, dequeued, held, quantiles
+from sigma_des.live.dequeue import censored_weights, dequeued, held, quantiles, sender_waits
 
 
 def _in_order(s: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -73,3 +73,18 @@ def test_dequeuing_recovers_the_hop_draws_of_a_synthetic_in_order_stream() -> No
     twice = _in_order(s, np.sort(lat)[u]) - s
     assert again.mean() == pytest.approx(lat.mean(), rel=0.02)
     assert twice.mean() > 1.3 * lat.mean()
+
+
+def test_sender_waits_hand_computed() -> None:
+    """Bursts of 1 ms, tolerance 0.1 ms. Sender A stamps 0, 1.05 and 2.2 ms: the second
+    starts 0.05 ms after the first burst's end (same busy period, which ends at 2.05
+    ms), the third 0.15 ms after it (a new period). The first waits 1.05 ms for the
+    thread to go idle, the others leave at their own burst's end. Sender B's lone
+    publish at 0 and A's at 10 ms wait for nothing; the input order is kept."""
+    w = sender_waits(["A", "A", "A", "B", "A"], [0.0, 0.00105, 0.0022, 0.0, 0.01],
+                     0.001, 1e-4)
+    assert w.tolist() == pytest.approx([0.00105, 0.0, 0.0, 0.0, 0.0], abs=1e-15)
+    # a chain of three: each waits for the last one's burst to end
+    w3 = sender_waits([0, 0, 0], [0.002, 0.0, 0.001], 0.001, 0.0)
+    assert w3.tolist() == pytest.approx([0.0, 0.002, 0.001], abs=1e-15)
+    assert sender_waits([], [], 0.001).size == 0

@@ -166,6 +166,34 @@ def test_a_publish_waiting_for_its_thread_is_stamped_when_the_thread_starts_it()
     assert got[1][5] - got[0][5] == pytest.approx(dh, rel=1e-9)
 
 
+@pytest.mark.parametrize("switch", [0.005, 0.0005])
+def test_a_publish_of_a_busy_process_leaves_when_it_waits_or_switches(switch: float) -> None:
+    """``lock_switch``: two states of one host at t = 0, bursts of ``dh`` = 1 ms back to
+    back. The first's burst ends at ``dh`` with the thread busy until ``2·dh``: with a
+    5 ms switch it waits for the thread and both leave at ``2·dh``, in publish order
+    (one serialization apart); with a 0.5 ms switch it leaves at ``dh + 0.5 ms`` and the
+    second at its own burst's end. Without a switch (the default) each leaves at its
+    burst's end."""
+    dh = 1e-3
+    over = ["nodes=2", "hosts=1", "deployment.preset='dedicated'",
+            f"deployment.host_demand={dh}", "broker.publish_service=0.0",
+            "broker.delivery_service=0.0"]
+    k0, net0, got0 = _net(over)
+    _two_states(net0)
+    k0.env.run()
+    k, net, got = _net([*over, f"deployment.lock_switch={switch}"])
+    _two_states(net)
+    k.env.run()
+    assert got0[1][5] - got0[0][5] == pytest.approx(dh, abs=1e-12)  # one burst apart
+    assert [g[2] for g in got] == [0, 1] and [g[6] for g in got] == [0.0, dh]
+    first = min(2 * dh, dh + switch)
+    assert got[0][5] - got0[0][5] == pytest.approx(first - dh, abs=1e-12)
+    # leaving together, the second is serialized behind the first on the host link
+    ser = net.wire_bytes(150) * 8 / 1e9
+    behind = ser if switch > dh else 0.0
+    assert got[1][5] - got0[1][5] == pytest.approx(behind, abs=1e-12)
+
+
 def test_bundle_takes_the_servers_commands_of_one_instant_to_each_host() -> None:
     """Six nodes on two hosts: the server's six commands of one tick leave as two
     PUBLISHes, one per host client (live ``--bundle``), each delivered once and handed to

@@ -113,6 +113,10 @@ class CompiledCore:
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
+        # the loop's spare slots with outboxes (loop._limits): a check sends them all
+        qos1d = int(self.S[L.TR_PARAMS][L.T_QOS1D])
+        self._outbox_room = ((2 + qos1d) * L.OB_CAP
+                             if int(self.S[L.CPU_IP][L.CP_SWITCH]) else 0)
         self._closed = False
 
     # ------------------------------------------------------------ layout
@@ -390,7 +394,7 @@ class CompiledCore:
                 self.drain()
                 return True
             if code == L.NEED_SPACE:
-                self.ensure_space(self.host.n + 8)
+                self.ensure_space(self.host.n + 8 + self._outbox_room)
             elif code == L.NEED_FLUSH:
                 self.drain()
             elif code == L.NEED_RESIM:
@@ -410,6 +414,9 @@ class CompiledCore:
                     "a send or clock reading beyond the link and clock tables "
                     f"(the run's end + {TABLE_MARGIN} s)"
                 )
+            elif int(S[L.INTS][L.I_ERR]) == L.ERR_OUTBOX:
+                raise CohortFallback(f"more than {L.OB_CAP} publishes of one process "
+                                     "waiting for its thread (deployment.lock_switch)")
             elif int(S[L.INTS][L.I_ERR]) == L.ERR_RANGE:
                 raise CohortFallback(
                     "an HLC counter or stream sequence number beyond the event table's "

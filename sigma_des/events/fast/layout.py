@@ -116,10 +116,15 @@ C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 # the application (after its receive burst, or at once with per-host clients), the
 # deployment's int parameters (S.cpu_ip) and the processes' rows (S.cpu_acc)
 EV_SEND, EV_APP = 4, 5
+#: event type of a process's outbox check (``deployment.lock_switch``: publishes whose
+#: burst ended while the thread was busy leave when it waits or the switch is due)
+EV_LEAVE = 6
+#: most publishes of one process waiting in its outbox (beyond: ``ERR_OUTBOX``)
+OB_CAP = 4096
 # CP_MAXMEM: the most nodes one client hands a message to (room a delivery event
-# needs in the latency buffers)
-CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB, CP_MAXMEM = range(5)
-CP_LEN = 5
+# needs in the latency buffers); CP_SWITCH: lock_switch > 0 (outboxes in use)
+CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB, CP_MAXMEM, CP_SWITCH = range(6)
+CP_LEN = 6
 #: process indices (the spec's ``Cpu.processes`` order): broker, server, host h at 2 + h
 P_BROKER, P_SERVER, P_HOST0 = 0, 1, 2
 CA_BUSY, CA_WAIT = range(2)
@@ -261,6 +266,10 @@ FIELDS: tuple[Field, ...] = (
     Field("mem_ptr", _i, ("clients_1",), None, "nodes of client c: mem[ptr[c]:ptr[c+1]]"),
     Field("mem", _i, ("n",), None, "nodes of each client, in node order"),
     Field("cpu_wake", _f, ("procs",), None, "CPU a burst finding its thread idle costs more"),
+    Field("cpu_switch", _f, ("procs",), None, "lock_switch of each process (0: no outbox)"),
+    Field("cpu_ob", _i, ("procs", OB_CAP), 0, "outbox: slots waiting to leave, a ring"),
+    Field("cpu_obq", _i, ("procs", 2), 0, "outbox: ring head and count"),
+    Field("cpu_obt", _f, ("procs",), 0.0, "outbox: when its first message leaves at the latest"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -332,6 +341,9 @@ ERR_HORIZON = 2
 #: ``S.ints[I_ERR]`` when a value the loop makes (an HLC counter, a stream sequence
 #: number) does not fit the event table's int32 columns
 ERR_RANGE = 3
+#: ``S.ints[I_ERR]`` when more than :data:`OB_CAP` publishes of one process wait in
+#: its outbox
+ERR_OUTBOX = 4
 #: Largest value an event slot's int column holds (``ev_int`` is int32: 52 B a slot,
 #: not 104; a saturated broker's backlog holds 10^6 slots). Values that could exceed it
 #: are checked where they enter: frame and tick indices and stamps at the driver's
@@ -366,6 +378,10 @@ BCAST = INDEX["bcast"]
 MEM_PTR = INDEX["mem_ptr"]
 MEM = INDEX["mem"]
 CPU_WAKE = INDEX["cpu_wake"]
+CPU_SWITCH = INDEX["cpu_switch"]
+CPU_OB = INDEX["cpu_ob"]
+CPU_OBQ = INDEX["cpu_obq"]
+CPU_OBT = INDEX["cpu_obt"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

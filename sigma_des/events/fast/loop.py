@@ -30,6 +30,7 @@ from sigma_des.events.fast.cpu import tick
 from sigma_des.events.fast.layout import (
     CP_APP,
     CP_MAXMEM,
+    CP_SWITCH,
     CPU_IP,
     DRAW_MISS,
     E_AUX,
@@ -45,6 +46,7 @@ from sigma_des.events.fast.layout import (
     EV_DONE,
     EV_FLOAT,
     EV_INT,
+    EV_LEAVE,
     EV_RESEND,
     EV_SEND,
     HEAP_K,
@@ -65,6 +67,7 @@ from sigma_des.events.fast.layout import (
     NEED_FLUSH,
     NEED_RESIM,
     NEED_SPACE,
+    OB_CAP,
     OK,
     OUT_INT,
     Q_ACK,
@@ -93,13 +96,14 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
 )
 from sigma_des.events.fast.node import at_node, done, reserve
+from sigma_des.events.fast.outbox import burst_done, leave
 from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.stream import next_ready
-from sigma_des.events.fast.transport import puback_client, send_burst_done, send_up
+from sigma_des.events.fast.transport import burst_copy, puback_client, send_burst_done, send_up
 
 __all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve",
            "tick"]
@@ -182,7 +186,10 @@ def _limits(S, n):  # type: ignore[no-untyped-def]
     tp = S[TR_PARAMS]
     qos1d = tp[T_QOS1D]
     attempts = qos1d != 0 or tp[T_STREAM] != 0 or tp[T_STREAM + 1] != 0
-    return attempts, n + 4 + qos1d * (n + 4)
+    spare = n + 4 + qos1d * (n + 4)
+    if S[CPU_IP][CP_SWITCH]:  # an outbox check sends up to OB_CAP messages at once
+        spare += (2 + qos1d) * OB_CAP
+    return attempts, spare
 
 
 @jit
@@ -210,7 +217,12 @@ def _handle(S, s, t):  # type: ignore[no-untyped-def]
     elif typ == EV_DONE:
         done(S, s, t)
     elif typ == EV_SEND:
-        send_burst_done(S, s, t)
+        if S[CPU_IP][CP_SWITCH]:
+            burst_done(S, burst_copy(S, s), t)
+        else:
+            send_burst_done(S, s, t)
+    elif typ == EV_LEAVE:
+        leave(S, s, t)
     else:
         hand_over(S, s, t, S[EV_FLOAT][s, EF_TRECV])  # EV_APP: the receive burst ended
 

@@ -250,6 +250,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     mach = np.zeros(H + 2, dtype=np.int64)
     scale = np.ones(H + 2)
     wake = np.zeros(H + 2)
+    switch = np.zeros(H + 2)
     if cpu is not None:
         # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
         assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
@@ -257,6 +258,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
             mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
             scale[p] = pr.scale
             wake[p] = pr.wake
+            switch[p] = dep.lock_switch if p != L.P_BROKER else 0.0
         ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
         for i in range(n + 1):  # Network._proc: no burst for a zero demand
             d = dep.host_demand if i < n else dep.server_demand
@@ -271,6 +273,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
     ip[L.CP_NSUB] = len(subs)
     ip[L.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
+    ip[L.CP_SWITCH] = int(cpu is not None and dep.lock_switch > 0.0)
     bcast = np.full(n + 1, -1, dtype=np.int64)
     bcast[: len(subs)] = subs
     ptr = np.zeros(n + 2, dtype=np.int64)
@@ -279,5 +282,6 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
-            "cpu_scale": scale, "cpu_wake": wake, "cl_of": cl_of, "bcast": bcast, "mem_ptr": ptr,
+            "cpu_scale": scale, "cpu_wake": wake, "cpu_switch": switch, "cl_of": cl_of,
+            "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}

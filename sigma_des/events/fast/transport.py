@@ -132,11 +132,21 @@ def send_up(S, slot, client, kind, subject, index, t):  # type: ignore[no-untype
 @jit
 def send_burst_done(S, s, now):  # type: ignore[no-untyped-def]
     """The publish burst of the PUBLISH in slot ``s`` ends: its first try leaves
-    (Network._publish_try; the event's slot is freed after it, so a copy travels)."""
+    (Network._publish_try; the event's slot is freed after it, so a copy travels).
+    With ``lock_switch`` the copy goes through its process's outbox instead
+    (:mod:`sigma_des.events.fast.outbox`, called by the loop)."""
     ns = alloc(S)
     copy_slot(S, s, ns)
     S[EV_INT][ns, E_TYPE] = EV_BROKER
     send(S, ns, now)
+
+
+@jit
+def burst_copy(S, s):  # type: ignore[no-untyped-def]
+    """A copy of the PUBLISH in slot ``s`` (the event's slot is freed after it)."""
+    ns = alloc(S)
+    copy_slot(S, s, ns)
+    return ns
 
 
 @jit
