@@ -232,10 +232,13 @@ class CompiledCore:
     def close(self) -> None:
         """Drop the event table: the messages still in flight (a saturated broker's
         backlog, ≈ 300 MB at N = 1 000 after 60 s), which no result reads, before the
-        results are assembled. The core carries no more messages after it."""
+        results are assembled; and the core's reference to the truth's ring of published
+        rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
+        messages after it."""
         S = self.S
         self.S = L.replaced(S, {name: np.zeros((0, *S[L.INDEX[name]].shape[1:]),
-                                               dtype=S[L.INDEX[name]].dtype) for name in TABLE})
+                                               dtype=S[L.INDEX[name]].dtype)
+                                for name in (*TABLE, "obs_hist")})
         self._closed = True
 
     def array(self, name: str) -> NDArray[Any]:
