@@ -291,6 +291,19 @@ class MethodRun(AlignmentServer):
         return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net),
                                      self.net.cpu_report())
 
+    def load_kernels(self) -> int:
+        """Load the compiled kernels this run's message core calls from Python, now.
+
+        For the warm-ups of benchmarks and profiles
+        (:meth:`~sigma_des.events.fast.driver.CompiledCore.load_kernels`); the
+        per-message engine has none (0).
+
+        Returns:
+            The number of kernels that were not loaded yet.
+        """
+        core = self.core
+        return core.load_kernels() if isinstance(core, CompiledCore) else 0
+
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""
         return self.trigger.next_trigger()
