@@ -100,39 +100,25 @@ class Results:
                 from run to run, so the deterministic table leaves them out).
         """
         out: list[dict[str, Any]] = []
+        base = self._base()
         for method, ms in self.methods.items():
-            out += self._tidy(method, ms, METRIC_UNITS)
-            out += self._tidy(method, self.links_mbps[method], {}, "link_mbps.", "Mbps")
+            out += _tidy(base, method, ms, METRIC_UNITS)
+            out += _tidy(base, method, self.links_mbps[method], {}, "link_mbps.", "Mbps")
             if include_wall:
-                out += self._tidy(method, self.wall[method], WALL_METRICS)
+                out += _tidy(base, method, self.wall[method], WALL_METRICS)
         return out
 
     def wall_rows(self) -> list[dict[str, Any]]:
         """Tidy rows of the simulator's own cost (wall time, events/s, peak RSS)."""
         out: list[dict[str, Any]] = []
+        base = self._base()
         for method in self.methods:
-            out += self._tidy(method, self.wall[method], WALL_METRICS)
+            out += _tidy(base, method, self.wall[method], WALL_METRICS)
         return out
 
-    def _tidy(
-        self,
-        method: str,
-        values: dict[str, float],
-        units: dict[str, str],
-        prefix: str = "",
-        unit: str = "",
-    ) -> list[dict[str, Any]]:
-        base = {"seed": self.scenario.seed, "config_hash": self.config_hash, "version": __version__}
-        return [
-            {
-                **base,
-                "method": method,
-                "metric": prefix + name,
-                "value": value,
-                "unit": units.get(name, unit),
-            }
-            for name, value in values.items()
-        ]
+    def _base(self) -> dict[str, Any]:
+        """The columns every tidy row carries (the config hash computed once a table)."""
+        return {"seed": self.scenario.seed, "config_hash": self.config_hash, "version": __version__}
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary; wall-time figures are under ``wall`` only."""
@@ -236,6 +222,27 @@ class Results:
              "summary.json": summary},
         )
         return csv_path, json_path
+
+
+def _tidy(
+    base: dict[str, Any],
+    method: str,
+    values: dict[str, float],
+    units: dict[str, str],
+    prefix: str = "",
+    unit: str = "",
+) -> list[dict[str, Any]]:
+    """One tidy row per value of ``values``: ``base``'s columns, the method, the metric."""
+    return [
+        {
+            **base,
+            "method": method,
+            "metric": prefix + name,
+            "value": value,
+            "unit": units.get(name, unit),
+        }
+        for name, value in values.items()
+    ]
 
 
 def _json_safe(x: Any) -> Any:
