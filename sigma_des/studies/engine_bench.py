@@ -56,28 +56,10 @@ from sigma_des import config
 from sigma_des.pool import run_all
 from sigma_des.studies.engine_norm import target_of
 
-__all__ = [
-    "ALL_METHODS",
-    "BASELINE_RTOL",
-    "COLUMNS",
-    "COMPARED",
-    "ENGINES",
-    "NODES_PER_HOST",
-    "THREAD_VARS",
-    "Case",
-    "Check",
-    "Sim",
-    "annotate",
-    "baseline_estimate_s",
-    "col",
-    "make_row",
-    "max_rel_diff",
-    "overrides_for",
-    "plan",
-    "run_case",
-    "run_fresh",
-    "simulate",
-]
+__all__ = ["ALL_METHODS", "BASELINE_RTOL", "COLUMNS", "COMPARED", "ENGINES", "NODES_PER_HOST",
+           "THREAD_VARS", "Case", "Check", "Sim", "annotate", "baseline_estimate_s", "col",
+           "make_row", "max_rel_diff", "overrides_for", "plan", "run_case", "run_fresh",
+           "simulate"]
 
 #: Physics nodes per host (the paper: 20 aircraft per PC).
 NODES_PER_HOST = config.NODES_PER_HOST

@@ -226,33 +226,22 @@ class CompiledCore:
             self.S = grow(self.S, need)
 
     def load_kernels(self) -> int:
-        """Load the loop's entry points Python calls with this state's types, now.
-
-        numba loads a kernel's specialisation from its cache at the first call (or
-        compiles it): ≈ 25-40 ms each for ``publish_commands`` and ``reserve``, which a
-        tiny warm-up run never reaches (no command tick, no rollback; see
-        docs/BENCHMARKS.md, "Issue 27, fixed per-run costs"). A benchmark calls this in
-        its warm-up so that a timed run pays no kernel loading, as every later run of a
-        process does not; a run never needs to call it.
-
-        Returns:
-            The number of entry points that were not loaded yet.
-        """
+        """Load, for this state's types, the loop's entry points Python calls; return how
+        many were not loaded yet. For benchmarks' warm-ups: a tiny run never reaches
+        ``publish_commands`` or ``reserve`` (≈ 30 ms to load, which the timed run would
+        then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
         from numba import typeof, types
 
         s, i64, f64 = typeof(self.S), types.int64, types.float64
-        sigs = {
-            loop.advance: (s, f64, types.boolean),
-            loop.publish_trigger: (s, i64, f64, f64, i64),
-            loop.publish_commands: (s, i64, i64, types.int64[::1], types.float64[:, ::1], f64),
-            loop.reserve: (s, i64, i64, f64, f64),
-        }
-        new = 0
-        for kernel, sig in sigs.items():
-            if sig not in kernel.signatures:  # type: ignore[attr-defined]
-                kernel.compile(sig)  # type: ignore[attr-defined]
-                new += 1
-        return new
+        sigs = {loop.advance: (s, f64, types.boolean),
+                loop.publish_trigger: (s, i64, f64, f64, i64),
+                loop.publish_commands: (s, i64, i64, types.int64[::1], types.float64[:, ::1], f64),
+                loop.reserve: (s, i64, i64, f64, f64)}
+        todo = [(k, sig) for k, sig in sigs.items()
+                if sig not in k.signatures]  # type: ignore[attr-defined]
+        for kernel, sig in todo:
+            kernel.compile(sig)  # type: ignore[attr-defined]
+        return len(todo)
 
     def _check_open(self) -> None:
         if self._closed:
