@@ -248,7 +248,12 @@ class MethodRun(AlignmentServer):
     # ------------------------------------------------------------ run
 
     def run(self, progress: Callable[[float], None] | None = None) -> dict[str, Any]:
-        """Run to ``duration`` and return the collector's results."""
+        """Run to ``duration`` and return the collector's results.
+
+        The run is over then: the truth's rings are released
+        (:meth:`~sigma_des.events.truth.SwarmTruth.release`; :meth:`trajectory` still
+        returns the whole log) and the message core is closed.
+        """
         t0 = time.perf_counter()
         self.start()
         # Millions of short-lived event objects make CPython's cyclic GC run thousands
@@ -267,7 +272,11 @@ class MethodRun(AlignmentServer):
             gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
         self.core.close()  # the messages still in flight: no result reads them
-        return self.finish()
+        out = self.finish()
+        # the run is over: its rings go now, not when a full collection finds the run
+        # (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs"); trajectory() stays
+        self.truth.release()
+        return out
 
     def finish(self) -> dict[str, Any]:
         """The collector's results, from the run's, the aligner's and the network's reports."""
@@ -281,6 +290,19 @@ class MethodRun(AlignmentServer):
         )
         return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net),
                                      self.net.cpu_report())
+
+    def load_kernels(self) -> int:
+        """Load the compiled kernels this run's message core calls from Python, now.
+
+        For the warm-ups of benchmarks and profiles
+        (:meth:`~sigma_des.events.fast.driver.CompiledCore.load_kernels`); the
+        per-message engine has none (0).
+
+        Returns:
+            The number of kernels that were not loaded yet.
+        """
+        core = self.core
+        return core.load_kernels() if isinstance(core, CompiledCore) else 0
 
     def next_trigger(self) -> tuple[int, float]:
         """Frame index and step ``dt`` of the next trigger issue (after ``TRIGGER_DUE``)."""

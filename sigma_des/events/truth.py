@@ -9,6 +9,13 @@ and, for BiDES time warp, the state checkpoints a rollback re-simulates from.
 A frame enters the fidelity log (:class:`~sigma_des.metrics.fidelity.TrajectoryLog`)
 only when it leaves the ring and can no longer be rolled back.
 
+When the run is over (:meth:`SwarmTruth.release`, called by the engine's run) the frames
+still in the ring enter the log and the rings are let go: they are the run's largest
+arrays (164 MB at N = 1 000 once filled), and a finished run lingers as cyclic garbage
+until a full collection, so a process running one run after another (``compare``, a
+sweep, a benchmark) would otherwise keep every earlier run's rings resident and fault
+fresh pages for each new one (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs").
+
 A rollback re-simulates at once (:meth:`SwarmTruth.rollback`, the per-message
 engine's path) or, for the compiled core, later and in a batch
 (:meth:`SwarmTruth.defer_rollback`, :meth:`SwarmTruth.flush_rollbacks`): the owed
@@ -82,6 +89,7 @@ class SwarmTruth:
         #: deferred re-simulations ``(node, first frame, command row)``, one per node
         self.pending: list[tuple[int, int, NDArray[np.float64]]] = []
         self._pending_nodes: set[int] = set()
+        self.released = False
 
     def step_frame(
         self, k: int, dt: float, cmd: NDArray[np.float64], pending: NDArray[np.float64] | None
@@ -95,7 +103,12 @@ class SwarmTruth:
             pending: the state of frame ``k`` already stepped outside with the very
                 same ``(state, cmd, dt, k)`` (batched physics of ``sigma_des.env``);
                 None: step here.
+
+        Raises:
+            RuntimeError: the truth was released (the run is over).
         """
+        if self.released:
+            raise RuntimeError("the run is over: its truth was released")
         slot = k % self.H
         if self.slot_frame[slot] >= 0:
             self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
@@ -245,8 +258,25 @@ class SwarmTruth:
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at the fidelity log rate (Hz of physics time), so far."""
         log = self.traj
+        if self.released:  # the ring's frames were logged by release()
+            return log.arrays()
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):
             slot = f % self.H
             log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
         return log.arrays()
+
+    def release(self) -> None:
+        """The run is over: log the frames the ring still holds, then drop the rings.
+
+        :meth:`trajectory` returns the same arrays after as before; no frame is held
+        any more (:meth:`held` is False, :meth:`positions` None) and the truth cannot
+        step or roll back again. The state of the latest frame (:attr:`state`) stays.
+        """
+        if self.released:
+            return
+        self.trajectory()
+        self.released = True
+        self.slot_frame[:] = -1  # in place: the compiled core holds this array
+        self.ckpt = np.empty((0, *self.ckpt.shape[1:]))
+        self.obs_hist = np.empty((0, *self.obs_hist.shape[1:]))

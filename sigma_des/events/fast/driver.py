@@ -229,6 +229,24 @@ class CompiledCore:
         if self.S[L.INTS][L.I_FREE] < need:
             self.S = grow(self.S, need)
 
+    def load_kernels(self) -> int:
+        """Load, for this state's types, the loop's entry points Python calls; return how
+        many were not loaded yet. For benchmarks' warm-ups: a tiny run never reaches
+        ``publish_commands`` or ``reserve`` (≈ 30 ms to load, which the timed run would
+        then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
+        from numba import typeof, types
+
+        s, i64, f64 = typeof(self.S), types.int64, types.float64
+        sigs = {loop.advance: (s, f64, types.boolean),
+                loop.publish_trigger: (s, i64, f64, f64, i64),
+                loop.publish_commands: (s, i64, i64, types.int64[::1], types.float64[:, ::1], f64),
+                loop.reserve: (s, i64, i64, f64, f64)}
+        todo = [(k, sig) for k, sig in sigs.items()
+                if sig not in k.signatures]  # type: ignore[attr-defined]
+        for kernel, sig in todo:
+            kernel.compile(sig)  # type: ignore[attr-defined]
+        return len(todo)
+
     def _check_open(self) -> None:
         if self._closed:
             raise RuntimeError("the run is over: its message core is closed")
@@ -236,10 +254,13 @@ class CompiledCore:
     def close(self) -> None:
         """Drop the event table: the messages still in flight (a saturated broker's
         backlog, ≈ 300 MB at N = 1 000 after 60 s), which no result reads, before the
-        results are assembled. The core carries no more messages after it."""
+        results are assembled; and the core's reference to the truth's ring of published
+        rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
+        messages after it."""
         S = self.S
         self.S = L.replaced(S, {name: np.zeros((0, *S[L.INDEX[name]].shape[1:]),
-                                               dtype=S[L.INDEX[name]].dtype) for name in TABLE})
+                                               dtype=S[L.INDEX[name]].dtype)
+                                for name in (*TABLE, "obs_hist")})
         self._closed = True
 
     def array(self, name: str) -> NDArray[Any]:

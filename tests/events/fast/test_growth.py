@@ -119,7 +119,10 @@ def test_a_finished_run_lets_go_of_its_event_table() -> None:
         core.array("ev_int").shape[0] - int(core.array("ints")[L.I_FREE])))
     assert in_flight[-1] > 100  # the broker's backlog at the end, not read by any result
     assert core.array("ev_int").shape == (0, L.E_COLS) and core.array("run_t").size == 0
-    assert core.array("obs_hist").size > 0  # the engine's physics ring is not the core's
+    # the core let go of the physics ring it shared, and the run released it (its frames
+    # are in the fidelity log: SwarmTruth.release)
+    assert core.array("obs_hist").size == 0 and run.truth.obs_hist.size == 0
+    assert run.trajectory()[0].size > 1
     with pytest.raises(RuntimeError, match="the run is over: its message core is closed"):
         core.publish_trigger(10**6, None)
 
