@@ -113,6 +113,7 @@ class CompiledCore:
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
+        self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
 
     # ------------------------------------------------------------ layout
@@ -121,15 +122,15 @@ class CompiledCore:
         h = self.host
         n, spec = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
-        pay = L.EF_PAY + max(OBS_WIDTH, M)
         dup_all = self.attempts.qos1d
         seen = self._lockstep or dup_all
         cpu = h.net.cpu
         cap = 4 * (n + 1) + SLACK
         return {
-            "cap": cap, "arena": ARENA * cap, "n": n, "clients": n + 1, "links": spec.hosts + 1,
+            "cap": cap, "arena": int(ARENA * cap), "pool": cap, "n": n, "clients": n + 1,
+            "links": spec.hosts + 1,
             "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
-            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
+            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay_w": max(OBS_WIDTH, M),
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step), or of
@@ -208,6 +209,7 @@ class CompiledCore:
         tb = self.tables
         return {
             "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
+            "pool_free": np.arange(cap, dtype=np.int32)[::-1].copy(),
             "iparams": self._params(), "fparams": np.array([spec.warmup, spec.duration]),
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
@@ -218,11 +220,12 @@ class CompiledCore:
         }
 
     def ensure_space(self, k: int) -> None:
-        """Grow the event table unless ``k`` slots (plus a fan-out) are free
-        (:func:`~sigma_des.events.fast.growth.grow`: contents and order kept)."""
+        """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
+        free (:func:`~sigma_des.events.fast.growth.grow`: contents and order kept)."""
         self._check_open()
         need = k + self.host.n + 4
-        if self.S[L.INTS][L.I_FREE] < need:
+        iv = self.S[L.INTS]
+        if iv[L.I_FREE] < need or iv[L.I_PFREE] < need:
             self.S = grow(self.S, need)
 
     def _check_open(self) -> None:

@@ -17,6 +17,10 @@ the table at the moment of each growth, which set the run's peak memory
   new zeroed array (:func:`fresh`: its pages untouched until used) receives them;
 * **scratch** (:data:`SCRATCH`): filled and read within one call, a new zeroed array.
 
+The payload pool (:data:`POOL`: the rows of the payloads that slots carry, and their
+free list) has rows of its own, fewer than the slots (a trigger carries none), and
+grows in place when fewer than needed are free.
+
 As nothing is copied whole, the table can grow in smaller steps
 (:func:`grown_capacity`: by an eighth), so less of it lies unused.
 
@@ -35,7 +39,7 @@ from numpy.typing import NDArray
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
-__all__ = ["GROWTH", "IN_PLACE", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
+__all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
            "grown_capacity"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
@@ -48,8 +52,10 @@ PREFIX = {"heap_t": L.QI_HEAP, "heap_k": L.QI_HEAP, "heap_r": L.QI_HEAP,
           "pend_t": L.QI_PN, "pend_k": L.QI_PN, "run_pos": L.QI_NRUN, "run_end": L.QI_NRUN}
 #: Scratch arrays of the queue's sealing and compaction (no contents between calls).
 SCRATCH = ("run_fwd", "bounds")
-#: Every array of the event table (``cap`` or ``arena`` rows).
-TABLE = (*IN_PLACE, *PREFIX, *SCRATCH)
+#: The payload pool and its free list (``pool`` rows), reallocated where they lie.
+POOL = ("pool", "pool_free")
+#: Every array of the event table (``cap``, ``arena`` or ``pool`` rows).
+TABLE = (*IN_PLACE, *PREFIX, *SCRATCH, *POOL)
 
 
 #: Arrays from this many bytes on get their own mapping (:func:`fresh`).
@@ -84,15 +90,44 @@ def grown_capacity(old: int, need: int) -> int:
     return min(old + max(old // GROWTH, need), L.MAX_SLOTS)
 
 
-def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
-    """The state ``S`` with ``need`` free event slots more at least.
+def _free_on_top(free: NDArray[Any], iv: NDArray[Any], top: int, old: int, new: int) -> None:
+    """Rows ``old .. new - 1`` onto free list ``free`` (its top ``iv[top]``), the lowest
+    on top: rows are taken lowest first, so the unused ones are never touched."""
+    nfree = int(iv[top])
+    free[nfree : nfree + new - old] = np.arange(new - 1, old - 1, -1, dtype=free.dtype)
+    iv[top] = nfree + new - old
 
-    The queue's order and every slot's contents are kept; the new slots join the free
-    list on top, so they are taken first (lowest first).
+
+def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
+    """The state ``S`` with ``need`` free event slots and ``need`` free payload rows at
+    least (each grown if fewer are free).
+
+    The queue's order, every slot's contents and every payload are kept; the new slots
+    and rows join their free lists on top, so they are taken first (lowest first).
 
     Returns:
         The state: the in-place arrays are the same objects, the others new ones.
     """
+    iv = S[L.INTS]
+    if iv[L.I_PFREE] < need:
+        _grow_pool(S, need)
+    if iv[L.I_FREE] < need:
+        S = _grow_slots(S, need)
+    return S
+
+
+def _grow_pool(S: tuple[NDArray[Any], ...], need: int) -> None:
+    """Grow the payload pool and its free list in place (their contents kept)."""
+    pool, free = S[L.POOL], S[L.POOL_FREE]
+    old = pool.shape[0]
+    new = grown_capacity(old, need)
+    pool.resize((new, pool.shape[1]), refcheck=False)  # no views exist (module docstring)
+    free.resize((new,), refcheck=False)
+    _free_on_top(free, S[L.INTS], L.I_PFREE, old, new)
+
+
+def _grow_slots(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
+    """Grow the event slots and the queue's arrays (module docstring)."""
     old = S[L.EV_INT].shape[0]
     new = grown_capacity(old, need)
     qi = S[L.Q_INT]
@@ -101,7 +136,7 @@ def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
         if not f.shape or f.shape[0] not in ("cap", "arena"):
             continue
         a = S[L.INDEX[f.name]]
-        shape = (new * (a.shape[0] // old), *a.shape[1:])  # arena: the same multiple
+        shape = (a.shape[0] * new // old, *a.shape[1:])  # arena: the same ratio, >= new
         if f.name in IN_PLACE:
             a.resize(shape, refcheck=False)  # no views exist (module docstring)
             continue
@@ -112,8 +147,5 @@ def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
         elif f.name not in SCRATCH:
             raise AssertionError(f"state field {f.name!r}: no growth rule")
         made[f.name] = b
-    iv = S[L.INTS]
-    nfree = int(iv[L.I_FREE])
-    S[L.FREE][nfree : nfree + new - old] = np.arange(new - 1, old - 1, -1, dtype=np.int64)
-    iv[L.I_FREE] = nfree + new - old
+    _free_on_top(S[L.FREE], S[L.INTS], L.I_FREE, old, new)
     return L.replaced(S, made)

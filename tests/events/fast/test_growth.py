@@ -1,4 +1,5 @@
-"""The event table's growth and the range checks of its int32 columns, by hand."""
+"""The event table's growth, its payload pool and the range checks of its int32 columns,
+by hand."""
 
 from __future__ import annotations
 
@@ -31,7 +32,10 @@ def _state() -> tuple[np.ndarray, ...]:
     given = {f.name: np.zeros(L.shape_of(f, DIMS), dtype=f.dtype)
              for f in L.FIELDS if f.fill is None}
     given["free"] = np.arange(5, dtype=np.int64)[::-1].copy()
-    return L.allocate(DIMS, given)
+    given["pool_free"] = np.arange(4, dtype=np.int32)[::-1].copy()
+    S = L.allocate(DIMS, given)
+    S[L.INTS][L.I_FREE], S[L.INTS][L.I_PFREE] = 5, 4
+    return S
 
 
 def test_capacity_grows_by_an_eighth_or_what_is_needed() -> None:
@@ -54,7 +58,7 @@ def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S = _state()
     evi, evf, run_t = S[L.EV_INT], S[L.EV_FLOAT], S[L.RUN_T]
     evi[:] = np.arange(5 * L.E_COLS).reshape(5, L.E_COLS)
-    evf[:] = np.arange(5 * 17).reshape(5, 17) / 4
+    evf[:] = np.arange(5 * 4).reshape(5, 4) / 4
     run_t[:] = np.arange(10) + 0.5
     S[L.HEAP_T][:] = [1.0, 2.0, 9.0, 9.0, 9.0]  # two live heap entries, then stale ones
     S[L.PEND_K][:] = [7, 8, 8, 8, 8]
@@ -65,9 +69,9 @@ def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S[L.INTS][L.I_FREE] = 2  # slots 4 and 3 free, 0..2 in flight
     T = grow(S, 3)  # 5 slots + max(5 // 8, 3) = 8
     assert T[L.EV_INT] is evi and T[L.EV_FLOAT] is evf and T[L.RUN_T] is run_t  # in place
-    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 17) and run_t.shape == (16,)
+    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 4) and run_t.shape == (16,)
     assert evi[:5].ravel().tolist() == list(range(5 * L.E_COLS)) and not evi[5:].any()
-    assert evf[4, 16] == 84 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
+    assert evf[4, 3] == 19 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
     assert T[L.HEAP_T].tolist() == [1.0, 2.0, 0, 0, 0, 0, 0, 0]
     assert T[L.PEND_K].tolist() == [7, 0, 0, 0, 0, 0, 0, 0]
     assert T[L.RUN_POS].tolist() == [3, 4, 5, 0, 0, 0, 0, 0]
