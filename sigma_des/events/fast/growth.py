@@ -30,7 +30,9 @@ compiled loop only), which is what makes the in-place reallocation safe.
 
 from __future__ import annotations
 
+import ctypes
 import mmap
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -40,7 +42,7 @@ from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
 __all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
-           "grown_capacity"]
+           "grown_capacity", "trim_heap"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
 #: whole, so small steps cost little and leave less unused room).
@@ -75,6 +77,33 @@ def fresh(shape: tuple[int, ...], dtype: Any) -> NDArray[Any]:
     if nbytes < FRESH_MIN:
         return np.zeros(shape, dtype=dtype)
     return np.frombuffer(mmap.mmap(-1, nbytes), dtype=dtype).reshape(shape)
+
+
+@lru_cache(maxsize=1)
+def _malloc_trim() -> Any:
+    """glibc's ``malloc_trim``, or None where the C library has none."""
+    try:
+        return getattr(ctypes.CDLL(None), "malloc_trim", None)
+    except OSError:  # pragma: no cover - no C library to load
+        return None
+
+
+def trim_heap() -> bool:
+    """Hand the free memory of the C library's heap back to the system, before a run.
+
+    The arrays a run frees (its event table, its results' samples) are memory the C
+    library keeps for reuse: glibc raises its mmap threshold as large blocks are freed
+    (up to 32 MB), so later blocks of that size come from the heap, and freed heap
+    pages stay resident. Measured in a ``compare --jobs 2`` worker at N = 1 000, 60 s,
+    the second run started with 80–110 MB of such pages resident, added to its own
+    peak (docs/BENCHMARKS.md, issue 27, "memory"). Returns whether it trimmed (False
+    where there is no ``malloc_trim``).
+    """
+    fn = _malloc_trim()
+    if fn is None:
+        return False
+    fn(0)
+    return True
 
 
 def grown_capacity(old: int, need: int) -> int:

@@ -3,6 +3,8 @@ by hand."""
 
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import replace
 
 import numpy as np
@@ -18,6 +20,7 @@ from sigma_des.events.fast.growth import (
     fresh,
     grow,
     grown_capacity,
+    trim_heap,
 )
 from sigma_des.events.fast.primitives import put_int
 from sigma_des.events.fast.support import CohortFallback, checked_int
@@ -135,3 +138,19 @@ def test_a_fresh_array_is_zeroed_writable_and_c_contiguous(shape: tuple[int, int
     assert a.flags.writeable and not a.any()
     a[-1, -1] = 7
     assert a.sum() == 7
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim")
+def test_trim_heap_hands_the_heap_pages_a_run_freed_back() -> None:
+    blocks = [bytearray(4096) for _ in range(16_000)]  # 64 MB of heap blocks, written
+    pin = bytearray(4096)  # above them: freeing them cannot shrink the heap from its top
+    del blocks
+    before = _rss_mb()
+    assert trim_heap()
+    assert before - _rss_mb() > 32  # the freed blocks' pages, no longer resident
+    assert len(pin) == 4096

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from sigma_des.events.engine import MethodRun
-from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import driver
+from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import grow
 from sigma_des.events.fast.primitives import alloc, give_payload, payload, release
