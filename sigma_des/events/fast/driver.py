@@ -35,7 +35,7 @@ from sigma_des.events.align.lockstep import LockstepAligner
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
-from sigma_des.events.fast.growth import TABLE, grow, trim_heap
+from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
@@ -100,6 +100,7 @@ class CompiledCore:
         why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
+        before_run(host.n * spec.duration)  # earlier runs' memory back first (growth)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
@@ -111,7 +112,6 @@ class CompiledCore:
         self.costs = JobCosts(host.nodes.step_time)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
-        trim_heap()  # a previous run's freed memory, before this run's table (growth)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row

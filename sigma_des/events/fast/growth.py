@@ -31,6 +31,7 @@ compiled loop only), which is what makes the in-place reallocation safe.
 from __future__ import annotations
 
 import ctypes
+import gc
 import mmap
 from functools import lru_cache
 from typing import Any
@@ -42,7 +43,7 @@ from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
 __all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
-           "grown_capacity", "trim_heap"]
+           "before_run", "grown_capacity", "trim_heap"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
 #: whole, so small steps cost little and leave less unused room).
@@ -94,16 +95,39 @@ def trim_heap() -> bool:
     The arrays a run frees (its event table, its results' samples) are memory the C
     library keeps for reuse: glibc raises its mmap threshold as large blocks are freed
     (up to 32 MB), so later blocks of that size come from the heap, and freed heap
-    pages stay resident. Measured in a ``compare --jobs 2`` worker at N = 1 000, 60 s,
-    the second run started with 80–110 MB of such pages resident, added to its own
-    peak (docs/BENCHMARKS.md, issue 27, "memory"). Returns whether it trimmed (False
-    where there is no ``malloc_trim``).
+    pages stay resident (< 1 ms). Returns whether it trimmed (False where there is no
+    ``malloc_trim``).
     """
     fn = _malloc_trim()
     if fn is None:
         return False
     fn(0)
     return True
+
+
+#: Node-seconds (nodes x simulated seconds) from which a run first collects the cyclic
+#: garbage of the runs before it: a full collection costs ~0.1 s with numba loaded, < 1 %
+#: of such a run (N = 1 000: >= 10 s simulated), too much for the short runs of a sweep.
+COLLECT_FROM = 10_000.0
+
+
+def before_run(node_seconds: float) -> None:
+    """Give the memory the runs before this one left back to the system (a ``compare
+    --jobs`` worker runs several; docs/BENCHMARKS.md, issue 27, "memory").
+
+    A finished run is cyclic garbage (its kernel's queue, handlers and engine refer to
+    each other), with its physics ring (47 MB at N = 1 000) and draw tables: freed at
+    the next full collection only, as the engine pauses the collector during a run.
+    Measured in a worker at N = 1 000, 60 s, the second run started with 60-70 MB of
+    such garbage and 20-30 MB of freed heap pages resident (:func:`trim_heap`).
+
+    Args:
+        node_seconds: the run's nodes x simulated seconds (a full collection first
+            from :data:`COLLECT_FROM` on; the heap is trimmed before every run).
+    """
+    if node_seconds >= COLLECT_FROM:
+        gc.collect()
+    trim_heap()
 
 
 def grown_capacity(old: int, need: int) -> int:

@@ -3,8 +3,10 @@ by hand."""
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
+import weakref
 from dataclasses import replace
 
 import numpy as np
@@ -14,9 +16,11 @@ from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import (
+    COLLECT_FROM,
     IN_PLACE,
     PREFIX,
     SCRATCH,
+    before_run,
     fresh,
     grow,
     grown_capacity,
@@ -154,3 +158,27 @@ def test_trim_heap_hands_the_heap_pages_a_run_freed_back() -> None:
     assert trim_heap()
     assert before - _rss_mb() > 32  # the freed blocks' pages, no longer resident
     assert len(pin) == 4096
+
+
+class _Cycle:
+    """A finished run in miniature: refers to itself, holds an array."""
+
+    def __init__(self) -> None:
+        self.me = self
+        self.ring = np.ones(1000)
+
+
+def test_a_long_run_first_collects_the_garbage_of_the_runs_before_it() -> None:
+    was = gc.isenabled()
+    gc.disable()  # no automatic collection in between
+    try:
+        c = _Cycle()
+        gone = weakref.ref(c)
+        del c
+        before_run(COLLECT_FROM - 1)  # a short run: no full collection (~0.1 s)
+        assert gone() is not None
+        before_run(COLLECT_FROM)
+        assert gone() is None
+    finally:
+        if was:
+            gc.enable()
