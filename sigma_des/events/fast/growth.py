@@ -128,6 +128,20 @@ def before_run(node_seconds: float) -> None:
     if node_seconds >= COLLECT_FROM:
         gc.collect()
     trim_heap()
+    _fix_mmap_threshold()
+
+
+@lru_cache(maxsize=1)
+def _fix_mmap_threshold() -> bool:
+    """Blocks of :data:`FRESH_MIN` or more from their own mappings, always (glibc's
+    ``mallopt(M_MMAP_THRESHOLD)``; by default glibc raises the threshold up to 32 MB as
+    large blocks are freed, and a table growing through the heap is copied, leaving
+    resident holes)."""
+    try:
+        fn = getattr(ctypes.CDLL(None), "mallopt", None)
+    except OSError:  # pragma: no cover - no C library to load
+        return False
+    return fn is not None and fn(-3, FRESH_MIN) == 1  # M_MMAP_THRESHOLD
 
 
 def grown_capacity(old: int, need: int) -> int:

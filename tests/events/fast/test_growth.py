@@ -182,3 +182,14 @@ def test_a_long_run_first_collects_the_garbage_of_the_runs_before_it() -> None:
     finally:
         if was:
             gc.enable()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
+def test_after_before_run_a_freed_large_array_leaves_no_resident_pages() -> None:
+    before_run(0.0)
+    big = np.ones(2 << 20)  # 16 MB: freed, by default glibc would raise its threshold to it
+    del big
+    mid = np.ones(1 << 20)  # 8 MB: from the heap with that threshold, its own mapping here
+    held = _rss_mb()
+    del mid
+    assert held - _rss_mb() > 6  # unmapped at once, not kept in the heap
