@@ -235,7 +235,7 @@ class CompiledCore:
 
     def close(self) -> None:
         """Drop the event table: the messages still in flight (a saturated broker's
-        backlog, ≈ 300 MB at N = 1 000 after 60 s), which no result reads, before the
+        backlog, ≈ 250 MB at N = 1 000 after 60 s), which no result reads, before the
         results are assembled. The core carries no more messages after it."""
         S = self.S
         self.S = L.replaced(S, {name: np.zeros((0, *S[L.INDEX[name]].shape[1:]),

@@ -341,7 +341,7 @@ ERR_HORIZON = 2
 #: ``S.ints[I_ERR]`` when a value the loop makes (an HLC counter, a stream sequence
 #: number) does not fit the event table's int32 columns
 ERR_RANGE = 3
-#: Largest value an event slot's int column holds (``ev_int`` is int32: 52 B a slot,
+#: Largest value an event slot's int column holds (``ev_int`` is int32: 56 B a slot,
 #: not 104; a saturated broker's backlog holds 10^6 slots). Values that could exceed it
 #: are checked where they enter: frame and tick indices and stamps at the driver's
 #: publishes, HLC counters and stream sequence numbers in the loop (``ERR_RANGE``).

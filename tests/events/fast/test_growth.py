@@ -32,7 +32,7 @@ from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 from tests.events.fast.test_layout import DIMS as LAYOUT_DIMS
 
-DIMS = {**LAYOUT_DIMS, "cap": 5, "arena": 10}  # the arena twice the table, as in a run
+DIMS = {**LAYOUT_DIMS, "cap": 5, "arena": 10}  # the arena twice the table (a run: 1.25x)
 
 
 def _state() -> tuple[np.ndarray, ...]:
