@@ -126,10 +126,14 @@ def detail(a: argparse.Namespace) -> None:
 
     def table() -> str:
         cap = core.array("ev_int").shape[0]
-        live = cap - int(core.array("ints")[L.I_FREE])
+        iv = core.array("ints")
+        live = cap - int(iv[L.I_FREE])
         slot = sum(core.array(f.name).nbytes for f in L.FIELDS if f.shape[:1] in (("cap",),
                    ("arena",))) / cap
-        return f"event table {cap} slots ({slot:.0f} B each), {live} in flight"
+        rows = core.array("pool_free").size
+        row = (core.array("pool").nbytes + core.array("pool_free").nbytes) / max(rows, 1)
+        return (f"event table {cap} slots ({slot:.0f} B each), {live} in flight; payload pool "
+                f"{rows} rows ({row:.0f} B each), {rows - int(iv[L.I_PFREE])} in use")
 
     last: list[tuple[float, int, str, tuple[str | int, ...]]] = []
 

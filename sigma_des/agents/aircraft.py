@@ -26,7 +26,6 @@ import math
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
-from scipy.optimize import fsolve
 
 from sigma_des.agents import layout as L
 from sigma_des.agents.atmosphere import gravity_scalar, isa_scalar
@@ -158,6 +157,8 @@ class GeneralAircraft:
             fx, _, fz, _, mm, _ = forces_of(x, prm, rho)
             return [fx / p.mass - g * math.sin(alpha), fz / p.mass + g * math.cos(alpha),
                     mm / p.iyy]
+
+        from scipy.optimize import fsolve  # here: its import holds ~36 MB (issue 27)
 
         sol, _, ok, msg = fsolve(residual, [0.05, 0.0, 0.9 * p.omega_max], full_output=True)
         alpha, de, om = (float(s) for s in sol)

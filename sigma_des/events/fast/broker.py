@@ -50,6 +50,7 @@ from sigma_des.events.fast.layout import (
 from sigma_des.events.fast.primitives import (
     address,
     alloc,
+    copy_payload,
     count,
     draw_at,
     in_window,
@@ -69,6 +70,7 @@ def _deliver(S, src, sub, subject, d):  # type: ignore[no-untyped-def]
     evi = S[EV_INT]
     for j in range(evf.shape[1]):
         evf[slot, j] = evf[src, j]
+    copy_payload(S, src, slot)
     evf[slot, EF_TDEP] = d
     address(S, slot, EV_CLIENT, sub, evi[src, E_KIND], subject, evi[src, E_INDEX])
     evi[slot, E_AUX] = evi[src, E_AUX]

@@ -35,7 +35,8 @@ from sigma_des.events.align.lockstep import LockstepAligner
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
-from sigma_des.events.fast.growth import TABLE, grow
+from sigma_des.events.fast.growth import TABLE, before_run, grow
+from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
@@ -100,6 +101,7 @@ class CompiledCore:
         why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
+        before_run(host.n * spec.duration)  # earlier runs' memory back first (growth)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
@@ -113,10 +115,8 @@ class CompiledCore:
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
-        # the loop's spare slots with outboxes (loop._limits): a check sends them all
-        qos1d = int(self.S[L.TR_PARAMS][L.T_QOS1D])
-        self._outbox_room = ((2 + qos1d) * L.OB_CAP
-                             if int(self.S[L.CPU_IP][L.CP_SWITCH]) else 0)
+        self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
+        self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
 
     # ------------------------------------------------------------ layout
@@ -125,15 +125,15 @@ class CompiledCore:
         h = self.host
         n, spec = h.n, h.spec
         M = int(h.nodes.cmd.shape[1])
-        pay = L.EF_PAY + max(OBS_WIDTH, M)
         dup_all = self.attempts.qos1d
         seen = self._lockstep or dup_all
         cpu = h.net.cpu
         cap = 4 * (n + 1) + SLACK
         return {
-            "cap": cap, "arena": ARENA * cap, "n": n, "clients": n + 1, "links": spec.hosts + 1,
+            "cap": cap, "arena": int(ARENA * cap), "pool": cap, "n": n, "clients": n + 1,
+            "links": spec.hosts + 1,
             "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
-            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay": pay,
+            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay_w": max(OBS_WIDTH, M),
             "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step), or of
@@ -212,6 +212,7 @@ class CompiledCore:
         tb = self.tables
         return {
             "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
+            "pool_free": np.arange(cap, dtype=np.int32)[::-1].copy(),
             "iparams": self._params(), "fparams": np.array([spec.warmup, spec.duration]),
             "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
             "draw_tag": tb.tags, "p_loss": np.array(p_loss),
@@ -222,11 +223,12 @@ class CompiledCore:
         }
 
     def ensure_space(self, k: int) -> None:
-        """Grow the event table unless ``k`` slots (plus a fan-out) are free
-        (:func:`~sigma_des.events.fast.growth.grow`: contents and order kept)."""
+        """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
+        free (:func:`~sigma_des.events.fast.growth.grow`: contents and order kept)."""
         self._check_open()
         need = k + self.host.n + 4
-        if self.S[L.INTS][L.I_FREE] < need:
+        iv = self.S[L.INTS]
+        if iv[L.I_FREE] < need or iv[L.I_PFREE] < need:
             self.S = grow(self.S, need)
 
     def load_kernels(self) -> int:
@@ -253,7 +255,7 @@ class CompiledCore:
 
     def close(self) -> None:
         """Drop the event table: the messages still in flight (a saturated broker's
-        backlog, ≈ 300 MB at N = 1 000 after 60 s), which no result reads, before the
+        backlog, ≈ 250 MB at N = 1 000 after 60 s), which no result reads, before the
         results are assembled; and the core's reference to the truth's ring of published
         rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
         messages after it."""
@@ -430,24 +432,20 @@ class CompiledCore:
                     self._start_job(i)
                 else:
                     self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]))
-            elif int(S[L.INTS][L.I_ERR]) == L.ERR_HORIZON:
-                raise CohortFallback(
-                    "a send or clock reading beyond the link and clock tables "
-                    f"(the run's end + {TABLE_MARGIN} s)"
-                )
-            elif int(S[L.INTS][L.I_ERR]) == L.ERR_OUTBOX:
-                raise CohortFallback(f"more than {L.OB_CAP} publishes of one process "
-                                     "waiting for its thread (deployment.lock_switch)")
-            elif int(S[L.INTS][L.I_ERR]) == L.ERR_RANGE:
-                raise CohortFallback(
-                    "an HLC counter or stream sequence number beyond the event table's "
-                    f"int32 columns (largest {L.EV_INT_MAX})"
-                )
             else:
-                raise CohortFallback(
-                    "a message needed a random draw older than history_frames "
-                    f"({self.host.spec.history_frames}) frames"
-                )
+                raise CohortFallback(self._error(int(S[L.INTS][L.I_ERR])))
+
+    def _error(self, code: int) -> str:
+        """Why the loop stopped with error ``code`` (the run falls back)."""
+        return {
+            L.ERR_HORIZON: "a send or clock reading beyond the link and clock tables "
+                           f"(the run's end + {TABLE_MARGIN} s)",
+            L.ERR_OUTBOX: f"more than {L.OB_CAP} publishes of one process waiting for its "
+                          "thread (deployment.lock_switch)",
+            L.ERR_RANGE: "an HLC counter or stream sequence number beyond the event table's "
+                         f"int32 columns (largest {L.EV_INT_MAX})",
+        }.get(code, "a message needed a random draw older than history_frames "
+                    f"({self.host.spec.history_frames}) frames")
 
     def drain(self) -> None:
         """Hand buffered state deliveries to the aligner, latencies to the collector."""

@@ -17,6 +17,10 @@ the table at the moment of each growth, which set the run's peak memory
   new zeroed array (:func:`fresh`: its pages untouched until used) receives them;
 * **scratch** (:data:`SCRATCH`): filled and read within one call, a new zeroed array.
 
+The payload pool (:data:`POOL`: the rows of the payloads that slots carry, and their
+free list) has rows of its own, fewer than the slots (a trigger carries none), and
+grows in place when fewer than needed are free.
+
 As nothing is copied whole, the table can grow in smaller steps
 (:func:`grown_capacity`: by an eighth), so less of it lies unused.
 
@@ -26,7 +30,10 @@ compiled loop only), which is what makes the in-place reallocation safe.
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import mmap
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -35,8 +42,8 @@ from numpy.typing import NDArray
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
-__all__ = ["GROWTH", "IN_PLACE", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
-           "grown_capacity"]
+__all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
+           "before_run", "grown_capacity", "trim_heap"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
 #: whole, so small steps cost little and leave less unused room).
@@ -48,8 +55,10 @@ PREFIX = {"heap_t": L.QI_HEAP, "heap_k": L.QI_HEAP, "heap_r": L.QI_HEAP,
           "pend_t": L.QI_PN, "pend_k": L.QI_PN, "run_pos": L.QI_NRUN, "run_end": L.QI_NRUN}
 #: Scratch arrays of the queue's sealing and compaction (no contents between calls).
 SCRATCH = ("run_fwd", "bounds")
-#: Every array of the event table (``cap`` or ``arena`` rows).
-TABLE = (*IN_PLACE, *PREFIX, *SCRATCH)
+#: The payload pool and its free list (``pool`` rows), reallocated where they lie.
+POOL = ("pool", "pool_free")
+#: Every array of the event table (``cap``, ``arena`` or ``pool`` rows).
+TABLE = (*IN_PLACE, *PREFIX, *SCRATCH, *POOL)
 
 
 #: Arrays from this many bytes on get their own mapping (:func:`fresh`).
@@ -71,6 +80,70 @@ def fresh(shape: tuple[int, ...], dtype: Any) -> NDArray[Any]:
     return np.frombuffer(mmap.mmap(-1, nbytes), dtype=dtype).reshape(shape)
 
 
+@lru_cache(maxsize=1)
+def _malloc_trim() -> Any:
+    """glibc's ``malloc_trim``, or None where the C library has none."""
+    try:
+        return getattr(ctypes.CDLL(None), "malloc_trim", None)
+    except OSError:  # pragma: no cover - no C library to load
+        return None
+
+
+def trim_heap() -> bool:
+    """Hand the free memory of the C library's heap back to the system, before a run.
+
+    The arrays a run frees (its event table, its results' samples) are memory the C
+    library keeps for reuse: glibc raises its mmap threshold as large blocks are freed
+    (up to 32 MB), so later blocks of that size come from the heap, and freed heap
+    pages stay resident (< 1 ms). Returns whether it trimmed (False where there is no
+    ``malloc_trim``).
+    """
+    fn = _malloc_trim()
+    if fn is None:
+        return False
+    fn(0)
+    return True
+
+
+#: Node-seconds (nodes x simulated seconds) from which a run first collects the cyclic
+#: garbage of the runs before it: a full collection costs ~0.1 s with numba loaded, < 1 %
+#: of such a run (N = 1 000: >= 10 s simulated), too much for the short runs of a sweep.
+COLLECT_FROM = 10_000.0
+
+
+def before_run(node_seconds: float) -> None:
+    """Give the memory the runs before this one left back to the system (a ``compare
+    --jobs`` worker runs several; docs/BENCHMARKS.md, issue 27, "memory").
+
+    A finished run is cyclic garbage (its kernel's queue, handlers and engine refer to
+    each other), with its physics ring (47 MB at N = 1 000) and draw tables: freed at
+    the next full collection only, as the engine pauses the collector during a run.
+    Measured in a worker at N = 1 000, 60 s, the second run started with 60-70 MB of
+    such garbage and 20-30 MB of freed heap pages resident (:func:`trim_heap`).
+
+    Args:
+        node_seconds: the run's nodes x simulated seconds (a full collection first
+            from :data:`COLLECT_FROM` on; the heap is trimmed before every run).
+    """
+    if node_seconds >= COLLECT_FROM:
+        gc.collect()
+    trim_heap()
+    _fix_mmap_threshold()
+
+
+@lru_cache(maxsize=1)
+def _fix_mmap_threshold() -> bool:
+    """Blocks of :data:`FRESH_MIN` or more from their own mappings, always (glibc's
+    ``mallopt(M_MMAP_THRESHOLD)``; by default glibc raises the threshold up to 32 MB as
+    large blocks are freed, and a table growing through the heap is copied, leaving
+    resident holes)."""
+    try:
+        fn = getattr(ctypes.CDLL(None), "mallopt", None)
+    except OSError:  # pragma: no cover - no C library to load
+        return False
+    return fn is not None and fn(-3, FRESH_MIN) == 1  # M_MMAP_THRESHOLD
+
+
 def grown_capacity(old: int, need: int) -> int:
     """The event table's slots after growing from ``old`` slots, ``need`` more at least
     (an eighth more if that is more; no more than a queue key can address).
@@ -84,15 +157,44 @@ def grown_capacity(old: int, need: int) -> int:
     return min(old + max(old // GROWTH, need), L.MAX_SLOTS)
 
 
-def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
-    """The state ``S`` with ``need`` free event slots more at least.
+def _free_on_top(free: NDArray[Any], iv: NDArray[Any], top: int, old: int, new: int) -> None:
+    """Rows ``old .. new - 1`` onto free list ``free`` (its top ``iv[top]``), the lowest
+    on top: rows are taken lowest first, so the unused ones are never touched."""
+    nfree = int(iv[top])
+    free[nfree : nfree + new - old] = np.arange(new - 1, old - 1, -1, dtype=free.dtype)
+    iv[top] = nfree + new - old
 
-    The queue's order and every slot's contents are kept; the new slots join the free
-    list on top, so they are taken first (lowest first).
+
+def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
+    """The state ``S`` with ``need`` free event slots and ``need`` free payload rows at
+    least (each grown if fewer are free).
+
+    The queue's order, every slot's contents and every payload are kept; the new slots
+    and rows join their free lists on top, so they are taken first (lowest first).
 
     Returns:
         The state: the in-place arrays are the same objects, the others new ones.
     """
+    iv = S[L.INTS]
+    if iv[L.I_PFREE] < need:
+        _grow_pool(S, need)
+    if iv[L.I_FREE] < need:
+        S = _grow_slots(S, need)
+    return S
+
+
+def _grow_pool(S: tuple[NDArray[Any], ...], need: int) -> None:
+    """Grow the payload pool and its free list in place (their contents kept)."""
+    pool, free = S[L.POOL], S[L.POOL_FREE]
+    old = pool.shape[0]
+    new = grown_capacity(old, need)
+    pool.resize((new, pool.shape[1]), refcheck=False)  # no views exist (module docstring)
+    free.resize((new,), refcheck=False)
+    _free_on_top(free, S[L.INTS], L.I_PFREE, old, new)
+
+
+def _grow_slots(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
+    """Grow the event slots and the queue's arrays (module docstring)."""
     old = S[L.EV_INT].shape[0]
     new = grown_capacity(old, need)
     qi = S[L.Q_INT]
@@ -101,7 +203,7 @@ def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
         if not f.shape or f.shape[0] not in ("cap", "arena"):
             continue
         a = S[L.INDEX[f.name]]
-        shape = (new * (a.shape[0] // old), *a.shape[1:])  # arena: the same multiple
+        shape = (a.shape[0] * new // old, *a.shape[1:])  # arena: the same ratio, >= new
         if f.name in IN_PLACE:
             a.resize(shape, refcheck=False)  # no views exist (module docstring)
             continue
@@ -112,8 +214,5 @@ def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
         elif f.name not in SCRATCH:
             raise AssertionError(f"state field {f.name!r}: no growth rule")
         made[f.name] = b
-    iv = S[L.INTS]
-    nfree = int(iv[L.I_FREE])
-    S[L.FREE][nfree : nfree + new - old] = np.arange(new - 1, old - 1, -1, dtype=np.int64)
-    iv[L.I_FREE] = nfree + new - old
+    _free_on_top(S[L.FREE], S[L.INTS], L.I_FREE, old, new)
     return L.replaced(S, made)

@@ -59,7 +59,8 @@ I_HEAP, I_EID, I_FREE, I_OUT, I_MSGS, I_HMISS, I_PEND, I_PNODE, I_PA, I_PB, I_NE
 I_LAT = 12  # three counters: trigger, state, command latencies buffered
 I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
 I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
-I_LEN = 19
+I_PFREE = 19  # free rows of the payload pool (S.pool_free's top)
+I_LEN = 20
 # run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
 # runs sealed since the last compaction, heap size, current run and whether there is one
 QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
@@ -82,12 +83,16 @@ N_ROWS = 6
 # event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
 # or command stamp), frame (of a state, republished state or re-request); attempt of the
 # transmission (QoS 1 or stream segment); in a transport event (F2) the type of the event
-# it becomes, its action TA_*, its stream sequence number and pending-list links
+# it becomes, its action TA_*, its stream sequence number and pending-list links; the
+# row of its payload in the pool, + 1 (0: none)
 E_TYPE, E_WHO, E_KIND, E_SUBJ, E_INDEX, E_AUX, E_FRAME = range(7)
-E_ATT, E_RTYPE, E_TACT, E_SEQ, E_NEXT, E_PREV = range(7, 13)
-E_COLS = 13
-# event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time, payload...
-EF_TPUB, EF_TDEP, EF_L, EF_GEN, EF_PAY = range(5)
+E_ATT, E_RTYPE, E_TACT, E_SEQ, E_NEXT, E_PREV, E_PAY = range(7, 14)
+E_COLS = 14
+# event float columns (S.ev_float): t_publish, t_depart, HLC l, generation time (a
+# payload, the observation of a state or the row of a command, is a row of S.pool:
+# primitives.give_payload)
+EF_TPUB, EF_TDEP, EF_L, EF_GEN = range(4)
+EF_COLS = 4
 #: an application copy's (EV_APP) receipt time at its client, where the latency ends:
 #: its departure column, no longer needed once the copy has arrived
 EF_TRECV = EF_TDEP
@@ -157,18 +162,18 @@ _f, _i = np.float64, np.int64
 #: ``arena`` run-arena rows, ``n`` nodes, ``clients`` = n + 1 (the server is
 #: client n), ``links`` = hosts + 1 access links, ``hosts``, ``cores``, ``tables``
 #: draw-table rows, ``H`` history frames, ``W`` observation width, ``M`` command
-#: width, ``pay`` event float columns, ``out``/``lat`` delivery buffer capacities,
+#: width, ``out``/``lat`` delivery buffer capacities,
 #: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` duplicate table,
 #: ``links_1`` = links + 1, and the link and clock tables' ``ge_slots``, ``deg``,
 #: ``drops``, ``ntp_j``; ``seen_k`` the duplicate table's kind rows (every kind under
 #: QoS 1 over datagram), ``ack_tables``/``x_tables``/``x_rows`` the PUBACK and resend
-#: draw tables.
+#: draw tables, ``pool`` payload rows of ``pay_w`` = max(W, M) floats.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
     Field("ev_int", np.int32, ("cap", E_COLS), 0.0,
           "event slots: int columns E_* (int32: every value is checked, EV_INT_MAX)"),
-    Field("ev_float", _f, ("cap", "pay"), 0.0, "event slots: float columns EF_* + payload"),
+    Field("ev_float", _f, ("cap", EF_COLS), 0.0, "event slots: float columns EF_*"),
     Field("free", _i, ("cap",), None, "free list of event slots"),
     Field("ints", _i, (I_LEN,), 0.0, "int scalars I_*"),
     Field("floats", _f, (F_LEN,), 0.0, "float scalars F_*"),
@@ -270,6 +275,11 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_ob", _i, ("procs", OB_CAP), 0, "outbox: slots waiting to leave, a ring"),
     Field("cpu_obq", _i, ("procs", 2), 0, "outbox: ring head and count"),
     Field("cpu_obt", _f, ("procs",), 0.0, "outbox: when its first message leaves at the latest"),
+    # issue 27 (memory): the payloads of the event slots that carry one (a state's
+    # observation, a command's row; a trigger or re-request carries none), ``pool`` rows
+    # of ``pay_w`` = max(W, M) floats; a slot names its row in E_PAY (+ 1)
+    Field("pool", _f, ("pool", "pay_w"), 0.0, "payload pool: one payload a row"),
+    Field("pool_free", np.int32, ("pool",), None, "free list of payload rows (top: I_PFREE)"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -344,7 +354,7 @@ ERR_RANGE = 3
 #: ``S.ints[I_ERR]`` when more than :data:`OB_CAP` publishes of one process wait in
 #: its outbox
 ERR_OUTBOX = 4
-#: Largest value an event slot's int column holds (``ev_int`` is int32: 52 B a slot,
+#: Largest value an event slot's int column holds (``ev_int`` is int32: 56 B a slot,
 #: not 104; a saturated broker's backlog holds 10^6 slots). Values that could exceed it
 #: are checked where they enter: frame and tick indices and stamps at the driver's
 #: publishes, HLC counters and stream sequence numbers in the loop (``ERR_RANGE``).
@@ -382,6 +392,8 @@ CPU_SWITCH = INDEX["cpu_switch"]
 CPU_OB = INDEX["cpu_ob"]
 CPU_OBQ = INDEX["cpu_obq"]
 CPU_OBT = INDEX["cpu_obt"]
+POOL = INDEX["pool"]
+POOL_FREE = INDEX["pool_free"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -38,7 +38,6 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     E_WHO,
     EF_L,
-    EF_PAY,
     EF_TPUB,
     EF_TRECV,
     EV_BROKER,
@@ -57,6 +56,7 @@ from sigma_des.events.fast.layout import (
     I_LAT,
     I_OUT,
     I_PEND,
+    I_PFREE,
     INTS,
     IPARAMS,
     K_COMMAND,
@@ -70,6 +70,7 @@ from sigma_des.events.fast.layout import (
     OB_CAP,
     OK,
     OUT_INT,
+    POOL,
     Q_ACK,
     Q_FLOAT,
     Q_INT,
@@ -97,7 +98,7 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.node import at_node, done, reserve
 from sigma_des.events.fast.outbox import burst_done, leave
-from sigma_des.events.fast.primitives import alloc, count, jit, precedes, release
+from sigma_des.events.fast.primitives import alloc, count, give_payload, jit, precedes, release
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
@@ -146,11 +147,13 @@ def publish_commands(S, tick, stamp, nodes, rows, t):  # type: ignore[no-untyped
     S = ref(S)  # one pointer to the state for every call below
     n = S[IPARAMS][Q_N]
     m = S[IPARAMS][Q_M]
+    pool = S[POOL]
     for i in nodes:
         ns = alloc(S)
         S[EV_FLOAT][ns, EF_TPUB] = t
+        r = give_payload(S, ns)
         for j in range(m):
-            S[EV_FLOAT][ns, EF_PAY + j] = rows[i, j]
+            pool[r, j] = rows[i, j]
         S[EV_INT][ns, E_AUX] = stamp
         send_up(S, ns, n, K_COMMAND, i, tick, t)
 
@@ -193,11 +196,18 @@ def _limits(S, n):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _short(iv, spare):  # type: ignore[no-untyped-def]
+    """Whether fewer than ``spare`` event slots or payload rows are free (Python grows
+    them: an event may take a slot, and a payload row, for each copy it makes)."""
+    return iv[I_FREE] < spare or iv[I_PFREE] < spare
+
+
+@jit
 def _drain_step(S, spare):  # type: ignore[no-untyped-def]
     """The draining stream connection's next segment: (code, slot, its event's time),
     slot -1 at the drain's end."""
     t = S[TR_FLOATS][0]
-    if S[INTS][I_FREE] < spare:
+    if _short(S[INTS], spare):
         return NEED_SPACE, -1, t
     if _full(S):
         return NEED_FLUSH, -1, t
@@ -279,7 +289,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
                 p = pos[c]
             if t > t_stop or (strict and t >= t_stop):
                 return OK
-            if iv[I_FREE] < spare:
+            if _short(iv, spare):
                 return NEED_SPACE
             if _full(S):
                 return NEED_FLUSH

@@ -23,7 +23,6 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EF_GEN,
     EF_L,
-    EF_PAY,
     EF_TPUB,
     EV_DONE,
     EV_FLOAT,
@@ -57,6 +56,7 @@ from sigma_des.events.fast.layout import (
     NEED_START,
     NODE,
     OBS_HIST,
+    POOL,
     Q_HLC,
     Q_LOCK,
     Q_M,
@@ -68,7 +68,17 @@ from sigma_des.events.fast.layout import (
     SLOW_PTR,
     STEP,
 )
-from sigma_des.events.fast.primitives import address, alloc, draw, jit, push, put_int, row_of
+from sigma_des.events.fast.primitives import (
+    address,
+    alloc,
+    draw,
+    give_payload,
+    jit,
+    payload,
+    push,
+    put_int,
+    row_of,
+)
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.transport import send_up
 
@@ -151,8 +161,10 @@ def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
     evf[ns, EF_TPUB] = now
     evf[ns, EF_GEN] = now
     oh = S[OBS_HIST]
+    pool = S[POOL]
+    r = give_payload(S, ns)
     for j in range(w):
-        evf[ns, EF_PAY + j] = oh[sl, i, j]
+        pool[r, j] = oh[sl, i, j]
     if S[IPARAMS][Q_HLC]:  # HLC.send at the node's local time
         pt = _local(S, i, now)
         hl = S[HLC_L]
@@ -171,7 +183,7 @@ def _publish_state(S, i, target, now):  # type: ignore[no-untyped-def]
         lf[i, 0] = now
         lf[i, 1] = evf[ns, EF_L]
         for j in range(w):
-            lf[i, 2 + j] = evf[ns, EF_PAY + j]
+            lf[i, 2 + j] = pool[r, j]
     send_up(S, ns, S[CL_OF][i], K_STATE, i, target, now)  # through i's MQTT client
 
 
@@ -227,8 +239,10 @@ def _rerequest(S, s, i, now):  # type: ignore[no-untyped-def]
         evf[ns, EF_TPUB] = now
         evf[ns, EF_GEN] = lf[i, 0]
         evf[ns, EF_L] = lf[i, 1]
+        pool = S[POOL]
+        r = give_payload(S, ns)
         for j in range(S[IPARAMS][Q_W]):
-            evf[ns, EF_PAY + j] = lf[i, 2 + j]
+            pool[r, j] = lf[i, 2 + j]
         evi[ns, E_AUX] = li[i, 1]
         evi[ns, E_FRAME] = frame
         send_up(S, ns, S[CL_OF][i], K_REPUB, i, evi[s, E_INDEX], now)
@@ -246,8 +260,10 @@ def _command(S, s, i, now):  # type: ignore[no-untyped-def]
         return  # an older command overtaken by a newer one
     nd[N_CSTAMP, i] = stamp
     cmd = S[CMD]
+    pool = S[POOL]
+    r = payload(S, s)
     for j in range(q[Q_M]):
-        cmd[i, j] = S[EV_FLOAT][s, EF_PAY + j]
+        cmd[i, j] = pool[r, j]
     if not q[Q_WARP] or stamp < 0:
         return
     current = nd[N_TARGET, i] if nd[N_BUSY, i] else nd[N_FRAME, i]

@@ -14,8 +14,12 @@ per-message engine.
 
 from __future__ import annotations
 
+from typing import Any
+
 from sigma_des.events.fast.layout import (
+    CP_SWITCH,
     CPU_FREE,
+    CPU_IP,
     CPU_OB,
     CPU_OBQ,
     CPU_OBT,
@@ -31,11 +35,21 @@ from sigma_des.events.fast.layout import (
     I_ERR,
     INTS,
     OB_CAP,
+    T_QOS1D,
+    TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import alloc, jit, push
 from sigma_des.events.fast.transport import send
 
-__all__ = ["burst_done", "leave"]
+__all__ = ["burst_done", "leave", "outbox_room"]
+
+
+def outbox_room(S: tuple[Any, ...]) -> int:
+    """Spare slots (and payload rows) the loop keeps free for outbox checks (as
+    ``loop._limits``): a check sends up to ``OB_CAP`` messages, each with a copy or two."""
+    if not int(S[CPU_IP][CP_SWITCH]):
+        return 0
+    return (2 + int(S[TR_PARAMS][T_QOS1D])) * OB_CAP
 
 
 @jit

@@ -24,6 +24,7 @@ from sigma_des.events.fast.layout import (
     E_ATT,
     E_INDEX,
     E_KIND,
+    E_PAY,
     E_SUBJ,
     E_TYPE,
     E_WHO,
@@ -39,6 +40,7 @@ from sigma_des.events.fast.layout import (
     I_ERR,
     I_FREE,
     I_NEV,
+    I_PFREE,
     INTS,
     IPARAMS,
     LINK_BUSY,
@@ -48,6 +50,8 @@ from sigma_des.events.fast.layout import (
     N_KINDS,
     PEND_K,
     PEND_T,
+    POOL,
+    POOL_FREE,
     Q_FLOAT,
     Q_INT,
     Q_N,
@@ -115,6 +119,7 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
 
 @jit
 def alloc(S):  # type: ignore[no-untyped-def]
+    """A free event slot (it carries no payload: :func:`release` took its row back)."""
     iv = S[INTS]
     iv[I_FREE] -= 1
     return S[FREE][iv[I_FREE]]
@@ -122,9 +127,51 @@ def alloc(S):  # type: ignore[no-untyped-def]
 
 @jit
 def release(S, slot):  # type: ignore[no-untyped-def]
+    """Free ``slot`` and its payload row, if it has one."""
     iv = S[INTS]
+    evi = S[EV_INT]
+    r = evi[slot, E_PAY] - 1
+    if r >= 0:
+        S[POOL_FREE][iv[I_PFREE]] = r
+        iv[I_PFREE] += 1
+        evi[slot, E_PAY] = 0
     S[FREE][iv[I_FREE]] = slot
     iv[I_FREE] += 1
+
+
+# A payload (a state's observation, a command's row) is a row of the pool, allocated
+# with the slot that carries it and freed with it: a trigger or re-request, half of a
+# saturated broker's backlog, carries none (docs/BENCHMARKS.md, issue 27, "memory").
+# The pool has as many rows as the loop may need before Python grows it (loop._limits).
+
+
+@jit
+def give_payload(S, slot):  # type: ignore[no-untyped-def]
+    """A pool row for ``slot``'s payload (``slot`` has none yet): its index."""
+    iv = S[INTS]
+    iv[I_PFREE] -= 1
+    r = S[POOL_FREE][iv[I_PFREE]]
+    S[EV_INT][slot, E_PAY] = r + 1  # < MAX_SLOTS: the pool grows no further (growth)
+    return r
+
+
+@jit
+def payload(S, slot):  # type: ignore[no-untyped-def]
+    """The pool row holding ``slot``'s payload."""
+    return S[EV_INT][slot, E_PAY] - 1
+
+
+@jit
+def copy_payload(S, src, dst):  # type: ignore[no-untyped-def]
+    """Give ``dst`` (no payload yet) a copy of ``src``'s payload, if it carries one."""
+    r = S[EV_INT][src, E_PAY] - 1
+    S[EV_INT][dst, E_PAY] = 0
+    if r < 0:
+        return
+    pool = S[POOL]
+    d = give_payload(S, dst)
+    for j in range(pool.shape[1]):
+        pool[d, j] = pool[r, j]
 
 
 @jit

@@ -15,7 +15,7 @@ out in exactly the order of one heap of all events.
 
 Capacity: every queued event holds its own event slot, so the pending buffer
 (``cap``) and the live part of the arena never exceed the event table; the arena
-(``arena`` = :data:`ARENA` x ``cap``) is compacted in place when its top is
+(``arena`` = :data:`ARENA` x ``cap`` rows) is compacted in place when its top is
 reached, and grows with the event table (``CompiledCore.ensure_space``). The run
 table (each run's position and end) has ``cap`` rows: live runs and pending events
 each hold an event slot, so after a compaction there is always a free run id.
@@ -53,9 +53,11 @@ from sigma_des.events.fast.primitives import precedes
 __all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
 
 #: Size of the run arena in event-table rows (a compaction moves at most ``cap`` live
-#: events, at most once per ``(ARENA - 1) x cap`` sealed ones). 2, not 4: the arena's
-#: times and keys are 16 B a row, and a saturated broker's backlog can hold 10^6 slots.
-ARENA = 2
+#: events, at most once per ``(ARENA - 1) x cap`` sealed ones). 1.25, not 2 or 4: the
+#: arena's times and keys are 16 B a row, and a saturated broker's backlog can hold 10^6
+#: slots (docs/BENCHMARKS.md, issue 27, "memory": 12 MB less at 10^6 slots; compactions
+#: 4x as often, a move of the live runs each).
+ARENA = 1.25
 
 # ---------------------------------------------------------------- the queue's arrays
 

@@ -18,7 +18,6 @@ from sigma_des.events.fast.layout import (
     E_SUBJ,
     EF_GEN,
     EF_L,
-    EF_PAY,
     EF_TPUB,
     EV_FLOAT,
     EV_INT,
@@ -42,13 +41,14 @@ from sigma_des.events.fast.layout import (
     LS_MIRROR,
     OUT_FLOAT,
     OUT_INT,
+    POOL,
     Q_LOCK,
     Q_W,
     SEEN,
     T_DUPALL,
     TR_PARAMS,
 )
-from sigma_des.events.fast.primitives import jit, row_of
+from sigma_des.events.fast.primitives import jit, payload, row_of
 
 __all__ = ["at_server", "delivered"]
 
@@ -119,7 +119,9 @@ def at_server(S, s, now):  # type: ignore[no-untyped-def]
     of[o, 0] = now
     of[o, 1] = evf[s, EF_GEN]
     of[o, 2] = evf[s, EF_L]
+    pool = S[POOL]
+    r = payload(S, s)
     for j in range(S[IPARAMS][Q_W]):
-        of[o, 3 + j] = evf[s, EF_PAY + j]
+        of[o, 3 + j] = pool[r, j]
     if S[IPARAMS][Q_LOCK]:
         _barrier(S, subject, frame, now)

@@ -49,6 +49,7 @@ from sigma_des.events.fast.layout import (
 from sigma_des.events.fast.primitives import (
     address,
     alloc,
+    copy_payload,
     count,
     fly,
     hop,
@@ -64,13 +65,15 @@ __all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_burst_do
 
 @jit
 def copy_slot(S, src, dst):  # type: ignore[no-untyped-def]
-    """Copy every column of event slot ``src`` into ``dst``."""
+    """Copy every column of event slot ``src`` into the free slot ``dst``, its payload
+    into a row of ``dst``'s own (each slot frees its row)."""
     evi = S[EV_INT]
     evf = S[EV_FLOAT]
     for j in range(evi.shape[1]):
         evi[dst, j] = evi[src, j]
     for j in range(evf.shape[1]):
         evf[dst, j] = evf[src, j]
+    copy_payload(S, src, dst)
 
 
 @jit

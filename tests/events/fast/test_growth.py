@@ -1,7 +1,12 @@
-"""The event table's growth and the range checks of its int32 columns, by hand."""
+"""The event table's growth, its payload pool and the range checks of its int32 columns,
+by hand."""
 
 from __future__ import annotations
 
+import gc
+import os
+import sys
+import weakref
 from dataclasses import replace
 
 import numpy as np
@@ -11,12 +16,15 @@ from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import (
+    COLLECT_FROM,
     IN_PLACE,
     PREFIX,
     SCRATCH,
+    before_run,
     fresh,
     grow,
     grown_capacity,
+    trim_heap,
 )
 from sigma_des.events.fast.primitives import put_int
 from sigma_des.events.fast.support import CohortFallback, checked_int
@@ -24,14 +32,17 @@ from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 from tests.events.fast.test_layout import DIMS as LAYOUT_DIMS
 
-DIMS = {**LAYOUT_DIMS, "cap": 5, "arena": 10}  # the arena twice the table, as in a run
+DIMS = {**LAYOUT_DIMS, "cap": 5, "arena": 10}  # the arena twice the table (a run: 1.25x)
 
 
 def _state() -> tuple[np.ndarray, ...]:
     given = {f.name: np.zeros(L.shape_of(f, DIMS), dtype=f.dtype)
              for f in L.FIELDS if f.fill is None}
     given["free"] = np.arange(5, dtype=np.int64)[::-1].copy()
-    return L.allocate(DIMS, given)
+    given["pool_free"] = np.arange(4, dtype=np.int32)[::-1].copy()
+    S = L.allocate(DIMS, given)
+    S[L.INTS][L.I_FREE], S[L.INTS][L.I_PFREE] = 5, 4
+    return S
 
 
 def test_capacity_grows_by_an_eighth_or_what_is_needed() -> None:
@@ -54,7 +65,7 @@ def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S = _state()
     evi, evf, run_t = S[L.EV_INT], S[L.EV_FLOAT], S[L.RUN_T]
     evi[:] = np.arange(5 * L.E_COLS).reshape(5, L.E_COLS)
-    evf[:] = np.arange(5 * 17).reshape(5, 17) / 4
+    evf[:] = np.arange(5 * 4).reshape(5, 4) / 4
     run_t[:] = np.arange(10) + 0.5
     S[L.HEAP_T][:] = [1.0, 2.0, 9.0, 9.0, 9.0]  # two live heap entries, then stale ones
     S[L.PEND_K][:] = [7, 8, 8, 8, 8]
@@ -65,9 +76,9 @@ def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S[L.INTS][L.I_FREE] = 2  # slots 4 and 3 free, 0..2 in flight
     T = grow(S, 3)  # 5 slots + max(5 // 8, 3) = 8
     assert T[L.EV_INT] is evi and T[L.EV_FLOAT] is evf and T[L.RUN_T] is run_t  # in place
-    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 17) and run_t.shape == (16,)
+    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 4) and run_t.shape == (16,)
     assert evi[:5].ravel().tolist() == list(range(5 * L.E_COLS)) and not evi[5:].any()
-    assert evf[4, 16] == 84 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
+    assert evf[4, 3] == 19 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
     assert T[L.HEAP_T].tolist() == [1.0, 2.0, 0, 0, 0, 0, 0, 0]
     assert T[L.PEND_K].tolist() == [7, 0, 0, 0, 0, 0, 0, 0]
     assert T[L.RUN_POS].tolist() == [3, 4, 5, 0, 0, 0, 0, 0]
@@ -134,3 +145,54 @@ def test_a_fresh_array_is_zeroed_writable_and_c_contiguous(shape: tuple[int, int
     assert a.flags.writeable and not a.any()
     a[-1, -1] = 7
     assert a.sum() == 7
+
+
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc_trim")
+def test_trim_heap_hands_the_heap_pages_a_run_freed_back() -> None:
+    blocks = [bytearray(4096) for _ in range(16_000)]  # 64 MB of heap blocks, written
+    pin = bytearray(4096)  # above them: freeing them cannot shrink the heap from its top
+    del blocks
+    before = _rss_mb()
+    assert trim_heap()
+    assert before - _rss_mb() > 32  # the freed blocks' pages, no longer resident
+    assert len(pin) == 4096
+
+
+class _Cycle:
+    """A finished run in miniature: refers to itself, holds an array."""
+
+    def __init__(self) -> None:
+        self.me = self
+        self.ring = np.ones(1000)
+
+
+def test_a_long_run_first_collects_the_garbage_of_the_runs_before_it() -> None:
+    was = gc.isenabled()
+    gc.disable()  # no automatic collection in between
+    try:
+        c = _Cycle()
+        gone = weakref.ref(c)
+        del c
+        before_run(COLLECT_FROM - 1)  # a short run: no full collection (~0.1 s)
+        assert gone() is not None
+        before_run(COLLECT_FROM)
+        assert gone() is None
+    finally:
+        if was:
+            gc.enable()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
+def test_after_before_run_a_freed_large_array_leaves_no_resident_pages() -> None:
+    before_run(0.0)
+    big = np.ones(2 << 20)  # 16 MB: freed, by default glibc would raise its threshold to it
+    del big
+    mid = np.ones(1 << 20)  # 8 MB: from the heap with that threshold, its own mapping here
+    held = _rss_mb()
+    del mid
+    assert held - _rss_mb() > 6  # unmapped at once, not kept in the heap

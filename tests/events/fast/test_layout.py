@@ -16,7 +16,7 @@ from tests.conftest import tiny
 
 DIMS = {
     "cap": 5, "arena": 6, "n": 3, "clients": 4, "links": 3, "hosts": 2, "cores": 4, "tables": 2,
-    "H": 8, "W": 12, "M": 3, "pay": 17, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
+    "H": 8, "W": 12, "M": 3, "pay_w": 12, "pool": 4, "out": 6, "out_w": 15, "lat": 7, "last_w": 14,
     "slow": 1, "seen_k": 2, "seen_n": 1, "seen_h": 1,
     "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
     "ack_tables": 1, "x_tables": 1, "x_rows": 1,
@@ -34,11 +34,11 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 19 deployment
-    assert len(set(names)) == len(names) == 91
+    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 19 deployment + 2 payload pool
+    assert len(set(names)) == len(names) == 93
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(91))
+    assert [getattr(L, name.upper()) for name in names] == list(range(93))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
@@ -49,7 +49,7 @@ def test_allocate_makes_every_declared_array() -> None:
         a = S[L.INDEX[f.name]]
         assert a.dtype == f.dtype and a.flags.c_contiguous, f.name
         assert a.shape == L.shape_of(f, DIMS), f.name
-    assert S[L.EV_FLOAT].shape == (5, 17)
+    assert S[L.EV_FLOAT].shape == (5, 4) and S[L.POOL].shape == (4, 12)
     assert S[L.LINK_COUNT].shape == (2, 2, 3)
     assert S[L.HLC_L].tolist() == [-np.inf] * 3
     assert (S[L.SEEN] == -1).all() and (S[L.EV_INT] == 0).all()
