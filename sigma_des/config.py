@@ -1,10 +1,9 @@
 """The scenario: one validated, frozen configuration for a whole run (docs/MODEL.md).
 
-Every default lives here (or in the net-layer spec classes it embeds). A scenario
-is loaded from TOML and/or ``--set key=value`` overrides through :func:`load`;
-an unknown key, a wrong type or an out-of-range value raises
-:class:`~sigma_des.errors.ConfigError` naming the dotted key and what is
-allowed. :func:`to_toml` prints the full resolved scenario.
+Every default lives here (or in the net-layer spec classes it embeds). A scenario is
+loaded from TOML and/or ``--set key=value`` overrides through :func:`load`; an unknown
+key, a wrong type or an out-of-range value raises :class:`~sigma_des.errors.ConfigError`
+naming the dotted key and what is allowed. :func:`to_toml` prints the resolved scenario.
 """
 
 from __future__ import annotations
@@ -359,21 +358,19 @@ class Scenario:
 
 
 def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
-    """The scenario as plain nested dicts and lists.
+    """The scenario ``s`` as plain nested dicts and lists.
 
     Args:
-        s: the scenario.
         keep_auto: write automatic values as such (``hosts = 0``, ``warmup = -1``), so
-            that editing ``nodes`` or ``duration`` of the result re-derives them;
-            False: the resolved values (what the run uses, and what the hash covers).
+            that editing ``nodes`` or ``duration`` re-derives them; False: the resolved
+            values (what the run uses, and what the hash covers).
     """
     d = dict(plain(s))
     if s.deployment == DeploymentSpec():  # today's model: not written, hashes unchanged
         d.pop("deployment")
-    else:
-        for key in ("host_wake", "server_wake", "lock_switch"):  # 0: as before they existed
-            if d["deployment"][key] == 0.0:
-                del d["deployment"][key]
+    else:  # keys added later are left out at 0 (as before they existed)
+        d["deployment"] = {k: v for k, v in d["deployment"].items() if v != 0.0 or k not in
+                           ("host_wake", "server_wake", "lock_switch")}
     if keep_auto:
         if getattr(s, "hosts_auto", False):
             d["hosts"] = 0
