@@ -20,6 +20,7 @@ next command tick or reached the end of its scenario.
 
 from __future__ import annotations
 
+import gc
 from dataclasses import replace
 from typing import Any
 
@@ -138,6 +139,14 @@ class Scene:
         return self.run.kernel.now
 
 
+def _retire(scene: Scene) -> None:
+    """A scene being replaced frees its message core's event table and its physics rings
+    now: its run is cyclic garbage that Python's collector keeps for many episodes (100
+    scenes at N = 11 held 100 more runs, +47 MB, after each reset)."""
+    scene.run.core.close()
+    scene.run.truth.release()
+
+
 class SceneBatch:
     """``n_scenes`` isolated scenes stepped together (see module docstring).
 
@@ -172,6 +181,12 @@ class SceneBatch:
             self.episode = [0] * self.n_scenes
         elif self.scenes:
             self.episode = [e + 1 for e in self.episode]
+        if self.scenes:
+            for old in self.scenes:
+                _retire(old)
+            del old  # the loop's name would keep the last scene's run alive
+            self.scenes = []
+            gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
         self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
         self.advance(self.scenes)
 
@@ -183,6 +198,7 @@ class SceneBatch:
         """
         for s in ids:
             self.episode[s] += 1
+            _retire(self.scenes[s])
             self.scenes[s] = self._fresh(s)
         if advance and ids:
             self.advance([self.scenes[s] for s in ids])

@@ -36,6 +36,7 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import OneState
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast.driver import CompiledCore
+from sigma_des.events.fast.growth import run_finished
 from sigma_des.events.jobs import step_draws
 from sigma_des.events.message_core import EventCore, MessageCore
 from sigma_des.events.node import PhysicsNodes
@@ -276,6 +277,7 @@ class MethodRun(AlignmentServer):
         # the run is over: its rings go now, not when a full collection finds the run
         # (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs"); trajectory() stays
         self.truth.release()
+        run_finished(self.truth.nodes.size * self.spec.duration)  # the next run collects it
         return out
 
     def finish(self) -> dict[str, Any]:

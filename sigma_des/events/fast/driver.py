@@ -101,7 +101,7 @@ class CompiledCore:
         why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
-        before_run(host.n * spec.duration)  # earlier runs' memory back first (growth)
+        before_run()  # earlier runs' memory back first (growth)
         self.host = host
         self._t_event = 0.0
         self._lockstep = host.method == "lockstep"

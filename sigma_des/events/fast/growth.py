@@ -43,7 +43,7 @@ from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
 __all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
-           "before_run", "grown_capacity", "trim_heap"]
+           "before_run", "grown_capacity", "run_finished", "trim_heap"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
 #: whole, so small steps cost little and leave less unused room).
@@ -105,13 +105,23 @@ def trim_heap() -> bool:
     return True
 
 
-#: Node-seconds (nodes x simulated seconds) from which a run first collects the cyclic
-#: garbage of the runs before it: a full collection costs ~0.1 s with numba loaded, < 1 %
-#: of such a run (N = 1 000: >= 10 s simulated), too much for the short runs of a sweep.
+#: Node-seconds (nodes x simulated seconds) from which a finished run's cyclic garbage
+#: is collected before the next run: a full collection costs ~0.1 s with numba loaded,
+#: < 1 % of such a run (N = 1 000: >= 10 s simulated), too much for the short runs of a
+#: sweep, and for the env's scenes (each declares a long run but is dropped unfinished:
+#: collecting before every one made a reset of 100 scenes cost 8 s instead of 0.1 s).
 COLLECT_FROM = 10_000.0
+_owed = [False]  # a finished large run left garbage: the next run collects it
 
 
-def before_run(node_seconds: float) -> None:
+def run_finished(node_seconds: float) -> None:
+    """A run of ``node_seconds`` (nodes x simulated seconds) is over: if it was large
+    (:data:`COLLECT_FROM`), the next :func:`before_run` collects its cyclic garbage."""
+    if node_seconds >= COLLECT_FROM:
+        _owed[0] = True
+
+
+def before_run() -> None:
     """Give the memory the runs before this one left back to the system (a ``compare
     --jobs`` worker runs several; docs/BENCHMARKS.md, issue 27, "memory").
 
@@ -121,11 +131,11 @@ def before_run(node_seconds: float) -> None:
     Measured in a worker at N = 1 000, 60 s, the second run started with 60-70 MB of
     such garbage and 20-30 MB of freed heap pages resident (:func:`trim_heap`).
 
-    Args:
-        node_seconds: the run's nodes x simulated seconds (a full collection first
-            from :data:`COLLECT_FROM` on; the heap is trimmed before every run).
+    A full collection runs only when a large run finished since the last one
+    (:func:`run_finished`); the heap is trimmed before every run.
     """
-    if node_seconds >= COLLECT_FROM:
+    if _owed[0]:
+        _owed[0] = False
         gc.collect()
     trim_heap()
     _fix_mmap_threshold()

@@ -24,6 +24,7 @@ from sigma_des.events.fast.growth import (
     fresh,
     grow,
     grown_capacity,
+    run_finished,
     trim_heap,
 )
 from sigma_des.events.fast.primitives import put_int
@@ -171,17 +172,24 @@ class _Cycle:
         self.ring = np.ones(1000)
 
 
-def test_a_long_run_first_collects_the_garbage_of_the_runs_before_it() -> None:
+def test_the_run_after_a_large_finished_one_collects_its_garbage_once() -> None:
     was = gc.isenabled()
     gc.disable()  # no automatic collection in between
     try:
         c = _Cycle()
         gone = weakref.ref(c)
         del c
-        before_run(COLLECT_FROM - 1)  # a short run: no full collection (~0.1 s)
+        run_finished(COLLECT_FROM - 1)  # a short run finished: no full collection (~0.1 s)
+        before_run()
         assert gone() is not None
-        before_run(COLLECT_FROM)
+        run_finished(COLLECT_FROM)  # a large one: the next run collects, once
+        before_run()
         assert gone() is None
+        c = _Cycle()
+        again = weakref.ref(c)
+        del c
+        before_run()  # nothing finished since: no collection (the env's many scenes)
+        assert again() is not None
     finally:
         if was:
             gc.enable()
@@ -189,7 +197,7 @@ def test_a_long_run_first_collects_the_garbage_of_the_runs_before_it() -> None:
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
 def test_after_before_run_a_freed_large_array_leaves_no_resident_pages() -> None:
-    before_run(0.0)
+    before_run()
     big = np.ones(2 << 20)  # 16 MB: freed, by default glibc would raise its threshold to it
     del big
     mid = np.ones(1 << 20)  # 8 MB: from the heap with that threshold, its own mapping here
