@@ -40,6 +40,14 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
     (["deployment.preset='cluster'"], "deployment.preset: must be one of none, colocated"),
     (["deployment.clients='process'"], "deployment.clients: must be one of node, host"),
     (["deployment.cpus=2"], "deployment.cpus: unknown key"),
+    (["deployment.lock_switch=0.005"],
+     "deployment.lock_switch: needs deployment.preset colocated or dedicated"),
+    (["deployment.preset='colocated'", "deployment.lock_switch=-0.001"],
+     r"deployment.lock_switch: must be in \[0, 1\] s"),
+    (["deployment.preset='colocated'", "deployment.host_wake=1e-4"],
+     "deployment.host_wake: needs deployment.host_demand > 0"),
+    (["deployment.preset='colocated'", "deployment.server_demand=1e-4",
+      "deployment.server_wake=2"], r"deployment.server_wake: must be in \[0, 1\] s"),
     (["deployment.clients='host'", "methods='rpc'"], "deployment.clients: 'host' does not"),
     (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
       "net.qos=0"], "deployment.preset: needs net.middleware 'mqtt'"),
@@ -47,6 +55,19 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
 def test_refusals_name_the_key(override: list[str], message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         load(None, override)
+
+
+def test_wake_and_switch_at_zero_leave_the_hash_of_a_deployment_alone() -> None:
+    """Keys added in session 10 are not written at 0: a deployment of an earlier
+    version hashes as before; set, they are written and change the hash."""
+    base = ["deployment.preset='colocated'", "deployment.host_demand=1e-4"]
+    old = load(None, base)
+    zero = load(None, [*base, "deployment.host_wake=0.0", "deployment.lock_switch=0.0"])
+    assert config_hash(zero) == config_hash(old)
+    assert "host_wake" not in to_toml(old) and "lock_switch" not in to_toml(old)
+    on = load(None, [*base, "deployment.host_wake=5e-5", "deployment.lock_switch=0.005"])
+    assert config_hash(on) != config_hash(old)
+    assert "host_wake = 5e-05" in to_toml(on) and "lock_switch = 0.005" in to_toml(on)
 
 
 def test_clients_and_bundle_are_allowed_without_a_cpu_stage() -> None:

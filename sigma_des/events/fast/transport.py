@@ -138,8 +138,7 @@ def send_burst_done(S, s, now):  # type: ignore[no-untyped-def]
     (Network._publish_try; the event's slot is freed after it, so a copy travels).
     With ``lock_switch`` the copy goes through its process's outbox instead
     (:mod:`sigma_des.events.fast.outbox`, called by the loop)."""
-    ns = alloc(S)
-    copy_slot(S, s, ns)
+    ns = burst_copy(S, s)
     S[EV_INT][ns, E_TYPE] = EV_BROKER
     send(S, ns, now)
 
