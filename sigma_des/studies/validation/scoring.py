@@ -10,16 +10,18 @@ Pure functions of numbers (no runs, no files), so each rule is tested by hand:
 * **verdict** of one cell and metric (:func:`judge`), the issue's rules:
   mean AoI and mean state latency within 15 %, or — where live does not reproduce
   itself within 10 % (noise floor > 10 %) — the DES inside the range of the live
-  repeats (for a held-out cell, which ran once: ``|error| <= noise floor``, i.e. the
-  DES no further from the live value than live moved between its own repeats; for
-  the calibration setting itself, ``min <= DES <= max`` of the repeats); p99 AoI
+  repeats: ``min <= DES <= max`` of the cell's own runs (a held-out cell run more than
+  once, the live value being their mean; the calibration setting's repeats); for a
+  held-out cell that ran once, ``|error| <= noise floor`` of the calibration setting,
+  i.e. the DES no further from the live value than live moved between its own
+  repeats; p99 AoI
   within 15 %; the achieved trigger rate within 5 % wherever live holds its rate
   (``>= 95 %`` of the nominal ``f_trig``; elsewhere not scored); the missed-frame
   fraction within 10 percentage points. A live value without a DES one (no state
   reached the DES's server in the window) is a miss.
 * **the calibration run** (:func:`central`): of the calibration setting's repeats, the
   most typical one, whose mean AoI and mean state latency (every method) lie closest
-  to the repeats' medians (least summed ``|log(x / median)|``; the first on ties):
+  to the repeats' medians (least summed distance in ``log x``; the first on ties):
   one slow outlier run no longer sets every parameter.
 * **knee** (:func:`knee`): the smallest N at which more than 5 % of frames are
   missed; :func:`knee_verdict` compares the DES's with live's (within ±25 %).
@@ -98,9 +100,9 @@ def central(runs: dict[str, dict[str, dict[str, float]]],
         metrics: the metrics compared.
 
     Returns:
-        The name of the run whose values have the least summed ``|log(x / median)|``,
-        the median over the runs of each method and metric with a positive finite value
-        in every run (a pair missing in some run is left out); the first run on ties
+        The name of the run whose values have the least summed ``|log x - median|``,
+        the median of the runs' ``log x`` of each method and metric with a positive
+        finite value in every run (a pair missing in some run is left out); the first run on ties
         or when no pair is comparable.
 
     Raises:
@@ -115,11 +117,12 @@ def central(runs: dict[str, dict[str, dict[str, float]]],
         xs = [runs[n].get(m, {}).get(k, math.nan) for n in names]
         if not all(_finite(x) and x > 0 for x in xs):
             continue
-        srt = sorted(xs)
+        logs = [math.log(x) for x in xs]
+        srt = sorted(logs)
         mid = len(srt) // 2
         med = srt[mid] if len(srt) % 2 else 0.5 * (srt[mid - 1] + srt[mid])
-        for n, x in zip(names, xs, strict=True):
-            cost[n] += abs(math.log(x / med))
+        for n, lx in zip(names, logs, strict=True):
+            cost[n] += abs(lx - med)
     return min(names, key=lambda n: (cost[n], names.index(n)))
 
 
@@ -153,7 +156,8 @@ def judge(metric: str, live: float, des: float, floor: float = math.nan,
         des: the DES's prediction.
         floor: the live noise floor of this method and metric (:func:`noise_floor`).
         f_trig: the nominal trigger rate (Hz), for ``trigger_rate_hz``.
-        repeats: the live repeats, for a cell of the calibration setting itself.
+        repeats: the live runs of this cell (its copies, or the calibration setting's
+            repeats); with two or more, a noisy cell passes inside their range.
     """
     e = error(metric, live, des)
     if _finite(live) and not _finite(des):  # e.g. no state reached the DES's server
