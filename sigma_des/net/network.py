@@ -347,8 +347,8 @@ class Network(Links):
         (after its process's burst, if any). The latency ends when the process takes
         the message, the burst's start: live stamps a receipt in paho's network thread,
         which needs the interpreter lock the loop thread holds while it serves its
-        backlog, so the receipt waits for the process (receipts at the server come one
-        service apart, measured)."""
+        backlog, so the receipt waits for the process; with ``lock_switch`` a copy
+        reaching a busy process is read with its batch (:meth:`_read_batch`)."""
         now = self.k.env.now
         m.t_recv = now
         if self.qos1 and self._puback(m, True, now, now):
