@@ -244,8 +244,8 @@ class CompiledCore:
         sigs = {loop.advance: (s, f64, types.boolean),
                 loop.publish_trigger: (s, i64, f64, f64, i64),
                 loop.publish_commands: (s, i64, i64, types.int64[::1], types.float64[:, ::1], f64),
-                loop.reserve: (s, i64, i64, f64, f64), loop.start: (s, i64, f64),
-                loop.roll_back: (s, i64, i64, i64, f64), loop.owe_steps: (s, i64, i64, f64)}
+                loop.start: (s, i64, f64), loop.roll_back: (s, i64, i64, i64, f64),
+                loop.owe_steps: (s, i64, i64, f64)}
         todo = [(k, sig) for k, sig in sigs.items()
                 if sig not in k.signatures]  # type: ignore[attr-defined]
         for kernel, sig in todo:

@@ -28,7 +28,7 @@ from __future__ import annotations
 from sigma_des.events.fast.broker import broker
 from sigma_des.events.fast.clients import hand_over, receive
 from sigma_des.events.fast.cpu import tick
-from sigma_des.events.fast.job import owe, reserve, start_job
+from sigma_des.events.fast.job import owe, start_job
 from sigma_des.events.fast.layout import (
     CP_APP,
     CP_MAXMEM,
@@ -110,7 +110,7 @@ from sigma_des.events.fast.transport import burst_copy, puback_client, send_burs
 from sigma_des.events.fast.warp import rollback
 
 __all__ = ["advance", "owe_steps", "publish_commands", "publish_rerequest", "publish_trigger",
-           "reserve", "roll_back", "start", "tick"]
+           "roll_back", "start", "tick"]
 
 
 @jit

@@ -15,8 +15,8 @@ from sigma_des.events.fast import loop
 from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 
-ENTRY_POINTS = (loop.advance, loop.publish_trigger, loop.publish_commands, loop.reserve,
-                loop.start, loop.roll_back, loop.owe_steps)
+ENTRY_POINTS = (loop.advance, loop.publish_trigger, loop.publish_commands, loop.start,
+                loop.roll_back, loop.owe_steps)
 
 
 def test_loaded_kernels_are_the_ones_a_run_calls() -> None:
