@@ -9,6 +9,7 @@ node still owed its re-simulation, dynamics without batched steps).
 
 from __future__ import annotations
 
+from copy import deepcopy
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,7 @@ from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 
 SLOW = [{"kind": "slow", "node": 1, "start": 0.0, "end": 1.0, "factor": 3.0}]
-LATEST, H = 20, 512
+LATEST = 20
 
 
 def _core(dynamics: str = "quadrotor", **over: Any) -> CompiledCore:
@@ -31,8 +32,11 @@ def _core(dynamics: str = "quadrotor", **over: Any) -> CompiledCore:
     run, why = make_run(sc.run_spec(), "bides", make_dynamics(sc), make_behaviour(sc))
     assert why == "" and isinstance(run.core, CompiledCore)
     core = run.core
+    truth = core.host.truth
+    for k in range(LATEST + 1):  # 21 frames issued, under the default command
+        truth.step_frame(k, 0.01, core.host.nodes.cmd, None)
     S = core.S
-    S[L.INTS][L.I_LATEST] = LATEST  # as if 21 frames were issued
+    S[L.INTS][L.I_LATEST] = truth.latest  # as advance_to hands it over
     nd = S[L.NODE]
     nd[L.N_FRAME, 1], nd[L.N_REQ, 1] = 9, 12  # node 1: computed frame 9, asked for 12
     S[L.CMD][1] = 0.1 * (1.0 + np.arange(S[L.CMD].shape[1]))  # its newest command row
@@ -72,6 +76,19 @@ def test_a_rollback_is_deferred_and_its_job_costed_in_the_loop(step: Any) -> Non
         assert cost == hand * 3.0 == pytest.approx(0.054, abs=1e-15)
     # the job took the host's first free core: it ends at 0.5 + cost, bit for bit
     assert S[L.CORES][S[L.HOST_OF][1]].max() == 0.5 + cost
+    # the flush re-simulates node 1 from frame 4 as the truth's one-by-one rollback does,
+    # counts the rollback and its steps, and unmarks the node
+    truth = core.host.truth
+    ref = deepcopy(truth)
+    assert ref.rollback(1, 4, 9, S[L.CMD][1]) == 6
+    assert not np.array_equal(truth.state[1], ref.state[1])  # owed until the flush
+    core.S = S
+    core.flush_rollbacks()
+    assert (truth.rollbacks, truth.resim_steps) == (ref.rollbacks, ref.resim_steps) == (1, 6)
+    assert iv[L.I_DEFN] == 0 and S[L.RESIM_PEND].tolist() == [0, 0, 0, 0]
+    np.testing.assert_array_equal(truth.obs_hist[: LATEST + 1], ref.obs_hist[: LATEST + 1])
+    np.testing.assert_array_equal(truth.ckpt[: LATEST + 1], ref.ckpt[: LATEST + 1])
+    np.testing.assert_array_equal(truth.state, ref.state)
 
 
 def test_python_gets_a_second_rollback_and_one_past_the_newest_frame() -> None:
