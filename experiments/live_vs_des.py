@@ -49,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--methods", default=None, help="comma-separated (default: all four)")
     p.add_argument("--duration", type=float, default=None,
                    help="seconds per live and DES run (default 4; --quick 1.5)")
+    p.add_argument("--cell-repeats", type=int, default=None, metavar="K",
+                   help="live runs of each held-out cell (default 2; --quick 1): the live "
+                        "range a noisy cell's prediction is scored against")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -58,8 +61,9 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             raise ConfigError("--methods", f"unknown {unknown}; allowed: {', '.join(METHODS)}")
         make = quick_plan if a.quick else full_plan
-        plan = make(methods) if a.duration is None else make(methods, a.duration)
-        plan = plan.select(a.grid)
+        kw = {k: v for k, v in (("duration", a.duration), ("cell_repeats", a.cell_repeats))
+              if v is not None}
+        plan = make(methods, **kw).select(a.grid)
     except ConfigError as e:
         print(f"live_vs_des: {e}", file=sys.stderr)
         return 2

@@ -234,8 +234,8 @@ def _stall_note(x: NDArray[np.float64], what: str, warn: list[str]) -> int:
     return k
 
 
-def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
-           ) -> dict[str, Any]:
+def _paths(w: pd.DataFrame, states: pd.DataFrame, tol: float, srv_up: float,
+           srv_down: float) -> dict[str, Any]:
     """Path latencies of both directions, with the in-order holds flagged.
 
     Up (states): one in-order stream per method into the server (the DES's server
@@ -243,9 +243,10 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
     host. Commands are left out: a tick's commands leave the server together, so
     their latencies hold the server's publish queue, which the DES adds itself (they
     take the triggers' hops). Rows of one receipt (a recording repeats a host's trigger
-    per node) count once. A delivery within ``tol_up`` / ``tol_down`` after the
-    previous one into its receiver may have waited behind it on the stream
-    (:func:`~sigma_des.live.dequeue.held`).
+    per node) count once. A delivery within ``tol`` after the previous one into its
+    receiver, or after the receiver's thread is free again (each delivery holds it for
+    ``srv_up`` / ``srv_down``), may have waited behind it, on the stream or for the
+    thread (:func:`~sigma_des.live.dequeue.held`).
     """
     up_conn = pd.factorize(states["method"])[0]
     lat_up = (states["t_recv"] - states["t_send"]).to_numpy()
@@ -255,9 +256,9 @@ def _paths(w: pd.DataFrame, states: pd.DataFrame, tol_up: float, tol_down: float
     down_conn = pd.factorize(down["method"].astype(str) + "/" + down["host"].astype(str))[0]
     return {
         "up": lat_up,
-        "up_held": held(up_conn, states["t_send"], states["t_recv"], tol_up),
+        "up_held": held(up_conn, states["t_send"], states["t_recv"], tol, srv_up),
         "down": (down["t_recv"] - down["t_send"]).to_numpy(),
-        "down_held": held(down_conn, down["t_send"], down["t_recv"], tol_down),
+        "down_held": held(down_conn, down["t_send"], down["t_recv"], tol, srv_down),
     }
 
 
@@ -302,9 +303,9 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     the receiver's burst (``recv_up``/``recv_down``) after the previous one into its
     receiver may have waited for it (on the stream or for the receiver's thread):
     censored. ``tol = 0`` keeps the measured latencies."""
-    up_tol = tol + cpu.get("recv_up", 0.0) if tol > 0 else 0.0
-    down_tol = tol + cpu.get("recv_down", 0.0) if tol > 0 else 0.0
-    p = _paths(w, states, up_tol, down_tol)
+    up_srv = cpu.get("recv_up", 0.0) if tol > 0 else 0.0
+    down_srv = cpu.get("recv_down", 0.0) if tol > 0 else 0.0
+    p = _paths(w, states, tol, up_srv, down_srv)
     # a state left its host when the host's thread was next idle (the DES adds that)
     wait_up = sender_waits(states["method"].astype(str) + "/" + states["host"].astype(str),
                            states["t_send"], cpu.get("send_up", 0.0), tol)
@@ -348,8 +349,8 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
         "hop_down_latency_p99_s": float(np.percentile(hop_down, 99)),
         "hold_tol_s": tol,
         "sender_wait_up_mean_s": float(wait_up.mean()),
-        "hold_tol_up_s": up_tol,
-        "hold_tol_down_s": down_tol,
+        "hold_service_up_s": up_srv,
+        "hold_service_down_s": down_srv,
         "path_cpu_service_up_s": cpu["up"],
         "path_cpu_service_down_s": cpu["down"],
         "server_receive_queue_mean_s": float(queue.mean()),

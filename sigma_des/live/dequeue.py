@@ -39,7 +39,7 @@ HOLD_TOL = 1e-4
 
 
 def held(conn: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike,
-         tol: float = HOLD_TOL) -> NDArray[np.bool_]:
+         tol: float = HOLD_TOL, service: float = 0.0) -> NDArray[np.bool_]:
     """Which messages may have waited behind their predecessor on their connection.
 
     A connection delivers in its own sequence, so its delivery order *is* its sequence
@@ -47,11 +47,20 @@ def held(conn: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike,
     which send times do not give). A message delivered no later than ``tol`` after the
     previous delivery on its connection may have been held behind it.
 
+    With ``service`` > 0 the receiver's thread spends ``service`` on each delivery
+    after taking it: its busy time is replayed per connection, ``B_k = max(B_{k-1},
+    r_k) + service`` over the deliveries ``r_k`` in order, and a delivery no later
+    than ``B_{k-1} + tol`` may have waited for the thread (live stamps a batch of
+    receipts when the thread frees, so a batch's first receipt waited for the
+    previous batch's handling too). ``service = 0`` is the rule above.
+
     Args:
         conn: connection id of each message.
         t_send: send times (s); they order deliveries at the same instant.
         t_recv: delivery times (s).
-        tol: a delivery within ``tol`` after the previous one counts as held.
+        tol: a delivery within ``tol`` after the previous one (or after the
+            receiver's thread is free again) counts as held.
+        service: the receiver's CPU per delivery (s).
 
     Returns:
         ``held[k]`` in the input order (the first delivery of a connection is never held).
@@ -66,10 +75,27 @@ def held(conn: ArrayLike, t_send: ArrayLike, t_recv: ArrayLike,
     cs, ds = c[order], d[order]
     same = np.zeros(s.size, dtype=bool)
     same[1:] = cs[1:] == cs[:-1]
+    if service > 0.0:
+        out[order] = _busy_held(same, ds, tol, service)
+        return out
     gap = np.empty(s.size)
     gap[0] = np.inf
     gap[1:] = ds[1:] - ds[:-1]
     out[order] = same & (gap <= tol)
+    return out
+
+
+def _busy_held(same: NDArray[np.bool_], ds: NDArray[np.float64], tol: float,
+               service: float) -> NDArray[np.bool_]:
+    """:func:`held` with a receiver thread (deliveries sorted by connection, then time)."""
+    out = np.zeros(ds.size, dtype=bool)
+    busy = -np.inf
+    for k in range(ds.size):
+        r = float(ds[k])
+        if not same[k]:
+            busy = -np.inf
+        out[k] = r <= busy + tol
+        busy = (busy if busy > r else r) + service
     return out
 
 

@@ -31,6 +31,13 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   received, triggers, commands and re-requests sent. Without wake-up columns (a run
   recorded before them), or with a line that gives no positive wake-up cost, the
   wake-up is 0 and ``D = Σ busy / Σ messages`` (said in a warning);
+* ``host_record``, ``server_record``: the loop line's slope ``b`` (the loop thread's CPU
+  per call, at most the demand), the CPU of one more record in a bundle: a live loop
+  handles each record of a bundle (a host's states of one turn, the server's
+  commands to one host) with the code that handles a record in a message of its own,
+  one call's worth, while the per-message part (paho's thread, the wake-up) is paid
+  once. From a run without bundles this is the only handle on it; 0 without wake-up
+  columns;
 * the broker's demand ``D_b`` (its busy CPU over every PUBLISH that came in plus every
   delivery that went out) as **both** ``broker.publish_service`` and
   ``broker.delivery_service`` (constants): one run gives one equation,
@@ -185,6 +192,13 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
     return wake, per_msg, rep
 
 
+def _record(rep: dict[str, float], kind: str, demand: float) -> float:
+    """``deployment.<kind>_record``: the loop line's slope per call, in ``[0, demand]``
+    (0 without a line: a run recorded before the wake-up columns)."""
+    b = rep.get(f"{kind}_loop_call_s", math.nan)
+    return float(min(max(b, 0.0), demand)) if math.isfinite(b) else 0.0
+
+
 def _demand(d: float, busy: float, msgs: float, kind: str, warn: list[str]) -> float:
     if not math.isfinite(d):
         warn.append(f"no {kind} CPU demand could be measured: deployment.{kind}_demand 0")
@@ -232,9 +246,12 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         warn.append("the broker's CPU was not measured (an external broker?): its "
                     f"services kept from the base scenario ({base_broker * 1e6:.3g} µs)")
         broker = base_broker
+    host_rec = _record(host_rep, "host", host)
+    server_rec = _record(server_rep, "server", server)
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=host_wake, server_wake=server_wake,
+                         host_record=host_rec, server_record=server_rec,
                          lock_switch=LIVE_LOCK_SWITCH,
                          clients="host", bundle=bundle)
     report = {
@@ -242,6 +259,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         "background_cores_measured": measured, "machine_busy_cores": busy,
         "host_demand_s": host, "host_wake_s": host_wake,
         "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
+        "host_record_s": host_rec, "server_record_s": server_rec,
         **host_rep, **server_rep,
         "broker_messages": b_msgs, "broker_busy_s": b_busy,
         "background_cores": bg_per_method, "cpu_demands": table.to_dict("records"),

@@ -48,7 +48,7 @@ from sigma_des.live.wire import (
 )
 from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
-from sigma_des.net.kinds import COMMAND, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 
 __all__ = ["ClockLoop", "Host", "HostNodes", "main"]
 
@@ -108,7 +108,7 @@ class HostNodes(NodeRules):
 
     def republish(self, i: int, index: int, payload: Published) -> None:
         """Send the last state again."""
-        self.host.send_state(i, payload, self.clock.now, True)
+        self.host.send_state(i, payload, self.clock.now, True, index)
 
 
 class Host(ImpairedSender):
@@ -230,8 +230,9 @@ class Host(ImpairedSender):
         try:
             if topic == tp.trig:
                 frame, t_send, dt, hl, hc = decode_trigger(payload, self.window, t)
-                self._deliver(t, TRIGGER, self.sc.nodes, frame, t_send, len(topic), len(payload),
-                              self._on_trigger, frame, t_send, dt, hl, hc)
+                # the DES keys a trigger's delivery to a host client by its first node
+                self._deliver(t, TRIGGER, int(self.nodes[0]), frame, t_send, len(topic),
+                              len(payload), self._on_trigger, frame, t_send, dt, hl, hc)
             elif topic == tp.cmd(self.h):
                 self._commands(t, topic, payload)
             elif topic == tp.rereq(self.h):
@@ -353,15 +354,18 @@ class Host(ImpairedSender):
                else np.zeros((0, self.m, 3)))
         return {"track_frames": fr, "track_t": t, "track_pos": pos, "nodes": self.nodes}
 
-    def send_state(self, j: int, payload: Published, t: float, republish: bool) -> None:
+    def send_state(self, j: int, payload: Published, t: float, republish: bool,
+                   index: int = -1) -> None:
         """Publish node ``j``'s state ``payload`` at ``t`` (one message or, with
-        ``bundle``, a record of this loop turn's message)."""
+        ``bundle``, a record of this loop turn's message); a republish answers re-request
+        ``index`` (its draws are keyed by it, as the DES's REPUBLISH)."""
         frame, t_gen, obs, stamp = payload
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         node = int(self.nodes[j])
         msg = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
         if not self.bundle:
-            self._publish(self.topics.state(self.h), msg, t, STATE, node, frame)
+            kind, key = (REPUBLISH, index) if republish else (STATE, frame)
+            self._publish(self.topics.state(self.h), msg, t, kind, node, key)
             return
         if not self._pending:
             self.loop.call_at(t, self._flush)  # after the current handler, before the inbox

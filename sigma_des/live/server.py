@@ -107,7 +107,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.net = LiveNet()
         self.ledger = Ledger(sc, "server")
         self.impair = Impairment(sc.net.server_link, sc.net, RandomStreams(sc.seed), sc.hosts,
-                                 impair)
+                                 impair, server=True)
         self._dt = 1.0 / sc.f_trig  # step of the trigger being issued
         self.record = record
         self.bundle = bundle

@@ -10,8 +10,12 @@ lost attempt ``a`` (TCP retransmission with its doubling timeout, as
 per attempt, ``datagram`` with QoS 0 drops it; after
 ``max_retries`` lost attempts it is gone. Draws use the counter-based streams
 keyed by (link, direction, kind, subject, index, attempt): same seed, same
-impairment decisions. Outgoing messages are delayed before they are published,
-incoming ones after they were received; bandwidth serialization is not emulated
+impairment decisions. A Bernoulli loss uses the DES's own draw of that packet: stream
+``lossu.<host|server>.<up|down>`` at ``(kind, subject, index, attempt)``, as
+:class:`~sigma_des.net.links.Links` draws it, so a live run and its DES lose the same
+messages (with a stream, one triple loss holds a connection 1.4 s: which messages are
+lost decides a lossy cell, not only how many). Outgoing messages are delayed before
+they are published, incoming ones after they were received; bandwidth serialization is not emulated
 (loopback is far faster than the modelled links).
 
 With ``tc netem`` available, users can instead impair the loopback interface,
@@ -46,17 +50,20 @@ class Impairment:
         streams: the run's random streams.
         link_id: the link index (hosts 0..H-1, server H), as in the DES.
         enabled: False: no extra delay and no loss (the bare loopback).
+        server: the server's link (the DES's ``lossu.server.*`` draws; else a host's).
     """
 
     def __init__(
         self, link: LinkSpec, net: NetSpec, streams: RandomStreams, link_id: int,
-        enabled: bool = True,
+        enabled: bool = True, server: bool = False,
     ) -> None:
         self.link = link
         self.net = net
         self.link_id = link_id
         self.lat_stream = streams.stream("live.latency")
         self.loss = LossProcess(link.loss, streams.stream("live.loss"), link_id)
+        side = "server" if server else "host"
+        self._u = [streams.stream(f"lossu.{side}.{d}") for d in ("up", "down")]  # UP, DOWN
         lossless = link.loss.model == "bernoulli" and link.loss.p == 0.0
         zero = all(link.latency_of(up).is_constant and link.latency_of(up).mean_value() == 0.0
                    for up in (True, False))
@@ -84,8 +91,7 @@ class Impairment:
             net = self.net
             penalty = 0.0
             for attempt in range(net.max_retries + 1):
-                if not bool(self.loss.lost(t + penalty, direction, kind, subject, index,
-                                           attempt)[0]):
+                if not self._lost(t + penalty, direction, kind, subject, index, attempt):
                     break
                 self.lost += 1
                 if net.transport == "datagram" and net.qos == 0:
@@ -103,6 +109,16 @@ class Impairment:
             self._last[direction] = release
             d = release - t
         return d
+
+
+    def _lost(self, t: float, direction: int, kind: int, subject: int, index: int,
+              attempt: int) -> bool:
+        """Is this try lost? Bernoulli: the DES's draw of the same packet; Gilbert–
+        Elliott (its state depends on time): the shim's own process."""
+        spec = self.link.loss
+        if spec.model == "bernoulli":
+            return bool(self._u[direction].uniform(kind, subject, index, attempt)[()] < spec.p)
+        return bool(self.loss.lost(t, direction, kind, subject, index, attempt)[0])
 
 
 class ImpairedSender:

@@ -205,6 +205,12 @@ class DeploymentSpec:
             thread idle (a *wake-up*: leaving the wait, the loop's own work), 0..1 s;
             needs ``host_demand > 0``.
         server_wake: the same for the server's process; needs ``server_demand > 0``.
+        host_record: CPU a physics host's process spends more per record beyond the
+            first of a bundled PUBLISH it sends or receives (encoding, decoding and
+            handling each state or command), 0..``host_demand`` s: a bundle of ``k``
+            records costs ``host_demand + (k - 1)·host_record``; one record (every
+            unbundled message) costs ``host_demand``.
+        server_record: the same for the server's process (0..``server_demand``).
         lock_switch: a PUBLISH whose burst ends while its process's thread is busy
             leaves when the thread next waits, at most this long after its burst's
             end (Python's interpreter-lock switch interval: live's paho network thread
@@ -226,6 +232,8 @@ class DeploymentSpec:
     server_tick: float = 0.0
     host_wake: float = 0.0
     server_wake: float = 0.0
+    host_record: float = 0.0
+    server_record: float = 0.0
     lock_switch: float = 0.0
     clients: str = "node"
     bundle: bool = False
@@ -238,16 +246,21 @@ class DeploymentSpec:
         require(0.0 <= self.background < self.cores and math.isfinite(self.background),
                 "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
         for name in ("host_demand", "server_demand", "server_tick", "host_wake",
-                     "server_wake", "lock_switch"):
+                     "server_wake", "host_record", "server_record", "lock_switch"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
         for who in ("host", "server"):
             wake, demand = getattr(self, f"{who}_wake"), getattr(self, f"{who}_demand")
             require(wake == 0.0 or demand > 0.0, f"{who}_wake",
                     f"needs deployment.{who}_demand > 0 (a wake-up is charged on a burst, "
                     f"and a zero demand is no burst; got {who}_wake = {wake})")
+            rec = getattr(self, f"{who}_record")
+            require(rec <= demand, f"{who}_record",
+                    f"must be in [0, deployment.{who}_demand = {demand}] s (a record's share "
+                    f"of a one-record message's CPU), got {rec}")
         if self.preset == "none":
             for name in ("background", "host_demand", "server_demand", "server_tick",
-                         "host_wake", "server_wake", "lock_switch"):
+                         "host_wake", "server_wake", "host_record", "server_record",
+                         "lock_switch"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

@@ -81,13 +81,14 @@ def test_wake_up_costs_identical(method: str) -> None:
 @pytest.mark.parametrize("method", METHODS)
 def test_outbox_identical(method: str, clients: str) -> None:
     """``lock_switch``: publishes whose burst ends while their process is busy wait in
-    its outbox until it waits (or the switch is due) and then leave in order; both
-    engines alike, and it changes the run (the latency grows)."""
+    its outbox until it waits (or the switch is due) and then leave in order, and
+    copies reaching a busy process are read in batches; both engines alike, and it
+    changes the run."""
     base = {**_BASE, **_CPU, "deployment.host_wake": 0.0004, "deployment.clients": clients}
     ev, co = run_both(tiny(**{**base, "deployment.lock_switch": 0.003}), method)
     assert co["engine"]["used"] == "cohort"
     plain = run_both(tiny(**base), method)[0]["metrics"]
-    assert ev["metrics"]["latency_state_mean"] > plain["latency_state_mean"]
+    assert ev["metrics"]["latency_state_mean"] != plain["latency_state_mean"]
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -204,6 +204,9 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert dep.server_demand == pytest.approx(
         (procs["server"][2] - 80e-6 * 1200) / 5000, rel=1e-9)
     assert rep["host_loop_call_s"] == pytest.approx(10e-6, rel=1e-9)
+    # a further record of a bundle costs one call's worth (the line's slope)
+    assert dep.host_record == pytest.approx(10e-6, rel=1e-9) == rep["host_record_s"]
+    assert dep.server_record == pytest.approx(20e-6, rel=1e-9)
     assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
     # the sender's expected wake-up is on the path the hop samples are net of
     scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
@@ -213,7 +216,7 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     # without the wake-up columns (a run recorded before them): the whole CPU per message
     write_cpu({"bides": {"cpu": _cpu_rows(procs, BACKGROUND_CPU)}}, d)
     sc0, rep0 = calibrate(d, tmp_path / "files0")
-    assert sc0.deployment.host_wake == 0.0
+    assert sc0.deployment.host_wake == 0.0 and sc0.deployment.host_record == 0.0
     assert sc0.deployment.host_demand == pytest.approx(busy_h / 4500, rel=1e-12)
     assert any("no host loop wake-ups recorded" in w for w in rep0["warnings"])
 

@@ -3,14 +3,21 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import pytest
 
 from sigma_des.core.rng import RandomStreams
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.net.latency import Dist
-from sigma_des.net.loss import LossProcess, LossSpec
+from sigma_des.net.loss import LossSpec
 from sigma_des.net.spec import LinkSpec, NetSpec
+
+
+def _des_loss(streams: RandomStreams, p: float, tag: str = "host.up") -> Any:
+    """The DES's Bernoulli loss decision of a packet (``Links.hop``'s draw)."""
+    st = streams.stream(f"lossu.{tag}")
+    return lambda k, s, i, a: bool(st.uniform(k, s, i, a)[()] < p)
 
 
 def test_disabled_or_zero_link_adds_nothing() -> None:
@@ -35,12 +42,12 @@ def test_loss_follows_the_link_loss_process() -> None:
     spec = LossSpec(p=0.3)
     link = LinkSpec(latency=Dist(dist="constant", value=0.002), loss=spec)
     streams = RandomStreams(9)
-    ref = LossProcess(spec, RandomStreams(9).stream("live.loss"), 2)
+    ref = _des_loss(RandomStreams(9), spec.p)
     drop = Impairment(link, NetSpec(transport="datagram", qos=0), streams, 2)
     resend = Impairment(link, NetSpec(transport="datagram", qos=1, qos1_timeout=0.05,
                                       max_retries=5), RandomStreams(9), 2)
     for k in range(200):
-        lost = [bool(ref.lost(0.0, UP, 2, 0, k, a)[0]) for a in range(6)]
+        lost = [ref(2, 0, k, a) for a in range(6)]
         d0 = drop.delay(0.0, UP, 2, 0, k)
         assert (d0 == math.inf) == lost[0]
         n_lost = next((a for a, x in enumerate(lost) if not x), 6)
@@ -56,13 +63,13 @@ def test_stream_resends_after_the_des_doubling_rto() -> None:
     of its ``max_retries + 1`` tries is gone. Messages far apart, so order adds nothing."""
     spec = LossSpec(p=0.5)
     link = LinkSpec(latency=Dist(dist="constant", value=0.002), loss=spec)
-    ref = LossProcess(spec, RandomStreams(4).stream("live.loss"), 1)
+    ref = _des_loss(RandomStreams(4), spec.p)
     imp = Impairment(link, NetSpec(transport="stream", rto=0.1, max_retries=3),
                      RandomStreams(4), 1)
     seen = set()
     for k in range(300):
         t = 10.0 * k
-        lost = [bool(ref.lost(t, UP, 2, 0, k, a)[0]) for a in range(4)]
+        lost = [ref(2, 0, k, a) for a in range(4)]
         n = next((a for a, x in enumerate(lost) if not x), 4)
         d = imp.delay(t, UP, 2, 0, k)
         if n == 4:
@@ -71,3 +78,30 @@ def test_stream_resends_after_the_des_doubling_rto() -> None:
             assert d == pytest.approx(0.002 + 0.1 * (2**n - 1), abs=1e-9)
         seen.add(n)
     assert seen >= {0, 1, 2, 3}  # every case met
+
+
+@pytest.mark.parametrize("up", [True, False])
+def test_live_loses_the_messages_the_des_loses(up: bool) -> None:
+    """Same seed, same packets lost: the shim's decision for (kind, subject, index,
+    attempt) on a host link is the DES network's own (``Links.hop``), both directions
+    (states up; triggers, keyed by the host's first node, and commands down)."""
+    from sigma_des import load
+    from sigma_des.core.sim import Kernel
+    from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
+    from sigma_des.net.network import Network
+
+    sc = load(None, ["nodes=4", "hosts=2", "net.host_link.loss.p=0.2", "net.qos=0",
+                     "net.transport='datagram'"])
+    net = Network(Kernel(), sc.net_setup(), RandomStreams(sc.seed), lambda m: None)
+    imp = Impairment(sc.net.host_link, NetSpec(transport="datagram", qos=0),
+                     RandomStreams(sc.seed), 1)
+    kinds = (STATE,) if up else (TRIGGER, COMMAND)
+    n_lost = 0
+    for kind in kinds:
+        for node in (2, 3):  # host 1's nodes
+            for frame in range(200):
+                lost_des = net.hop(node, up, kind, node, frame, 0, 100, 0.0)[1]
+                d = imp.delay(0.0, UP if up else DOWN, kind, node, frame)
+                assert math.isinf(d) == lost_des
+                n_lost += lost_des
+    assert 40 * len(kinds) < n_lost < 120 * len(kinds)  # p = 0.2 of 400 per kind

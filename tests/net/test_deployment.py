@@ -48,6 +48,13 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
      "deployment.host_wake: needs deployment.host_demand > 0"),
     (["deployment.preset='colocated'", "deployment.server_demand=1e-4",
       "deployment.server_wake=2"], r"deployment.server_wake: must be in \[0, 1\] s"),
+    (["deployment.preset='colocated'", "deployment.host_demand=1e-4",
+      "deployment.host_record=2e-4"],
+     r"deployment.host_record: must be in \[0, deployment.host_demand = 0.0001\] s"),
+    (["deployment.server_record=1e-5"],
+     r"deployment.server_record: must be in \[0, deployment.server_demand = 0.0\] s"),
+    (["deployment.preset='colocated'", "deployment.server_demand=1e-4",
+      "deployment.server_record=-1e-5"], r"deployment.server_record: must be in \[0, 1\] s"),
     (["deployment.clients='host'", "methods='rpc'"], "deployment.clients: 'host' does not"),
     (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
       "net.qos=0"], "deployment.preset: needs net.middleware 'mqtt'"),
@@ -62,12 +69,16 @@ def test_wake_and_switch_at_zero_leave_the_hash_of_a_deployment_alone() -> None:
     version hashes as before; set, they are written and change the hash."""
     base = ["deployment.preset='colocated'", "deployment.host_demand=1e-4"]
     old = load(None, base)
-    zero = load(None, [*base, "deployment.host_wake=0.0", "deployment.lock_switch=0.0"])
+    zero = load(None, [*base, "deployment.host_wake=0.0", "deployment.lock_switch=0.0",
+                       "deployment.host_record=0.0"])
     assert config_hash(zero) == config_hash(old)
     assert "host_wake" not in to_toml(old) and "lock_switch" not in to_toml(old)
+    assert "host_record" not in to_toml(zero)
     on = load(None, [*base, "deployment.host_wake=5e-5", "deployment.lock_switch=0.005"])
     assert config_hash(on) != config_hash(old)
     assert "host_wake = 5e-05" in to_toml(on) and "lock_switch = 0.005" in to_toml(on)
+    rec = load(None, [*base, "deployment.host_record=2e-5"])
+    assert config_hash(rec) != config_hash(old) and "host_record = 2e-05" in to_toml(rec)
 
 
 def test_clients_and_bundle_are_allowed_without_a_cpu_stage() -> None:

@@ -26,7 +26,8 @@ def _net(overrides: list[str]) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
     k = Kernel()
 
     def deliver(m: Msg) -> None:
-        got.append((m.client, m.kind, m.subject, m.index, m.payload, k.now, m.t_pub))
+        got.append((m.client, m.kind, m.subject, m.index, m.payload, k.now, m.t_pub,
+                    m.t_recv))
 
     sc = load(None, [*BASE, *overrides])
     setup = replace(sc.net_setup(), warmup=0.0)
@@ -152,6 +153,43 @@ def test_bundle_takes_the_publishes_made_while_the_host_process_is_busy() -> Non
     assert got[1][5] == got[2][5] > got[0][5]
 
 
+def test_a_bundle_costs_its_demand_plus_a_record_cost_per_further_record() -> None:
+    """``host_record``/``server_record``: the same three-record case as above with
+    ``dr`` per further record. Node 0's lone state: a burst of ``dh`` at the host, then
+    ``ds`` at the server. The bundle of nodes 1 and 2 (two records): ``dh + dr`` at the
+    host (from ``dh`` to ``2 dh + dr``), ``ds + dr_s`` at the server."""
+    dh, dr, ds, drs = 1e-3, 3e-4, 5e-4, 2e-4
+    k, net, got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
+                        "deployment.bundle=true", "deployment.preset='dedicated'",
+                        f"deployment.host_demand={dh}", f"deployment.host_record={dr}",
+                        f"deployment.server_demand={ds}", f"deployment.server_record={drs}",
+                        "broker.publish_service=0.0", "broker.delivery_service=0.0"])
+    net.publish(0, STATE, 0, 5, "s0", 150, (net.server,))
+    k.at(0.4 * dh, net.publish, 1, STATE, 1, 5, "s1", 150, (net.server,))
+    k.at(0.8 * dh, net.publish, 2, STATE, 2, 5, "s2", 150, (net.server,))
+    k.env.run()
+    cpu = net.cpu
+    assert cpu is not None
+    assert cpu.hosts[0].free == pytest.approx(2 * dh + dr, abs=1e-15)
+    assert cpu.server.free == pytest.approx(got[2][5], abs=1e-15)
+    # the bundle's records reach the server's application at the end of its burst
+    rep = net.cpu_report()
+    assert rep is not None
+    busy = {pr.name: pr.busy for pr in rep.processes}
+    assert busy["host0"] == pytest.approx(2 * dh + dr, rel=1e-12)
+    assert busy["server"] == pytest.approx(2 * ds + drs, rel=1e-12)
+    # without record costs the same run is cheaper by exactly one record on each side
+    k0, net0, _ = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
+                        "deployment.bundle=true", "deployment.preset='dedicated'",
+                        f"deployment.host_demand={dh}", f"deployment.server_demand={ds}",
+                        "broker.publish_service=0.0", "broker.delivery_service=0.0"])
+    net0.publish(0, STATE, 0, 5, "s0", 150, (net0.server,))
+    k0.at(0.4 * dh, net0.publish, 1, STATE, 1, 5, "s1", 150, (net0.server,))
+    k0.at(0.8 * dh, net0.publish, 2, STATE, 2, 5, "s2", 150, (net0.server,))
+    k0.env.run()
+    assert net0.cpu is not None and net0.cpu.hosts[0].free == pytest.approx(2 * dh, abs=1e-15)
+
+
 def test_a_publish_waiting_for_its_thread_is_stamped_when_the_thread_starts_it() -> None:
     """Two states of one host at t = 0: the second waits ``dh`` for the host's thread.
     Live stamps a message when its handler runs, so its publish time (where its latency
@@ -221,6 +259,39 @@ def test_bundle_wire_size_is_the_records_together() -> None:
     k.env.run()
     up = {ld.name: ld.bytes for ld in net.links()}["host0.up"]
     assert up == net.wire_bytes(3 * 150)
+
+
+@pytest.mark.parametrize("switch", [0.005, 0.0005])
+def test_copies_reaching_a_busy_process_are_read_in_batches(switch: float) -> None:
+    """``lock_switch``: four states reach the server (demand ``ds`` = 1 ms, an idle
+    thread at the first) at ``a0``, ``a0`` + 0.2, + 0.4 and + 1.5 ms. The first is read
+    at once; the second opens a batch read when the thread frees (``a0 + ds``) or
+    ``switch`` after it arrived, whichever is first; the third arrives before that and
+    joins it; the fourth arrives after it and opens the next batch, read when the thread
+    has handled the second and third (``a0 + 3 ds``) or at the switch. Without
+    ``lock_switch`` each is read at its own burst's start (``a0 + k ds``)."""
+    ds = 1e-3
+    offs = (0.0, 2e-4, 4e-4, 1.5e-3)
+    over = ["nodes=4", "hosts=4", "deployment.preset='dedicated'",
+            f"deployment.server_demand={ds}", "broker.publish_service=0.0",
+            "broker.delivery_service=0.0"]
+    runs = {}
+    for sw in (0.0, switch):
+        k, net, got = _net([*over, f"deployment.lock_switch={sw}"])
+        for i, t in enumerate(offs):
+            k.at(t, net.publish, i, STATE, i, 5, None, 150, (net.server,))
+        k.env.run()
+        runs[sw] = {g[2]: g for g in got}
+    a = [runs[0.0][i][7] - 0.0 for i in range(4)]  # without: read at the burst's start
+    a0 = a[0]
+    assert a[1:] == pytest.approx([a0 + ds, a0 + 2 * ds, a0 + 3 * ds], abs=1e-12)
+    arrive = [a0 + t for t in offs]  # one link path each: the offsets carry over
+    b1 = min(a0 + ds, arrive[1] + switch)
+    b2 = min(a0 + 3 * ds, arrive[3] + switch)
+    got = [runs[switch][i][7] for i in range(4)]
+    assert got == pytest.approx([a0, b1, b1, b2], abs=1e-12)
+    # the handling itself is unchanged: each copy reaches the server at its burst's end
+    assert [runs[switch][i][5] for i in range(4)] == [runs[0.0][i][5] for i in range(4)]
 
 
 def test_zero_demands_touch_nothing() -> None:

@@ -144,3 +144,41 @@ def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
     assert "| aoi_mean | ±15% | 2 | 2 (100 %) | 0 | ≥ 80% | ✔ |" in md
     assert "- [ ] knee within ±25 % (node messages)" in md
     assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
+
+
+def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:
+    """Copies: live is their mean, the floor their spread, the DES passes inside their
+    range where they differ by more than 10 %; the in-sample row is the fitted repeat."""
+    plan = Plan(("none",), 2.0, 0.5, cal_nodes=20, nodes=(10, 30), extra_nodes=30,
+                repeats=2, cell_repeats=2).select("cal-r*,n10-node*,n30-node*")
+    assert [c.name for c in plan.cells] == ["cal-r1", "n10-node", "n30-node", "n10-node-c2",
+                                            "n30-node-c2", "cal-r2"]
+    live = {"cal-r1": _live(0.0, 20.0), "cal-r2": _live(0.0, 30.0),
+            "n10-node": _live(0.0, 10.0), "n10-node-c2": _live(0.0, 14.0, load=3.0),
+            "n30-node": _live(0.0, 40.0)}  # n30's copy did not finish
+    des = {"n20-node": _des(0.0, 29.0), "n10-node": _des(0.0, 13.5),
+           "n30-node": _des(0.0, 50.0)}
+    outcome = (live, des, {"in_sample": [], "warnings": [], "calibration_cell": "cal-r2"})
+    rows = cell_rows(plan, outcome, 100.0, cores=2)
+    r = {(x["cell"], x["metric"]): x for x in rows}
+    assert {c for c, _ in r} == {"cal-r2", "n10-node", "n30-node"}  # no copy rows
+    a = r[("n10-node", "aoi_mean")]
+    assert a["live"] == pytest.approx(12.0) and a["live_runs"] == "10 14"
+    assert a["noise_floor"] == pytest.approx(4.0 / 12.0) and a["floor_source"] == "cell"
+    assert a["rel_error"] == pytest.approx(0.125) and a["rule"] == "band"
+    assert a["load"] == pytest.approx((1 + 2 + 3 + 4) / 4)
+    p99 = r[("n10-node", "aoi_p99")]  # 27 vs the mean 24: +12.5 %, inside the band
+    assert p99["passed"] is True
+    des["n10-node"]["methods"]["none"]["aoi_mean"] = 13.9  # +15.8 %, inside 10..14
+    b = {(x["cell"], x["metric"]): x for x in cell_rows(plan, outcome, 100.0, cores=2)}
+    assert b[("n10-node", "aoi_mean")]["rule"] == "live range"
+    assert b[("n10-node", "aoi_mean")]["passed"] is True
+    des["n10-node"]["methods"]["none"]["aoi_mean"] = 14.1  # outside the runs' range
+    c = {(x["cell"], x["metric"]): x for x in cell_rows(plan, outcome, 100.0, cores=2)}
+    assert c[("n10-node", "aoi_mean")]["passed"] is False
+    one = r[("n30-node", "aoi_mean")]  # one run: the calibration setting's floor (40 %)
+    assert one["floor_source"] == "calibration"
+    assert one["noise_floor"] == pytest.approx(10.0 / 25.0)
+    assert one["passed"] is True  # +25 %, within the 40 % floor
+    fit = r[("cal-r2", "aoi_mean")]
+    assert fit["held_out"] is False and fit["live"] == 30.0 and fit["passed"] is True

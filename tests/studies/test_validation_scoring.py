@@ -10,6 +10,7 @@ from sigma_des.errors import ConfigError
 from sigma_des.studies.validation.grid import Plan, full_plan, hosts_for, quick_plan
 from sigma_des.studies.validation.scoring import (
     Verdict,
+    central,
     error,
     judge,
     knee,
@@ -99,11 +100,23 @@ def test_hosts_for() -> None:
 
 
 def test_full_plan_cells_and_repeats_spread() -> None:
-    plan = full_plan(("none", "bides"))
+    one = [c.name for c in full_plan(("none", "bides"), cell_repeats=1).cells]
+    assert len(one) == len(set(one)) == 15
+    assert one[0] == "cal-r1" and one[-1] == "cal-r3"
+    assert one.index("cal-r2") == 7  # after half of the 12 held-out cells
+    plan = full_plan(("none", "bides"))  # every held-out cell twice by default
     names = [c.name for c in plan.cells]
-    assert len(names) == len(set(names)) == 15
-    assert names[0] == "cal-r1" and names[-1] == "cal-r3"
-    assert names.index("cal-r2") == 7  # after half of the 12 held-out cells
+    assert len(names) == len(set(names)) == 27
+    # the copies are a second pass over the held-out grid, cal-r2 between the passes
+    assert names[:13] == one[:7] + one[8:14]
+    assert names[13] == "cal-r2" and names[-1] == "cal-r3"
+    assert names[14:26] == [f"{n}-c2" for n in one[1:7] + one[8:14]]
+    copy = plan.cells[14]
+    assert (copy.name, copy.base, copy.copy, copy.held_out) == ("n10-node-c2", "n10-node", 2,
+                                                                True)
+    assert copy.live_sets() == plan.cells[1].live_sets()
+    with pytest.raises(ConfigError, match="--cell-repeats"):
+        full_plan(("none",), cell_repeats=0)
     assert {c.nodes for c in plan.cells if c.held_out and not c.impairment} == {10, 30, 60, 100}
     lat = next(c for c in plan.cells if c.name == "lat5-bundle")
     assert lat.live_sets() == ["nodes=30", "hosts=2", "net.host_link.latency.value=0.00525"]
@@ -114,8 +127,10 @@ def test_full_plan_cells_and_repeats_spread() -> None:
 
 
 def test_select_keeps_the_calibration_run() -> None:
-    plan = full_plan(("none",)).select("n30-*, lat5-node")
+    plan = full_plan(("none",), cell_repeats=1).select("n30-*, lat5-node")
     assert [c.name for c in plan.cells] == ["cal-r1", "n30-node", "n30-bundle", "lat5-node"]
+    plan = full_plan(("none",)).select("n30-node*")
+    assert [c.name for c in plan.cells] == ["cal-r1", "n30-node", "n30-node-c2"]
     with pytest.raises(ConfigError, match="--grid"):
         full_plan(("none",)).select("n31-*")
     assert [c.name for c in quick_plan(("none",)).cells] == ["cal-r1", "n6-node", "n6-bundle",
@@ -128,3 +143,21 @@ def test_estimate_hand_computed() -> None:
     assert plan.estimate() == pytest.approx(7 * 9.6 + (1.2 + 6 * 1.3) + 40.0)
     with pytest.raises(ConfigError, match="--duration"):
         Plan(("none",), 1.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6)
+
+
+def test_central_hand_computed() -> None:
+    runs = {"r1": {"a": {"aoi_mean": 1.0, "latency_state_mean": 4.0}},
+            "r2": {"a": {"aoi_mean": 1.1, "latency_state_mean": 3.0}},
+            "r3": {"a": {"aoi_mean": 1.2, "latency_state_mean": 3.1}}}
+    # medians 1.1 and 3.1: r1 0.0953 + 0.2549, r2 0 + 0.0328, r3 0.0870 + 0
+    assert central(runs) == "r2"
+    assert central(runs, ("aoi_mean",)) == "r2"
+    assert central(runs, ("latency_state_mean",)) == "r3"
+    # a method missing (or NaN) in one run is left out of the comparison
+    runs["r2"]["b"] = {"aoi_mean": 100.0, "latency_state_mean": 100.0}
+    runs["r1"]["b"] = {"aoi_mean": math.nan, "latency_state_mean": 1.0}
+    assert central(runs) == "r2"
+    # two runs: both equally far (in log) from their median; the first wins the tie
+    assert central({"x": {"a": {"aoi_mean": 1.0}}, "y": {"a": {"aoi_mean": 2.0}}}) == "x"
+    with pytest.raises(ValueError):
+        central({})

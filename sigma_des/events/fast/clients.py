@@ -3,7 +3,8 @@
 
 ``Network._client_receive`` and ``_hand_over``, with the same operations in the
 same order: a copy that reaches its client (after the PUBACK) is a burst of the
-client's process when its demand is not zero — its latency ends at the burst's start,
+client's process when its demand is not zero — its latency ends at the burst's start
+(with ``lock_switch``, for a copy reaching a busy process, when its batch is read),
 the application gets it at the burst's end, an ``EV_APP`` event (:func:`receive`) —
 and is then handed over
 (:func:`hand_over`): to the server's aligner, to the node it reached, or, with
@@ -18,8 +19,11 @@ from sigma_des.events.fast.cpu import span
 from sigma_des.events.fast.layout import (
     CP_HOSTS,
     CPU_DEM,
+    CPU_FREE,
+    CPU_INB,
     CPU_IP,
     CPU_PROC,
+    CPU_SWITCH,
     E_ATT,
     E_KIND,
     E_SUBJ,
@@ -89,6 +93,14 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EV_INT]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
+    busy = S[CPU_FREE][p] > now
     start, end = span(S, p, S[CPU_DEM][c], now)
+    sw = S[CPU_SWITCH][p]
+    if busy and sw > 0.0:  # Network._read_batch: read with the batch, when the thread frees
+        bt = S[CPU_INB][p]
+        if bt <= now:
+            bt = start if start < now + sw else now + sw
+            S[CPU_INB][p] = bt
+        start = bt
     S[EV_FLOAT][ns, EF_TRECV] = start  # the process gets to it: where the latency ends
     push(S, end, ns)

@@ -284,6 +284,7 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_ob", _i, ("procs", OB_CAP), 0, "outbox: slots waiting to leave, a ring"),
     Field("cpu_obq", _i, ("procs", 2), 0, "outbox: ring head and count"),
     Field("cpu_obt", _f, ("procs",), 0.0, "outbox: when its first message leaves at the latest"),
+    Field("cpu_inb", _f, ("procs",), -np.inf, "receipts: when the open batch is read"),
     # issue 27 (memory): the payloads of the event slots that carry one (a state's
     # observation, a command's row; a trigger or re-request carries none), ``pool`` rows
     # of ``pay_w`` = max(W, M) floats; a slot names its row in E_PAY (+ 1)
@@ -407,6 +408,7 @@ CPU_SWITCH = INDEX["cpu_switch"]
 CPU_OB = INDEX["cpu_ob"]
 CPU_OBQ = INDEX["cpu_obq"]
 CPU_OBT = INDEX["cpu_obt"]
+CPU_INB = INDEX["cpu_inb"]
 POOL = INDEX["pool"]
 POOL_FREE = INDEX["pool_free"]
 DEF_INT = INDEX["def_int"]

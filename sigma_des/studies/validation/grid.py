@@ -8,7 +8,11 @@ turn on one set of host processes) and the DES prediction of it. The plan:
   in the grid so that they also see the machine's drift;
 * ``n<N>-node`` / ``n<N>-bundle`` for N in :attr:`Plan.nodes` — held out;
 * ``loss5-<mode>`` (5 % Bernoulli loss on every host link) and ``lat5-<mode>``
-  (+5 ms on every host link, both directions) at N = :attr:`Plan.extra_nodes`.
+  (+5 ms on every host link, both directions) at N = :attr:`Plan.extra_nodes`;
+* with :attr:`Plan.cell_repeats` = k > 1 every held-out cell runs k times, the copies
+  named ``<cell>-c2`` … ``<cell>-c<k>`` and run in a second (third…) pass over the
+  held-out grid: the live range of each cell, for the issue's rule "where live does
+  not reproduce itself, the DES inside the range of the live repeats".
 
 Host counts follow :func:`hosts_for` (``max(2, ceil(N / 25))``: 2 hosts up to
 N = 50, then one more per 25 nodes; at least 2 so that a trigger's fan-out, and
@@ -19,7 +23,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from sigma_des.errors import ConfigError
 
@@ -53,6 +57,7 @@ class Cell:
             ``deployment.clients = "host"``, ``deployment.bundle = true``).
         impairment: ``""``, ``loss5`` or ``lat5``.
         repeat: 1, 2, 3… for the calibration setting; 0 for a held-out cell.
+        copy: 1, 2… for the runs of one held-out cell (1 for the calibration setting).
     """
 
     name: str
@@ -60,6 +65,12 @@ class Cell:
     mode: str = "node"
     impairment: str = ""
     repeat: int = 0
+    copy: int = 1
+
+    @property
+    def base(self) -> str:
+        """The held-out cell this run is a copy of (its own name for the first copy)."""
+        return self.name if self.copy == 1 else self.name.rsplit("-c", 1)[0]
 
     @property
     def hosts(self) -> int:
@@ -101,7 +112,9 @@ class Plan:
         cal_nodes: N of the calibration setting.
         nodes: N of the held-out grid.
         extra_nodes: N of the loss and latency cells.
-        repeats: runs of the calibration setting (the first is the calibration run).
+        repeats: runs of the calibration setting (the most typical one is the
+            calibration run: :func:`~sigma_des.studies.validation.scoring.central`).
+        cell_repeats: runs of each held-out cell (copies in later passes over the grid).
         knee_nodes: the DES's finer N grid for its knee prediction.
         cells: the cells (built from the fields above).
     """
@@ -115,6 +128,7 @@ class Plan:
     repeats: int = 3
     knee_nodes: tuple[int, ...] = ()
     cells: tuple[Cell, ...] = field(default=())
+    cell_repeats: int = 1
 
     def __post_init__(self) -> None:
         if not 0 <= self.warmup < self.duration:
@@ -122,6 +136,8 @@ class Plan:
                               f"got {self.duration}")
         if self.repeats < 1:
             raise ConfigError("--repeats", f"must be >= 1, got {self.repeats}")
+        if not 1 <= self.cell_repeats <= 5:
+            raise ConfigError("--cell-repeats", f"must be in 1..5, got {self.cell_repeats}")
         if not self.cells:
             object.__setattr__(self, "cells", self._build())
 
@@ -129,6 +145,8 @@ class Plan:
         held = [Cell(f"n{n}-{m}", n, m) for m in MODES for n in self.nodes]
         held += [Cell(f"{imp}-{m}", self.extra_nodes, m, imp) for imp in ("loss5", "lat5")
                  for m in MODES]
+        held += [replace(c, name=f"{c.name}-c{k}", copy=k)
+                 for k in range(2, self.cell_repeats + 1) for c in held]
         reps = [Cell(f"cal-r{r}", self.cal_nodes, "node", "", r)
                 for r in range(1, self.repeats + 1)]
         # the repeats spread over the grid: first, in the middle, last
@@ -156,8 +174,7 @@ class Plan:
                 raise ConfigError("--grid", f"{p!r} matches no cell; cells: {', '.join(names)}")
         keep = tuple(c for c in self.cells
                      if c.repeat == 1 or any(fnmatch.fnmatch(c.name, p) for p in pats))
-        return Plan(self.methods, self.duration, self.warmup, self.cal_nodes, self.nodes,
-                    self.extra_nodes, self.repeats, self.knee_nodes, keep)
+        return replace(self, cells=keep)
 
     def knee_cells(self) -> tuple[Cell, ...]:
         """DES-only cells of the knee grid (both modes)."""
@@ -184,17 +201,20 @@ class Plan:
         return live + cal_s + des
 
 
-def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1.0) -> Plan:
+def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1.0,
+              cell_repeats: int = 2) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
-    calibration (and its 3 repeats) at N = 20; the DES's knee grid 10, 20, … 60, 80,
-    100, 120, 150."""
+    each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
+    N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
-                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150))
+                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150),
+                cell_repeats=cell_repeats)
 
 
-def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5) -> Plan:
+def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5,
+               cell_repeats: int = 1) -> Plan:
     """A smoke run: calibration at N = 4 twice, N = 6 both modes, no impairments."""
     plan = Plan(methods, duration, warmup, cal_nodes=4, nodes=(6,), extra_nodes=6,
-                repeats=2, knee_nodes=(4, 6, 8))
+                repeats=2, knee_nodes=(4, 6, 8), cell_repeats=cell_repeats)
     return plan.select("cal-r*,n6-*")

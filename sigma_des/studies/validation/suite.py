@@ -6,12 +6,15 @@ with the same ``--out`` (an interrupted run picks up where it stopped):
 * ``live/<cell>/`` — the live run's ``sigma-des live --out`` files, and
   ``cells/<cell>.live.json`` — its figures, load and background CPU;
 * ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
-  included), the latency sample files and ``calibrate.log``;
+  included), the latency sample files, ``calibrate.log`` and ``source.json`` (which
+  repeat of the calibration setting it was fitted to: the most typical one,
+  :func:`~sigma_des.studies.validation.scoring.central`);
 * ``cells/des-<key>.json`` — one DES prediction (every method), stamped with the
   calibration it used (a new calibration makes it stale: it is run again).
 
-All live cells run first (the DES runs would load the machine under them), then
-the calibration's predictions. Progress goes to stderr, one line per piece.
+All live cells run first (the DES runs and the calibration would load the machine
+under them), then the calibration on the most typical repeat, then its predictions.
+Progress goes to stderr, one line per piece.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from sigma_des.errors import ConfigError
 from sigma_des.studies.validation.grid import Cell, Plan
 from sigma_des.studies.validation.runs import (
     calibrate_run,
@@ -33,8 +37,9 @@ from sigma_des.studies.validation.runs import (
     warm_up,
     write_json,
 )
+from sigma_des.studies.validation.scoring import central
 
-__all__ = ["Outcome", "des_key", "run_suite"]
+__all__ = ["Outcome", "calibration_cell", "des_key", "run_suite"]
 
 Say = Callable[[str], None]
 #: What the report needs: live figures per cell, DES figures per key, the calibration.
@@ -76,18 +81,31 @@ def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str,
                 f"{res['load_after']:.1f}, background {res['background_cores']:.2f} cores; "
                 f"elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
                 f"{_clock(per * (len(plan.cells) - i))}")
-        if cell.repeat == 1:
-            _calibration(cell, out, say)
     return live
 
 
-def _calibration(cell: Cell, out: Path, say: Say) -> None:
-    if read_json(out / "cal" / "calibrated.json") is not None:
-        say("    calibration: kept from an earlier run")
+def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
+    """The repeat of the calibration setting to calibrate on: the most typical of
+    those that ran (:func:`~sigma_des.studies.validation.scoring.central`)."""
+    reps = {c.name: live[c.name]["methods"] for c in plan.cells
+            if c.repeat and c.name in live}
+    if not reps:
+        raise ConfigError("calibration", "no run of the calibration setting finished")
+    return central(reps)
+
+
+def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say) -> None:
+    kept = read_json(out / "cal" / "source.json")
+    if read_json(out / "cal" / "calibrated.json") is not None and kept is not None:
+        say(f"calibration: kept from an earlier run (on {kept['cell']})")
         return
-    say(f"    calibrating on {cell.name} (`sigma-des calibrate`, with its in-sample check) ...")
+    name = calibration_cell(plan, live)
+    say(f"calibrating on {name}, the most typical of the calibration setting's "
+        f"{sum(1 for c in plan.cells if c.repeat and c.name in live)} runs "
+        "(`sigma-des calibrate`, with its in-sample check) ...")
     t = time.perf_counter()
-    calibrate_run(out / "live" / cell.name, out / "cal")
+    calibrate_run(out / "live" / name, out / "cal")
+    write_json(out / "cal" / "source.json", {"cell": name})
     say(f"    calibrated in {time.perf_counter() - t:.0f} s")
 
 
@@ -141,7 +159,9 @@ def run_suite(plan: Plan, out: Path, say: Say = _say) -> Outcome:
         say(f"    warmup exited {code} (see {out / 'warmup.log'}): the first live run may "
             "hold compile stalls")
     live = _live_all(plan, out, say, t0)
+    _calibration(plan, live, out, say)
     des = _des_all(plan, out, say, t0)
     report = read_json(out / "cal" / "calibrated.json") or {}
+    report["calibration_cell"] = (read_json(out / "cal" / "source.json") or {}).get("cell")
     say(f"validation: all runs done in {_clock(time.perf_counter() - t0)}")
     return live, des, report
