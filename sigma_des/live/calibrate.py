@@ -23,10 +23,11 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
   slowed by the background; the receiver's burst comes after the receipt live stamps). The down hop
   is fitted from triggers only: a tick's commands leave the server together and their
   latencies hold its publish queue, which the DES adds itself. The path latency is
-  **de-queued** first (:mod:`sigma_des.live.dequeue`): a delivery closer to the
-  previous one into its receiver than ``hold_tol`` plus the receiver's burst may have
-  waited behind the stream's order or for the receiver's thread (both of which the DES
-  adds itself), so it is a left-censored sample;
+  **de-queued** first (:mod:`sigma_des.live.dequeue`): a delivery that came while the
+  receiver's thread may still have been busy (its receipts replayed with one burst
+  each, within ``hold_tol``) may have waited behind the stream's order or for the
+  receiver's thread (both of which the DES adds itself), so it is a left-censored
+  sample;
 * **the server's receive cost** (time from the client's receipt to the loop handling
   the state): with a CPU stage it is the server's receive burst and its thread's
   queue, modelled; without one it is folded into the server link's down latency
@@ -299,10 +300,10 @@ def _fit_links(base: Scenario, w: pd.DataFrame, states: pd.DataFrame,
     receive queue) as the links' empirical latency files (see the module doc).
 
     ``cpu`` is :func:`~sigma_des.live.fit_cpu.path_services`: the CPU services the DES
-    adds on each path (taken out of every sample). A delivery closer than ``tol`` plus
-    the receiver's burst (``recv_up``/``recv_down``) after the previous one into its
-    receiver may have waited for it (on the stream or for the receiver's thread):
-    censored. ``tol = 0`` keeps the measured latencies."""
+    adds on each path (taken out of every sample). A delivery within ``tol`` of its
+    receiver's thread being busy (each receipt holds it ``recv_up``/``recv_down``) may
+    have waited (on the stream or for the thread): censored. ``tol = 0`` keeps the
+    measured latencies."""
     up_srv = cpu.get("recv_up", 0.0) if tol > 0 else 0.0
     down_srv = cpu.get("recv_down", 0.0) if tol > 0 else 0.0
     p = _paths(w, states, tol, up_srv, down_srv)

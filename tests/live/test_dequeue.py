@@ -35,6 +35,25 @@ def test_held_flags_deliveries_behind_an_earlier_sent_message() -> None:
     assert held(np.zeros(2), [0.0, 0.001], [0.002, 0.00205], tol=1e-4).tolist() == [False, True]
 
 
+def test_held_with_a_receiver_thread_hand_computed() -> None:
+    """``service`` = 1 ms per delivery: receipts at 0, 0.2, 0.4, 2.5, 3.3 and 10 ms on
+    one connection. The thread is busy until 1, 2, 3 ms after the first three; the
+    fourth (2.5) comes while it is still busy (until 3): held, though 2.1 ms after the
+    previous receipt; it keeps the thread until 4, so the fifth (3.3) is held too; the
+    sixth finds it idle. Without a service only gaps within ``tol`` count."""
+    r = np.array([0.0, 0.2, 0.4, 2.5, 3.3, 10.0]) * 1e-3
+    s = r - 1e-3
+    got = held(np.zeros(6), s, r, tol=0.0, service=1e-3)
+    assert got.tolist() == [False, True, True, True, True, False]
+    assert held(np.zeros(6), s, r, tol=2.5e-4).tolist() == [False, True, True, False, False,
+                                                            False]
+    # a second connection starts idle: its first delivery (2.5) is not held, its second
+    # (3.3, within the first's 1 ms) is
+    conn = np.array([0, 0, 0, 1, 1, 1])
+    got2 = held(conn, s, r, tol=0.0, service=1e-3)
+    assert got2.tolist() == [False, True, True, False, True, False]
+
+
 def test_redistribution_to_the_left_by_hand() -> None:
     # latencies 2.5, 1.5 (held), 2, 1 (held): events 2 and 2.5 keep 1/4 each; 1.5's quarter
     # goes to the one sample below it (1, itself held), which has nowhere to go: 1/2 at 1

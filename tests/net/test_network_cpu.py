@@ -153,40 +153,40 @@ def test_bundle_takes_the_publishes_made_while_the_host_process_is_busy() -> Non
     assert got[1][5] == got[2][5] > got[0][5]
 
 
+def _three_states_one_host(extra: list[str]) -> tuple[Network, list[tuple[Any, ...]]]:
+    """One host of 3 nodes, bundling, ``dh`` = 1 ms a burst and ``ds`` = 0.5 ms at the
+    server: node 0 publishes at 0, nodes 1 and 2 during its burst (0.4 and 0.8 ms)."""
+    k, net, got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
+                        "deployment.bundle=true", "deployment.preset='dedicated'",
+                        "deployment.host_demand=1e-3", "deployment.server_demand=5e-4",
+                        "broker.publish_service=0.0", "broker.delivery_service=0.0", *extra])
+    net.publish(0, STATE, 0, 5, "s0", 150, (net.server,))
+    k.at(0.4e-3, net.publish, 1, STATE, 1, 5, "s1", 150, (net.server,))
+    k.at(0.8e-3, net.publish, 2, STATE, 2, 5, "s2", 150, (net.server,))
+    k.env.run()
+    return net, got
+
+
 def test_a_bundle_costs_its_demand_plus_a_record_cost_per_further_record() -> None:
-    """``host_record``/``server_record``: the same three-record case as above with
+    """``host_record``/``server_record``: the three-record case of the test above with
     ``dr`` per further record. Node 0's lone state: a burst of ``dh`` at the host, then
     ``ds`` at the server. The bundle of nodes 1 and 2 (two records): ``dh + dr`` at the
     host (from ``dh`` to ``2 dh + dr``), ``ds + dr_s`` at the server."""
     dh, dr, ds, drs = 1e-3, 3e-4, 5e-4, 2e-4
-    k, net, got = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
-                        "deployment.bundle=true", "deployment.preset='dedicated'",
-                        f"deployment.host_demand={dh}", f"deployment.host_record={dr}",
-                        f"deployment.server_demand={ds}", f"deployment.server_record={drs}",
-                        "broker.publish_service=0.0", "broker.delivery_service=0.0"])
-    net.publish(0, STATE, 0, 5, "s0", 150, (net.server,))
-    k.at(0.4 * dh, net.publish, 1, STATE, 1, 5, "s1", 150, (net.server,))
-    k.at(0.8 * dh, net.publish, 2, STATE, 2, 5, "s2", 150, (net.server,))
-    k.env.run()
+    net, got = _three_states_one_host([f"deployment.host_record={dr}",
+                                       f"deployment.server_record={drs}"])
     cpu = net.cpu
     assert cpu is not None
     assert cpu.hosts[0].free == pytest.approx(2 * dh + dr, abs=1e-15)
-    assert cpu.server.free == pytest.approx(got[2][5], abs=1e-15)
     # the bundle's records reach the server's application at the end of its burst
+    assert cpu.server.free == pytest.approx(got[2][5], abs=1e-15)
     rep = net.cpu_report()
     assert rep is not None
     busy = {pr.name: pr.busy for pr in rep.processes}
     assert busy["host0"] == pytest.approx(2 * dh + dr, rel=1e-12)
     assert busy["server"] == pytest.approx(2 * ds + drs, rel=1e-12)
     # without record costs the same run is cheaper by exactly one record on each side
-    k0, net0, _ = _net(["nodes=3", "hosts=1", "deployment.clients='host'",
-                        "deployment.bundle=true", "deployment.preset='dedicated'",
-                        f"deployment.host_demand={dh}", f"deployment.server_demand={ds}",
-                        "broker.publish_service=0.0", "broker.delivery_service=0.0"])
-    net0.publish(0, STATE, 0, 5, "s0", 150, (net0.server,))
-    k0.at(0.4 * dh, net0.publish, 1, STATE, 1, 5, "s1", 150, (net0.server,))
-    k0.at(0.8 * dh, net0.publish, 2, STATE, 2, 5, "s2", 150, (net0.server,))
-    k0.env.run()
+    net0, _ = _three_states_one_host([])
     assert net0.cpu is not None and net0.cpu.hosts[0].free == pytest.approx(2 * dh, abs=1e-15)
 
 

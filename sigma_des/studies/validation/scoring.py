@@ -102,8 +102,8 @@ def central(runs: dict[str, dict[str, dict[str, float]]],
     Returns:
         The name of the run whose values have the least summed ``|log x - median|``,
         the median of the runs' ``log x`` of each method and metric with a positive
-        finite value in every run (a pair missing in some run is left out); the first run on ties
-        or when no pair is comparable.
+        finite value in every run (a pair missing in some run is left out); the first run on
+        ties, with two runs (equally far from their median) or when no pair is comparable.
 
     Raises:
         ValueError: ``runs`` is empty.
@@ -111,6 +111,8 @@ def central(runs: dict[str, dict[str, dict[str, float]]],
     if not runs:
         raise ValueError("central() needs at least one run")
     names = list(runs)
+    if len(names) <= 2:  # two runs are equally far from their median: the first
+        return names[0]
     cost = dict.fromkeys(names, 0.0)
     pairs = {(m, k) for r in runs.values() for m in r for k in metrics}
     for m, k in sorted(pairs):
