@@ -22,6 +22,7 @@ from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.jobs import ROLLBACK_DRAW, job_cost
 from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
+from tests.events.test_cohort import run_both
 
 SLOW = [{"kind": "slow", "node": 1, "start": 0.0, "end": 1.0, "factor": 3.0}]
 LATEST = 20
@@ -141,3 +142,18 @@ def test_rollbacks_return_to_python_rarely() -> None:
     assert m["rollbacks"] > 100
     assert exits["NEED_ROLLBACK"] + exits["NEED_START"] < m["rollbacks"] / 4
     assert exits["NEED_RESIM"] + exits["OK"] > 0
+
+
+@pytest.mark.parametrize("dynamics", ["pointmass", "quadrotor"])
+def test_runs_with_rollbacks_equal_the_specification(dynamics: str) -> None:
+    """Both engines, late commands under a tight warp threshold, drawn step times tied
+    within a host, a slow fault: every metric identical (point mass: each rollback
+    handed to Python, which re-simulates at once; quadrotor: deferred in the loop)."""
+    sc = tiny(**{"nodes": 12, "hosts": 2, "dynamics": dynamics, "duration": 1.0,
+                 "commands.enabled": True, "commands.behaviour": "follow",
+                 "commands.every": 1, "net.host_link.latency": 0.03, "bides.theta_warp": 1,
+                 "bides.hold_down": 1, "faults": SLOW, "compute.host_share": 0.5,
+                 "compute.step_time": {"dist": "lognormal", "mean": 0.003, "std": 0.002}})
+    ev, co = run_both(sc, "bides")
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["rollbacks"] > 10 and ev["metrics"]["resim_steps"] > 0
