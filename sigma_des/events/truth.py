@@ -17,12 +17,13 @@ sweep, a benchmark) would otherwise keep every earlier run's rings resident and 
 fresh pages for each new one (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs").
 
 A rollback re-simulates at once (:meth:`SwarmTruth.rollback`, the per-message
-engine's path) or, for the compiled core, later and in a batch
-(:meth:`SwarmTruth.defer_rollback`, :meth:`SwarmTruth.flush_rollbacks`): the owed
-compute steps are arithmetic, and the rows of different aircraft are independent,
-so one step call per frame over every pending aircraft gives each row the very
-bits its own re-simulation gives it (the dynamics' ``step_frames`` marks a model
-whose rows do not depend on the batch; others re-simulate at once).
+engine's path) or, for the compiled core, later and in a batch: the core counts the
+owed compute steps (arithmetic) and keeps the pending rollbacks in its own arrays
+(:mod:`sigma_des.events.fast.warp`), and :meth:`SwarmTruth.flush_rollbacks`
+re-simulates them. The rows of different aircraft are independent, so one step call
+per frame over every pending aircraft gives each row the very bits its own
+re-simulation gives it (the dynamics' ``step_frames`` marks a model whose rows do not
+depend on the batch; others re-simulate at once).
 """
 
 from __future__ import annotations
@@ -86,9 +87,6 @@ class SwarmTruth:
         self.rollbacks = 0
         self.resim_steps = 0
         self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
-        #: deferred re-simulations ``(node, first frame, command row)``, one per node
-        self.pending: list[tuple[int, int, NDArray[np.float64]]] = []
-        self._pending_nodes: set[int] = set()
         self.released = False
 
     def step_frame(
@@ -152,7 +150,7 @@ class SwarmTruth:
         """
         H = self.H
         latest = self.latest
-        c = max(c, max(0, latest - H + 2))
+        c = self.first_resim(c)
         prev = self._checkpoint(i, c)
         s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
@@ -192,52 +190,50 @@ class SwarmTruth:
             return np.zeros(self.state.shape[1])
         return self.ckpt[slot, i]
 
-    def defer_rollback(self, i: int, c: int, current: int, row: NDArray[np.float64]) -> int:
-        """:meth:`rollback`, its re-simulation owed until :meth:`flush_rollbacks`.
+    def first_resim(self, c: int) -> int:
+        """Frame ``c`` clamped to the oldest frame a rollback re-simulates (the oldest
+        whose previous checkpoint the ring holds)."""
+        return max(c, max(0, self.latest - self.H + 2))
 
-        Until the flush, node ``i``'s checkpoints, published rows (``obs_hist``) and
-        ``state`` row from the clamped ``c`` on are stale: the caller flushes before
-        anything reads them. A second rollback of a pending node flushes first.
-        Without batching (see the module doc) this is :meth:`rollback`.
+    def flush_rollbacks(
+        self, nodes: NDArray[np.int64], first: NDArray[np.int64], rows: NDArray[np.float64],
+        steps: NDArray[np.int64],
+    ) -> NDArray[np.int64]:
+        """Re-simulate rollbacks deferred by the compiled core: one step call per frame.
 
-        Returns:
-            The compute steps the node's next job owes (as :meth:`rollback`).
-        """
-        if i in self._pending_nodes:
-            self.flush_rollbacks()
-        latest = self.latest
-        c = max(c, max(0, latest - self.H + 2))
-        if not self.batched or c > latest:
-            return self.rollback(i, c, current, row)
-        self.pending.append((i, c, row.copy()))
-        self._pending_nodes.add(i)
-        steps = max(0, current - c + 1)
-        self.rollbacks += 1
-        self.resim_steps += steps
-        return steps
+        Each is :meth:`rollback` ``(nodes[k], first[k], ·, rows[k])`` with its physics done
+        here, in a batch (see the module doc): the compiled core counted the owed steps
+        and clamped the first frames (:meth:`first_resim`) when it deferred them, in
+        arrival order, one per node.
 
-    def owes(self, i: int) -> bool:
-        """True if node ``i``'s re-simulation is deferred (not yet flushed)."""
-        return i in self._pending_nodes
-
-    def flush_rollbacks(self) -> NDArray[np.int64]:
-        """Re-simulate every deferred rollback: one step call per frame for all of them.
+        Args:
+            nodes: the nodes, one rollback each, in arrival order.
+            first: the first frame each re-simulates (clamped; at most :attr:`latest`).
+            rows: the command row each re-simulates with.
+            steps: the compute steps each rollback owed (counted in :attr:`resim_steps`).
 
         Returns:
-            The nodes re-simulated (empty if none were pending).
+            The nodes re-simulated, by first frame (stable: in arrival order on ties).
+
+        Raises:
+            ValueError: a node twice, a first frame outside the ring or past the latest
+                frame, or a dynamics model without batched steps.
         """
-        if not self.pending:
+        if nodes.size == 0:
             return self.nodes[:0]
-        pend = sorted(self.pending, key=lambda p: p[1])  # by first frame (stable)
-        self.pending = []
-        self._pending_nodes.clear()
+        lo = self.first_resim(0)
+        if (not self.batched or np.unique(nodes).size != nodes.size
+                or int(first.min()) < lo or int(first.max()) > self.latest):
+            raise ValueError("deferred rollbacks: one per node, first frames in "
+                             f"[{lo}, {self.latest}], batched dynamics")
+        self.rollbacks += int(nodes.size)
+        self.resim_steps += int(steps.sum())
+        order = np.argsort(first, kind="stable")  # by first frame (stable)
+        nodes, first, rows = nodes[order], first[order], rows[order]
         H, latest = self.H, self.latest
-        nodes = np.array([p[0] for p in pend], dtype=np.int64)
-        first = np.array([p[1] for p in pend], dtype=np.int64)
-        rows = np.array([p[2] for p in pend], dtype=np.float64)
         cur = np.empty((nodes.size, self.state.shape[1]))
-        for k, (i, c, _row) in enumerate(pend):
-            cur[k] = self._checkpoint(i, c)
+        for k in range(nodes.size):
+            cur[k] = self._checkpoint(int(nodes[k]), int(first[k]))
         m = 0
         for f in range(int(first[0]), latest + 1):
             while m < nodes.size and first[m] <= f:

@@ -42,16 +42,19 @@ class UnitTime(NamedTuple):
 def _core() -> None:
     from sigma_des.api import compare
     from sigma_des.config import METHODS, load
+    from sigma_des.events.cohort import make_run
+    from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = load(None, ["nodes=4", "hosts=2", "duration=0.3", "warmup=0.1", "dynamics=\"pointmass\"",
                      "fidelity.enabled=false"])
     compare(sc, METHODS, progress=False)
-    # BiDES rollbacks whose job start is Python's (``driver._start_job``): the state
-    # tuple's own specialisation of ``reserve``, which the tiny run above never reaches.
+    # BiDES rollbacks, and every entry point Python calls only now and then (a job start
+    # once its rollback draws are filled, a second rollback, ...), for the state's types
     rb = load(None, ["nodes=40", "hosts=4", "duration=1.0", "warmup=0.3", "dynamics=\"pointmass\"",
                      "fidelity.enabled=false", "broker.publish_service=0.0001",
                      "broker.delivery_service=0.00008", "bides.theta_warp=1", "bides.hold_down=1"])
     compare(rb, ["bides"], progress=False)
+    make_run(rb.run_spec(), "bides", make_dynamics(rb), make_behaviour(rb))[0].load_kernels()
 
 
 def _physics() -> None:

@@ -1,11 +1,9 @@
-"""Batched time-warp rollbacks and block-fetched rollback draws equal the one-by-one spec, exactly.
+"""Batched time-warp rollbacks equal the one-by-one spec, exactly.
 
-The compiled core defers a rollback's physics re-simulation
-(:meth:`SwarmTruth.defer_rollback`) and re-simulates every pending aircraft in one
-step call per frame (:meth:`SwarmTruth.flush_rollbacks`); its job starts read a
-target's rollback draws as one block (:class:`JobCosts`). Both must give the bits
-of the per-message engine's one-by-one path (:meth:`SwarmTruth.rollback`,
-:func:`job_cost`).
+The compiled core defers a rollback's physics re-simulation (in its own arrays,
+:mod:`sigma_des.events.fast.warp`) and the truth re-simulates every pending aircraft in
+one step call per frame (:meth:`SwarmTruth.flush_rollbacks`). It must give the bits
+of the per-message engine's one-by-one path (:meth:`SwarmTruth.rollback`).
 """
 
 from __future__ import annotations
@@ -19,9 +17,7 @@ import sigma_des.events.fast.driver as driver
 from sigma_des import load
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.pointmass import PointMass
-from sigma_des.core.draws import DrawCache
 from sigma_des.events.fast import layout as L
-from sigma_des.events.jobs import JobCosts, job_cost
 from sigma_des.events.truth import SwarmTruth
 from tests.events.test_cohort import run_both
 
@@ -48,38 +44,53 @@ def _same_truth(a: SwarmTruth, b: SwarmTruth) -> None:
     assert (a.rollbacks, a.resim_steps) == (b.rollbacks, b.resim_steps)
 
 
-# (node, c, current): clamped to the ring, from frame 0, a second rollback of node 1
-# (flushes the first), nothing to re-simulate (c > latest), different first frames
-ROLLBACKS = [(0, 5, 11), (1, 9, 12), (2, 0, 3), (1, 10, 12), (3, 13, 13), (4, 11, 12),
-             (5, 7, 7)]
+# (node, c, current), one rollback per node: clamped to the ring, from frame 0, nothing
+# owed (the node is behind c), different first frames (arrival order kept on ties)
+ROLLBACKS = [(0, 5, 11), (1, 9, 12), (2, 0, 3), (3, 7, 6), (4, 11, 12), (5, 7, 7)]
 
 
-@pytest.mark.parametrize("frames", [4, 13])
-def test_batched_rollbacks_equal_one_by_one_rollbacks(frames: int) -> None:
+def _deferred(truth: SwarmTruth, cases: list[tuple[int, int, int]], rows: Any) -> tuple[Any, ...]:
+    """The compiled core's deferral of ``cases`` (sigma_des.events.fast.warp), as arrays."""
+    nodes = np.array([i for i, _c, _cur in cases], dtype=np.int64)
+    first = np.array([truth.first_resim(c) for _i, c, _cur in cases], dtype=np.int64)
+    steps = np.array([max(0, cur - f + 1) for (_i, _c, cur), f in zip(cases, first, strict=True)],
+                     dtype=np.int64)
+    return nodes, first, np.asarray(rows, dtype=np.float64), steps
+
+
+def test_batched_rollbacks_equal_one_by_one_rollbacks() -> None:
     dyn = GeneralAircraft("quadrotor")
-    one, batch = _truth(dyn, frames), _truth(dyn, frames)
+    one, batch = _truth(dyn, 13), _truth(dyn, 13)  # latest 12, oldest re-simulable 6
     assert batch.batched
     rows = np.random.default_rng(3).normal(0.0, 1.0, (len(ROLLBACKS), 4))
-    for (i, c, current), row in zip(ROLLBACKS, rows, strict=True):
-        assert batch.defer_rollback(i, c, current, row) == one.rollback(i, c, current, row)
-    assert batch.pending  # the re-simulation is still owed ...
-    assert not np.array_equal(batch.state, one.state)
-    done = batch.flush_rollbacks()
-    assert not batch.pending and not any(batch.owes(i) for i in range(N))
-    # ... the flush re-simulates the nodes pending since node 1's second rollback (13
-    # frames), or the one whose c is not past the latest frame (4 frames)
-    assert sorted(done.tolist()) == ([1, 4, 5] if frames == 13 else [2])
+    nodes, first, rows_, steps = _deferred(batch, ROLLBACKS, rows)
+    assert first.tolist() == [6, 9, 6, 7, 11, 7] and steps.tolist() == [6, 4, 0, 0, 2, 1]
+    for (i, c, current), row, owed in zip(ROLLBACKS, rows, steps, strict=True):
+        assert one.rollback(i, c, current, row) == owed
+    assert not np.array_equal(batch.state, one.state)  # the re-simulation is still owed
+    done = batch.flush_rollbacks(nodes, first, rows_, steps)
+    assert done.tolist() == [0, 2, 3, 5, 1, 4]  # by first frame, arrival order on ties
     _same_truth(batch, one)
-    assert batch.flush_rollbacks().size == 0
+    assert batch.flush_rollbacks(nodes[:0], first[:0], rows_[:0], steps[:0]).size == 0
 
 
-def test_owed_steps_are_arithmetic() -> None:
+def test_first_frames_clamp_to_the_ring() -> None:
     truth = _truth(GeneralAircraft("quadrotor"), 13)  # latest 12, oldest re-simulable 6
-    row = np.zeros(4)
-    assert truth.defer_rollback(0, 2, 11, row) == 11 - 6 + 1  # clamped to the ring
-    assert truth.owes(0) and not truth.owes(1)
-    assert truth.defer_rollback(1, 10, 8, row) == 0  # the node is behind c
-    assert (truth.rollbacks, truth.resim_steps) == (2, 6)
+    assert [truth.first_resim(c) for c in (0, 5, 6, 7, 14)] == [6, 6, 6, 7, 14]
+    young = _truth(GeneralAircraft("quadrotor"), 4)  # latest 3: the whole past is held
+    assert [young.first_resim(c) for c in (0, 2)] == [0, 2]
+
+
+@pytest.mark.parametrize("bad", ["twice", "past", "old"])
+def test_a_flush_refuses_what_the_core_never_defers(bad: str) -> None:
+    truth = _truth(GeneralAircraft("quadrotor"), 13)
+    cases = {"twice": [(1, 7, 9), (1, 8, 9)], "past": [(1, 13, 13)], "old": [(1, 6, 9)]}[bad]
+    nodes, first, rows, steps = _deferred(truth, cases, np.zeros((len(cases), 4)))
+    if bad == "old":
+        first[0] = 5  # not clamped
+    with pytest.raises(ValueError, match="one per node"):
+        truth.flush_rollbacks(nodes, first, rows, steps)
+    assert truth.rollbacks == 0
 
 
 def test_models_without_step_frames_roll_back_at_once() -> None:
@@ -87,37 +98,18 @@ def test_models_without_step_frames_roll_back_at_once() -> None:
     assert not truth.batched
     ref = _truth(PointMass(), 13)
     row = np.array([1.0, 0.5, 2.0])
-    assert truth.defer_rollback(2, 8, 12, row) == ref.rollback(2, 8, 12, row) == 5
-    assert not truth.pending
+    assert truth.rollback(2, 8, 12, row) == ref.rollback(2, 8, 12, row) == 5
     _same_truth(truth, ref)
-
-
-def _draws(constant: float | None = None) -> DrawCache:
-    def sampler(s: Any, kind: int, index: int, attempt: int) -> Any:
-        return np.sin(1.0 + s * 0.37 + kind * 11.3 + index * 0.013 + attempt * 2.9) ** 2 * 1e-3
-
-    return DrawCache(N, sampler, limit=4, constant=constant)
-
-
-def test_job_costs_equal_job_cost_exactly() -> None:
-    costs = JobCosts(_draws(), targets=2)
-    ref = _draws()
-    slow = [(0.5, 1.0, 3.0), (0.8, 2.0, 1.5)]
-    cases = [(i, first, target, resim, now)
-             for i in range(N) for first, target in ((3, 3), (2, 5), (6, 5))
-             for resim in (0, 1, 7, 19) for now in (0.2, 0.9)]
-    cases += [(1, 9, 9, 3, 0.0), (2, 10, 10, 40, 0.0), (0, 9, 9, 30, 0.85)]  # growth, eviction
-    for i, first, target, resim, now in cases:
-        want = job_cost(ref, slow, i, first, target, resim, now)
-        assert costs.cost(slow, i, first, target, resim, now) == want
-    const = JobCosts(_draws(0.002))
-    assert const.cost([], 0, 1, 3, 5, 0.0) == job_cost(_draws(0.002), [], 0, 1, 3, 5, 0.0)
+    with pytest.raises(ValueError, match="batched dynamics"):
+        truth.flush_rollbacks(*_deferred(truth, [(1, 8, 12)], row[None, :]))
 
 
 def test_rolled_back_node_publishes_only_after_its_resimulation(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """The loop stops before a pending node's publish (NEED_RESIM); results are the spec's."""
+    """The loop stops before a pending node's publish (NEED_RESIM); results are the spec's.
+    Rollbacks are resolved in the loop: few return to Python (a second rollback of a node
+    still owed its re-simulation, a target's first rollback job: its draws)."""
     codes: list[int] = []
     advance = driver.loop.advance
 
@@ -134,5 +126,7 @@ def test_rolled_back_node_publishes_only_after_its_resimulation(
     ])
     ev, co = run_both(sc, "bides")
     assert co["engine"]["used"] == "cohort"
-    assert ev["metrics"]["rollbacks"] > 0
-    assert L.NEED_ROLLBACK in codes and L.NEED_RESIM in codes
+    rollbacks = ev["metrics"]["rollbacks"]
+    assert rollbacks > 0
+    assert L.NEED_RESIM in codes
+    assert codes.count(L.NEED_ROLLBACK) + codes.count(L.NEED_START) < rollbacks / 4

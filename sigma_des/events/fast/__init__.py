@@ -2,8 +2,9 @@
 
 ``layout`` declares its state by name; ``primitives`` holds the queueing, slot,
 draw and link operations; ``queue`` the event queue (a merge of sorted runs);
-``broker``, ``node`` and ``server`` the handlers; ``loop`` the entry points and the
-event loop; ``tables`` the draw tables Python
-fills; ``driver`` the Python side the engine composes; ``support`` what the core
-reproduces.
+``broker``, ``node`` and ``server`` the handlers (``job`` a node's job and its cost,
+``warp`` time-warp rollbacks); ``loop`` the entry points and the event loop; ``tables``
+the draw tables Python fills (``rollbacks`` the rollback draws and the batched
+re-simulation); ``driver`` the Python side the engine composes; ``support`` what the
+core reproduces.
 """

@@ -6,8 +6,7 @@ state fan-in, commands — without making them SimPy events. The engine keeps th
 frame-level and control events (trigger issue with the whole-swarm physics step,
 alignment ticks with adaptation and commands, render ticks) and composes the
 core through a narrow interface: it publishes triggers, commands and
-re-requests (:meth:`~CompiledCore.publish_trigger`, ...), owes a node re-simulated
-steps after a rollback (:meth:`~CompiledCore.add_resim`), and before each
+re-requests (:meth:`~CompiledCore.publish_trigger`, ...), and before each
 control event at time ``t`` runs the core to ``t``
 (:meth:`~CompiledCore.advance_to`: messages come first at equal times, as in the
 specification), which hands the batch of state deliveries to the aligner in one
@@ -38,6 +37,7 @@ from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
+from sigma_des.events.fast.rollbacks import Rollbacks
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
     CohortFallback,
@@ -54,7 +54,6 @@ from sigma_des.events.fast.tables import (
     lossy_classes,
     network_sources,
 )
-from sigma_des.events.jobs import JobCosts
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
@@ -103,14 +102,16 @@ class CompiledCore:
             raise CohortFallback(why)
         before_run()  # earlier runs' memory back first (growth)
         self.host = host
-        self._t_event = 0.0
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
         sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
-        self.costs = JobCosts(host.nodes.step_time)
+        self.rollbacks = Rollbacks(host.truth, host.nodes.step_time, host.n,
+                                   host.method == "bides" and spec.time_warp, spec.theta_warp)
+        #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
+        self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
@@ -147,7 +148,7 @@ class CompiledCore:
             # deployment: processes (broker, server, hosts), machines, their cores
             "procs": spec.hosts + 2, "clients_1": n + 2,
             "machines": len(cpu.machines) if cpu is not None else 1,
-            "cpu_cores": cpu.cores if cpu is not None else 1,
+            "cpu_cores": cpu.cores if cpu is not None else 1, **self.rollbacks.dims(),
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -164,6 +165,7 @@ class CompiledCore:
         q[L.Q_W] = OBS_WIDTH
         q[L.Q_M] = int(h.nodes.cmd.shape[1])
         q[L.Q_LOCK] = int(self._lockstep)
+        q[L.Q_BATCH] = int(h.truth.batched)
         return q
 
     def _links(self) -> dict[str, NDArray[Any]]:
@@ -219,7 +221,7 @@ class CompiledCore:
             "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
             **self._links(), **self._nodes(), **self.attempts.given(),
             **deployment_tables(h.net, spec), **link_tables(h.net, spec),
-            **clock_tables(h.nodes.clocks, spec),
+            **clock_tables(h.nodes.clocks, spec), **self.rollbacks.given(),
         }
 
     def ensure_space(self, k: int) -> None:
@@ -234,15 +236,16 @@ class CompiledCore:
     def load_kernels(self) -> int:
         """Load, for this state's types, the loop's entry points Python calls; return how
         many were not loaded yet. For benchmarks' warm-ups: a tiny run never reaches
-        ``publish_commands`` or ``reserve`` (≈ 30 ms to load, which the timed run would
-        then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
+        ``publish_commands`` or the rollbacks' entry points (≈ 30 ms to load, which the
+        timed run would then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
         from numba import typeof, types
 
         s, i64, f64 = typeof(self.S), types.int64, types.float64
         sigs = {loop.advance: (s, f64, types.boolean),
                 loop.publish_trigger: (s, i64, f64, f64, i64),
                 loop.publish_commands: (s, i64, i64, types.int64[::1], types.float64[:, ::1], f64),
-                loop.reserve: (s, i64, i64, f64, f64)}
+                loop.start: (s, i64, f64), loop.roll_back: (s, i64, i64, i64, f64),
+                loop.owe_steps: (s, i64, i64, f64)}
         todo = [(k, sig) for k, sig in sigs.items()
                 if sig not in k.signatures]  # type: ignore[attr-defined]
         for kernel, sig in todo:
@@ -324,51 +327,42 @@ class CompiledCore:
 
     # ------------------------------------------------------------ nodes
 
-    def add_resim(self, i: int, steps: int) -> None:
-        """Node ``i`` owes ``steps`` re-simulated steps (a rollback); start it if idle."""
-        nd = self.S[L.NODE]
-        nd[L.N_RB, i] += steps
-        if not nd[L.N_BUSY, i]:
-            self._start_job(i)
+    def exit_counts(self) -> dict[str, int]:
+        """How often the loop returned to Python so far, by exit code name."""
+        return {name: self.exits[code] for name, code in L.EXIT_CODES.items()}
 
-    def _rollback(self, i: int, c: int, current: int) -> None:
-        """Node ``i`` rolls back to frame ``c``: owe the steps now, re-simulate later.
+    def _rollback(self, i: int, c: int, current: int, now: float) -> None:
+        """The rollback of node ``i`` to ``c`` the loop handed over (``NEED_ROLLBACK``).
 
-        The physics re-simulation is deferred (:meth:`SwarmTruth.defer_rollback`) and
-        the node marked in ``resim_pend``: the loop stops before the node's next
-        state publish (``NEED_RESIM``), and :meth:`advance_to` flushes before it
-        returns, so nothing reads the stale rows.
+        A second rollback of a node whose re-simulation is still owed flushes the
+        first, then joins the loop's deferred ones; without batched steps (or with
+        nothing to re-simulate) the truth rolls back at once and the loop owes the steps.
         """
-        h = self.host
-        truth = h.truth
-        pend = self.S[L.RESIM_PEND]
-        if pend[i]:  # a second rollback of a pending node re-simulates the first
+        truth = self.host.truth
+        if self.S[L.RESIM_PEND][i]:
             self.flush_rollbacks()
-        steps = truth.defer_rollback(i, c, current, h.nodes.cmd[i])
-        if truth.owes(i):
-            pend[i] = 1
-            pend[h.n] = 1  # some node is pending
-        self.add_resim(i, steps)
+        self.ensure_space(2)
+        if truth.batched and truth.first_resim(c) <= truth.latest:
+            loop.roll_back(self.S, i, c, current, now)
+        else:
+            steps = truth.rollback(i, c, current, self.host.nodes.cmd[i])
+            loop.owe_steps(self.S, i, steps, now)
+        iv = self.S[L.INTS]
+        if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
+            iv[L.I_PEND] = 0
+            self._start_job(i, now)
 
     def flush_rollbacks(self) -> None:
         """Re-simulate the deferred rollbacks (one batched call) and unmark their nodes."""
-        if self.host.truth.pending:
-            pend = self.S[L.RESIM_PEND]
-            pend[self.host.truth.flush_rollbacks()] = 0
-            pend[self.host.n] = 0  # the flush re-simulated every pending node
+        self.rollbacks.flush(self.S)
 
-    def _start_job(self, i: int) -> None:
-        """A job start that needs Python (rollback draws): :func:`~sigma_des.events.jobs.job_cost`,
-        as the spec (through :class:`~sigma_des.events.jobs.JobCosts`)."""
-        now = self._t_event
+    def _start_job(self, i: int, now: float) -> None:
+        """Node ``i``'s job start the loop handed over (``NEED_START``): fill the rollback
+        draws it owes into their table, then start it in the loop."""
         nd = self.S[L.NODE]
-        target = int(nd[L.N_REQ, i])
-        rb = int(nd[L.N_RB, i])
-        nd[L.N_RB, i] = 0
-        h = self.host.nodes
-        cost = self.costs.cost(h.slow.get(i, ()), i, int(nd[L.N_FRAME, i]) + 1, target, rb, now)
+        self.S = self.rollbacks.fill(self.S, int(nd[L.N_REQ, i]), int(nd[L.N_RB, i]))
         self.ensure_space(2)
-        loop.reserve(self.S, i, target, cost, now)
+        loop.start(self.S, i, now)
 
     # ------------------------------------------------------------ running
 
@@ -388,8 +382,9 @@ class CompiledCore:
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
 
-        Serves the loop's requests for Python on the way (rollbacks, job starts with
-        rollback draws, buffer flushes, table growth, deferred re-simulations) and
+        Serves the loop's requests for Python on the way (second rollbacks of a node
+        still owed its re-simulation, job starts whose rollback draws are not in their
+        table yet, buffer flushes, table growth, deferred re-simulations) and
         re-simulates every deferred rollback before it returns.
 
         Returns:
@@ -400,11 +395,13 @@ class CompiledCore:
             CohortFallback: a message needed a draw older than ``history_frames``.
         """
         self._check_open()
+        self.S[L.INTS][L.I_LATEST] = self.host.truth.latest  # rollbacks clamp to the ring
         while True:
             if self._lockstep:
                 self.drain()
                 self._sync_barrier()
             code = loop.advance(self.S, float(bound), strict)
+            self.exits[code] += 1
             if code == L.OK:
                 self.flush_rollbacks()
                 self.drain()
@@ -426,12 +423,12 @@ class CompiledCore:
                 tr = S[L.TR_INTS]
                 self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
             elif code in (L.NEED_START, L.NEED_ROLLBACK):
-                self._t_event = float(S[L.FLOATS][L.F_PT])
+                now = float(S[L.FLOATS][L.F_PT])
                 i = int(S[L.INTS][L.I_PNODE])
                 if code == L.NEED_START:
-                    self._start_job(i)
+                    self._start_job(i, now)
                 else:
-                    self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]))
+                    self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]), now)
             else:
                 raise CohortFallback(self._error(int(S[L.INTS][L.I_ERR])))
 

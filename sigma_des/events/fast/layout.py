@@ -60,7 +60,10 @@ I_LAT = 12  # three counters: trigger, state, command latencies buffered
 I_LCUR, I_LMISS, I_LCOMP = 15, 16, 17  # Lock-Step barrier mirror: frame, missing, complete
 I_DUPS = 18  # duplicate deliveries (Collector.delivered's rule)
 I_PFREE = 19  # free rows of the payload pool (S.pool_free's top)
-I_LEN = 20
+# the truth's newest stepped frame (set by the driver before the loop runs: a rollback's
+# first frame is clamped to the ring by it) and the rollbacks deferred in S.def_int
+I_LATEST, I_DEFN = 20, 21
+I_LEN = 22
 # run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
 # runs sealed since the last compaction, heap size, current run and whether there is one
 QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
@@ -73,13 +76,18 @@ F_BUSY, F_WORK, F_MAXWAIT, F_PT = range(4)
 F_LEN = 4
 # int parameters (S.iparams)
 Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
-Q_LEN = 10
+Q_BATCH = 10  # the truth re-simulates deferred rollbacks in a batch (else: Python at once)
+Q_LEN = 11
 # float parameters (S.fparams)
 G_WARMUP, G_END = 0, 1
 G_LEN = 2
 # node integer rows (S.node)
 N_FRAME, N_REQ, N_TARGET, N_BUSY, N_RB, N_CSTAMP = range(6)
 N_ROWS = 6
+# a deferred rollback (S.def_int): node, first frame to re-simulate (clamped), steps owed
+D_NODE, D_FIRST, D_STEPS = range(3)
+# a target's rollback draws (S.rb_tag): the target a row holds (-1: none), draws filled
+RB_TARGET, RB_ROWS = range(2)
 # event int columns (S.ev_int): type, client/receiver, kind, subject, index, aux (HLC c
 # or command stamp), frame (of a state, republished state or re-request); attempt of the
 # transmission (QoS 1 or stream segment); in a transport event (F2) the type of the event
@@ -167,7 +175,8 @@ _f, _i = np.float64, np.int64
 #: ``links_1`` = links + 1, and the link and clock tables' ``ge_slots``, ``deg``,
 #: ``drops``, ``ntp_j``; ``seen_k`` the duplicate table's kind rows (every kind under
 #: QoS 1 over datagram), ``ack_tables``/``x_tables``/``x_rows`` the PUBACK and resend
-#: draw tables, ``pool`` payload rows of ``pay_w`` = max(W, M) floats.
+#: draw tables, ``pool`` payload rows of ``pay_w`` = max(W, M) floats, ``rb_t`` rollback
+#: targets of ``rb_j`` draws each.
 FIELDS: tuple[Field, ...] = (
     Field("heap_t", _f, ("cap",), 0.0, "heap of run heads: times"),
     Field("heap_k", _i, ("cap",), 0.0, "heap of run heads: keys (sequence << SLOT_BITS | slot)"),
@@ -281,6 +290,12 @@ FIELDS: tuple[Field, ...] = (
     # of ``pay_w`` = max(W, M) floats; a slot names its row in E_PAY (+ 1)
     Field("pool", _f, ("pool", "pay_w"), 0.0, "payload pool: one payload a row"),
     Field("pool_free", np.int32, ("pool",), None, "free list of payload rows (top: I_PFREE)"),
+    # issue 27 (speed): rollbacks resolved in the loop (``rb_t`` targets of ``rb_j`` draws)
+    Field("def_int", _i, ("n", 3), 0.0, "deferred rollbacks in arrival order: D_* (I_DEFN)"),
+    Field("def_row", _f, ("n", "M"), 0.0, "deferred rollbacks: the command row re-simulated"),
+    Field("rb_val", _f, ("rb_t", "rb_j", "n"), None,
+          "rollback draws (ROLLBACK_DRAW, node, target, j) of target row target % rb_t"),
+    Field("rb_tag", _i, ("rb_t", 2), None, "rollback draws: target held, draws filled RB_*"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -396,6 +411,10 @@ CPU_OBT = INDEX["cpu_obt"]
 CPU_INB = INDEX["cpu_inb"]
 POOL = INDEX["pool"]
 POOL_FREE = INDEX["pool_free"]
+DEF_INT = INDEX["def_int"]
+DEF_ROW = INDEX["def_row"]
+RB_VAL = INDEX["rb_val"]
+RB_TAG = INDEX["rb_tag"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -12,12 +12,13 @@ and the results are bit-identical (docs/MODEL.md, "Engines").
 
 All state is one state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`), shared with the
 Python driver (:mod:`sigma_des.events.fast.driver`). :func:`advance` hands control
-back to Python, between two events, when something needs Python: a time-warp
-rollback (its physics re-simulation is batched: Python owes it until the node's
-next state publish, ``NEED_RESIM``), a job whose cost includes rollback draws, a
-full delivery buffer, a full event table, a completed Lock-Step barrier, or a random
-draw that is not in the draw tables (then the driver falls back to the
-per-message engine). Random numbers are never drawn here: Python fills per-index
+back to Python, between two events, when something needs Python: a deferred
+time-warp re-simulation (the rollbacks themselves run here, :mod:`~sigma_des.events.fast.warp`;
+their physics is batched: Python owes it until the node's next state publish,
+``NEED_RESIM``), a second rollback of such a node, a job whose rollback draws are not
+in their table yet, a full delivery buffer, a full event table, a completed Lock-Step
+barrier, or a random draw that is not in the draw tables (then the driver falls back to
+the per-message engine). Random numbers are never drawn here: Python fills per-index
 rows of the draw tables from the very same counter-based samplers the
 specification uses, and the loop reads them.
 """
@@ -27,6 +28,7 @@ from __future__ import annotations
 from sigma_des.events.fast.broker import broker
 from sigma_des.events.fast.clients import hand_over, receive
 from sigma_des.events.fast.cpu import tick
+from sigma_des.events.fast.job import owe, start_job
 from sigma_des.events.fast.layout import (
     CP_APP,
     CP_MAXMEM,
@@ -96,7 +98,7 @@ from sigma_des.events.fast.layout import (
     TR_INTS,
     TR_PARAMS,
 )
-from sigma_des.events.fast.node import at_node, done, reserve
+from sigma_des.events.fast.node import at_node, done
 from sigma_des.events.fast.outbox import burst_done, leave
 from sigma_des.events.fast.primitives import alloc, count, give_payload, jit, precedes, release
 from sigma_des.events.fast.queue import first, replace_top, view
@@ -105,9 +107,10 @@ from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.stream import next_ready
 from sigma_des.events.fast.transport import burst_copy, puback_client, send_burst_done, send_up
+from sigma_des.events.fast.warp import rollback
 
-__all__ = ["advance", "publish_commands", "publish_rerequest", "publish_trigger", "reserve",
-           "tick"]
+__all__ = ["advance", "owe_steps", "publish_commands", "publish_rerequest", "publish_trigger",
+           "roll_back", "start", "tick"]
 
 
 @jit
@@ -166,6 +169,25 @@ def publish_rerequest(S, node, frame, index, t):  # type: ignore[no-untyped-def]
     S[EV_FLOAT][ns, EF_TPUB] = t
     S[EV_INT][ns, E_FRAME] = frame
     send_up(S, ns, S[IPARAMS][Q_N], K_REREQ, node, index, t)
+
+
+@jit
+def roll_back(S, i, stamp, current, now):  # type: ignore[no-untyped-def]
+    """Node ``i``'s rollback to ``stamp`` from ``current`` at ``now``, after Python flushed
+    the node's earlier one (:func:`~sigma_des.events.fast.warp.rollback`)."""
+    rollback(ref(S), i, stamp, current, now)
+
+
+@jit
+def owe_steps(S, i, steps, now):  # type: ignore[no-untyped-def]
+    """Node ``i`` owes ``steps`` steps of a rollback Python re-simulated at once."""
+    owe(ref(S), i, steps, now)
+
+
+@jit
+def start(S, i, now):  # type: ignore[no-untyped-def]
+    """Node ``i``'s job start, once Python filled the rollback draws it owes."""
+    start_job(ref(S), i, now)
 
 
 @jit

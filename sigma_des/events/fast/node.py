@@ -1,20 +1,19 @@
 """Physics nodes in the compiled message core (docs/MODEL.md, "Physics nodes").
 
-A node takes triggers, re-requests and commands; it computes on its host's
-earliest-free core (:func:`reserve`) and publishes its state when the job
-completes (:func:`done`); a newer command stamped far enough in the past asks
-Python for a time-warp rollback. Job cost is summed here only when it needs no
-rollback draws; otherwise the start is handed to Python, which computes it with
-:func:`sigma_des.events.jobs.job_cost` (the per-message engine's very function).
+A node takes triggers, re-requests and commands; it computes a job on its host's
+earliest-free core (:mod:`~sigma_des.events.fast.job`: the job's cost, rollback draws
+included, as :func:`sigma_des.events.jobs.job_cost`) and publishes its state when the
+job completes (:func:`done`); a newer command stamped far enough in the past rolls the
+node back (:mod:`~sigma_des.events.fast.warp`).
 """
 
 from __future__ import annotations
 
 from sigma_des.events.fast.clock import local_time
+from sigma_des.events.fast.job import start_job
 from sigma_des.events.fast.layout import (
     CL_OF,
     CMD,
-    CORES,
     CRASH,
     E_AUX,
     E_FRAME,
@@ -24,19 +23,11 @@ from sigma_des.events.fast.layout import (
     EF_GEN,
     EF_L,
     EF_TPUB,
-    EV_DONE,
     EV_FLOAT,
     EV_INT,
-    F_PT,
-    FLOATS,
     HLC_C,
     HLC_L,
-    HOST_OF,
     I_HMISS,
-    I_PA,
-    I_PB,
-    I_PEND,
-    I_PNODE,
     INTS,
     IPARAMS,
     K_COMMAND,
@@ -52,8 +43,6 @@ from sigma_des.events.fast.layout import (
     N_RB,
     N_REQ,
     N_TARGET,
-    NEED_ROLLBACK,
-    NEED_START,
     NODE,
     OBS_HIST,
     POOL,
@@ -64,77 +53,24 @@ from sigma_des.events.fast.layout import (
     Q_W,
     Q_WARP,
     SLOT_FRAME,
-    SLOW,
-    SLOW_PTR,
-    STEP,
 )
 from sigma_des.events.fast.primitives import (
-    address,
     alloc,
-    draw,
     give_payload,
     jit,
     payload,
-    push,
     put_int,
     row_of,
 )
-from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.transport import send_up
+from sigma_des.events.fast.warp import rollback
 
-__all__ = ["at_node", "done", "reserve"]
+__all__ = ["at_node", "done"]
 
 
 @jit
 def _local(S, i, t):  # type: ignore[no-untyped-def]
     return local_time(S, i, t)
-
-
-@jit
-def _hand_over(S, code, i, now):  # type: ignore[no-untyped-def]
-    """Stop the loop after this event: Python must act (``code``) for node ``i``."""
-    iv = S[INTS]
-    iv[I_PEND] = code
-    iv[I_PNODE] = i
-    S[FLOATS][F_PT] = now
-
-
-@jit
-def reserve(S, i, target, cost, now):  # type: ignore[no-untyped-def]
-    """Take the host's earliest-free core for ``cost`` seconds; schedule completion."""
-    S = ref(S)  # one pointer to the state for every call below
-    row = S[CORES][S[HOST_OF][i]]
-    m = 0
-    for j in range(1, row.shape[0]):
-        if row[j] < row[m]:
-            m = j
-    free = row[m]
-    start = now if now > free else free
-    row[m] = start + cost
-    nd = S[NODE]
-    nd[N_BUSY, i] = 1
-    nd[N_TARGET, i] = target
-    slot = alloc(S)
-    address(S, slot, EV_DONE, i, 0, i, target)
-    push(S, start + cost, slot)
-
-
-@jit
-def _start_job(S, i, now):  # type: ignore[no-untyped-def]
-    nd = S[NODE]
-    if nd[N_RB, i] != 0:  # rollback draws are Python's: hand the start over
-        _hand_over(S, NEED_START, i, now)
-        return
-    target = nd[N_REQ, i]
-    cost = 0.0
-    for f in range(nd[N_FRAME, i] + 1, target + 1):
-        cost += draw(S, STEP, 0, i, f)
-    ptr = S[SLOW_PTR]
-    slow = S[SLOW]
-    for j in range(ptr[i], ptr[i + 1]):
-        if slow[j, 0] <= now and now < slow[j, 1]:
-            cost *= slow[j, 2]
-    reserve(S, i, target, cost, now)
 
 
 @jit
@@ -144,7 +80,7 @@ def _request(S, i, frame, now):  # type: ignore[no-untyped-def]
     if frame > nd[N_REQ, i]:
         nd[N_REQ, i] = frame
         if nd[N_BUSY, i] == 0:
-            _start_job(S, i, now)
+            start_job(S, i, now)
 
 
 @jit
@@ -200,7 +136,7 @@ def done(S, s, now):  # type: ignore[no-untyped-def]
         nd[N_FRAME, i] = target
         _publish_state(S, i, target, now)
     if nd[N_REQ, i] > nd[N_FRAME, i] or nd[N_RB, i] != 0:
-        _start_job(S, i, now)
+        start_job(S, i, now)
 
 
 @jit
@@ -269,9 +205,7 @@ def _command(S, s, i, now):  # type: ignore[no-untyped-def]
     current = nd[N_TARGET, i] if nd[N_BUSY, i] else nd[N_FRAME, i]
     if current - stamp <= q[Q_THETA]:
         return
-    _hand_over(S, NEED_ROLLBACK, i, now)
-    S[INTS][I_PA] = stamp
-    S[INTS][I_PB] = current
+    rollback(S, i, stamp, current, now)
 
 
 @jit

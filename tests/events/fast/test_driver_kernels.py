@@ -15,12 +15,14 @@ from sigma_des.events.fast import loop
 from sigma_des.factory import make_behaviour, make_dynamics
 from tests.conftest import tiny
 
-ENTRY_POINTS = (loop.advance, loop.publish_trigger, loop.publish_commands, loop.reserve)
+ENTRY_POINTS = (loop.advance, loop.publish_trigger, loop.publish_commands, loop.start,
+                loop.roll_back, loop.owe_steps)
 
 
 def test_loaded_kernels_are_the_ones_a_run_calls() -> None:
-    # late commands and a tight warp threshold: BiDES rolls nodes back, and their job
-    # starts go through Python (driver._start_job -> loop.reserve)
+    # late commands and a tight warp threshold: BiDES rolls nodes back, and a target's
+    # first rollback job goes through Python (driver._start_job -> loop.start); the
+    # point-mass model re-simulates in Python (loop.owe_steps)
     sc = replace(tiny(**{"nodes": 12, "hosts": 2, "commands.enabled": True,
                          "commands.behaviour": "follow", "commands.every": 1,
                          "net.host_link.latency": 0.03, "bides.theta_warp": 1,
@@ -32,7 +34,7 @@ def test_loaded_kernels_are_the_ones_a_run_calls() -> None:
     assert all(h >= 1 for h in held)
     assert run.load_kernels() == 0  # all there: nothing more to load
     out = run.run()
-    assert out["metrics"]["rollbacks"] > 0  # reserve was called from Python
+    assert out["metrics"]["rollbacks"] > 0  # loop.start was called from Python
     assert out["metrics"]["latency_command_mean"] > 0  # commands were published
     assert [len(k.signatures) for k in ENTRY_POINTS] == held
 

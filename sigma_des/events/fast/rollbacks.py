@@ -1,0 +1,109 @@
+"""Python's part of the compiled core's time-warp rollbacks (docs/MODEL.md, "Engines").
+
+The loop resolves a rollback and the job start it causes itself
+(:mod:`~sigma_des.events.fast.warp`, :mod:`~sigma_des.events.fast.job`); Python keeps
+what needs it:
+
+* **the rollback draws**: a job owing ``rb`` re-simulated steps to ``target`` sums the
+  draws ``(ROLLBACK_DRAW, node, target, j)``, ``j < rb``. They sit in a table of
+  ``rb_t`` target rows (row ``target % rb_t``, tagged with its target and how many
+  draws it holds), each draw ``j`` a vector over every node, sampled from the very
+  :class:`~sigma_des.core.draws.DrawCache` the per-message engine reads (the
+  ``host_share`` copula included), so the loop's sum is :func:`~sigma_des.events.jobs.job_cost`'s
+  float. A row is filled on the loop's first ``NEED_START`` for its target (to twice the
+  draws it held, at least what the job needs: few returns per target), and the table
+  grows when a job owes more draws than its rows hold;
+* **the re-simulation** of the deferred rollbacks: :meth:`Rollbacks.flush` hands the
+  loop's pending rows (``def_int``, ``def_row``, arrival order) to
+  :meth:`~sigma_des.events.truth.SwarmTruth.flush_rollbacks` and unmarks their nodes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.core.draws import DrawCache
+from sigma_des.events.fast import layout as L
+from sigma_des.events.jobs import ROLLBACK_DRAW
+from sigma_des.events.truth import SwarmTruth
+
+__all__ = ["TARGETS", "Rollbacks"]
+
+#: Target rows of the rollback-draw table (targets whose rollback jobs may be in
+#: flight at once: consecutive trigger frames).
+TARGETS = 8
+
+State = tuple[NDArray[Any], ...]
+
+
+class Rollbacks:
+    """The rollback-draw table and the flush of deferred re-simulations of one run.
+
+    Args:
+        truth: the run's physics truth (it re-simulates the deferred rollbacks).
+        step_time: the compute stream's draws (the per-message engine's cache).
+        n: number of nodes.
+        warp: BiDES time warp is on (else the table is one empty row).
+        theta: the warp threshold Θ_warp (a rollback owes at least Θ_warp + 2 steps
+            unless clamped to the ring: the table's first size).
+    """
+
+    def __init__(self, truth: SwarmTruth, step_time: DrawCache, n: int, warp: bool,
+                 theta: int) -> None:
+        self.truth = truth
+        self.step_time = step_time
+        self.n = n
+        self._rows = max(1, theta + 2) if warp else 1
+        self._targets = TARGETS if warp else 1
+
+    def dims(self) -> dict[str, int]:
+        """The table's dimensions (``rb_t`` targets of ``rb_j`` draws)."""
+        return {"rb_t": self._targets, "rb_j": self._rows}
+
+    def given(self) -> dict[str, NDArray[Any]]:
+        """The table's arrays, empty (``np.zeros``: pages untouched until filled)."""
+        tag = np.zeros((self._targets, 2), dtype=np.int64)
+        tag[:, L.RB_TARGET] = -1
+        return {"rb_val": np.zeros((self._targets, self._rows, self.n)), "rb_tag": tag}
+
+    def fill(self, S: State, target: int, need: int) -> State:
+        """Make the table hold at least ``need`` rollback draws of ``target``.
+
+        Returns:
+            The state, with a larger ``rb_val`` if the table had to grow.
+        """
+        tag = S[L.RB_TAG]
+        row = target % tag.shape[0]
+        if tag[row, L.RB_TARGET] != target:
+            tag[row] = (target, 0)
+        have = int(tag[row, L.RB_ROWS])
+        if have >= need:
+            return S
+        want = max(need, 2 * have)
+        val = S[L.RB_VAL]
+        if want > val.shape[1]:
+            big = np.zeros((val.shape[0], max(want, 2 * val.shape[1]), val.shape[2]))
+            big[:, : val.shape[1]] = val
+            S = L.replaced(S, {"rb_val": big})
+            val = big
+        for j in range(have, want):
+            val[row, j] = self.step_time.vector(ROLLBACK_DRAW, target, j)
+        tag[row, L.RB_ROWS] = want
+        return S
+
+    def flush(self, S: State) -> None:
+        """Re-simulate every deferred rollback (one batched call) and unmark their nodes."""
+        iv = S[L.INTS]
+        m = int(iv[L.I_DEFN])
+        if m == 0:
+            return
+        d = S[L.DEF_INT][:m]
+        nodes = self.truth.flush_rollbacks(d[:, L.D_NODE].copy(), d[:, L.D_FIRST].copy(),
+                                           S[L.DEF_ROW][:m].copy(), d[:, L.D_STEPS].copy())
+        iv[L.I_DEFN] = 0
+        pend = S[L.RESIM_PEND]
+        pend[nodes] = 0
+        pend[self.n] = 0  # the flush re-simulated every pending node
