@@ -14,6 +14,7 @@ module holds only what is live: MQTT, codecs, the real physics stepping. Run as
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import os
@@ -461,6 +462,7 @@ def main(argv: list[str] | None = None) -> int:
         if i == 0:
             host.warm_up()
         host.client.start(timeout=10.0)
+        gc.collect()  # what earlier runs left, before the clock matters (the loop pauses it)
         host.announce()
         host.loop.run(until=sc.duration + float(cfg.get("linger", 120.0)))
         host.client.publish(topics.stats(h), json.dumps(host.stats()).encode(), 1)

@@ -59,3 +59,22 @@ def test_wake_ups_before_the_window_are_not_counted() -> None:
     assert (loop.wake.wakes, loop.wake.calls) == (1, 1)  # the early wake-up is outside
     assert loop.wake.cpu_s > 0.0
     assert loop.handled == 3
+
+
+def test_the_cyclic_collector_is_paused_during_a_run_and_restored() -> None:
+    """A live loop runs with Python's cyclic GC paused (a full collection stalled a live
+    host 100-130 ms) and restores it afterwards, also when it was off before."""
+    import gc
+
+    seen: list[bool] = []
+    loop = Loop(time.monotonic())
+    loop.post(lambda: seen.append(gc.isenabled()))
+    assert gc.isenabled()
+    loop.run(until=0.02)
+    assert seen == [False] and gc.isenabled()
+    gc.disable()
+    try:
+        Loop(time.monotonic()).run(until=0.01)
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
