@@ -25,7 +25,7 @@ import psutil
 
 from sigma_des.live.ledger import publishes
 
-__all__ = ["CPU_COLUMNS", "CPU_FILE", "WAKE_COLUMNS", "CpuMeter", "machine_busy",
+__all__ = ["CPU_COLUMNS", "CPU_FILE", "WAKE_COLUMNS", "WALL_COLUMN", "CpuMeter", "machine_busy",
            "message_counts", "wake_columns", "wake_sums", "write_cpu"]
 
 #: The CPU table of a ``sigma-des live --out`` directory.
@@ -37,6 +37,9 @@ CPU_COLUMNS = ("process", "pid", "idle_s", "idle_cpu_s", "window_s", "cpu_s", "m
 #: wake-ups, calls, the loop thread's CPU seconds in them, the sums of ``k**2`` and
 #: ``k * cpu``); NaN for the broker (not our loop) and in files written before them.
 WAKE_COLUMNS = ("wakes", "calls", "loop_cpu_s", "skk", "skc")
+#: The wake-ups' wall seconds (the loop thread busy, running or not); NaN where
+#: :data:`WAKE_COLUMNS` are and in files written before it. Not needed by the fit.
+WALL_COLUMN = "loop_wall_s"
 
 
 def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dict[str, Any]],
@@ -63,12 +66,13 @@ def wake_sums(server: dict[str, Any], host_stats: dict[int, dict[str, Any]]
 
 
 def wake_columns(wakes: dict[str, dict[str, Any]] | None, name: str) -> dict[str, Any]:
-    """The :data:`WAKE_COLUMNS` of process ``name`` from :func:`wake_sums` (NaN if absent)."""
+    """The :data:`WAKE_COLUMNS` and :data:`WALL_COLUMN` of process ``name`` from
+    :func:`wake_sums` (NaN if absent)."""
     w = (wakes or {}).get(name)
     if w is None:
-        return dict.fromkeys(WAKE_COLUMNS, math.nan)
+        return dict.fromkeys((*WAKE_COLUMNS, WALL_COLUMN), math.nan)
     return {"wakes": w["wakes"], "calls": w["calls"], "loop_cpu_s": w["cpu_s"],
-            "skk": w["skk"], "skc": w["skc"]}
+            "skk": w["skk"], "skc": w["skc"], WALL_COLUMN: w.get("wall_s", math.nan)}
 
 
 def machine_busy() -> float:
@@ -153,7 +157,7 @@ def write_cpu(live: dict[str, dict[str, Any]], out_dir: Path) -> Path:
     (columns ``method`` + :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`; NaN where not
     measured)."""
     path = out_dir / CPU_FILE
-    cols = CPU_COLUMNS + WAKE_COLUMNS
+    cols = (*CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN)
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(("method", *cols))

@@ -66,7 +66,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sigma_des.live.cpu import CPU_FILE, WAKE_COLUMNS
+from sigma_des.live.cpu import CPU_FILE, WAKE_COLUMNS, WALL_COLUMN
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.loop import WakeStats
 from sigma_des.net.spec import DeploymentSpec
@@ -171,11 +171,15 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
                     f"deployment.{kind}_wake 0, the whole CPU per message")
         return 0.0, _demand(d, busy, msgs, kind, warn), {}
     w = WakeStats.pooled([{"wakes": int(r.wakes), "calls": int(r.calls),
-                           "cpu_s": r.loop_cpu_s, "skk": r.skk, "skc": r.skc}
+                           "cpu_s": r.loop_cpu_s, "skk": r.skk, "skc": r.skc,
+                           "wall_s": getattr(r, WALL_COLUMN, math.nan)}
                           for r in rows.loc[ok].itertuples(index=False)])
     a, b = w.line()
     rep = {f"{kind}_wakes": float(w.wakes), f"{kind}_calls": float(w.calls),
            f"{kind}_loop_cpu_s": w.cpu_s, f"{kind}_loop_wake_s": a, f"{kind}_loop_call_s": b}
+    if math.isfinite(w.wall_s):  # measured, reported; not (yet) a model parameter
+        rep[f"{kind}_loop_wall_s"] = w.wall_s
+        rep[f"{kind}_loop_stalled_per_wake_s"] = (w.wall_s - w.cpu_s) / w.wakes
     if not (math.isfinite(a) and a > 0 and w.cpu_s > 0 and math.isfinite(busy) and busy > 0):
         warn.append(f"{kind} loop: no positive per-wake-up CPU (line {a * 1e6:.3g} µs + "
                     f"{b * 1e6:.3g} µs a call over {w.wakes} wake-ups): deployment."

@@ -49,13 +49,18 @@ class WakeStats:
     the calls and the thread's CPU seconds (``time.thread_time``), and the moments a
     least-squares line ``cpu = wake + per_call * k`` needs: a busy period's fixed
     cost (leaving the wait, looking at the timers, going back to wait) is its
-    intercept, each call's cost its slope.
+    intercept, each call's cost its slope. It also sums the wake-ups' wall time: a
+    wake-up's wall time less its CPU is the time the thread was busy but not running
+    (waiting for the interpreter lock paho's network thread held, or for a core), the
+    part of a process's occupancy that is not CPU.
 
     Attributes:
         lo, hi: the window (s since the run's start).
         wakes, calls: wake-ups and calls handled in them.
         cpu_s: the loop thread's CPU seconds in them.
         skk, skc: sums of ``k**2`` and ``k * cpu`` over the wake-ups.
+        wall_s: the wake-ups' wall seconds (``time.monotonic``), from the return of
+            the wait to the next wait.
     """
 
     lo: float = math.inf
@@ -65,10 +70,13 @@ class WakeStats:
     cpu_s: float = 0.0
     skk: float = 0.0
     skc: float = 0.0
+    wall_s: float = 0.0
 
-    def add(self, k: int, cpu: float) -> None:
-        """One wake-up of ``k`` calls that took ``cpu`` thread CPU seconds."""
+    def add(self, k: int, cpu: float, wall: float = 0.0) -> None:
+        """One wake-up of ``k`` calls that took ``cpu`` thread CPU seconds in ``wall``
+        seconds."""
         self.wakes += 1
+        self.wall_s += wall
         self.calls += k
         self.cpu_s += cpu
         self.skk += k * k
@@ -87,7 +95,7 @@ class WakeStats:
     def as_dict(self) -> dict[str, float]:
         """The sums (a host's end-of-run stats; sums of several loops pool by adding)."""
         return {"wakes": self.wakes, "calls": self.calls, "cpu_s": self.cpu_s,
-                "skk": self.skk, "skc": self.skc}
+                "skk": self.skk, "skc": self.skc, "wall_s": self.wall_s}
 
     @classmethod
     def pooled(cls, parts: list[dict[str, Any]]) -> WakeStats:
@@ -99,6 +107,7 @@ class WakeStats:
             out.cpu_s += float(d["cpu_s"])
             out.skk += float(d["skk"])
             out.skc += float(d["skc"])
+            out.wall_s += float(d.get("wall_s", math.nan))  # NaN: a loop before wall_s
         return out
 
 
@@ -169,8 +178,10 @@ class Loop:
         inbox = self.inbox
         wake = self.wake
         cpu = time.thread_time
+        mono = time.monotonic  # wall time of a wake-up (``now`` may be a corrected clock)
         k = 0  # calls of the current wake-up
         c0 = cpu()
+        m0 = mono()
         t_wake = self.now
         while not self.stopped:
             now = self.now
@@ -181,16 +192,18 @@ class Loop:
                 fn(*args)
                 k += 1
             if k and wake.lo <= t_wake < wake.hi:  # a wake-up ends: the thread waits
-                wake.add(k, cpu() - c0)
+                wake.add(k, cpu() - c0, mono() - m0)
             wait = min(until, heap[0][0] if heap else until) - self.now
             try:
                 fn, args = inbox.get(timeout=min(0.05, max(wait, 0.0)))
             except queue.Empty:
                 k = 0
                 c0 = cpu()
+                m0 = mono()
                 t_wake = self.now
                 continue
             c0 = cpu()
+            m0 = mono()
             t_wake = self.now
             fn(*args)
             self.handled += 1
@@ -204,7 +217,7 @@ class Loop:
                 self.handled += 1
                 k += 1
         if k and wake.lo <= t_wake < wake.hi:
-            wake.add(k, cpu() - c0)
+            wake.add(k, cpu() - c0, mono() - m0)
 
 
 class VirtualLoop(Loop):

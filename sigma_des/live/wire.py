@@ -338,12 +338,14 @@ def _count(x: Any) -> bool:
 
 def _wake_ok(w: Any) -> bool:
     """A loop's wake-up sums (:class:`~sigma_des.live.loop.WakeStats`): two counts and
-    three non-negative finite floats."""
-    if not isinstance(w, dict) or set(w) != {"wakes", "calls", "cpu_s", "skk", "skc"}:
+    three (four with ``wall_s``, which a host before it did not send) non-negative
+    finite floats."""
+    keys = {"wakes", "calls", "cpu_s", "skk", "skc"}
+    if not isinstance(w, dict) or set(w) not in (keys, keys | {"wall_s"}):
         return False
     if not (_count(w["wakes"]) and _count(w["calls"])):
         return False
-    return all(type(w[k]) in (int, float) and 0 <= w[k] < 1e18 for k in ("cpu_s", "skk", "skc"))
+    return all(type(w[k]) in (int, float) and 0 <= w[k] < 1e18 for k in set(w) - {"wakes", "calls"})
 
 
 def check_stats(payload: bytes, host: int) -> dict[str, Any]:

@@ -11,7 +11,14 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from sigma_des.live.cpu import CPU_COLUMNS, WAKE_COLUMNS, CpuMeter, message_counts, write_cpu
+from sigma_des.live.cpu import (
+    CPU_COLUMNS,
+    WAKE_COLUMNS,
+    WALL_COLUMN,
+    CpuMeter,
+    message_counts,
+    write_cpu,
+)
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.ledger import publishes
 
@@ -35,7 +42,8 @@ def _synthetic_rows() -> list[dict[str, float | int | str]]:
 def test_utilization_law_recovers_known_demands_exactly(tmp_path: Path) -> None:
     write_cpu({"bides": {"cpu": _synthetic_rows()}}, tmp_path)
     cpu = read_cpu(tmp_path)
-    assert cpu is not None and list(cpu.columns) == ["method", *CPU_COLUMNS, *WAKE_COLUMNS]
+    assert cpu is not None
+    assert list(cpu.columns) == ["method", *CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN]
     table, bg, warn = fit_demands(cpu)
     assert warn == []
     assert bg == {"bides": pytest.approx(0.75)}  # 3 CPU s in 4 s: 0.75 cores taken

@@ -78,3 +78,27 @@ def test_the_cyclic_collector_is_paused_during_a_run_and_restored() -> None:
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+def test_wall_time_is_summed_and_pooled_and_missing_wall_pools_to_nan() -> None:
+    w = WakeStats()
+    w.add(1, 50e-6, 80e-6)
+    w.add(2, 70e-6, 0.5e-3)
+    assert w.wall_s == pytest.approx(0.58e-3, rel=1e-12)
+    v = WakeStats()
+    v.add(1, 40e-6, 40e-6)
+    assert WakeStats.pooled([w.as_dict(), v.as_dict()]).wall_s == pytest.approx(0.62e-3)
+    old = {k: x for k, x in v.as_dict().items() if k != "wall_s"}  # a host before wall_s
+    assert math.isnan(WakeStats.pooled([w.as_dict(), old]).wall_s)
+
+
+def test_a_wake_up_that_waits_without_cpu_counts_the_wait_as_wall_not_cpu() -> None:
+    """A call that sleeps 20 ms (the thread busy but not running, as when it waits for
+    the interpreter lock) adds ~20 ms of wall time and almost no CPU."""
+    loop = Loop(time.monotonic())
+    loop.wake.lo, loop.wake.hi = 0.0, math.inf
+    loop.post(time.sleep, 0.02)
+    loop.run(until=0.1)
+    assert loop.wake.wakes == 1
+    assert loop.wake.wall_s >= 0.02
+    assert loop.wake.cpu_s < 0.01
