@@ -10,7 +10,10 @@ connected and waiting, so its CPU rate there is the idle loop's cost) and the
 turns the marks into one row per process, plus a ``background`` row: the machine's
 busy CPU minus ours, i.e. what other processes took from the cores during the
 window. ``sigma-des calibrate`` fits the demands from these rows
-(:mod:`sigma_des.live.demands`).
+(:mod:`sigma_des.live.demands`). Each process row also carries its threads' time
+waiting on a run queue in the window (:func:`runq_wait_s`, Linux schedstat): time it
+was runnable but no core ran it, the wait the DES's CPU stage models as a burst's wait
+for a core.
 """
 
 from __future__ import annotations
@@ -25,8 +28,9 @@ import psutil
 
 from sigma_des.live.ledger import publishes
 
-__all__ = ["CPU_COLUMNS", "CPU_FILE", "WAKE_COLUMNS", "WALL_COLUMN", "CpuMeter", "machine_busy",
-           "message_counts", "wake_columns", "wake_sums", "write_cpu"]
+__all__ = ["CPU_COLUMNS", "CPU_FILE", "RUNQ_COLUMN", "WAKE_COLUMNS", "WALL_COLUMN", "CpuMeter",
+           "machine_busy", "message_counts", "runq_wait_s", "wake_columns", "wake_sums",
+           "write_cpu"]
 
 #: The CPU table of a ``sigma-des live --out`` directory.
 CPU_FILE = "cpu.csv"
@@ -40,6 +44,8 @@ WAKE_COLUMNS = ("wakes", "calls", "loop_cpu_s", "skk", "skc")
 #: The wake-ups' wall seconds (the loop thread busy, running or not); NaN where
 #: :data:`WAKE_COLUMNS` are and in files written before it. Not needed by the fit.
 WALL_COLUMN = "loop_wall_s"
+#: A process's threads' run-queue wait in the metrics window (s; NaN where not readable).
+RUNQ_COLUMN = "runq_wait_s"
 
 
 def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dict[str, Any]],
@@ -85,6 +91,23 @@ def machine_busy() -> float:
     return float(busy)
 
 
+def runq_wait_s(pid: int) -> float:
+    """Seconds the threads of process ``pid`` have waited on a run queue (runnable, no
+    core), summed over its live threads (``/proc/<pid>/task/*/schedstat``, second
+    field, ns); NaN where not readable (not Linux, the process gone). A thread that
+    exits takes its count with it: paho's and the loop's threads live for the run."""
+    total = 0
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            try:
+                total += int((task / "schedstat").read_text().split()[1])
+            except (OSError, IndexError, ValueError):
+                continue  # the thread ended meanwhile
+    except OSError:
+        return math.nan
+    return total / 1e9
+
+
 class CpuMeter:
     """CPU seconds of named processes (and of the machine) at named marks.
 
@@ -101,6 +124,7 @@ class CpuMeter:
                 self._ps[name] = None
         self.pids = dict(procs)
         self.marks: dict[str, tuple[float, float, dict[str, float]]] = {}
+        self.runq: dict[str, dict[str, float]] = {}
 
     def _cpu(self, p: psutil.Process | None) -> float:
         if p is None:
@@ -112,9 +136,11 @@ class CpuMeter:
         return float(t.user + t.system)
 
     def mark(self, label: str) -> None:
-        """Record the wall clock, the machine's busy CPU and every process's CPU now."""
+        """Record the wall clock, the machine's busy CPU and every process's CPU and
+        run-queue wait now."""
         cpu = {name: self._cpu(p) for name, p in self._ps.items()}
         self.marks[label] = (time.monotonic(), machine_busy(), cpu)
+        self.runq[label] = {name: runq_wait_s(self.pids[name]) for name in self._ps}
 
     def _span(self, a: str, b: str) -> tuple[float, float, dict[str, float]]:
         if a not in self.marks or b not in self.marks:
@@ -124,8 +150,8 @@ class CpuMeter:
 
     def rows(self, messages: dict[str, int],
              wakes: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
-        """One row per process (columns :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`) and
-        a ``background`` row.
+        """One row per process (columns :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS` +
+        :data:`WALL_COLUMN` + :data:`RUNQ_COLUMN`) and a ``background`` row.
 
         Args:
             messages: PUBLISH messages each process handled (sent + received) in the
@@ -137,18 +163,20 @@ class CpuMeter:
         """
         idle_s, idle_m, idle = self._span("idle0", "idle1")
         win_s, win_m, win = self._span("w0", "w1")
+        q0, q1 = self.runq.get("w0", {}), self.runq.get("w1", {})
         out: list[dict[str, Any]] = []
         for name in self._ps:
             out.append({"process": name, "pid": self.pids[name], "idle_s": idle_s,
                         "idle_cpu_s": idle[name], "window_s": win_s, "cpu_s": win[name],
                         "messages": messages.get(name, math.nan),
-                        **wake_columns(wakes, name)})
+                        **wake_columns(wakes, name),
+                        RUNQ_COLUMN: q1.get(name, math.nan) - q0.get(name, math.nan)})
         ours_idle = sum(v for v in idle.values() if math.isfinite(v))
         ours_win = sum(v for v in win.values() if math.isfinite(v))
         out.append({"process": "background", "pid": -1, "idle_s": idle_s,
                     "idle_cpu_s": max(idle_m - ours_idle, 0.0), "window_s": win_s,
                     "cpu_s": max(win_m - ours_win, 0.0), "messages": math.nan,
-                    **wake_columns(None, "background")})
+                    **wake_columns(None, "background"), RUNQ_COLUMN: math.nan})
         return out
 
 
@@ -157,7 +185,7 @@ def write_cpu(live: dict[str, dict[str, Any]], out_dir: Path) -> Path:
     (columns ``method`` + :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`; NaN where not
     measured)."""
     path = out_dir / CPU_FILE
-    cols = (*CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN)
+    cols = (*CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN, RUNQ_COLUMN)
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(("method", *cols))

@@ -66,7 +66,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sigma_des.live.cpu import CPU_FILE, WAKE_COLUMNS, WALL_COLUMN
+from sigma_des.live.cpu import CPU_FILE, RUNQ_COLUMN, WAKE_COLUMNS, WALL_COLUMN
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.loop import WakeStats
 from sigma_des.net.spec import DeploymentSpec
@@ -177,6 +177,9 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
     a, b = w.line()
     rep = {f"{kind}_wakes": float(w.wakes), f"{kind}_calls": float(w.calls),
            f"{kind}_loop_cpu_s": w.cpu_s, f"{kind}_loop_wake_s": a, f"{kind}_loop_call_s": b}
+    if RUNQ_COLUMN in rows.columns and rows[RUNQ_COLUMN].map(math.isfinite).all():
+        # measured, reported; the DES's own wait for a core is its CPU stage's
+        rep[f"{kind}_runq_wait_per_msg_s"] = float(rows[RUNQ_COLUMN].sum()) / msgs
     if math.isfinite(w.wall_s):  # measured, reported; not (yet) a model parameter
         rep[f"{kind}_loop_wall_s"] = w.wall_s
         rep[f"{kind}_loop_stalled_per_wake_s"] = (w.wall_s - w.cpu_s) / w.wakes

@@ -193,10 +193,18 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     rows = _cpu_rows(procs, BACKGROUND_CPU)
     for r in rows:
         r.update(hosts.get(str(r["process"]), {}))
+        # each loop's wake-ups took 1.5x their CPU in wall time; 0.1 s on a run queue
+        r.update({"loop_wall_s": 1.5 * r.get("loop_cpu_s", math.nan), "runq_wait_s": 0.1})
     write_cpu({"bides": {"cpu": rows}}, d)
     sc, rep = calibrate(d, tmp_path / "files")
     dep = sc.deployment
     busy_h = procs["host0"][2] + procs["host1"][2]
+    # reported, not fitted: the loop's time busy but not running, the run-queue wait
+    loop_h = hosts["host0"]["loop_cpu_s"] + hosts["host1"]["loop_cpu_s"]
+    assert rep["host_loop_stalled_per_wake_s"] == pytest.approx(
+        0.5 * loop_h / (hosts["host0"]["wakes"] + hosts["host1"]["wakes"]), rel=1e-12)
+    assert rep["server_runq_wait_per_msg_s"] == pytest.approx(0.1 / 5000, rel=1e-12)
+    assert rep["host_runq_wait_per_msg_s"] == pytest.approx(0.2 / 4500, rel=1e-12)
     w_h = hosts["host0"]["wakes"] + hosts["host1"]["wakes"]
     assert dep.host_wake == pytest.approx(50e-6, rel=1e-9)
     assert dep.host_demand == pytest.approx((busy_h - 50e-6 * w_h) / 4500, rel=1e-9)

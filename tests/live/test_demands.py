@@ -7,12 +7,14 @@ import math
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 import pytest
 
 from sigma_des.live.cpu import (
     CPU_COLUMNS,
+    RUNQ_COLUMN,
     WAKE_COLUMNS,
     WALL_COLUMN,
     CpuMeter,
@@ -43,7 +45,8 @@ def test_utilization_law_recovers_known_demands_exactly(tmp_path: Path) -> None:
     write_cpu({"bides": {"cpu": _synthetic_rows()}}, tmp_path)
     cpu = read_cpu(tmp_path)
     assert cpu is not None
-    assert list(cpu.columns) == ["method", *CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN]
+    assert list(cpu.columns) == ["method", *CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN,
+                                 RUNQ_COLUMN]
     table, bg, warn = fit_demands(cpu)
     assert warn == []
     assert bg == {"bides": pytest.approx(0.75)}  # 3 CPU s in 4 s: 0.75 cores taken
@@ -91,3 +94,37 @@ def test_meter_reads_our_own_cpu_time_and_the_background() -> None:
     assert rows["server"]["cpu_s"] == pytest.approx(0.2, abs=0.03)  # 10 ms clock ticks
     assert rows["server"]["messages"] == 10 and math.isnan(rows["gone"]["cpu_s"])
     assert rows["background"]["cpu_s"] >= 0.0 and rows["background"]["window_s"] > 0.0
+
+
+def test_run_queue_wait_is_read_for_live_processes_and_nan_for_gone_ones() -> None:
+    """Two busy processes pinned to one core wait on its run queue about half the time
+    each (schedstat); a pid that does not exist reads NaN."""
+    import multiprocessing as mp
+
+    from sigma_des.live.cpu import runq_wait_s
+
+    if not os.path.exists(f"/proc/{os.getpid()}/task"):
+        pytest.skip("no /proc")
+    core = sorted(os.sched_getaffinity(0))[0]
+    ctx = mp.get_context("spawn")
+    pinned = [ctx.Event() for _ in range(2)]
+    procs = [ctx.Process(target=_spin, args=(core, 0.5, e)) for e in pinned]
+    for p in procs:
+        p.start()
+    assert all(e.wait(20) for e in pinned)  # both spin on the one core from here
+    time.sleep(0.2)
+    waits = [runq_wait_s(p.pid) for p in procs if p.pid is not None]
+    for p in procs:
+        p.join(5)
+    assert len(waits) == 2 and all(math.isfinite(w) and w >= 0.0 for w in waits)
+    assert sum(waits) > 0.02  # one core for two spinning processes: someone waited
+    assert math.isnan(runq_wait_s(2**22 + 12345))
+
+
+def _spin(core: int, seconds: float, pinned: Any) -> None:
+    """Burn CPU on ``core`` for ``seconds`` (a child of the run-queue test)."""
+    os.sched_setaffinity(0, {core})
+    pinned.set()
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        pass
