@@ -16,6 +16,9 @@
 * ``summary.md`` — shares per metric, the issue's targets ticked or not, the knee
   table, the in-sample errors and the cells.
 * ``live_vs_des.png`` — DES against live per metric, with each metric's band.
+* ``processes.csv`` — per live cell, method and process kind: CPU, loop-busy and
+  run-queue cores (:mod:`sigma_des.studies.validation.processes`); ``summary.md``
+  shows their means over the methods.
 
 A run is **under load** when the background CPU during its metrics window (other
 processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
@@ -33,6 +36,7 @@ from typing import Any
 
 from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.studies.validation.grid import Plan
+from sigma_des.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
 from sigma_des.studies.validation.scoring import (
     BAND,
     KNEE_MISSED,
@@ -378,7 +382,15 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     _write_csv(out / "cells.csv", rows, COLUMNS)
     _write_csv(out / "noise.csv", noise)
     _write_csv(out / "knee.csv", knees)
-    (out / "summary.md").write_text(summary_md(plan, rows, knees, noise, outcome[2], command))
+    procs = process_rows(out / "live", [c.name for c in plan.cells])
+    if procs:
+        _write_csv(out / "processes.csv", procs, PROCESS_COLUMNS)
+    text = summary_md(plan, rows, knees, noise, outcome[2], command)
+    if procs:
+        text += ("\n## Live processes (cores per second of the window, means over the "
+                 "methods; a host is the mean of the run's hosts)\n\n"
+                 + "\n".join(process_md(procs)) + "\n")
+    (out / "summary.md").write_text(text)
     plot(rows, out / "live_vs_des.png")
     return rows
 
