@@ -45,9 +45,33 @@ from numpy.typing import ArrayLike, NDArray
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
 
-__all__ = ["AlignResult", "RingBuffers", "align"]
+__all__ = ["AlignResult", "RingBuffers", "align", "insert_row"]
 
 _BIG = np.iinfo(np.int64).max
+
+
+@njit(cache=True, _nrt=False)
+def insert_row(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, latest: np.ndarray,
+               node: int, f: int, gen: float, src: np.ndarray, r: int) -> bool:
+    """The rule of :meth:`RingBuffers.insert` for one row: ``node``'s state of frame ``f``
+    (``f >= 0``), generated at ``gen``, its observation the first ``width`` columns of
+    ``src[r]``; whether it was stored.
+
+    The one place of the rule: :func:`_insert_rows` applies it row by row, and the
+    compiled message core applies it to each state it delivers to a ring it was handed
+    (:meth:`~sigma_des.events.align.base.Aligner.state_ring`). Compiled without numba's
+    reference counting (it allocates nothing), as the core's kernels are.
+    """
+    slot = f % frame.shape[1]
+    if frame[node, slot] >= f:
+        return False
+    frame[node, slot] = f
+    gen_time[node, slot] = gen
+    for c in range(obs.shape[2]):
+        obs[node, slot, c] = src[r, c]
+    if f > latest[node]:
+        latest[node] = f
+    return True
 
 
 @njit(cache=True)
@@ -55,19 +79,9 @@ def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, lates
                  nodes: np.ndarray, frames: np.ndarray, gens: np.ndarray, rows: np.ndarray,
                  accepted: np.ndarray) -> None:
     """The rule of :meth:`RingBuffers.insert`, row after row in order (compiled)."""
-    k = frame.shape[1]
     for j in range(nodes.shape[0]):
-        nd = nodes[j]
-        f = frames[j]
-        slot = f % k
-        if frame[nd, slot] >= f:
-            continue
-        frame[nd, slot] = f
-        gen_time[nd, slot] = gens[j]
-        obs[nd, slot, :] = rows[j, :]
-        if f > latest[nd]:
-            latest[nd] = f
-        accepted[j] = True
+        accepted[j] = insert_row(frame, gen_time, obs, latest, nodes[j], frames[j], gens[j],
+                                 rows, j)
 
 
 def _as_rows(x: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
