@@ -3,8 +3,9 @@
 An aligner lives at the alignment server (docs/MODEL.md, "Alignment methods"). The
 engine hands it the delivered states in batches (:meth:`Aligner.on_states` with a
 :class:`StateBatch`; a single state is a batch of one, :func:`one_state`; a method that
-keeps nothing but ring buffers may let a compiled core store them, :meth:`Aligner.state_ring`), tells it
-when a trigger is issued (:meth:`Aligner.on_trigger`) and, at every alignment tick,
+keeps nothing but ring buffers may let a compiled core store them,
+:meth:`Aligner.state_ring`), tells it when a trigger is issued
+(:meth:`Aligner.on_trigger`) and, at every alignment tick,
 asks it to refresh the snapshot it shows (:meth:`Aligner.align`): per node the frame,
 generation time, published state and a flag. Methods that steer the trigger (Lock-Step's barrier,
 BiDES's adaptive rate) do so through the :class:`ServerContext` the engine passes in.

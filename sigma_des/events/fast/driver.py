@@ -453,7 +453,7 @@ class CompiledCore:
 
     def drain(self) -> None:
         """Hand the buffered state deliveries to the aligner (unless the loop stored them
-        in its ring) and the recording tap (:class:`~sigma_des.events.fast.deliveries.Deliveries`)."""
+        in its ring) and the recording tap (:class:`~.deliveries.Deliveries`)."""
         self.deliveries.states(self.S)
 
     def write_back(self) -> None:

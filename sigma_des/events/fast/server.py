@@ -11,6 +11,7 @@ barrier's count is mirrored so the loop can stop when the barrier completes
 
 from __future__ import annotations
 
+from sigma_des.events.align.ring import insert_row
 from sigma_des.events.fast.layout import (
     BARRIER,
     E_AUX,
@@ -56,7 +57,6 @@ from sigma_des.events.fast.layout import (
     T_DUPALL,
     TR_PARAMS,
 )
-from sigma_des.events.align.ring import insert_row
 from sigma_des.events.fast.primitives import jit, payload, row_of
 
 __all__ = ["at_server", "delivered"]
