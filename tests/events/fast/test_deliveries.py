@@ -82,6 +82,10 @@ def test_bides_states_go_into_the_ring_in_the_loop(monkeypatch: pytest.MonkeyPat
     assert (ip[L.Q_RING], ip[L.Q_OUT]) == (1, 0)
     assert core.S[L.INTS][L.I_OUT] == 0  # nothing buffered for Python
     ring, ref = _ring(co_run), _ring(ev_run)
+    # the core wrote into the aligner's own arrays, shared to the end (growth, close)
+    for name, a in (("ring_frame", ring.frame), ("ring_gen", ring.gen_time),
+                    ("ring_obs", ring.obs), ("ring_latest", ring.latest)):
+        assert core.array(name) is a, name
     assert ring.latest.tolist() == [99, 99, 99]
     hand = [90 + s if s < 10 else 60 + s for s in range(30)]
     assert ring.frame.tolist() == [hand] * 3
