@@ -2,8 +2,10 @@
 
 An aligner lives at the alignment server (docs/MODEL.md, "Alignment methods"). The
 engine hands it the delivered states in batches (:meth:`Aligner.on_states` with a
-:class:`StateBatch`; a single state is a batch of one, :func:`one_state`), tells it
-when a trigger is issued (:meth:`Aligner.on_trigger`) and, at every alignment tick,
+:class:`StateBatch`; a single state is a batch of one, :func:`one_state`; a method that
+keeps nothing but ring buffers may let a compiled core store them,
+:meth:`Aligner.state_ring`), tells it when a trigger is issued
+(:meth:`Aligner.on_trigger`) and, at every alignment tick,
 asks it to refresh the snapshot it shows (:meth:`Aligner.align`): per node the frame,
 generation time, published state and a flag. Methods that steer the trigger (Lock-Step's barrier,
 BiDES's adaptive rate) do so through the :class:`ServerContext` the engine passes in.
@@ -20,6 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des.core.flags import MISSING
 from sigma_des.events.align.hlc_clock import Released, Stamp
+from sigma_des.events.align.ring import RingBuffers
 from sigma_des.metrics.reports import AlignerReport
 
 __all__ = [
@@ -253,6 +256,17 @@ class Aligner:
     def align(self, t: float) -> None:
         """Refresh the shown snapshot (alignment tick)."""
         raise NotImplementedError
+
+    def state_ring(self) -> RingBuffers | None:
+        """The ring buffers that hold everything this method keeps of a delivered state.
+
+        An aligner whose :meth:`on_states` is exactly :meth:`RingBuffers.insert` of the
+        batch returns its buffers, and a compiled message core may then store each state
+        it delivers there itself (:func:`~sigma_des.events.align.ring.insert_row`, the
+        same rule, in arrival order) instead of handing batches over; this base, and
+        every method that keeps more than that, returns None.
+        """
+        return None
 
     def memory_bytes(self) -> int:
         """Bytes of state buffered by the alignment server now."""

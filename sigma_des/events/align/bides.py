@@ -47,6 +47,10 @@ class BidesAligner(Aligner):
         """Store the states in the ring buffers."""
         self.ring.insert(batch.nodes, batch.frames, batch.gens, batch.obs)
 
+    def state_ring(self) -> RingBuffers:
+        """The ring buffers: :meth:`on_states` stores the states there and nothing else."""
+        return self.ring
+
     def align(self, t: float) -> None:
         """Algorithm 1, then one step of the rate adaptation."""
         spec = self.spec

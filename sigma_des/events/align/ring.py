@@ -45,9 +45,33 @@ from numpy.typing import ArrayLike, NDArray
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
 
-__all__ = ["AlignResult", "RingBuffers", "align"]
+__all__ = ["AlignResult", "RingBuffers", "align", "insert_row"]
 
 _BIG = np.iinfo(np.int64).max
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+def insert_row(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, latest: np.ndarray,
+               node: int, f: int, gen: float, src: np.ndarray, r: int) -> bool:
+    """The rule of :meth:`RingBuffers.insert` for one row: ``node``'s state of frame ``f``
+    (``f >= 0``), generated at ``gen``, its observation the first ``width`` columns of
+    ``src[r]``; whether it was stored.
+
+    The one place of the rule: :func:`_insert_rows` applies it row by row, and the
+    compiled message core applies it to each state it delivers to a ring it was handed
+    (:meth:`~sigma_des.events.align.base.Aligner.state_ring`). Compiled without numba's
+    reference counting (it allocates nothing), as the core's kernels are.
+    """
+    slot = f % frame.shape[1]
+    if frame[node, slot] >= f:
+        return False
+    frame[node, slot] = f
+    gen_time[node, slot] = gen
+    for c in range(obs.shape[2]):
+        obs[node, slot, c] = src[r, c]
+    if f > latest[node]:
+        latest[node] = f
+    return True
 
 
 @njit(cache=True)
@@ -55,19 +79,9 @@ def _insert_rows(frame: np.ndarray, gen_time: np.ndarray, obs: np.ndarray, lates
                  nodes: np.ndarray, frames: np.ndarray, gens: np.ndarray, rows: np.ndarray,
                  accepted: np.ndarray) -> None:
     """The rule of :meth:`RingBuffers.insert`, row after row in order (compiled)."""
-    k = frame.shape[1]
     for j in range(nodes.shape[0]):
-        nd = nodes[j]
-        f = frames[j]
-        slot = f % k
-        if frame[nd, slot] >= f:
-            continue
-        frame[nd, slot] = f
-        gen_time[nd, slot] = gens[j]
-        obs[nd, slot, :] = rows[j, :]
-        if f > latest[nd]:
-            latest[nd] = f
-        accepted[j] = True
+        accepted[j] = insert_row(frame, gen_time, obs, latest, nodes[j], frames[j], gens[j],
+                                 rows, j)
 
 
 def _as_rows(x: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
@@ -176,16 +190,6 @@ class AlignResult:
     flag: NDArray[np.uint8]
 
 
-def _missing(buf: RingBuffers, aligned_frame: int) -> AlignResult:
-    return AlignResult(
-        aligned_frame=aligned_frame,
-        frame=np.full(buf.n, -1, dtype=np.int64),
-        gen_time=np.full(buf.n, np.nan),
-        obs=np.full((buf.n, buf.width), np.nan),
-        flag=np.full(buf.n, MISSING, dtype=np.uint8),
-    )
-
-
 def align(
     buf: RingBuffers,
     *,
@@ -207,23 +211,45 @@ def align(
     """
     if theta_lag is not None and theta_lag < 0:
         raise ValueError(f"theta_lag must be >= 0 or None, got {theta_lag}")
-    latest = buf.latest
-    has = latest >= 0
-    if not has.any():
-        return _missing(buf, prev_frame)
-    considered = has
-    if theta_lag is not None:
-        considered = has & (latest.max() - latest <= theta_lag)
-    F = max(int(prev_frame), int(latest[considered].min()))  # noqa: N806 - paper's name
+    F, frame, gen, obs, flag = _align_all(  # noqa: N806 - paper's name
+        buf.frame, buf.gen_time, buf.obs, buf.latest, -1 if theta_lag is None else theta_lag,
+        hole_fill, int(prev_frame))
+    return AlignResult(aligned_frame=int(F), frame=frame, gen_time=gen, obs=obs, flag=flag)
 
-    n = buf.n
+
+@njit(cache=True)
+def _align_all(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarray,
+               theta_lag: int, hole_fill: bool, prev_frame: int) -> tuple:  # type: ignore[type-arg]
+    """:func:`align` in one compiled call (``theta_lag`` -1: never exclude): the considered
+    nodes, ``F = max(prev_frame, min latest over them)`` and the rows (:func:`_align_rows`)
+    in fresh arrays; every row MISSING and ``F = prev_frame`` while no node has a state."""
+    n = latest.shape[0]
     frame = np.full(n, -1, dtype=np.int64)
     gen = np.full(n, np.nan)
-    obs = np.full((n, buf.width), np.nan)
-    flag = np.full(n, MISSING, dtype=np.uint8)
-    _align_rows(buf.frame, buf.gen_time, buf.obs, has, considered, F, hole_fill,
-                frame, gen, obs, flag)
-    return AlignResult(aligned_frame=F, frame=frame, gen_time=gen, obs=obs, flag=flag)
+    obs = np.full((n, ob.shape[2]), np.nan)
+    flag = np.empty(n, dtype=np.uint8)
+    flag[:] = MISSING
+    newest = -1
+    for i in range(n):
+        newest = max(newest, latest[i])
+    if newest < 0:
+        return prev_frame, frame, gen, obs, flag
+    has = latest >= 0
+    considered = np.zeros(n, dtype=np.bool_)
+    low = _BIG
+    for i in range(n):
+        # plain branches: ``considered[i] = has[i] and ...`` in this loop, next to the
+        # minimum, marked a node out in numba 0.68.1, where Python kept it
+        # (tests/events/align/test_ring.py, the per-node reference)
+        li = latest[i]
+        if li < 0 or (theta_lag >= 0 and newest - li > theta_lag):
+            continue
+        considered[i] = True
+        if li < low:
+            low = li
+    F = max(prev_frame, low)  # noqa: N806 - paper's name
+    _align_rows(fr, gt, ob, has, considered, F, hole_fill, frame, gen, obs, flag)
+    return F, frame, gen, obs, flag
 
 
 @njit(cache=True)

@@ -9,10 +9,10 @@ core through a narrow interface: it publishes triggers, commands and
 re-requests (:meth:`~CompiledCore.publish_trigger`, ...), and before each
 control event at time ``t`` runs the core to ``t``
 (:meth:`~CompiledCore.advance_to`: messages come first at equal times, as in the
-specification), which hands the batch of state deliveries to the aligner in one
-vectorised call and the latency samples to the collector. At the end
-:meth:`~CompiledCore.write_back` copies the core's counters into the objects the
-collector reads.
+specification), which stores the state deliveries in the aligner's ring buffers
+(BiDES) or hands them to the aligner in one vectorised call
+(:mod:`~sigma_des.events.fast.deliveries`). At the end :meth:`~CompiledCore.write_back`
+copies the core's counters and latency samples into the objects the collector reads.
 
 Exactness: the compiled core makes the same floating point operations in the
 same order as the per-message engine and reads the same counter-based draws, so
@@ -28,12 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.sim import Kernel
-from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
+from sigma_des.events.align.base import OBS_WIDTH, Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
+from sigma_des.events.fast.deliveries import Deliveries
 from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
@@ -110,6 +111,7 @@ class CompiledCore:
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.rollbacks = Rollbacks(host.truth, host.nodes.step_time, host.n,
                                    host.method == "bides" and spec.time_warp, spec.theta_warp)
+        self.deliveries = Deliveries(host, host.n)
         #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
@@ -135,7 +137,7 @@ class CompiledCore:
             "links": spec.hosts + 1,
             "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
             "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay_w": max(OBS_WIDTH, M),
-            "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH, "lat": 4 * (n + 1) + SLACK,
+            "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH,
             "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
             # duplicate check of re-requests and republished states (Lock-Step), or of
             # every kind (QoS 1 over datagram: row = kind)
@@ -149,6 +151,7 @@ class CompiledCore:
             "procs": spec.hosts + 2, "clients_1": n + 2,
             "machines": len(cpu.machines) if cpu is not None else 1,
             "cpu_cores": cpu.cores if cpu is not None else 1, **self.rollbacks.dims(),
+            **self.deliveries.dims(),
         }
 
     def _params(self) -> NDArray[np.int64]:
@@ -166,6 +169,7 @@ class CompiledCore:
         q[L.Q_M] = int(h.nodes.cmd.shape[1])
         q[L.Q_LOCK] = int(self._lockstep)
         q[L.Q_BATCH] = int(h.truth.batched)
+        self.deliveries.params(q)
         return q
 
     def _links(self) -> dict[str, NDArray[Any]]:
@@ -222,6 +226,7 @@ class CompiledCore:
             **self._links(), **self._nodes(), **self.attempts.given(),
             **deployment_tables(h.net, spec), **link_tables(h.net, spec),
             **clock_tables(h.nodes.clocks, spec), **self.rollbacks.given(),
+            **self.deliveries.given(),
         }
 
     def ensure_space(self, k: int) -> None:
@@ -396,6 +401,7 @@ class CompiledCore:
         """
         self._check_open()
         self.S[L.INTS][L.I_LATEST] = self.host.truth.latest  # rollbacks clamp to the ring
+        self.deliveries.watch(self.S)  # a recording tap takes the states too
         while True:
             if self._lockstep:
                 self.drain()
@@ -417,6 +423,7 @@ class CompiledCore:
                 self.ensure_space(self.host.n + 8 + self._outbox_room)
             elif code == L.NEED_FLUSH:
                 self.drain()
+                self.deliveries.latencies(S)
             elif code == L.NEED_RESIM:
                 self.flush_rollbacks()
             elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
@@ -445,31 +452,16 @@ class CompiledCore:
                     f"({self.host.spec.history_frames}) frames")
 
     def drain(self) -> None:
-        """Hand buffered state deliveries to the aligner, latencies to the collector."""
-        S = self.S
-        h = self.host
-        iv = S[L.INTS]
-        o = int(iv[L.I_OUT])
-        if o:
-            oi = S[L.OUT_INT][:o]
-            of = S[L.OUT_FLOAT][:o]
-            obs = of[:, 3 : 3 + OBS_WIDTH]
-            h.aligner.on_states(
-                StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
-            )
-            h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
-            iv[L.I_OUT] = 0
-        for k in range(3):
-            m = int(iv[L.I_LAT + k])
-            if m:
-                h.collector.delivered_batch(k + 1, S[L.LAT_BUF][k, :m].copy(), 0)
-                iv[L.I_LAT + k] = 0
+        """Hand the buffered state deliveries to the aligner (unless the loop stored them
+        in its ring) and the recording tap (:class:`~.deliveries.Deliveries`)."""
+        self.deliveries.states(self.S)
 
     def write_back(self) -> None:
         """Hand the core's counters to the components that report them (their hooks);
         the counters handed over are zeroed, so a second call adds nothing."""
         S = self.S
         h = self.host
+        self.deliveries.latencies(S)
         cnt = S[L.LINK_COUNT]
         fv = S[L.FLOATS]
         iv = S[L.INTS]

@@ -77,7 +77,11 @@ F_LEN = 4
 # int parameters (S.iparams)
 Q_N, Q_H, Q_HLC, Q_WARP, Q_THETA, Q_QOS1S, Q_ACK, Q_W, Q_M, Q_LOCK = range(10)
 Q_BATCH = 10  # the truth re-simulates deferred rollbacks in a batch (else: Python at once)
-Q_LEN = 11
+# Q_RING: delivered states go straight into the aligner's ring (S.ring_*, the rule of
+# align.ring.insert_row); Q_OUT: they are also buffered for Python (S.out_*: the aligner's
+# on_states without a ring, or a recording tap)
+Q_RING, Q_OUT = 11, 12
+Q_LEN = 13
 # float parameters (S.fparams)
 G_WARMUP, G_END = 0, 1
 G_LEN = 2
@@ -170,7 +174,8 @@ _f, _i = np.float64, np.int64
 #: ``arena`` run-arena rows, ``n`` nodes, ``clients`` = n + 1 (the server is
 #: client n), ``links`` = hosts + 1 access links, ``hosts``, ``cores``, ``tables``
 #: draw-table rows, ``H`` history frames, ``W`` observation width, ``M`` command
-#: width, ``out``/``lat`` delivery buffer capacities,
+#: width, ``out``/``lat`` delivery buffer capacities, ``ring_n``/``ring_k`` the
+#: aligner's ring buffers,
 #: ``slow`` slow-fault windows, ``seen_n``/``seen_h`` duplicate table,
 #: ``links_1`` = links + 1, and the link and clock tables' ``ge_slots``, ``deg``,
 #: ``drops``, ``ntp_j``; ``seen_k`` the duplicate table's kind rows (every kind under
@@ -296,6 +301,12 @@ FIELDS: tuple[Field, ...] = (
     Field("rb_val", _f, ("rb_t", "rb_j", "n"), None,
           "rollback draws (ROLLBACK_DRAW, node, target, j) of target row target % rb_t"),
     Field("rb_tag", _i, ("rb_t", 2), None, "rollback draws: target held, draws filled RB_*"),
+    # issue 27 (speed): the aligner's ring buffers (align.ring.RingBuffers, shared in
+    # place: ``ring_n`` nodes x ``ring_k`` slots; 1 x 1 and unused unless Q_RING)
+    Field("ring_frame", _i, ("ring_n", "ring_k"), None, "aligner's ring: frame of each slot"),
+    Field("ring_gen", _f, ("ring_n", "ring_k"), None, "aligner's ring: generation times"),
+    Field("ring_obs", _f, ("ring_n", "ring_k", "W"), None, "aligner's ring: the states"),
+    Field("ring_latest", _i, ("ring_n",), None, "aligner's ring: newest frame of each node"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -415,6 +426,10 @@ DEF_INT = INDEX["def_int"]
 DEF_ROW = INDEX["def_row"]
 RB_VAL = INDEX["rb_val"]
 RB_TAG = INDEX["rb_tag"]
+RING_FRAME = INDEX["ring_frame"]
+RING_GEN = INDEX["ring_gen"]
+RING_OBS = INDEX["ring_obs"]
+RING_LATEST = INDEX["ring_latest"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -2,13 +2,16 @@
 
 Every delivery is counted as :meth:`sigma_des.metrics.collector.Collector.delivered`
 counts it (duplicates, messages, latencies, buffered for the collector); a state
-reaching the server is buffered for the aligner, and under Lock-Step the
+reaching the server is stored in the aligner's ring buffers (BiDES: the rule of
+:func:`~sigma_des.events.align.ring.insert_row`, in arrival order) or buffered for
+its ``on_states`` (and for a recording tap), and under Lock-Step the
 barrier's count is mirrored so the loop can stop when the barrier completes
 (docs/MODEL.md, "Alignment methods").
 """
 
 from __future__ import annotations
 
+from sigma_des.events.align.ring import insert_row
 from sigma_des.events.fast.layout import (
     BARRIER,
     E_AUX,
@@ -43,7 +46,13 @@ from sigma_des.events.fast.layout import (
     OUT_INT,
     POOL,
     Q_LOCK,
+    Q_OUT,
+    Q_RING,
     Q_W,
+    RING_FRAME,
+    RING_GEN,
+    RING_LATEST,
+    RING_OBS,
     SEEN,
     T_DUPALL,
     TR_PARAMS,
@@ -103,25 +112,31 @@ def _barrier(S, subject, frame, now):  # type: ignore[no-untyped-def]
 
 @jit
 def at_server(S, s, now):  # type: ignore[no-untyped-def]
-    """A (re)published state reaches the server: buffer it for the aligner."""
+    """A (re)published state reaches the server: stored in the aligner's ring (Q_RING),
+    buffered for Python (Q_OUT), counted for the Lock-Step barrier (Q_LOCK)."""
     evi = S[EV_INT]
-    evf = S[EV_FLOAT]
-    iv = S[INTS]
+    ip = S[IPARAMS]
     subject = evi[s, E_SUBJ]
-    o = iv[I_OUT]
-    iv[I_OUT] = o + 1
-    oi = S[OUT_INT]
-    of = S[OUT_FLOAT]
     frame = evi[s, E_FRAME]
-    oi[o, 0] = subject
-    oi[o, 1] = frame
-    oi[o, 2] = evi[s, E_AUX]
-    of[o, 0] = now
-    of[o, 1] = evf[s, EF_GEN]
-    of[o, 2] = evf[s, EF_L]
+    gen = S[EV_FLOAT][s, EF_GEN]
     pool = S[POOL]
     r = payload(S, s)
-    for j in range(S[IPARAMS][Q_W]):
-        of[o, 3 + j] = pool[r, j]
-    if S[IPARAMS][Q_LOCK]:
+    if ip[Q_RING]:  # BidesAligner.on_states, row by row: RingBuffers.insert's rule
+        insert_row(S[RING_FRAME], S[RING_GEN], S[RING_OBS], S[RING_LATEST], subject, frame,
+                   gen, pool, r)
+    if ip[Q_OUT]:
+        iv = S[INTS]
+        o = iv[I_OUT]
+        iv[I_OUT] = o + 1
+        oi = S[OUT_INT]
+        of = S[OUT_FLOAT]
+        oi[o, 0] = subject
+        oi[o, 1] = frame
+        oi[o, 2] = evi[s, E_AUX]
+        of[o, 0] = now
+        of[o, 1] = gen
+        of[o, 2] = S[EV_FLOAT][s, EF_L]
+        for j in range(ip[Q_W]):
+            of[o, 3 + j] = pool[r, j]
+    if ip[Q_LOCK]:
         _barrier(S, subject, frame, now)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
-from sigma_des.events.align.ring import AlignResult, RingBuffers, align
+from sigma_des.events.align.ring import AlignResult, RingBuffers, align, insert_row
 
 
 def _fill(buf: RingBuffers, node: int, frames: list[int], value=lambda f: float(f)) -> None:
@@ -346,3 +346,31 @@ def _numpy_align(buf: RingBuffers, theta_lag: int | None, hole_fill: bool,
         flag[idx] = EXTRAPOLATED
 
     return AlignResult(aligned_frame=F, frame=frame, gen_time=gen, obs=obs, flag=flag)
+
+
+def test_insert_row_is_the_insert_rule_for_one_row() -> None:
+    """The rule the compiled core applies to each delivered state: a ring of 3 slots,
+    observations taken from the first ``width`` columns of a wider source row."""
+    buf = RingBuffers(2, 3, 2)
+    src = np.array([[9.0, 9.0, 9.0], [1.0, 2.0, 7.0], [3.0, 4.0, 7.0]])
+
+    def put(node: int, f: int, gen: float, r: int) -> bool:
+        return bool(insert_row(buf.frame, buf.gen_time, buf.obs, buf.latest, node, f, gen,
+                               src, r))
+
+    assert put(0, 4, 0.04, 1)  # slot 1
+    assert not put(0, 4, 0.05, 2)  # the same frame again: the first stays
+    assert not put(0, 1, 0.01, 2)  # slot 1 holds a newer frame
+    assert put(0, 7, 0.07, 2)  # slot 1 again, newer
+    assert put(0, 5, 0.05, 1)  # slot 2, older than the newest: latest stays 7
+    assert buf.frame.tolist() == [[-1, 7, 5], [-1, -1, -1]]
+    assert buf.latest.tolist() == [7, -1]
+    assert buf.gen_time[0, 1:].tolist() == [0.07, 0.05] and np.isnan(buf.gen_time[1]).all()
+    assert buf.obs[0].tolist() == [[0.0, 0.0], [3.0, 4.0], [1.0, 2.0]]
+    # insert() of the same rows in order gives the same buffers and says which were stored
+    ref = RingBuffers(2, 3, 2)
+    got = ref.insert([0, 0, 0, 0, 0], [4, 4, 1, 7, 5], [0.04, 0.05, 0.01, 0.07, 0.05],
+                     src[[1, 2, 2, 2, 1], :2])
+    assert got.tolist() == [True, False, False, True, True]
+    for a, b in ((ref.frame, buf.frame), (ref.obs, buf.obs), (ref.latest, buf.latest)):
+        np.testing.assert_array_equal(a, b)

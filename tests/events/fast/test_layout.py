@@ -21,6 +21,7 @@ DIMS = {
     "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
     "ack_tables": 1, "x_tables": 1, "x_rows": 1,
     "procs": 4, "machines": 1, "cpu_cores": 2, "clients_1": 5, "rb_t": 2, "rb_j": 3,
+    "ring_n": 3, "ring_k": 4,
 }
 
 
@@ -35,11 +36,11 @@ def _given() -> dict[str, np.ndarray]:
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
     # 39 + 11 queue + 8 link + 1 resim + 13 transport + 20 deployment + 2 payload pool
-    # + 4 rollbacks in the loop
-    assert len(set(names)) == len(names) == 98
+    # + 4 rollbacks in the loop + 4 the aligner's ring
+    assert len(set(names)) == len(names) == 102
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(98))
+    assert [getattr(L, name.upper()) for name in names] == list(range(102))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
