@@ -25,7 +25,7 @@ from sigma_des.agents.ideal import fly
 from sigma_des.budget import check_memory
 from sigma_des.cache.ideal import cache_dir, cached
 from sigma_des.config import ALL_METHODS, Scenario, config_hash, to_dict
-from sigma_des.errors import ConfigError
+from sigma_des.errors import ConfigError, ctrl_c_inside
 from sigma_des.events.cohort import execute
 from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS, WALL_METRICS
@@ -440,4 +440,9 @@ def _run_methods(
 
         if bar is not None:
             bar.set_postfix_str(m)
-        outs[m] = run_method(sc, m, tick, ideal, part(m))
+        try:
+            outs[m] = run_method(sc, m, tick, ideal, part(m))
+        except SystemError as e:  # a Ctrl-C wrapped by a compiled call is still Ctrl-C
+            if ctrl_c_inside(e):
+                raise KeyboardInterrupt from e
+            raise

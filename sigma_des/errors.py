@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["ConfigError"]
+__all__ = ["ConfigError", "ctrl_c_inside"]
 
 
 class ConfigError(ValueError):
@@ -26,3 +26,22 @@ class ConfigError(ValueError):
         """The same error with ``prefix.`` prepended to its key."""
         key = f"{prefix}.{self.key}" if self.key else prefix
         return ConfigError(key, self.reason)
+
+
+def ctrl_c_inside(exc: BaseException) -> bool:
+    """True if ``exc`` is a ``KeyboardInterrupt`` or was raised while one propagated
+    (its ``__cause__``/``__context__`` chain holds one).
+
+    A Ctrl-C that lands while a numba-compiled function runs Python code of its own
+    (numba boxes a freshly allocated array through ``_numba_unpickle``) comes out of the
+    compiled call as a ``SystemError`` chained to the ``KeyboardInterrupt``; callers that
+    keep finished work on Ctrl-C treat it as the interrupt it was.
+    """
+    seen: set[int] = set()
+    e: BaseException | None = exc
+    while e is not None and id(e) not in seen:
+        if isinstance(e, KeyboardInterrupt):
+            return True
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    return False

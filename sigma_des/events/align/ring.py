@@ -211,29 +211,34 @@ def align(
     """
     if theta_lag is not None and theta_lag < 0:
         raise ValueError(f"theta_lag must be >= 0 or None, got {theta_lag}")
-    F, frame, gen, obs, flag = _align_all(  # noqa: N806 - paper's name
+    n = buf.latest.shape[0]
+    # the rows are allocated here: a compiled call that returned fresh arrays would box
+    # them through Python code at every tick (numba's _numba_unpickle), where a Ctrl-C
+    # can land and come out as a SystemError
+    frame = np.full(n, -1, dtype=np.int64)
+    gen = np.full(n, np.nan)
+    obs = np.full((n, buf.obs.shape[2]), np.nan)
+    flag = np.full(n, MISSING, dtype=np.uint8)
+    F = _align_all(  # noqa: N806 - paper's name
         buf.frame, buf.gen_time, buf.obs, buf.latest, -1 if theta_lag is None else theta_lag,
-        hole_fill, int(prev_frame))
+        hole_fill, int(prev_frame), frame, gen, obs, flag)
     return AlignResult(aligned_frame=int(F), frame=frame, gen_time=gen, obs=obs, flag=flag)
 
 
 @njit(cache=True)
 def _align_all(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarray,
-               theta_lag: int, hole_fill: bool, prev_frame: int) -> tuple:  # type: ignore[type-arg]
+               theta_lag: int, hole_fill: bool, prev_frame: int, frame: np.ndarray,
+               gen: np.ndarray, obs: np.ndarray, flag: np.ndarray) -> int:
     """:func:`align` in one compiled call (``theta_lag`` -1: never exclude): the considered
     nodes, ``F = max(prev_frame, min latest over them)`` and the rows (:func:`_align_rows`)
-    in fresh arrays; every row MISSING and ``F = prev_frame`` while no node has a state."""
+    written into ``frame``, ``gen``, ``obs``, ``flag`` (which come in as -1, NaN, NaN,
+    MISSING); every row left so and ``F = prev_frame`` while no node has a state."""
     n = latest.shape[0]
-    frame = np.full(n, -1, dtype=np.int64)
-    gen = np.full(n, np.nan)
-    obs = np.full((n, ob.shape[2]), np.nan)
-    flag = np.empty(n, dtype=np.uint8)
-    flag[:] = MISSING
     newest = -1
     for i in range(n):
         newest = max(newest, latest[i])
     if newest < 0:
-        return prev_frame, frame, gen, obs, flag
+        return prev_frame
     has = latest >= 0
     considered = np.zeros(n, dtype=np.bool_)
     low = _BIG
@@ -249,7 +254,7 @@ def _align_all(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarra
             low = li
     F = max(prev_frame, low)  # noqa: N806 - paper's name
     _align_rows(fr, gt, ob, has, considered, F, hole_fill, frame, gen, obs, flag)
-    return F, frame, gen, obs, flag
+    return F
 
 
 @njit(cache=True)

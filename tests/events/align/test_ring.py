@@ -374,3 +374,26 @@ def test_insert_row_is_the_insert_rule_for_one_row() -> None:
     assert got.tolist() == [True, False, False, True, True]
     for a, b in ((ref.frame, buf.frame), (ref.obs, buf.obs), (ref.latest, buf.latest)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_align_boxes_no_fresh_array_in_its_compiled_call() -> None:
+    """Algorithm 1's compiled call writes into arrays allocated by the caller: numba
+    boxes a fresh array through Python code (``_numba_unpickle``), where a Ctrl-C at an
+    alignment tick would come out as a SystemError (test_record_durability)."""
+    import numba.core.serialize as ser
+
+    from sigma_des.events.align import ring as ring_mod
+
+    buf = ring_mod.RingBuffers(3, 4, 2)
+    for node, frame in ((0, 5), (1, 6), (2, 9)):
+        buf.insert(node, frame, 0.01 * frame, np.full(2, float(frame)))
+    ring_mod.align(buf, theta_lag=None, hole_fill=True, prev_frame=0)  # compiled now
+    calls = []
+    orig = ser._numba_unpickle
+    ser._numba_unpickle = lambda *a: calls.append(a) or orig(*a)
+    try:
+        res = ring_mod.align(buf, theta_lag=None, hole_fill=True, prev_frame=0)
+    finally:
+        ser._numba_unpickle = orig
+    assert calls == []
+    assert res.aligned_frame == 5
