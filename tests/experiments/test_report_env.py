@@ -13,9 +13,13 @@ import bench_env  # noqa: E402
 import report_env  # noqa: E402
 import train_formation  # noqa: E402
 
+from sigma_des.studies.env_report import build, delay_studies, delay_verdict  # noqa: E402
+
+IMG = ROOT / "docs" / "img" / "env"
+
 
 def test_report_from_quick_outputs(tmp_path: Path) -> None:
-    assert "no `bench.json`" in report_env.build(tmp_path)  # missing outputs are said
+    assert "no `bench.json`" in build(tmp_path, report_env.TEMPLATES, IMG)  # missing: said
     bench_env.main(["--quick", "--variant", "default", "--out", str(tmp_path)])
     train_formation.main(["--quick", "--out", str(tmp_path / "train")])
     summary = json.loads((tmp_path / "train" / "summary.json").read_text())
@@ -38,9 +42,9 @@ def test_report_from_quick_outputs(tmp_path: Path) -> None:
 def test_delay_study_section_from_a_quick_run(tmp_path: Path) -> None:
     import train_under_delay
 
-    assert "no `delay_*/summary.json`" in report_env._delay_studies(tmp_path)
+    assert "no `delay_*/summary.json`" in delay_studies(tmp_path, report_env.TEMPLATES, IMG)
     train_under_delay.main(["--quick", "--out", str(tmp_path / "delay_quick")])
-    text = report_env._delay_studies(tmp_path)
+    text = delay_studies(tmp_path, report_env.TEMPLATES, IMG)
     (r,) = json.loads((tmp_path / "delay_quick" / "summary.json").read_text())["stats"]
     assert "### `delay_quick`: CEM, seeds [0, 1]" in text
     assert (f"| bides@200ms | {r['delay_trained_mean']:.3f} ± {r['delay_trained_ci95']:.3f} | "
@@ -53,7 +57,7 @@ def test_delay_study_section_from_a_quick_run(tmp_path: Path) -> None:
              "delay_trained_mean": -0.5, "perfect_trained_mean": -0.6, "naive_fitness": -0.2},
             {"cell": "bides@50ms", "diff_mean": -0.1, "t_p_greater": 0.9, "wilcoxon_p_greater": 0.9,
              "delay_trained_mean": -0.1, "perfect_trained_mean": 0.0, "naive_fitness": -0.2}]
-    verdict = report_env._delay_verdict(rows, 5)
+    verdict = delay_verdict(rows, 5)
     assert "in 1 of 2 cells by the mean and in 1 by both paired tests" in verdict
     assert "But in 1 of 2 cells both trained policies score below" in verdict
     assert "gives the better policy under delay in" in verdict and "not shown" not in verdict

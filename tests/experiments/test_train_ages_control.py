@@ -29,6 +29,8 @@ def test_control_reproduces_the_study_and_hides_the_ages(tmp_path: Path) -> None
     assert train_ages_control.AGE_COLUMNS == [5, 8, 13]
     import report_env
 
-    text = report_env._delay_studies(tmp_path)  # the control follows its study
+    from sigma_des.studies.env_report import delay_studies
+
+    text = delay_studies(tmp_path, report_env.TEMPLATES, tmp_path / "img")  # control follows
     assert text.index("### `delay_q`") < text.index("--study delay_q`") and (
         f"| {row['perfect_hidden_mean']:.3f} ± {row['perfect_hidden_ci95']:.3f} |" in text)
