@@ -100,6 +100,7 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.node import at_node, done
 from sigma_des.events.fast.outbox import burst_done, leave
+from sigma_des.events.fast.prefetch import prefetch
 from sigma_des.events.fast.primitives import alloc, count, give_payload, jit, precedes, release
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
@@ -237,6 +238,14 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _ahead(S, s):  # type: ignore[no-untyped-def]
+    """Start loading event slot ``s``'s rows: it may be the next event taken (the current
+    run's next, or the heap top's head), and its row is rarely still in the cache."""
+    prefetch(S[EV_INT], s)
+    prefetch(S[EV_FLOAT], s)
+
+
+@jit
 def _handle(S, s, t):  # type: ignore[no-untyped-def]
     """Run event ``s``'s handler at ``t``, by its type."""
     typ = S[EV_INT][s, E_TYPE]
@@ -323,6 +332,10 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             pos[c] = p + 1  # take the head
             if p + 1 == S[RUN_END][c]:
                 qi[QI_HAS] = 0
+            else:
+                _ahead(S, ak[p + 1] & SLOT_MASK)
+            if qi[QI_HEAP] > 0:
+                _ahead(S, hk[0] & SLOT_MASK)
         _handle(S, s, t)
         release(S, s)
         if iv[I_ERR]:
