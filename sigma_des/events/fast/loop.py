@@ -37,6 +37,9 @@ from sigma_des.events.fast.layout import (
     DRAW_MISS,
     E_AUX,
     E_FRAME,
+    E_INDEX,
+    E_PAY,
+    E_SUBJ,
     E_TYPE,
     E_WHO,
     EF_L,
@@ -70,6 +73,7 @@ from sigma_des.events.fast.layout import (
     NEED_RESIM,
     NEED_SPACE,
     OB_CAP,
+    OBS_HIST,
     OK,
     OUT_INT,
     POOL,
@@ -79,6 +83,7 @@ from sigma_des.events.fast.layout import (
     Q_M,
     Q_N,
     Q_QOS1S,
+    Q_RING,
     QF_PMIN,
     QI_CUR,
     QI_HAS,
@@ -86,6 +91,9 @@ from sigma_des.events.fast.layout import (
     QI_PMINK,
     QI_PN,
     RESIM_PEND,
+    RING_FRAME,
+    RING_GEN,
+    RING_OBS,
     RUN_END,
     RUN_K,
     RUN_POS,
@@ -101,7 +109,15 @@ from sigma_des.events.fast.layout import (
 from sigma_des.events.fast.node import at_node, done
 from sigma_des.events.fast.outbox import burst_done, leave
 from sigma_des.events.fast.prefetch import prefetch
-from sigma_des.events.fast.primitives import alloc, count, give_payload, jit, precedes, release
+from sigma_des.events.fast.primitives import (
+    alloc,
+    count,
+    give_payload,
+    jit,
+    precedes,
+    release,
+    row_of,
+)
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
@@ -238,11 +254,33 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _ahead(S, s):  # type: ignore[no-untyped-def]
-    """Start loading event slot ``s``'s rows: it may be the next event taken (the current
-    run's next, or the heap top's head), and its row is rarely still in the cache."""
-    prefetch(S[EV_INT], s)
+def _ahead(S, s, more, s2):  # type: ignore[no-untyped-def]
+    """Start loading what the event in slot ``s`` will read: it may be the next event taken
+    (the current run's next, or the heap top's head), and its rows are rarely still in
+    the cache. With ``more`` (``s2``: the event after it in its run), its slot row, already
+    asked for one event ago, is read to fetch its payload row, the ring row a state at
+    the server is stored in, or the physics-ring row a job's state is published from."""
+    evi = S[EV_INT]
+    prefetch(evi, s)
     prefetch(S[EV_FLOAT], s)
+    if not more:
+        return
+    prefetch(evi, s2)
+    prefetch(S[EV_FLOAT], s2)
+    r = evi[s, E_PAY] - 1
+    if r >= 0:
+        prefetch(S[POOL], r)
+    typ = evi[s, E_TYPE]
+    ip = S[IPARAMS]
+    who = evi[s, E_WHO]
+    if typ == EV_CLIENT and who == ip[Q_N] and ip[Q_RING]:
+        subj = evi[s, E_SUBJ]
+        slot = evi[s, E_FRAME] % S[RING_FRAME].shape[1]
+        prefetch(S[RING_FRAME][subj], slot)
+        prefetch(S[RING_GEN][subj], slot)
+        prefetch(S[RING_OBS][subj], slot)
+    elif typ == EV_DONE:
+        prefetch(S[OBS_HIST][row_of(evi[s, E_INDEX], S[OBS_HIST].shape[0])], who)
 
 
 @jit
@@ -333,9 +371,9 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             if p + 1 == S[RUN_END][c]:
                 qi[QI_HAS] = 0
             else:
-                _ahead(S, ak[p + 1] & SLOT_MASK)
+                _ahead(S, ak[p + 1] & SLOT_MASK, p + 2 < S[RUN_END][c], ak[p + 2] & SLOT_MASK)
             if qi[QI_HEAP] > 0:
-                _ahead(S, hk[0] & SLOT_MASK)
+                _ahead(S, hk[0] & SLOT_MASK, False, 0)
         _handle(S, s, t)
         release(S, s)
         if iv[I_ERR]:
