@@ -254,19 +254,25 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _ahead(S, s, more, s2):  # type: ignore[no-untyped-def]
-    """Start loading what the event in slot ``s`` will read: it may be the next event taken
-    (the current run's next, or the heap top's head), and its rows are rarely still in
-    the cache. With ``more`` (``s2``: the event after it in its run), its slot row, already
-    asked for one event ago, is read to fetch its payload row, the ring row a state at
-    the server is stored in, or the physics-ring row a job's state is published from."""
-    evi = S[EV_INT]
-    prefetch(evi, s)
+def _rows(S, s):  # type: ignore[no-untyped-def]
+    """Start loading event slot ``s``'s rows."""
+    prefetch(S[EV_INT], s)
     prefetch(S[EV_FLOAT], s)
-    if not more:
+
+
+@jit
+def _ahead(S, ak, p, e):  # type: ignore[no-untyped-def]
+    """Start loading what the current run's next events will read (the loop took position
+    ``p`` of the run, which ends at ``e > p + 1``): the next event's slot rows and, its
+    slot row having been asked for one event ago, what it reads besides (its payload
+    row, the ring row a state reaching the server is stored in, the physics-ring row a
+    job's state is published from); the rows of the event after it."""
+    s = ak[p + 1] & SLOT_MASK
+    _rows(S, s)
+    if p + 2 >= e:
         return
-    prefetch(evi, s2)
-    prefetch(S[EV_FLOAT], s2)
+    _rows(S, ak[p + 2] & SLOT_MASK)
+    evi = S[EV_INT]
     r = evi[s, E_PAY] - 1
     if r >= 0:
         prefetch(S[POOL], r)
@@ -368,12 +374,13 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             if rp[n] != 0 and S[EV_INT][s, E_TYPE] == EV_DONE and rp[S[EV_INT][s, E_WHO]] != 0:
                 return NEED_RESIM  # its publish reads rows whose re-simulation Python owes
             pos[c] = p + 1  # take the head
-            if p + 1 == S[RUN_END][c]:
+            e = S[RUN_END][c]
+            if p + 1 == e:
                 qi[QI_HAS] = 0
-            else:
-                _ahead(S, ak[p + 1] & SLOT_MASK, p + 2 < S[RUN_END][c], ak[p + 2] & SLOT_MASK)
-            if qi[QI_HEAP] > 0:
-                _ahead(S, hk[0] & SLOT_MASK, False, 0)
+            else:  # a queued event's rows have rarely stayed in the cache: ask for them now
+                _ahead(S, ak, p, e)
+            if qi[QI_HEAP] > 0:  # the heap top's head is next if the run does not continue
+                _rows(S, hk[0] & SLOT_MASK)
         _handle(S, s, t)
         release(S, s)
         if iv[I_ERR]:
