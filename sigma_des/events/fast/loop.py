@@ -37,6 +37,9 @@ from sigma_des.events.fast.layout import (
     DRAW_MISS,
     E_AUX,
     E_FRAME,
+    E_INDEX,
+    E_PAY,
+    E_SUBJ,
     E_TYPE,
     E_WHO,
     EF_L,
@@ -70,6 +73,7 @@ from sigma_des.events.fast.layout import (
     NEED_RESIM,
     NEED_SPACE,
     OB_CAP,
+    OBS_HIST,
     OK,
     OUT_INT,
     POOL,
@@ -79,6 +83,7 @@ from sigma_des.events.fast.layout import (
     Q_M,
     Q_N,
     Q_QOS1S,
+    Q_RING,
     QF_PMIN,
     QI_CUR,
     QI_HAS,
@@ -86,6 +91,9 @@ from sigma_des.events.fast.layout import (
     QI_PMINK,
     QI_PN,
     RESIM_PEND,
+    RING_FRAME,
+    RING_GEN,
+    RING_OBS,
     RUN_END,
     RUN_K,
     RUN_POS,
@@ -100,7 +108,16 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.node import at_node, done
 from sigma_des.events.fast.outbox import burst_done, leave
-from sigma_des.events.fast.primitives import alloc, count, give_payload, jit, precedes, release
+from sigma_des.events.fast.prefetch import prefetch
+from sigma_des.events.fast.primitives import (
+    alloc,
+    count,
+    give_payload,
+    jit,
+    precedes,
+    release,
+    row_of,
+)
 from sigma_des.events.fast.queue import first, replace_top, view
 from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
@@ -237,6 +254,42 @@ def _drain_step(S, spare):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _rows(S, s):  # type: ignore[no-untyped-def]
+    """Start loading event slot ``s``'s rows."""
+    prefetch(S[EV_INT], s)
+    prefetch(S[EV_FLOAT], s)
+
+
+@jit
+def _ahead(S, ak, p, e):  # type: ignore[no-untyped-def]
+    """Start loading what the current run's next events will read (the loop took position
+    ``p`` of the run, which ends at ``e > p + 1``): the next event's slot rows and, its
+    slot row having been asked for one event ago, what it reads besides (its payload
+    row, the ring row a state reaching the server is stored in, the physics-ring row a
+    job's state is published from); the rows of the event after it."""
+    s = ak[p + 1] & SLOT_MASK
+    _rows(S, s)
+    if p + 2 >= e:
+        return
+    _rows(S, ak[p + 2] & SLOT_MASK)
+    evi = S[EV_INT]
+    r = evi[s, E_PAY] - 1
+    if r >= 0:
+        prefetch(S[POOL], r)
+    typ = evi[s, E_TYPE]
+    ip = S[IPARAMS]
+    who = evi[s, E_WHO]
+    if typ == EV_CLIENT and who == ip[Q_N] and ip[Q_RING]:
+        subj = evi[s, E_SUBJ]
+        slot = evi[s, E_FRAME] % S[RING_FRAME].shape[1]
+        prefetch(S[RING_FRAME][subj], slot)
+        prefetch(S[RING_GEN][subj], slot)
+        prefetch(S[RING_OBS][subj], slot)
+    elif typ == EV_DONE:
+        prefetch(S[OBS_HIST][row_of(evi[s, E_INDEX], S[OBS_HIST].shape[0])], who)
+
+
+@jit
 def _handle(S, s, t):  # type: ignore[no-untyped-def]
     """Run event ``s``'s handler at ``t``, by its type."""
     typ = S[EV_INT][s, E_TYPE]
@@ -321,8 +374,13 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
             if rp[n] != 0 and S[EV_INT][s, E_TYPE] == EV_DONE and rp[S[EV_INT][s, E_WHO]] != 0:
                 return NEED_RESIM  # its publish reads rows whose re-simulation Python owes
             pos[c] = p + 1  # take the head
-            if p + 1 == S[RUN_END][c]:
+            e = S[RUN_END][c]
+            if p + 1 == e:
                 qi[QI_HAS] = 0
+            else:  # a queued event's rows have rarely stayed in the cache: ask for them now
+                _ahead(S, ak, p, e)
+            if qi[QI_HEAP] > 0:  # the heap top's head is next if the run does not continue
+                _rows(S, hk[0] & SLOT_MASK)
         _handle(S, s, t)
         release(S, s)
         if iv[I_ERR]:

@@ -30,6 +30,7 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     ERR_RANGE,
     EV_BROKER,
+    EV_FLOAT,
     EV_INT,
     EV_INT_MAX,
     FPARAMS,
@@ -70,6 +71,7 @@ from sigma_des.events.fast.layout import (
     X_VAL,
 )
 from sigma_des.events.fast.loss import forced_drop, link_loss
+from sigma_des.events.fast.prefetch import prefetch
 
 
 @jit
@@ -117,12 +119,22 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
         qi[QI_PMINK] = key
 
 
+#: Allocations ahead whose rows :func:`alloc` and :func:`give_payload` ask the cache for:
+#: a broadcast takes a slot per subscriber in a row, most of them long unused.
+AHEAD = 4
+
+
 @jit
 def alloc(S):  # type: ignore[no-untyped-def]
     """A free event slot (it carries no payload: :func:`release` took its row back)."""
     iv = S[INTS]
-    iv[I_FREE] -= 1
-    return S[FREE][iv[I_FREE]]
+    top = iv[I_FREE] - 1
+    iv[I_FREE] = top
+    free = S[FREE]
+    if top >= AHEAD:
+        prefetch(S[EV_INT], free[top - AHEAD])
+        prefetch(S[EV_FLOAT], free[top - AHEAD])
+    return free[top]
 
 
 @jit
@@ -149,8 +161,12 @@ def release(S, slot):  # type: ignore[no-untyped-def]
 def give_payload(S, slot):  # type: ignore[no-untyped-def]
     """A pool row for ``slot``'s payload (``slot`` has none yet): its index."""
     iv = S[INTS]
-    iv[I_PFREE] -= 1
-    r = S[POOL_FREE][iv[I_PFREE]]
+    top = iv[I_PFREE] - 1
+    iv[I_PFREE] = top
+    pf = S[POOL_FREE]
+    if top >= AHEAD:
+        prefetch(S[POOL], pf[top - AHEAD])
+    r = pf[top]
     S[EV_INT][slot, E_PAY] = r + 1  # < MAX_SLOTS: the pool grows no further (growth)
     return r
 
