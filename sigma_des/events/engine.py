@@ -21,7 +21,6 @@ or the compiled core), which the run loop brings up to each control event.
 
 from __future__ import annotations
 
-import gc
 import math
 import time
 from collections.abc import Callable
@@ -30,6 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.core.gcpause import gc_paused
 from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
@@ -263,14 +263,8 @@ class MethodRun(AlignmentServer):
         # them; the cyclic GC is paused for the run and one young-generation collection
         # follows it (everything made during the run is young; a full collection would
         # also walk every long-lived object: ~0.1 s with numba loaded).
-        was_enabled = gc.isenabled()
-        gc.disable()
-        try:
+        with gc_paused(collect=0):
             self.advance(progress)
-        finally:
-            if was_enabled:
-                gc.enable()
-            gc.collect(0)
         self.wall_seconds = time.perf_counter() - t0
         self.core.close()  # the messages still in flight: no result reads them
         out = self.finish()

@@ -19,7 +19,6 @@ exponential backoff (paho's ``reconnect_delay_set``).
 
 from __future__ import annotations
 
-import gc
 import heapq
 import math
 import queue
@@ -32,6 +31,7 @@ from typing import Any
 import paho.mqtt.client as mqtt
 
 from sigma_des.core.clock import ARRIVAL
+from sigma_des.core.gcpause import gc_paused
 from sigma_des.live.broker import BrokerAddress
 
 __all__ = ["Client", "Loop", "VirtualLoop", "WakeStats"]
@@ -165,13 +165,8 @@ class Loop:
         runs): a full collection over what the process's earlier runs left stalled a
         live host for 100-130 ms in the fourth method's run (validation ``s11b``), a
         pause no real simulator node has."""
-        was = gc.isenabled()
-        gc.disable()
-        try:
+        with gc_paused():
             self._run(until)
-        finally:
-            if was:
-                gc.enable()
 
     def _run(self, until: float) -> None:
         heap = self._heap
