@@ -369,7 +369,8 @@ def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
     if s.deployment == DeploymentSpec():  # today's model: not written, hashes unchanged
         d.pop("deployment")
     else:  # keys added later are left out at 0 (as before they existed)
-        later = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch")
+        later = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
+                 "host_runq", "server_runq", "broker_runq", "runq_growth")
         d["deployment"] = {k: v for k, v in d["deployment"].items() if v != 0.0 or k not in later}
     if keep_auto:
         if getattr(s, "hosts_auto", False):

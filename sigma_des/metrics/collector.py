@@ -66,6 +66,8 @@ METRIC_UNITS: dict[str, str] = {
     # only with a CPU stage (deployment.preset colocated or dedicated; absent otherwise)
     "server_cpu_util": "1",
     "server_cpu_max_wait_ms": "ms",
+    "server_runq_cores": "cores",
+    "host_runq_cores_mean": "cores",
     "host_cpu_util_max": "1",
     "machine_cpu_util_max": "1",
     "buffer_bytes_peak": "B",
@@ -389,12 +391,17 @@ def cpu_metrics(cpu: CpuReport, window: float) -> dict[str, float]:
     per_machine: dict[str, float] = {}
     for p in cpu.processes:
         per_machine[p.machine] = per_machine.get(p.machine, 0.0) + p.busy
-    return {
+    out = {
         "server_cpu_util": server.busy / window,
         "server_cpu_max_wait_ms": server.max_wait * 1000.0,
         "host_cpu_util_max": max(hosts, default=0.0) / window,
         "machine_cpu_util_max": max(per_machine.values()) / (cpu.cores * window),
     }
+    if any(p.queued > 0.0 for p in cpu.processes):  # run-queue waits modelled
+        waits = [p.queued for p in cpu.processes if p.name.startswith("host")]
+        out["server_runq_cores"] = server.queued / window
+        out["host_runq_cores_mean"] = sum(waits) / max(len(waits), 1) / window
+    return out
 
 
 def whole_ticks(ts: dict[str, list[Any]]) -> dict[str, NDArray[Any]]:

@@ -104,7 +104,8 @@ class Broker:
             length = s_pub
             for x in s_del:
                 length += x
-            start, c = proc.acquire(now, length)  # its thread is free at ``busy``
+            wait = proc.run_wait(now, length / sc, length)
+            start, c = proc.acquire(now, length, wait)  # its thread is free at ``busy``
         if self.warmup <= now < self.end:
             self.max_wait = max(self.max_wait, start - now)
         t_ack = start + s_pub
@@ -131,7 +132,7 @@ class Broker:
             end = start + s_del
         else:
             length = s_del * proc.scale
-            start, c = proc.acquire(now, length)
+            start, c = proc.acquire(now, length, proc.run_wait(now, s_del, length))
             end = start + length
             proc.hold(now, start, c, end)
         self.busy = end

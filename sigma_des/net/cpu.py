@@ -40,10 +40,36 @@ from dataclasses import dataclass
 
 from sigma_des.net.spec import DeploymentSpec
 
-__all__ = ["RESERVATIONS", "Cpu", "CpuReport", "Machine", "Process", "ProcessReport"]
+__all__ = ["LOAD_WINDOW", "RESERVATIONS", "U_CAP", "Cpu", "CpuReport", "Machine", "Process",
+           "ProcessReport", "queue_wait"]
 
 #: most reservations a core keeps (beyond: its two earliest merge into one)
 RESERVATIONS = 64
+#: length of the windows a machine's utilisation is measured over (s): a burst's
+#: run-queue wait follows the previous window's utilisation
+LOAD_WINDOW = 0.05
+#: highest utilisation :func:`queue_wait` is evaluated at (its wait grows without bound
+#: towards 1)
+U_CAP = 0.95
+
+
+def queue_wait(cores: int, u: float) -> float:
+    """Mean wait for a core over mean service of an M/M/c queue (Erlang C), ``c = cores``
+    at utilisation ``u`` (capped at :data:`U_CAP`; 0 at ``u <= 0``).
+
+    Erlang B by its stable recursion ``B_k = A·B_{k-1} / (k + A·B_{k-1})`` with
+    ``A = c·u``, then ``C = B / (1 - u·(1 - B))`` and ``W_q / S = C / (c·(1 - u))``.
+    """
+    if u <= 0.0:
+        return 0.0
+    if u > U_CAP:
+        u = U_CAP
+    a = cores * u
+    b = 1.0
+    for k in range(1, cores + 1):
+        b = a * b / (k + a * b)
+    c = b / (1.0 - u * (1.0 - b))
+    return c / (cores * (1.0 - u))
 
 
 class Machine:
@@ -54,11 +80,31 @@ class Machine:
         cores: number of cores.
     """
 
-    __slots__ = ("name", "cores")
+    __slots__ = ("name", "cores", "growth", "bg", "w_end", "w_busy", "q")
 
-    def __init__(self, name: str, cores: int) -> None:
+    def __init__(self, name: str, cores: int, growth: bool = False,
+                 background: float = 0.0) -> None:
         self.name = name
         self.cores: list[list[tuple[float, float]]] = [[] for _ in range(cores)]
+        self.growth = growth
+        self.bg = background
+        self.w_end = LOAD_WINDOW  # end of the current load window
+        self.w_busy = 0.0  # CPU seconds of the bursts arriving in it
+        self.q = queue_wait(cores, background / cores) if growth else 0.0
+
+    def load_wait(self, a: float) -> float:
+        """The queue's run-queue wait per CPU second for a burst arriving at ``a``:
+        :func:`queue_wait` at the utilisation of the last whole window before ``a``
+        (our CPU plus the background, over the cores); 0 without growth."""
+        if not self.growth:
+            return 0.0
+        if a >= self.w_end:
+            n = len(self.cores)
+            busy = self.w_busy if a < self.w_end + LOAD_WINDOW else 0.0
+            self.q = queue_wait(n, (busy / LOAD_WINDOW + self.bg) / n)
+            self.w_end += LOAD_WINDOW * (1.0 + math.floor((a - self.w_end) / LOAD_WINDOW))
+            self.w_busy = 0.0
+        return self.q
 
     def place(self, a: float, r: float, length: float) -> tuple[float, int]:
         """The earliest start ``s >= r`` of a burst of ``length`` arriving at ``a``, and
@@ -109,15 +155,17 @@ class Process:
         bursts: bursts arriving in the window.
     """
 
-    __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "free", "busy",
-                 "max_wait", "bursts")
+    __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "runq", "free", "busy",
+                 "max_wait", "bursts", "queued")
 
     def __init__(self, name: str, machine: Machine, scale: float, warmup: float,
-                 end: float, wake: float = 0.0) -> None:
+                 end: float, wake: float = 0.0, runq: float = 0.0) -> None:
         self.name = name
         self.machine = machine
         self.scale = scale
         self.wake = wake
+        self.runq = runq
+        self.queued = 0.0
         self.warmup = warmup
         self.end = end
         self.free = -math.inf  # never busy yet: the first burst is a wake-up
@@ -125,12 +173,27 @@ class Process:
         self.max_wait = 0.0
         self.bursts = 0
 
-    def acquire(self, a: float, length: float) -> tuple[float, int]:
-        """Start time and core of a burst of ``length`` arriving at ``a`` (nothing is
-        held yet)."""
+    def acquire(self, a: float, length: float, wait: float = 0.0) -> tuple[float, int]:
+        """Start time and core of a burst of ``length`` arriving at ``a`` that waits
+        ``wait`` on the run queue once its thread is free (nothing is held yet)."""
         tf = self.free
         r = a if a > tf else tf
+        if wait > 0.0:
+            r += wait
         return self.machine.place(a, r, length)
+
+    def run_wait(self, a: float, cpu: float, length: float) -> float:
+        """The run-queue wait of a burst of ``cpu`` CPU seconds (``length`` on a core)
+        arriving at ``a``: ``(runq + machine's load wait) · length``; the burst's CPU
+        counts in its machine's load window. 0, and nothing counted, with neither."""
+        m = self.machine
+        if not (m.growth or self.runq > 0.0):
+            return 0.0
+        wait = (self.runq + m.load_wait(a)) * length
+        m.w_busy += cpu
+        if self.warmup <= a < self.end:
+            self.queued += wait
+        return wait
 
     def hold(self, a: float, s: float, c: int, end: float) -> None:
         """A burst arrived at ``a``, started at ``s`` on core ``c`` and ends at ``end``."""
@@ -146,22 +209,26 @@ class Process:
         if hi > lo:
             self.busy += hi - lo
 
-    def carried(self, free: float, busy: float, max_wait: float, bursts: int) -> None:
+    def carried(self, free: float, busy: float, max_wait: float, bursts: int,
+                queued: float = 0.0) -> None:
         """Bursts served elsewhere (the compiled core): free again at ``free`` at the
         latest, ``busy`` more CPU seconds, a longest wait of ``max_wait``, ``bursts``
-        more bursts in the window."""
+        more bursts in the window, ``queued`` more run-queue wait."""
         self.free = max(self.free, free)
         self.busy += busy
         self.max_wait = max(self.max_wait, max_wait)
         self.bursts += bursts
+        self.queued += queued
 
     def span(self, a: float, demand: float) -> tuple[float, float]:
         """Serve a burst of ``demand`` CPU seconds (> 0) arriving at ``a`` (plus ``wake``
         if the thread is idle then); its start and end."""
         w = self.wake
         idle = w > 0.0 and a > self.free
-        length = (demand + w) * self.scale if idle else demand * self.scale
-        s, c = self.acquire(a, length)
+        cpu = demand + w if idle else demand
+        length = cpu * self.scale
+        wait = self.run_wait(a, cpu, length)
+        s, c = self.acquire(a, length, wait)
         end = s + length
         self.hold(a, s, c, end)
         return s, end
@@ -181,6 +248,8 @@ class ProcessReport:
         busy: CPU seconds it held a core (demands times the background slow-down).
         max_wait: longest wait of a burst before its start (s).
         bursts: bursts that arrived in the window.
+        queued: run-queue wait of the bursts that arrived in the window (s; 0 without
+            ``*_runq`` and ``runq_growth``).
     """
 
     name: str
@@ -188,6 +257,7 @@ class ProcessReport:
     busy: float
     max_wait: float
     bursts: int
+    queued: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -229,16 +299,18 @@ class Cpu:
         c = spec.cores
         scale = c / (c - spec.background)
         names = ["broker", "server", *(f"host{h}" for h in range(hosts))]
+        grow = spec.runq_growth
         if spec.preset == "colocated":
-            one = Machine("all", c)
+            one = Machine("all", c, grow, spec.background)
             machines = [one] * len(names)
             self.machines = [one]
         else:
-            machines = [Machine(n, c) for n in names]
+            machines = [Machine(n, c, grow, spec.background) for n in names]
             self.machines = machines
         wakes = [0.0, spec.server_wake, *([spec.host_wake] * hosts)]
-        procs = [Process(n, m, scale, warmup, end, w)
-                 for n, m, w in zip(names, machines, wakes, strict=True)]
+        runqs = [spec.broker_runq, spec.server_runq, *([spec.host_runq] * hosts)]
+        procs = [Process(n, m, scale, warmup, end, w, q)
+                 for n, m, w, q in zip(names, machines, wakes, runqs, strict=True)]
         self.cores = c
         self.broker = procs[0]
         self.server = procs[1]
@@ -248,7 +320,8 @@ class Cpu:
     def report(self) -> CpuReport:
         """Every process's counters (the one hook the results read)."""
         return CpuReport(
-            processes=tuple(ProcessReport(p.name, p.machine.name, p.busy, p.max_wait, p.bursts)
+            processes=tuple(ProcessReport(p.name, p.machine.name, p.busy, p.max_wait, p.bursts,
+                                          p.queued)
                             for p in self.processes),
             cores=self.cores,
             machines=tuple(m.name for m in self.machines),

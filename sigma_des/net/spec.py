@@ -62,6 +62,8 @@ CLIENTS: tuple[str, ...] = ("node", "host")
 MAX_CORES = 4096
 #: Largest per-message or per-tick CPU demand (s).
 MAX_DEMAND = 1.0
+#: Largest run-queue wait per CPU second a deployment accepts.
+MAX_RUNQ = 100.0
 
 
 @dataclass(frozen=True)
@@ -235,6 +237,10 @@ class DeploymentSpec:
     host_record: float = 0.0
     server_record: float = 0.0
     lock_switch: float = 0.0
+    host_runq: float = 0.0
+    server_runq: float = 0.0
+    broker_runq: float = 0.0
+    runq_growth: bool = False
     clients: str = "node"
     bundle: bool = False
 
@@ -248,6 +254,8 @@ class DeploymentSpec:
         for name in ("host_demand", "server_demand", "server_tick", "host_wake",
                      "server_wake", "host_record", "server_record", "lock_switch"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
+        for name in ("host_runq", "server_runq", "broker_runq"):
+            require_in(self, name, 0.0, MAX_RUNQ, " s per CPU second")
         for who in ("host", "server"):
             wake, demand = getattr(self, f"{who}_wake"), getattr(self, f"{who}_demand")
             require(wake == 0.0 or demand > 0.0, f"{who}_wake",
@@ -260,7 +268,8 @@ class DeploymentSpec:
         if self.preset == "none":
             for name in ("background", "host_demand", "server_demand", "server_tick",
                          "host_wake", "server_wake", "host_record", "server_record",
-                         "lock_switch"):
+                         "lock_switch", "host_runq", "server_runq", "broker_runq",
+                         "runq_growth"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

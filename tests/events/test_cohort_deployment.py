@@ -200,3 +200,20 @@ def test_backfilled_cores_and_the_reservation_cap_identical(
     ev, _co = run_both(sc, method)
     assert most[0] == RESERVATIONS  # the spec engine's run filled a core to the cap
     assert ev["metrics"]["machine_cpu_util_max"] > 0.9
+
+
+@pytest.mark.parametrize("preset", ["colocated", "dedicated"])
+@pytest.mark.parametrize("method", METHODS)
+def test_run_queue_waits_identical(method: str, preset: str) -> None:
+    """Run-queue floors per process and the machine's load-window growth (Erlang C):
+    both engines, every metric the same, and the waits really taken."""
+    sc = tiny(**{**_BASE, **_CPU, "deployment.preset": preset, "deployment.cores": 2,
+                 "deployment.host_wake": 0.0001, "deployment.host_runq": 0.8,
+                 "deployment.server_runq": 0.5, "deployment.broker_runq": 1.2,
+                 "deployment.runq_growth": True})
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    _exercised(m)
+    assert m["server_runq_cores"] > 0.0 and m["host_runq_cores_mean"] > 0.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sigma_des.net.cpu import RESERVATIONS, Cpu, Machine
+from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS, U_CAP, Cpu, Machine, queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
 
@@ -120,3 +120,40 @@ def test_counters_only_inside_the_metrics_window() -> None:
 def test_no_cpu_stage_has_no_cpu() -> None:
     with pytest.raises(ValueError, match="preset 'none'"):
         Cpu(DeploymentSpec(), 1, 0.0, 1.0)
+
+
+def test_queue_wait_is_erlang_c_by_hand() -> None:
+    # M/M/1: rho / (1 - rho); M/M/2 at 0.5: C = 1/3, W/S = C / (2 * 0.5) = 1/3
+    assert queue_wait(1, 0.5) == pytest.approx(1.0, rel=1e-15)
+    assert queue_wait(1, 0.75) == pytest.approx(3.0, rel=1e-15)
+    assert queue_wait(2, 0.5) == pytest.approx(1.0 / 3.0, rel=1e-15)
+    assert queue_wait(2, 0.0) == 0.0
+    assert queue_wait(1, 0.999) == queue_wait(1, U_CAP) == pytest.approx(19.0)
+
+
+def _runq(**kw: float | bool) -> Cpu:
+    return Cpu(DeploymentSpec(preset="colocated", cores=1, **kw), 1, 0.0, 100.0)  # type: ignore[arg-type]
+
+
+def test_a_run_queue_floor_delays_each_burst_by_its_share_of_the_burst() -> None:
+    cpu = _runq(server_runq=0.5)
+    s = cpu.server
+    assert s.span(1.0, 0.2) == (1.1, pytest.approx(1.3))  # waits 0.5 x 0.2 first
+    # queued behind itself: ready at 1.3, waits 0.5 x 0.4 more, runs 0.4
+    start, end = s.span(1.0, 0.4)
+    assert (start, end) == (pytest.approx(1.5), pytest.approx(1.9))
+    assert s.queued == pytest.approx(0.1 + 0.2)
+    assert cpu.hosts[0].burst(1.0, 0.1) == pytest.approx(1.1)  # no floor: the core at once
+
+
+def test_growth_follows_the_last_windows_utilisation() -> None:
+    """One core, growth on: 0.025 CPU-s arriving in [0, 0.05) is utilisation 0.5, so a
+    burst in the next window waits queue_wait(1, 0.5) = 1 times its length; a window
+    with nothing before it waits nothing."""
+    cpu = _runq(runq_growth=True)
+    h = cpu.hosts[0]
+    assert h.burst(0.0, 0.025) == 0.025  # the first window: no history, no wait
+    start, _end = h.span(LOAD_WINDOW + 0.01, 0.001)
+    assert start == pytest.approx(LOAD_WINDOW + 0.01 + 1.0 * 0.001)
+    start, _end = h.span(3 * LOAD_WINDOW + 0.001, 0.002)  # the window before was empty
+    assert start == 3 * LOAD_WINDOW + 0.001

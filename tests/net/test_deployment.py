@@ -56,6 +56,12 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
     (["deployment.preset='colocated'", "deployment.server_demand=1e-4",
       "deployment.server_record=-1e-5"], r"deployment.server_record: must be in \[0, 1\] s"),
     (["deployment.clients='host'", "methods='rpc'"], "deployment.clients: 'host' does not"),
+    (["deployment.host_runq=0.5"],
+     "deployment.host_runq: needs deployment.preset colocated or dedicated"),
+    (["deployment.runq_growth=true"],
+     "deployment.runq_growth: needs deployment.preset colocated or dedicated"),
+    (["deployment.preset='colocated'", "deployment.broker_runq=-0.1"],
+     r"deployment.broker_runq: must be in \[0, 100\] s per CPU second"),
     (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
       "net.qos=0"], "deployment.preset: needs net.middleware 'mqtt'"),
 ])
@@ -79,6 +85,10 @@ def test_wake_and_switch_at_zero_leave_the_hash_of_a_deployment_alone() -> None:
     assert "host_wake = 5e-05" in to_toml(on) and "lock_switch = 0.005" in to_toml(on)
     rec = load(None, [*base, "deployment.host_record=2e-5"])
     assert config_hash(rec) != config_hash(old) and "host_record = 2e-05" in to_toml(rec)
+    rq = load(None, [*base, "deployment.server_runq=0.0", "deployment.runq_growth=false"])
+    assert config_hash(rq) == config_hash(old) and "runq" not in to_toml(rq)
+    rq = load(None, [*base, "deployment.runq_growth=true"])
+    assert config_hash(rq) != config_hash(old) and "runq_growth = true" in to_toml(rq)
 
 
 def test_clients_and_bundle_are_allowed_without_a_cpu_stage() -> None:

@@ -11,7 +11,7 @@ slow-down, and the core is held until the last delivery leaves.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import acquire, hold
+from sigma_des.events.fast.cpu import acquire, hold, run_wait
 from sigma_des.events.fast.layout import (
     BCAST,
     CL_OF,
@@ -119,7 +119,8 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     if scaled:
         sc = S[CPU_SCALE][bp]
         s_pub = s_pub * sc
-        start, c = acquire(S, bp, now, _length(S, kind, subject, index, att, s_pub, sc))
+        length = _length(S, kind, subject, index, att, s_pub, sc)
+        start, c = acquire(S, bp, now, length, run_wait(S, bp, now, length / sc, length))
     else:
         busy = ff[F_BUSY]
         start = now if now > busy else busy
@@ -164,7 +165,7 @@ def serve_delivery(S, kind, subject, index, attempt, now):  # type: ignore[no-un
         end = start + s_del
     else:
         length = s_del * S[CPU_SCALE][bp]
-        start, c = acquire(S, bp, now, length)
+        start, c = acquire(S, bp, now, length, run_wait(S, bp, now, s_del, length))
         end = start + length
         hold(S, bp, now, start, c, end)
     ff[F_BUSY] = end

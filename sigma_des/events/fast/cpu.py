@@ -11,41 +11,103 @@ Process ``p`` is the spec's ``Cpu.processes[p]`` (broker, server, hosts); its
 counters (CPU seconds and longest wait in the metrics window, bursts) are handed
 back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
+Run-queue waits (``deployment.*_runq``, ``runq_growth``) are
+``Process.run_wait`` and ``Machine.load_wait``, the same operations in the same order.
 """
 
 from __future__ import annotations
 
+import math
+
 from sigma_des.events.fast.layout import (
     CA_BUSY,
+    CA_QUEUED,
     CA_WAIT,
     CPU_ACC,
     CPU_BURSTS,
     CPU_FREE,
     CPU_IV,
+    CPU_LOAD,
     CPU_MACH,
     CPU_NIV,
+    CPU_RUNQ,
     CPU_SCALE,
     CPU_WAKE,
     FPARAMS,
     G_END,
     G_WARMUP,
+    ML_BG,
+    ML_BUSY,
+    ML_END,
+    ML_GROW,
+    ML_Q,
 )
 from sigma_des.events.fast.primitives import jit
 from sigma_des.events.fast.stateref import ref
-from sigma_des.net.cpu import RESERVATIONS
+from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS, U_CAP
 
-__all__ = ["acquire", "burst", "hold", "span", "tick"]
+__all__ = ["acquire", "burst", "hold", "queue_wait", "run_wait", "span", "tick"]
 
 
 @jit
-def acquire(S, p, a, length):  # type: ignore[no-untyped-def]
+def queue_wait(cores, u):  # type: ignore[no-untyped-def]
+    """net.cpu.queue_wait: Erlang C's mean wait over mean service at utilisation ``u``."""
+    if u <= 0.0:
+        return 0.0
+    if u > U_CAP:
+        u = U_CAP
+    a = cores * u
+    b = 1.0
+    for k in range(1, cores + 1):
+        b = a * b / (k + a * b)
+    c = b / (1.0 - u * (1.0 - b))
+    return c / (cores * (1.0 - u))
+
+
+@jit
+def _load_wait(S, m, a):  # type: ignore[no-untyped-def]
+    """Machine.load_wait: the run-queue wait per CPU second of machine ``m`` at ``a``."""
+    ld = S[CPU_LOAD][m]
+    if ld[ML_GROW] == 0.0:
+        return 0.0
+    if a >= ld[ML_END]:
+        n = S[CPU_NIV][m].shape[0]
+        busy = ld[ML_BUSY] if a < ld[ML_END] + LOAD_WINDOW else 0.0
+        ld[ML_Q] = queue_wait(n, (busy / LOAD_WINDOW + ld[ML_BG]) / n)
+        ld[ML_END] += LOAD_WINDOW * (1.0 + math.floor((a - ld[ML_END]) / LOAD_WINDOW))
+        ld[ML_BUSY] = 0.0
+    return ld[ML_Q]
+
+
+@jit
+def run_wait(S, p, a, cpu, length):  # type: ignore[no-untyped-def]
+    """Process.run_wait: the run-queue wait of a burst of ``cpu`` CPU seconds (``length``
+    on a core) of process ``p`` arriving at ``a``; its CPU counts in the load window."""
+    m = S[CPU_MACH][p]
+    ld = S[CPU_LOAD][m]
+    rq = S[CPU_RUNQ][p]
+    if not (ld[ML_GROW] != 0.0 or rq > 0.0):
+        return 0.0
+    wait = (rq + _load_wait(S, m, a)) * length
+    ld[ML_BUSY] += cpu
+    g = S[FPARAMS]
+    if g[G_WARMUP] <= a and a < g[G_END]:
+        S[CPU_ACC][p, CA_QUEUED] += wait
+    return wait
+
+
+@jit
+def acquire(S, p, a, length, wait):  # type: ignore[no-untyped-def]
     """Process.acquire and Machine.place: start time and core of a burst of ``length``
-    of process ``p`` arriving at ``a`` (ended reservations dropped, nothing held)."""
+    of process ``p`` arriving at ``a`` that waits ``wait`` on the run queue once its
+    thread is free (ended reservations dropped, nothing held)."""
     m = S[CPU_MACH][p]
     iv = S[CPU_IV][m]
     niv = S[CPU_NIV][m]
     tf = S[CPU_FREE][p]
     r = a if a > tf else tf
+    if wait > 0.0:
+        r += wait
     best = -1.0
     core = 0
     for c in range(niv.shape[0]):
@@ -122,11 +184,9 @@ def span(S, p, demand, a):  # type: ignore[no-untyped-def]
     """Process.span: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
     ``a`` (plus the process's wake-up cost if its thread is idle then); its start and end."""
     w = S[CPU_WAKE][p]
-    if w > 0.0 and a > S[CPU_FREE][p]:
-        length = (demand + w) * S[CPU_SCALE][p]
-    else:
-        length = demand * S[CPU_SCALE][p]
-    s, c = acquire(S, p, a, length)
+    cpu = demand + w if w > 0.0 and a > S[CPU_FREE][p] else demand
+    length = cpu * S[CPU_SCALE][p]
+    s, c = acquire(S, p, a, length, run_wait(S, p, a, cpu, length))
     end = s + length
     hold(S, p, a, s, c, end)
     return s, end

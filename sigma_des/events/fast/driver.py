@@ -478,7 +478,7 @@ class CompiledCore:
             nb = S[L.CPU_BURSTS]
             for p, proc in enumerate(cpu.processes):
                 proc.carried(float(S[L.CPU_FREE][p]), float(acc[p, L.CA_BUSY]),
-                             float(acc[p, L.CA_WAIT]), int(nb[p]))
+                             float(acc[p, L.CA_WAIT]), int(nb[p]), float(acc[p, L.CA_QUEUED]))
             acc[:] = 0.0
             nb[:] = 0
         h.nodes.count_history_misses(int(iv[L.I_HMISS]))

@@ -144,7 +144,12 @@ CP_APP, CP_BROKER, CP_HOSTS, CP_NSUB, CP_MAXMEM, CP_SWITCH = range(6)
 CP_LEN = 6
 #: process indices (the spec's ``Cpu.processes`` order): broker, server, host h at 2 + h
 P_BROKER, P_SERVER, P_HOST0 = 0, 1, 2
-CA_BUSY, CA_WAIT = range(2)
+CA_BUSY, CA_WAIT, CA_QUEUED = range(3)
+#: columns of a machine's load window (S.cpu_load): growth on (1.0) or off, background
+#: cores, end of the current window, CPU seconds arrived in it, the run-queue wait per
+#: CPU second it gives (``net.cpu.Machine.load_wait``)
+ML_GROW, ML_BG, ML_END, ML_BUSY, ML_Q = range(5)
+ML_LEN = 5
 
 
 @dataclass(frozen=True)
@@ -278,7 +283,10 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_iv", _f, ("machines", "cpu_cores", RESERVATIONS + 1, 2), 0.0,
           "machine cores' reservations [start, end), in start order (+1: room to insert)"),
     Field("cpu_niv", _i, ("machines", "cpu_cores"), 0, "reservations each core holds"),
-    Field("cpu_acc", _f, ("procs", 2), 0.0, "process CPU seconds and longest wait in window"),
+    Field("cpu_acc", _f, ("procs", 3), 0.0,
+          "process CPU seconds, longest wait and run-queue wait in window"),
+    Field("cpu_runq", _f, ("procs",), None, "run-queue wait floor per CPU second, per process"),
+    Field("cpu_load", _f, ("machines", ML_LEN), None, "each machine's load window ML_*"),
     Field("cpu_bursts", _i, ("procs",), 0.0, "bursts arriving in the window, per process"),
     Field("cl_of", _i, ("clients",), None, "MQTT client of each node (the server's: itself)"),
     Field("bcast", _i, ("clients",), None, "a broadcast's subscribers (first CP_NSUB)"),
@@ -415,6 +423,8 @@ BCAST = INDEX["bcast"]
 MEM_PTR = INDEX["mem_ptr"]
 MEM = INDEX["mem"]
 CPU_WAKE = INDEX["cpu_wake"]
+CPU_RUNQ = INDEX["cpu_runq"]
+CPU_LOAD = INDEX["cpu_load"]
 CPU_SWITCH = INDEX["cpu_switch"]
 CPU_OB = INDEX["cpu_ob"]
 CPU_OBQ = INDEX["cpu_obq"]

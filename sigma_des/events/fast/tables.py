@@ -251,13 +251,18 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     scale = np.ones(H + 2)
     wake = np.zeros(H + 2)
     switch = np.zeros(H + 2)
+    runq = np.zeros(H + 2)
+    load = np.zeros((len(cpu.machines) if cpu is not None else 1, L.ML_LEN))
     if cpu is not None:
+        for m, x in enumerate(cpu.machines):
+            load[m] = (float(x.growth), x.bg, x.w_end, x.w_busy, x.q)
         # process p is cpu.processes[p]: broker, server, host h at P_HOST0 + h
         assert cpu.processes == [cpu.broker, cpu.server, *cpu.hosts]
         for p, pr in enumerate(cpu.processes):
             mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
             scale[p] = pr.scale
             wake[p] = pr.wake
+            runq[p] = pr.runq
             switch[p] = dep.lock_switch if p != L.P_BROKER else 0.0
         ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
         for i in range(n + 1):  # Network._proc: no burst for a zero demand
@@ -283,5 +288,6 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
             "cpu_scale": scale, "cpu_wake": wake, "cpu_switch": switch, "cl_of": cl_of,
+            "cpu_runq": runq, "cpu_load": load,
             "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}
