@@ -415,7 +415,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         per_client = fit.broker_service
         cpu_report = fit.report
     services = path_services(dep, publish.mean_value(), per_client,
-                             fit.wake_share if fit is not None else None)
+                             fit.wake_share if fit is not None else None,
+                             fit.report["machine_busy_cores"] / dep.cores
+                             if fit is not None else 0.0)
     net, lat_report = _fit_links(base, w, states, services, d, hold_tol, fit is None, warn,
                                  "--out" if files_dir else str(source))
     compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,

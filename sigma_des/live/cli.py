@@ -92,6 +92,10 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
                    "0: keep the measured latencies)")
     p.add_argument("--no-check", action="store_true",
                    help="skip the in-sample check (the calibrated DES re-running the live run)")
+    p.add_argument("--no-match", action="store_true",
+                   help="keep the fitted hop latencies as they are (default: rescale each "
+                   "direction's until the DES re-predicts the run's mean state and trigger "
+                   "latency within 3 %%; docs/LIVE.md, Calibration)")
 
 
 def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
@@ -275,6 +279,13 @@ def run_calibrate(args: argparse.Namespace) -> int:
         output_file(Path(args.out).with_suffix(".json"), "--out")
     sc, report = calibrate(source, Path(args.out).parent if args.out else None,
                            strict=not args.allow_incomplete, hold_tol=tol)
+    out_dir = Path(args.out).parent if args.out else (source if source.is_dir()
+                                                      else source.parent)
+    if not args.no_match:
+        from sigma_des.live.match import match_hops
+
+        sc, rep = match_hops(sc, source, out_dir)
+        report.update(rep)
     if not args.no_check:
         rows, warn = in_sample(sc, source)
         report["in_sample"] = rows

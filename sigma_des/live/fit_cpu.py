@@ -18,19 +18,29 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   :data:`~sigma_des.live.cpu.WAKE_COLUMNS`: wake-ups ``W``, calls ``K``, the loop
   thread's CPU ``C`` and the moments of a least-squares line ``cpu = a + b·k`` of a
   wake-up's CPU against its ``k`` calls). Pooled over the processes of one kind and
-  the methods, the loop thread's intercept ``a`` is the process's per-wake-up cost,
-  ``wake = a``, and the Utilization Law gives the rest per message,
-  ``D = (Σ busy − wake · W) / Σ messages``: the rest of the process's CPU, paho's
-  network thread above all (≈ 55 % of it here), reads, parses and hands over each
-  message (the server's receipts of one frame come one such cost apart, 110–150 µs;
-  scaling the intercept by the process's CPU over its loop thread's instead, as the
-  first version did, put the server's per-message demand at 59 µs and the DES's
-  receipts half as far apart). A host's messages are the PUBLISHes its
+  the methods, a message costs one call in each of the process's two threads,
+  ``D = 2·b`` (the loop's slope, and as much in paho's network thread, which reads,
+  parses and hands over each message), and the Utilization Law gives the rest per
+  wake-up, ``wake = (Σ busy − D · Σ messages) / W``: both threads leave their waits
+  together (a message wakes the network thread, which wakes the loop), and what they
+  do once per wake-up is shared by every message handled before they wait again.
+  *Why* (session 13): the previous split (``wake = a``, the rest per message: 150–165
+  µs a message, 90 µs a wake-up) kept a process's CPU per message from falling below
+  its N = 20 value, where live's fell from 188 to 72 µs between N = 20 and 100; this
+  one (36–42 µs a message, 236–264 µs a wake-up on ``s13``) matches the least-squares
+  fit over every cell of ``s11c`` (65 µs + 260 µs), which it was not fitted to. A
+  host's messages are the PUBLISHes its
   ledger counted with a send time in the metrics window: triggers, commands and
   Lock-Step re-requests received, states sent (a bundle once); the server's: states
   received, triggers, commands and re-requests sent. Without wake-up columns (a run
-  recorded before them), or with a line that gives no positive wake-up cost, the
+  recorded before them), or with a line that leaves no positive wake-up cost, the
   wake-up is 0 and ``D = Σ busy / Σ messages`` (said in a warning);
+* ``host_runq``, ``server_runq``, ``broker_runq`` and ``runq_growth``: each kind's
+  measured run-queue wait (``cpu.csv``'s :data:`~sigma_des.live.cpu.RUNQ_COLUMN`) per
+  CPU second it used, ``q``, less the wait the machine's queue gives at the run's
+  utilisation ``u`` (our processes' CPU plus the background, over the cores):
+  ``floor = max(q − queue_wait(cores, u), 0)``; ``runq_growth`` on when any kind's wait
+  was measured (the DES then adds ``queue_wait`` at its own machine's recent load);
 * ``host_record``, ``server_record``: the loop line's slope ``b`` (the loop thread's CPU
   per call, at most the demand), the CPU of one more record in a bundle: a live loop
   handles each record of a bundle (a host's states of one turn, the server's
@@ -69,6 +79,7 @@ import pandas as pd
 from sigma_des.live.cpu import CPU_FILE, RUNQ_COLUMN, WAKE_COLUMNS, WALL_COLUMN
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.loop import WakeStats
+from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
 __all__ = ["BACKGROUND_CAP", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
@@ -188,15 +199,41 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
                     f"{b * 1e6:.3g} µs a call over {w.wakes} wake-ups): deployment."
                     f"{kind}_wake 0, the whole CPU per message")
         return 0.0, _demand(d, busy, msgs, kind, warn), rep
-    wake = a  # the rest of the process (paho's network thread) works per message
-    per_msg = (busy - wake * w.wakes) / msgs if msgs > 0 else math.nan
-    if not (math.isfinite(per_msg) and per_msg > 0):
-        warn.append(f"{kind}: the wake-ups ({wake * 1e6:.1f} µs x {w.wakes}) explain all of "
-                    f"its {busy:.3f} CPU s: deployment.{kind}_wake 0, the whole CPU per "
-                    "message")
+    # each message costs one call in each of the process's two threads (the loop's
+    # slope b, and as much in paho's network thread); the rest is per wake-up
+    per_msg = 2.0 * b if b > 0 else math.nan
+    wake = (busy - per_msg * msgs) / w.wakes if msgs > 0 else math.nan
+    if not (math.isfinite(per_msg) and math.isfinite(wake) and wake > 0):
+        warn.append(f"{kind}: no positive per-wake-up CPU left after 2 x {b * 1e6:.3g} µs a "
+                    f"message ({busy:.3f} CPU s, {msgs:.0f} messages, {w.wakes} wake-ups): "
+                    f"deployment.{kind}_wake 0, the whole CPU per message")
         return 0.0, _demand(d, busy, msgs, kind, warn), rep
     rep[f"{kind}_wake_share"] = w.wakes / w.calls
     return wake, per_msg, rep
+
+
+def _net_share(cpu: pd.DataFrame, kind: str) -> float:
+    """The share of a process kind's CPU its network thread spent (process minus loop)."""
+    rows = _kind_rows(cpu, kind)
+    busy = float(rows["cpu_s"].sum())
+    loop = float(rows["loop_cpu_s"].sum())
+    return (busy - loop) / busy if busy > 0 and math.isfinite(loop) else 1.0
+
+
+def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
+                warn: list[str]) -> tuple[float, float]:
+    """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
+    the kind's processes per CPU second they used, less what the machine's queue gives
+    at its utilisation ``u`` (:func:`queue_wait`), at least 0; ``(0, NaN)`` unmeasured."""
+    rows = _kind_rows(cpu, kind)
+    ok = RUNQ_COLUMN in rows.columns and len(rows) > 0
+    if not ok or not rows[RUNQ_COLUMN].map(math.isfinite).all():
+        warn.append(f"no {kind} run-queue wait recorded (a live run before it?): "
+                    f"deployment.{kind}_runq 0")
+        return 0.0, math.nan
+    busy = float(rows["cpu_s"].sum())
+    q = float(rows[RUNQ_COLUMN].sum()) / busy if busy > 0 else 0.0
+    return max(q - queue_wait(cores, u), 0.0), q
 
 
 def _record(rep: dict[str, float], kind: str, demand: float) -> float:
@@ -255,11 +292,16 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         broker = base_broker
     host_rec = _record(host_rep, "host", host)
     server_rec = _record(server_rep, "server", server)
+    u = busy / cores
+    runq = {kind: _runq_floor(cpu, kind, u, cores, warn) for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=host_wake, server_wake=server_wake,
                          host_record=host_rec, server_record=server_rec,
                          lock_switch=LIVE_LOCK_SWITCH,
+                         host_runq=runq["host"][0], server_runq=runq["server"][0],
+                         broker_runq=runq["broker"][0],
+                         runq_growth=any(math.isfinite(q) for _f, q in runq.values()),
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
@@ -267,6 +309,9 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         "host_demand_s": host, "host_wake_s": host_wake,
         "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
         "host_record_s": host_rec, "server_record_s": server_rec,
+        "machine_utilisation": u,
+        **{f"{k}_runq_per_cpu_s": q for k, (_f, q) in runq.items()},
+        **{f"{k}_runq_floor": f for k, (f, _q) in runq.items()},
         **host_rep, **server_rep,
         "broker_messages": b_msgs, "broker_busy_s": b_busy,
         "background_cores": bg_per_method, "cpu_demands": table.to_dict("records"),
@@ -278,7 +323,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
 
 
 def path_services(dep: DeploymentSpec, publish: float, delivery: float,
-                  wake_share: dict[str, float] | None = None) -> dict[str, float]:
+                  wake_share: dict[str, float] | None = None, u: float = 0.0
+                  ) -> dict[str, float]:
     """CPU service the DES spends on one message's measured path, per direction (s).
 
     The latency ends at the receiving client's receipt (where live stamps it, before
@@ -288,6 +334,11 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     (``cores / (cores - background)``). A sender's burst holds its wake-up cost when its
     thread was idle: on average ``wake_share`` (the live loops' wake-ups per call) of
     it. Without a CPU stage only the broker's services, unscaled.
+
+    With run-queue waits (``*_runq``, ``runq_growth``) the broker's services and the
+    receiver's burst (a state's: the server's; a trigger's: a host's) wait ``q`` per
+    CPU second of them, ``q = floor + queue_wait(cores, u)`` at the calibration run's
+    machine utilisation ``u``: the receipt is stamped after the receiver's wait.
 
     Also ``recv_up`` and ``recv_down``: the receiver's burst for a message that waited
     for its thread (the server's demand for a state, a host's for a trigger; no
@@ -303,6 +354,15 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     broker = (publish + delivery) * scale
     host = dep.host_demand + dep.host_wake * share.get("host", 0.0)
     server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
+    if dep.runq_growth or dep.broker_runq or dep.host_runq or dep.server_runq:
+        g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
+        q_b, q_h, q_s = dep.broker_runq + g, dep.host_runq + g, dep.server_runq + g
+        # the broker's and the receiver's run-queue waits are in a measured latency
+        up = broker * (1 + q_b) + host * scale + q_s * server * scale
+        down = broker * (1 + q_b) + server * scale + q_h * host * scale
+        return {"up": up, "down": down,
+                "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
+                "send_up": dep.host_demand * scale}
     return {"up": broker + host * scale, "down": broker + server * scale,
             "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
             "send_up": dep.host_demand * scale}

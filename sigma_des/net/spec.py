@@ -218,6 +218,14 @@ class DeploymentSpec:
             end (Python's interpreter-lock switch interval: live's paho network thread
             writes it), in publish order; 0 (default): it leaves at its burst's end.
             0..1 s.
+        host_runq: a physics host process's run-queue wait floor: every burst waits
+            this many seconds per CPU second of the burst for a core once its thread is
+            free (a woken thread waits behind the runnable ones), 0..100.
+        server_runq: the same for the server's process.
+        broker_runq: the same for the broker's.
+        runq_growth: every burst also waits :func:`~sigma_des.net.cpu.queue_wait`
+            (Erlang C) per CPU second at its machine's utilisation over the last whole
+            :data:`~sigma_des.net.cpu.LOAD_WINDOW` (the machine's queue).
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
         bundle: a host's states of one loop turn leave as one PUBLISH, and the

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from sigma_des.live.cpu import write_cpu
 from sigma_des.live.demands import fit_demands
 from sigma_des.live.fit_cpu import path_services, pooled_demand
 from sigma_des.live.fit_step import HOST_SHARE_CAP, host_share, icc
+from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 from tests.live.test_calibrate_inputs import SETS, STATE_LAT, TRIG_LAT, _run, _write
 
@@ -166,6 +168,15 @@ def test_path_services_hold_the_senders_burst_not_the_receivers() -> None:
     assert got["down"] == pytest.approx((4.5e-5 + 6e-4 + 0.25 * 4e-4) * 4 / 3, rel=1e-12)
     assert got["recv_up"] == pytest.approx(6e-4 * 4 / 3, rel=1e-12)
     assert got["recv_down"] == pytest.approx(3e-4 * 4 / 3, rel=1e-12)
+    # with run-queue waits the broker's and the receiver's waits are on the path too:
+    # q = floor + queue_wait(4, u) at the run's utilisation u = 0.5
+    rq = replace(dep, broker_runq=0.5, server_runq=0.25, host_runq=1.0, runq_growth=True)
+    g = queue_wait(4, 0.5)
+    got = path_services(rq, 1.5e-5, 3e-5, u=0.5)
+    assert got["up"] == pytest.approx(
+        4.5e-5 * 4 / 3 * (1.5 + g) + 3e-4 * 4 / 3 + (0.25 + g) * 6e-4 * 4 / 3, rel=1e-12)
+    assert got["down"] == pytest.approx(
+        4.5e-5 * 4 / 3 * (1.5 + g) + 6e-4 * 4 / 3 + (1.0 + g) * 3e-4 * 4 / 3, rel=1e-12)
 
 
 def _wake_cols(a: float, b: float, wakes: list[int]) -> dict[str, float]:
@@ -206,20 +217,35 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert rep["server_runq_wait_per_msg_s"] == pytest.approx(0.1 / 5000, rel=1e-12)
     assert rep["host_runq_wait_per_msg_s"] == pytest.approx(0.2 / 4500, rel=1e-12)
     w_h = hosts["host0"]["wakes"] + hosts["host1"]["wakes"]
-    assert dep.host_wake == pytest.approx(50e-6, rel=1e-9)
-    assert dep.host_demand == pytest.approx((busy_h - 50e-6 * w_h) / 4500, rel=1e-9)
-    assert dep.server_wake == pytest.approx(80e-6, rel=1e-9)
-    assert dep.server_demand == pytest.approx(
-        (procs["server"][2] - 80e-6 * 1200) / 5000, rel=1e-9)
+    # a message: one call in each thread (2 x 10 µs); the rest of the CPU per wake-up
+    assert dep.host_demand == pytest.approx(20e-6, rel=1e-9)
+    assert dep.host_wake == pytest.approx((busy_h - 20e-6 * 4500) / w_h, rel=1e-9)
+    assert dep.server_demand == pytest.approx(40e-6, rel=1e-9)
+    assert dep.server_wake == pytest.approx((procs["server"][2] - 40e-6 * 5000) / 1200,
+                                            rel=1e-9)
     assert rep["host_loop_call_s"] == pytest.approx(10e-6, rel=1e-9)
     # a further record of a bundle costs one call's worth (the line's slope)
     assert dep.host_record == pytest.approx(10e-6, rel=1e-9) == rep["host_record_s"]
+    # run-queue floors: 0.1 s a process over its CPU, less the machine's queue at the
+    # run's utilisation (ours + background over the 4 cores)
+    cpu_s = {k: procs[k][0] * WINDOW + procs[k][2] for k in procs}
+    u = (BACKGROUND_CPU + sum(cpu_s.values())) / WINDOW / CORES
+    assert rep["machine_utilisation"] == pytest.approx(u, rel=1e-12)
+    q_h = 0.2 / (cpu_s["host0"] + cpu_s["host1"])
+    assert rep["host_runq_per_cpu_s"] == pytest.approx(q_h, rel=1e-12)
+    assert dep.host_runq == pytest.approx(max(q_h - queue_wait(CORES, u), 0.0), rel=1e-12)
+    assert dep.host_runq > 0.0 and dep.runq_growth
+    assert dep.broker_runq == pytest.approx(
+        max(0.1 / cpu_s["broker"] - queue_wait(CORES, u), 0.0), rel=1e-12)
     assert dep.server_record == pytest.approx(20e-6, rel=1e-9)
     assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
     # the sender's expected wake-up is on the path the hop samples are net of
     scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
+    g = queue_wait(CORES, u)  # the broker's and the server's run-queue waits too
+    server = dep.server_demand + dep.server_wake * rep["server_wake_share"]
     assert rep["path_cpu_service_up_s"] == pytest.approx(
-        scale * (2 * 0.09 / 9000 + dep.host_demand + dep.host_wake * rep["host_wake_share"]),
+        scale * (2 * 0.09 / 9000 * (1 + dep.broker_runq + g) + dep.host_demand
+                 + dep.host_wake * rep["host_wake_share"] + (dep.server_runq + g) * server),
         rel=1e-12)
     # without the wake-up columns (a run recorded before them): the whole CPU per message
     write_cpu({"bides": {"cpu": _cpu_rows(procs, BACKGROUND_CPU)}}, d)
@@ -227,6 +253,11 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert sc0.deployment.host_wake == 0.0 and sc0.deployment.host_record == 0.0
     assert sc0.deployment.host_demand == pytest.approx(busy_h / 4500, rel=1e-12)
     assert any("no host loop wake-ups recorded" in w for w in rep0["warnings"])
+    # ... nor run-queue waits: no floors, no growth, said
+    dep0 = sc0.deployment
+    assert (dep0.host_runq, dep0.server_runq, dep0.broker_runq, dep0.runq_growth) == (
+        0.0, 0.0, 0.0, False)
+    assert any("no broker run-queue wait recorded" in w for w in rep0["warnings"])
 
 
 def test_receipts_paced_by_the_servers_thread_count_as_held(tmp_path: Path) -> None:
