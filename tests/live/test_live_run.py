@@ -13,6 +13,7 @@ import pytest
 from sigma_des.cli import main
 from sigma_des.config import load
 from sigma_des.live.insample import IN_SAMPLE_METRICS
+from sigma_des.live.match import MATCH_ROUNDS, MATCH_TOL
 from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto
@@ -126,6 +127,17 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
         if p == "broker":  # every PUBLISH a client sent or received went through it
             assert r["messages"] == sum(dem[m, q]["messages"] for q in ("server", "host0", "host1"))
     assert set(rep["background_cores"]) == methods
+    # the hops were matched to the run: the in-sample DES (the scenario written) gives
+    # the match's last round, pooled over the methods, within its tolerance if it
+    # stopped early
+    ins = {(r["method"], r["metric"]): r["des"] for r in rep["in_sample"]}
+    for metric, name in (("latency_state_mean", "hop_up"), ("latency_trigger_mean", "hop_down")):
+        des = float(np.mean([ins[m, metric] for m in sorted(methods)]))
+        assert des == pytest.approx(rep[f"{name}_des_ms"], rel=1e-9)
+        if rep["hop_match_rounds"] < MATCH_ROUNDS:
+            assert abs(des / rep[f"{name}_live_ms"] - 1) <= MATCH_TOL
+    if rep["hop_match_rounds"] > 1:
+        assert sc.net.host_link.latency.file.endswith("hop_up_matched.txt")
     # the prediction: the calibrated scenario runs with its CPU stage (the DES's CPU
     # metrics exist only then)
     pred = tmp_path / "pred"
