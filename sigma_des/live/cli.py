@@ -284,8 +284,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not args.no_match:
         from sigma_des.live.match import match_hops
 
-        sc, rep = match_hops(sc, source, out_dir)
-        report.update(rep)
+        sc, matched = match_hops(sc, source, out_dir)
+        report.update(matched)
     if not args.no_check:
         rows, warn = in_sample(sc, source)
         report["in_sample"] = rows

@@ -30,6 +30,7 @@ import numpy as np
 from sigma_des.config import Scenario
 from sigma_des.guard import atomic_write, output_file
 from sigma_des.net.latency import Dist, load_samples
+from sigma_des.net.spec import LinkSpec
 
 __all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "match_hops"]
 
@@ -77,16 +78,18 @@ def _scaled(sc: Scenario, files: dict[str, Path], k: dict[str, float], d: Path) 
         atomic_write(out, partial(np.savetxt, X=scaled, fmt="%.9g"), "--out")
         new[str(path)] = str(out)
 
-    def swap(dist: Dist | None) -> Dist | None:
-        if dist is None or dist.dist != "empirical" or dist.file not in new:
+    def swap(dist: Dist) -> Dist:
+        if dist.dist != "empirical" or dist.file not in new:
             return dist
         return Dist(dist="empirical", file=new[dist.file])
 
+    def link(lk: LinkSpec) -> LinkSpec:
+        down = lk.latency_down
+        return replace(lk, latency=swap(lk.latency),
+                       latency_down=None if down is None else swap(down))
+
     net = sc.net
-    host = replace(net.host_link, latency=swap(net.host_link.latency),
-                   latency_down=swap(net.host_link.latency_down))
-    server = replace(net.server_link, latency=swap(net.server_link.latency),
-                     latency_down=swap(net.server_link.latency_down))
+    host, server = link(net.host_link), link(net.server_link)
     return replace(sc, net=replace(net, host_link=host, server_link=server))
 
 
