@@ -44,24 +44,14 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.primitives import jit
 from sigma_des.events.fast.stateref import ref
-from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS, U_CAP
+from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS
+from sigma_des.net.cpu import queue_wait as net_queue_wait
 
 __all__ = ["acquire", "burst", "hold", "queue_wait", "run_wait", "span", "tick"]
 
 
-@jit
-def queue_wait(cores, u):  # type: ignore[no-untyped-def]
-    """net.cpu.queue_wait: Erlang C's mean wait over mean service at utilisation ``u``."""
-    if u <= 0.0:
-        return 0.0
-    if u > U_CAP:
-        u = U_CAP
-    a = cores * u
-    b = 1.0
-    for k in range(1, cores + 1):
-        b = a * b / (k + a * b)
-    c = b / (1.0 - u * (1.0 - b))
-    return c / (cores * (1.0 - u))
+#: net.cpu.queue_wait compiled as it is (Erlang C's mean wait over mean service)
+queue_wait = jit(net_queue_wait)
 
 
 @jit
