@@ -30,6 +30,7 @@ from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.spec import (
+    LATER_KEYS,
     BrokerSpec,
     DdsSpec,
     DeploymentSpec,
@@ -369,9 +370,7 @@ def to_dict(s: Scenario, keep_auto: bool = False) -> dict[str, Any]:
     if s.deployment == DeploymentSpec():  # today's model: not written, hashes unchanged
         d.pop("deployment")
     else:  # keys added later are left out at 0 (as before they existed)
-        later = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
-                 "host_runq", "server_runq", "broker_runq", "runq_growth")
-        d["deployment"] = {k: v for k, v in d["deployment"].items() if v != 0.0 or k not in later}
+        d["deployment"] = {k: v for k, v in d["deployment"].items() if v or k not in LATER_KEYS}
     if keep_auto:
         if getattr(s, "hosts_auto", False):
             d["hosts"] = 0

@@ -414,10 +414,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         dep, publish = fit.deployment, Dist(dist="constant", value=fit.broker_service)
         per_client = fit.broker_service
         cpu_report = fit.report
+    u = fit.report["machine_busy_cores"] / dep.cores if fit is not None else 0.0
     services = path_services(dep, publish.mean_value(), per_client,
-                             fit.wake_share if fit is not None else None,
-                             fit.report["machine_busy_cores"] / dep.cores
-                             if fit is not None else 0.0)
+                             fit.wake_share if fit is not None else None, u)
     net, lat_report = _fit_links(base, w, states, services, d, hold_tol, fit is None, warn,
                                  "--out" if files_dir else str(source))
     compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,

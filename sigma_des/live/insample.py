@@ -29,7 +29,7 @@ import pandas as pd
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 
-__all__ = ["IN_SAMPLE_METRICS", "TOLERANCE", "in_sample", "missed_frac"]
+__all__ = ["IN_SAMPLE_METRICS", "TOLERANCE", "in_sample", "live_trigger_latency", "missed_frac"]
 
 #: Metrics compared, in report order.
 IN_SAMPLE_METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "latency_trigger_mean",
@@ -75,7 +75,7 @@ def _des_figures(sc: Scenario, method: str) -> dict[str, float]:
     return out
 
 
-def _live_trigger_latency(source: Path, sc: Scenario) -> dict[str, float]:
+def live_trigger_latency(source: Path, sc: Scenario) -> dict[str, float]:
     """Mean trigger latency (ms) per method, from the live run's message table."""
     from sigma_des.live.messages import read_messages
 
@@ -114,7 +114,7 @@ def in_sample(sc: Scenario, source: Path) -> tuple[list[dict[str, Any]], list[st
     d = json.loads(summ.read_text())
     rows: list[dict[str, Any]] = []
     warn: list[str] = []
-    trig = _live_trigger_latency(source, sc)
+    trig = live_trigger_latency(source, sc)
     for method, live_m in d.get("methods", {}).items():
         des = _des_figures(sc, method)
         for k in IN_SAMPLE_METRICS:

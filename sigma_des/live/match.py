@@ -46,13 +46,13 @@ K_MIN = 0.05
 
 def _live_means(source: Path, sc: Scenario) -> tuple[float, float]:
     """The live run's mean state and trigger latency (ms), each the mean over methods."""
-    from sigma_des.live.insample import _live_trigger_latency
+    from sigma_des.live.insample import live_trigger_latency
 
     summ = (source if source.is_dir() else source.parent) / "summary.json"
     methods = json.loads(summ.read_text()).get("methods", {}) if summ.exists() else {}
     up = [float(m["latency_state_mean"]) for m in methods.values()
           if m.get("latency_state_mean") is not None]
-    trig = list(_live_trigger_latency(source, sc).values())
+    trig = list(live_trigger_latency(source, sc).values())
     return (float(np.mean(up)) if up else math.nan,
             float(np.mean(trig)) if trig else math.nan)
 

@@ -62,6 +62,9 @@ CLIENTS: tuple[str, ...] = ("node", "host")
 MAX_CORES = 4096
 #: Largest per-message or per-tick CPU demand (s).
 MAX_DEMAND = 1.0
+#: ``[deployment]`` keys added after the table: not written (nor hashed) at 0.
+LATER_KEYS = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
+              "host_runq", "server_runq", "broker_runq", "runq_growth")
 #: Largest run-queue wait per CPU second a deployment accepts.
 MAX_RUNQ = 100.0
 
