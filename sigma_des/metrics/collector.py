@@ -24,7 +24,6 @@ from sigma_des.core.validate import require, require_positive
 from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.samples import Samples
-from sigma_des.metrics.streamed import store_mean_max, summarize_store
 from sigma_des.metrics.throughput import link_mbps, throughput
 from sigma_des.net.cpu import CpuReport
 from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
@@ -311,6 +310,9 @@ class Collector:
         Returns:
             ``{"metrics", "wall", "links_mbps", "timeseries"}``.
         """
+        # numba's kernels, loaded when a run ends: the scenario's modules import no numba
+        from sigma_des.metrics.streamed import store_mean_max, summarize_store
+
         sc = self.spec
         window = sc.duration - self.w0
         m: dict[str, float] = {}
