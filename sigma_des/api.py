@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from sigma_des.agents.ideal import fly
 from sigma_des.budget import check_memory
-from sigma_des.cache.ideal import cache_dir, cached
+from sigma_des.cache.ideal import cache_dir, cached, cached_rows
 from sigma_des.config import ALL_METHODS, Scenario, config_hash, to_dict
 from sigma_des.errors import ConfigError, ctrl_c_inside
 from sigma_des.events.cohort import execute
@@ -291,8 +291,9 @@ def run_method(
         sc: the scenario.
         method: alignment method.
         progress: called with the simulated time after every simulated second.
-        ideal: ideal-run positions for the fidelity metrics (computed when needed and
-            ``sc.fidelity.enabled``).
+        ideal: ideal-run positions for the fidelity metrics, when
+            ``sc.fidelity.enabled`` (None: the cache entry, read a block at a time, so
+            a long run's logs need not fit in memory; flown and stored if missing).
         record: record this method's run to this MCAP file (``sc.record`` settings).
     """
     if method not in ALL_METHODS:
@@ -309,9 +310,12 @@ def run_method(
     )
     out["engine"] = engine
     if sc.fidelity.enabled:
-        if ideal is None:
-            ideal = ideal_run(sc)[1]
-        add_fidelity(out, *run.trajectory(), ideal, sc.fidelity)
+        # both logs read a block at a time (the run's from its spill file, the ideal
+        # run's from its cache entry): a long run's logs need not fit in memory
+        rows = ideal if ideal is not None else cached_rows(sc, fly_ideal)[1]
+        log = run.trajectory_log()
+        add_fidelity(out, np.asarray(log.times), log.rows(), rows, sc.fidelity)
+        del rows
     # The finished run is cyclic garbage (its parts call each other back), which only a
     # collection frees: left to the automatic ones it lingers for many runs, with its
     # samples and tables, when a sweep or compare runs one after another in a process.
@@ -429,7 +433,12 @@ def _run_methods(
                     bar.set_postfix_str(ms[i])
                     bar.update(sc.duration)
         return
-    ideal = ideal_run(sc)[1] if sc.fidelity.enabled else None
+    ideal = None
+    if sc.fidelity.enabled:
+        if cache_dir() is None:
+            ideal = ideal_run(sc)[1]
+        else:  # flown and stored now if need be; each run reads it a block at a time
+            cached_rows(sc, fly_ideal)
     for m in ms:
         last = [0.0]
 

@@ -31,12 +31,14 @@ import hashlib
 import json
 import os
 import platform
+import struct
 import sys
 import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,9 +48,11 @@ from sigma_des.config import Scenario, to_dict
 from sigma_des.outputs import temp_file
 from sigma_des.version import __version__
 
-__all__ = ["ENV_VAR", "cache_dir", "cache_key", "cached", "code_fingerprint"]
+__all__ = ["ENV_VAR", "EntryRows", "cache_dir", "cache_key", "cached", "cached_rows",
+           "code_fingerprint"]
 
 Arrays = tuple[NDArray[np.float64], NDArray[np.float64]]
+Hit = TypeVar("Hit")
 
 
 def cache_dir() -> Path | None:
@@ -148,16 +152,23 @@ def cached(sc: Scenario, compute: Callable[[Scenario], Arrays]) -> Arrays:
     A cache directory that cannot be created or written only costs the store: the
     computed arrays are returned all the same.
     """
+    return _entry(sc, compute, _read)
+
+
+def _entry(
+    sc: Scenario, compute: Callable[[Scenario], Arrays], read: Callable[[Path], Hit | None]
+) -> Hit | Arrays:
+    """``read`` of the entry when it exists, else ``compute(sc)``, stored (see :func:`cached`)."""
     d = cache_dir()
     if d is None:
         return compute(sc)
     key = cache_key(sc)
     path = d / f"{key}.npz"
-    hit = _read(path) if path.exists() else None
+    hit = read(path) if path.exists() else None
     if hit is not None:
         return hit
     with _locked(d / f"{key}.lock"):
-        hit = _read(path) if path.exists() else None  # written while we waited
+        hit = read(path) if path.exists() else None  # written while we waited
         if hit is not None:
             return hit
         t, pos = compute(sc)
@@ -167,3 +178,89 @@ def cached(sc: Scenario, compute: Callable[[Scenario], Arrays]) -> Arrays:
         except OSError:
             pass
     return t, pos
+
+
+class EntryRows:
+    """The positions of a cache entry, read a block of samples at a time
+    (:class:`~sigma_des.metrics.fidelity.Rows`): the ``pos`` member of the ``.npz``,
+    which ``np.savez`` stores uncompressed, read in place, so a long run's ideal
+    positions need not fit in memory. The bytes are those the entry holds (the very
+    arrays computed).
+
+    Raises:
+        ValueError: the entry is not such a file (not a stored float64 ``(T, n, 3)``
+            C-order array, or its times do not match).
+        OSError, zipfile.BadZipFile, KeyError: it cannot be read.
+    """
+
+    def __init__(self, path: Path) -> None:
+        with zipfile.ZipFile(path) as z:
+            info = z.getinfo("pos.npy")
+            with z.open("t.npy") as ft:
+                self.times = np.lib.format.read_array(ft, allow_pickle=False)
+        if info.compress_type != zipfile.ZIP_STORED:
+            raise ValueError("compressed entry")
+        fh = path.open("rb")
+        try:
+            fh.seek(info.header_offset)
+            local = fh.read(30)
+            if local[:4] != b"PK\x03\x04":
+                raise ValueError("not a zip member header")
+            name_len, extra_len = struct.unpack("<HH", local[26:30])
+            fh.seek(info.header_offset + 30 + name_len + extra_len)
+            version = np.lib.format.read_magic(fh)
+            read_header = {(1, 0): np.lib.format.read_array_header_1_0,
+                           (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+            if read_header is None:
+                raise ValueError(f"npy format {version}")
+            shape, fortran, dtype = read_header(fh)
+            if (fortran or dtype != np.dtype("<f8") or len(shape) != 3
+                    or self.times.dtype != np.float64 or len(self.times) != shape[0]):
+                raise ValueError("not a (T, n, 3) float64 entry")
+        except BaseException:
+            fh.close()
+            raise
+        self._fh, self._data = fh, fh.tell()
+        self.shape: tuple[int, ...] = tuple(shape)
+        self._row = int(np.prod(shape[1:])) * 8
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, rows: slice, /) -> NDArray[np.float64]:
+        start, stop, _ = rows.indices(len(self))
+        k = max(0, stop - start)
+        out = np.empty((k, *self.shape[1:]))
+        self._fh.seek(self._data + start * self._row)
+        got = self._fh.readinto(out.reshape(-1).view(np.uint8).data)
+        if got != k * self._row:
+            raise OSError(f"ideal-run entry: read {got} of {k * self._row} bytes")
+        return out
+
+    def close(self) -> None:
+        """Close the entry's file."""
+        self._fh.close()
+
+    def __del__(self) -> None:
+        fh = getattr(self, "_fh", None)
+        if fh is not None:
+            fh.close()
+
+
+def _rows(path: Path) -> EntryRows | None:
+    try:
+        return EntryRows(path)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+
+
+def cached_rows(
+    sc: Scenario, compute: Callable[[Scenario], Arrays]
+) -> tuple[NDArray[np.float64], EntryRows | NDArray[np.float64]]:
+    """:func:`cached`, with the positions of an entry as :class:`EntryRows` (read a
+    block at a time) instead of one array: ``(times, positions)``. Computed here (a
+    miss, or the cache off), the positions are the array in hand."""
+    got = _entry(sc, compute, _rows)
+    if isinstance(got, EntryRows):
+        return got.times, got
+    return got

@@ -44,6 +44,7 @@ from sigma_des.events.server import AlignmentServer
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
+from sigma_des.metrics.fidelity import TrajectoryLog
 from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
@@ -245,6 +246,10 @@ class MethodRun(AlignmentServer):
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at ``fidelity.log_rate`` Hz of physics time, so far."""
         return self.truth.trajectory()
+
+    def trajectory_log(self) -> TrajectoryLog:
+        """The log :meth:`trajectory` reads, for readers that take a block at a time."""
+        return self.truth.trajectory_log()
 
     # ------------------------------------------------------------ run
 

@@ -253,14 +253,19 @@ class SwarmTruth:
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at the fidelity log rate (Hz of physics time), so far."""
+        return self.trajectory_log().arrays()
+
+    def trajectory_log(self) -> TrajectoryLog:
+        """The log :meth:`trajectory` reads, the ring's frames logged first: for readers
+        that take it a block of samples at a time (:meth:`TrajectoryLog.rows`)."""
         log = self.traj
         if self.released:  # the ring's frames were logged by release()
-            return log.arrays()
+            return log
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):
             slot = f % self.H
             log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
-        return log.arrays()
+        return log
 
     def release(self) -> None:
         """The run is over: log the frames the ring still holds, then drop the rings.
@@ -271,7 +276,7 @@ class SwarmTruth:
         """
         if self.released:
             return
-        self.trajectory()
+        self.trajectory_log()
         self.released = True
         self.slot_frame[:] = -1  # in place: the compiled core holds this array
         self.ckpt = np.empty((0, *self.ckpt.shape[1:]))

@@ -24,7 +24,6 @@ from sigma_des.core.validate import require, require_positive
 from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
 from sigma_des.metrics.samples import Samples
-from sigma_des.metrics.stats import summarize
 from sigma_des.metrics.throughput import link_mbps, throughput
 from sigma_des.net.cpu import CpuReport
 from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
@@ -313,18 +312,21 @@ class Collector:
         Returns:
             ``{"metrics", "wall", "links_mbps", "timeseries"}``.
         """
+        # numba's kernels, loaded when a run ends: the scenario's modules import no numba
+        from sigma_des.metrics.streamed import store_mean_max, summarize_store
+
         sc = self.spec
         window = sc.duration - self.w0
         m: dict[str, float] = {}
         ms = 1000.0
-        a = summarize(self._aoi_samples.values())
+        a = summarize_store(self._aoi_samples)  # bounded memory, same bits (streamed)
         for s in ("mean", "std", "p50", "p95", "p99", "max"):
             m[f"aoi_{s}"] = a[s] * ms
         fin = self.aoi.finish(sc.duration)
         m["aoi_time_avg"] = fin["time_average"] * ms
         m["aoi_peak_mean"] = fin["peak_mean"] * ms
         for kind, xs in self._lat.items():
-            lat = summarize(xs.values())
+            lat = summarize_store(xs)
             m[f"latency_{kind}_mean"] = lat["mean"] * ms
             m[f"latency_{kind}_p99"] = lat["p99"] * ms
         m.update(throughput(net.links, window))
@@ -344,9 +346,7 @@ class Collector:
         sp = np.asarray(self._spread, dtype=np.float64)
         m["spread_mean"] = float(sp.mean()) if sp.size else math.nan
         m["spread_max"] = float(sp.max()) if sp.size else math.nan
-        pe = self._pos_err.values()
-        m["pos_err_mean"] = float(pe.mean()) if pe.size else math.nan
-        m["pos_err_max"] = float(pe.max()) if pe.size else math.nan
+        m["pos_err_mean"], m["pos_err_max"] = store_mean_max(self._pos_err)
         shown = max(1, self._flag_counts[0])
         m["filled_frac"] = self._flag_counts[1] / shown
         m["extrapolated_frac"] = self._flag_counts[2] / shown

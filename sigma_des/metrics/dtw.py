@@ -50,8 +50,50 @@ def _dtw_banded(a: np.ndarray, b: np.ndarray, band: int) -> float:
 
 @njit(cache=True)
 def _dtw(a: np.ndarray, b: np.ndarray) -> float:
-    # Unconstrained: a band wider than both series reaches every cell.
-    return _dtw_banded(a, b, max(a.shape[0], b.shape[0]))
+    """Exact unconstrained DTW, computed one anti-diagonal ``i + j = s`` at a time.
+
+    Every cell gets the very operations of :func:`_dtw_banded` (the same squared
+    differences summed in the same order, the same comparisons, one ``sqrt`` and one
+    addition), hence the same bits; but the cells of an anti-diagonal do not depend on
+    each other, so the compiler runs them in SIMD lanes instead of one long chain of
+    dependent additions (the fidelity DTW of a 60 s run: ≈ 4× faster).
+    """
+    n, m, dims = a.shape[0], b.shape[0], a.shape[1]
+    if n == 0 or m == 0:
+        return 0.0 if n == m else np.inf
+    at = np.ascontiguousarray(a.T)  # (dims, n)
+    br = np.ascontiguousarray(b[::-1].T)  # (dims, m), reversed: b[s - i - 1] = br[m - s + i]
+    # diagonals s-2, s-1 and s, indexed by i (0: row 0); d[i] is the cell (i, s - i)
+    d2 = np.full(n + 1, np.inf)
+    d1 = np.full(n + 1, np.inf)
+    d0 = np.full(n + 1, np.inf)
+    cost = np.empty(n)
+    d2[0] = 0.0  # s = 0: the cell (0, 0)
+    for s in range(2, n + m + 1):
+        lo = max(1, s - m)
+        hi = min(n, s - 1)
+        d0[0] = np.inf  # (0, s): row 0 past the origin
+        if s <= n:
+            d0[s] = np.inf  # (s, 0): column 0 past the origin
+        w = hi - lo + 1
+        c = cost[:w]
+        c[:] = 0.0
+        for k in range(dims):
+            x = at[k, lo - 1 : hi]
+            y = br[k, m - s + lo : m - s + hi + 1]
+            for t in range(w):
+                e = x[t] - y[t]
+                c[t] += e * e
+        diag, up, left, out = d2[lo - 1 : hi], d1[lo - 1 : hi], d1[lo : hi + 1], d0[lo : hi + 1]
+        for t in range(w):
+            best = diag[t]
+            if up[t] < best:
+                best = up[t]
+            if left[t] < best:
+                best = left[t]
+            out[t] = math.sqrt(c[t]) + best
+        d2, d1, d0 = d1, d0, d2
+    return float(d1[n])
 
 
 def dtw(a: ArrayLike, b: ArrayLike) -> float | NDArray[np.float64]:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,7 +27,9 @@ from numpy.typing import NDArray
 from sigma_des.core.validate import require, require_positive
 from sigma_des.metrics.samples import Samples
 
-__all__ = ["FidelitySpec", "TrajectoryLog", "add_fidelity", "fidelity", "formation_error"]
+__all__ = [
+    "FidelitySpec", "Rows", "TrajectoryLog", "add_fidelity", "fidelity", "formation_error",
+]
 
 #: Samples per block of :func:`formation_error` (bounds its temporaries to a few MB).
 BLOCK = 256
@@ -50,6 +52,40 @@ class FidelitySpec:
     def __post_init__(self) -> None:
         require_positive(self, "log_rate")
         require(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
+
+
+class Rows(Protocol):
+    """A ``(T, n, 3)`` position log that hands out blocks of samples: a numpy array, or
+    a reader over a file (:meth:`TrajectoryLog.rows`, the ideal-run cache's entries),
+    so that :func:`fidelity` never needs the whole log in memory."""
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """``(T, n, 3)``."""
+        ...
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, rows: slice, /) -> NDArray[np.float64]:
+        """Samples ``rows`` (a slice without step) as an array."""
+        ...
+
+
+class LogRows:
+    """:class:`Rows` over a :class:`TrajectoryLog`'s store, read a block at a time."""
+
+    def __init__(self, pos: Samples, shape: tuple[int, ...]) -> None:
+        self._pos = pos
+        self._per = int(np.prod(shape))
+        self.shape: tuple[int, ...] = (len(pos) // self._per, *shape)
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, rows: slice, /) -> NDArray[np.float64]:
+        start, stop, _ = rows.indices(len(self))
+        k = max(0, stop - start)
+        return self._pos.read(start * self._per, k * self._per).reshape(k, *self.shape[1:])
 
 
 class TrajectoryLog:
@@ -90,11 +126,20 @@ class TrajectoryLog:
         """``(times (T,), positions (T, n, 3))``."""
         return np.asarray(self.times), self.pos.values().reshape(-1, *self._shape)
 
+    def rows(self) -> LogRows:
+        """The positions as :class:`Rows`: the same values as :meth:`arrays`, read a
+        block at a time from the store (which spills to disk on long runs)."""
+        return LogRows(self.pos, self._shape)
+
 
 def fidelity(
-    pos: NDArray[np.float64], ideal: NDArray[np.float64], period: float, dtw_nodes: int
+    pos: Rows, ideal: Rows, period: float, dtw_nodes: int
 ) -> tuple[dict[str, float], NDArray[np.float64]]:
     """Formation error and normalised DTW of ``pos`` against ``ideal`` (both ``(T, n, 3)``).
+
+    Both are read :data:`BLOCK` samples at a time (arrays, or readers over files): what
+    is kept whole is the formation error per sample and the DTW nodes' positions
+    (``dtw_nodes`` of ``n``), so a long run's logs need not fit in memory.
 
     Returns:
         (metrics, formation error per common sample).
@@ -108,13 +153,19 @@ def fidelity(
         }, np.empty(0)
     from sigma_des.metrics.dtw import dtw, dtw_normalised  # numba: compiled on first use
 
-    a, b = pos[:t], ideal[:t]
-    err = formation_error(a, b)
     n = pos.shape[1]
     pick = np.unique(np.linspace(0, n - 1, min(n, dtw_nodes)).round().astype(int))
+    err = np.empty(t)
+    a = np.empty((t, pick.size, *pos.shape[2:]))
+    b = np.empty((t, pick.size, *pos.shape[2:]))
+    for s in range(0, t, BLOCK):  # formation_error's own blocks: the same bits
+        e = min(s + BLOCK, t)
+        x, y = pos[s:e], ideal[s:e]
+        err[s:e] = formation_error(x, y)
+        a[s:e], b[s:e] = x[:, pick], y[:, pick]
     # over the physics time both runs cover (a run whose triggers slowed down, like a
     # stalled Lock-Step, flies less; its trigger rate reports that, not its DTW)
-    d = np.asarray(dtw(a[:, pick], b[:, pick]))
+    d = np.asarray(dtw(a, b))
     r = np.asarray(dtw_normalised(d, period, (t - 1) * period))
     return {
         "formation_err_mean": float(err.mean()),
@@ -126,8 +177,8 @@ def fidelity(
 def add_fidelity(
     out: dict[str, Any],
     times: NDArray[np.float64],
-    pos: NDArray[np.float64],
-    ideal: NDArray[np.float64],
+    pos: Rows,
+    ideal: Rows,
     spec: FidelitySpec,
 ) -> None:
     """Add the fidelity of a run's trajectory to its result dict (``metrics``, ``fidelity``).
@@ -135,8 +186,9 @@ def add_fidelity(
     Args:
         out: the run's result dict (:meth:`~sigma_des.metrics.collector.Collector.finish`).
         times: the trajectory's sample times (s of physics time).
-        pos: its positions ``(T, n, 3)``, sampled at ``spec.log_rate`` Hz.
-        ideal: the ideal run's positions at the same rate.
+        pos: its positions ``(T, n, 3)``, sampled at ``spec.log_rate`` Hz (an array,
+            or :meth:`TrajectoryLog.rows`: read a block at a time).
+        ideal: the ideal run's positions at the same rate (an array or :class:`Rows`).
         spec: the fidelity settings.
     """
     fid, err = fidelity(pos, ideal, 1.0 / spec.log_rate, spec.dtw_nodes)

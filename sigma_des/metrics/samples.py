@@ -104,6 +104,32 @@ class Samples:
         if self._file is not None:
             self._file.close()
 
+    @property
+    def spilled(self) -> bool:
+        """Whether some values are in the temporary file (:meth:`values` then reads them
+        all back into a fresh array)."""
+        return self._on_disk > 0
+
+    def read(self, start: int, count: int) -> NDArray[np.float64]:
+        """Values ``start`` to ``start + count`` (clipped to the store), as a fresh array:
+        a bounded read for what must not hold the whole store (metrics/streamed)."""
+        start = max(0, min(start, len(self)))
+        count = max(0, min(count, len(self) - start))
+        out = np.empty(count, dtype=np.float64)
+        k = max(0, min(count, self._on_disk - start))  # from the file
+        if k:
+            assert self._file is not None
+            self._file.flush()
+            self._file.seek(start * 8)
+            got = self._file.readinto(out[:k].view(np.uint8).data)
+            self._file.seek(0, 2)
+            if got != k * 8:
+                raise OSError(f"samples file: read {got} of {k * 8} bytes")
+        if count > k:
+            lo = start + k - self._on_disk
+            out[k:] = np.frombuffer(self._a, dtype=np.float64)[lo : lo + count - k]
+        return out
+
     def values(self) -> NDArray[np.float64]:
         """The values so far, in order, as a read-only float64 array."""
         if self._file is None:

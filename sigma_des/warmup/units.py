@@ -10,8 +10,9 @@ two independent groups of similar size, each compiled in its own process —
   the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths: every method of a
   tiny point-mass scenario with commands, and a BiDES run with rollbacks;
 * ``physics``: the 6-DoF aircraft step and observation (quadrotor and fixed wing, one
-  specialisation), the sensors, wind and atmosphere kernels, and the DTW of the fidelity
-  metrics: a tiny ideal flight of each preset.
+  specialisation), the sensors, wind and atmosphere kernels, the DTW of the fidelity
+  metrics and the streamed summaries of spilled samples: a tiny ideal flight of each
+  preset.
 
 Each unit runs tiny scenarios, so the argument types (and hence the compiled
 specialisations) are those of a run at any size. Compiled code goes to numba's cache
@@ -67,6 +68,19 @@ def _physics() -> None:
                          f"dynamics=\"{dyn}\""])
         _t, pos = fly_ideal(sc)
         fidelity(pos, pos[::-1].copy(), 1.0 / sc.fidelity.log_rate, sc.fidelity.dtw_nodes)
+    _streamed()
+
+
+def _streamed() -> None:
+    """The collector's summaries of spilled samples (histograms need > CHUNK values)."""
+    import numpy as np
+
+    from sigma_des.metrics.samples import Samples
+    from sigma_des.metrics.streamed import CHUNK, summarize_store
+
+    s = Samples(spill=CHUNK)
+    s.extend(np.linspace(0.0, 1.0, 3 * CHUNK))
+    summarize_store(s)
 
 
 #: The warm-up units, by name, in the order they are started.

@@ -137,3 +137,39 @@ def test_entry_is_shared_with_other_processes(cache: Path) -> None:
     assert all(np.load(str(out) + f"{i}.npy").tobytes() == p0.tobytes() for i in range(3))
     hit = ic._read(entries[0])
     assert hit is not None and hit[1].tobytes() == p0.tobytes()
+
+
+def test_entry_rows_read_the_stored_bytes_a_block_at_a_time(
+    cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sc = _sc(duration=1.0)
+    t0, p0 = api.ideal_run(sc)  # miss: stores the entry
+    monkeypatch.setattr(api, "fly_ideal", None)  # a hit must not fly
+    t1, rows = ic.cached_rows(sc, api.fly_ideal)
+    assert isinstance(rows, ic.EntryRows)
+    assert rows.shape == p0.shape and len(rows) == 31 and t1.tobytes() == t0.tobytes()
+    for sl in (slice(0, 7), slice(7, 31), slice(29, 99), slice(40, 50), slice(None)):
+        assert rows[sl].tobytes() == p0[sl].tobytes(), sl
+    rows.close()
+
+
+def test_entry_rows_of_a_bad_entry_are_a_miss(cache: Path) -> None:
+    sc = _sc()
+    path = cache / f"{ic.cache_key(sc)}.npz"
+    path.parent.mkdir(parents=True)
+    t, pos = api.fly_ideal(sc)
+    np.savez_compressed(path, t=t, pos=pos)  # not stored in place: read whole instead
+    with pytest.raises(ValueError, match="compressed"):
+        ic.EntryRows(path)
+    t1, p1 = ic.cached_rows(sc, api.fly_ideal)
+    assert isinstance(p1, np.ndarray) and p1.tobytes() == pos.tobytes()
+    path.write_bytes(b"not a zip")
+    assert isinstance(ic.cached_rows(sc, api.fly_ideal)[1], np.ndarray)  # recomputed
+    assert isinstance(ic.cached_rows(sc, api.fly_ideal)[1], ic.EntryRows)  # rewritten
+
+
+def test_cache_off_gives_the_arrays(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(ic.ENV_VAR, "off")
+    sc = _sc()
+    t, p = ic.cached_rows(sc, api.fly_ideal)
+    assert isinstance(p, np.ndarray) and p.tobytes() == api.fly_ideal(sc)[1].tobytes()

@@ -55,3 +55,36 @@ def test_default_comparison_flies_6dof_with_fidelity_columns() -> None:
         assert res.metric(m, "dtw_r") >= 0
         assert len(res.fidelity[m]["formation_err"]) > 20
     assert "DTW r" in res.table()
+
+
+def test_fidelity_read_by_blocks_is_the_fidelity_of_the_arrays() -> None:
+    """The log's rows (spilled to a file) and any Rows reader give the very bits of the
+    whole arrays, over several formation-error blocks and unequal lengths."""
+    from sigma_des.metrics.fidelity import BLOCK, TrajectoryLog
+    from sigma_des.metrics.samples import Samples
+
+    rng = np.random.default_rng(5)
+    n, t = 7, 2 * BLOCK + 37
+    ideal = np.cumsum(rng.normal(size=(t + 5, n, 3)), axis=0)
+    log = TrajectoryLog(10.0, ideal[0] + rng.normal(size=(n, 3)))
+    log.pos = Samples(spill=64)  # spill early: the rows come back from the file
+    log.pos.extend(ideal[0] + 0.5)
+    for j in range(1, t):
+        log.add(j / 10.0, ideal[j] + rng.normal(scale=0.3, size=(n, 3)))
+    times, pos = log.arrays()
+    assert log.pos.spilled and log.rows().shape == pos.shape
+
+    class Reader:  # another Rows: what a file reader hands out
+        shape = ideal.shape
+
+        def __len__(self) -> int:
+            return len(ideal)
+
+        def __getitem__(self, rows: slice) -> np.ndarray:
+            return ideal[rows].copy()
+
+    whole, err = fidelity(pos, ideal, 0.1, 4)
+    for p, q in ((log.rows(), ideal), (pos, Reader()), (log.rows(), Reader())):
+        got, err2 = fidelity(p, q, 0.1, 4)
+        assert got == whole and err2.tobytes() == err.tobytes()
+    assert len(err) == len(pos)
