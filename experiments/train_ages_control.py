@@ -19,20 +19,16 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from train_under_delay import _train_one  # noqa: E402
-
-from sigma_des import __version__  # noqa: E402
-from sigma_des.env.learn import score  # noqa: E402
-from sigma_des.studies.delay import cells, ci95, env_kwargs  # noqa: E402
+from sigma_des import __version__
+from sigma_des.env.learn import score
+from sigma_des.studies.delay import cells, ci95, env_kwargs
+from sigma_des.studies.delay_study import train_one
 
 #: Age columns of the ``tight`` observation (own, leader, nearest neighbour).
 AGE_COLUMNS = [5, 8, 13]
@@ -52,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict[str, Any]] = []
     for seed in seeds:
-        policy, _, _ = _train_one(a, "perfect", seed, [])
+        policy, _, _ = train_one(a, "perfect", seed, [])
 
         def hidden(obs: np.ndarray, p: Any = policy) -> np.ndarray:
             o = obs.copy()

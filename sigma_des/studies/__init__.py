@@ -12,6 +12,7 @@ share lives here:
 * :mod:`~sigma_des.studies.plots` — colours, bars, AoI panels (matplotlib, Agg);
 * :mod:`~sigma_des.studies.tables` — the one table formatter (text and Markdown).
 * :mod:`~sigma_des.studies.delay` — the delay study's conditions and paired statistics.
+* :mod:`~sigma_des.studies.delay_study` — the delay study's runs, outputs and shard merge.
 """
 
 from sigma_des.studies.args import (
