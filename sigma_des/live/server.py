@@ -109,6 +109,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.impair = Impairment(sc.net.server_link, sc.net, RandomStreams(sc.seed), sc.hosts,
                                  impair, server=True)
         self._dt = 1.0 / sc.f_trig  # step of the trigger being issued
+        self._t_issue = 0.0  # its issue time (the trigger_sent row)
         self.record = record
         self.bundle = bundle
         self.kept: dict[str, list[Any]] = {"states": [], "obs": [], "snapshots": [],
@@ -131,8 +132,9 @@ class LiveServer(AlignmentServer, ImpairedSender):
     # ------------------------------------------------------------ server hooks (MQTT)
 
     def on_frame(self, k: int, t: float, dt: float) -> None:
-        """Trigger ``k`` is issued: remember its step for the message."""
+        """Trigger ``k`` is issued: remember its step and issue time for the message."""
         self._dt = dt
+        self._t_issue = t
         super().on_frame(k, t, dt)
 
     def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
@@ -141,7 +143,10 @@ class LiveServer(AlignmentServer, ImpairedSender):
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         self._publish(self.topics.trig, encode_trigger(k, t, self._dt, hl, hc), t, TRIGGER,
                       self.n, k)
-        self.rows.append(("trigger_sent", -1, -1, k, t, math.nan, math.nan, math.nan, 0.0))
+        # the issue time, as the collector counts the trigger (the publish stamp ``t`` is a
+        # few µs later: at a window edge the two could fall on either side of it)
+        self.rows.append(("trigger_sent", -1, -1, k, self._t_issue, math.nan, math.nan,
+                          math.nan, 0.0))
 
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
