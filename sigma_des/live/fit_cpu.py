@@ -212,14 +212,6 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
     return wake, per_msg, rep
 
 
-def _net_share(cpu: pd.DataFrame, kind: str) -> float:
-    """The share of a process kind's CPU its network thread spent (process minus loop)."""
-    rows = _kind_rows(cpu, kind)
-    busy = float(rows["cpu_s"].sum())
-    loop = float(rows["loop_cpu_s"].sum())
-    return (busy - loop) / busy if busy > 0 and math.isfinite(loop) else 1.0
-
-
 def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
                 warn: list[str]) -> tuple[float, float]:
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
@@ -354,15 +346,11 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     broker = (publish + delivery) * scale
     host = dep.host_demand + dep.host_wake * share.get("host", 0.0)
     server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
-    if dep.runq_growth or dep.broker_runq or dep.host_runq or dep.server_runq:
-        g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
-        q_b, q_h, q_s = dep.broker_runq + g, dep.host_runq + g, dep.server_runq + g
-        # the broker's and the receiver's run-queue waits are in a measured latency
-        up = broker * (1 + q_b) + host * scale + q_s * server * scale
-        down = broker * (1 + q_b) + server * scale + q_h * host * scale
-        return {"up": up, "down": down,
-                "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
-                "send_up": dep.host_demand * scale}
-    return {"up": broker + host * scale, "down": broker + server * scale,
+    # the broker's and the receiver's run-queue waits are in a measured latency (all 0,
+    # and the sums exactly the plain ones, without them)
+    g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
+    q_b, q_h, q_s = dep.broker_runq + g, dep.host_runq + g, dep.server_runq + g
+    return {"up": broker * (1 + q_b) + host * scale + q_s * server * scale,
+            "down": broker * (1 + q_b) + server * scale + q_h * host * scale,
             "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
             "send_up": dep.host_demand * scale}
