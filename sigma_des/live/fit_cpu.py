@@ -212,6 +212,17 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
     return wake, per_msg, rep
 
 
+def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, float]:
+    """``(deployment.<kind>_wake, <kind>_wake_side)``: of a wake-up's CPU, the loop
+    thread's own (the loop line's intercept ``a``) holds the process's thread, the rest
+    (paho's network thread, and whatever else runs per wake-up) runs beside it; the
+    whole ``wake`` on the thread when the line gives no ``a`` in ``(0, wake)``."""
+    a = rep.get(f"{kind}_loop_wake_s", math.nan)
+    if not (math.isfinite(a) and 0.0 < a < wake):
+        return wake, 0.0
+    return a, wake - a
+
+
 def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
                 warn: list[str]) -> tuple[float, float]:
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
@@ -277,6 +288,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     background, measured, busy = _background(cpu, cores, warn)
     host_wake, host, host_rep = _wake(cpu, table, "host", warn)
     server_wake, server, server_rep = _wake(cpu, table, "server", warn)
+    host_wake, host_side = _split_wake(host_wake, host_rep, "host")
+    server_wake, server_side = _split_wake(server_wake, server_rep, "server")
     broker, b_busy, b_msgs = pooled_demand(table, "broker")
     if not math.isfinite(broker) or broker < 0:
         warn.append("the broker's CPU was not measured (an external broker?): its "
@@ -294,12 +307,14 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
                          runq_growth=any(math.isfinite(q) for _f, q in runq.values()),
+                         host_wake_side=host_side, server_wake_side=server_side,
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
         "background_cores_measured": measured, "machine_busy_cores": busy,
         "host_demand_s": host, "host_wake_s": host_wake,
         "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
+        "host_wake_side_s": host_side, "server_wake_side_s": server_side,
         "host_record_s": host_rec, "server_record_s": server_rec,
         "machine_utilisation": u,
         **{f"{k}_runq_per_cpu_s": q for k, (_f, q) in runq.items()},
@@ -344,6 +359,7 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     share = wake_share or {}
     scale = dep.cores / (dep.cores - dep.background)
     broker = (publish + delivery) * scale
+    # a wake-up's part beside the thread (*_wake_side) is on no message's path
     host = dep.host_demand + dep.host_wake * share.get("host", 0.0)
     server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
     # the broker's and the receiver's run-queue waits are in a measured latency (all 0,

@@ -14,6 +14,18 @@ two hops a message crosses, ``k' = k + (live - des) / (2 · mean hop)``, at leas
 :data:`K_MIN`. It stops when both directions are within :data:`MATCH_TOL` or after
 :data:`MATCH_ROUNDS` rounds. A scale keeps each direction's distribution's shape (its
 tail and its spread) and never makes a sample negative.
+
+The same rounds match each process kind's CPU (``server``: its process; ``host``: the
+busiest host's, as the DES's ``host_cpu_util_max``; each the mean over the methods of
+the live run's ``cpu.csv`` and of the DES's metrics) by scaling the wake-up's part
+beside the thread (``deployment.<kind>_wake_side``), the secant again, within
+``[0, SIDE_MAX]`` times the fitted value. *Why*: the Utilization Law splits the live CPU
+over live's wake-ups, and the DES's messages, timed by its own draws, find a thread
+idle less often than live's do (``s13``'s calibration run: the server 0.21 wake-ups a
+message against live's 0.53), so the fitted demands gave the DES half of live's CPU, and
+its machine's load (which sets the run-queue waits) half of live's. The part beside the
+thread is the one that can take the difference without changing how often the thread
+is idle.
 """
 
 from __future__ import annotations
@@ -32,10 +44,15 @@ from sigma_des.guard import atomic_write, output_file
 from sigma_des.net.latency import Dist, load_samples
 from sigma_des.net.spec import LinkSpec
 
-__all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "match_hops"]
+__all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_hops"]
 
 #: Rounds of DES runs at most.
-MATCH_ROUNDS = 6
+MATCH_ROUNDS = 8
+#: Largest scale of a wake-up's part beside the thread.
+SIDE_MAX = 8.0
+#: The DES metric and the ``deployment`` key each process kind's CPU is matched with.
+CPU_KEYS = {"server": ("server_cpu_util", "server_wake_side"),
+            "host": ("host_cpu_util_max", "host_wake_side")}
 #: Largest scale of a direction's hop samples.
 K_MAX = 4.0
 #: Relative difference of the pooled mean latencies a round stops at.
@@ -57,15 +74,34 @@ def _live_means(source: Path, sc: Scenario) -> tuple[float, float]:
             float(np.mean(trig)) if trig else math.nan)
 
 
-def _des_means(sc: Scenario, methods: list[str]) -> tuple[float, float]:
+def _live_cpu(source: Path) -> dict[str, float]:
+    """The live run's CPU per process kind (cores), each the mean over the methods:
+    the server's process, the busiest host's; empty without a ``cpu.csv``."""
+    from sigma_des.live.demands import read_cpu
+
+    cpu = read_cpu(source)
+    if cpu is None or "cpu_s" not in cpu.columns:
+        return {}
+    c = cpu.assign(cores=cpu["cpu_s"] / cpu["window_s"], proc=cpu["process"].astype(str))
+    srv = c[c["proc"] == "server"].groupby("method")["cores"].mean()
+    host = c[c["proc"].str.fullmatch(r"host\d+")].groupby("method")["cores"].max()
+    out = {"server": float(srv.mean()) if len(srv) else math.nan,
+           "host": float(host.mean()) if len(host) else math.nan}
+    return {k: v for k, v in out.items() if math.isfinite(v) and v > 0}
+
+
+def _des_means(sc: Scenario, methods: list[str]) -> dict[str, float]:
+    """The DES's pooled means over ``methods``: ``hop_up``, ``hop_down`` (ms) and each
+    kind's CPU (cores, NaN without a CPU stage)."""
     from sigma_des.api import run_method
 
-    up, down = [], []
-    for m in methods:
-        met = run_method(sc, m)["metrics"]
-        up.append(float(met["latency_state_mean"]))
-        down.append(float(met["latency_trigger_mean"]))
-    return float(np.mean(up)), float(np.mean(down))
+    rows = [run_method(sc, m)["metrics"] for m in methods]
+
+    def mean(key: str) -> float:
+        return float(np.mean([float(r.get(key, math.nan)) for r in rows]))
+
+    return {"hop_up": mean("latency_state_mean"), "hop_down": mean("latency_trigger_mean"),
+            **{kind: mean(metric) for kind, (metric, _k) in CPU_KEYS.items()}}
 
 
 def _scaled(sc: Scenario, files: dict[str, Path], k: dict[str, float], d: Path) -> Scenario:
@@ -93,12 +129,12 @@ def _scaled(sc: Scenario, files: dict[str, Path], k: dict[str, float], d: Path) 
     return replace(sc, net=replace(net, host_link=host, server_link=server))
 
 
-def _next_scale(tried: list[tuple[float, float]], live: float, mean: float) -> float:
-    """The next scale of one direction from the ``(scale, DES mean)`` pairs tried: the
-    first step spreads the difference over the message's two hops (ms -> s); once
-    pairs lie on both sides of ``live``, the secant through the closest pair on each
-    side (it stays between them); before that, the secant through the last two pairs;
-    always within ``[K_MIN, K_MAX]``."""
+def _next_scale(tried: list[tuple[float, float]], live: float, first: float,
+                lo: float = K_MIN, hi: float = K_MAX) -> float:
+    """The next scale from the ``(scale, DES value)`` pairs tried: the first step is
+    ``first``; once pairs lie on both sides of ``live``, the secant through the closest
+    pair on each side (it stays between them); before that, the secant through the
+    last two pairs; always within ``[lo, hi]``."""
     k1, d1 = tried[-1]
     below = [p for p in tried if p[1] <= live]
     above = [p for p in tried if p[1] > live]
@@ -109,22 +145,41 @@ def _next_scale(tried: list[tuple[float, float]], live: float, mean: float) -> f
         k0, d0 = tried[-2]
         x = k1 + (live - d1) * (k1 - k0) / (d1 - d0)
     else:
-        x = k1 + (live - d1) / 1000.0 / (2.0 * mean)
-    return min(max(x, K_MIN), K_MAX)
+        x = first
+    return min(max(x, lo), hi)
+
+
+def _with_sides(sc: Scenario, base: Scenario, k: dict[str, float]) -> Scenario:
+    """``sc`` with each matched kind's wake-up side part ``base``'s times ``k[kind]``."""
+    dep = sc.deployment
+    for kind, (_metric, key) in CPU_KEYS.items():
+        if kind in k:
+            dep = replace(dep, **{key: getattr(base.deployment, key) * k[kind]})
+    return replace(sc, deployment=dep)
+
+
+def _first(name: str, k: float, live: float, des: float, mean: dict[str, float]) -> float:
+    """The first step: a hop's spreads the difference over the message's two hops (ms
+    -> s); a kind's CPU scales its side part by the CPU's ratio."""
+    if name in mean:
+        return k + (live - des) / 1000.0 / (2.0 * mean[name])
+    return k * live / des if des > 0 else k
 
 
 def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str, Any]]:
-    """Rescale the calibrated hop samples until the DES re-predicts ``source``.
+    """Rescale the calibrated hop samples (and the wake-ups' parts beside the thread)
+    until the DES re-predicts ``source``.
 
     Args:
         sc: the calibrated scenario (its host link's ``latency`` is the states' hop
             file, its ``latency_down`` the triggers').
-        source: the live run it was fitted to (its ``summary.json`` and messages).
+        source: the live run it was fitted to (its ``summary.json``, messages and
+            ``cpu.csv``).
         d: where the matched sample files go.
 
     Returns:
-        The scenario reading the matched files, and a report: each direction's scale,
-        the rounds run, the live and DES pooled means of the last round.
+        The scenario reading the matched files, and a report: each direction's and
+        kind's scale, the rounds run, the live and DES pooled means of the last round.
     """
     live_up, live_down = _live_means(source, sc)
     lk = sc.net.host_link
@@ -136,25 +191,30 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
             and math.isfinite(live_down)):
         files["hop_down"] = Path(down.file)
     mean = {n: float(np.mean(load_samples(str(p)))) for n, p in files.items()}
-    live = {"hop_up": live_up, "hop_down": live_down}
-    k = dict.fromkeys(files, 1.0)
+    live = {"hop_up": live_up, "hop_down": live_down, **_live_cpu(source)}
+    kinds = [kind for kind, (_m, key) in CPU_KEYS.items()
+             if kind in live and getattr(sc.deployment, key) > 0.0]
+    names = [*files, *kinds]
+    k = dict.fromkeys(names, 1.0)
     methods = list(sc.methods)
     out = sc
     rounds = 0
     des: dict[str, float] = {}
-    tried: dict[str, list[tuple[float, float]]] = {n: [] for n in files}
+    tried: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
     for rounds in range(1, MATCH_ROUNDS + 1):
-        des_up, des_down = _des_means(out, methods)
-        des = {"hop_up": des_up, "hop_down": des_down}
-        errs = {n: (des[n] - live[n]) / live[n] for n in files}
+        des = _des_means(out, methods)
+        errs = {n: (des[n] - live[n]) / live[n] for n in names}
         if all(abs(e) <= MATCH_TOL for e in errs.values()) or rounds == MATCH_ROUNDS:
             break
-        for n in files:
+        for n in names:
             tried[n].append((k[n], des[n]))
-            k[n] = _next_scale(tried[n], live[n], mean[n])
-        out = _scaled(sc, files, k, d)
+            first = _first(n, k[n], live[n], des[n], mean)
+            k[n] = (_next_scale(tried[n], live[n], first) if n in files
+                    else _next_scale(tried[n], live[n], first, 0.0, SIDE_MAX))
+        out = _with_sides(_scaled(sc, files, k, d), sc, k)
+    unit = {n: "ms" if n in files else "cores" for n in names}
     report = {"hop_match_rounds": rounds,
-              **{f"{n}_scale": k[n] for n in files},
-              **{f"{n}_live_ms": live[n] for n in files},
-              **{f"{n}_des_ms": des[n] for n in files}}
+              **{f"{n}_scale" if n in files else f"{n}_side_scale": k[n] for n in names},
+              **{f"{n}_live_{unit[n]}": live[n] for n in names},
+              **{f"{n}_des_{unit[n]}": des[n] for n in names}}
     return out, report

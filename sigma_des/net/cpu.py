@@ -147,6 +147,9 @@ class Process:
         warmup: bursts (and busy time) before this time are not counted.
         end: busy time at or after this time is not counted.
         wake: CPU seconds a burst that finds the thread idle costs more (0: none).
+        side: CPU seconds a wake-up costs more on the process's other thread, beside
+            its own: placed on the machine's cores from the arrival, not holding the
+            thread (0: none).
 
     Attributes:
         free: time the thread is free again (s).
@@ -155,15 +158,16 @@ class Process:
         bursts: bursts arriving in the window.
     """
 
-    __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "runq", "free", "busy",
-                 "max_wait", "bursts", "queued")
+    __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "side", "runq", "free",
+                 "busy", "max_wait", "bursts", "queued")
 
     def __init__(self, name: str, machine: Machine, scale: float, warmup: float,
-                 end: float, wake: float = 0.0, runq: float = 0.0) -> None:
+                 end: float, wake: float = 0.0, runq: float = 0.0, side: float = 0.0) -> None:
         self.name = name
         self.machine = machine
         self.scale = scale
         self.wake = wake
+        self.side = side
         self.runq = runq
         self.queued = 0.0
         self.warmup = warmup
@@ -204,10 +208,21 @@ class Process:
             w = s - a
             if w > self.max_wait:
                 self.max_wait = w
+        self._count(s, end)
+
+    def _count(self, s: float, end: float) -> None:
+        """``[s, end)`` on a core: its part inside the metrics window is busy time."""
         lo = s if s > self.warmup else self.warmup
         hi = end if end < self.end else self.end
         if hi > lo:
             self.busy += hi - lo
+
+    def beside(self, a: float, length: float) -> None:
+        """A wake-up's part on the process's other thread: ``length`` on a core from
+        ``a`` on (the earliest gap, as any burst), the thread untouched."""
+        s, c = self.machine.place(a, a, length)
+        self.machine.reserve(c, s, s + length)
+        self._count(s, s + length)
 
     def carried(self, free: float, busy: float, max_wait: float, bursts: int,
                 queued: float = 0.0) -> None:
@@ -227,7 +242,13 @@ class Process:
         idle = w > 0.0 and a > self.free
         cpu = demand + w if idle else demand
         length = cpu * self.scale
-        wait = self.run_wait(a, cpu, length)
+        side = self.side if idle else 0.0
+        if side > 0.0:  # in the machine's load, not in this thread's run-queue wait
+            side_len = side * self.scale
+            wait = self.run_wait(a, cpu + side, length)
+            self.beside(a, side_len)
+        else:
+            wait = self.run_wait(a, cpu, length)
         s, c = self.acquire(a, length, wait)
         end = s + length
         self.hold(a, s, c, end)
@@ -309,8 +330,9 @@ class Cpu:
             self.machines = machines
         wakes = [0.0, spec.server_wake, *([spec.host_wake] * hosts)]
         runqs = [spec.broker_runq, spec.server_runq, *([spec.host_runq] * hosts)]
-        procs = [Process(n, m, scale, warmup, end, w, q)
-                 for n, m, w, q in zip(names, machines, wakes, runqs, strict=True)]
+        sides = [0.0, spec.server_wake_side, *([spec.host_wake_side] * hosts)]
+        procs = [Process(n, m, scale, warmup, end, w, q, d)
+                 for n, m, w, q, d in zip(names, machines, wakes, runqs, sides, strict=True)]
         self.cores = c
         self.broker = procs[0]
         self.server = procs[1]

@@ -64,7 +64,8 @@ MAX_CORES = 4096
 MAX_DEMAND = 1.0
 #: ``[deployment]`` keys added after the table: not written (nor hashed) at 0.
 LATER_KEYS = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
-              "host_runq", "server_runq", "broker_runq", "runq_growth")
+              "host_runq", "server_runq", "broker_runq", "runq_growth", "host_wake_side",
+              "server_wake_side")
 #: Largest run-queue wait per CPU second a deployment accepts.
 MAX_RUNQ = 100.0
 
@@ -210,6 +211,12 @@ class DeploymentSpec:
             thread idle (a *wake-up*: leaving the wait, the loop's own work), 0..1 s;
             needs ``host_demand > 0``.
         server_wake: the same for the server's process; needs ``server_demand > 0``.
+        host_wake_side: CPU a physics host's wake-up spends more on the process's
+            other thread (paho's network thread), 0..1 s, needs ``host_wake > 0``: it
+            runs on the machine's cores from the burst's arrival, beside the thread's
+            own burst, without holding the thread; it counts in the process's CPU, its
+            machine's load and the burst's run-queue wait.
+        server_wake_side: the same for the server's process.
         host_record: CPU a physics host's process spends more per record beyond the
             first of a bundled PUBLISH it sends or receives (encoding, decoding and
             handling each state or command), 0..``host_demand`` s: a bundle of ``k``
@@ -252,6 +259,8 @@ class DeploymentSpec:
     server_runq: float = 0.0
     broker_runq: float = 0.0
     runq_growth: bool = False
+    host_wake_side: float = 0.0
+    server_wake_side: float = 0.0
     clients: str = "node"
     bundle: bool = False
 
@@ -263,7 +272,8 @@ class DeploymentSpec:
         require(0.0 <= self.background < self.cores and math.isfinite(self.background),
                 "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
         for name in ("host_demand", "server_demand", "server_tick", "host_wake",
-                     "server_wake", "host_record", "server_record", "lock_switch"):
+                     "server_wake", "host_record", "server_record", "lock_switch",
+                     "host_wake_side", "server_wake_side"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
         for name in ("host_runq", "server_runq", "broker_runq"):
             require_in(self, name, 0.0, MAX_RUNQ, " s per CPU second")
@@ -272,6 +282,10 @@ class DeploymentSpec:
             require(wake == 0.0 or demand > 0.0, f"{who}_wake",
                     f"needs deployment.{who}_demand > 0 (a wake-up is charged on a burst, "
                     f"and a zero demand is no burst; got {who}_wake = {wake})")
+            side = getattr(self, f"{who}_wake_side")
+            require(side == 0.0 or wake > 0.0, f"{who}_wake_side",
+                    f"needs deployment.{who}_wake > 0 (it is a wake-up's part; got "
+                    f"{who}_wake_side = {side})")
             rec = getattr(self, f"{who}_record")
             require(rec <= demand, f"{who}_record",
                     f"must be in [0, deployment.{who}_demand = {demand}] s (a record's share "
@@ -280,7 +294,7 @@ class DeploymentSpec:
             for name in ("background", "host_demand", "server_demand", "server_tick",
                          "host_wake", "server_wake", "host_record", "server_record",
                          "lock_switch", "host_runq", "server_runq", "broker_runq",
-                         "runq_growth"):
+                         "runq_growth", "host_wake_side", "server_wake_side"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

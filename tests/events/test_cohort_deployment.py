@@ -205,12 +205,13 @@ def test_backfilled_cores_and_the_reservation_cap_identical(
 @pytest.mark.parametrize("preset", ["colocated", "dedicated"])
 @pytest.mark.parametrize("method", METHODS)
 def test_run_queue_waits_identical(method: str, preset: str) -> None:
-    """Run-queue floors per process and the machine's load-window growth (Erlang C):
-    both engines, every metric the same, and the waits really taken."""
+    """Run-queue floors per process, the machine's load-window growth (Erlang C) and
+    the hosts' wake-ups' parts beside the thread: both engines, every metric the same,
+    and the waits really taken."""
     sc = tiny(**{**_BASE, **_CPU, "deployment.preset": preset, "deployment.cores": 2,
                  "deployment.host_wake": 0.0001, "deployment.host_runq": 0.8,
                  "deployment.server_runq": 0.5, "deployment.broker_runq": 1.2,
-                 "deployment.runq_growth": True})
+                 "deployment.runq_growth": True, "deployment.host_wake_side": 0.0003})
     assert unsupported(sc.run_spec(), method) is None
     ev, co = run_both(sc, method)
     assert co["engine"]["used"] == "cohort"

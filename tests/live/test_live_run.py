@@ -138,6 +138,12 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
             assert abs(des / rep[f"{name}_live_ms"] - 1) <= MATCH_TOL
     if rep["hop_match_rounds"] > 1:
         assert sc.net.host_link.latency.file.endswith("hop_up_matched.txt")
+    # each kind's CPU was matched the same way, by its wake-ups' part beside the thread
+    for kind in ("server", "host"):
+        side = getattr(sc.deployment, f"{kind}_wake_side")
+        assert side == rep[f"{kind}_wake_side_s"] * rep.get(f"{kind}_side_scale", 1.0)
+        if f"{kind}_side_scale" in rep and rep["hop_match_rounds"] < MATCH_ROUNDS:
+            assert abs(rep[f"{kind}_des_cores"] / rep[f"{kind}_live_cores"] - 1) <= MATCH_TOL
     # the prediction: the calibrated scenario runs with its CPU stage (the DES's CPU
     # metrics exist only then)
     pred = tmp_path / "pred"

@@ -1,28 +1,61 @@
-"""The hop-latency match's steps (sigma_des/live/match.py), by hand."""
+"""The hop-latency and CPU match's steps (sigma_des/live/match.py), by hand."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
-from sigma_des.live.match import K_MAX, K_MIN, _next_scale
+from sigma_des.live.match import K_MAX, K_MIN, SIDE_MAX, _first, _live_cpu, _next_scale
+
+MEAN = {"hop_up": 1e-3}
+
+
+def _step(tried: list[tuple[float, float]], live: float) -> float:
+    k, des = tried[-1]
+    return _next_scale(tried, live, _first("hop_up", k, live, des, MEAN))
 
 
 def test_first_step_spreads_the_difference_over_two_hops() -> None:
     # DES 5 ms, live 4 ms, a hop of 1 ms on average: each hop 0.5 ms shorter -> k = 0.5
-    assert _next_scale([(1.0, 5.0)], 4.0, 1e-3) == pytest.approx(0.5)
-    assert _next_scale([(1.0, 5.0)], 1.0, 1e-3) == K_MIN  # never below the floor
-    assert _next_scale([(1.0, 5.0)], 99.0, 1e-3) == K_MAX
+    assert _step([(1.0, 5.0)], 4.0) == pytest.approx(0.5)
+    assert _step([(1.0, 5.0)], 1.0) == K_MIN  # never below the floor
+    assert _step([(1.0, 5.0)], 99.0) == K_MAX
 
 
 def test_a_bracket_is_closed_by_the_secant_through_its_nearest_pairs() -> None:
     # pairs on both sides of live = 4: (0.5, 3) below, (1, 5) above -> 0.75
-    assert _next_scale([(1.0, 5.0), (0.5, 3.0)], 4.0, 1e-3) == pytest.approx(0.75)
+    assert _step([(1.0, 5.0), (0.5, 3.0)], 4.0) == pytest.approx(0.75)
     # a farther pair on one side is not used: (0.2, 1) is below but (0.5, 3) is nearer
-    assert _next_scale([(0.2, 1.0), (1.0, 5.0), (0.5, 3.0)], 4.0, 1e-3) == pytest.approx(0.75)
+    assert _step([(0.2, 1.0), (1.0, 5.0), (0.5, 3.0)], 4.0) == pytest.approx(0.75)
 
 
 def test_without_a_bracket_the_last_two_pairs_extrapolate() -> None:
     # (1, 6) and (0.8, 5): 5 ms per unit of scale; live 4 -> 0.6
-    assert _next_scale([(1.0, 6.0), (0.8, 5.0)], 4.0, 1e-3) == pytest.approx(0.6)
+    assert _step([(1.0, 6.0), (0.8, 5.0)], 4.0) == pytest.approx(0.6)
     # equal DES means: back to the two-hop step from the last pair
-    assert _next_scale([(1.0, 5.0), (0.8, 5.0)], 4.0, 1e-3) == pytest.approx(0.3)
+    assert _step([(1.0, 5.0), (0.8, 5.0)], 4.0) == pytest.approx(0.3)
+
+
+def test_a_kinds_cpu_first_scales_its_side_part_by_the_cpu_ratio() -> None:
+    # live 0.45 cores, DES 0.30 at scale 1 -> 1.5; bounded by [0, SIDE_MAX]
+    k = _first("server", 1.0, 0.45, 0.30, MEAN)
+    assert k == pytest.approx(1.5)
+    assert _next_scale([(1.0, 0.30)], 0.45, k, 0.0, SIDE_MAX) == pytest.approx(1.5)
+    assert _next_scale([(1.0, 0.01)], 0.45, _first("host", 1.0, 0.45, 0.01, MEAN), 0.0,
+                       SIDE_MAX) == SIDE_MAX
+    assert _first("host", 2.0, 0.45, 0.0, MEAN) == 2.0  # no DES CPU: stays
+
+
+def test_live_cpu_is_the_server_and_the_busiest_host_mean_over_methods(tmp_path: Path) -> None:
+    cols = "method,process,pid,idle_s,idle_cpu_s,window_s,cpu_s,messages"
+    rows = ["none,server,1,1,0,2.0,1.0,10", "none,host0,2,1,0,2.0,0.4,5",
+            "none,host1,3,1,0,2.0,0.6,5", "none,broker,4,1,0,2.0,0.2,20",
+            "bides,server,5,1,0,4.0,1.0,10", "bides,host0,6,1,0,4.0,0.8,5",
+            "bides,host1,7,1,0,4.0,0.4,5", "bides,broker,8,1,0,4.0,0.2,20"]
+    (tmp_path / "cpu.csv").write_text("\n".join([cols, *rows]) + "\n")
+    # server 0.5 and 0.25 cores -> 0.375; busiest host 0.3 and 0.2 -> 0.25
+    assert _live_cpu(tmp_path) == {"server": pytest.approx(0.375), "host": pytest.approx(0.25)}
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _live_cpu(empty) == {}  # no cpu.csv: nothing to match

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from sigma_des.errors import ConfigError
 from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS, U_CAP, Cpu, Machine, queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
@@ -157,3 +158,44 @@ def test_growth_follows_the_last_windows_utilisation() -> None:
     assert start == pytest.approx(LOAD_WINDOW + 0.01 + 1.0 * 0.001)
     start, _end = h.span(3 * LOAD_WINDOW + 0.001, 0.002)  # the window before was empty
     assert start == 3 * LOAD_WINDOW + 0.001
+
+
+def test_a_wake_ups_side_part_takes_a_core_but_not_the_thread() -> None:
+    """One core, server demand 0.2, wake 0.1, side 0.3, run-queue floor 0.5. The first
+    burst (arrival 1.0) wakes the thread: its side part takes the core [1.0, 1.3); the
+    thread's own burst (0.3 long) waits 0.5 x 0.3 = 0.15 on the run queue (per its own
+    length, not the side's), ready at 1.15, but the core is held until 1.3: [1.3, 1.6).
+    A second burst at 1.35 finds the thread busy: no wake-up, no side part; ready at
+    1.6 + 0.5 x 0.2 = 1.7, runs [1.7, 1.9). The process's CPU is all three parts; the
+    machine's load window counts the side's CPU too."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=1, server_demand=0.2, server_wake=0.1,
+                             server_wake_side=0.3, server_runq=0.5, host_demand=0.1),
+              1, 0.0, 100.0)
+    s = cpu.server
+    assert s.span(1.0, 0.2) == (pytest.approx(1.3), pytest.approx(1.6))
+    assert s.span(1.35, 0.2) == (pytest.approx(1.7), pytest.approx(1.9))
+    assert s.busy == pytest.approx(0.3 + 0.3 + 0.2)
+    assert s.queued == pytest.approx(0.15 + 0.1)
+    # [1.0, 1.3) ended by the second arrival and was dropped
+    assert s.machine.cores[0] == [pytest.approx((1.3, 1.6)), pytest.approx((1.7, 1.9))]
+    assert s.machine.w_busy == pytest.approx(0.3 + 0.3 + 0.2)
+
+
+def test_side_part_runs_beside_the_thread_on_a_second_core() -> None:
+    """Two cores, host wake 0.1 with side 0.4: the side part and the thread's burst
+    start together at the arrival, on cores 0 and 1; the thread is free at 0.35, so a
+    burst at 0.4 wakes it again (both reservations ended by then: the side part on
+    core 0, the thread's burst on core 1)."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, host_demand=0.25, host_wake=0.1,
+                             host_wake_side=0.4), 1, 0.0, 100.0)
+    h = cpu.hosts[0]
+    assert h.span(0.0, 0.25) == (0.0, pytest.approx(0.35))
+    assert h.machine.cores == [[(0.0, 0.4)], [(0.0, pytest.approx(0.35))]]
+    assert h.span(0.4, 0.25) == (pytest.approx(0.4), pytest.approx(0.75))
+    assert h.machine.cores == [[(0.4, pytest.approx(0.8))], [(0.4, pytest.approx(0.75))]]
+    assert h.busy == pytest.approx(2 * (0.35 + 0.4))
+
+
+def test_a_side_part_needs_a_wake_up() -> None:
+    with pytest.raises(ConfigError, match="host_wake_side.*needs deployment.host_wake > 0"):
+        DeploymentSpec(preset="colocated", host_demand=0.1, host_wake_side=0.1)

@@ -12,7 +12,8 @@ counters (CPU seconds and longest wait in the metrics window, bursts) are handed
 back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
 Run-queue waits (``deployment.*_runq``, ``runq_growth``) are
-``Process.run_wait`` and ``Machine.load_wait``, the same operations in the same order.
+``Process.run_wait`` and ``Machine.load_wait``, and a wake-up's part on the other thread
+(``*_wake_side``) is ``Process.beside``, the same operations in the same order.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from sigma_des.events.fast.layout import (
     CPU_NIV,
     CPU_RUNQ,
     CPU_SCALE,
+    CPU_SIDE,
     CPU_WAKE,
     FPARAMS,
     G_END,
@@ -88,16 +90,22 @@ def run_wait(S, p, a, cpu, length):  # type: ignore[no-untyped-def]
 
 @jit
 def acquire(S, p, a, length, wait):  # type: ignore[no-untyped-def]
-    """Process.acquire and Machine.place: start time and core of a burst of ``length``
-    of process ``p`` arriving at ``a`` that waits ``wait`` on the run queue once its
-    thread is free (ended reservations dropped, nothing held)."""
-    m = S[CPU_MACH][p]
-    iv = S[CPU_IV][m]
-    niv = S[CPU_NIV][m]
+    """Process.acquire: start time and core of a burst of ``length`` of process ``p``
+    arriving at ``a`` that waits ``wait`` on the run queue once its thread is free
+    (ended reservations dropped, nothing held)."""
     tf = S[CPU_FREE][p]
     r = a if a > tf else tf
     if wait > 0.0:
         r += wait
+    return _place(S, S[CPU_MACH][p], a, r, length)
+
+
+@jit
+def _place(S, m, a, r, length):  # type: ignore[no-untyped-def]
+    """Machine.place: the earliest start ``s >= r`` on machine ``m`` of a burst of
+    ``length`` arriving at ``a``, and its core (ended reservations dropped)."""
+    iv = S[CPU_IV][m]
+    niv = S[CPU_NIV][m]
     best = -1.0
     core = 0
     for c in range(niv.shape[0]):
@@ -163,10 +171,26 @@ def hold(S, p, a, s, c, end):  # type: ignore[no-untyped-def]
         w = s - a
         if w > acc[p, CA_WAIT]:
             acc[p, CA_WAIT] = w
+    _count(S, p, s, end)
+
+
+@jit
+def _count(S, p, s, end):  # type: ignore[no-untyped-def]
+    """Process._count: the part of ``[s, end)`` inside the metrics window is busy."""
+    g = S[FPARAMS]
     lo = s if s > g[G_WARMUP] else g[G_WARMUP]
     hi = end if end < g[G_END] else g[G_END]
     if hi > lo:
-        acc[p, CA_BUSY] += hi - lo
+        S[CPU_ACC][p, CA_BUSY] += hi - lo
+
+
+@jit
+def _beside(S, p, a, length):  # type: ignore[no-untyped-def]
+    """Process.beside: a wake-up's part on the other thread, from ``a`` on a core."""
+    m = S[CPU_MACH][p]
+    s, c = _place(S, m, a, a, length)
+    _reserve(S, m, c, s, s + length)
+    _count(S, p, s, s + length)
 
 
 @jit
@@ -174,9 +198,18 @@ def span(S, p, demand, a):  # type: ignore[no-untyped-def]
     """Process.span: a burst of ``demand`` (> 0) CPU seconds of process ``p`` arriving at
     ``a`` (plus the process's wake-up cost if its thread is idle then); its start and end."""
     w = S[CPU_WAKE][p]
-    cpu = demand + w if w > 0.0 and a > S[CPU_FREE][p] else demand
-    length = cpu * S[CPU_SCALE][p]
-    s, c = acquire(S, p, a, length, run_wait(S, p, a, cpu, length))
+    idle = w > 0.0 and a > S[CPU_FREE][p]
+    cpu = demand + w if idle else demand
+    sc = S[CPU_SCALE][p]
+    length = cpu * sc
+    side = S[CPU_SIDE][p] if idle else 0.0
+    if side > 0.0:
+        side_len = side * sc
+        wait = run_wait(S, p, a, cpu + side, length)
+        _beside(S, p, a, side_len)
+    else:
+        wait = run_wait(S, p, a, cpu, length)
+    s, c = acquire(S, p, a, length, wait)
     end = s + length
     hold(S, p, a, s, c, end)
     return s, end

@@ -293,6 +293,7 @@ FIELDS: tuple[Field, ...] = (
     Field("mem_ptr", _i, ("clients_1",), None, "nodes of client c: mem[ptr[c]:ptr[c+1]]"),
     Field("mem", _i, ("n",), None, "nodes of each client, in node order"),
     Field("cpu_wake", _f, ("procs",), None, "CPU a burst finding its thread idle costs more"),
+    Field("cpu_side", _f, ("procs",), None, "a wake-up's CPU on the process's other thread"),
     Field("cpu_switch", _f, ("procs",), None, "lock_switch of each process (0: no outbox)"),
     Field("cpu_ob", _i, ("procs", OB_CAP), 0, "outbox: slots waiting to leave, a ring"),
     Field("cpu_obq", _i, ("procs", 2), 0, "outbox: ring head and count"),
@@ -423,6 +424,7 @@ BCAST = INDEX["bcast"]
 MEM_PTR = INDEX["mem_ptr"]
 MEM = INDEX["mem"]
 CPU_WAKE = INDEX["cpu_wake"]
+CPU_SIDE = INDEX["cpu_side"]
 CPU_RUNQ = INDEX["cpu_runq"]
 CPU_LOAD = INDEX["cpu_load"]
 CPU_SWITCH = INDEX["cpu_switch"]

@@ -250,6 +250,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     mach = np.zeros(H + 2, dtype=np.int64)
     scale = np.ones(H + 2)
     wake = np.zeros(H + 2)
+    side = np.zeros(H + 2)
     switch = np.zeros(H + 2)
     runq = np.zeros(H + 2)
     load = np.zeros((len(cpu.machines) if cpu is not None else 1, L.ML_LEN))
@@ -262,6 +263,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
             mach[p] = next(m for m, x in enumerate(cpu.machines) if x is pr.machine)
             scale[p] = pr.scale
             wake[p] = pr.wake
+            side[p] = pr.side
             runq[p] = pr.runq
             switch[p] = dep.lock_switch if p != L.P_BROKER else 0.0
         ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
@@ -287,7 +289,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
-            "cpu_scale": scale, "cpu_wake": wake, "cpu_switch": switch, "cl_of": cl_of,
+            "cpu_scale": scale, "cpu_wake": wake, "cpu_side": side, "cpu_switch": switch, "cl_of": cl_of,
             "cpu_runq": runq, "cpu_load": load,
             "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}
