@@ -289,7 +289,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         mem.extend(net.members.get(c, ()) if net.host_clients else ([c] if c < n else []))
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
-            "cpu_scale": scale, "cpu_wake": wake, "cpu_side": side, "cpu_switch": switch, "cl_of": cl_of,
-            "cpu_runq": runq, "cpu_load": load,
+            "cpu_scale": scale, "cpu_wake": wake, "cpu_side": side, "cpu_switch": switch,
+            "cl_of": cl_of, "cpu_runq": runq, "cpu_load": load,
             "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}
