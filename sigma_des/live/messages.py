@@ -3,7 +3,8 @@
 ``messages.csv.gz`` holds one row per message event, columns
 :data:`~sigma_des.live.runner.MESSAGE_COLUMNS`:
 
-* ``trigger_sent`` (server): ``frame``, ``t_send``;
+* ``trigger_sent`` (server): ``frame``, ``t_send`` (the trigger's issue time, as the collector
+  counts triggers: the publish stamp, µs later, could fall on the other side of a window edge);
 * ``trigger`` (host ``host`` received it): ``t_send``, ``t_recv``;
 * ``state_pub`` (host published node ``node``'s state of ``frame``): ``t_send``,
   ``t_trig`` (when the trigger that started the job arrived) and ``cost`` (the
