@@ -13,7 +13,12 @@ window. ``sigma-des calibrate`` fits the demands from these rows
 (:mod:`sigma_des.live.demands`). Each process row also carries its threads' time
 waiting on a run queue in the window (:func:`runq_wait_s`, Linux schedstat): time it
 was runnable but no core ran it, the wait the DES's CPU stage models as a burst's wait
-for a core.
+for a core, and its threads split in two (:func:`thread_times`, :data:`THREAD_COLUMNS`):
+the loop's (the process's main thread) and the others' (paho's network thread; in the
+server's process also whatever else the runner runs), each its CPU (schedstat, ns) and
+its voluntary context switches (each one a wait for something: the thread's
+wake-ups), so the network thread's CPU per message and per wake-up can be told apart
+from the loop's.
 """
 
 from __future__ import annotations
@@ -28,9 +33,9 @@ import psutil
 
 from sigma_des.live.ledger import publishes
 
-__all__ = ["CPU_COLUMNS", "CPU_FILE", "RUNQ_COLUMN", "WAKE_COLUMNS", "WALL_COLUMN", "CpuMeter",
-           "machine_busy", "message_counts", "runq_wait_s", "wake_columns", "wake_sums",
-           "write_cpu"]
+__all__ = ["CPU_COLUMNS", "CPU_FILE", "RUNQ_COLUMN", "THREAD_COLUMNS", "WAKE_COLUMNS",
+           "WALL_COLUMN", "CpuMeter", "machine_busy", "message_counts", "runq_wait_s",
+           "thread_times", "wake_columns", "wake_sums", "write_cpu"]
 
 #: The CPU table of a ``sigma-des live --out`` directory.
 CPU_FILE = "cpu.csv"
@@ -46,6 +51,10 @@ WAKE_COLUMNS = ("wakes", "calls", "loop_cpu_s", "skk", "skc")
 WALL_COLUMN = "loop_wall_s"
 #: A process's threads' run-queue wait in the metrics window (s; NaN where not readable).
 RUNQ_COLUMN = "runq_wait_s"
+#: In the metrics window: the main (loop) thread's CPU (s) and voluntary context
+#: switches, the other threads' (paho's network thread) CPU and voluntary switches,
+#: and how many other threads there were at its end (NaN where not readable).
+THREAD_COLUMNS = ("main_cpu_s", "main_switches", "net_cpu_s", "net_switches", "net_threads")
 
 
 def message_counts(server_links: dict[str, list[int]], host_stats: dict[int, dict[str, Any]],
@@ -108,6 +117,40 @@ def runq_wait_s(pid: int) -> float:
     return total / 1e9
 
 
+def _switches(task: Path) -> int:
+    for line in (task / "status").read_text().splitlines():
+        if line.startswith("voluntary_ctxt_switches:"):
+            return int(line.split()[1])
+    raise ValueError("no voluntary_ctxt_switches")
+
+
+def thread_times(pid: int) -> tuple[float, float, float, float, float]:
+    """``(main CPU s, main voluntary switches, others' CPU s, others' voluntary
+    switches, other threads)`` of process ``pid`` now: each thread's time on a core
+    (``/proc/<pid>/task/<tid>/schedstat``, first field, ns) and its voluntary context
+    switches (``status``); the main thread is ``tid == pid`` (the loop's). NaN
+    everywhere where not readable (not Linux, the process gone); a thread that ends
+    meanwhile is left out."""
+    main = [0.0, 0.0]
+    other = [0.0, 0.0, 0.0]
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            try:
+                ns = int((task / "schedstat").read_text().split()[0])
+                sw = _switches(task)
+            except (OSError, IndexError, ValueError):
+                continue
+            if task.name == str(pid):
+                main = [ns / 1e9, float(sw)]
+            else:
+                other[0] += ns / 1e9
+                other[1] += sw
+                other[2] += 1
+    except OSError:
+        return (math.nan,) * 5
+    return main[0], main[1], other[0], other[1], other[2]
+
+
 class CpuMeter:
     """CPU seconds of named processes (and of the machine) at named marks.
 
@@ -125,6 +168,7 @@ class CpuMeter:
         self.pids = dict(procs)
         self.marks: dict[str, tuple[float, float, dict[str, float]]] = {}
         self.runq: dict[str, dict[str, float]] = {}
+        self.threads: dict[str, dict[str, tuple[float, ...]]] = {}
 
     def _cpu(self, p: psutil.Process | None) -> float:
         if p is None:
@@ -141,6 +185,16 @@ class CpuMeter:
         cpu = {name: self._cpu(p) for name, p in self._ps.items()}
         self.marks[label] = (time.monotonic(), machine_busy(), cpu)
         self.runq[label] = {name: runq_wait_s(self.pids[name]) for name in self._ps}
+        self.threads[label] = {name: thread_times(self.pids[name]) for name in self._ps}
+
+    def _thread_columns(self, name: str) -> dict[str, float]:
+        """:data:`THREAD_COLUMNS` of process ``name`` over the metrics window (the
+        count of other threads: at its end)."""
+        nan = (math.nan,) * len(THREAD_COLUMNS)
+        a = self.threads.get("w0", {}).get(name, nan)
+        b = self.threads.get("w1", {}).get(name, nan)
+        vals = [y - x for x, y in zip(a[:-1], b[:-1], strict=True)] + [b[-1]]
+        return dict(zip(THREAD_COLUMNS, vals, strict=True))
 
     def _span(self, a: str, b: str) -> tuple[float, float, dict[str, float]]:
         if a not in self.marks or b not in self.marks:
@@ -151,7 +205,8 @@ class CpuMeter:
     def rows(self, messages: dict[str, int],
              wakes: dict[str, dict[str, Any]] | None = None) -> list[dict[str, Any]]:
         """One row per process (columns :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS` +
-        :data:`WALL_COLUMN` + :data:`RUNQ_COLUMN`) and a ``background`` row.
+        :data:`WALL_COLUMN` + :data:`RUNQ_COLUMN` + :data:`THREAD_COLUMNS`) and a
+        ``background`` row.
 
         Args:
             messages: PUBLISH messages each process handled (sent + received) in the
@@ -170,22 +225,24 @@ class CpuMeter:
                         "idle_cpu_s": idle[name], "window_s": win_s, "cpu_s": win[name],
                         "messages": messages.get(name, math.nan),
                         **wake_columns(wakes, name),
-                        RUNQ_COLUMN: q1.get(name, math.nan) - q0.get(name, math.nan)})
+                        RUNQ_COLUMN: q1.get(name, math.nan) - q0.get(name, math.nan),
+                        **self._thread_columns(name)})
         ours_idle = sum(v for v in idle.values() if math.isfinite(v))
         ours_win = sum(v for v in win.values() if math.isfinite(v))
         out.append({"process": "background", "pid": -1, "idle_s": idle_s,
                     "idle_cpu_s": max(idle_m - ours_idle, 0.0), "window_s": win_s,
                     "cpu_s": max(win_m - ours_win, 0.0), "messages": math.nan,
-                    **wake_columns(None, "background"), RUNQ_COLUMN: math.nan})
+                    **wake_columns(None, "background"), RUNQ_COLUMN: math.nan,
+                    **dict.fromkeys(THREAD_COLUMNS, math.nan)})
         return out
 
 
 def write_cpu(live: dict[str, dict[str, Any]], out_dir: Path) -> Path:
     """Write every method's CPU rows (``live[method]["cpu"]``) to ``out_dir/cpu.csv``
-    (columns ``method`` + :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS`; NaN where not
-    measured)."""
+    (columns ``method`` + :data:`CPU_COLUMNS` + :data:`WAKE_COLUMNS` + the wall, run-queue
+    and thread columns; NaN where not measured)."""
     path = out_dir / CPU_FILE
-    cols = (*CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN, RUNQ_COLUMN)
+    cols = (*CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN, RUNQ_COLUMN, *THREAD_COLUMNS)
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(("method", *cols))

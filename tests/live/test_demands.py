@@ -15,6 +15,7 @@ import pytest
 from sigma_des.live.cpu import (
     CPU_COLUMNS,
     RUNQ_COLUMN,
+    THREAD_COLUMNS,
     WAKE_COLUMNS,
     WALL_COLUMN,
     CpuMeter,
@@ -46,7 +47,7 @@ def test_utilization_law_recovers_known_demands_exactly(tmp_path: Path) -> None:
     cpu = read_cpu(tmp_path)
     assert cpu is not None
     assert list(cpu.columns) == ["method", *CPU_COLUMNS, *WAKE_COLUMNS, WALL_COLUMN,
-                                 RUNQ_COLUMN]
+                                 RUNQ_COLUMN, *THREAD_COLUMNS]
     table, bg, warn = fit_demands(cpu)
     assert warn == []
     assert bg == {"bides": pytest.approx(0.75)}  # 3 CPU s in 4 s: 0.75 cores taken
@@ -128,3 +129,47 @@ def _spin(core: int, seconds: float, pinned: Any) -> None:
     end = time.monotonic() + seconds
     while time.monotonic() < end:
         pass
+
+
+def test_thread_times_split_the_main_thread_from_the_others() -> None:
+    """This process's main thread sleeps while a second thread burns 0.2 s of CPU and
+    then waits on an event 20 times (each a voluntary switch): the others' CPU grows by
+    about 0.2 s and their voluntary switches by at least 20; the main thread's CPU by
+    little; one other thread more while it lives; a gone pid reads NaN."""
+    import threading
+
+    from sigma_des.live.cpu import thread_times
+
+    if not os.path.exists(f"/proc/{os.getpid()}/task"):
+        pytest.skip("no /proc")
+    go, ping, pong, done = (threading.Event() for _ in range(4))
+
+    def work() -> None:
+        go.wait(10)
+        t0 = time.thread_time()
+        while time.thread_time() - t0 < 0.2:
+            pass
+        for _ in range(20):
+            ping.wait(5)
+            ping.clear()
+            pong.set()
+        done.wait(10)  # alive at the second reading: a thread gone takes its counts
+
+    th = threading.Thread(target=work)
+    th.start()
+    before = thread_times(os.getpid())
+    go.set()
+    time.sleep(0.3)
+    for _ in range(20):
+        ping.set()
+        assert pong.wait(5)
+        pong.clear()
+    after = thread_times(os.getpid())
+    done.set()
+    th.join(5)
+    main_cpu, main_sw, net_cpu, net_sw, n_other = (y - x for x, y in zip(before, after))
+    assert 0.15 < net_cpu < 0.6
+    assert net_sw >= 20
+    assert 0.0 <= main_cpu < 0.15 and main_sw >= 1  # it slept 0.3 s: at least one wait
+    assert after[4] >= 1 and n_other == 0  # the same other threads at both readings
+    assert all(math.isnan(v) for v in thread_times(2**22 + 12345))

@@ -19,8 +19,10 @@ def _row(name: str, cpu: float, loop: float, wall: float, runq: float) -> dict[s
 
 
 def test_cores_per_window_second_per_kind_and_hosts_averaged(tmp_path: Path) -> None:
-    rows = [_row("server", 1.2, 0.5, 0.8, 1.0), _row("host0", 0.6, 0.3, 0.4, 0.2),
-            _row("host1", 1.0, 0.5, 0.8, 0.6),
+    rows = [{**_row("server", 1.2, 0.5, 0.8, 1.0), "net_cpu_s": 0.6, "net_switches": 300,
+             "main_switches": 500},
+            {**_row("host0", 0.6, 0.3, 0.4, 0.2), "net_cpu_s": 0.2, "net_switches": 100},
+            {**_row("host1", 1.0, 0.5, 0.8, 0.6), "net_cpu_s": 0.4, "net_switches": 300},
             {**_row("broker", 0.3, math.nan, math.nan, 0.1), "wakes": math.nan},
             {**_row("background", 0.1, math.nan, math.nan, math.nan), "pid": -1}]
     (tmp_path / "n30-node").mkdir()
@@ -34,6 +36,11 @@ def test_cores_per_window_second_per_kind_and_hosts_averaged(tmp_path: Path) -> 
     assert h["processes"] == 2
     assert (h["cpu_cores"], h["loop_cpu_cores"], h["loop_busy"], h["runq_cores"]) == \
         pytest.approx((0.4, 0.2, 0.3, 0.2))
+    # the other threads (paho's): CPU in cores, voluntary switches per second
+    assert (got["server"]["net_cpu_cores"], got["server"]["net_switch_rate"],
+            got["server"]["main_switch_rate"]) == pytest.approx((0.3, 150.0, 250.0))
+    assert (h["net_cpu_cores"], h["net_switch_rate"]) == pytest.approx((0.15, 100.0))
+    assert math.isnan(h["main_switch_rate"])  # not recorded for the hosts here
     assert math.isnan(got["broker"]["loop_busy"]) and got["broker"]["runq_cores"] == 0.05
     md = process_md(process_rows(tmp_path, ["n30-node"]))
     assert md[2] == "| n30-node | 0.60 | 0.40 | 0.50 | 0.40 | 0.30 | 0.20 | 0.15 |"

@@ -22,7 +22,8 @@ __all__ = ["PROCESS_COLUMNS", "process_md", "process_rows"]
 
 #: Columns of ``processes.csv``.
 PROCESS_COLUMNS = ("cell", "method", "kind", "processes", "cpu_cores", "loop_cpu_cores",
-                   "loop_busy", "runq_cores")
+                   "loop_busy", "runq_cores", "net_cpu_cores", "net_switch_rate",
+                   "main_switch_rate")
 #: Columns of the CPU table this reads (``loop_wall_s`` and ``runq_wait_s`` may be absent:
 #: a run recorded before them; their figures are then NaN).
 _NEEDED = ("method", "process", "window_s", "cpu_s")
@@ -47,7 +48,9 @@ def process_rows(live_root: Path, cells: list[str]) -> list[dict[str, Any]]:
     Returns:
         Rows with :data:`PROCESS_COLUMNS`: per process of the kind, in cores
         (seconds per window second), its CPU, its loop thread's CPU, the wall time its
-        loop thread was busy, and its threads' run-queue wait.
+        loop thread was busy, its threads' run-queue wait, and its other threads' (paho's
+        network thread) CPU; per second, the voluntary context switches (wake-ups) of
+        those threads and of its main thread. NaN in runs recorded before a column.
     """
     out: list[dict[str, Any]] = []
     for cell in cells:
@@ -64,7 +67,11 @@ def process_rows(live_root: Path, cells: list[str]) -> list[dict[str, Any]]:
                         "cpu_cores": _per_second(rows, "cpu_s"),
                         "loop_cpu_cores": _per_second(rows, "loop_cpu_s"),
                         "loop_busy": _per_second(rows, "loop_wall_s"),
-                        "runq_cores": _per_second(rows, "runq_wait_s")})
+                        "runq_cores": _per_second(rows, "runq_wait_s"),
+                        # the threads but the loop's (paho's): CPU, voluntary switches /s
+                        "net_cpu_cores": _per_second(rows, "net_cpu_s"),
+                        "net_switch_rate": _per_second(rows, "net_switches"),
+                        "main_switch_rate": _per_second(rows, "main_switches")})
     return out
 
 
