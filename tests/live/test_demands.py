@@ -167,7 +167,8 @@ def test_thread_times_split_the_main_thread_from_the_others() -> None:
     after = thread_times(os.getpid())
     done.set()
     th.join(5)
-    main_cpu, main_sw, net_cpu, net_sw, n_other = (y - x for x, y in zip(before, after, strict=True))
+    diff = (y - x for x, y in zip(before, after, strict=True))
+    main_cpu, main_sw, net_cpu, net_sw, n_other = diff
     assert 0.15 < net_cpu < 0.6
     assert net_sw >= 20
     assert 0.0 <= main_cpu < 0.15 and main_sw >= 1  # it slept 0.3 s: at least one wait
