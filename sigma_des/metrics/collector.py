@@ -150,10 +150,6 @@ class Collector:
         n = spec.nodes
         self.aoi = AoITracker(n, spec.warmup)
         self._shown_gen = np.full(n, np.nan)  # generation times shown after the last tick
-        # the per-tick kernels (numba: imported with the first collector, not the scenario)
-        from sigma_des.metrics import tick_kernels
-
-        self._kernels = tick_kernels
         # scratch of one tick: changed nodes and their states, ages and position errors
         self._nodes = np.empty(n, dtype=np.int64)
         self._gens = np.empty(n)
@@ -246,11 +242,14 @@ class Collector:
         Only the nodes whose shown state changed since the previous tick start a new AoI
         sawtooth (:meth:`aoi_update`); every engine and the live server call this.
         """
+        # numba: imported on first use (the scenario's modules import no numba)
+        from sigma_des.metrics.tick_kernels import changed_states
+
         gen = np.ascontiguousarray(gen, dtype=np.float64)
         if gen.shape != self._shown_gen.shape:
             raise ValueError(f"shown: {self.spec.nodes} generation times expected, "
                              f"got shape {gen.shape}")
-        k = self._kernels.changed_states(gen, self._shown_gen, self._nodes, self._gens)
+        k = changed_states(gen, self._shown_gen, self._nodes, self._gens)
         if k:
             self.aoi_update(t, self._nodes[:k], self._gens[:k])
             self._shown_gen = gen.copy()
@@ -278,13 +277,15 @@ class Collector:
         # the nodes with a state: their ages, frame spread, position errors (NaN ones left
         # out), the flag counts, the ages' mean (numpy's) and maximum: one compiled pass
         # (metrics/tick_kernels.py)
+        from sigma_des.metrics.tick_kernels import render_sample  # numba: on first use
+
         n = self.spec.nodes
         pos = _NO_TRUTH if truth is None else np.ascontiguousarray(truth, dtype=np.float64)
         if gen.shape != (n,) or frame.shape != (n,) or obs.shape[:1] != (n,) or \
                 obs.shape[1:] < (12,) or pos.shape not in ((n, 3), (0, 3)):
             raise ValueError(f"render: rows of {n} nodes expected, got gen {gen.shape}, "
                              f"frame {frame.shape}, obs {obs.shape}, truth {pos.shape}")
-        k, m, spread, filled, extrapolated, off, mean, hi = self._kernels.render_sample(
+        k, m, spread, filled, extrapolated, off, mean, hi = render_sample(
             float(t), np.ascontiguousarray(gen, dtype=np.float64),
             np.ascontiguousarray(frame, dtype=np.int64),
             np.ascontiguousarray(obs, dtype=np.float64), np.ascontiguousarray(flag), pos,

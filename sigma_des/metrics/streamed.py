@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import SUMMARY_KEYS, summarize
 
-__all__ = ["BINS", "CHUNK", "store_mean_max", "summarize_store"]
+__all__ = ["BINS", "CHUNK", "pairwise_sum", "store_mean_max", "summarize_store"]
 
 #: Values read from a store at a time (1 MB); at least 128, numpy's unsplit block, so
 #: that every range read is a node of numpy's own recursion.
@@ -86,7 +86,7 @@ def _half(n: int) -> int:
 
 
 @njit(cache=True)
-def _pairwise(a: np.ndarray, lo: int, n: int) -> float:
+def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
     """numpy's ``pairwise_sum`` of ``a[lo : lo + n]`` (the same additions, in order).
 
     numpy's recursion (a range of more than 128 values is the sum of its two halves,
@@ -182,7 +182,7 @@ def _sum(
         if mean is not None:
             x -= mean  # numpy's std: arr - arrmean, then squared in place
             x *= x
-        return float(_pairwise(x, 0, n))
+        return float(pairwise_sum(x, 0, n))
     n2 = n // 2
     n2 -= n2 % 8
     return _sum(store, lo, n2, mean, seen) + _sum(store, lo + n2, n - n2, mean, seen)

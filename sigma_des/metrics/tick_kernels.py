@@ -5,7 +5,7 @@ same order (``tests/metrics/test_tick_kernels.py`` checks them bit for bit again
 code on random cases): element-wise arithmetic is the same IEEE operation either way,
 ``np.linalg.norm`` of a row of three is ``sqrt((e0² + e1²) + e2²)``, and a numpy sum or
 mean of a contiguous array is numpy's pairwise summation added to the identity 0.0
-(:func:`sigma_des.metrics.streamed._pairwise`). Imported on first use: the scenario's
+(:func:`sigma_des.metrics.streamed.pairwise_sum`). Imported on first use: the scenario's
 modules import no numba.
 """
 
@@ -16,7 +16,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sigma_des.metrics.streamed import _pairwise
+from sigma_des.metrics.streamed import pairwise_sum
 
 __all__ = ["aoi_apply", "changed_states", "render_sample"]
 
@@ -58,7 +58,7 @@ def aoi_apply(t: float, nodes: np.ndarray, g: np.ndarray, gen: np.ndarray, acc: 
             acc[i] = begin
             start[i] = begin
         gen[i] = gi
-    return k, (0.0 + _pairwise(peaks, 0, k)) if k else 0.0
+    return k, (0.0 + pairwise_sum(peaks, 0, k)) if k else 0.0
 
 
 @njit(cache=True)
@@ -128,7 +128,7 @@ def render_sample(t: float, gen: np.ndarray, frame: np.ndarray, obs: np.ndarray,
     mean = math.nan
     hi = math.nan
     if k:
-        mean = (0.0 + _pairwise(ages, 0, k)) / k
+        mean = (0.0 + pairwise_sum(ages, 0, k)) / k
         hi = ages[0]
         for j in range(1, k):  # np.max (no NaN among the ages: gen is not NaN)
             if ages[j] > hi:

@@ -17,7 +17,7 @@ from sigma_des.core.flags import EXTRAPOLATED, FILLED
 from sigma_des.metrics.aoi import AoITracker
 from sigma_des.metrics.collector import Collector, CollectorSpec
 from sigma_des.metrics.reports import AlignerReport, NetReport, RunReport
-from sigma_des.metrics.streamed import _pairwise
+from sigma_des.metrics.streamed import pairwise_sum
 
 Array = np.ndarray
 
@@ -214,4 +214,4 @@ def test_pairwise_sum_is_numpys(scale: float) -> None:
     sizes = [*range(0, 300), 383, 1024, 1031, 4096 + 13, 65_537, 299_990]
     for n in sizes:
         lo = int(rng.integers(0, a.size - n + 1))
-        assert _bits(0.0 + _pairwise(a, lo, n)) == _bits(np.sum(a[lo:lo + n])), n
+        assert _bits(0.0 + pairwise_sum(a, lo, n)) == _bits(np.sum(a[lo:lo + n])), n
