@@ -63,16 +63,46 @@ def _step_frames(s0: np.ndarray, cmd: np.ndarray, dts: np.ndarray, first: np.int
         cur[0] = nxt[0]
 
 
+@njit(cache=True)
+def _observe_rows(state: np.ndarray, obs: np.ndarray, args: np.ndarray) -> None:
+    """``observe_state`` without its three inverse trigonometric calls: the copied
+    columns of ``obs`` and the arguments of ``phi = arctan2(args[0], args[1])``,
+    ``theta = arcsin(args[2])`` (clipped to [-1, 1]) and ``psi = arctan2(args[3],
+    args[4])`` (the same operations as the numpy expressions they replace)."""
+    for r in range(state.shape[0]):
+        q0, q1, q2, q3 = state[r, L.Q0], state[r, L.Q1], state[r, L.Q2], state[r, L.Q3]
+        args[0, r] = 2.0 * (q0 * q1 + q2 * q3)
+        args[1, r] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+        s = 2.0 * (q0 * q2 - q3 * q1)
+        if s < -1.0:  # np.clip (NaN stays NaN)
+            s = -1.0
+        elif s > 1.0:
+            s = 1.0
+        args[2, r] = s
+        args[3, r] = 2.0 * (q0 * q3 + q1 * q2)
+        args[4, r] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
+        for c in range(3):
+            obs[r, c] = state[r, L.U + c]
+            obs[r, 6 + c] = state[r, L.P + c]
+            obs[r, 9 + c] = state[r, L.XN + c]
+
+
 def observe_state(state: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Published ``(n, 12)`` state ``[u v w phi theta psi p q r x y h]`` of aircraft rows."""
-    q0, q1, q2, q3 = (state[:, L.Q0], state[:, L.Q1], state[:, L.Q2], state[:, L.Q3])
-    obs = np.empty((state.shape[0], 12))
-    obs[:, 0:3] = state[:, L.U:L.W + 1]
-    obs[:, 3] = np.arctan2(2.0 * (q0 * q1 + q2 * q3), 1.0 - 2.0 * (q1 * q1 + q2 * q2))
-    obs[:, 4] = np.arcsin(np.clip(2.0 * (q0 * q2 - q3 * q1), -1.0, 1.0))
-    obs[:, 5] = np.arctan2(2.0 * (q0 * q3 + q1 * q2), 1.0 - 2.0 * (q2 * q2 + q3 * q3))
-    obs[:, 6:9] = state[:, L.P:L.R + 1]
-    obs[:, 9:12] = state[:, L.XN:L.H + 1]
+    """Published ``(n, 12)`` state ``[u v w phi theta psi p q r x y h]`` of aircraft rows.
+
+    The Euler angles from the attitude quaternion: their arguments compiled
+    (:func:`_observe_rows`), the inverse trigonometric functions numpy's (whose float64
+    ``arctan2`` is SIMD code on AVX-512 machines, not the C library's that compiled code
+    would call: different in the last bit of some values).
+    """
+    state = np.ascontiguousarray(state, dtype=np.float64)
+    n = state.shape[0]
+    obs = np.empty((n, 12))
+    args = np.empty((5, n))
+    _observe_rows(state, obs, args)
+    obs[:, 3] = np.arctan2(args[0], args[1])
+    obs[:, 4] = np.arcsin(args[2])
+    obs[:, 5] = np.arctan2(args[3], args[4])
     return obs
 
 

@@ -27,10 +27,15 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from sigma_des.agents.rule_kernels import (
+    any_active,
+    known_positions,
+    priority_take,
+    separation_push,
+)
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.errors import ConfigError
 
@@ -100,10 +105,11 @@ class BehaviourSet:
     def guidance(self, view: SwarmView) -> Array:
         """Combined ``(n, 4)`` guidance; rows with no active rule are NaN."""
         n = view.obs.shape[0]
+        if self.mode == "priority":
+            out = self._priority(view)
+            return self._blend(out) if self.consistency > 0 else out
         acc = np.zeros((n, 6))       # w*v, w*cos chi, w*sin chi, w*h, w*phi, w(phi)
         wsum = np.zeros(n)
-        best = np.full((n, 4), np.nan)
-        best_w = np.zeros(n)
         for rule in self.rules:
             info = rule.extract(view)
             active = (rule.trigger(info, view) >= rule.threshold) & view.valid
@@ -112,11 +118,6 @@ class BehaviourSet:
             a = rule.logic(info, view)
             act = active & ~np.isnan(a[:, 0])
             w = np.where(act, rule.weight, 0.0)
-            if self.mode == "priority":
-                take = act & (rule.weight > best_w)
-                best[take] = a[take]
-                best_w[take] = rule.weight
-                continue
             aa = np.where(act[:, None], a, 0.0)
             acc[:, 0] += w * aa[:, 0]
             acc[:, 1] += w * np.cos(aa[:, 1])
@@ -126,19 +127,34 @@ class BehaviourSet:
             acc[:, 4] += np.where(has_phi, rule.weight * np.nan_to_num(a[:, 3]), 0.0)
             acc[:, 5] += np.where(has_phi, rule.weight, 0.0)
             wsum += w
-        if self.mode == "priority":
-            out = best
-        else:
-            out = np.full((n, 4), np.nan)
-            on = wsum > 0
-            out[on, 0] = acc[on, 0] / wsum[on]
-            out[on, 1] = np.arctan2(acc[on, 2], acc[on, 1])
-            out[on, 2] = acc[on, 3] / wsum[on]
-            ph = on & (acc[:, 5] > 0)
-            out[ph, 3] = acc[ph, 4] / acc[ph, 5]
+        out = np.full((n, 4), np.nan)
+        on = wsum > 0
+        out[on, 0] = acc[on, 0] / wsum[on]
+        out[on, 1] = np.arctan2(acc[on, 2], acc[on, 1])
+        out[on, 2] = acc[on, 3] / wsum[on]
+        ph = on & (acc[:, 5] > 0)
+        out[ph, 3] = acc[ph, 4] / acc[ph, 5]
         if self.consistency > 0:
             out = self._blend(out)
         return out
+
+    def _priority(self, view: SwarmView) -> Array:
+        """The ``priority`` combination: each row takes the action of its highest-weight
+        active rule (the first of equal weights), NaN where none is active."""
+        n = view.obs.shape[0]
+        valid = np.ascontiguousarray(view.valid, dtype=np.bool_)
+        best = np.full((n, 4), np.nan)
+        best_w = np.zeros(n)
+        for rule in self.rules:
+            info = rule.extract(view)
+            trig = np.ascontiguousarray(np.broadcast_to(
+                np.asarray(rule.trigger(info, view), dtype=np.float64), (n,)))
+            threshold = float(rule.threshold)
+            if not any_active(trig, threshold, valid):
+                continue
+            a = np.ascontiguousarray(rule.logic(info, view), dtype=np.float64)
+            priority_take(trig, threshold, valid, a, float(rule.weight), best, best_w)
+        return best
 
     def _blend(self, out: Array) -> Array:
         on = ~np.isnan(out[:, 0])
@@ -236,23 +252,6 @@ def route_rule(leaders: Sequence[int] = (0,), size: tuple[float, float] = (1000.
     return Rule("route", lambda v: None, trigger, 0.5, logic, weight)
 
 
-@njit(cache=True)
-def _scatter_pairs(i, j, push, gap, rep, depth):  # type: ignore[no-untyped-def]
-    """``np.add.at(rep, i, push)``, ``np.add.at(rep, j, -push)`` and ``np.maximum.at`` of
-    ``gap`` into ``depth`` at ``i`` then ``j``, in that order (so the sums are bit-identical):
-    numpy's ``ufunc.at`` took ≈ 0.25 s per frame for the millions of pairs at N = 10 000."""
-    for p in range(i.shape[0]):
-        for c in range(rep.shape[1]):
-            rep[i[p], c] += push[p, c]
-    for p in range(j.shape[0]):
-        for c in range(rep.shape[1]):
-            rep[j[p], c] += -push[p, c]
-    for idx in (i, j):
-        for p in range(idx.shape[0]):
-            if gap[p] > depth[idx[p]]:
-                depth[idx[p]] = gap[p]
-
-
 def separation_rule(radius: float = 10.0, gain: float = 2.0, weight: float = 5.0) -> Rule:
     """Collision avoidance: steer away from every neighbour closer than ``radius``.
 
@@ -266,20 +265,14 @@ def separation_rule(radius: float = 10.0, gain: float = 2.0, weight: float = 5.0
         raise ConfigError("separation.radius", f"must be > 0, got {radius}")
 
     def extract(view: SwarmView) -> tuple[Array, Array]:
-        pos = view.obs[:, [9, 10, 11]]
-        rep = np.zeros_like(pos)
-        depth = np.zeros(len(pos))
+        obs = np.ascontiguousarray(view.obs, dtype=np.float64)
         # Only nodes with a known position: unknown ones (NaN) are nobody's neighbour,
         # and mapping them all to one far point made every pair of them "intrude".
-        known = np.flatnonzero(np.isfinite(pos).all(axis=1))
-        pairs = cKDTree(pos[known]).query_pairs(radius, output_type="ndarray")
-        if len(pairs):
-            i, j = known[pairs[:, 0]], known[pairs[:, 1]]
-            d = pos[i] - pos[j]
-            dist = np.maximum(np.linalg.norm(d, axis=1), 1e-6)
-            push = d / dist[:, None] * ((radius - dist) / radius)[:, None]
-            _scatter_pairs(i, j, push, radius - dist, rep, depth)
-        return rep, depth
+        known, pts = known_positions(obs)
+        # scipy's tree stays: the sums below follow the order of its pairs (rule_kernels)
+        pairs = cKDTree(pts).query_pairs(radius, output_type="ndarray")
+        return separation_push(pts, known, pairs.astype(np.int64, copy=False).reshape(-1, 2),
+                               float(radius), obs.shape[0])
 
     def logic(info: tuple[Array, Array], view: SwarmView) -> Array:
         rep, _ = info

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.agents.behaviours import BehaviourSet, Rule, route_rule, separation_rule
+from sigma_des.agents.rule_kernels import slots_kernel, velocity_field
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.errors import ConfigError
 
@@ -38,20 +39,11 @@ Array = NDArray[np.float64]
 
 def formation_slots(obs: Array, leader: int, d: float, theta: float) -> Array:
     """``(n, 2)`` NED slot of every node (the leader's own position for the leader)."""
-    n = obs.shape[0]
-    i = np.arange(n)
-    rank = np.where(i < leader, i + 1, i)               # followers 1, 2, … in node order
-    rank[leader] = 0
-    row = np.ceil(rank / 2.0)
-    side = np.where(rank % 2 == 1, 1.0, -1.0)
-    dx = -row * d * math.cos(theta)
-    dy = side * row * d * math.sin(theta)
+    # followers 1, 2, … in node order: row ceil(rank / 2), right for odd ranks; the
+    # arithmetic compiled (rule_kernels.slots_kernel), the cos and sin here as before
     psi = obs[leader, 5]
-    c, s = math.cos(psi), math.sin(psi)
-    slots = np.empty((n, 2))
-    slots[:, 0] = obs[leader, 9] + c * dx - s * dy
-    slots[:, 1] = obs[leader, 10] + s * dx + c * dy
-    return slots
+    return slots_kernel(np.ascontiguousarray(obs, dtype=np.float64), int(leader), float(d),
+                        math.cos(theta), math.sin(theta), math.cos(psi), math.sin(psi))
 
 
 def formation_rule(leader: int = 0, d: float = 30.0, theta_deg: float = 45.0,
@@ -79,21 +71,24 @@ def formation_rule(leader: int = 0, d: float = 30.0, theta_deg: float = 45.0,
 
     def logic(slots: Any, view: SwarmView) -> Array:
         o = view.obs
-        psi_f, psi_l = o[:, 5], o[leader, 5]
-        dn, de = slots[:, 0] - o[:, 9], slots[:, 1] - o[:, 10]
-        ex = np.cos(psi_f) * dn + np.sin(psi_f) * de
-        ey = -np.sin(psi_f) * dn + np.cos(psi_f) * de
+        psi_l = o[leader, 5]
         out = np.empty((o.shape[0], 4))
         out[:, 2] = o[leader, 11]
         if roll_law:
+            psi_f = o[:, 5]
+            dn, de = slots[:, 0] - o[:, 9], slots[:, 1] - o[:, 10]
+            ex = np.cos(psi_f) * dn + np.sin(psi_f) * de
+            ey = -np.sin(psi_f) * dn + np.cos(psi_f) * de
             dpsi = (psi_l - psi_f + np.pi) % (2 * np.pi) - np.pi
             out[:, 0] = v_cru + p_v * ex
             out[:, 1] = psi_l
             out[:, 3] = np.clip(p_phi * ey + p_psi * dpsi, -phi_max, phi_max)
         else:
             vl = max(float(np.hypot(o[leader, 0], o[leader, 1])), 0.0)
-            vn = vl * math.cos(psi_l) + k_pos * dn
-            ve = vl * math.sin(psi_l) + k_pos * de
+            # vn = vl cos(psi_l) + k_pos (slot - position), compiled; hypot and arctan2
+            # stay numpy's (rule_kernels: module docstring)
+            vn, ve = velocity_field(np.ascontiguousarray(o, dtype=np.float64), slots,
+                                    vl * math.cos(psi_l), vl * math.sin(psi_l), float(k_pos))
             out[:, 0] = np.hypot(vn, ve)
             out[:, 1] = np.arctan2(ve, vn)
             out[:, 3] = np.nan

@@ -51,6 +51,7 @@ class AoITracker:
         self._peak_sum = 0.0
         self._peak_count = 0
         self._last_t = -math.inf
+        self._peaks = np.empty(0)  # scratch: the peaks of one update
 
     def update(self, t: float, nodes: ArrayLike, gen_times: ArrayLike) -> None:
         """At time ``t`` start showing, for each node listed, a state generated at ``gen_times``.
@@ -74,29 +75,24 @@ class AoITracker:
             last[:-1] = nd[order[1:]] != nd[order[:-1]]
             keep = order[last]
             nd, g = nd[keep], g[keep]
-        old = self._gen[nd]
-        shown = ~np.isnan(old)
-        newer = (g > old) | (~shown & ~np.isnan(g))
-        if not newer.all():
-            nd, g, old, shown = nd[newer], g[newer], old[newer], shown[newer]
-        # Nodes already showing a state: close the sawtooth piece [acc, t].
-        re = nd[shown]
-        if re.size:
-            g_old = old[shown]
-            a = self._acc[re]
-            dt = np.maximum(t - a, 0.0)
-            self._area[re] += dt * ((t + a) * 0.5 - g_old)
-            self._acc[re] = np.maximum(a, t)
-            if t >= self.t_start:
-                self._peak_sum += float(np.sum(t - g_old))
-                self._peak_count += int(re.size)
-        # First states: the node's window opens.
-        first = nd[~shown]
-        if first.size:
-            begin = max(t, self.t_start)
-            self._acc[first] = begin
-            self._start[first] = begin
-        self._gen[nd] = g
+        self._apply(t, np.ascontiguousarray(nd), np.ascontiguousarray(g, dtype=np.float64))
+
+    def _apply(self, t: float, nodes: NDArray[np.int64], g: NDArray[np.float64]) -> None:
+        """Show the newer of ``g`` for distinct ``nodes`` (compiled: for a node already
+        shown, close its sawtooth piece ``[acc, t]`` and count the peak; for a first
+        state, open its window), the same operations as the numpy expressions of
+        :meth:`_update_one` over the nodes, the peaks summed as ``np.sum`` does."""
+        from sigma_des.metrics.tick_kernels import aoi_apply  # numba: imported on first use
+
+        if self._peaks.shape[0] < nodes.shape[0]:
+            self._peaks = np.empty(nodes.shape[0])
+        k, s = aoi_apply(float(t), nodes, g, self._gen, self._acc, self._start, self._area,
+                         self.t_start, self._peaks)
+        if k < 0:
+            raise IndexError(f"node {nodes[-1 - k]} is out of range for {self.n} nodes")
+        if k and t >= self.t_start:
+            self._peak_sum += s
+            self._peak_count += k
 
     def _update_one(self, t: float, node: int, gen_time: ArrayLike) -> None:
         """Scalar fast path of :meth:`update` (same arithmetic, Python floats)."""

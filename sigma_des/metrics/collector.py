@@ -30,6 +30,8 @@ from sigma_des.net.kinds import KIND_NAMES, REPUBLISH, STATE
 
 __all__ = ["Collector", "CollectorSpec", "METRIC_UNITS", "WALL_METRICS", "cpu_metrics"]
 
+#: the truth of a render tick that has none (no rows)
+_NO_TRUTH = np.empty((0, 3))
 #: latency series of each message kind (a republished state is a state)
 _KINDS = {**KIND_NAMES, REPUBLISH: KIND_NAMES[STATE]}
 
@@ -148,6 +150,11 @@ class Collector:
         n = spec.nodes
         self.aoi = AoITracker(n, spec.warmup)
         self._shown_gen = np.full(n, np.nan)  # generation times shown after the last tick
+        # scratch of one tick: changed nodes and their states, ages and position errors
+        self._nodes = np.empty(n, dtype=np.int64)
+        self._gens = np.empty(n)
+        self._ages = np.empty(n)
+        self._errs = np.empty(n)
         H = spec.history_frames
         # per kind, the newest index seen per (subject, index % H): made on first use, so
         # a run that never calls delivered() (the cohort engine) never holds them
@@ -235,9 +242,16 @@ class Collector:
         Only the nodes whose shown state changed since the previous tick start a new AoI
         sawtooth (:meth:`aoi_update`); every engine and the live server call this.
         """
-        changed = np.flatnonzero(~np.isnan(gen) & ~(gen == self._shown_gen))
-        if changed.size:
-            self.aoi_update(t, changed, gen[changed])
+        # numba: imported on first use (the scenario's modules import no numba)
+        from sigma_des.metrics.tick_kernels import changed_states
+
+        gen = np.ascontiguousarray(gen, dtype=np.float64)
+        if gen.shape != self._shown_gen.shape:
+            raise ValueError(f"shown: {self.spec.nodes} generation times expected, "
+                             f"got shape {gen.shape}")
+        k = changed_states(gen, self._shown_gen, self._nodes, self._gens)
+        if k:
+            self.aoi_update(t, self._nodes[:k], self._gens[:k])
             self._shown_gen = gen.copy()
 
     def snapshot(self, t: float) -> None:
@@ -260,23 +274,35 @@ class Collector:
         """A render tick: sample AoI and consistency of the shown snapshot."""
         if t < self.w0:
             return
-        valid = ~np.isnan(gen)
-        ages = t - gen[valid]
-        self._aoi_samples.extend(ages)
-        spread = int(frame[valid].max() - frame[valid].min()) if ages.size else 0
+        # the nodes with a state: their ages, frame spread, position errors (NaN ones left
+        # out), the flag counts, the ages' mean (numpy's) and maximum: one compiled pass
+        # (metrics/tick_kernels.py)
+        from sigma_des.metrics.tick_kernels import render_sample  # numba: on first use
+
+        n = self.spec.nodes
+        pos = _NO_TRUTH if truth is None else np.ascontiguousarray(truth, dtype=np.float64)
+        if gen.shape != (n,) or frame.shape != (n,) or obs.shape[:1] != (n,) or \
+                obs.shape[1:] < (12,) or pos.shape not in ((n, 3), (0, 3)):
+            raise ValueError(f"render: rows of {n} nodes expected, got gen {gen.shape}, "
+                             f"frame {frame.shape}, obs {obs.shape}, truth {pos.shape}")
+        k, m, spread, filled, extrapolated, off, mean, hi = render_sample(
+            float(t), np.ascontiguousarray(gen, dtype=np.float64),
+            np.ascontiguousarray(frame, dtype=np.int64),
+            np.ascontiguousarray(obs, dtype=np.float64), np.ascontiguousarray(flag), pos,
+            int(ref), FILLED, EXTRAPOLATED, self._ages, self._errs)
+        self._aoi_samples.extend(self._ages[:k])
         self._spread.append(spread)
-        if truth is not None and ages.size:
-            err = np.linalg.norm(obs[valid, 9:12] - truth[valid], axis=1)
-            self._pos_err.extend(err[~np.isnan(err)])
-        self._flag_counts[0] += int(valid.sum())
-        self._flag_counts[1] += int(np.count_nonzero(flag == FILLED))
-        self._flag_counts[2] += int(np.count_nonzero(flag == EXTRAPOLATED))
+        if m:
+            self._pos_err.extend(self._errs[:m])
+        self._flag_counts[0] += k
+        self._flag_counts[1] += filled
+        self._flag_counts[2] += extrapolated
         if ref >= 0:
-            self._flag_counts[3] += int(np.count_nonzero(frame[valid] != ref))
+            self._flag_counts[3] += off
         ts = self.ts
         ts["t"].append(t)
-        ts["aoi_mean"].append(float(ages.mean()) if ages.size else math.nan)
-        ts["aoi_max"].append(float(ages.max()) if ages.size else math.nan)
+        ts["aoi_mean"].append(mean)
+        ts["aoi_max"].append(hi)
         ts["spread"].append(spread)
         ts["f_trig"].append(f_trig)
         ts["latest_trigger"].append(latest)

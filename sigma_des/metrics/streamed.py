@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from sigma_des.metrics.samples import Samples
 from sigma_des.metrics.stats import SUMMARY_KEYS, summarize
 
-__all__ = ["BINS", "CHUNK", "store_mean_max", "summarize_store"]
+__all__ = ["BINS", "CHUNK", "pairwise_sum", "store_mean_max", "summarize_store"]
 
 #: Values read from a store at a time (1 MB); at least 128, numpy's unsplit block, so
 #: that every range read is a node of numpy's own recursion.
@@ -50,36 +50,81 @@ PERCENTILES = (50.0, 95.0, 99.0)
 
 
 @njit(cache=True)
-def _pairwise(a: np.ndarray, lo: int, n: int) -> float:
-    """numpy's ``pairwise_sum`` of ``a[lo : lo + n]`` (the same additions, in order)."""
+def _block(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's ``pairwise_sum`` of ``a[lo : lo + n]`` for ``n <= 128`` (no split)."""
     if n < 8:
         res = -0.0
         for i in range(n):
             res += a[lo + i]
         return res
-    if n <= 128:
-        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-        i = 8
-        while i < n - (n % 8):
-            j = lo + i
-            r0 += a[j]
-            r1 += a[j + 1]
-            r2 += a[j + 2]
-            r3 += a[j + 3]
-            r4 += a[j + 4]
-            r5 += a[j + 5]
-            r6 += a[j + 6]
-            r7 += a[j + 7]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < n:
-            res += a[lo + i]
-            i += 1
-        return res
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        j = lo + i
+        r0 += a[j]
+        r1 += a[j + 1]
+        r2 += a[j + 2]
+        r3 += a[j + 3]
+        r4 += a[j + 4]
+        r5 += a[j + 5]
+        r6 += a[j + 6]
+        r7 += a[j + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def _half(n: int) -> int:
+    """Where numpy splits a range of ``n > 128`` values: half, down to a multiple of 8."""
     n2 = n // 2
-    n2 -= n2 % 8
-    return _pairwise(a, lo, n2) + _pairwise(a, lo + n2, n - n2)
+    return n2 - n2 % 8
+
+
+@njit(cache=True)
+def pairwise_sum(a: np.ndarray, lo: int, n: int) -> float:
+    """numpy's ``pairwise_sum`` of ``a[lo : lo + n]`` (the same additions, in order).
+
+    numpy's recursion (a range of more than 128 values is the sum of its two halves,
+    :func:`_half`; a shorter one a :func:`_block`) run on an explicit stack: a compiled
+    function that calls itself cannot be called from another compiled function that
+    numba loads from its cache (the recursive symbol is left unresolved)."""
+    if n <= 128:
+        return _block(a, lo, n)
+    depth = 2  # a part of m values has at most m // 2 + 8 (both halves): a bound
+    m = n
+    while m > 128:
+        m = m // 2 + 8
+        depth += 1
+    start = np.empty(depth, dtype=np.int64)
+    size = np.empty(depth, dtype=np.int64)
+    left = np.empty(depth)
+    right_next = np.zeros(depth, dtype=np.bool_)  # the left half is summed: now the right
+    sp = 0
+    start[0], size[0] = lo, n
+    while True:
+        if size[sp] > 128:  # descend into the left half
+            start[sp + 1], size[sp + 1] = start[sp], _half(size[sp])
+            right_next[sp + 1] = False
+            sp += 1
+            continue
+        ret = _block(a, start[sp], size[sp])
+        sp -= 1
+        while sp >= 0 and right_next[sp]:  # both halves done: add them, return upwards
+            ret = left[sp] + ret
+            sp -= 1
+        if sp < 0:
+            return ret
+        left[sp] = ret  # the left half of sp is done: sum its right half
+        right_next[sp] = True
+        h = _half(size[sp])
+        start[sp + 1], size[sp + 1] = start[sp] + h, size[sp] - h
+        right_next[sp + 1] = False
+        sp += 1
 
 
 def _key(v: float) -> int:
@@ -137,7 +182,7 @@ def _sum(
         if mean is not None:
             x -= mean  # numpy's std: arr - arrmean, then squared in place
             x *= x
-        return float(_pairwise(x, 0, n))
+        return float(pairwise_sum(x, 0, n))
     n2 = n // 2
     n2 -= n2 % 8
     return _sum(store, lo, n2, mean, seen) + _sum(store, lo + n2, n - n2, mean, seen)

@@ -86,22 +86,6 @@ def test_separation_ignores_unknown_positions() -> None:
     assert rep.tolist() == [[0.0, -0.6, 0.0], [0.0] * 3, [0.0, 0.6, 0.0], [0.0] * 3, [0.0] * 3]
 
 
-def test_scatter_pairs_matches_numpy_ufunc_at_bit_for_bit() -> None:
-    from sigma_des.agents.behaviours import _scatter_pairs
-
-    rng = np.random.default_rng(11)
-    i, j = rng.integers(0, 40, 500), rng.integers(0, 40, 500)
-    push, gap = rng.normal(size=(500, 3)), rng.uniform(0.0, 10.0, 500)
-    rep, depth = np.zeros((40, 3)), np.zeros(40)
-    np.add.at(rep, i, push)
-    np.add.at(rep, j, -push)
-    np.maximum.at(depth, i, gap)
-    np.maximum.at(depth, j, gap)
-    rep2, depth2 = np.zeros((40, 3)), np.zeros(40)
-    _scatter_pairs(i, j, push, gap, rep2, depth2)
-    assert rep2.tobytes() == rep.tobytes() and depth2.tobytes() == depth.tobytes()
-
-
 def test_guidance_converts_to_pointmass_velocity() -> None:
     obs = np.zeros((1, 12))
     obs[0, 11] = 90.0
