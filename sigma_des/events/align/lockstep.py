@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, MISSING
@@ -44,6 +45,42 @@ class Barrier(NamedTuple):
     current: int
     missing: int
     complete: bool
+
+
+@njit(cache=True)
+def count_rows(nodes: NDArray[np.int64], frames: NDArray[np.int64],  # pragma: no cover
+               gens: NDArray[np.float64], obs: NDArray[np.float64], start: int,
+               current: int, complete: bool, missing: int, live: NDArray[np.bool_],
+               got: NDArray[np.bool_], gen: NDArray[np.float64],
+               obs_out: NDArray[np.float64]) -> tuple[int, int, int]:
+    """Count the barrier's states from row ``start`` on, until a row completes it.
+
+    The rule of :meth:`LockstepAligner.on_states` row by row, compiled: an evicted node
+    delivering ``current`` rejoins (``live``, one more missing); a row of ``current``
+    not yet counted, while the barrier waits, is stored (``got``, ``gen``, ``obs_out``)
+    and counted. Stops at the row that leaves no state missing, so that the caller
+    completes the barrier (and the engine may open the next one) before the later rows.
+
+    Returns:
+        ``(row that completed the barrier or -1, missing, rejoined nodes)``.
+    """
+    rejoined = 0
+    for j in range(start, nodes.size):
+        node = nodes[j]
+        frame = frames[j]
+        if not live[node] and frame == current:
+            live[node] = True
+            rejoined += 1
+            missing += 1
+        if frame != current or complete or got[node]:
+            continue
+        missing -= 1
+        got[node] = True
+        gen[node] = gens[j]
+        obs_out[node, :] = obs[j, :]
+        if missing <= 0:
+            return j, missing, rejoined
+    return -1, missing, rejoined
 
 
 class LockstepAligner(Aligner):
@@ -100,25 +137,22 @@ class LockstepAligner(Aligner):
             self.ctx.call_at(t + spec.eviction_timeout, self._evict, frame)
 
     def on_states(self, batch: StateBatch) -> None:
-        """Count the barrier's states row by row (a row may complete it mid-batch)."""
-        nodes, frames, gens = batch.nodes, batch.frames, batch.gens
-        for j in range(nodes.size):
-            self._one(int(nodes[j]), int(frames[j]), float(gens[j]), batch.obs[j])
-
-    def _one(self, node: int, frame: int, gen: float, obs: NDArray[np.float64]) -> None:
-        if not self.live[node] and frame == self.current:
-            # an evicted node that has caught up (delivers the newest frame) rejoins; it
-            # counts from this frame if the barrier still waits, else from the next one
-            self.live[node] = True
-            self.rejoined += 1
-            self.missing += 1
-        if frame != self.current or self.complete or self.got[node]:
-            return
-        self.missing -= 1
-        self.got[node] = True
-        self._gen[node] = gen
-        self._obs[node] = obs
-        self._check_complete()
+        """Count the barrier's states row by row (:func:`count_rows`, compiled): an
+        evicted node that has caught up (delivers the newest frame) rejoins, counting
+        from this frame if the barrier still waits, else from the next one; a row may
+        complete the barrier mid-batch, and the rows after it meet the next one if the
+        engine opened it meanwhile."""
+        nodes, frames, gens, obs = batch.nodes, batch.frames, batch.gens, batch.obs
+        j = 0
+        while j < nodes.size:
+            k, self.missing, rejoined = count_rows(
+                nodes, frames, gens, obs, j, self.current, self.complete, self.missing,
+                self.live, self.got, self._gen, self._obs)
+            self.rejoined += rejoined
+            if k < 0:
+                return
+            self._check_complete()
+            j = k + 1
 
     def _check_complete(self) -> None:
         if self.complete or self.missing > 0:
