@@ -52,12 +52,14 @@ def test_the_package_set_holds_the_fast_core_and_its_constants_not_the_front_end
     for rel in ("events/fast/compiler.py", "events/fast/layout.py", "events/fast/loop.py",
                 "events/fast/broker.py", "events/fast/node.py", "events/fast/transport.py",
                 "agents/kernel.py", "agents/layout.py", "core/counter_rng.py",
-                "events/align/ring.py", "metrics/dtw.py", "net/kinds.py"):
+                "events/align/ring.py", "metrics/dtw.py", "net/kinds.py",
+                "events/align/lockstep.py", "agents/rule_kernels.py", "metrics/tick_kernels.py"):
         assert rel in got, rel
     for rel in ("__init__.py", "api.py", "cli.py", "config.py", "jitcache.py",
                 "cache/ideal.py", "warmup/units.py", "events/fast/driver.py"):
         assert rel not in got, rel
-    assert len(got) < 60  # narrow: 36 of 173 files when written
+    # narrow: 36 of 173 files when written, 60 of 235 with session 14's kernels
+    assert len(got) < 80
 
 
 def _write(pkg: Path, files: dict[str, str]) -> None:
