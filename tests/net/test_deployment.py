@@ -62,6 +62,12 @@ def test_defaults_are_not_written_and_leave_the_hash_alone() -> None:
      "deployment.runq_growth: needs deployment.preset colocated or dedicated"),
     (["deployment.preset='colocated'", "deployment.broker_runq=-0.1"],
      r"deployment.broker_runq: must be in \[0, 100\] s per CPU second"),
+    (["deployment.preset='colocated'", "deployment.host_demand=1e-4",
+      "deployment.host_wake_side=1e-4"],
+     r"deployment.host_wake_side: needs deployment.host_wake > 0"),
+    (["deployment.preset='colocated'", "deployment.server_demand=1e-4",
+      "deployment.server_wake=1e-4", "deployment.server_wake_side=2"],
+     r"deployment.server_wake_side: must be in \[0, 1\] s"),
     (["deployment.preset='colocated'", "net.middleware='dds'", "net.transport='datagram'",
       "net.qos=0"], "deployment.preset: needs net.middleware 'mqtt'"),
 ])
@@ -89,6 +95,12 @@ def test_wake_and_switch_at_zero_leave_the_hash_of_a_deployment_alone() -> None:
     assert config_hash(rq) == config_hash(old) and "runq" not in to_toml(rq)
     rq = load(None, [*base, "deployment.runq_growth=true"])
     assert config_hash(rq) != config_hash(old) and "runq_growth = true" in to_toml(rq)
+    on_wake = load(None, [*base, "deployment.host_wake=5e-5"])
+    side = load(None, [*base, "deployment.host_wake=5e-5", "deployment.host_wake_side=0.0"])
+    assert config_hash(side) == config_hash(on_wake) and "wake_side" not in to_toml(side)
+    side = load(None, [*base, "deployment.host_wake=5e-5", "deployment.host_wake_side=1e-4"])
+    assert config_hash(side) != config_hash(on_wake)
+    assert "host_wake_side = 0.0001" in to_toml(side)
 
 
 def test_clients_and_bundle_are_allowed_without_a_cpu_stage() -> None:
