@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sigma_des.live.cpu import CPU_FILE, RUNQ_COLUMN, WAKE_COLUMNS, WALL_COLUMN
+from sigma_des.live.cpu import CPU_FILE, RUNQ_COLUMN, THREAD_COLUMNS, WAKE_COLUMNS, WALL_COLUMN
 from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.loop import WakeStats
 from sigma_des.net.cpu import queue_wait
@@ -212,6 +212,53 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
     return wake, per_msg, rep
 
 
+def _threads(cpu: pd.DataFrame, table: pd.DataFrame, rep: dict[str, float], kind: str,
+             warn: list[str]) -> dict[str, float] | None:
+    """The kind's two threads (module doc, *network thread*): ``{"demand", "wake",
+    "net_msg", "net_wake"}``, or None (said in a warning) without the thread columns or
+    without a positive cost per wake-up left in either thread.
+
+    The process's busy CPU is split between its threads as their measured CPU is
+    (``main_cpu_s``, ``net_cpu_s``); each thread's message costs one call, the loop
+    line's slope ``b`` (one run cannot tell a thread's per-message from its per-wake-up
+    CPU: every method sends as many messages), and the Utilization Law gives the rest
+    per wake-up: the loop thread's over its loop wake-ups, the network thread's over its
+    voluntary context switches (each one a return from its ``select``)."""
+    _d, busy, msgs = pooled_demand(table, kind)
+    rows = _kind_rows(cpu, kind)
+    cols = list(THREAD_COLUMNS[:4])
+    b, wakes = rep.get(f"{kind}_loop_call_s", math.nan), rep.get(f"{kind}_wakes", 0.0)
+    if not (set(cols) <= set(rows.columns) and len(rows)
+            and rows[cols].map(math.isfinite).all().all()):
+        warn.append(f"no {kind} thread columns recorded (a live run before them?): paho's "
+                    f"thread is a wake-up's part beside the loop (deployment.{kind}_wake_side)")
+        return None
+    main, net = float(rows["main_cpu_s"].sum()), float(rows["net_cpu_s"].sum())
+    switches = float(rows["net_switches"].sum())
+    ok = main > 0 and net > 0 and switches > 0 and wakes > 0 and b > 0 and msgs > 0
+    net_busy = busy * net / (main + net) if ok else math.nan
+    net_wake = (net_busy - b * msgs) / switches if ok else math.nan
+    loop_wake = (busy - net_busy - b * msgs) / wakes if ok else math.nan
+    if not (net_wake > 0 and loop_wake > 0):
+        warn.append(f"{kind}: no positive per-wake-up CPU in both threads (loop "
+                    f"{loop_wake * 1e6:.3g} µs, network {net_wake * 1e6:.3g} µs after "
+                    f"{b * 1e6:.3g} µs a message): paho's thread is a wake-up's part beside "
+                    f"the loop (deployment.{kind}_wake_side)")
+        return None
+    if os.environ.get("SIGMA_LOOP_SPLIT") == "C":  # the loop: its intercept a wake-up, the rest a message
+        a = rep.get(f"{kind}_loop_wake_s", math.nan)
+        per = (busy - net_busy - a * wakes) / msgs
+        if a > 0 and per > 0:
+            rep[f"{kind}_net_cpu_share"] = net / (main + net)
+            rep[f"{kind}_net_switch_share"] = switches / msgs
+            return {"demand": per, "wake": a, "net_msg": b, "net_wake": net_wake,
+                    "side": net_wake if os.environ.get("SIGMA_NET_VARIANT") == "B" else 0.0}
+    rep[f"{kind}_net_cpu_share"] = net / (main + net)
+    rep[f"{kind}_net_switch_share"] = switches / msgs
+    return {"demand": b, "wake": loop_wake, "net_msg": b, "net_wake": net_wake,
+            "side": net_wake if os.environ.get("SIGMA_NET_VARIANT") == "B" else 0.0}
+
+
 def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, float]:
     """``(deployment.<kind>_wake, <kind>_wake_side)``: of a wake-up's CPU, the loop
     thread's own (the loop line's intercept ``a``) holds the process's thread, the rest
@@ -290,6 +337,13 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     server_wake, server, server_rep = _wake(cpu, table, "server", warn)
     host_wake, host_side = _split_wake(host_wake, host_rep, "host")
     server_wake, server_side = _split_wake(server_wake, server_rep, "server")
+    net = {"host": (0.0, 0.0), "server": (0.0, 0.0)}
+    if host_side > 0.0 and (t := _threads(cpu, table, host_rep, "host", warn)):
+        host, host_wake, host_side, net["host"] = t["demand"], t["wake"], t["side"], (
+            t["net_msg"], t["net_wake"])
+    if server_side > 0.0 and (t := _threads(cpu, table, server_rep, "server", warn)):
+        server, server_wake, server_side, net["server"] = t["demand"], t["wake"], t["side"], (
+            t["net_msg"], t["net_wake"])
     broker, b_busy, b_msgs = pooled_demand(table, "broker")
     if not math.isfinite(broker) or broker < 0:
         warn.append("the broker's CPU was not measured (an external broker?): its "
@@ -308,6 +362,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
                          broker_runq=runq["broker"][0],
                          runq_growth=any(math.isfinite(q) for _f, q in runq.values()),
                          host_wake_side=host_side, server_wake_side=server_side,
+                         host_net_msg=net["host"][0], host_net_wake=net["host"][1],
+                         server_net_msg=net["server"][0], server_net_wake=net["server"][1],
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
@@ -315,6 +371,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         "host_demand_s": host, "host_wake_s": host_wake,
         "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
         "host_wake_side_s": host_side, "server_wake_side_s": server_side,
+        "host_net_msg_s": net["host"][0], "host_net_wake_s": net["host"][1],
+        "server_net_msg_s": net["server"][0], "server_net_wake_s": net["server"][1],
         "host_record_s": host_rec, "server_record_s": server_rec,
         "machine_utilisation": u,
         **{f"{k}_runq_per_cpu_s": q for k, (_f, q) in runq.items()},
@@ -326,6 +384,9 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     }
     share = {k: r[f"{k}_wake_share"] for k, r in (("host", host_rep), ("server", server_rep))
              if f"{k}_wake_share" in r}
+    share.update({f"{k}_net": r[f"{k}_net_switch_share"]
+                  for k, r in (("host", host_rep), ("server", server_rep))
+                  if f"{k}_net_switch_share" in r})
     return CpuFit(dep, broker, report, share)
 
 
@@ -366,7 +427,14 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     # and the sums exactly the plain ones, without them)
     g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
     q_b, q_h, q_s = dep.broker_runq + g, dep.host_runq + g, dep.server_runq + g
-    return {"up": broker * (1 + q_b) + host * scale + q_s * server * scale,
-            "down": broker * (1 + q_b) + server * scale + q_h * host * scale,
-            "recv_up": dep.server_demand * scale, "recv_down": dep.host_demand * scale,
+    # with a network thread: the sender's write is on the path, and the receipt is
+    # stamped at the end of the receiver's network-thread burst (its wait included)
+    h_net = dep.host_net_msg + dep.host_net_wake * share.get("host_net", 0.0)
+    s_net = dep.server_net_msg + dep.server_net_wake * share.get("server_net", 0.0)
+    recv_s = (1 + q_s) * s_net if s_net > 0 else q_s * server
+    recv_h = (1 + q_h) * h_net if h_net > 0 else q_h * host
+    return {"up": broker * (1 + q_b) + (host + h_net + recv_s) * scale,
+            "down": broker * (1 + q_b) + (server + s_net + recv_h) * scale,
+            "recv_up": (dep.server_net_msg if s_net > 0 else dep.server_demand) * scale,
+            "recv_down": (dep.host_net_msg if h_net > 0 else dep.host_demand) * scale,
             "send_up": dep.host_demand * scale}

@@ -17,6 +17,12 @@ of CPU demand ``D`` of a process arriving at ``a`` is placed at its arrival:
   so a thread's backlog never keeps a core idle;
 * the thread is free again at ``s + L``; the core holds ``[s, s + L)``.
 
+A process may have a second thread, its *network thread* (``net_msg``, ``net_wake``:
+paho's, which reads, parses and stamps what the process receives and writes what it
+sends): its bursts (:meth:`Process.net_span`) are served in arrival order on a thread
+of their own, placed on the same cores, and a burst that finds that thread idle costs
+``net_wake`` more.
+
 Live processes are single-threaded loops that serve one message at a time, and
 a message's demand (~0.1 ms) is far below a scheduler quantum, so bursts run to
 completion (non-preemptive); processor sharing would re-time every burst in
@@ -36,6 +42,7 @@ wait in the metrics window; :meth:`Cpu.report` hands them over in one
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 from sigma_des.net.spec import DeploymentSpec
@@ -150,20 +157,30 @@ class Process:
         side: CPU seconds a wake-up costs more on the process's other thread, beside
             its own: placed on the machine's cores from the arrival, not holding the
             thread (0: none).
+        net: ``(net_msg, net_wake)``: CPU seconds of a burst on the network thread, and
+            what one that finds that thread idle costs more (both 0: no such thread).
+        switch: the interpreter lock's switch interval (s): a received copy's
+            network-thread burst waits for the loop thread to be free at most this long.
 
     Attributes:
         free: time the thread is free again (s).
         busy: CPU seconds the process held a core inside the metrics window.
         max_wait: longest wait of a burst arriving in the window before its start (s).
         bursts: bursts arriving in the window.
+        net_free: time the network thread is free again (s).
     """
 
     __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "side", "runq", "free",
-                 "busy", "max_wait", "bursts", "queued")
+                 "busy", "max_wait", "bursts", "queued", "net_msg", "net_wake", "net_free",
+                 "switch")
 
     def __init__(self, name: str, machine: Machine, scale: float, warmup: float,
-                 end: float, wake: float = 0.0, runq: float = 0.0, side: float = 0.0) -> None:
+                 end: float, wake: float = 0.0, runq: float = 0.0, side: float = 0.0,
+                 net: tuple[float, float] = (0.0, 0.0), switch: float = 0.0) -> None:
         self.name = name
+        self.net_msg, self.net_wake = net
+        self.net_free = -math.inf
+        self.switch = switch
         self.machine = machine
         self.scale = scale
         self.wake = wake
@@ -242,7 +259,7 @@ class Process:
         idle = w > 0.0 and a > self.free
         cpu = demand + w if idle else demand
         length = cpu * self.scale
-        side = self.side if idle else 0.0
+        side = self.side if idle and not self.threaded else 0.0
         if side > 0.0:  # in the machine's load, not in this thread's run-queue wait
             side_len = side * self.scale
             wait = self.run_wait(a, cpu + side, length)
@@ -252,6 +269,39 @@ class Process:
         s, c = self.acquire(a, length, wait)
         end = s + length
         self.hold(a, s, c, end)
+        return s, end
+
+    @property
+    def threaded(self) -> bool:
+        """True if the process has a network thread (``net_msg`` or ``net_wake``)."""
+        return self.net_msg > 0.0 or self.net_wake > 0.0
+
+    def net_span(self, a: float, gil: bool) -> tuple[float, float]:
+        """A burst on the network thread arriving at ``a`` (its cost ``net_msg``, plus
+        ``net_wake`` if that thread is idle then); its start and end. With ``gil`` (a
+        received copy) it is ready no earlier than the loop thread is free or
+        ``switch`` after it was ready, whichever is first: the loop thread holds the
+        interpreter lock while it serves and gives it up when it waits or at the
+        switch interval; a burst that waits so costs ``net_wake`` too (the thread
+        blocks on the lock and wakes again, a voluntary switch as live counts them).
+        It waits on the run queue as any burst."""
+        idle = a > self.net_free
+        r = a if idle else self.net_free
+        if gil and self.switch > 0.0 and self.free > r:  # blocked on the lock: it waits
+            idle = idle or os.environ.get("SIGMA_NET_GILWAKE") == "1"
+            lock = r + self.switch
+            r = self.free if self.free < lock else lock
+        cpu = self.net_msg + self.net_wake if idle else self.net_msg
+        length = cpu * self.scale
+        side = self.side if idle else 0.0
+        wait = self.run_wait(a, cpu + side, length)
+        if side > 0.0:  # a network wake-up's part beside the thread
+            self.beside(a, side * self.scale)
+        s, c = self.machine.place(a, r + wait, length)
+        end = s + length
+        self.machine.reserve(c, s, end)
+        self.net_free = end
+        self._count(s, end)
         return s, end
 
     def burst(self, a: float, demand: float) -> float:
@@ -331,8 +381,11 @@ class Cpu:
         wakes = [0.0, spec.server_wake, *([spec.host_wake] * hosts)]
         runqs = [spec.broker_runq, spec.server_runq, *([spec.host_runq] * hosts)]
         sides = [0.0, spec.server_wake_side, *([spec.host_wake_side] * hosts)]
-        procs = [Process(n, m, scale, warmup, end, w, q, d)
-                 for n, m, w, q, d in zip(names, machines, wakes, runqs, sides, strict=True)]
+        nets = [(0.0, 0.0), (spec.server_net_msg, spec.server_net_wake),
+                *([(spec.host_net_msg, spec.host_net_wake)] * hosts)]
+        procs = [Process(n, m, scale, warmup, end, w, q, d, t, spec.lock_switch)
+                 for n, m, w, q, d, t in zip(names, machines, wakes, runqs, sides, nets,
+                                             strict=True)]
         self.cores = c
         self.broker = procs[0]
         self.server = procs[1]

@@ -205,7 +205,16 @@ class Network(Links):
             self._publish_try(m)
         else:
             m.t_pub, end = proc.span(m.t_pub, self._cost(m))
-            self.k.at(end, self._burst_done if self._lock_switch > 0.0 else self._publish_try, m)
+            self.k.at(end, self._burst_done if self._lock_switch > 0.0 else self._net_send, m)
+
+    def _net_send(self, m: Msg) -> None:
+        """The loop thread has handed ``m`` over: a process with a network thread
+        writes it there (the PUBLISH leaves at that burst's end); else it leaves now."""
+        proc = self._proc[m.client]
+        if proc is None or not proc.threaded:
+            self._publish_try(m)
+        else:
+            self.k.at(proc.net_span(self.k.env.now, False)[0], self._publish_try, m)
 
     def _cost(self, m: Msg) -> float:
         """CPU of ``m``'s client process to send or receive it: its demand, plus its
@@ -234,7 +243,7 @@ class Network(Links):
             self._outbox[proc.name] = (due, [m])
             self.k.at(min(proc.free, due), self._leave, m.client)
         else:
-            self._publish_try(m)
+            self._net_send(m)
 
     def _leave(self, client: int) -> None:
         """The process of ``client`` was due to be idle or to switch: if it is idle or
@@ -249,7 +258,7 @@ class Network(Links):
             return
         del self._outbox[proc.name]
         for m in box:
-            self._publish_try(m)
+            self._net_send(m)
 
     def _add_to_bundle(self, key: tuple[int, int], rec: Record, subs: tuple[int, ...]
                        ) -> None:
@@ -359,12 +368,22 @@ class Network(Links):
         proc = self._proc[m.client]
         if proc is None:
             self._hand_over(m)
+        elif proc.threaded:  # paho's thread reads and stamps it, then the loop handles it
+            m.t_recv, end = proc.net_span(now, True)
+            self.k.at(end, self._loop_receive, m)
         else:  # the latency ends when the process gets to it (live's stamp), not later
             busy = proc.free > now
             m.t_recv, end = proc.span(now, self._cost(m))
             if busy and self._lock_switch > 0.0:
                 m.t_recv = self._read_batch(proc.name, now, m.t_recv)
             self.k.at(end, self._hand_over, m)
+
+    def _loop_receive(self, m: Msg) -> None:
+        """(A process with a network thread) ``m``, stamped, reaches the loop thread:
+        its burst, then the application gets it."""
+        proc = self._proc[m.client]
+        assert proc is not None
+        self.k.at(proc.burst(self.k.env.now, self._cost(m)), self._hand_over, m)
 
     def _read_batch(self, proc: str, now: float, start: float) -> float:
         """(``lock_switch > 0``) When a copy reaching a busy process at ``now`` is read:

@@ -65,7 +65,8 @@ MAX_DEMAND = 1.0
 #: ``[deployment]`` keys added after the table: not written (nor hashed) at 0.
 LATER_KEYS = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
               "host_runq", "server_runq", "broker_runq", "runq_growth", "host_wake_side",
-              "server_wake_side")
+              "server_wake_side", "host_net_wake", "server_net_wake", "host_net_msg",
+              "server_net_msg")
 #: Largest run-queue wait per CPU second a deployment accepts.
 MAX_RUNQ = 100.0
 
@@ -217,6 +218,21 @@ class DeploymentSpec:
             own burst, without holding the thread; it counts in the process's CPU, its
             machine's load and the burst's run-queue wait.
         server_wake_side: the same for the server's process.
+        host_net_msg: CPU a physics host's process spends per PUBLISH it sends or
+            receives on its *network thread* (paho's: reading and parsing a received
+            PUBLISH, the callback that stamps it, its PUBACK; writing a sent one), 0..1 s,
+            needs ``host_demand > 0``. With it (or ``host_net_wake``) the process has two
+            threads in tandem: a received copy is a burst on the network thread at its
+            arrival (the receipt is stamped at its end), then a burst of ``host_demand``
+            on the loop thread; a sent one a burst of ``host_demand`` on the loop thread,
+            then one on the network thread (the PUBLISH leaves at its end). The network
+            thread serves in arrival order; a burst that finds it idle costs
+            ``host_net_wake`` more. A received copy's burst waits for the interpreter
+            lock while the loop thread is busy, at most ``lock_switch``.
+        server_net_msg: the same for the server's process.
+        host_net_wake: CPU a physics host's network-thread burst that finds that thread
+            idle costs more (leaving its ``select``), 0..1 s, needs ``host_demand > 0``.
+        server_net_wake: the same for the server's process.
         host_record: CPU a physics host's process spends more per record beyond the
             first of a bundled PUBLISH it sends or receives (encoding, decoding and
             handling each state or command), 0..``host_demand`` s: a bundle of ``k``
@@ -261,6 +277,10 @@ class DeploymentSpec:
     runq_growth: bool = False
     host_wake_side: float = 0.0
     server_wake_side: float = 0.0
+    host_net_wake: float = 0.0
+    server_net_wake: float = 0.0
+    host_net_msg: float = 0.0
+    server_net_msg: float = 0.0
     clients: str = "node"
     bundle: bool = False
 
@@ -273,7 +293,8 @@ class DeploymentSpec:
                 "background", f"must be in [0, cores={self.cores}) cores, got {self.background}")
         for name in ("host_demand", "server_demand", "server_tick", "host_wake",
                      "server_wake", "host_record", "server_record", "lock_switch",
-                     "host_wake_side", "server_wake_side"):
+                     "host_wake_side", "server_wake_side", "host_net_wake",
+                     "server_net_wake", "host_net_msg", "server_net_msg"):
             require_in(self, name, 0.0, MAX_DEMAND, " s")
         for name in ("host_runq", "server_runq", "broker_runq"):
             require_in(self, name, 0.0, MAX_RUNQ, " s per CPU second")
@@ -286,6 +307,11 @@ class DeploymentSpec:
             require(side == 0.0 or wake > 0.0, f"{who}_wake_side",
                     f"needs deployment.{who}_wake > 0 (it is a wake-up's part; got "
                     f"{who}_wake_side = {side})")
+            for part in ("net_msg", "net_wake"):
+                v = getattr(self, f"{who}_{part}")
+                require(v == 0.0 or demand > 0.0, f"{who}_{part}",
+                        f"needs deployment.{who}_demand > 0 (the network thread is a "
+                        f"process's second thread; got {who}_{part} = {v})")
             rec = getattr(self, f"{who}_record")
             require(rec <= demand, f"{who}_record",
                     f"must be in [0, deployment.{who}_demand = {demand}] s (a record's share "
@@ -294,7 +320,8 @@ class DeploymentSpec:
             for name in ("background", "host_demand", "server_demand", "server_tick",
                          "host_wake", "server_wake", "host_record", "server_record",
                          "lock_switch", "host_runq", "server_runq", "broker_runq",
-                         "runq_growth", "host_wake_side", "server_wake_side"):
+                         "runq_growth", "host_wake_side", "server_wake_side",
+                         "host_net_wake", "server_net_wake", "host_net_msg", "server_net_msg"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "

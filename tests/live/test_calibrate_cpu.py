@@ -330,3 +330,46 @@ def test_fitted_host_share_from_the_synthetic_run(tmp_path: Path) -> None:
     assert rep["step_time_host_share"] == pytest.approx((m * m - h * h) / (m * m + h * h),
                                                         abs=0.01)
     assert sc.compute.host_share == rep["step_time_host_share"] < HOST_SHARE_CAP
+
+
+def test_the_two_threads_split_recovers_known_wake_ups_exactly(tmp_path: Path) -> None:
+    """``cpu.csv`` with each process's threads apart: a host's loop spends 60 µs a
+    wake-up and 10 µs a call (its line), its network thread 120 µs a voluntary switch
+    and 10 µs a message; the server's 90 + 20 and 150 + 20 µs. The fit gives each
+    thread's message one call (``b``) and the rest of that thread's CPU per its own
+    wake-ups: ``*_net_msg = *_demand = b`` and the wake-ups exactly; the network
+    thread's wake-up is also the starting value of the part the hop match scales to
+    the live CPU (``*_wake_side``, placed beside the thread per network wake-up)."""
+    d = _cpu_run(tmp_path / "run")
+    cost = {"host0": (60e-6, 10e-6, 120e-6, [1, 2, 5] * 300, 900),
+            "host1": (60e-6, 10e-6, 120e-6, [1, 1, 2, 5] * 250, 1100),
+            "server": (90e-6, 20e-6, 150e-6, [1, 3, 4] * 400, 2000)}
+    procs = dict(PROCS)
+    extra: dict[str, dict[str, float]] = {}
+    for name, (a, b, wn, calls, sw) in cost.items():
+        msgs = PROCS[name][1]
+        loop = a * len(calls) + b * msgs
+        net = wn * sw + b * msgs
+        procs[name] = (PROCS[name][0], msgs, loop + net)
+        extra[name] = {**_wake_cols(a, b, calls), "main_cpu_s": loop, "main_switches": 1.0,
+                       "net_cpu_s": net, "net_switches": float(sw), "net_threads": 1.0}
+    rows = _cpu_rows(procs, BACKGROUND_CPU)
+    for r in rows:
+        r.update(extra.get(str(r["process"]), {}))
+    write_cpu({"bides": {"cpu": rows}}, d)
+    sc, rep = calibrate(d, tmp_path / "files")
+    dep = sc.deployment
+    assert dep.host_demand == dep.host_net_msg == pytest.approx(10e-6, rel=1e-9)
+    assert dep.host_wake == pytest.approx(60e-6, rel=1e-9)
+    assert dep.host_net_wake == pytest.approx(120e-6, rel=1e-9) == rep["host_net_wake_s"]
+    assert dep.server_demand == dep.server_net_msg == pytest.approx(20e-6, rel=1e-9)
+    assert dep.server_wake == pytest.approx(90e-6, rel=1e-9)
+    assert dep.server_net_wake == pytest.approx(150e-6, rel=1e-9)
+    assert dep.server_wake_side == dep.server_net_wake
+    assert rep["server_net_switch_share"] == pytest.approx(2000 / 5000, rel=1e-12)
+    # without the thread columns: the wake-up's part beside the loop, said
+    write_cpu({"bides": {"cpu": [{k: v for k, v in r.items() if k not in extra["server"]
+                                  or k in _wake_cols(1, 1, [1])} for r in rows]}}, d)
+    sc0, rep0 = calibrate(d, tmp_path / "files0")
+    assert sc0.deployment.server_net_wake == 0.0 and sc0.deployment.server_wake_side > 0.0
+    assert any("no server thread columns recorded" in w for w in rep0["warnings"])

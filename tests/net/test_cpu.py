@@ -199,3 +199,48 @@ def test_side_part_runs_beside_the_thread_on_a_second_core() -> None:
 def test_a_side_part_needs_a_wake_up() -> None:
     with pytest.raises(ConfigError, match="host_wake_side.*needs deployment.host_wake > 0"):
         DeploymentSpec(preset="colocated", host_demand=0.1, host_wake_side=0.1)
+
+
+def test_a_network_thread_serves_its_own_bursts_in_arrival_order() -> None:
+    """Two cores, server net_msg 0.1, net_wake 0.2. A copy at 1.0 finds the network
+    thread idle: 0.3 long, [1.0, 1.3). A copy at 1.1 finds it busy: no wake-up, ready at
+    1.3, [1.3, 1.4). A copy at 2.0 wakes it again: [2.0, 2.3). The loop thread is
+    untouched (free still -inf) and a loop burst at 1.0 runs beside on the other core."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, server_demand=0.25,
+                             server_net_msg=0.1, server_net_wake=0.2), 1, 0.0, 100.0)
+    s = cpu.server
+    assert s.threaded and not cpu.hosts[0].threaded
+    assert s.net_span(1.0, False) == (1.0, pytest.approx(1.3))
+    assert s.net_span(1.1, False) == (pytest.approx(1.3), pytest.approx(1.4))
+    assert s.span(1.0, 0.25) == (1.0, 1.25)  # core 1: the loop thread is another thread
+    assert s.net_span(2.0, False) == (2.0, pytest.approx(2.3))
+    assert s.busy == pytest.approx(0.3 + 0.1 + 0.25 + 0.3)
+
+
+def test_a_received_copy_waits_for_the_interpreter_lock_at_most_the_switch() -> None:
+    """Two cores, lock switch 0.05. The loop thread is busy [0, 1). A received copy at
+    0.2 (``gil``) waits for the lock: the loop frees at 1.0, but the switch is due at
+    0.25, so it runs [0.25, 0.35); a copy to send (no ``gil``) at 0.3 only waits for the
+    network thread: [0.35, 0.45). With the loop idle a received copy starts at once."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, server_demand=1.0,
+                             server_net_msg=0.1, lock_switch=0.05), 1, 0.0, 100.0)
+    s = cpu.server
+    assert s.span(0.0, 1.0) == (0.0, 1.0)
+    assert s.net_span(0.2, True) == (pytest.approx(0.25), pytest.approx(0.35))
+    assert s.net_span(0.3, False) == (pytest.approx(0.35), pytest.approx(0.45))
+    assert s.net_span(2.0, True) == (2.0, pytest.approx(2.1))
+
+
+def test_a_network_thread_burst_waits_on_the_run_queue_as_any_burst() -> None:
+    """One core, run-queue floor 0.5: a network-thread burst of 0.2 arriving at 1.0
+    waits 0.5 x 0.2 = 0.1 before it runs [1.1, 1.3)."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=1, host_demand=0.1, host_net_msg=0.2,
+                             host_runq=0.5), 1, 0.0, 100.0)
+    h = cpu.hosts[0]
+    assert h.net_span(1.0, False) == (pytest.approx(1.1), pytest.approx(1.3))
+    assert h.queued == pytest.approx(0.1)
+
+
+def test_a_network_thread_needs_a_demand() -> None:
+    with pytest.raises(ConfigError, match="server_net_wake.*needs deployment.server_demand"):
+        DeploymentSpec(preset="colocated", server_net_wake=0.1)

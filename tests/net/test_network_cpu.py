@@ -329,3 +329,46 @@ def test_two_hosts_receiving_at_the_same_instant_share_one_core(cores: int) -> N
         assert host1.max_wait == pytest.approx(dh, rel=1e-9)
     else:
         assert t1 == t0 and host1.max_wait == 0.0
+
+
+def test_a_network_thread_stamps_the_receipt_then_the_loop_handles_it() -> None:
+    """Dedicated machines, zero broker services, two nodes on two hosts publish a state
+    each at t = 0. Each host's loop burst is [0, dh); its network thread (idle: a wake-up,
+    ``hn + hw``) writes it from ``dh`` on and the PUBLISH leaves at that burst's start,
+    ``dh``, as without the thread, so both reach the server at the same ``A0``. The
+    server's network thread (``sn`` a message, ``sw`` a wake-up) takes the first at once
+    (stamped ``A0``, busy until ``A0 + sn + sw``) and the second when it is free
+    (stamped then, no wake-up, busy ``sn`` more); each then goes to the loop thread
+    (``ds``, in order), and the application gets the first at ``A0 + sn + sw + ds``, the
+    second one loop burst later."""
+    dh, hn, hw, ds, sn, sw = 1e-3, 2e-4, 3e-4, 3e-4, 1e-4, 2e-4
+    over = ["nodes=2", "hosts=2", "deployment.preset='dedicated'",
+            f"deployment.host_demand={dh}", f"deployment.server_demand={ds}",
+            "broker.publish_service=0.0", "broker.delivery_service=0.0"]
+    k0, net0, got0 = _net(over)
+    _two_states(net0)
+    k0.env.run()
+    k, net, got = _net([*over, f"deployment.host_net_msg={hn}", f"deployment.host_net_wake={hw}",
+                        f"deployment.server_net_msg={sn}",
+                        f"deployment.server_net_wake={sw}"])
+    _two_states(net)
+    k.env.run()
+    a0 = got0[0][7]  # the arrival: stamped at once without a network thread either
+    assert [g[2] for g in got] == [0, 1] and [g[6] for g in got] == [0.0, 0.0]
+    assert [g[7] for g in got] == pytest.approx([a0, a0 + sn + sw], abs=1e-12)
+    assert [g[5] for g in got] == pytest.approx([a0 + sn + sw + ds, a0 + sn + sw + 2 * ds],
+                                                abs=1e-12)
+    assert net.cpu is not None
+    assert net.cpu.server.busy == pytest.approx(2 * sn + sw + 2 * ds, abs=1e-15)
+    assert [h.busy for h in net.cpu.hosts] == pytest.approx([dh + hn + hw] * 2, abs=1e-15)
+
+
+def test_a_network_thread_falls_back_to_the_per_message_engine() -> None:
+    from sigma_des.events.fast.support import unsupported
+
+    sc = load(None, ["deployment.preset='colocated'", "deployment.host_demand=1e-4",
+                     "deployment.host_net_msg=1e-4"])
+    why = unsupported(sc.run_spec(), "bides")
+    assert why is not None and "network thread" in why
+    assert unsupported(load(None, ["deployment.preset='colocated'",
+                                   "deployment.host_demand=1e-4"]).run_spec(), "bides") is None

@@ -70,6 +70,8 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     These features fall back to the per-message engine for the whole run: the DDS
     middleware and the ``rpc`` method (issue 16: per-message models only); bundled
     states (``deployment.bundle``: a variable number of records in one PUBLISH); a
+    process's network thread (``deployment.*_net_msg``, ``*_net_wake``: a second
+    thread per process, in the per-message engine only so far); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
     degrade and drop faults and NTP-corrected clocks, MQTT QoS 1 over datagrams
@@ -92,6 +94,9 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
         why.append("DDS middleware (per-reader sends, participant threads, heartbeats, discovery)")
     if method == "rpc":
         why.append("rpc method (per-vehicle synchronous calls, game-thread render)")
-    if sc.net.deployment.bundle:
+    dep = sc.net.deployment
+    if dep.bundle:
         why.append("deployment.bundle (a host's states of one loop turn as one PUBLISH)")
+    if max(dep.host_net_msg, dep.host_net_wake, dep.server_net_msg, dep.server_net_wake) > 0:
+        why.append("deployment.*_net_msg / *_net_wake (a process's network thread)")
     return "; ".join(why) if why else None
