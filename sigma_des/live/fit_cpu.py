@@ -215,15 +215,18 @@ def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
 def _threads(cpu: pd.DataFrame, table: pd.DataFrame, rep: dict[str, float], kind: str,
              warn: list[str]) -> dict[str, float] | None:
     """The kind's two threads (module doc, *network thread*): ``{"demand", "wake",
-    "net_msg", "net_wake"}``, or None (said in a warning) without the thread columns or
-    without a positive cost per wake-up left in either thread.
+    "net_msg", "net_wake", "side"}``, or None (said in a warning) without the thread
+    columns or without a positive cost per wake-up left in either thread.
 
     The process's busy CPU is split between its threads as their measured CPU is
     (``main_cpu_s``, ``net_cpu_s``); each thread's message costs one call, the loop
     line's slope ``b`` (one run cannot tell a thread's per-message from its per-wake-up
     CPU: every method sends as many messages), and the Utilization Law gives the rest
     per wake-up: the loop thread's over its loop wake-ups, the network thread's over its
-    voluntary context switches (each one a return from its ``select``)."""
+    voluntary context switches (a return from its ``select``, or from a wait for the
+    interpreter lock). ``side`` (the part beside the thread per network wake-up) starts
+    at the network thread's wake-up; the hop match scales it until the DES's CPU is the
+    live run's (the DES's network thread wakes less often than live's switches)."""
     _d, busy, msgs = pooled_demand(table, kind)
     rows = _kind_rows(cpu, kind)
     cols = list(THREAD_COLUMNS[:4])
@@ -245,18 +248,10 @@ def _threads(cpu: pd.DataFrame, table: pd.DataFrame, rep: dict[str, float], kind
                     f"{b * 1e6:.3g} µs a message): paho's thread is a wake-up's part beside "
                     f"the loop (deployment.{kind}_wake_side)")
         return None
-    if os.environ.get("SIGMA_LOOP_SPLIT") == "C":  # the loop: its intercept a wake-up, the rest a message
-        a = rep.get(f"{kind}_loop_wake_s", math.nan)
-        per = (busy - net_busy - a * wakes) / msgs
-        if a > 0 and per > 0:
-            rep[f"{kind}_net_cpu_share"] = net / (main + net)
-            rep[f"{kind}_net_switch_share"] = switches / msgs
-            return {"demand": per, "wake": a, "net_msg": b, "net_wake": net_wake,
-                    "side": net_wake if os.environ.get("SIGMA_NET_VARIANT") == "B" else 0.0}
     rep[f"{kind}_net_cpu_share"] = net / (main + net)
     rep[f"{kind}_net_switch_share"] = switches / msgs
     return {"demand": b, "wake": loop_wake, "net_msg": b, "net_wake": net_wake,
-            "side": net_wake if os.environ.get("SIGMA_NET_VARIANT") == "B" else 0.0}
+            "side": net_wake}
 
 
 def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, float]:

@@ -50,25 +50,17 @@ __all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_hop
 MATCH_ROUNDS = 8
 #: Largest scale of a wake-up's part beside the thread.
 SIDE_MAX = 8.0
-#: The DES metric each process kind's CPU is matched with, and the ``deployment`` keys
-#: that can take the difference, the first one set (> 0) is scaled.
-CPU_KEYS = {"server": ("server_cpu_util", ("server_net_wake", "server_wake_side")),
-            "host": ("host_cpu_util_max", ("host_net_wake", "host_wake_side"))}
+#: The DES metric each process kind's CPU is matched with, and the ``deployment`` key
+#: that takes the difference (the part beside the thread, per wake-up of the loop or,
+#: with a network thread, of that thread).
+CPU_KEYS = {"server": ("server_cpu_util", ("server_wake_side",)),
+            "host": ("host_cpu_util_max", ("host_wake_side",))}
 
 
 def _cpu_key(sc: Scenario, kind: str) -> str | None:
-    """The ``deployment`` key scaled to match ``kind``'s CPU (None: none is set): the
-    network thread's wake-up where the process has that thread, else the wake-up's
-    part beside the thread."""
-    import os
+    """The ``deployment`` key scaled to match ``kind``'s CPU (None: it is 0)."""
     dep = sc.deployment
-    keys = CPU_KEYS[kind][1]
-    v = os.environ.get("SIGMA_NET_VARIANT")
-    if v == "B":
-        keys = (keys[1], keys[0])
-    elif v == "A":
-        keys = (f"{kind}_net_msg", *keys)
-    return next((key for key in keys if getattr(dep, key) > 0.0), None)
+    return next((key for key in CPU_KEYS[kind][1] if getattr(dep, key) > 0.0), None)
 #: Largest scale of a direction's hop samples.
 K_MAX = 4.0
 #: Relative difference of the pooled mean latencies a round stops at.

@@ -42,7 +42,6 @@ wait in the metrics window; :meth:`Cpu.report` hands them over in one
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 from sigma_des.net.spec import DeploymentSpec
@@ -288,7 +287,7 @@ class Process:
         idle = a > self.net_free
         r = a if idle else self.net_free
         if gil and self.switch > 0.0 and self.free > r:  # blocked on the lock: it waits
-            idle = idle or os.environ.get("SIGMA_NET_GILWAKE") == "1"
+            idle = True
             lock = r + self.switch
             r = self.free if self.free < lock else lock
         cpu = self.net_msg + self.net_wake if idle else self.net_msg

@@ -14,7 +14,11 @@ a client's publish is a burst of its process's demand (the PUBLISH leaves at the
 burst's end) and every copy it receives is a burst at its arrival (the application
 gets it at the burst's end; the PUBACK leaves at the arrival; the latency ends at the
 burst's start, when the process takes it). A burst that finds its process's thread idle
-costs the process's wake-up more (:class:`~sigma_des.net.cpu.Process`). A zero demand is no
+costs the process's wake-up more (:class:`~sigma_des.net.cpu.Process`). A process with a
+network thread (``deployment.*_net_msg``, ``*_net_wake``) also passes every copy it
+receives and every PUBLISH it sends through that thread (``Process.net_span``): a
+receipt is stamped when the network thread takes the copy, which then goes to the loop
+thread; a PUBLISH leaves when the network thread takes it. A zero demand is no
 burst and no event. With per-host clients (``deployment.clients = "host"``) the MQTT
 clients are the physics hosts (client id: the host's first node) and the server: a
 node's state leaves through its host's client, and what a host client receives is

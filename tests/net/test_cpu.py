@@ -244,3 +244,23 @@ def test_a_network_thread_burst_waits_on_the_run_queue_as_any_burst() -> None:
 def test_a_network_thread_needs_a_demand() -> None:
     with pytest.raises(ConfigError, match="server_net_wake.*needs deployment.server_demand"):
         DeploymentSpec(preset="colocated", server_net_wake=0.1)
+
+
+def test_a_wait_for_the_lock_is_a_network_wake_up_and_places_the_side_part() -> None:
+    """Two cores; server demand 1.0 with wake 0.05 and side 0.3, network thread 0.1 a
+    message and 0.2 a wake-up, lock switch 0.05. The loop's burst [0, 1.05) (a wake-up;
+    no side part on the loop thread of a process with a network thread) holds core 0. A
+    copy at 0.2 finds the network thread idle and the loop busy: it waits for the lock
+    until 0.25; its side part takes core 1 from the arrival, [0.2, 0.5), so its own
+    0.3 runs [0.5, 0.8). A copy at 0.6 finds the network thread busy until 0.8 and then
+    the loop still busy: it waits for the lock until 0.85, which is a wake-up again
+    (the thread blocked): side [0.8, 1.1) on core 1, its burst on core 0 at 1.05."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, server_demand=1.0, server_wake=0.05,
+                             server_wake_side=0.3, server_net_msg=0.1, server_net_wake=0.2,
+                             lock_switch=0.05), 1, 0.0, 100.0)
+    s = cpu.server
+    assert s.span(0.0, 1.0) == (0.0, pytest.approx(1.05))
+    assert s.net_span(0.2, True) == (pytest.approx(0.5), pytest.approx(0.8))
+    assert s.net_span(0.6, True) == (pytest.approx(1.05), pytest.approx(1.35))
+    assert s.machine.cores[1] == [pytest.approx((0.5, 0.8)), pytest.approx((0.8, 1.1))]
+    assert s.busy == pytest.approx(1.05 + 2 * (0.3 + 0.3))
