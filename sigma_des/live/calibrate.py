@@ -375,7 +375,8 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
 
 
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
-              hold_tol: float = HOLD_TOL) -> tuple[Scenario, dict[str, Any]]:
+              hold_tol: float = HOLD_TOL, threads: bool = True
+              ) -> tuple[Scenario, dict[str, Any]]:
     """Fit a DES scenario to the live run at ``source``.
 
     Args:
@@ -386,6 +387,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         hold_tol: a delivery this close after the previous one on its connection counts
             as held behind it (s; :func:`~sigma_des.live.dequeue.held`); 0 keeps the
             measured latencies as they are (nothing is held exactly together live).
+        threads: fit each process as its two threads (loop and paho's network thread)
+            when the live run recorded them apart; False: as one thread, the network
+            thread's CPU a wake-up's part beside it (``--one-thread``).
 
     Returns:
         The calibrated scenario and a report of the fitted figures (seconds), with
@@ -401,7 +405,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
     d = files_dir or (source if source.is_dir() else source.parent)
     if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
         raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
-    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn)
+    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn, threads)
     # the fan-out's figures are reported; they set the broker only without a CPU fit
     delivery, slope = _fit_delivery(base, w, warn if fit is None else [])
     if fit is None:  # no CPU stage: the fan-out's per-client delivery, the base's publish

@@ -92,6 +92,10 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
                    "0: keep the measured latencies)")
     p.add_argument("--no-check", action="store_true",
                    help="skip the in-sample check (the calibrated DES re-running the live run)")
+    p.add_argument("--one-thread", action="store_true",
+                   help="fit each process as one thread even when the live run recorded its "
+                   "threads apart (default: the loop and paho's network thread apart; "
+                   "docs/MODEL.md, 'The network thread')")
     p.add_argument("--no-match", action="store_true",
                    help="keep the fitted hop latencies as they are (default: rescale each "
                    "direction's until the DES re-predicts the run's mean state and trigger "
@@ -278,7 +282,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
         output_file(args.out, "--out")
         output_file(Path(args.out).with_suffix(".json"), "--out")
     sc, report = calibrate(source, Path(args.out).parent if args.out else None,
-                           strict=not args.allow_incomplete, hold_tol=tol)
+                           strict=not args.allow_incomplete, hold_tol=tol,
+                           threads=not args.one_thread)
     out_dir = Path(args.out).parent if args.out else (source if source.is_dir()
                                                       else source.parent)
     if not args.no_match:

@@ -35,6 +35,17 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   received, triggers, commands and re-requests sent. Without wake-up columns (a run
   recorded before them), or with a line that leaves no positive wake-up cost, the
   wake-up is 0 and ``D = Σ busy / Σ messages`` (said in a warning);
+* with ``cpu.csv``'s thread columns (:data:`~sigma_des.live.cpu.THREAD_COLUMNS`: each
+  process's main thread and its other threads, paho's network thread, apart) the
+  process is fitted as *two threads* (``_threads``; session 15): its busy CPU split as
+  the threads' measured CPU is, each thread's message one call ``b`` (``*_demand =
+  *_net_msg = b``), the loop's rest per loop wake-up (``*_wake``), the network
+  thread's rest per voluntary switch of that thread (``*_net_wake``), and the part
+  beside the thread (``*_wake_side``, per network wake-up) starting at ``*_net_wake``
+  for the hop match to scale to the live CPU. *Why*: with the network thread's CPU
+  charged per loop wake-up the DES's server CPU stayed flat in N where live's grew
+  (LIVE.md, session 15); without the columns (or without a positive rest in both
+  threads) the one-thread split above, said in a warning;
 * ``host_runq``, ``server_runq``, ``broker_runq`` and ``runq_growth``: each kind's
   measured run-queue wait (``cpu.csv``'s :data:`~sigma_des.live.cpu.RUNQ_COLUMN`) per
   CPU second it used, ``q``, less the wait the machine's queue gives at the run's
@@ -299,7 +310,8 @@ def _demand(d: float, busy: float, msgs: float, kind: str, warn: list[str]) -> f
     return d
 
 
-def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit | None:
+def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: bool = True
+                   ) -> CpuFit | None:
     """The colocated deployment of the live run at ``source`` (see the module doc).
 
     Args:
@@ -307,6 +319,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
         base_broker: the base scenario's broker service, kept if the broker was not
             measured (an external broker).
         warn: warnings are appended here.
+        threads: fit the two threads apart where ``cpu.csv`` has them (False: one
+            thread, the network thread's CPU a wake-up's part beside it).
 
     Returns:
         The fit, or None without a ``cpu.csv`` (no CPU stage).
@@ -333,10 +347,11 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str]) -> CpuFit 
     host_wake, host_side = _split_wake(host_wake, host_rep, "host")
     server_wake, server_side = _split_wake(server_wake, server_rep, "server")
     net = {"host": (0.0, 0.0), "server": (0.0, 0.0)}
-    if host_side > 0.0 and (t := _threads(cpu, table, host_rep, "host", warn)):
+    if threads and host_side > 0.0 and (t := _threads(cpu, table, host_rep, "host", warn)):
         host, host_wake, host_side, net["host"] = t["demand"], t["wake"], t["side"], (
             t["net_msg"], t["net_wake"])
-    if server_side > 0.0 and (t := _threads(cpu, table, server_rep, "server", warn)):
+    if threads and server_side > 0.0 and (
+            t := _threads(cpu, table, server_rep, "server", warn)):
         server, server_wake, server_side, net["server"] = t["demand"], t["wake"], t["side"], (
             t["net_msg"], t["net_wake"])
     broker, b_busy, b_msgs = pooled_demand(table, "broker")

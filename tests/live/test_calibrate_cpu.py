@@ -367,6 +367,11 @@ def test_the_two_threads_split_recovers_known_wake_ups_exactly(tmp_path: Path) -
     assert dep.server_net_wake == pytest.approx(150e-6, rel=1e-9)
     assert dep.server_wake_side == dep.server_net_wake
     assert rep["server_net_switch_share"] == pytest.approx(2000 / 5000, rel=1e-12)
+    # --one-thread: the same columns, one thread (the network thread's CPU beside it)
+    sc1, _rep1 = calibrate(d, tmp_path / "files1", threads=False)
+    assert sc1.deployment.server_net_wake == sc1.deployment.host_net_msg == 0.0
+    assert sc1.deployment.server_demand == pytest.approx(40e-6, rel=1e-9)
+    assert sc1.deployment.server_wake_side > 0.0
     # without the thread columns: the wake-up's part beside the loop, said
     write_cpu({"bides": {"cpu": [{k: v for k, v in r.items() if k not in extra["server"]
                                   or k in _wake_cols(1, 1, [1])} for r in rows]}}, d)
