@@ -28,12 +28,11 @@ from sigma_des.loading import from_dict, plain
 from sigma_des.metrics.collector import CollectorSpec
 from sigma_des.metrics.fidelity import FidelitySpec
 from sigma_des.net.clocks import ClockSpec
+from sigma_des.net.deployment import LATER_KEYS, DeploymentSpec
 from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
 from sigma_des.net.spec import (
-    LATER_KEYS,
     BrokerSpec,
     DdsSpec,
-    DeploymentSpec,
     LinkDegrade,
     LinkSpec,
     NetSetup,

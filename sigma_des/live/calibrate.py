@@ -3,12 +3,10 @@
 From the message table (``messages.csv.gz`` or an MCAP recording) inside the metrics
 window, and the run's ``cpu.csv`` and ``summary.json``:
 
-* **the deployment** (:mod:`sigma_des.live.fit_cpu`): ``[deployment]`` with preset
-  ``colocated``, the machine's ``cores``, the ``background`` CPU of other processes,
-  ``host_wake``/``server_wake`` from the live loops' wake-ups and ``host_demand`` and
-  ``server_demand`` by the Utilization Law, ``clients = "host"``,
-  ``bundle`` as run; the broker's demand as both ``broker.publish_service`` and
-  ``broker.delivery_service`` (constants). Without a ``cpu.csv`` next to the source:
+* **the deployment** (:mod:`sigma_des.live.fit_cpu`): ``colocated``, the ``cores``,
+  the ``background``, each process's threads' demands by the Utilization Law,
+  ``clients = "host"``, ``bundle`` as run; the broker's demand as both
+  ``broker.publish_service`` and ``delivery_service``. Without a ``cpu.csv`` next to it:
   no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
   between consecutive receivers of a trigger (:func:`delivery_floor`: scheduling noise
   only adds to a gap), its publish service the base scenario's; the least-squares
@@ -375,8 +373,7 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
 
 
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
-              hold_tol: float = HOLD_TOL, threads: bool = True
-              ) -> tuple[Scenario, dict[str, Any]]:
+              hold_tol: float = HOLD_TOL, threads: bool = True) -> tuple[Scenario, dict[str, Any]]:
     """Fit a DES scenario to the live run at ``source``.
 
     Args:
@@ -387,9 +384,8 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         hold_tol: a delivery this close after the previous one on its connection counts
             as held behind it (s; :func:`~sigma_des.live.dequeue.held`); 0 keeps the
             measured latencies as they are (nothing is held exactly together live).
-        threads: fit each process as its two threads (loop and paho's network thread)
-            when the live run recorded them apart; False: as one thread, the network
-            thread's CPU a wake-up's part beside it (``--one-thread``).
+        threads: fit a process's two threads apart when the run recorded them (False:
+            ``--one-thread``).
 
     Returns:
         The calibrated scenario and a report of the fitted figures (seconds), with

@@ -265,6 +265,21 @@ def _threads(cpu: pd.DataFrame, table: pd.DataFrame, rep: dict[str, float], kind
             "side": net_wake}
 
 
+def _kind_fit(cpu: pd.DataFrame, table: pd.DataFrame, kind: str, threads: bool,
+              warn: list[str]) -> dict[str, Any]:
+    """One kind's (``host``, ``server``) ``demand``, ``wake``, ``wake_side``, ``net_msg``,
+    ``net_wake`` and its ``rep``: one thread (:func:`_wake`, :func:`_split_wake`), or
+    with ``threads`` and the thread columns two (:func:`_threads`)."""
+    wake, demand, rep = _wake(cpu, table, kind, warn)
+    wake, side = _split_wake(wake, rep, kind)
+    out: dict[str, Any] = {"demand": demand, "wake": wake, "wake_side": side, "net_msg": 0.0,
+                           "net_wake": 0.0, "rep": rep}
+    if threads and side > 0.0 and (t := _threads(cpu, table, rep, kind, warn)):
+        out.update(demand=t["demand"], wake=t["wake"], wake_side=t["side"],
+                   net_msg=t["net_msg"], net_wake=t["net_wake"])
+    return out
+
+
 def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, float]:
     """``(deployment.<kind>_wake, <kind>_wake_side)``: of a wake-up's CPU, the loop
     thread's own (the loop line's intercept ``a``) holds the process's thread, the rest
@@ -342,18 +357,9 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
                     "while a host's process is busy, so its bundles are as large as its "
                     "host demand makes them (docs/MODEL.md, Bundles)")
     background, measured, busy = _background(cpu, cores, warn)
-    host_wake, host, host_rep = _wake(cpu, table, "host", warn)
-    server_wake, server, server_rep = _wake(cpu, table, "server", warn)
-    host_wake, host_side = _split_wake(host_wake, host_rep, "host")
-    server_wake, server_side = _split_wake(server_wake, server_rep, "server")
-    net = {"host": (0.0, 0.0), "server": (0.0, 0.0)}
-    if threads and host_side > 0.0 and (t := _threads(cpu, table, host_rep, "host", warn)):
-        host, host_wake, host_side, net["host"] = t["demand"], t["wake"], t["side"], (
-            t["net_msg"], t["net_wake"])
-    if threads and server_side > 0.0 and (
-            t := _threads(cpu, table, server_rep, "server", warn)):
-        server, server_wake, server_side, net["server"] = t["demand"], t["wake"], t["side"], (
-            t["net_msg"], t["net_wake"])
+    k = {kind: _kind_fit(cpu, table, kind, threads, warn) for kind in ("host", "server")}
+    host_rep, server_rep = k["host"]["rep"], k["server"]["rep"]
+    host, server = k["host"]["demand"], k["server"]["demand"]
     broker, b_busy, b_msgs = pooled_demand(table, "broker")
     if not math.isfinite(broker) or broker < 0:
         warn.append("the broker's CPU was not measured (an external broker?): its "
@@ -365,24 +371,21 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     runq = {kind: _runq_floor(cpu, kind, u, cores, warn) for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
-                         host_wake=host_wake, server_wake=server_wake,
+                         host_wake=k["host"]["wake"], server_wake=k["server"]["wake"],
                          host_record=host_rec, server_record=server_rec,
                          lock_switch=LIVE_LOCK_SWITCH,
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
                          runq_growth=any(math.isfinite(q) for _f, q in runq.values()),
-                         host_wake_side=host_side, server_wake_side=server_side,
-                         host_net_msg=net["host"][0], host_net_wake=net["host"][1],
-                         server_net_msg=net["server"][0], server_net_wake=net["server"][1],
+                         **{f"{kind}_{key}": k[kind][key] for kind in k
+                            for key in ("wake_side", "net_msg", "net_wake")},
                          clients="host", bundle=bundle)
     report = {
         "deployment_cores": cores, "deployment_background_cores": background,
         "background_cores_measured": measured, "machine_busy_cores": busy,
-        "host_demand_s": host, "host_wake_s": host_wake,
-        "server_demand_s": server, "server_wake_s": server_wake, "broker_demand_s": broker,
-        "host_wake_side_s": host_side, "server_wake_side_s": server_side,
-        "host_net_msg_s": net["host"][0], "host_net_wake_s": net["host"][1],
-        "server_net_msg_s": net["server"][0], "server_net_wake_s": net["server"][1],
+        **{f"{kind}_{key}_s": k[kind][key] for kind in k
+           for key in ("demand", "wake", "wake_side", "net_msg", "net_wake")},
+        "broker_demand_s": broker,
         "host_record_s": host_rec, "server_record_s": server_rec,
         "machine_utilisation": u,
         **{f"{k}_runq_per_cpu_s": q for k, (_f, q) in runq.items()},
