@@ -218,3 +218,45 @@ def test_run_queue_waits_identical(method: str, preset: str) -> None:
     m = ev["metrics"]
     _exercised(m)
     assert m["server_runq_cores"] > 0.0 and m["host_runq_cores_mean"] > 0.0
+
+
+#: the calibrated shape (session 15): both kinds' processes two threads, a wait for the
+#: interpreter lock, the side part per network wake-up, run-queue waits with growth
+_NET: dict[str, Any] = {
+    "deployment.cores": 2, "deployment.host_wake": 0.0001, "deployment.server_wake": 0.0002,
+    "deployment.host_net_msg": 0.00005, "deployment.host_net_wake": 0.0002,
+    "deployment.server_net_msg": 0.00004, "deployment.server_net_wake": 0.0003,
+    "deployment.host_wake_side": 0.0002, "deployment.server_wake_side": 0.0004,
+    "deployment.lock_switch": 0.002, "deployment.host_runq": 0.5,
+    "deployment.server_runq": 0.3, "deployment.runq_growth": True,
+}
+
+
+@pytest.mark.parametrize("clients", ["node", "host"])
+@pytest.mark.parametrize("method", METHODS)
+def test_network_threads_identical(method: str, clients: str) -> None:
+    """A process's network thread (``*_net_msg``, ``*_net_wake``): receipts read and
+    stamped by it, then the loop's burst; sends written by it (out of the outbox too);
+    the lock wait; the side part per network wake-up. Both engines, every metric the
+    same, and the thread really changes the run."""
+    base = {**_BASE, **_CPU, **_NET, "deployment.clients": clients}
+    sc = tiny(**base)
+    assert unsupported(sc.run_spec(), method) is None
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    _exercised(m)
+    off = {k: 0.0 for k in _NET if "_net_" in k}
+    plain = run_both(tiny(**{**base, **off}), method)[0]["metrics"]
+    assert m["latency_state_mean"] != plain["latency_state_mean"]
+    assert m["server_cpu_util"] != plain["server_cpu_util"]
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_network_threads_over_qos1_datagram_identical(method: str) -> None:
+    """The network thread under QoS 1 resends, lost PUBACKs and duplicates (each copy
+    received passes the thread; a resend does not), dedicated machines."""
+    sc = tiny(**{**_BASE, **_LOSSY, **_CPU, **_NET, "deployment.preset": "dedicated"})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] > 0 and ev["metrics"]["duplicates"] > 0

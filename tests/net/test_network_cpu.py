@@ -361,14 +361,3 @@ def test_a_network_thread_stamps_the_receipt_then_the_loop_handles_it() -> None:
     assert net.cpu is not None
     assert net.cpu.server.busy == pytest.approx(2 * sn + sw + 2 * ds, abs=1e-15)
     assert [h.busy for h in net.cpu.hosts] == pytest.approx([dh + hn + hw] * 2, abs=1e-15)
-
-
-def test_a_network_thread_falls_back_to_the_per_message_engine() -> None:
-    from sigma_des.events.fast.support import unsupported
-
-    sc = load(None, ["deployment.preset='colocated'", "deployment.host_demand=1e-4",
-                     "deployment.host_net_msg=1e-4"])
-    why = unsupported(sc.run_spec(), "bides")
-    assert why is not None and "network thread" in why
-    assert unsupported(load(None, ["deployment.preset='colocated'",
-                                   "deployment.host_demand=1e-4"]).run_spec(), "bides") is None

@@ -5,8 +5,9 @@
 same order: a copy that reaches its client (after the PUBACK) is a burst of the
 client's process when its demand is not zero — its latency ends at the burst's start
 (with ``lock_switch``, for a copy reaching a busy process, when its batch is read),
-the application gets it at the burst's end, an ``EV_APP`` event (:func:`receive`) —
-and is then handed over
+the application gets it at the burst's end, an ``EV_APP`` event (:func:`receive`; with a
+network thread, that thread's burst first, where the latency ends, then the loop's:
+:func:`loop_receive`) — and is then handed over
 (:func:`hand_over`): to the server's aligner, to the node it reached, or, with
 per-host clients, from the host's client to its nodes (a trigger to each in node
 order, a command or re-request to the node it is about), each hand-over counted
@@ -15,7 +16,7 @@ as a delivery (``Collector.delivered``) to that node.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import span
+from sigma_des.events.fast.cpu import burst, net_span, span, threaded
 from sigma_des.events.fast.layout import (
     CP_HOSTS,
     CPU_DEM,
@@ -33,6 +34,7 @@ from sigma_des.events.fast.layout import (
     EV_APP,
     EV_FLOAT,
     EV_INT,
+    EV_LOOP,
     IPARAMS,
     K_TRIGGER,
     MEM,
@@ -44,7 +46,7 @@ from sigma_des.events.fast.primitives import alloc, jit, push
 from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.transport import copy_slot
 
-__all__ = ["hand_over", "receive"]
+__all__ = ["hand_over", "loop_receive", "receive"]
 
 
 @jit
@@ -93,6 +95,12 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     evi = S[EV_INT]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
+    if threaded(S, p):  # Network._client_receive: the network thread reads and stamps it
+        evi[ns, E_TYPE] = EV_LOOP
+        start, end = net_span(S, p, now, True)
+        S[EV_FLOAT][ns, EF_TRECV] = start
+        push(S, end, ns)
+        return
     busy = S[CPU_FREE][p] > now
     start, end = span(S, p, S[CPU_DEM][c], now)
     sw = S[CPU_SWITCH][p]
@@ -104,3 +112,15 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
         start = bt
     S[EV_FLOAT][ns, EF_TRECV] = start  # the process gets to it: where the latency ends
     push(S, end, ns)
+
+
+@jit
+def loop_receive(S, s, now):  # type: ignore[no-untyped-def]
+    """Network._loop_receive: the copy in ``s``, read by its process's network thread,
+    reaches the loop thread at ``now``: a burst of the client's demand, then the
+    hand-over (an ``EV_APP`` event; the event's slot is freed after it, a copy waits)."""
+    c = S[EV_INT][s, E_WHO]
+    ns = alloc(S)
+    copy_slot(S, s, ns)
+    S[EV_INT][ns, E_TYPE] = EV_APP
+    push(S, burst(S, S[CPU_PROC][c], S[CPU_DEM][c], now), ns)

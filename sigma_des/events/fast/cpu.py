@@ -30,10 +30,13 @@ from sigma_des.events.fast.layout import (
     CPU_IV,
     CPU_LOAD,
     CPU_MACH,
+    CPU_NET,
+    CPU_NFREE,
     CPU_NIV,
     CPU_RUNQ,
     CPU_SCALE,
     CPU_SIDE,
+    CPU_SWITCH,
     CPU_WAKE,
     FPARAMS,
     G_END,
@@ -49,7 +52,8 @@ from sigma_des.events.fast.stateref import ref
 from sigma_des.net.cpu import LOAD_WINDOW, RESERVATIONS
 from sigma_des.net.cpu import queue_wait as net_queue_wait
 
-__all__ = ["acquire", "burst", "hold", "queue_wait", "run_wait", "span", "tick"]
+__all__ = ["acquire", "burst", "hold", "net_span", "queue_wait", "run_wait", "span",
+           "threaded", "tick"]
 
 
 #: net.cpu.queue_wait compiled as it is (Erlang C's mean wait over mean service)
@@ -202,7 +206,7 @@ def span(S, p, demand, a):  # type: ignore[no-untyped-def]
     cpu = demand + w if idle else demand
     sc = S[CPU_SCALE][p]
     length = cpu * sc
-    side = S[CPU_SIDE][p] if idle else 0.0
+    side = S[CPU_SIDE][p] if idle and not threaded(S, p) else 0.0
     if side > 0.0:
         side_len = side * sc
         wait = run_wait(S, p, a, cpu + side, length)
@@ -212,6 +216,43 @@ def span(S, p, demand, a):  # type: ignore[no-untyped-def]
     s, c = acquire(S, p, a, length, wait)
     end = s + length
     hold(S, p, a, s, c, end)
+    return s, end
+
+
+@jit
+def threaded(S, p):  # type: ignore[no-untyped-def]
+    """Process.threaded: process ``p`` has a network thread."""
+    return S[CPU_NET][p, 0] > 0.0 or S[CPU_NET][p, 1] > 0.0
+
+
+@jit
+def net_span(S, p, a, gil):  # type: ignore[no-untyped-def]
+    """Process.net_span: a burst on process ``p``'s network thread arriving at ``a``
+    (with ``gil``, a received copy that waits for the interpreter lock while the loop
+    thread is busy, at most the switch, and wakes after it); its start and end."""
+    nf = S[CPU_NFREE]
+    idle = a > nf[p]
+    r = a if idle else nf[p]
+    free = S[CPU_FREE][p]
+    sw = S[CPU_SWITCH][p]
+    if gil and sw > 0.0 and free > r:
+        idle = True
+        lock = r + sw
+        r = free if free < lock else lock
+    net = S[CPU_NET]
+    cpu = net[p, 0] + net[p, 1] if idle else net[p, 0]
+    sc = S[CPU_SCALE][p]
+    length = cpu * sc
+    side = S[CPU_SIDE][p] if idle else 0.0
+    wait = run_wait(S, p, a, cpu + side, length)
+    if side > 0.0:
+        _beside(S, p, a, side * sc)
+    m = S[CPU_MACH][p]
+    s, c = _place(S, m, a, r + wait, length)
+    end = s + length
+    _reserve(S, m, c, s, end)
+    nf[p] = end
+    _count(S, p, s, end)
     return s, end
 
 

@@ -129,13 +129,14 @@ T_ILEN = 6
 C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
 # F3 — deployment (issue 24, docs/MODEL.md "Deployment and CPU"): event types of a
-# publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to
-# the application (after its receive burst, or at once with per-host clients), the
-# deployment's int parameters (S.cpu_ip) and the processes' rows (S.cpu_acc)
+# publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to the
+# application (after its receive burst, or at once with per-host clients), S.cpu_ip, S.cpu_acc
 EV_SEND, EV_APP = 4, 5
 #: event type of a process's outbox check (``deployment.lock_switch``: publishes whose
 #: burst ended while the thread was busy leave when it waits or the switch is due)
 EV_LEAVE = 6
+#: network thread (``*_net_msg``): a copy it read reaches the loop; a PUBLISH it took leaves
+EV_LOOP, EV_NSEND = 7, 8
 #: most publishes of one process waiting in its outbox (beyond: ``ERR_OUTBOX``)
 OB_CAP = 4096
 # CP_MAXMEM: the most nodes one client hands a message to (room a delivery event
@@ -299,6 +300,8 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_obq", _i, ("procs", 2), 0, "outbox: ring head and count"),
     Field("cpu_obt", _f, ("procs",), 0.0, "outbox: when its first message leaves at the latest"),
     Field("cpu_inb", _f, ("procs",), -np.inf, "receipts: when the open batch is read"),
+    Field("cpu_net", _f, ("procs", 2), None, "network thread: CPU a message, more a wake-up"),
+    Field("cpu_nfree", _f, ("procs",), -np.inf, "network thread: free again at"),
     # issue 27 (memory): the payloads of the event slots that carry one (a state's
     # observation, a command's row; a trigger or re-request carries none), ``pool`` rows
     # of ``pay_w`` = max(W, M) floats; a slot names its row in E_PAY (+ 1)
@@ -432,6 +435,7 @@ CPU_OB = INDEX["cpu_ob"]
 CPU_OBQ = INDEX["cpu_obq"]
 CPU_OBT = INDEX["cpu_obt"]
 CPU_INB = INDEX["cpu_inb"]
+CPU_NET, CPU_NFREE = INDEX["cpu_net"], INDEX["cpu_nfree"]
 POOL = INDEX["pool"]
 POOL_FREE = INDEX["pool_free"]
 DEF_INT = INDEX["def_int"]

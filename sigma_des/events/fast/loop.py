@@ -26,7 +26,7 @@ specification uses, and the loop reads them.
 from __future__ import annotations
 
 from sigma_des.events.fast.broker import broker
-from sigma_des.events.fast.clients import hand_over, receive
+from sigma_des.events.fast.clients import hand_over, loop_receive, receive
 from sigma_des.events.fast.cpu import tick
 from sigma_des.events.fast.job import owe, start_job
 from sigma_des.events.fast.layout import (
@@ -51,6 +51,8 @@ from sigma_des.events.fast.layout import (
     EV_FLOAT,
     EV_INT,
     EV_LEAVE,
+    EV_LOOP,
+    EV_NSEND,
     EV_RESEND,
     EV_SEND,
     HEAP_K,
@@ -123,7 +125,13 @@ from sigma_des.events.fast.resend import missing, resend
 from sigma_des.events.fast.server import at_server, delivered
 from sigma_des.events.fast.stateref import ref
 from sigma_des.events.fast.stream import next_ready
-from sigma_des.events.fast.transport import burst_copy, puback_client, send_burst_done, send_up
+from sigma_des.events.fast.transport import (
+    burst_copy,
+    net_sent,
+    puback_client,
+    send_burst_done,
+    send_up,
+)
 from sigma_des.events.fast.warp import rollback
 
 __all__ = ["advance", "owe_steps", "publish_commands", "publish_rerequest", "publish_trigger",
@@ -308,6 +316,10 @@ def _handle(S, s, t):  # type: ignore[no-untyped-def]
             send_burst_done(S, s, t)
     elif typ == EV_LEAVE:
         leave(S, s, t)
+    elif typ == EV_LOOP:
+        loop_receive(S, s, t)
+    elif typ == EV_NSEND:
+        net_sent(S, s, t)
     else:
         hand_over(S, s, t, S[EV_FLOAT][s, EF_TRECV])  # EV_APP: the receive burst ended
 

@@ -29,7 +29,6 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     E_WHO,
     ERR_OUTBOX,
-    EV_BROKER,
     EV_INT,
     EV_LEAVE,
     I_ERR,
@@ -39,7 +38,7 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import alloc, jit, push
-from sigma_des.events.fast.transport import send
+from sigma_des.events.fast.transport import net_send
 
 __all__ = ["burst_done", "leave", "outbox_room"]
 
@@ -73,8 +72,7 @@ def burst_done(S, ns, now):  # type: ignore[no-untyped-def]
     n = q[p, 1]
     free = S[CPU_FREE][p]
     if n == 0 and not free > now:
-        S[EV_INT][ns, E_TYPE] = EV_BROKER
-        send(S, ns, now)
+        net_send(S, ns, now)
         return
     if n >= OB_CAP:
         S[INTS][I_ERR] = ERR_OUTBOX
@@ -104,6 +102,4 @@ def leave(S, s, now):  # type: ignore[no-untyped-def]
     q[p, 1] = 0
     ob = S[CPU_OB]
     for j in range(n):
-        m = ob[p, (h + j) % OB_CAP]
-        S[EV_INT][m, E_TYPE] = EV_BROKER
-        send(S, m, now)
+        net_send(S, ob[p, (h + j) % OB_CAP], now)

@@ -70,15 +70,13 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     These features fall back to the per-message engine for the whole run: the DDS
     middleware and the ``rpc`` method (issue 16: per-message models only); bundled
     states (``deployment.bundle``: a variable number of records in one PUBLISH); a
-    process's network thread (``deployment.*_net_msg``, ``*_net_wake``: a second
-    thread per process, in the per-message engine only so far); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
     degrade and drop faults and NTP-corrected clocks, MQTT QoS 1 over datagrams
     (PUBACK hops, resends, redelivery: :mod:`~sigma_des.events.fast.transport`) and
     the stream transport on a link with loss or random latency (in-order hold-back,
     RTO retries, give-ups: :mod:`~sigma_des.events.fast.stream`), the CPU stage
-    (:mod:`~sigma_des.events.fast.cpu`) and per-host clients
+    (:mod:`~sigma_des.events.fast.cpu`, processes' network threads included) and per-host clients
     (:mod:`~sigma_des.events.fast.clients`).
     """
     why: list[str] = []
@@ -97,6 +95,4 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     dep = sc.net.deployment
     if dep.bundle:
         why.append("deployment.bundle (a host's states of one loop turn as one PUBLISH)")
-    if max(dep.host_net_msg, dep.host_net_wake, dep.server_net_msg, dep.server_net_wake) > 0:
-        why.append("deployment.*_net_msg / *_net_wake (a process's network thread)")
     return "; ".join(why) if why else None

@@ -251,6 +251,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     scale = np.ones(H + 2)
     wake = np.zeros(H + 2)
     side = np.zeros(H + 2)
+    net_cpu = np.zeros((H + 2, 2))
     switch = np.zeros(H + 2)
     runq = np.zeros(H + 2)
     load = np.zeros((len(cpu.machines) if cpu is not None else 1, L.ML_LEN))
@@ -264,6 +265,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
             scale[p] = pr.scale
             wake[p] = pr.wake
             side[p] = pr.side
+            net_cpu[p] = (pr.net_msg, pr.net_wake)
             runq[p] = pr.runq
             switch[p] = dep.lock_switch if p != L.P_BROKER else 0.0
         ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
@@ -290,6 +292,7 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
         ptr[c + 1] = len(mem)
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
             "cpu_scale": scale, "cpu_wake": wake, "cpu_side": side, "cpu_switch": switch,
+            "cpu_net": net_cpu,
             "cl_of": cl_of, "cpu_runq": runq, "cpu_load": load,
             "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}

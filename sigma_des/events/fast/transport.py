@@ -16,7 +16,7 @@ Without QoS 1 over datagram :func:`send` is one hop
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import span
+from sigma_des.events.fast.cpu import net_span, span, threaded
 from sigma_des.events.fast.layout import (
     CPU_DEM,
     CPU_PROC,
@@ -30,6 +30,7 @@ from sigma_des.events.fast.layout import (
     EV_BROKER,
     EV_FLOAT,
     EV_INT,
+    EV_NSEND,
     EV_RESEND,
     EV_SEND,
     IPARAMS,
@@ -60,7 +61,8 @@ from sigma_des.events.fast.primitives import (
 )
 from sigma_des.events.fast.stream import stream_send
 
-__all__ = ["copy_slot", "puback_broker", "puback_client", "send", "send_burst_done", "send_up"]
+__all__ = ["copy_slot", "net_send", "net_sent", "puback_broker", "puback_client", "send",
+           "send_burst_done", "send_up"]
 
 
 @jit
@@ -138,6 +140,27 @@ def send_burst_done(S, s, now):  # type: ignore[no-untyped-def]
     (Network._publish_try; the event's slot is freed after it, so a copy travels).
     With ``lock_switch`` the copy goes through its process's outbox instead
     (:mod:`sigma_des.events.fast.outbox`, called by the loop)."""
+    net_send(S, burst_copy(S, s), now)
+
+
+@jit
+def net_send(S, ns, now):  # type: ignore[no-untyped-def]
+    """Network._net_send: the PUBLISH in ``ns`` (a slot of its own) leaves now, or from
+    a process with a network thread when that thread takes it (an ``EV_NSEND`` event at
+    that burst's start: :func:`net_sent`)."""
+    p = S[CPU_PROC][S[EV_INT][ns, E_WHO]]
+    if p >= 0 and threaded(S, p):
+        S[EV_INT][ns, E_TYPE] = EV_NSEND
+        push(S, net_span(S, p, now, False)[0], ns)
+        return
+    S[EV_INT][ns, E_TYPE] = EV_BROKER
+    send(S, ns, now)
+
+
+@jit
+def net_sent(S, s, now):  # type: ignore[no-untyped-def]
+    """The network thread takes the PUBLISH in ``s``: its first try leaves (a copy: the
+    event's slot is freed after it)."""
     ns = burst_copy(S, s)
     S[EV_INT][ns, E_TYPE] = EV_BROKER
     send(S, ns, now)
