@@ -13,7 +13,8 @@ back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
 Run-queue waits (``deployment.*_runq``, ``runq_growth``) are
 ``Process.run_wait`` and ``Machine.load_wait``, and a wake-up's part on the other thread
-(``*_wake_side``) is ``Process.beside``, the same operations in the same order.
+(``*_wake_side``) is ``Process.beside``, and a process's network thread
+(``*_net_msg``, ``*_net_wake``) ``Process.net_span``, the same operations in the same order.
 """
 
 from __future__ import annotations
