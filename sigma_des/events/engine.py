@@ -179,6 +179,7 @@ class MethodRun(AlignmentServer):
 
     def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
         """Publish trigger ``k`` to every node (the message core's trigger fan-out)."""
+        self.tap.issue(k, self.kernel.now)
         self.core.publish_trigger(k, stamp)
 
     # ------------------------------------------------------------ deliveries

@@ -27,6 +27,11 @@ class Tap:
     def trigger(self, node: int, frame: int, t_send: float, t_recv: float) -> None:
         """A trigger delivery (node -1 and NaN receive time: the trigger's issue)."""
 
+    def issue(self, frame: int, t_send: float) -> None:
+        """Trigger ``frame`` is issued at ``t_send`` (both engines call it, whatever
+        they record through :meth:`trigger`: the per-message engine each delivery, the
+        compiled core the issue)."""
+
     def states(self, t_recv: _F, nodes: NDArray[np.int64], frames: NDArray[np.int64],
                gens: _F, obs: _F) -> None:
         """State deliveries to the server, in arrival order."""

@@ -293,6 +293,7 @@ class CompiledCore:
         loop.publish_trigger(self.S, checked_int(k, "trigger index"), now, hl,
                              checked_int(hc, "trigger HLC counter"))
         # the core keeps no per-node trigger deliveries: the tap records the issue
+        self.host.tap.issue(k, now)
         self.host.tap.trigger(-1, k, now, math.nan)
 
     def publish_commands(

@@ -220,8 +220,10 @@ class MissedTap(Tap):
         self.frames: set[int] = set()
         self.got: list[NDArray[np.int64]] = []
 
-    def trigger(self, node: int, frame: int, t_send: float, t_recv: float) -> None:
-        """A trigger's issue or delivery: its frame counts if it left in the window."""
+    def issue(self, frame: int, t_send: float) -> None:
+        """A trigger's issue: its frame counts if it left in the window (the issue, not
+        the deliveries: a frame whose trigger reached no node in time counts too, as
+        live's runner counts the triggers it sent)."""
         if self.window[0] <= t_send < self.window[1]:
             self.frames.add(int(frame))
 
