@@ -171,8 +171,8 @@ def _with_sides(sc: Scenario, base: Scenario, k: dict[str, float]) -> Scenario:
 def _first(name: str, k: float, live: float, des: float, mean: dict[str, float]) -> float:
     """The first step: a hop's spreads the difference over the message's two hops (ms
     -> s); a kind's CPU scales its side part by the CPU's ratio."""
-    if name in mean:
-        return k + (live - des) / 1000.0 / (2.0 * mean[name])
+    if name in mean:  # an all-zero sample set: no scale moves it
+        return k + (live - des) / 1000.0 / (2.0 * mean[name]) if mean[name] > 0 else k
     return k * live / des if des > 0 else k
 
 
@@ -201,6 +201,8 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
             and math.isfinite(live_down)):
         files["hop_down"] = Path(down.file)
     mean = {n: float(np.mean(load_samples(str(p)))) for n, p in files.items()}
+    fixed = [n for n, v in mean.items() if not v > 0]  # all zero: no scale moves them
+    files = {n: p for n, p in files.items() if n not in fixed}
     live = {"hop_up": live_up, "hop_down": live_down, **_live_cpu(source)}
     kinds = [kind for kind in CPU_KEYS if kind in live and _cpu_key(sc, kind) is not None]
     names = [*files, *kinds]
@@ -222,7 +224,7 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
                     else _next_scale(tried[n], live[n], first, 0.0, SIDE_MAX))
         out = _with_sides(_scaled(sc, files, k, d), sc, k)
     unit = {n: "ms" if n in files else "cores" for n in names}
-    report = {"hop_match_rounds": rounds,
+    report = {"hop_match_rounds": rounds, "hop_match_unscalable": ", ".join(fixed) or "none",
               **{f"{n}_scale" if n in files else f"{n}_side_scale": k[n] for n in names},
               **{f"{n}_live_{unit[n]}": live[n] for n in names},
               **{f"{n}_des_{unit[n]}": des[n] for n in names}}

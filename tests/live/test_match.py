@@ -23,6 +23,12 @@ def test_first_step_spreads_the_difference_over_two_hops() -> None:
     assert _step([(1.0, 5.0)], 99.0) == K_MAX
 
 
+def test_an_all_zero_hop_is_not_scaled() -> None:
+    """A direction whose samples are all 0 (a mean hop of 0: loopback under load) keeps
+    its scale: no scale moves it, and the step must not divide by it."""
+    assert _first("hop_down", 1.0, 4.0, 5.0, {"hop_down": 0.0}) == 1.0
+
+
 def test_a_bracket_is_closed_by_the_secant_through_its_nearest_pairs() -> None:
     # pairs on both sides of live = 4: (0.5, 3) below, (1, 5) above -> 0.75
     assert _step([(1.0, 5.0), (0.5, 3.0)], 4.0) == pytest.approx(0.75)
