@@ -39,15 +39,23 @@ def prefetch(typingctx: Any, arr: Any, row: Any) -> Any:
         ary = context.make_array(aryty)(context, builder, args[0])
         idx = context.cast(builder, args[1], rowty, types.intp)
         zero = context.get_constant(types.intp, 0)
-        ptr = cgutils.get_item_pointer2(
-            context, builder, data=ary.data, shape=cgutils.unpack_tuple(builder, ary.shape),
-            strides=cgutils.unpack_tuple(builder, ary.strides), layout=aryty.layout,
-            inds=[idx] + [zero] * (aryty.ndim - 1), wraparound=False, boundscheck=False)
-        i8p = builder.bitcast(ptr, ir.IntType(8).as_pointer())
-        fnty = ir.FunctionType(ir.VoidType(), [i8p.type, _I32, _I32, _I32])
+        one = context.get_constant(types.intp, 1)
+        shape = cgutils.unpack_tuple(builder, ary.shape)
+        fnty = ir.FunctionType(ir.VoidType(), [ir.IntType(8).as_pointer(), _I32, _I32, _I32])
         fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
-        # read (0), high temporal locality (3), data cache (1)
-        builder.call(fn, [i8p, ir.Constant(_I32, 0), ir.Constant(_I32, 3), ir.Constant(_I32, 1)])
+        # the row's first and last element: a row that does not start on a cache line
+        # (a 56 B ev_int row, a 32 B ev_float row at 16 B alignment) spans two lines
+        firsts = [idx] + [zero] * (aryty.ndim - 1)
+        lasts = [idx] + [builder.sub(d, one) for d in shape[1:]]
+        for inds in (firsts, lasts) if aryty.ndim > 1 else (firsts,):
+            ptr = cgutils.get_item_pointer2(
+                context, builder, data=ary.data, shape=shape,
+                strides=cgutils.unpack_tuple(builder, ary.strides), layout=aryty.layout,
+                inds=inds, wraparound=False, boundscheck=False)
+            i8p = builder.bitcast(ptr, ir.IntType(8).as_pointer())
+            # read (0), high temporal locality (3), data cache (1)
+            builder.call(fn, [i8p, ir.Constant(_I32, 0), ir.Constant(_I32, 3),
+                              ir.Constant(_I32, 1)])
         return context.get_dummy_value()
 
     return signature(types.none, arr, row), codegen
