@@ -50,17 +50,11 @@ __all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_hop
 MATCH_ROUNDS = 8
 #: Largest scale of a wake-up's part beside the thread.
 SIDE_MAX = 8.0
-#: The DES metric each process kind's CPU is matched with, and the ``deployment`` key
-#: that takes the difference (the part beside the thread, per wake-up of the loop or,
-#: with a network thread, of that thread).
-CPU_KEYS = {"server": ("server_cpu_util", ("server_wake_side",)),
-            "host": ("host_cpu_util_max", ("host_wake_side",))}
-
-
-def _cpu_key(sc: Scenario, kind: str) -> str | None:
-    """The ``deployment`` key scaled to match ``kind``'s CPU (None: it is 0)."""
-    dep = sc.deployment
-    return next((key for key in CPU_KEYS[kind][1] if getattr(dep, key) > 0.0), None)
+#: The DES metric and the ``deployment`` key each process kind's CPU is matched with
+#: (the part beside the thread: per wake-up of the loop or, with a network thread, of
+#: that thread).
+CPU_KEYS = {"server": ("server_cpu_util", "server_wake_side"),
+            "host": ("host_cpu_util_max", "host_wake_side")}
 #: Largest scale of a direction's hop samples.
 K_MAX = 4.0
 #: Relative difference of the pooled mean latencies a round stops at.
@@ -109,7 +103,7 @@ def _des_means(sc: Scenario, methods: list[str]) -> dict[str, float]:
         return float(np.mean([float(r.get(key, math.nan)) for r in rows]))
 
     return {"hop_up": mean("latency_state_mean"), "hop_down": mean("latency_trigger_mean"),
-            **{kind: mean(metric) for kind, (metric, _keys) in CPU_KEYS.items()}}
+            **{kind: mean(metric) for kind, (metric, _k) in CPU_KEYS.items()}}
 
 
 def _scaled(sc: Scenario, files: dict[str, Path], k: dict[str, float], d: Path) -> Scenario:
@@ -158,12 +152,10 @@ def _next_scale(tried: list[tuple[float, float]], live: float, first: float,
 
 
 def _with_sides(sc: Scenario, base: Scenario, k: dict[str, float]) -> Scenario:
-    """``sc`` with each matched kind's CPU key (:func:`_cpu_key`) ``base``'s times
-    ``k[kind]``."""
+    """``sc`` with each matched kind's side part ``base``'s times ``k[kind]``."""
     dep = sc.deployment
-    for kind in CPU_KEYS:
-        key = _cpu_key(base, kind)
-        if kind in k and key is not None:
+    for kind, (_metric, key) in CPU_KEYS.items():
+        if kind in k:
             dep = replace(dep, **{key: getattr(base.deployment, key) * k[kind]})
     return replace(sc, deployment=dep)
 
@@ -204,7 +196,8 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
     fixed = [n for n, v in mean.items() if not v > 0]  # all zero: no scale moves them
     files = {n: p for n, p in files.items() if n not in fixed}
     live = {"hop_up": live_up, "hop_down": live_down, **_live_cpu(source)}
-    kinds = [kind for kind in CPU_KEYS if kind in live and _cpu_key(sc, kind) is not None]
+    kinds = [kind for kind, (_m, key) in CPU_KEYS.items()
+             if kind in live and getattr(sc.deployment, key) > 0.0]
     names = [*files, *kinds]
     k = dict.fromkeys(names, 1.0)
     methods = list(sc.methods)

@@ -264,3 +264,17 @@ def test_a_wait_for_the_lock_is_a_network_wake_up_and_places_the_side_part() -> 
     assert s.net_span(0.6, True) == (pytest.approx(1.05), pytest.approx(1.35))
     assert s.machine.cores[1] == [pytest.approx((0.5, 0.8)), pytest.approx((0.8, 1.1))]
     assert s.busy == pytest.approx(1.05 + 2 * (0.3 + 0.3))
+
+
+@pytest.mark.parametrize("key", ["host_net_msg", "server_net_msg", "host_net_wake",
+                                 "server_net_wake"])
+def test_network_thread_keys_refused_out_of_range_and_without_a_stage(key: str) -> None:
+    who = key.split("_")[0]
+    ok = {f"{who}_demand": 1e-4}
+    with pytest.raises(ConfigError, match=rf"{key}.*must be in \[0, 1\]"):
+        DeploymentSpec(preset="colocated", **ok, **{key: 1.5})
+    with pytest.raises(ConfigError, match=rf"{key}.*must be in \[0, 1\]"):
+        DeploymentSpec(preset="colocated", **ok, **{key: -1e-6})
+    # without a CPU stage there is no demand, which the key needs (named)
+    with pytest.raises(ConfigError, match=rf"{key}: needs deployment.{who}_demand > 0"):
+        DeploymentSpec(preset="none", **{key: 1e-4})
