@@ -47,7 +47,7 @@ from sigma_des.net.spec import LinkSpec
 __all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_hops"]
 
 #: Rounds of DES runs at most.
-MATCH_ROUNDS = 8
+MATCH_ROUNDS = 16
 #: Largest scale of a wake-up's part beside the thread.
 SIDE_MAX = 8.0
 #: The DES metric and the ``deployment`` key each process kind's CPU is matched with
@@ -61,6 +61,8 @@ K_MAX = 4.0
 MATCH_TOL = 0.03
 #: Smallest scale of a direction's hop samples.
 K_MIN = 0.05
+#: Relative difference of the other scales within which a round's pair still counts.
+SAME_REL = 0.02
 
 
 def _live_means(source: Path, sc: Scenario) -> tuple[float, float]:
@@ -168,6 +170,19 @@ def _first(name: str, k: float, live: float, des: float, mean: dict[str, float])
     return k * live / des if des > 0 else k
 
 
+def _pairs(tried: list[tuple[dict[str, float], dict[str, float]]], now: dict[str, float],
+           name: str) -> list[tuple[float, float]]:
+    """``name``'s ``(scale, DES value)`` pairs from the rounds whose *other* scales were
+    within :data:`SAME_REL` of ``now``'s. *Why*: a round moves every scale at once, and
+    a side part's CPU also lengthens the latency, so a pair from a round with other
+    side parts is not a point of the same curve (on ``s15``'s ``cal-r3`` the stale
+    pairs held the up hop's scale still for five rounds, 9 % off live)."""
+    def same(ks: dict[str, float]) -> bool:
+        return all(abs(v - now[o]) <= SAME_REL * max(abs(now[o]), 1e-12)
+                   for o, v in ks.items() if o != name)
+    return [(ks[name], des[name]) for ks, des in tried if same(ks)]
+
+
 def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str, Any]]:
     """Rescale the calibrated hop samples (and the wake-ups' parts beside the thread)
     until the DES re-predicts ``source``.
@@ -204,17 +219,19 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
     out = sc
     rounds = 0
     des: dict[str, float] = {}
-    tried: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
+    tried: list[tuple[dict[str, float], dict[str, float]]] = []
     for rounds in range(1, MATCH_ROUNDS + 1):
         des = _des_means(out, methods)
         errs = {n: (des[n] - live[n]) / live[n] for n in names}
         if all(abs(e) <= MATCH_TOL for e in errs.values()) or rounds == MATCH_ROUNDS:
             break
+        tried.append((dict(k), des))
+        now = dict(k)
         for n in names:
-            tried[n].append((k[n], des[n]))
-            first = _first(n, k[n], live[n], des[n], mean)
-            k[n] = (_next_scale(tried[n], live[n], first) if n in files
-                    else _next_scale(tried[n], live[n], first, 0.0, SIDE_MAX))
+            first = _first(n, now[n], live[n], des[n], mean)
+            pairs = _pairs(tried, now, n)
+            k[n] = (_next_scale(pairs, live[n], first) if n in files
+                    else _next_scale(pairs, live[n], first, 0.0, SIDE_MAX))
         out = _with_sides(_scaled(sc, files, k, d), sc, k)
     unit = {n: "ms" if n in files else "cores" for n in names}
     report = {"hop_match_rounds": rounds, "hop_match_unscalable": ", ".join(fixed) or "none",
