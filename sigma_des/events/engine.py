@@ -225,6 +225,10 @@ class MethodRun(AlignmentServer):
         """An alignment tick: a ``deployment.server_tick`` burst on the server's process."""
         self.core.server_tick(t)  # the CPU state lives in the message core
 
+    def loop_free(self, t: float) -> float:
+        """When the server's loop thread is free of the bursts queued on it by ``t``."""
+        return self.core.server_free(t)
+
     def truth_positions(self, frame: int) -> NDArray[np.float64] | None:
         """True positions of ``frame`` (None once it left the truth ring)."""
         return self.truth.positions(frame)

@@ -53,6 +53,12 @@ class MessageCore(Protocol):
         ``deployment.server_tick`` burst; nothing without a CPU stage)."""
         ...
 
+    def server_free(self, t: float) -> float:
+        """When the server process's loop thread has served the bursts queued on it by
+        ``t`` (every message at or before ``t`` run): ``t`` if it is idle or there is no
+        CPU stage."""
+        ...
+
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Run the messages the core holds up to ``bound`` (``< bound`` if ``strict``).
 
@@ -113,6 +119,10 @@ class EventCore:
     def server_tick(self, t: float) -> None:
         """The network's CPU stage takes the tick's burst."""
         self.net.server_tick(t)
+
+    def server_free(self, t: float) -> float:
+        """The network's CPU stage knows."""
+        return self.net.server_free(t)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Nothing to run: the messages are events of the engine's own kernel."""

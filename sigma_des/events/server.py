@@ -158,8 +158,25 @@ class AlignmentServer:
 
     # ------------------------------------------------------------ ticks
 
+    def loop_free(self, t: float) -> float:
+        """When the server's loop thread has served what was queued on it by ``t`` (``t``
+        if nothing was): a tick due at ``t`` runs then. Live, the loop drains its inbox
+        before it looks at its timers, so a state read before the tick was due is
+        aligned by it; the DES answers from its CPU stage (:meth:`MessageCore.server_free`).
+        This default (live's) waits for nothing: the live loop waits by itself."""
+        return t
+
     def align(self) -> None:
-        """Alignment tick: align, measure, record, send commands, schedule the next tick."""
+        """Alignment tick: once the loop thread is free (:meth:`loop_free`), align,
+        measure, record, send commands and schedule the next tick."""
+        t = self.clock.now
+        free = self.loop_free(t)
+        if free > t:
+            self.clock.call_at(free, self._align, priority=ALIGN)
+        else:
+            self._align()
+
+    def _align(self) -> None:
         t = self.clock.now
         if t >= self.spec.duration:
             return
@@ -173,7 +190,9 @@ class AlignmentServer:
         if self.behaviour is not None and self.align_tick % self.spec.commands.every == 0:
             self.send_commands()
         self.align_tick += 1
-        self.clock.call_at(self.align_time(self.align_tick), self.align, priority=ALIGN)
+        # a tick run late (behind the loop's queue) may pass the next one's time: now, then
+        nxt = self.align_time(self.align_tick)
+        self.clock.call_at(nxt if nxt > t else t, self.align, priority=ALIGN)
 
     def send_commands(self) -> None:
         """Ask the behaviour for commands on the shown snapshot and publish them."""
@@ -190,7 +209,16 @@ class AlignmentServer:
         self.publish_commands(self.align_tick, al.aligned_frame, np.flatnonzero(ok), cmds)
 
     def render(self) -> None:
-        """Render tick: sample what is shown against the truth, schedule the next tick."""
+        """Render tick: once the loop thread is free (:meth:`loop_free`), sample what is
+        shown against the truth and schedule the next tick."""
+        t = self.clock.now
+        free = self.loop_free(t)
+        if free > t:
+            self.clock.call_at(free, self._render, priority=RENDER)
+        else:
+            self._render()
+
+    def _render(self) -> None:
         t = self.clock.now
         if t >= self.spec.duration:
             return
@@ -209,7 +237,8 @@ class AlignmentServer:
         )
         self.rendered(t)
         self.render_tick += 1
-        self.clock.call_at(self.render_time(self.render_tick), self.render, priority=RENDER)
+        nxt = self.render_time(self.render_tick)
+        self.clock.call_at(nxt if nxt > t else t, self.render, priority=RENDER)
 
     def align_time(self, j: int) -> float:
         """Alignment tick ``j`` at ``(j + align_phase) / f_align`` (multiplied, no drift)."""

@@ -164,6 +164,14 @@ class Network(Links):
             assert self.cpu is not None
             self.cpu.server.burst(t, self._tick)
 
+    def server_free(self, t: float) -> float:
+        """When the server process's loop thread is free of the bursts queued on it by
+        ``t`` (``t`` if idle, or without a CPU stage)."""
+        if self.cpu is None:
+            return t
+        free = self.cpu.server.free
+        return free if free > t else t
+
     # ------------------------------------------------------------ MQTT publish
 
     def publish(

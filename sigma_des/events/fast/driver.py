@@ -323,6 +323,14 @@ class CompiledCore:
         self.ensure_space(2)
         loop.publish_rerequest(self.S, node, frame, index, self.host.kernel.now)
 
+    def server_free(self, t: float) -> float:
+        """When the server process's loop thread is free of the bursts queued on it by
+        ``t`` (Network.server_free; every message at or before ``t`` has run)."""
+        if self.host.net.cpu is None:
+            return t
+        free = float(self.S[L.CPU_FREE][L.P_SERVER])
+        return free if free > t else t
+
     def server_tick(self, t: float) -> None:
         """An alignment tick at ``t``: a ``deployment.server_tick`` burst on the server's
         process (Network.server_tick), after every message at or before ``t``."""
