@@ -198,6 +198,10 @@ class Process:
         ``wait`` on the run queue once its thread is free (nothing is held yet)."""
         tf = self.free
         r = a if a > tf else tf
+        nf = self.net_free
+        if self.switch > 0.0 and nf > r:  # the network thread holds the interpreter lock
+            lock = r + self.switch
+            r = nf if nf < lock else lock
         if wait > 0.0:
             r += wait
         return self.machine.place(a, r, length)

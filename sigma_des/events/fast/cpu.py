@@ -100,6 +100,11 @@ def acquire(S, p, a, length, wait):  # type: ignore[no-untyped-def]
     (ended reservations dropped, nothing held)."""
     tf = S[CPU_FREE][p]
     r = a if a > tf else tf
+    nf = S[CPU_NFREE][p]
+    sw = S[CPU_SWITCH][p]
+    if sw > 0.0 and nf > r:  # the network thread holds the interpreter lock
+        lock = r + sw
+        r = nf if nf < lock else lock
     if wait > 0.0:
         r += wait
     return _place(S, S[CPU_MACH][p], a, r, length)
