@@ -208,3 +208,26 @@ def test_bundle_sends_a_ticks_commands_once_per_host() -> None:
     assert up2 == pytest.approx(100 + h * ticks, abs=1)
     assert out2["metrics"]["latency_command_mean"] > 0.0
     assert out2["metrics"]["deliveries_per_s"] == out1["metrics"]["deliveries_per_s"]
+
+
+@pytest.mark.parametrize("engine", ["events", "cohort"])
+def test_a_render_tick_waits_for_the_loop_threads_queue(engine: str) -> None:
+    """Alignment ticks at ``j / 100`` each cost the server's loop thread 7 ms
+    (``server_tick``, nothing else on it); a render tick due at ``(j + 0.5) / 100`` finds
+    that thread busy and runs when it frees, at ``(j + 0.7) / 100`` (live's loop drains
+    what it holds before its timers). Mean AoI is then exactly that of render ticks at
+    phase 0.7, and 2 ms above phase 0.5's without the tick's CPU."""
+    grid = [*BATCH, "nodes=10", "f_align=100", "f_render=100", "align_phase=0.0",
+            f"engine='{engine}'"]
+    busy = ["deployment.preset='colocated'", "deployment.server_tick=0.007"]
+
+    def aoi(*extra: str) -> float:
+        sc = load(None, [*grid, *extra])
+        _run, out, used = execute(sc.run_spec(), "none", lambda: make_dynamics(sc),
+                                  lambda: make_behaviour(sc))
+        assert used["used"] == engine
+        return float(out["metrics"]["aoi_mean"])
+
+    late = aoi("render_phase=0.5", *busy)
+    assert late == pytest.approx(aoi("render_phase=0.7"), rel=1e-12)
+    assert late - aoi("render_phase=0.5") == pytest.approx(2.0, rel=1e-9)

@@ -6,7 +6,15 @@ from pathlib import Path
 
 import pytest
 
-from sigma_des.live.match import K_MAX, K_MIN, SIDE_MAX, _first, _live_cpu, _next_scale
+from sigma_des.live.match import (
+    K_MAX,
+    K_MIN,
+    SIDE_MAX,
+    _first,
+    _live_cpu,
+    _next_scale,
+    _pairs,
+)
 
 MEAN = {"hop_up": 1e-3}
 
@@ -65,3 +73,17 @@ def test_live_cpu_is_the_server_and_the_busiest_host_mean_over_methods(tmp_path:
     empty = tmp_path / "empty"
     empty.mkdir()
     assert _live_cpu(empty) == {}  # no cpu.csv: nothing to match
+
+
+def test_a_pair_counts_only_while_the_other_scales_stay_where_they_are() -> None:
+    """Round 1 at scales (hop 1.0, server 1.0), round 2 (0.5, 1.5), round 3 (0.6, 1.51):
+    now at (0.6, 1.52), the hop's pairs are those of the rounds whose server scale was
+    within 2 % of 1.52 (rounds 2 and 3), and the server's those whose hop scale was
+    within 2 % of 0.6 (round 3 only). On ``s15``'s calibration run the stale pairs of
+    rounds with other side parts held the up hop 9 % off live for five rounds."""
+    tried = [({"hop_up": 1.0, "server": 1.0}, {"hop_up": 4.3, "server": 0.38}),
+             ({"hop_up": 0.5, "server": 1.5}, {"hop_up": 2.9, "server": 0.41}),
+             ({"hop_up": 0.6, "server": 1.51}, {"hop_up": 3.5, "server": 0.43})]
+    now = {"hop_up": 0.6, "server": 1.52}
+    assert _pairs(tried, now, "hop_up") == [(0.5, 2.9), (0.6, 3.5)]
+    assert _pairs(tried, now, "server") == [(1.51, 0.43)]

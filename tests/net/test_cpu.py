@@ -231,6 +231,20 @@ def test_a_received_copy_waits_for_the_interpreter_lock_at_most_the_switch() -> 
     assert s.net_span(2.0, True) == (2.0, pytest.approx(2.1))
 
 
+@pytest.mark.parametrize(("switch", "start"), [(0.05, 0.15), (0.5, 0.3), (0.0, 0.1)])
+def test_the_loop_thread_waits_for_the_lock_the_network_thread_holds(
+        switch: float, start: float) -> None:
+    """Two cores; the network thread's burst [0, 0.3) holds the interpreter lock. A loop
+    burst of 1.0 at 0.1 waits for it until the switch interval has passed (0.05: from
+    0.15) or the network thread is done (0.5: from 0.3); without a lock (switch 0) it
+    runs at once on the other core."""
+    cpu = Cpu(DeploymentSpec(preset="colocated", cores=2, server_demand=1.0,
+                             server_net_msg=0.3, lock_switch=switch), 1, 0.0, 100.0)
+    s = cpu.server
+    assert s.net_span(0.0, False) == (0.0, pytest.approx(0.3))
+    assert s.span(0.1, 1.0) == (pytest.approx(start), pytest.approx(start + 1.0))
+
+
 def test_a_network_thread_burst_waits_on_the_run_queue_as_any_burst() -> None:
     """One core, run-queue floor 0.5: a network-thread burst of 0.2 arriving at 1.0
     waits 0.5 x 0.2 = 0.1 before it runs [1.1, 1.3)."""
