@@ -169,12 +169,16 @@ class AlignmentServer:
     def align(self) -> None:
         """Alignment tick: once the loop thread is free (:meth:`loop_free`), align,
         measure, record, send commands and schedule the next tick."""
+        self._once_free(self._align, ALIGN)
+
+    def _once_free(self, tick: Callable[[], None], priority: int) -> None:
+        """Run ``tick`` now, or when the loop thread is free (:meth:`loop_free`)."""
         t = self.clock.now
         free = self.loop_free(t)
         if free > t:
-            self.clock.call_at(free, self._align, priority=ALIGN)
+            self.clock.call_at(free, tick, priority=priority)
         else:
-            self._align()
+            tick()
 
     def _align(self) -> None:
         t = self.clock.now
@@ -211,12 +215,7 @@ class AlignmentServer:
     def render(self) -> None:
         """Render tick: once the loop thread is free (:meth:`loop_free`), sample what is
         shown against the truth and schedule the next tick."""
-        t = self.clock.now
-        free = self.loop_free(t)
-        if free > t:
-            self.clock.call_at(free, self._render, priority=RENDER)
-        else:
-            self._render()
+        self._once_free(self._render, RENDER)
 
     def _render(self) -> None:
         t = self.clock.now
