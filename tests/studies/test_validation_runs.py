@@ -51,7 +51,8 @@ def test_des_missed_frac_is_the_same_on_both_engines() -> None:
     """Both engines count the same frames, each trigger's issue (the per-message engine
     records deliveries, the compiled core issues): Lock-Step with a slow server process
     on one core and lossy links, where a frame's trigger reaches no node in time (was
-    0.0 on the per-message engine, 0.5 on the compiled core)."""
+    0.0 on the per-message engine, 0.5 on the compiled core; one third on both since the
+    server's ticks wait for its loop thread, session 16)."""
     sc = load(None, ["nodes=6", "hosts=2", "duration=2", "warmup=0.5",
                      "fidelity.enabled=false", "net.host_link.loss.p=0.05",
                      'deployment.preset="colocated"', "deployment.cores=1",
@@ -60,7 +61,8 @@ def test_des_missed_frac_is_the_same_on_both_engines() -> None:
     co = des_figures(sc, "lockstep")
     ev = des_figures(replace(sc, engine="events"), "lockstep")
     assert (co["engine"], ev["engine"]) == ("cohort", "events")
-    assert co["missed_frac"] == ev["missed_frac"] == 0.5
+    assert co["missed_frac"] == ev["missed_frac"]
+    assert co["missed_frac"] == pytest.approx(1 / 3)
 
 
 def test_des_missed_frac_is_the_recordings(tmp_path: Path) -> None:
