@@ -246,13 +246,10 @@ def run_case(
 ) -> dict[str, Any]:
     """Run one case in this process; return timing, counts, peak RSS and metrics.
 
-    A two-node run of the same kind goes first, untimed, so that one-off costs (lazy
-    imports, numba JIT/cache loading of the dynamics, the behaviour and the cohort
-    core) are not counted as simulation time: it runs past the first command tick
-    (:func:`warm_duration`: the behaviour's kernels), and the cohort core's kernels
-    that such a run never reaches (rollbacks' job starts) are loaded then too
-    (``MethodRun.load_kernels``). ``kernels_loaded`` counts what the timed run still
-    loaded (0 when the warm-up did its job).
+    A two-node run of the same kind, past the first command tick (:func:`warm_duration`),
+    goes first, untimed, so that one-off costs (imports, numba kernels loaded) are not
+    timed; the core's kernels it never reaches are loaded then too (``MethodRun.
+    load_kernels``). ``kernels_loaded``: those the timed run still loaded (0 expected).
     """
     import resource
 
@@ -296,10 +293,8 @@ def run_case(
 
 
 def warm_duration(sc: Any) -> float:
-    """Simulated seconds of :func:`run_case`'s warm-up run: past the first command tick
-    (every ``commands.every`` alignment ticks), whose behaviour loads its kernels then
-    (≈ 25 ms from numba's cache for the formation's six, which a 0.05 s warm-up left
-    to the timed run: docs/BENCHMARKS.md, "Issue 27, fixed per-run costs (session 16)")."""
+    """:func:`run_case`'s warm-up length (s): past the first command tick, where the behaviour
+    loads its kernels (≈ 25 ms; docs/BENCHMARKS.md, issue 27, fixed costs, session 16)."""
     return max(0.05, (sc.commands.every + 2) / sc.f_align)
 
 
