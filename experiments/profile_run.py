@@ -35,21 +35,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from sigma_des.jitcache import loaded_specialisations
+
 
 def _usage() -> tuple[float, float, float, int, int]:
     """(CPU, user, system seconds, minor page faults, numba specialisations) so far."""
     r = resource.getrusage(resource.RUSAGE_SELF)
-    return (time.process_time(), r.ru_utime, r.ru_stime, r.ru_minflt, _specialisations())
-
-
-def _specialisations() -> int:
-    """numba specialisations held by the package's kernels (loaded or compiled so far)."""
-    from numba.core.registry import CPUDispatcher
-
-    kernels = {id(obj): obj for name, mod in list(sys.modules.items())
-               if name.startswith("sigma_des") and mod is not None
-               for obj in list(vars(mod).values()) if isinstance(obj, CPUDispatcher)}
-    return sum(len(k.signatures) for k in kernels.values())
+    return (time.process_time(), r.ru_utime, r.ru_stime, r.ru_minflt, loaded_specialisations())
 
 
 class Phases:

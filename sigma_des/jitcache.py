@@ -58,7 +58,8 @@ from types import ModuleType
 from sigma_des.cache.paths import default_root, root
 from sigma_des.cache.sources import PACKAGE, fingerprint
 
-__all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "install_hook", "prune"]
+__all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "install_hook",
+           "loaded_specialisations", "prune"]
 
 #: Fingerprint directories kept besides the current one, the most recently used first.
 KEEP = 3
@@ -66,6 +67,22 @@ KEEP = 3
 GRACE_S = 3600.0
 
 _FINGERPRINT = re.compile(r"[0-9a-f]{16}")
+
+
+def loaded_specialisations() -> int:
+    """How many specialisations the package's kernels hold (loaded or compiled so far).
+
+    Counts the numba dispatchers bound to a name of an imported ``sigma_des`` module, so
+    a benchmark can tell that its timed part loaded no kernel (0 if numba is not loaded).
+    """
+    if "numba" not in sys.modules:
+        return 0
+    from numba.core.registry import CPUDispatcher
+
+    kernels = {id(obj): obj for name, mod in list(sys.modules.items())
+               if name.startswith("sigma_des") and mod is not None
+               for obj in list(vars(mod).values()) if isinstance(obj, CPUDispatcher)}
+    return sum(len(k.signatures) for k in kernels.values())
 
 
 def _can_write_dir(d: Path) -> bool:

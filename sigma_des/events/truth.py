@@ -231,9 +231,7 @@ class SwarmTruth:
         order = np.argsort(first, kind="stable")  # by first frame (stable)
         nodes, first, rows = nodes[order], first[order], rows[order]
         H, latest = self.H, self.latest
-        cur = np.empty((nodes.size, self.state.shape[1]))
-        for k in range(nodes.size):
-            cur[k] = self._checkpoint(int(nodes[k]), int(first[k]))
+        cur = self._checkpoints(nodes, first)
         m = 0
         for f in range(int(first[0]), latest + 1):
             while m < nodes.size and first[m] <= f:
@@ -241,15 +239,24 @@ class SwarmTruth:
             slot = f % H
             cur[:m] = self.dyn.step(cur[:m], rows[:m], float(self.frame_dt[slot]), f, nodes[:m])
             self.ckpt[slot, nodes[:m]] = cur[:m]
-        # one observe call for all re-simulated (frame, node) rows (rows are independent)
-        counts = latest - first + 1
-        who = np.repeat(nodes, counts)
-        frames = np.repeat(first, counts) + (np.arange(who.size) - np.repeat(
-            np.cumsum(counts) - counts, counts))
-        slots = frames % H
-        self.obs_hist[slots, who] = self.dyn.observe(self.ckpt[slots, who])
+            # observed frame by frame (rows are independent: the same bits as one call
+            # over every re-simulated row, without gathering them again from the ring,
+            # a few MB of fresh temporaries in the first second's rollback burst)
+            self.obs_hist[slot, nodes[:m]] = self.dyn.observe(cur[:m])
         self.state[nodes] = cur
         return nodes
+
+    def _checkpoints(
+        self, nodes: NDArray[np.int64], first: NDArray[np.int64]
+    ) -> NDArray[np.float64]:
+        """:meth:`_checkpoint` of each ``(nodes[k], first[k])``, as rows of a new array."""
+        cur = np.zeros((nodes.size, self.state.shape[1]))
+        at0 = first == 0
+        cur[at0] = self.initial[nodes[at0]]
+        slots = (first - 1) % self.H
+        held = ~at0 & (self.slot_frame[slots] >= 0)  # else zeros, as _checkpoint
+        cur[held] = self.ckpt[slots[held], nodes[held]]
+        return cur
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """True positions logged at the fidelity log rate (Hz of physics time), so far."""

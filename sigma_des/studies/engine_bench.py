@@ -246,13 +246,14 @@ def run_case(
 ) -> dict[str, Any]:
     """Run one case in this process; return timing, counts, peak RSS and metrics.
 
-    A 0.05 s two-node run of the same kind goes first, untimed, so that one-off
-    costs (lazy imports, numba JIT/cache loading of the dynamics and of the
-    cohort core) are not counted as simulation time; the cohort core's kernels
-    that such a run never reaches (command publishes, rollbacks' job starts) are
-    loaded then too (``MethodRun.load_kernels``).
+    A two-node run of the same kind, past the first command tick (:func:`warm_duration`),
+    goes first, untimed, so that one-off costs (imports, numba kernels loaded) are not
+    timed; the core's kernels it never reaches are loaded then too (``MethodRun.
+    load_kernels``). ``kernels_loaded``: those the timed run still loaded (0 expected).
     """
     import resource
+
+    from sigma_des.jitcache import loaded_specialisations
 
     if cpu is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {cpu})
@@ -261,7 +262,8 @@ def run_case(
     load = config.load
     sc = load(overrides=overrides)
     try:
-        warm = load(overrides=[*overrides, "nodes=2", "hosts=1", "duration=0.05", "warmup=0.0"])
+        warm = load(overrides=[*overrides, "nodes=2", "hosts=1",
+                               f"duration={warm_duration(sc)!r}", "warmup=0.0"])
     except ConfigError:  # e.g. a fault naming a node >= 2: no warm-up then
         warm = None
     if warm is not None:
@@ -272,7 +274,9 @@ def run_case(
 
             make_run(warm.run_spec(), method, make_dynamics(warm),
                      make_behaviour(warm))[0].load_kernels()
+    held = loaded_specialisations()
     sim = simulate(impl, method, sc)
+    kernels = loaded_specialisations() - held
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: KiB
     return {
         "load1": os.getloadavg()[0],
@@ -283,8 +287,15 @@ def run_case(
         "peak_rss_mb": rss_mb,
         "engine_used": sim.engine_used,
         "fallback": sim.fallback,
+        "kernels_loaded": kernels,
         "metrics": {k: float(v) for k, v in sim.metrics.items()},
     }
+
+
+def warm_duration(sc: Any) -> float:
+    """:func:`run_case`'s warm-up length (s): past the first command tick, where the behaviour
+    loads its kernels (≈ 25 ms; docs/BENCHMARKS.md, issue 27, fixed costs, session 16)."""
+    return max(0.05, (sc.commands.every + 2) / sc.f_align)
 
 
 #: Modules a forkserver imports once, so that each forked case starts with them loaded.

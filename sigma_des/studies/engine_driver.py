@@ -294,6 +294,9 @@ def run_node(
             f"{case.method:<8} {case.scenario:<10} {case.sim_s:5g} s sim "
             f"{res['wall_s']:9.2f} s wall  ({res['engine_used']})"
         )
+        if res.get("kernels_loaded"):  # a one-off cost the warm-up should have taken
+            notes.append(f"N={n} {case.impl} {case.method} {case.scenario}: "
+                         f"{res['kernels_loaded']} kernel(s) loaded in the timed run")
         if res["fallback"]:
             note = f"{case.method} on the {case.scenario} scenario: cohort fell back to the "
             note += f"per-message engine: {res['fallback']}"

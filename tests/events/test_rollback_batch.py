@@ -74,6 +74,20 @@ def test_batched_rollbacks_equal_one_by_one_rollbacks() -> None:
     assert batch.flush_rollbacks(nodes[:0], first[:0], rows_[:0], steps[:0]).size == 0
 
 
+def test_batched_rollbacks_from_frame_zero_start_at_the_initial_state() -> None:
+    # a young ring (latest 4): rollbacks from frame 0 (the initial state), 1 and 4
+    dyn = GeneralAircraft("quadrotor")
+    one, batch = _truth(dyn, 5), _truth(dyn, 5)
+    cases = [(3, 0, 4), (0, 1, 4), (5, 4, 4), (1, 0, 2)]
+    rows = np.random.default_rng(5).normal(0.0, 1.0, (len(cases), 4))
+    nodes, first, rows_, steps = _deferred(batch, cases, rows)
+    assert first.tolist() == [0, 1, 4, 0]
+    for (i, c, current), row in zip(cases, rows, strict=True):
+        one.rollback(i, c, current, row)
+    assert batch.flush_rollbacks(nodes, first, rows_, steps).tolist() == [3, 1, 0, 5]
+    _same_truth(batch, one)
+
+
 def test_first_frames_clamp_to_the_ring() -> None:
     truth = _truth(GeneralAircraft("quadrotor"), 13)  # latest 12, oldest re-simulable 6
     assert [truth.first_resim(c) for c in (0, 5, 6, 7, 14)] == [6, 6, 6, 7, 14]

@@ -321,3 +321,24 @@ def test_baseline_rejects_other_methods_and_faults() -> None:
     )
     with pytest.raises(Unsupported, match="faults"):
         check_supported(faulty)
+
+
+def test_the_warm_up_loads_every_kernel_the_timed_run_calls() -> None:
+    # in a fresh interpreter, so that no earlier test loaded a kernel: the full scenario
+    # with commands and BiDES rollbacks; a warm-up that ends before the first command
+    # tick leaves the formation's kernels to the timed run (6 of them)
+    code = ("from sigma_des.studies.engine_bench import overrides_for, run_case; "
+            "r = run_case('cohort', 'bides', overrides_for(20, 1.0, False, impl='cohort')); "
+            "print(r['kernels_loaded'], r['metrics']['rollbacks'], "
+            "r['metrics']['latency_command_mean'])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT, timeout=600).stdout.split()
+    assert float(out[2]) > 0  # commands were published in the timed run
+    assert int(out[0]) == 0
+
+
+def test_warm_duration_reaches_the_first_command_tick() -> None:
+    sc = load(overrides=["commands.every=3", "f_align=60"])
+    assert bench_engine.warm_duration(sc) == pytest.approx(5 / 60)
+    assert bench_engine.warm_duration(load(overrides=["commands.every=1",
+                                                      "f_align=100"])) == 0.05
