@@ -380,8 +380,9 @@ class Network(Links):
         proc = self._proc[m.client]
         if proc is None:
             self._hand_over(m)
-        elif proc.threaded:  # paho's thread reads and stamps it, then the loop handles it
-            m.t_recv, end = proc.net_span(now, True)
+        elif proc.threaded:  # paho's thread reads it; its callback stamps it at the end
+            _start, end = proc.net_span(now, True)
+            m.t_recv = end  # paho's callback: the loop runs it at once (live: 1-3 µs)
             self.k.at(end, self._loop_receive, m)
         else:  # the latency ends when the process gets to it (live's stamp), not later
             busy = proc.free > now
@@ -391,11 +392,15 @@ class Network(Links):
             self.k.at(end, self._hand_over, m)
 
     def _loop_receive(self, m: Msg) -> None:
-        """(A process with a network thread) ``m``, stamped, reaches the loop thread:
-        its burst, then the application gets it."""
+        """(A process with a network thread) ``m`` is stamped at the end of that
+        thread's burst (paho's callback): a loop-thread burst of its cost is charged,
+        and the application gets it at once. Live's loop runs a state 1-3 µs after
+        paho stamps it, at every load (session 16, LIVE.md): its waits are before the
+        stamp, not after it."""
         proc = self._proc[m.client]
         assert proc is not None
-        self.k.at(proc.burst(self.k.env.now, self._cost(m)), self._hand_over, m)
+        proc.burst(self.k.env.now, self._cost(m))
+        self._hand_over(m)
 
     def _read_batch(self, proc: str, now: float, start: float) -> float:
         """(``lock_switch > 0``) When a copy reaching a busy process at ``now`` is read:
