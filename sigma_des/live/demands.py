@@ -31,7 +31,7 @@ import pandas as pd
 
 from sigma_des.live.cpu import CPU_COLUMNS, CPU_FILE
 
-__all__ = ["DEMAND_COLUMNS", "fit_demands", "read_cpu"]
+__all__ = ["DEMAND_COLUMNS", "fit_demands", "kind_rows", "read_cpu"]
 
 #: Columns of :func:`fit_demands`'s table.
 DEMAND_COLUMNS = ("method", "process", "window_s", "cpu_s", "idle_rate", "busy_s",
@@ -46,6 +46,15 @@ def read_cpu(source: Path) -> pd.DataFrame | None:
     df = pd.read_csv(path)
     missing = {"method", *CPU_COLUMNS} - set(df.columns)
     return None if missing else df
+
+
+def kind_rows(table: pd.DataFrame, kind: str) -> pd.DataFrame:
+    """The rows of a table with a ``process`` column (``cpu.csv``, :func:`fit_demands`'s)
+    that belong to process kind ``kind``: ``host`` is every ``host<H>``, any other kind
+    (``server``, ``broker``) its own name."""
+    proc = table["process"].astype(str)
+    mine = proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind
+    return table.loc[mine.to_numpy(bool)]
 
 
 def _row(r: Any) -> dict[str, Any]:

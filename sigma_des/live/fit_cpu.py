@@ -88,7 +88,7 @@ import numpy as np
 import pandas as pd
 
 from sigma_des.live.cpu import CPU_FILE, RUNQ_COLUMN, THREAD_COLUMNS, WAKE_COLUMNS, WALL_COLUMN
-from sigma_des.live.demands import fit_demands, read_cpu
+from sigma_des.live.demands import fit_demands, kind_rows, read_cpu
 from sigma_des.live.loop import WakeStats
 from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
@@ -127,10 +127,8 @@ class CpuFit:
 def pooled_demand(table: pd.DataFrame, kind: str) -> tuple[float, float, float]:
     """``(Σ busy / Σ messages, Σ busy, Σ messages)`` over the rows of ``kind``
     (``server``, ``broker``, or ``host`` for every ``host<H>``) with a measured demand."""
-    proc = table["process"].astype(str)
-    mine = (proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind).to_numpy(bool)
-    ok = np.isfinite(table["demand_s"].to_numpy(dtype=np.float64))
-    rows = table.loc[mine & ok]
+    rows = kind_rows(table, kind)
+    rows = rows.loc[np.isfinite(rows["demand_s"].to_numpy(dtype=np.float64))]
     busy, msgs = float(rows["busy_s"].sum()), float(rows["messages"].sum())
     return (busy / msgs if msgs > 0 else math.nan), busy, msgs
 
@@ -173,18 +171,12 @@ def _background(cpu: pd.DataFrame, cores: int, warn: list[str]) -> tuple[float, 
     return min(max(measured, 0.0), cap), measured, busy
 
 
-def _kind_rows(cpu: pd.DataFrame, kind: str) -> pd.DataFrame:
-    proc = cpu["process"].astype(str)
-    mine = proc.str.fullmatch(r"host\d+") if kind == "host" else proc == kind
-    return cpu.loc[mine.to_numpy(bool)]
-
-
 def _wake(cpu: pd.DataFrame, table: pd.DataFrame, kind: str,
           warn: list[str]) -> tuple[float, float, dict[str, float]]:
     """``(wake, demand, report)`` of one process kind (see the module doc); ``wake`` 0
     when the wake-up columns are missing or give no positive cost."""
     d, busy, msgs = pooled_demand(table, kind)
-    rows = _kind_rows(cpu, kind)
+    rows = kind_rows(cpu, kind)
     cols = [c for c in WAKE_COLUMNS if c in rows.columns]
     ok = (rows[cols].map(math.isfinite).all(axis=1) if len(cols) == len(WAKE_COLUMNS)
           else pd.Series(False, index=rows.index))
@@ -239,7 +231,7 @@ def _threads(cpu: pd.DataFrame, table: pd.DataFrame, rep: dict[str, float], kind
     at the network thread's wake-up; the hop match scales it until the DES's CPU is the
     live run's (the DES's network thread wakes less often than live's switches)."""
     _d, busy, msgs = pooled_demand(table, kind)
-    rows = _kind_rows(cpu, kind)
+    rows = kind_rows(cpu, kind)
     cols = list(THREAD_COLUMNS[:4])
     b, wakes = rep.get(f"{kind}_loop_call_s", math.nan), rep.get(f"{kind}_wakes", 0.0)
     if not (set(cols) <= set(rows.columns) and len(rows)
@@ -296,7 +288,7 @@ def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
     the kind's processes per CPU second they used, less what the machine's queue gives
     at its utilisation ``u`` (:func:`queue_wait`), at least 0; ``(0, NaN)`` unmeasured."""
-    rows = _kind_rows(cpu, kind)
+    rows = kind_rows(cpu, kind)
     ok = RUNQ_COLUMN in rows.columns and len(rows) > 0
     if not ok or not rows[RUNQ_COLUMN].map(math.isfinite).all():
         warn.append(f"no {kind} run-queue wait recorded (a live run before it?): "

@@ -81,14 +81,14 @@ def _live_means(source: Path, sc: Scenario) -> tuple[float, float]:
 def _live_cpu(source: Path) -> dict[str, float]:
     """The live run's CPU per process kind (cores), each the mean over the methods:
     the server's process, the busiest host's; empty without a ``cpu.csv``."""
-    from sigma_des.live.demands import read_cpu
+    from sigma_des.live.demands import kind_rows, read_cpu
 
     cpu = read_cpu(source)
     if cpu is None or "cpu_s" not in cpu.columns:
         return {}
-    c = cpu.assign(cores=cpu["cpu_s"] / cpu["window_s"], proc=cpu["process"].astype(str))
-    srv = c[c["proc"] == "server"].groupby("method")["cores"].mean()
-    host = c[c["proc"].str.fullmatch(r"host\d+")].groupby("method")["cores"].max()
+    c = cpu.assign(cores=cpu["cpu_s"] / cpu["window_s"])
+    srv = kind_rows(c, "server").groupby("method")["cores"].mean()
+    host = kind_rows(c, "host").groupby("method")["cores"].max()
     out = {"server": float(srv.mean()) if len(srv) else math.nan,
            "host": float(host.mean()) if len(host) else math.nan}
     return {k: v for k, v in out.items() if math.isfinite(v) and v > 0}
