@@ -52,6 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--cell-repeats", type=int, default=None, metavar="K",
                    help="live runs of each held-out cell (default 2; --quick 1): the live "
                         "range a noisy cell's prediction is scored against")
+    p.add_argument("--calibrate-args", default="", metavar="ARGS",
+                   help="more `sigma-des calibrate` options, one string (e.g. "
+                        "'--one-thread'); a kept calibration made with others is redone")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -74,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     out = Path(a.out).resolve()
     try:
-        outcome = run_suite(plan, out)
+        outcome = run_suite(plan, out, calibrate_args=shlex.split(a.calibrate_args))
         cal, _ = load_calibration(out / "cal")
     except ConfigError as e:
         print(f"live_vs_des: {e}", file=sys.stderr)

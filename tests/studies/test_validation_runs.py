@@ -14,6 +14,7 @@ import pytest
 
 from sigma_des.api import run_method
 from sigma_des.config import load
+from sigma_des.errors import ConfigError
 from sigma_des.live.insample import missed_frac
 from sigma_des.net.latency import Dist, load_samples
 from sigma_des.record import read_table
@@ -29,6 +30,7 @@ from sigma_des.studies.validation.runs import (
     MissedTap,
     background_cores,
     bounded_run,
+    calibrate_run,
     des_figures,
     shift_host_link,
 )
@@ -202,3 +204,14 @@ def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:
     assert one["passed"] is True  # +25 %, within the 40 % floor
     fit = r[("cal-r2", "aoi_mean")]
     assert fit["held_out"] is False and fit["live"] == 30.0 and fit["passed"] is True
+
+
+def test_calibrate_run_passes_its_extra_options_to_calibrate(tmp_path: Path) -> None:
+    """``--calibrate-args`` reach ``sigma-des calibrate``: an option it does not know
+    makes it exit 2 (argparse) before it reads the (empty) source, and the error names
+    the exit and the log."""
+    src = tmp_path / "live"
+    src.mkdir()
+    with pytest.raises(ConfigError, match=r"exited 2.*calibrate\.log"):
+        calibrate_run(src, tmp_path / "cal", timeout=120.0, extra=["--no-such-option"])
+    assert "--no-such-option" in (tmp_path / "cal" / "calibrate.log").read_text()

@@ -23,6 +23,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -157,10 +158,11 @@ def _num(v: Any) -> float:
     return float(v) if isinstance(v, int | float) else math.nan
 
 
-def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0
-                  ) -> tuple[Scenario, dict[str, Any]]:
-    """``sigma-des calibrate SOURCE --out CAL_DIR/calibrated.toml`` (with its in-sample
-    check), bounded; the calibrated scenario and its report.
+def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0,
+                  extra: Sequence[str] = ()) -> tuple[Scenario, dict[str, Any]]:
+    """``sigma-des calibrate SOURCE --out CAL_DIR/calibrated.toml [EXTRA...]`` (with its
+    in-sample check), bounded; the calibrated scenario and its report. ``extra``: more
+    ``calibrate`` options (e.g. ``--one-thread``).
 
     Raises:
         ConfigError: (``calibration``) calibrate failed or ran out of time (its log named).
@@ -168,8 +170,8 @@ def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0
     cal_dir.mkdir(parents=True, exist_ok=True)
     toml = cal_dir / "calibrated.toml"
     log = cal_dir / "calibrate.log"
-    status, timed_out = bounded_run([*_cli(), "calibrate", str(source), "--out", str(toml)],
-                                 log, timeout)
+    status, timed_out = bounded_run([*_cli(), "calibrate", str(source), "--out", str(toml),
+                                  *extra], log, timeout)
     if status != 0 or timed_out:
         tail = log.read_text(errors="replace").strip().splitlines()[-1:] or [""]
         raise ConfigError("calibration", f"`sigma-des calibrate {source}` "

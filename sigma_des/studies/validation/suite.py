@@ -22,7 +22,7 @@ from __future__ import annotations
 import hashlib
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -94,9 +94,11 @@ def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
     return central(reps)
 
 
-def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say) -> None:
+def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say,
+                 args: Sequence[str]) -> None:
     kept = read_json(out / "cal" / "source.json")
-    if read_json(out / "cal" / "calibrated.json") is not None and kept is not None:
+    if (read_json(out / "cal" / "calibrated.json") is not None and kept is not None
+            and kept.get("args", []) == list(args)):
         say(f"calibration: kept from an earlier run (on {kept['cell']})")
         return
     name = calibration_cell(plan, live)
@@ -104,8 +106,8 @@ def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Sa
         f"{sum(1 for c in plan.cells if c.repeat and c.name in live)} runs "
         "(`sigma-des calibrate`, with its in-sample check) ...")
     t = time.perf_counter()
-    calibrate_run(out / "live" / name, out / "cal")
-    write_json(out / "cal" / "source.json", {"cell": name})
+    calibrate_run(out / "live" / name, out / "cal", extra=args)
+    write_json(out / "cal" / "source.json", {"cell": name, "args": list(args)})
     say(f"    calibrated in {time.perf_counter() - t:.0f} s")
 
 
@@ -140,8 +142,11 @@ def _des_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, 
     return des
 
 
-def run_suite(plan: Plan, out: Path, say: Say = _say) -> Outcome:
-    """Run (or pick up) every piece of ``plan`` in ``out``.
+def run_suite(plan: Plan, out: Path, say: Say = _say,
+              calibrate_args: Sequence[str] = ()) -> Outcome:
+    """Run (or pick up) every piece of ``plan`` in ``out``; ``calibrate_args``: more
+    ``sigma-des calibrate`` options (a kept calibration made with other ones is redone,
+    and so are the DES cells that used it).
 
     Returns:
         Live figures per cell name, DES figures per :func:`des_key`, and the
@@ -159,7 +164,7 @@ def run_suite(plan: Plan, out: Path, say: Say = _say) -> Outcome:
         say(f"    warmup exited {code} (see {out / 'warmup.log'}): the first live run may "
             "hold compile stalls")
     live = _live_all(plan, out, say, t0)
-    _calibration(plan, live, out, say)
+    _calibration(plan, live, out, say, calibrate_args)
     des = _des_all(plan, out, say, t0)
     report = read_json(out / "cal" / "calibrated.json") or {}
     report["calibration_cell"] = (read_json(out / "cal" / "source.json") or {}).get("cell")
