@@ -53,8 +53,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="live runs of each held-out cell (default 2; --quick 1): the live "
                         "range a noisy cell's prediction is scored against")
     p.add_argument("--calibrate-args", default="", metavar="ARGS",
-                   help="more `sigma-des calibrate` options, one string (e.g. "
-                        "'--one-thread'); a kept calibration made with others is redone")
+                   help="more `sigma-des calibrate` options, one string given with '=' "
+                        "(e.g. --calibrate-args=--one-thread); a kept calibration made "
+                        "with others is redone")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (

@@ -78,3 +78,8 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
     assert len(kept) == 4  # every live cell
     assert "calibration: kept" in again.stderr
     assert list(csv.DictReader((tmp_path / "cells.csv").open())) == rows
+    # calibrate's own options: the kept live cells stay, the calibration is redone with them
+    third = subprocess.run([*cmd, "--calibrate-args=--one-thread"], check=True, env=env,
+                           timeout=600, capture_output=True, text=True)
+    assert "calibration: kept" not in third.stderr and "calibrating on" in third.stderr
+    assert json.loads((tmp_path / "cal" / "source.json").read_text())["args"] == ["--one-thread"]
