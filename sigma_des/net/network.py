@@ -381,9 +381,7 @@ class Network(Links):
         if proc is None:
             self._hand_over(m)
         elif proc.threaded:  # paho's thread reads it; its callback stamps it at the end
-            _start, end = proc.net_span(now, True)
-            m.t_recv = end  # paho's callback: the loop runs it at once (live: 1-3 µs)
-            self.k.at(end, self._loop_receive, m)
+            self.k.at(proc.net_span(now, True)[1], self._loop_receive, m)
         else:  # the latency ends when the process gets to it (live's stamp), not later
             busy = proc.free > now
             m.t_recv, end = proc.span(now, self._cost(m))
@@ -399,7 +397,9 @@ class Network(Links):
         stamp, not after it."""
         proc = self._proc[m.client]
         assert proc is not None
-        proc.burst(self.k.env.now, self._cost(m))
+        now = self.k.env.now
+        m.t_recv = now  # paho's callback stamps it; the loop runs it at once (live: 1-3 µs)
+        proc.burst(now, self._cost(m))
         self._hand_over(m)
 
     def _read_batch(self, proc: str, now: float, start: float) -> float:

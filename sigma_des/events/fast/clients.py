@@ -97,10 +97,8 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
     if threaded(S, p):  # Network._client_receive: the network thread reads and stamps it
-        evi[ns, E_TYPE] = EV_LOOP
-        start, end = net_span(S, p, now, True)
-        S[EV_FLOAT][ns, EF_TRECV] = end
-        push(S, end, ns)
+        evi[ns, E_TYPE] = EV_LOOP  # stamped at that burst's end: the event's time
+        push(S, net_span(S, p, now, True)[1], ns)
         return
     busy = S[CPU_FREE][p] > now
     start, end = span(S, p, S[CPU_DEM][c], now)
@@ -122,4 +120,4 @@ def loop_receive(S, s, now):  # type: ignore[no-untyped-def]
     demand, and the hand-over at once (live's loop runs it 1-3 µs after the stamp)."""
     c = S[EV_INT][s, E_WHO]
     burst(S, S[CPU_PROC][c], S[CPU_DEM][c], now)
-    hand_over(S, s, now, S[EV_FLOAT][s, EF_TRECV])
+    hand_over(S, s, now, now)
