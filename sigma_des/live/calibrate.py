@@ -38,19 +38,16 @@ window, and the run's ``cpu.csv`` and ``summary.json``:
   and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
   so the DES counts the same bytes.
 
-What cannot be fitted is said, never filled in silently: hosts whose states arrived
-without their per-node publish rows are refused (``strict``) or warned about, and too
-few samples, a single receiver per trigger or a missing ``cpu.csv`` are warnings in
-``report["warnings"]``. :mod:`sigma_des.live.insample` checks the result against the
-run it came from.
+What cannot be fitted is said, never filled in silently: hosts whose states arrived without
+their per-node publish rows are refused (``strict``) or warned about, and too few samples,
+a single receiver per trigger or a missing ``cpu.csv`` are warnings in
+``report["warnings"]``. :mod:`sigma_des.live.insample` checks the result against its run.
 
-With one client per host (a CPU fit) the broker's per-delivery service is per
-receiving client, as measured. Without (one DES client per node, live one per host)
-:func:`for_target` scales it by ``hosts / nodes`` of the scenario it prepares, so a
-trigger's total fan-out time is the measured one.
-
-The result is the live run's scenario with these parameters replaced, written as
-TOML that ``sigma-des compare`` runs (the sample files sit next to it).
+With one client per host (a CPU fit) the broker's per-delivery service is per receiving
+client, as measured. Without (one DES client per node, live one per host) :func:`for_target`
+scales it by ``hosts / nodes`` of the scenario it prepares, so a trigger's total fan-out
+time is the measured one. The result is the live run's scenario with these parameters
+replaced, written as TOML that ``sigma-des compare`` runs (the sample files beside it).
 """
 
 from __future__ import annotations
@@ -373,7 +370,8 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
 
 
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
-              hold_tol: float = HOLD_TOL, threads: bool = True) -> tuple[Scenario, dict[str, Any]]:
+              hold_tol: float = HOLD_TOL, threads: bool = True, runq_growth: bool = False
+              ) -> tuple[Scenario, dict[str, Any]]:
     """Fit a DES scenario to the live run at ``source``.
 
     Args:
@@ -386,6 +384,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
             measured latencies as they are (nothing is held exactly together live).
         threads: fit a process's two threads apart when the run recorded them (False:
             ``--one-thread``).
+        runq_growth: run-queue waits growing with load (Erlang C, ``--runq-growth``).
 
     Returns:
         The calibrated scenario and a report of the fitted figures (seconds), with
@@ -401,14 +400,14 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
     d = files_dir or (source if source.is_dir() else source.parent)
     if not (math.isfinite(hold_tol) and 0.0 <= hold_tol <= 0.01):
         raise ConfigError("--hold-tol", f"must be in 0..0.01 s, got {hold_tol}")
-    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn, threads)
+    fit = fit_deployment(source, base.broker.publish_service.mean_value(), warn, threads,
+                         runq_growth)
     # the fan-out's figures are reported; they set the broker only without a CPU fit
     delivery, slope = _fit_delivery(base, w, warn if fit is None else [])
     if fit is None:  # no CPU stage: the fan-out's per-client delivery, the base's publish
         dep = replace(base.deployment, preset="none", background=0.0, host_demand=0.0,
                       server_demand=0.0, server_tick=0.0)
-        publish = base.broker.publish_service
-        per_client = delivery
+        publish, per_client = base.broker.publish_service, delivery
         cpu_report: dict[str, Any] = {}
     else:  # the broker's demand per inbound PUBLISH and per delivery; one client per host
         dep, publish = fit.deployment, Dist(dist="constant", value=fit.broker_service)

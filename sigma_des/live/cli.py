@@ -96,6 +96,10 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
                    help="fit each process as one thread even when the live run recorded its "
                    "threads apart (default: the loop and paho's network thread apart; "
                    "docs/MODEL.md, 'The network thread')")
+    p.add_argument("--runq-growth", action="store_true",
+                   help="run-queue waits that grow with the DES machine's load (Erlang C; "
+                   "default: each process kind's measured wait per CPU second, kept; "
+                   "docs/MODEL.md, 'Run-queue waits')")
     p.add_argument("--no-match", action="store_true",
                    help="keep the fitted hop latencies as they are (default: rescale each "
                    "direction's until the DES re-predicts the run's mean state and trigger "
@@ -283,7 +287,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         output_file(Path(args.out).with_suffix(".json"), "--out")
     sc, report = calibrate(source, Path(args.out).parent if args.out else None,
                            strict=not args.allow_incomplete, hold_tol=tol,
-                           threads=not args.one_thread)
+                           threads=not args.one_thread, runq_growth=args.runq_growth)
     out_dir = Path(args.out).parent if args.out else (source if source.is_dir()
                                                       else source.parent)
     if not args.no_match:

@@ -46,12 +46,16 @@ and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
   charged per loop wake-up the DES's server CPU stayed flat in N where live's grew
   (LIVE.md, session 15); without the columns (or without a positive rest in both
   threads) the one-thread split above, said in a warning;
-* ``host_runq``, ``server_runq``, ``broker_runq`` and ``runq_growth``: each kind's
-  measured run-queue wait (``cpu.csv``'s :data:`~sigma_des.live.cpu.RUNQ_COLUMN`) per
-  CPU second it used, ``q``, less the wait the machine's queue gives at the run's
-  utilisation ``u`` (our processes' CPU plus the background, over the cores):
-  ``floor = max(q − queue_wait(cores, u), 0)``; ``runq_growth`` on when any kind's wait
-  was measured (the DES then adds ``queue_wait`` at its own machine's recent load);
+* ``host_runq``, ``server_runq``, ``broker_runq``: each kind's measured run-queue wait
+  (``cpu.csv``'s :data:`~sigma_des.live.cpu.RUNQ_COLUMN`) per CPU second it used, ``q``,
+  kept as it is; ``runq_growth`` off. *Why* (LIVE.md, sessions 17–19): live's waits grow
+  with the machine's load far less than the M/M/c queue's above u ≈ 0.5, and the DES's
+  own bursts already queue for its cores; on two idle datasets the growth cost 2–5
+  mean-AoI and 1–4 latency cells and nothing was better with it. With ``growth``
+  (``calibrate --runq-growth``): ``floor = max(q − queue_wait(cores, u), 0)`` at the
+  run's utilisation ``u`` (our processes' CPU plus the background, over the cores), and
+  ``runq_growth`` on when any kind's wait was measured (the DES then adds
+  ``queue_wait`` at its own machine's recent load);
 * ``host_record``, ``server_record``: the loop line's slope ``b`` (the loop thread's CPU
   per call, at most the demand), the CPU of one more record in a bundle: a live loop
   handles each record of a bundle (a host's states of one turn, the server's
@@ -284,10 +288,11 @@ def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, f
 
 
 def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
-                warn: list[str]) -> tuple[float, float]:
+                warn: list[str], growth: bool) -> tuple[float, float]:
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
-    the kind's processes per CPU second they used, less what the machine's queue gives
-    at its utilisation ``u`` (:func:`queue_wait`), at least 0; ``(0, NaN)`` unmeasured."""
+    the kind's processes per CPU second they used; with ``growth``, less what the
+    machine's queue gives at its utilisation ``u`` (:func:`queue_wait`), at least 0;
+    ``(0, NaN)`` unmeasured."""
     rows = kind_rows(cpu, kind)
     ok = RUNQ_COLUMN in rows.columns and len(rows) > 0
     if not ok or not rows[RUNQ_COLUMN].map(math.isfinite).all():
@@ -296,7 +301,7 @@ def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
         return 0.0, math.nan
     busy = float(rows["cpu_s"].sum())
     q = float(rows[RUNQ_COLUMN].sum()) / busy if busy > 0 else 0.0
-    return max(q - queue_wait(cores, u), 0.0), q
+    return (max(q - queue_wait(cores, u), 0.0) if growth else q), q
 
 
 def _record(rep: dict[str, float], kind: str, demand: float) -> float:
@@ -317,8 +322,8 @@ def _demand(d: float, busy: float, msgs: float, kind: str, warn: list[str]) -> f
     return d
 
 
-def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: bool = True
-                   ) -> CpuFit | None:
+def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: bool = True,
+                   growth: bool = False) -> CpuFit | None:
     """The colocated deployment of the live run at ``source`` (see the module doc).
 
     Args:
@@ -328,6 +333,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
         warn: warnings are appended here.
         threads: fit the two threads apart where ``cpu.csv`` has them (False: one
             thread, the network thread's CPU a wake-up's part beside it).
+        growth: run-queue waits that grow with the machine's load (Erlang C; floors
+            net of it) instead of the measured waits kept constant.
 
     Returns:
         The fit, or None without a ``cpu.csv`` (no CPU stage).
@@ -360,7 +367,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     host_rec = _record(host_rep, "host", host)
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
-    runq = {kind: _runq_floor(cpu, kind, u, cores, warn) for kind in ("host", "server", "broker")}
+    runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth)
+            for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=k["host"]["wake"], server_wake=k["server"]["wake"],
@@ -368,7 +376,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
                          lock_switch=LIVE_LOCK_SWITCH,
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
-                         runq_growth=any(math.isfinite(q) for _f, q in runq.values()),
+                         runq_growth=growth and any(math.isfinite(q) for _f, q in runq.values()),
                          **{f"{kind}_{key}": k[kind][key] for kind in k
                             for key in ("wake_side", "net_msg", "net_wake")},
                          clients="host", bundle=bundle)
