@@ -16,6 +16,7 @@ import pytest
 from scipy.special import ndtri
 
 from sigma_des import load
+from sigma_des.cli import main
 from sigma_des.live.calibrate import calibrate, calibrated_toml, for_target
 from sigma_des.live.cpu import write_cpu
 from sigma_des.live.demands import fit_demands
@@ -253,7 +254,7 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
     # the sender's expected wake-up is on the path the hop samples are net of
     scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
-    # the broker's and the server's run-queue waits too
+    # ... and the broker's and the server's measured run-queue waits (no growth term)
     server = dep.server_demand + dep.server_wake * rep["server_wake_share"]
     assert rep["path_cpu_service_up_s"] == pytest.approx(
         scale * (2 * 0.09 / 9000 * (1 + dep.broker_runq) + dep.host_demand
@@ -272,12 +273,9 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert any("no broker run-queue wait recorded" in w for w in rep0["warnings"])
 
 
-
 def test_runq_growth_is_a_calibrate_option(tmp_path: Path) -> None:
     """``sigma-des calibrate`` keeps the measured run-queue waits without growth; with
     ``--runq-growth`` the written scenario has it on and the floors net of Erlang C."""
-    from sigma_des.cli import main
-
     d = _cpu_run(tmp_path / "run")
     rows = _cpu_rows(PROCS, BACKGROUND_CPU)
     for r in rows:
