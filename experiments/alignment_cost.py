@@ -6,7 +6,7 @@ Times, with ``time.perf_counter`` over repeats (median and p95), for n = 100, 30
 
 * ``bides`` — Algorithm 1 over ring buffers with k = 30, filled the way a running
   swarm leaves them; ``hlc`` — one alignment tick of the HLC consumer; ``lockstep``
-  — the Lock-Step barrier (details: :mod:`sigma_des.studies.align_cost`).
+  — the Lock-Step barrier (details: :mod:`sigma_lab.studies.align_cost`).
 
 The cost of receiving the states (``ingest``: ring-buffer inserts, HLC buffer
 pushes, barrier bookkeeping, one Python call per state) is timed separately from
@@ -35,10 +35,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-import sigma_des
-from sigma_des import studies
-from sigma_des.studies.align_cost import (
+from sigma_lab import studies
+from sigma_lab.studies.align_cost import (
     BENCHES,
     F_ALIGN,
     F_TRIG,
@@ -49,6 +47,8 @@ from sigma_des.studies.align_cost import (
     K,
     record,
 )
+
+import sigma_des
 
 PAPER = {"bides_align_ms_at_1000": "< 8"}
 

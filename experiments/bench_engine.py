@@ -4,7 +4,7 @@
 Every case runs in a fresh child process (peak RSS per case, single-threaded); the
 cases, the metric checks (cohort vs events bit-identical, cohort vs baseline within
 ``BASELINE_RTOL``) and the caps at large N are described in
-:mod:`sigma_des.studies.engine_bench` and ``docs/BENCHMARKS.md``. The exit status is 1
+:mod:`sigma_lab.studies.engine_bench` and ``docs/BENCHMARKS.md``. The exit status is 1
 if a check fails.
 
 Examples::
@@ -23,8 +23,8 @@ import os
 import sys
 from pathlib import Path
 
-from sigma_des.studies.engine_bench import THREAD_VARS
-from sigma_des.studies.engine_driver import (
+from sigma_lab.studies.engine_bench import THREAD_VARS
+from sigma_lab.studies.engine_driver import (
     bench_options,
     bench_parser,
     exit_status,
@@ -33,7 +33,7 @@ from sigma_des.studies.engine_driver import (
     run_bench,
     write_csv,
 )
-from sigma_des.studies.engine_tables import report_text
+from sigma_lab.studies.engine_tables import report_text
 
 HERE = Path(__file__).resolve().parent
 

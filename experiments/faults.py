@@ -33,8 +33,8 @@ from __future__ import annotations
 import sys
 
 import numpy as np
+from sigma_lab import studies
 
-from sigma_des import studies
 from sigma_des.plots import rate_series
 
 NAME = "faults"

@@ -30,7 +30,7 @@ up/down, on alternating sides); ``grid`` is the model's own start (30 m grid, al
 at 100 m, heading north), from which the rear followers need ~40 s to reach their
 slots.
 
-Metrics (per method and for the ideal run): see :mod:`sigma_des.studies.formation_flight`
+Metrics (per method and for the ideal run): see :mod:`sigma_lab.studies.formation_flight`
 (convergence to the V slots, distance to slot, formation error and DTW against the
 ideal run, flight covered, and the engine's own metrics of each run).
 
@@ -58,10 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from sigma_des import load, studies
-from sigma_des.config import Scenario
-from sigma_des.studies.formation_flight import (
+from sigma_lab.studies.formation_flight import (
     IDEAL,
     LEADER,
     METHODS,
@@ -70,6 +67,9 @@ from sigma_des.studies.formation_flight import (
     run_seed,
     write_outputs,
 )
+
+from sigma_des import load, studies
+from sigma_des.config import Scenario
 
 NAME = "formation"
 SCENARIO_LOSSY = Path(__file__).resolve().parent.parent / "scenarios" / "latency_tolerance.toml"

@@ -40,10 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-import sigma_des
-from sigma_des.replay import INTERP_METHODS, RULES, WindowRule, interpolate
-from sigma_des.studies.interpolation_study import (
+from sigma_lab.studies.interpolation_study import (
     COLUMNS,
     DT,
     HEADLINE,
@@ -54,6 +51,9 @@ from sigma_des.studies.interpolation_study import (
     aggregate,
     run,
 )
+
+import sigma_des
+from sigma_des.replay import INTERP_METHODS, RULES, WindowRule, interpolate
 
 PAPER = {  # Table III: mean / max / RMSE (m)
     "fixed-wing": {"linear": (3.311, 11.626, 4.092), "cubic": (2.187, 10.204, 2.796),

@@ -35,8 +35,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-
-from sigma_des import studies
+from sigma_lab import studies
 
 NAME = "latency_tolerance"
 METHODS = ("none", "lockstep", "hlc", "bides")

@@ -16,7 +16,7 @@
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
 with the project's own Mosquitto; its load average and background CPU are kept.
 Rerunning with the same ``--out`` keeps every finished cell (a results file per
-cell). The rules and outputs: ``sigma_des.studies.validation`` and docs/LIVE.md
+cell). The rules and outputs: ``sigma_lab.studies.validation`` and docs/LIVE.md
 (*Validation*).
 
     python experiments/live_vs_des.py --out out/validation        # ~15 min on 2 idle cores
@@ -31,10 +31,11 @@ import shlex
 import sys
 from pathlib import Path
 
+from sigma_lab.studies.validation import full_plan, quick_plan, run_suite, write_outputs
+from sigma_lab.studies.validation.runs import load_calibration
+
 from sigma_des.config import METHODS
 from sigma_des.errors import ConfigError
-from sigma_des.studies.validation import full_plan, quick_plan, run_suite, write_outputs
-from sigma_des.studies.validation.runs import load_calibration
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,8 +27,7 @@ from report_faults import sec_faults
 from report_latency import sec_latency
 from report_scale import sec_scale_200, sec_scale_1000
 from report_sweep import sec_sweep
-
-from sigma_des.studies.report import Templates, plots_line, provenance
+from sigma_lab.studies.report import Templates, plots_line, provenance
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The sections' prose, one ``str.format`` template per section (``experiments/templates``).

@@ -40,10 +40,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from sigma_lab.studies import command_line, finish_args, study_parser, write_summary
+
 from sigma_des import __version__
 from sigma_des.agents.presets import preset
 from sigma_des.agents.wind import WindConfig
-from sigma_des.studies import command_line, finish_args, study_parser, write_summary
 from sigma_des.tuning.pipeline import tune_and_report
 from sigma_des.tuning.report import PAPER_VALUES
 from sigma_des.tuning.spec import DEFAULT_GENES, TuneSpec, get_value, with_values

@@ -39,8 +39,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-
-from sigma_des import studies
+from sigma_lab import studies
 
 NAME = "peer_architectures"
 NODES = (20, 40, 60, 100, 150, 200, 300)

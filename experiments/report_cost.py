@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from sigma_des.studies.report import Templates, num
-from sigma_des.studies.tables import md_table
+from sigma_lab.studies.report import Templates, num
+from sigma_lab.studies.tables import md_table
 
 TEMPLATES = Templates(Path(__file__).resolve().parent / "templates")
 

@@ -11,8 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from sigma_des.studies.env_report import build
-from sigma_des.studies.report import Templates
+from sigma_lab.studies.env_report import build
+from sigma_lab.studies.report import Templates
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -6,8 +6,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from sigma_des.studies.report import Templates, get, labels, num
-from sigma_des.studies.tables import md_table
+from sigma_lab.studies.report import Templates, get, labels, num
+from sigma_lab.studies.tables import md_table
 
 TEMPLATES = Templates(Path(__file__).resolve().parent / "templates")
 

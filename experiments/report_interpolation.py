@@ -11,7 +11,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from sigma_des.studies.tables import md_table
+from sigma_lab.studies.tables import md_table
 
 METHODS = ("linear", "cubic", "pchip", "akima", "hermite-dw")
 LABEL = {"linear": "linear", "cubic": "cubic", "pchip": "PCHIP", "akima": "Akima",

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from sigma_des.studies.report import ORDER, num
-from sigma_des.studies.tables import md_table
+from sigma_lab.studies.report import ORDER, num
+from sigma_lab.studies.tables import md_table
 
 
 def sec_sweep(s: dict[str, Any]) -> str:

@@ -29,8 +29,8 @@ import sys
 from typing import Any
 
 import numpy as np
+from sigma_lab import studies
 
-from sigma_des import studies
 from sigma_des.plots import rate_series
 
 NAME = "scale_1000"

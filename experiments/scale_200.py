@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import sys
 
-from sigma_des import studies
+from sigma_lab import studies
 
 NAME = "scale_200"
 METHODS = ("none", "lockstep", "hlc", "bides")

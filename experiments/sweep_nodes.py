@@ -34,10 +34,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sigma_des.config import METHODS
-from sigma_des.errors import ConfigError
-from sigma_des.studies import json_ready
-from sigma_des.studies.node_sweep import (
+from sigma_lab.studies import json_ready
+from sigma_lab.studies.node_sweep import (
     build_sweep,
     degrade_line,
     estimate_text,
@@ -47,6 +45,9 @@ from sigma_des.studies.node_sweep import (
     plot_figures,
     summary,
 )
+
+from sigma_des.config import METHODS
+from sigma_des.errors import ConfigError
 
 
 def _args(argv: Sequence[str] | None) -> argparse.Namespace:

@@ -24,11 +24,11 @@ from typing import Any
 
 import numpy as np
 from scipy import stats
+from sigma_lab.studies.delay import cells, ci95, env_kwargs
+from sigma_lab.studies.delay_study import train_one
 
 from sigma_des import __version__
 from sigma_des.env.learn import score
-from sigma_des.studies.delay import cells, ci95, env_kwargs
-from sigma_des.studies.delay_study import train_one
 
 #: Age columns of the ``tight`` observation (own, leader, nearest neighbour).
 AGE_COLUMNS = [5, 8, 13]

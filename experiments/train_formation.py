@@ -26,10 +26,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sigma_lab.studies import legend_outside, plot_setup, save
 
 from sigma_des import __version__
 from sigma_des.env.learn import CEMConfig, evaluate, train
-from sigma_des.studies import legend_outside, plot_setup, save
 
 DELAY = {"net.host_link.latency": {"dist": "normal", "mean": 0.15, "std": 0.03},
          "net.host_link.loss": {"p": 0.1}}

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import argparse
 
-from sigma_des.studies.delay_study import merge, run
+from sigma_lab.studies.delay_study import merge, run
 
 
 def _parse(argv: list[str] | None) -> argparse.Namespace:

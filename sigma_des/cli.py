@@ -106,7 +106,7 @@ COMMANDS: dict[str, Command] = {
     "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
                     "sigma_des.live.cli:add_live_args", True, "live"),
     "calibrate": Command("fit DES parameters from a live run; writes a scenario TOML",
-                         "sigma_des.live.cli:add_calibrate_args", extra="live"),
+                         "sigma_des.calibrate.cli:add_calibrate_args", extra="live"),
     "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
                     "sigma_des.tuning.cli:add_args", extra="tuning"),
     "warmup": Command("compile the numba kernels once, after installing (in parallel)",
@@ -177,7 +177,7 @@ def _run(args: argparse.Namespace) -> int:
     if command == "warmup":
         return _function("sigma_des.warmup.cli:run")(args)  # type: ignore[no-any-return]
     if command == "calibrate":
-        return _function("sigma_des.live.cli:run_calibrate")(args)  # type: ignore[no-any-return]
+        return _function("sigma_des.calibrate.cli:run_calibrate")(args)  # type: ignore[no-any-return]
     from sigma_des.config import load
 
     sc = load(args.scenario, args.sets)

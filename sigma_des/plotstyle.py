@@ -1,6 +1,6 @@
 """The one look of every sigma_des plot: method palette, line styles, legends, rate axes.
 
-``compare`` (:mod:`sigma_des.plots`), the paper studies (:mod:`sigma_des.studies.plots`)
+``compare`` (:mod:`sigma_des.plots`), the paper studies (the lab)
 and the ``experiments/`` scripts draw a method with the same colour, line style and
 marker everywhere, so a reader who learnt "BiDES is the green solid line" in one
 figure can trust it in the next. The palette is the Okabe–Ito set (readable with the

@@ -1,7 +1,7 @@
 """The local executor: many independent calls on this machine, one way.
 
 :func:`local_pool` is what ``compare --jobs`` (:func:`sigma_des.api.compare`), the
-paper studies (:func:`sigma_des.studies.run_study`) and the engine benchmark's
+lab's paper studies and engine benchmark's
 per-case children run on; the Dask executor of :mod:`sigma_des.sweep.executors`
 is its distributed counterpart for sweeps. Three ways to run:
 

@@ -1,7 +1,7 @@
 """The one plain-text table formatter of the project.
 
 ``sigma-des compare``'s table (:meth:`sigma_des.api.Results.table`), the studies'
-tables (:mod:`sigma_des.studies.tables`), the benchmarks' and the reports' all go
+tables (the lab's studies), the benchmarks' and the reports' all go
 through :func:`text_table` (right-aligned columns) or :func:`md_table` (Markdown);
 :func:`cell` formats one value with a placeholder for a missing one.
 """

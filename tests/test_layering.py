@@ -27,11 +27,12 @@ FORBIDDEN: dict[str, tuple[str, ...]] = {
 CORE_ALLOWED = ("sigma_des.core", "sigma_des.errors")
 
 #: the top floors: commands, studies and the tools built on whole runs
-_UPPER = ("sigma_des.cli", "sigma_des.sweep", "sigma_des.tuning", "sigma_des.studies",
+_UPPER = ("sigma_des.cli", "sigma_des.sweep", "sigma_des.tuning", "sigma_lab.studies",
           "sigma_des.replay", "sigma_des.warmup", "sigma_des.plots")
 #: the middle band, bottom to top: each must not import what sits above it
 _MIDDLE = ("sigma_des.loading", "sigma_des.config", "sigma_des.factory", "sigma_des.cache",
-           "sigma_des.record", "sigma_des.api", "sigma_des.live", "sigma_des.env")
+           "sigma_des.record", "sigma_des.api", "sigma_des.live", "sigma_des.calibrate",
+           "sigma_des.env")
 #: what may sit above a middle module without being above it (``live`` draws plots)
 _BESIDE = {"sigma_des.live": ("sigma_des.plots",)}
 for _i, _mod in enumerate(_MIDDLE):
@@ -78,6 +79,8 @@ def layering_violations(mod: str, src: str, is_pkg: bool = False) -> list[str]:
             allowed = any(_within(imported, a) for a in CORE_ALLOWED)
             if _within(imported, "sigma_des") and not allowed:
                 bad.append(f"{mod}:{line} imports {imported}")
+        if _within(mod, "sigma_des") and _within(imported, "sigma_lab"):
+            bad.append(f"{mod}:{line} imports the lab ({imported})")
         for layer, banned in FORBIDDEN.items():
             if _within(mod, layer) and any(_within(imported, b) for b in banned):
                 bad.append(f"{mod}:{line} imports {imported}")
@@ -101,7 +104,8 @@ def size_violations(src: str, max_lines: int = 500, max_function: int = 80) -> l
 
 
 MODULES = sorted(PKG.rglob("*.py"))
-SOURCES = MODULES + sorted((ROOT / "experiments").rglob("*.py"))
+SOURCES = (MODULES + sorted((ROOT / "experiments").rglob("*.py"))
+           + sorted((ROOT / "lab").rglob("*.py")))
 
 
 @pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(ROOT)))
@@ -146,7 +150,9 @@ def test_checker_finds_what_it_must() -> None:
     assert layering_violations("sigma_des.record.writer", "import sigma_des\n")
     assert layering_violations("sigma_des.config", "from sigma_des.api import compare\n")
     assert layering_violations("sigma_des.live.cli", "from sigma_des.plots import f\n") == []
-    assert layering_violations("sigma_des.studies.run", "import sigma_des\n") == []
+    assert layering_violations("sigma_lab.studies.run", "import sigma_des\n") == []
+    assert "sigma_des.net.spec:1 imports the lab (sigma_lab.reference)" in layering_violations(
+        "sigma_des.net.spec", "from sigma_lab.reference import process_model\n")
     long_fn = "def f():\n" + "    x = 1\n" * 80
     assert size_violations(long_fn) == ["function f (line 1) has 81 lines"]
     assert size_violations(long_fn, max_lines=50)[0] == "module has 81 lines"

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import sigma_lab.studies as studies
+import sigma_lab.studies.plots as study_plots
 
 import sigma_des.plotstyle as ps
-import sigma_des.studies as studies
-import sigma_des.studies.plots as study_plots
 
 
 def test_one_palette_object_for_compare_and_studies() -> None:

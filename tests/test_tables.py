@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import sigma_des.studies.engine_tables as engine_tables
-import sigma_des.studies.tables as study_tables
+import sigma_lab.studies.engine_tables as engine_tables
+import sigma_lab.studies.tables as study_tables
+
 import sigma_des.tables as tables
 
 

@@ -73,8 +73,11 @@ def test_the_wheel_runs_from_an_empty_directory_with_base_dependencies(tmp_path:
     src.mkdir()
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(CHECKOUT / name, src / name)
-    shutil.copytree(CHECKOUT / "sigma_des", src / "sigma_des",
-                    ignore=shutil.ignore_patterns("__pycache__"))
+    # the lab sits beside the package as in the checkout, so a package list that took
+    # it in would show below
+    for folder in ("sigma_des", "lab"):
+        shutil.copytree(CHECKOUT / folder, src / folder,
+                        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q"]
     subprocess.run([*pip, "wheel", "--no-deps", "-w", str(tmp_path / "dist"), f"{src}/"],
                    check=True, capture_output=True, timeout=600)
@@ -83,6 +86,10 @@ def test_the_wheel_runs_from_an_empty_directory_with_base_dependencies(tmp_path:
         names = set(z.namelist())
         meta = z.read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     assert {"sigma_des/py.typed", "sigma_des/scenarios/latency_tolerance.toml"} <= names
+    lab = sorted(n for n in names if n.startswith(("sigma_lab/", "lab/"))
+                 or n.startswith(("sigma_des/studies/", "sigma_des/reference/")))
+    assert lab == [], f"the wheel ships the lab: {lab[:5]}"
+    assert "sigma_des/calibrate/fit.py" in names
     base = [Requirement(ln.split(":", 1)[1]) for ln in meta.splitlines()
             if ln.startswith("Requires-Dist:")]
     base = [r for r in base if r.marker is None or r.marker.evaluate({"extra": ""})]

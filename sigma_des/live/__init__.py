@@ -6,6 +6,5 @@ client; ``loop`` is the small timer + inbox loop every live process runs;
 ``host`` is a physics host process; ``server`` the alignment server (trigger
 source, aligner, behaviour, renderer sampling); ``runner`` runs one method after
 another and returns the same :class:`~sigma_des.api.Results` as ``compare``;
-``calibrate`` fits DES parameters from a live run; ``cli`` holds the ``live`` and
-``calibrate`` subcommands. See ``docs/LIVE.md``.
+``cli`` holds the ``live`` subcommand. Calibration is :mod:`sigma_des.calibrate`.
 """

@@ -10,7 +10,7 @@ connected and waiting, so its CPU rate there is the idle loop's cost) and the
 turns the marks into one row per process, plus a ``background`` row: the machine's
 busy CPU minus ours, i.e. what other processes took from the cores during the
 window. ``sigma-des calibrate`` fits the demands from these rows
-(:mod:`sigma_des.live.demands`). Each process row also carries its threads' time
+(:mod:`sigma_des.calibrate.demands`). Each process row also carries its threads' time
 waiting on a run queue in the window (:func:`runq_wait_s`, Linux schedstat): time it
 was runnable but no core ran it, the wait the DES's CPU stage models as a burst's wait
 for a core, and its threads split in two (:func:`thread_times`, :data:`THREAD_COLUMNS`):

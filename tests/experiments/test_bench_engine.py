@@ -1,6 +1,6 @@
-"""experiments/bench_engine.py (sigma_des/studies/engine_bench.py) and its SimPy baseline.
+"""experiments/bench_engine.py (lab/sigma_lab/studies/engine_bench.py) and its SimPy baseline.
 
-The baseline (sigma_des/reference/process_model.py) is an independent
+The baseline (lab/sigma_lab/reference/process_model.py) is an independent
 implementation of the model (one SimPy process per message, simpy.Resource for
 the broker, the links and the host cores), so agreement with the engines is a
 real cross-check; the cohort and the per-message ("events") engine must agree
@@ -17,11 +17,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from sigma_lab.reference.process_model import ProcessModel, Unsupported, check_supported
+from sigma_lab.studies import engine_bench as bench_engine
 
 from sigma_des.api import run_method
 from sigma_des.config import load
-from sigma_des.reference.process_model import ProcessModel, Unsupported, check_supported
-from sigma_des.studies import engine_bench as bench_engine
 
 ROOT = Path(__file__).resolve().parents[2]
 EXPERIMENTS = ROOT / "experiments"
@@ -327,7 +327,7 @@ def test_the_warm_up_loads_every_kernel_the_timed_run_calls() -> None:
     # in a fresh interpreter, so that no earlier test loaded a kernel: the full scenario
     # with commands and BiDES rollbacks; a warm-up that ends before the first command
     # tick leaves the formation's kernels to the timed run (6 of them)
-    code = ("from sigma_des.studies.engine_bench import overrides_for, run_case; "
+    code = ("from sigma_lab.studies.engine_bench import overrides_for, run_case; "
             "r = run_case('cohort', 'bides', overrides_for(20, 1.0, False, impl='cohort')); "
             "print(r['kernels_loaded'], r['metrics']['rollbacks'], "
             "r['metrics']['latency_command_mean'])")

@@ -12,8 +12,7 @@ sys.path.insert(0, str(ROOT / "experiments"))
 import bench_env  # noqa: E402
 import report_env  # noqa: E402
 import train_formation  # noqa: E402
-
-from sigma_des.studies.env_report import build, delay_studies, delay_verdict  # noqa: E402
+from sigma_lab.studies.env_report import build, delay_studies, delay_verdict  # noqa: E402
 
 IMG = ROOT / "docs" / "img" / "env"
 

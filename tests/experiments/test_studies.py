@@ -183,7 +183,7 @@ def test_report_without_outputs(tmp_path: Path) -> None:
 
 
 def test_seed_lists() -> None:
-    from sigma_des import studies as common
+    from sigma_lab import studies as common
 
     assert common.parse_seeds("1,2,3") == [1, 2, 3]
     assert common.parse_seeds("1-3,7,2") == [1, 2, 3, 7]

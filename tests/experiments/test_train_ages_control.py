@@ -28,8 +28,7 @@ def test_control_reproduces_the_study_and_hides_the_ages(tmp_path: Path) -> None
     # columns 5, 8, 13 are the tight task's ages: own, leader, nearest neighbour
     assert train_ages_control.AGE_COLUMNS == [5, 8, 13]
     import report_env
-
-    from sigma_des.studies.env_report import delay_studies
+    from sigma_lab.studies.env_report import delay_studies
 
     text = delay_studies(tmp_path, report_env.TEMPLATES, tmp_path / "img")  # control follows
     assert text.index("### `delay_q`") < text.index("--study delay_q`") and (

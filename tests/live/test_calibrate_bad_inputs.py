@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from sigma_des import load
+from sigma_des.calibrate.fit import calibrate
 from sigma_des.cli import main
 from sigma_des.errors import ConfigError
-from sigma_des.live.calibrate import calibrate
 from tests.live.test_calibrate_inputs import SETS, _run, _write
 
 

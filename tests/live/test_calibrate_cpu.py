@@ -16,12 +16,12 @@ import pytest
 from scipy.special import ndtri
 
 from sigma_des import load
+from sigma_des.calibrate.demands import fit_demands
+from sigma_des.calibrate.fit import calibrate, calibrated_toml, for_target
+from sigma_des.calibrate.fit_cpu import path_services, pooled_demand
+from sigma_des.calibrate.fit_step import HOST_SHARE_CAP, host_share, icc
 from sigma_des.cli import main
-from sigma_des.live.calibrate import calibrate, calibrated_toml, for_target
 from sigma_des.live.cpu import write_cpu
-from sigma_des.live.demands import fit_demands
-from sigma_des.live.fit_cpu import path_services, pooled_demand
-from sigma_des.live.fit_step import HOST_SHARE_CAP, host_share, icc
 from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 from tests.live.test_calibrate_inputs import SETS, STATE_LAT, TRIG_LAT, _run, _write

@@ -14,12 +14,12 @@ import pytest
 
 from sigma_des import load
 from sigma_des.api import run_method
+from sigma_des.calibrate.dequeue import job_services
+from sigma_des.calibrate.fit import STALL_FACTOR, calibrate, report_lines, stalls
+from sigma_des.calibrate.insample import TOLERANCE, in_sample, missed_frac
 from sigma_des.cli import main
 from sigma_des.config import Scenario, to_dict
 from sigma_des.errors import ConfigError
-from sigma_des.live.calibrate import STALL_FACTOR, calibrate, report_lines, stalls
-from sigma_des.live.dequeue import job_services
-from sigma_des.live.insample import TOLERANCE, in_sample, missed_frac
 from sigma_des.live.messages import write_messages
 from sigma_des.live.runner import MESSAGE_COLUMNS
 

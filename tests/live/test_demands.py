@@ -12,6 +12,7 @@ from typing import Any
 import pandas as pd
 import pytest
 
+from sigma_des.calibrate.demands import fit_demands, read_cpu
 from sigma_des.live.cpu import (
     CPU_COLUMNS,
     RUNQ_COLUMN,
@@ -22,7 +23,6 @@ from sigma_des.live.cpu import (
     message_counts,
     write_cpu,
 )
-from sigma_des.live.demands import fit_demands, read_cpu
 from sigma_des.live.ledger import publishes
 
 #: A synthetic run: per process (idle CPU rate, messages, demand per message).

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from sigma_des.calibrate.dequeue import censored_weights, dequeued, held, quantiles, sender_waits
 from sigma_des.core.rng import RandomStreams
-from sigma_des.live.dequeue import censored_weights, dequeued, held, quantiles, sender_waits
 
 
 def _in_order(s: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:

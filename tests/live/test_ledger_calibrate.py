@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from sigma_des import Scenario
-from sigma_des.live.calibrate import delivery_floor, fanout_slope
+from sigma_des.calibrate.fit import delivery_floor, fanout_slope
 from sigma_des.live.ledger import Ledger
 
 

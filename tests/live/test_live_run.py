@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from sigma_des.calibrate.insample import IN_SAMPLE_METRICS
+from sigma_des.calibrate.match import MATCH_ROUNDS, MATCH_TOL
 from sigma_des.cli import main
 from sigma_des.config import load
-from sigma_des.live.insample import IN_SAMPLE_METRICS
-from sigma_des.live.match import MATCH_ROUNDS, MATCH_TOL
 from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from sigma_des.live.match import (
+from sigma_des.calibrate.match import (
     K_MAX,
     K_MIN,
     SIDE_MAX,

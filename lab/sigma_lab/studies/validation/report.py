@@ -1,0 +1,396 @@
+"""The suite's outputs: ``cells.csv``, ``noise.csv``, ``knee.csv``, ``summary.md`` and the plot.
+
+* ``cells.csv`` — tidy, one row per cell x method x metric: live (the mean of the
+  cell's runs, each in ``live_runs``), DES, error (relative; percentage points for
+  ``missed_frac``: see ``error_unit``), the live noise floor (of the cell's own runs,
+  or with one run the calibration setting's: ``floor_source``), the verdict
+  (``passed``, ``within_band``, ``rule``), the load (1-min load average, mean of
+  before and after the live runs), the background CPU, ``under_load`` (any run),
+  seed, the DES scenario's config hash, the live run's config hash and the version.
+  The calibration run's own rows (the repeat it was fitted to, ``held_out`` False)
+  are the out-of-suite in-sample check.
+* ``noise.csv`` — the repeats of the calibration setting per method and metric and
+  their noise floor.
+* ``knee.csv`` — per message mode and method: live's knee (its grid), the DES's
+  knee on its finer grid and on live's grid, and the verdict.
+* ``summary.md`` — shares per metric, the issue's targets ticked or not, the knee
+  table, the in-sample errors and the cells.
+* ``live_vs_des.png`` — DES against live per metric, with each metric's band.
+* ``processes.csv`` — per live cell, method and process kind: CPU, loop-busy and
+  run-queue cores (:mod:`sigma_lab.studies.validation.processes`); ``summary.md``
+  shows their means over the methods.
+
+A run is **under load** when the background CPU during its metrics window (other
+processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
+cores, or, without that table, when the 1-min load average before it exceeds the
+core count.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
+from sigma_des.tables import md_table
+from sigma_lab.studies.validation.grid import Plan
+from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
+from sigma_lab.studies.validation.scoring import (
+    BAND,
+    KNEE_MISSED,
+    METRICS,
+    PP_BAND,
+    RATE_BAND,
+    TARGETS,
+    Verdict,
+    error,
+    judge,
+    knee,
+    knee_verdict,
+    noise_floor,
+    share,
+)
+from sigma_lab.studies.validation.suite import Outcome, des_key
+
+__all__ = ["UNDER_LOAD", "cell_rows", "knee_rows", "noise_rows", "under_load", "write_outputs"]
+
+#: Background CPU above this share of the cores marks a live run as under load.
+UNDER_LOAD = 0.25
+COLUMNS = ("cell", "mode", "nodes", "hosts", "impairment", "held_out", "method", "metric",
+           "live", "des", "rel_error", "error_unit", "live_runs", "noise_floor", "floor_source",
+           "passed", "within_band", "rule", "load", "background_cores", "under_load", "seed",
+           "config_hash", "live_config_hash", "version")
+
+
+def under_load(live: dict[str, Any], cores: int) -> bool:
+    """See the module doc."""
+    bg = live.get("background_cores", math.nan)
+    if isinstance(bg, float) and math.isfinite(bg):
+        return bg > UNDER_LOAD * cores
+    return float(live.get("load_before", 0.0)) > cores
+
+
+def _repeats(plan: Plan, live: dict[str, dict[str, Any]], method: str, metric: str
+             ) -> list[float]:
+    return [float(live[c.name]["methods"].get(method, {}).get(metric, math.nan))
+            for c in plan.cells if c.repeat and c.name in live]
+
+
+def noise_rows(plan: Plan, live: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per method and metric: the repeats of the calibration setting and the floor."""
+    rows = []
+    for m in plan.methods:
+        for k in METRICS:
+            xs = _repeats(plan, live, m, k)
+            rows.append({"method": m, "metric": k, "repeats": " ".join(f"{x:.6g}" for x in xs),
+                         "noise_floor": noise_floor(k, xs),
+                         "unit": "pp" if k == "missed_frac" else "rel"})
+    return rows
+
+
+def _copies(plan: Plan, live: dict[str, dict[str, Any]], base: str) -> list[dict[str, Any]]:
+    """The finished live runs of held-out cell ``base`` (its copies, in running order)."""
+    return [live[c.name] for c in plan.cells if c.base == base and not c.repeat
+            and c.name in live]
+
+
+def _value(run: dict[str, Any], method: str, metric: str) -> float:
+    return float(run["methods"].get(method, {}).get(metric, math.nan))
+
+
+def _live_of(runs: list[dict[str, Any]], method: str, metric: str) -> tuple[float, list[float]]:
+    """The live value of a cell (the mean of its runs' finite values) and the values."""
+    xs = [_value(r, method, metric) for r in runs]
+    ok = [x for x in xs if math.isfinite(x)]
+    return (sum(ok) / len(ok) if ok else math.nan), xs
+
+
+def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
+              cores: int | None = None) -> list[dict[str, Any]]:
+    """The tidy rows of ``cells.csv`` (see the module doc).
+
+    A held-out cell that ran more than once is one row per method and metric: live is
+    the mean of its runs, its noise floor their spread (``floor_source`` ``cell``), and
+    where that exceeds 10 % the DES passes inside their range. A cell that ran once
+    takes the calibration setting's floor (``floor_source`` ``calibration``). The
+    calibration setting's row is the run the calibration was fitted to
+    (``report["calibration_cell"]``; the first repeat if not said), its repeats' range.
+    """
+    live, des, report = outcome
+    cores = cores or os.cpu_count() or 1
+    floors = {(r["method"], r["metric"]): r["noise_floor"] for r in noise_rows(plan, live)}
+    fitted = report.get("calibration_cell") or next(
+        (c.name for c in plan.cells if c.repeat == 1), "")
+    rows = []
+    for cell in plan.cells:
+        if (cell.repeat and cell.name != fitted) or cell.copy > 1 or cell.name not in live \
+                or des_key(cell) not in des:
+            continue
+        runs = [live[cell.name]] if cell.repeat else _copies(plan, live, cell.name)
+        dv = des[des_key(cell)]
+        load = sum(r["load_before"] + r["load_after"] for r in runs) / (2.0 * len(runs))
+        for m in plan.methods:
+            for k in METRICS:
+                x, xs = _live_of(runs, m, k)
+                y = float(dv["methods"][m][k])
+                own = len(runs) > 1
+                reps = _repeats(plan, live, m, k) if cell.repeat else (xs if own else [])
+                floor = noise_floor(k, xs) if own else floors[(m, k)]
+                v = judge(k, x, y, floor, f_trig, reps)
+                rows.append({
+                    "cell": cell.name, "mode": cell.mode, "nodes": cell.nodes,
+                    "hosts": cell.hosts, "impairment": cell.impairment,
+                    "held_out": cell.held_out, "method": m, "metric": k, "live": x,
+                    "des": y, "rel_error": error(k, x, y),
+                    "error_unit": "pp" if k == "missed_frac" else "rel",
+                    "live_runs": " ".join(f"{z:.6g}" for z in xs), "noise_floor": floor,
+                    "floor_source": "cell" if own else "calibration",
+                    "passed": v.ok if v.scored else "",
+                    "within_band": v.within_band, "rule": v.rule, "load": load,
+                    "background_cores": sum(r["background_cores"] for r in runs) / len(runs),
+                    "under_load": any(under_load(r, cores) for r in runs), "seed": dv["seed"],
+                    "config_hash": dv["config_hash"],
+                    "live_config_hash": runs[0]["config_hash"], "version": dv["version"]})
+    return rows
+
+
+def knee_rows(plan: Plan, outcome: Outcome) -> list[dict[str, Any]]:
+    """Per mode and method: live's knee, the DES's (fine grid and live's grid), verdict."""
+    live, des, _ = outcome
+    rows = []
+    for mode in ("node", "bundle"):
+        pts = [c for c in plan.cells if c.mode == mode and not c.impairment
+               and c.repeat <= 1 and c.copy == 1 and c.name in live]
+        if not pts:
+            continue
+        ns = [c.nodes for c in pts]
+        fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode} | set(ns))
+        for m in plan.methods:
+            lk = knee(ns, [_live_of(_copies(plan, live, c.name) if not c.repeat
+                                    else [live[c.name]], m, "missed_frac")[0] for c in pts])
+            dk = knee(fine, [_des_missed(des, n, mode, m) for n in fine])
+            dg = knee(ns, [_des_missed(des, n, mode, m) for n in ns])
+            rows.append({"mode": mode, "method": m, "live_grid": " ".join(map(str, sorted(ns))),
+                         "live_knee": lk, "des_knee": dk, "des_knee_on_live_grid": dg,
+                         "verdict": knee_verdict(lk, dk, max(ns))})
+    return rows
+
+
+def _des_missed(des: dict[str, dict[str, Any]], n: int, mode: str, method: str) -> float:
+    d = des.get(f"n{n}-{mode}")
+    return float(d["methods"][method]["missed_frac"]) if d else math.nan
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]], cols: tuple[str, ...] | None = None
+               ) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(cols or (rows[0] if rows else ["empty"])))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _fmt(k: str, x: float) -> str:
+    if not math.isfinite(x):
+        return "nan"
+    return f"{100 * x:.1f} %" if k == "missed_frac" else f"{x:.3g}"
+
+
+def _share_table(rows: list[dict[str, Any]]) -> tuple[list[str], list[bool]]:
+    head = ["metric", "rule", "cells scored", "passed", "within the band", "target", "met"]
+    out, ticks = [], []
+    for k in METRICS:
+        sel = [r for r in rows if r["held_out"] and r["metric"] == k]
+        vs = [judge_row(r) for r in sel]
+        n, ok, band = share(vs)
+        frac = ok / n if n else math.nan
+        met = bool(n) and frac >= TARGETS[k]
+        ticks.append(met)
+        band_txt = {"trigger_rate_hz": f"±{RATE_BAND:.0%} where live holds its rate",
+                    "missed_frac": f"±{PP_BAND:g} pp"}.get(k, f"±{BAND:.0%}")
+        out.append([k, band_txt, str(n), f"{ok} ({100 * frac:.0f} %)" if n else "-",
+                    f"{band}", f"≥ {TARGETS[k]:.0%}" if TARGETS[k] < 1 else "all",
+                    "✔" if met else "✘"])
+    return [md_table(head, out)], ticks
+
+
+def judge_row(r: dict[str, Any]) -> Verdict:
+    """The verdict stored in a ``cells.csv`` row (scored = ``passed`` not empty)."""
+    return Verdict(r["passed"] != "", bool(r["passed"]), bool(r["within_band"]), r["rule"])
+
+
+def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any]],
+               noise: list[dict[str, Any]], report: dict[str, Any], command: str) -> str:
+    """``summary.md`` (see the module doc)."""
+    loads = [r["load"] for r in rows if r["metric"] == METRICS[0]]
+    held = [r for r in rows if r["held_out"] and r["metric"] == METRICS[0]]
+    lines = ["# Live vs DES validation", "", f"`{command}`", "",
+             f"{len(plan.cells)} live cells, methods {', '.join(plan.methods)}, "
+             f"{plan.duration:g} s runs (warmup {plan.warmup:g} s). Load (1-min average) "
+             f"{min(loads, default=math.nan):.1f}–{max(loads, default=math.nan):.1f}; "
+             f"{sum(bool(r['under_load']) for r in held)} of {len(held)} held-out "
+             f"cell x method runs under load (background CPU > {UNDER_LOAD:.0%} of the cores).",
+             "", "## Shares of held-out cells", ""]
+    table, ticks = _share_table(rows)
+    lines += table
+    by_range = sum(r["held_out"] and r["rule"] == "live range" and r["passed"] is True
+                   for r in rows)
+    wide = [r for r in noise if math.isfinite(r["noise_floor"]) and r["unit"] == "rel"
+            and r["noise_floor"] > 0.5]
+    copies = sum(r["held_out"] and r["floor_source"] == "cell" for r in rows
+                 if r["metric"] == METRICS[0])
+    lines += ["", f"{by_range} passes are by the live-range rule (live did not reproduce "
+              "itself within 10 %: the DES inside the range of the cell's live runs, or for "
+              "a cell run once within the calibration setting's noise floor); 'within the "
+              f"band' is the strict count. {copies} of {len(held)} held-out cell x method "
+              "pairs ran more than once (live = the mean of the runs). Calibrated on "
+              f"{report.get('calibration_cell') or 'cal-r1'}, the most typical run of the "
+              "calibration setting."]
+    if wide:
+        lines.append(f"**Live did not reproduce itself**: the noise floor exceeds 50 % for "
+                     f"{len(wide)} of {sum(r['unit'] == 'rel' for r in noise)} method x "
+                     "metric pairs, which makes the live-range rule nearly vacuous: rerun "
+                     "on an idle machine.")
+    quiet = [r for r in rows if not r["under_load"]]
+    if len(quiet) != len(rows):
+        lines += ["", "Cells not under load only:", ""] + _share_table(quiet)[0]
+    lines += ["", "## Knee (smallest N with > "
+              f"{KNEE_MISSED:.0%} of frames missed)", ""]
+    lines.append(md_table(["mode", "method", "live grid", "live knee", "DES knee",
+                           "DES knee on live grid", "within ±25 %"],
+                          [[r["mode"], r["method"], r["live_grid"], str(r["live_knee"] or "-"),
+                            str(r["des_knee"] or "-"), str(r["des_knee_on_live_grid"] or "-"),
+                            r["verdict"]] for r in knees]))
+    knee_ok = {mode: all(r["verdict"] == "met" for r in knees if r["mode"] == mode)
+               and any(r["mode"] == mode for r in knees) for mode in ("node", "bundle")}
+    ins = [r for r in report.get("in_sample", []) if math.isfinite(r.get("error", math.nan))
+           and r["metric"] in METRICS]
+    ins_ok = bool(ins) and not any(r["flagged"] for r in ins)
+    lines += ["", "## Targets", ""]
+    names = ["≥ 80 % mean AoI", "≥ 60 % p99 AoI", "≥ 80 % mean state latency",
+             "trigger rate within 5 % where live holds it", "missed frames within 10 pp"]
+    order = [METRICS.index(k) for k in ("aoi_mean", "aoi_p99", "latency_state_mean",
+                                        "trigger_rate_hz", "missed_frac")]
+    lines += [f"- [{'x' if ticks[i] else ' '}] {n}" for n, i in zip(names, order, strict=True)]
+    lines += [f"- [{'x' if knee_ok[m] else ' '}] knee within ±25 % ({m} messages)"
+              for m in ("node", "bundle")]
+    lines += [f"- [{'x' if ins_ok else ' '}] in-sample error ≤ 10 % on every metric "
+              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells)"]
+    lines += ["", "## Live noise floor (calibration setting, repeats)", "",
+              md_table(["method", "metric", "repeats", "floor"],
+                       [[r["method"], r["metric"], r["repeats"],
+                         (f"{r['noise_floor']:.1f} pp" if r["unit"] == "pp"
+                          else f"{100 * r['noise_floor']:.0f} %")
+                         if math.isfinite(r["noise_floor"]) else "nan"] for r in noise])]
+    lines += ["", "## Cells (live / DES, error; floor in brackets)", ""]
+    lines.append(md_table(["cell", "method", "load", *METRICS], _cell_table(rows)))
+    lines += ["", "Warnings of the calibration:", ""]
+    lines += [f"- {w}" for w in report.get("warnings", [])] or ["- none"]
+    return "\n".join(lines) + "\n"
+
+
+def _cell_table(rows: list[dict[str, Any]]) -> list[list[str]]:
+    out = []
+    keys = list(dict.fromkeys((r["cell"], r["method"]) for r in rows))
+    for cell, m in keys:
+        sel = {r["metric"]: r for r in rows if r["cell"] == cell and r["method"] == m}
+        first = sel[METRICS[0]]
+        txt = []
+        for k in METRICS:
+            r = sel[k]
+            e, f = r["rel_error"], r["noise_floor"]
+            unit = "pp" if k == "missed_frac" else "%"
+            scale = 1.0 if k == "missed_frac" else 100.0
+            mark = "" if r["passed"] == "" else (" ✔" if r["passed"] else " ✘")
+            txt.append(f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])} "
+                       f"({scale * e:+.0f} {unit}{mark}; {scale * f:.0f})"
+                       if math.isfinite(e) else f"{_fmt(k, r['live'])} / {_fmt(k, r['des'])}{mark}")
+        load = f"{first['load']:.1f}" + (" *" if first["under_load"] else "")
+        out.append([cell + ("" if first["held_out"] else " (in-sample)"), m, load, *txt])
+    return out
+
+
+def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    """DES against live, one panel per metric, with the metric's band; runs under load
+    hollow."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, grid = plt.subplots(2, 3, figsize=(13, 8.5), layout="constrained")
+    axes = list(grid.flat)
+    for ax, k in zip(axes, METRICS, strict=False):
+        sel = [r for r in rows if r["metric"] == k and math.isfinite(r["live"])
+               and math.isfinite(r["des"])]
+        scale = 100.0 if k == "missed_frac" else 1.0
+        seen: set[str] = set()
+        for r in sel:
+            kw = line_kw(r["method"], n_points=1)
+            ax.scatter(scale * r["live"], scale * r["des"], marker=kw["marker"], s=36,
+                       edgecolors=kw["color"],
+                       facecolors="none" if r["under_load"] else kw["color"],
+                       label=None if r["method"] in seen else r["method"])
+            seen.add(r["method"])
+        vals = [scale * v for r in sel for v in (r["live"], r["des"])]
+        _band(ax, k, [v for v in vals if v > 0])
+        unit = "%" if k == "missed_frac" else ("Hz" if k == "trigger_rate_hz" else "ms")
+        ax.set_xlabel(f"live ({unit})")
+        ax.set_ylabel(f"DES ({unit})")
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[-1].axis("off")
+    axes[-1].legend(handles, labels, loc="center", title="filled: idle; hollow: under load")
+    fig.savefig(path, dpi=max(MIN_DPI, 110))
+    plt.close(fig)
+
+
+def _band(ax: Any, k: str, vals: list[float]) -> None:
+    """The diagonal and the metric's band; AoI and latency on log axes (they span
+    decades between an idle cell and a collapsed one)."""
+    if k == "missed_frac":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [-PP_BAND, hi - PP_BAND], [PP_BAND, hi + PP_BAND],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{PP_BAND:g} pp"
+    elif k == "trigger_rate_hz":
+        hi = max(vals + [1.0]) * 1.05
+        ax.fill_between([0, hi], [0, (1 - RATE_BAND) * hi], [0, (1 + RATE_BAND) * hi],
+                        color="0.9", zorder=0)
+        lo, title = 0.0, f"±{RATE_BAND:.0%}"
+    else:
+        lo, hi = min(vals or [1.0]) / 1.3, max(vals or [1.0]) * 1.3
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        xs = [lo * (hi / lo) ** (i / 40) for i in range(41)]
+        ax.fill_between(xs, [(1 - BAND) * x for x in xs], [(1 + BAND) * x for x in xs],
+                        color="0.9", zorder=0)
+        title = f"±{BAND:.0%}"
+    ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    ax.set_xlim(lo, hi)
+    ax.set_ylim(lo, hi)
+    ax.set_title(f"{metric_title(k)} (band {title})", fontsize=9)
+
+
+def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, command: str
+                  ) -> list[dict[str, Any]]:
+    """Write every output file into ``out``; the ``cells.csv`` rows."""
+    rows = cell_rows(plan, outcome, f_trig)
+    noise = noise_rows(plan, outcome[0])
+    knees = knee_rows(plan, outcome)
+    _write_csv(out / "cells.csv", rows, COLUMNS)
+    _write_csv(out / "noise.csv", noise)
+    _write_csv(out / "knee.csv", knees)
+    procs = process_rows(out / "live", [c.name for c in plan.cells])
+    if procs:
+        _write_csv(out / "processes.csv", procs, PROCESS_COLUMNS)
+    text = summary_md(plan, rows, knees, noise, outcome[2], command)
+    if procs:
+        text += ("\n## Live processes (cores per second of the window, means over the "
+                 "methods; a host is the mean of the run's hosts)\n\n"
+                 + "\n".join(process_md(procs)) + "\n")
+    (out / "summary.md").write_text(text)
+    plot(rows, out / "live_vs_des.png")
+    return rows
+

@@ -1,0 +1,172 @@
+"""Run the validation plan: live cells, the calibration, the DES predictions — resumably.
+
+Every finished piece is a file in ``--out`` and is kept when the suite is run again
+with the same ``--out`` (an interrupted run picks up where it stopped):
+
+* ``live/<cell>/`` — the live run's ``sigma-des live --out`` files, and
+  ``cells/<cell>.live.json`` — its figures, load and background CPU;
+* ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
+  included), the latency sample files, ``calibrate.log`` and ``source.json`` (which
+  repeat of the calibration setting it was fitted to: the most typical one,
+  :func:`~sigma_lab.studies.validation.scoring.central`);
+* ``cells/des-<key>.json`` — one DES prediction (every method), stamped with the
+  calibration it used (a new calibration makes it stale: it is run again).
+
+All live cells run first (the DES runs and the calibration would load the machine
+under them), then the calibration on the most typical repeat, then its predictions.
+Progress goes to stderr, one line per piece.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from sigma_des.errors import ConfigError
+from sigma_lab.studies.validation.grid import Cell, Plan
+from sigma_lab.studies.validation.runs import (
+    calibrate_run,
+    des_cell,
+    live_cell,
+    load_calibration,
+    read_json,
+    warm_up,
+    write_json,
+)
+from sigma_lab.studies.validation.scoring import central
+
+__all__ = ["Outcome", "calibration_cell", "des_key", "run_suite"]
+
+Say = Callable[[str], None]
+#: What the report needs: live figures per cell, DES figures per key, the calibration.
+Outcome = tuple[dict[str, dict[str, Any]], dict[str, dict[str, Any]], dict[str, Any]]
+
+
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def des_key(cell: Cell) -> str:
+    """The DES prediction a cell needs (repeats share one; knee and grid cells too)."""
+    return f"n{cell.nodes}-{cell.mode}" + (f"-{cell.impairment}" if cell.impairment else "")
+
+
+def _clock(s: float) -> str:
+    return f"{int(s // 60)}:{int(s % 60):02d}"
+
+
+def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
+    live: dict[str, dict[str, Any]] = {}
+    per = plan.estimate() / max(1, len(plan.cells))
+    for i, cell in enumerate(plan.cells, 1):
+        path = out / "cells" / f"{cell.name}.live.json"
+        kept = read_json(path)
+        if kept is not None and kept.get("methods"):
+            live[cell.name] = kept
+            say(f"[{i}/{len(plan.cells)}] live {cell.name}: kept from an earlier run")
+        else:
+            say(f"[{i}/{len(plan.cells)}] live {cell.name}: N = {cell.nodes} on {cell.hosts} "
+                f"hosts, {cell.mode} messages{', ' + cell.impairment if cell.impairment else ''}"
+                f", {len(plan.methods)} methods x {plan.duration:g} s ...")
+            res = live_cell(cell, plan, out / "live" / cell.name)
+            write_json(path, res)
+            live[cell.name] = res
+            note = " TIMED OUT" if res["timed_out"] else ""
+            note += f" exit {res['exit']}" if res["exit"] else ""
+            say(f"    done in {res['wall_s']:.0f} s{note}; load {res['load_before']:.1f} -> "
+                f"{res['load_after']:.1f}, background {res['background_cores']:.2f} cores; "
+                f"elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
+                f"{_clock(per * (len(plan.cells) - i))}")
+    return live
+
+
+def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
+    """The repeat of the calibration setting to calibrate on: the most typical of
+    those that ran (:func:`~sigma_lab.studies.validation.scoring.central`)."""
+    reps = {c.name: live[c.name]["methods"] for c in plan.cells
+            if c.repeat and c.name in live}
+    if not reps:
+        raise ConfigError("calibration", "no run of the calibration setting finished")
+    return central(reps)
+
+
+def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say,
+                 args: Sequence[str]) -> None:
+    kept = read_json(out / "cal" / "source.json")
+    if (read_json(out / "cal" / "calibrated.json") is not None and kept is not None
+            and kept.get("args", []) == list(args)):
+        say(f"calibration: kept from an earlier run (on {kept['cell']})")
+        return
+    name = calibration_cell(plan, live)
+    say(f"calibrating on {name}, the most typical of the calibration setting's "
+        f"{sum(1 for c in plan.cells if c.repeat and c.name in live)} runs "
+        "(`sigma-des calibrate`, with its in-sample check) ...")
+    t = time.perf_counter()
+    calibrate_run(out / "live" / name, out / "cal", extra=args)
+    write_json(out / "cal" / "source.json", {"cell": name, "args": list(args)})
+    say(f"    calibrated in {time.perf_counter() - t:.0f} s")
+
+
+def _cal_stamp(out: Path) -> str:
+    h = hashlib.sha256()
+    for name in ("calibrated.toml", "calibrated.json"):
+        h.update((out / "cal" / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _des_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
+    cal, report = load_calibration(out / "cal")
+    stamp = _cal_stamp(out)
+    wanted: dict[str, Cell] = {}
+    for c in (*plan.cells, *plan.knee_cells()):
+        wanted.setdefault(des_key(c), c)
+    des: dict[str, dict[str, Any]] = {}
+    for i, (key, cell) in enumerate(wanted.items(), 1):
+        path = out / "cells" / f"des-{key}.json"
+        kept = read_json(path)
+        if kept is not None and kept.get("calibration") == stamp:
+            des[key] = kept
+            continue
+        res = des_cell(cal, report, cell, plan, out / "cells" / "samples")
+        res["calibration"] = stamp
+        write_json(path, res)
+        des[key] = res
+        fb = {v["fallback"] for v in res["methods"].values() if v["fallback"]}
+        say(f"[des {i}/{len(wanted)}] {key}: {res['wall_s']:.1f} s"
+            + (f" (engine fallback: {'; '.join(sorted(fb))[:120]})" if fb else "")
+            + f"; elapsed {_clock(time.perf_counter() - t0)}")
+    return des
+
+
+def run_suite(plan: Plan, out: Path, say: Say = _say,
+              calibrate_args: Sequence[str] = ()) -> Outcome:
+    """Run (or pick up) every piece of ``plan`` in ``out``; ``calibrate_args``: more
+    ``sigma-des calibrate`` options (a kept calibration made with other ones is redone,
+    and so are the DES cells that used it).
+
+    Returns:
+        Live figures per cell name, DES figures per :func:`des_key`, and the
+        calibration report.
+    """
+    for d in ("cells", "live", "cal"):
+        (out / d).mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    say(f"validation: {len(plan.cells)} live cells x {len(plan.methods)} methods, "
+        f"{plan.duration:g} s runs; {len(plan.knee_cells())} knee-grid DES cells; expected "
+        f"wall time ~{_clock(plan.estimate())} on an idle 2-core machine")
+    say("compiling the numba kernels first (`sigma-des warmup`) ...")
+    code = warm_up(out / "warmup.log")
+    if code:
+        say(f"    warmup exited {code} (see {out / 'warmup.log'}): the first live run may "
+            "hold compile stalls")
+    live = _live_all(plan, out, say, t0)
+    _calibration(plan, live, out, say, calibrate_args)
+    des = _des_all(plan, out, say, t0)
+    report = read_json(out / "cal" / "calibrated.json") or {}
+    report["calibration_cell"] = (read_json(out / "cal" / "source.json") or {}).get("cell")
+    say(f"validation: all runs done in {_clock(time.perf_counter() - t0)}")
+    return live, des, report

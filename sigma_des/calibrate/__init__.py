@@ -1,0 +1,8 @@
+"""Calibration: fit the DES's parameters to a live run (``sigma-des calibrate``).
+
+``fit`` reads the run's message table and writes the calibrated scenario; ``fit_step``
+fits the node step time, ``fit_cpu`` the deployment (cores, per-message CPU demands,
+run-queue waits) from ``demands``; ``dequeue`` removes queueing from measured
+latencies before they become per-hop draws; ``match`` rescales the hops until the DES
+re-predicts the run; ``insample`` is that check; ``cli`` the subcommand.
+"""

@@ -1,0 +1,38 @@
+"""The delay study's conditions and paired statistics, by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from scipy import stats
+from sigma_lab.studies.delay import cells, env_kwargs, paired_cells
+
+
+def test_cells_and_their_env_arguments() -> None:
+    assert cells([0.05, 0.2], ["bides", "none"]) == [
+        "perfect", "bides@50ms", "none@50ms", "bides@200ms", "none@200ms"]
+    kw = env_kwargs("none@200ms", 5, 30, 0.1)
+    assert kw["method"] == "none" and kw["perfect_info"] is False
+    assert kw["scenario"]["net.host_link.latency"] == {"dist": "normal", "mean": 0.2,
+                                                       "std": 0.2 / 5}
+    assert kw["scenario"]["net.host_link.loss"] == {"p": 0.1}
+    assert env_kwargs("perfect", 5, 30, 0.1)["perfect_info"] is True
+
+
+def test_paired_statistics_hand_computed() -> None:
+    evals = []
+    for s, (dv, pv) in enumerate([(1.0, 0.0), (2.0, 0.0), (3.0, 1.0)]):
+        evals += [{"trained": "none@50ms", "seed": s, "evaluated": "none@50ms", "fitness": dv},
+                  {"trained": "perfect", "seed": s, "evaluated": "none@50ms", "fitness": pv}]
+    evals += [{"trained": n, "seed": -1, "evaluated": "none@50ms", "fitness": -1.0}
+              for n in ("untrained", "naive", "extrapolating")]
+    (row,) = paired_cells(evals, ["perfect", "none@50ms"], [0, 1, 2])
+    # differences 1, 2, 2: mean 5/3, sd 1/sqrt(3), t = 5; df 2: P(T > t) = 1/2 - t / (2
+    # sqrt(2 + t^2))
+    assert row["diff_mean"] == pytest.approx(5 / 3)
+    assert row["t_p_greater"] == pytest.approx(0.5 - 5 / (2 * math.sqrt(27)), rel=1e-9)
+    assert row["wilcoxon_p_greater"] == pytest.approx(1 / 8)  # exact: 3 positive of 3
+    assert row["diff_ci95"] == pytest.approx(stats.t.ppf(0.975, 2) / 3, rel=1e-12)
+
+

@@ -1,0 +1,163 @@
+"""The validation suite's pure rules, by hand: errors, noise floor, verdicts, knee, grid."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from sigma_lab.studies.validation.grid import Plan, full_plan, hosts_for, quick_plan
+from sigma_lab.studies.validation.scoring import (
+    Verdict,
+    central,
+    error,
+    judge,
+    knee,
+    knee_verdict,
+    noise_floor,
+    share,
+)
+
+from sigma_des.errors import ConfigError
+
+
+def test_error_relative_and_in_percentage_points() -> None:
+    assert error("aoi_mean", 20.0, 23.0) == pytest.approx(0.15)
+    assert error("latency_state_mean", 4.0, 3.0) == pytest.approx(-0.25)
+    assert error("missed_frac", 0.02, 0.10) == pytest.approx(8.0)  # pp
+    assert error("missed_frac", 0.0, 0.0) == 0.0  # live missing none is fine in pp
+    assert math.isnan(error("aoi_mean", 0.0, 3.0))
+    assert math.isnan(error("aoi_mean", math.nan, 3.0))
+
+
+def test_noise_floor_is_range_over_mean() -> None:
+    assert noise_floor("aoi_mean", [10.0, 12.0, 14.0]) == pytest.approx(4.0 / 12.0)
+    assert noise_floor("missed_frac", [0.0, 0.03, 0.01]) == pytest.approx(3.0)
+    assert noise_floor("aoi_mean", [10.0, math.nan, 14.0]) == pytest.approx(4.0 / 12.0)
+    assert math.isnan(noise_floor("aoi_mean", [10.0]))
+    assert math.isnan(noise_floor("aoi_mean", [0.0, 0.0]))
+
+
+def test_judge_band_and_the_live_range_rule() -> None:
+    assert judge("aoi_mean", 100.0, 114.0) == Verdict(True, True, True, "band")
+    assert judge("aoi_mean", 100.0, 116.0, floor=0.05) == Verdict(True, False, False, "band")
+    # live moved 30 % between its repeats: a held-out DES within 30 % of live passes
+    assert judge("aoi_mean", 100.0, 125.0, floor=0.30) == Verdict(True, True, False,
+                                                                  "live range")
+    assert judge("aoi_mean", 100.0, 135.0, floor=0.30).ok is False
+    # the calibration setting itself: inside [min, max] of its repeats
+    assert judge("latency_state_mean", 100.0, 125.0, 0.4, repeats=[90, 100, 130]).ok
+    assert not judge("latency_state_mean", 100.0, 80.0, 0.4, repeats=[90, 100, 130]).ok
+    # the rule is the mean metrics' only: p99 stays on the plain band
+    assert judge("aoi_p99", 100.0, 125.0, floor=0.30) == Verdict(True, False, False, "band")
+    assert judge("aoi_mean", math.nan, 1.0) == Verdict(False, False, False, "n/a")
+    assert judge("aoi_mean", 0.0, 1.0) == Verdict(False, False, False, "n/a")
+    # the DES delivered nothing where live did: a miss, not a cell left out
+    assert judge("latency_state_mean", 5.0, math.nan) == Verdict(True, False, False,
+                                                                 "no DES value")
+
+
+def test_judge_trigger_rate_only_where_live_holds_it() -> None:
+    assert judge("trigger_rate_hz", 90.0, 90.0, f_trig=100.0) == Verdict(
+        False, False, True, "rate not held")
+    assert judge("trigger_rate_hz", 99.0, 95.0, f_trig=100.0).ok  # -4.0 %
+    assert not judge("trigger_rate_hz", 99.0, 94.0, f_trig=100.0).ok  # -5.05 %
+    assert judge("trigger_rate_hz", 48.0, 47.0, f_trig=50.0).ok
+
+
+def test_judge_missed_frames_in_points() -> None:
+    assert judge("missed_frac", 0.02, 0.12).ok  # 10 pp
+    assert not judge("missed_frac", 0.02, 0.13).ok
+    assert not judge("missed_frac", 0.50, 0.0).ok
+
+
+def test_share_counts_scored_passed_and_band() -> None:
+    vs = [Verdict(True, True, True, "band"), Verdict(True, True, False, "live range"),
+          Verdict(True, False, False, "band"), Verdict(False, False, True, "rate not held")]
+    assert share(vs) == (3, 2, 1)
+
+
+def test_knee_smallest_n_above_five_percent() -> None:
+    assert knee([10, 30, 60, 100], [0.0, 0.05, 0.2, 0.9]) == 60  # 5 % is not above
+    assert knee([100, 10, 60, 30], [0.9, 0.0, 0.2, 0.06]) == 30  # any order
+    assert knee([10, 30, 60], [0.0, 0.01, math.nan]) is None  # a failed run is skipped
+    assert knee([10, 30, 60, 100], [0.0, 0.0, math.nan, 0.5]) == 100
+
+
+def test_knee_verdict_within_a_quarter() -> None:
+    assert knee_verdict(60, 45, 100) == "met"
+    assert knee_verdict(60, 75, 100) == "met"
+    assert knee_verdict(60, 44, 100) == "missed"
+    assert knee_verdict(60, None, 100) == "missed"
+    assert knee_verdict(None, None, 100) == "met"
+    assert knee_verdict(None, 120, 100) == "met"  # both beyond live's grid
+    assert knee_verdict(None, 80, 100) == "missed"
+
+
+def test_hosts_for() -> None:
+    assert [hosts_for(n) for n in (1, 10, 30, 50, 51, 60, 100, 150)] == [2, 2, 2, 2, 3, 3, 4, 6]
+    with pytest.raises(ConfigError, match="nodes"):
+        hosts_for(0)
+
+
+def test_full_plan_cells_and_repeats_spread() -> None:
+    one = [c.name for c in full_plan(("none", "bides"), cell_repeats=1).cells]
+    assert len(one) == len(set(one)) == 15
+    assert one[0] == "cal-r1" and one[-1] == "cal-r3"
+    assert one.index("cal-r2") == 7  # after half of the 12 held-out cells
+    plan = full_plan(("none", "bides"))  # every held-out cell twice by default
+    names = [c.name for c in plan.cells]
+    assert len(names) == len(set(names)) == 27
+    # the copies are a second pass over the held-out grid, cal-r2 between the passes
+    assert names[:13] == one[:7] + one[8:14]
+    assert names[13] == "cal-r2" and names[-1] == "cal-r3"
+    assert names[14:26] == [f"{n}-c2" for n in one[1:7] + one[8:14]]
+    copy = plan.cells[14]
+    assert (copy.name, copy.base, copy.copy, copy.held_out) == ("n10-node-c2", "n10-node", 2,
+                                                                True)
+    assert copy.live_sets() == plan.cells[1].live_sets()
+    with pytest.raises(ConfigError, match="--cell-repeats"):
+        full_plan(("none",), cell_repeats=0)
+    assert {c.nodes for c in plan.cells if c.held_out and not c.impairment} == {10, 30, 60, 100}
+    lat = next(c for c in plan.cells if c.name == "lat5-bundle")
+    assert lat.live_sets() == ["nodes=30", "hosts=2", "net.host_link.latency.value=0.00525"]
+    assert lat.des_sets() == ["nodes=30", "hosts=2", 'deployment.clients="host"',
+                              "deployment.bundle=true"]
+    loss = next(c for c in plan.cells if c.name == "loss5-node")
+    assert loss.des_sets() == ["nodes=30", "hosts=2", "net.host_link.loss.p=0.05"]
+
+
+def test_select_keeps_the_calibration_run() -> None:
+    plan = full_plan(("none",), cell_repeats=1).select("n30-*, lat5-node")
+    assert [c.name for c in plan.cells] == ["cal-r1", "n30-node", "n30-bundle", "lat5-node"]
+    plan = full_plan(("none",)).select("n30-node*")
+    assert [c.name for c in plan.cells] == ["cal-r1", "n30-node", "n30-node-c2"]
+    with pytest.raises(ConfigError, match="--grid"):
+        full_plan(("none",)).select("n31-*")
+    assert [c.name for c in quick_plan(("none",)).cells] == ["cal-r1", "n6-node", "n6-bundle",
+                                                             "cal-r2"]
+
+
+def test_estimate_hand_computed() -> None:
+    plan = Plan(("none",), 4.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6, repeats=1)
+    # live: 7 cells x (4 + 1 x (4 + 1.6)); DES: 7 keys, 1 + 0.05 N each; calibration 40
+    assert plan.estimate() == pytest.approx(7 * 9.6 + (1.2 + 6 * 1.3) + 40.0)
+    with pytest.raises(ConfigError, match="--duration"):
+        Plan(("none",), 1.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6)
+
+
+def test_central_hand_computed() -> None:
+    runs = {"r1": {"a": {"aoi_mean": 1.0, "latency_state_mean": 4.0}},
+            "r2": {"a": {"aoi_mean": 1.1, "latency_state_mean": 3.0}},
+            "r3": {"a": {"aoi_mean": 1.2, "latency_state_mean": 3.1}}}
+    # medians 1.1 and 3.1: r1 0.0953 + 0.2549, r2 0 + 0.0328, r3 0.0870 + 0
+    assert central(runs) == "r2"
+    assert central(runs, ("aoi_mean",)) == "r2"
+    assert central(runs, ("latency_state_mean",)) == "r3"
+    # a method missing (or NaN) in one run is left out of the comparison
+    runs["r2"]["b"] = {"aoi_mean": 100.0, "latency_state_mean": 100.0}
+    runs["r1"]["b"] = {"aoi_mean": math.nan, "latency_state_mean": 1.0}
+    assert central(runs) == "r2"
+    # two runs: both equally far (in log) from their median; the first wins the tie
+    assert central({"x": {"a": {"aoi_mean": 1.0}}, "y": {"a": {"aoi_mean": 2.0}}}) == "x"
+    with pytest.raises(ValueError):
+        central({})
