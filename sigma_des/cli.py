@@ -187,11 +187,21 @@ def _run(args: argparse.Namespace) -> int:
         need(f"dynamics={sc.dynamics}", "jsbsim")
     if command == "config":
         return _config(sc)
+    _say_if_compiling()
     if command == "live":
         return _function("sigma_des.live.cli:run_live_command")(args, sc)  # type: ignore[no-any-return]
     if command == "sweep":
         return _function("sigma_des.sweep.cli:run_sweep_command")(args, sc)  # type: ignore[no-any-return]
     return _compare(args, sc)
+
+
+def _say_if_compiling() -> None:
+    """One line before a run that will compile the kernels first (a silent minute otherwise)."""
+    from sigma_des.jitcache import kernels_cached
+
+    if not kernels_cached():
+        print("sigma-des: compiling kernels once (~1 min; `sigma-des warmup` does it ahead)",
+              file=sys.stderr, flush=True)
 
 
 def _config(sc: Any) -> int:

@@ -59,7 +59,7 @@ from sigma_des.cache.paths import default_root, root
 from sigma_des.cache.sources import PACKAGE, fingerprint
 
 __all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "install_hook",
-           "loaded_specialisations", "prune"]
+           "kernels_cached", "loaded_specialisations", "prune"]
 
 #: Fingerprint directories kept besides the current one, the most recently used first.
 KEEP = 3
@@ -112,6 +112,16 @@ def _fallback(wanted: Path) -> Path:
     print(f"sigma-des: warning: cannot write numba's cache in {wanted}; "
           f"caching compiled kernels in {tmp}", file=sys.stderr)
     return tmp
+
+
+def kernels_cached(package: Path = PACKAGE) -> bool:
+    """Whether numba's cache for ``package``'s current sources holds compiled kernels.
+
+    False before the first run after an install or an edit: the next run then compiles
+    (about a minute), which the command line says instead of a silent, stalled start.
+    """
+    d = cache_root() / "numba" / fingerprint(package)
+    return d.is_dir() and any(d.rglob("*.nbi"))
 
 
 def ensure_cache_dir(package: Path = PACKAGE) -> str:
