@@ -120,8 +120,7 @@ def test_full_plan_cells_and_repeats_spread() -> None:
     assert {c.nodes for c in plan.cells if c.held_out and not c.impairment} == {10, 30, 60, 100}
     lat = next(c for c in plan.cells if c.name == "lat5-bundle")
     assert lat.live_sets() == ["nodes=30", "hosts=2", "net.host_link.latency.value=0.00525"]
-    assert lat.des_sets() == ["nodes=30", "hosts=2", 'deployment.clients="host"',
-                              "deployment.bundle=true"]
+    assert lat.des_sets() == ["nodes=30", "hosts=2"]  # bundle and +5 ms: prepare's options
     loss = next(c for c in plan.cells if c.name == "loss5-node")
     assert loss.des_sets() == ["nodes=30", "hosts=2", "net.host_link.loss.p=0.05"]
 

@@ -92,12 +92,12 @@ class Cell:
         return sets
 
     def des_sets(self) -> list[str]:
-        """The keys the DES prediction changes on the calibrated scenario."""
+        """The keys the DES prediction changes on the calibrated scenario (the message
+        mode and an added latency are :func:`sigma_des.calibrate.target.prepare`'s
+        options)."""
         sets = [f"nodes={self.nodes}", f"hosts={self.hosts}"]
         if self.impairment == "loss5":
             sets.append(f"net.host_link.loss.p={LOSS_P}")
-        if self.mode == "bundle":
-            sets += ['deployment.clients="host"', "deployment.bundle=true"]
         return sets
 
 
