@@ -73,7 +73,7 @@ def residual_bounds(values: Sequence[float], coverage: float = COVERAGE
     if not xs:
         raise ValueError("residual_bounds() needs at least one finite value")
     n = len(xs)
-    k = math.floor((n + 1) * (1.0 - coverage) / 2.0)
+    k = math.floor((n + 1) * (1.0 - coverage) / 2.0 + 1e-9)  # 1 - 0.8 is 0.1999…
     if k < 1:
         return xs[0], xs[-1], False
     return xs[k - 1], xs[n - k], True
