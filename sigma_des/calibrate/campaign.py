@@ -16,9 +16,8 @@ combines them (:func:`combine`), each parameter from the runs that show it:
 * the step time and its host share (``compute``), the scenario's own keys and the
   cores: the primary run (the first per-node one, else the first).
 
-The report's ``parameter_sources`` names the runs of each; ``runs`` holds each run's
-own fit. Runs of different scenarios are refused (:func:`check_combinable`): only
-:data:`MAY_DIFFER` (size, hosts, window, seed) and the message mode may differ.
+The report's ``parameter_sources`` names the runs of each, ``runs`` each run's fit. Runs
+of different scenarios are refused (:func:`check_combinable`).
 
 **The background.** Other processes' CPU during a run (``background_cores_measured``)
 slows that run's bursts, and the fit takes it out of the demands and the hops; it is a

@@ -19,7 +19,7 @@ the capacity marked.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,35 +59,56 @@ def holds_at(ivs: dict[str, Interval], end: str, f_trig: float, max_missed: floa
 
 
 def search(ok: Callable[[int], bool], n_lo: int, n_max: int, tol: float = 0.05,
-           max_evals: int = MAX_EVALS) -> tuple[int | None, int | None, list[int]]:
+           max_evals: int = MAX_EVALS, grid: Sequence[int] | None = None
+           ) -> tuple[int | None, int | None, list[int]]:
     """The largest N in ``n_lo..n_max`` for which ``ok`` holds (see the module doc).
 
+    Args:
+        ok: the predicate, assumed monotone (holds up to some N, fails beyond).
+        n_lo: the first N tried; n_max: the largest.
+        tol: bisection stops when the bracket is within ``tol`` x N (at least 1).
+        max_evals: most evaluations.
+        grid: search only these N (sorted; ``n_lo``/``n_max`` then unused): the same
+            doubling and bisection over their positions, to the neighbouring point
+            (the validation suite's grids).
+
     Returns:
-        ``(capacity, first_failing, evaluated)``: capacity None when ``n_lo`` fails;
-        first_failing None when ``n_max`` holds; the N evaluated, in order.
+        ``(capacity, first_failing, evaluated)``: capacity None when the first N fails;
+        first_failing None when the last holds; the N evaluated, in order.
     """
+    pts = sorted(set(grid)) if grid is not None else None
     seen: list[int] = []
 
-    def test(n: int) -> bool:
+    def test(i: int) -> bool:
+        n = pts[i] if pts is not None else i
         seen.append(n)
         return ok(n)
 
-    if not test(n_lo):
-        return None, n_lo, seen
-    good, bad = n_lo, None
-    n = n_lo
-    while bad is None and n < n_max and len(seen) < max_evals:
-        n = min(n_max, 2 * n)
-        if test(n):
-            good = n
+    def at(i: int | None) -> int | None:
+        return None if i is None or pts is None else pts[i]
+
+    lo, top = (0, len(pts) - 1) if pts is not None else (n_lo, n_max)
+    if pts is not None and not pts:
+        return None, None, seen
+    if not test(lo):
+        return (None, at(lo), seen) if pts is not None else (None, lo, seen)
+    good, bad, i = lo, None, lo
+    while bad is None and i < top and len(seen) < max_evals:
+        i = min(top, 2 * i if pts is None else 2 * i + 1)
+        if test(i):
+            good = i
         else:
-            bad = n
-    while bad is not None and bad - good > max(1.0, tol * good) and len(seen) < max_evals:
+            bad = i
+    width = 1.0 if pts is not None else None
+    while bad is not None and len(seen) < max_evals and (
+            bad - good > (width or max(1.0, tol * good))):
         mid = (good + bad) // 2
         if test(mid):
             good = mid
         else:
             bad = mid
+    if pts is not None:
+        return at(good), at(bad), seen
     return good, bad, seen
 
 

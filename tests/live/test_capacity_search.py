@@ -66,3 +66,12 @@ def test_hosts_rule() -> None:
     for bad in ("per=0", "per=x", "auto"):
         with pytest.raises(ConfigError, match="--hosts-rule"):
             HostsRule.parse(bad, 2)
+
+
+def test_search_on_a_grid_by_hand() -> None:
+    grid = [10, 20, 30, 40, 50, 60, 80, 100, 120, 150]
+    # positions 0, 1, 3 hold, 7 (100) fails; bisect: 5 (60) fails, 4 (50) holds: adjacent
+    assert search(lambda n: n <= 55, 0, 0, grid=grid) == (50, 60, [10, 20, 40, 100, 60, 50])
+    assert search(lambda n: True, 0, 0, grid=grid) == (150, None, [10, 20, 40, 100, 150])
+    assert search(lambda n: False, 0, 0, grid=grid) == (None, 10, [10])
+    assert search(lambda n: n < 20, 0, 0, grid=grid) == (10, 20, [10, 20])
