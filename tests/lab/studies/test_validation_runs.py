@@ -176,6 +176,7 @@ def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
     assert "[[residual]]" in (tmp_path / "residuals.toml").read_text()
     assert "- [ ] knee within ±25 % (node messages)" in md
     assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
+    assert (tmp_path / "knee.png").stat().st_size > 10_000
 
 
 def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:

@@ -15,7 +15,8 @@
   knee on its finer grid and on live's grid, and the verdict.
 * ``summary.md`` — shares per metric, the issue's targets ticked or not, the knee
   table, the in-sample errors and the cells.
-* ``live_vs_des.png`` — DES against live per metric, with each metric's band.
+* ``live_vs_des.png`` — DES against live per metric, with each metric's band;
+  ``knee.png`` — missed frames against N, live and DES, the knees marked.
 * ``processes.csv`` — per live cell, method and process kind: CPU, loop-busy and
   run-queue cores (:mod:`sigma_lab.studies.validation.processes`);
 * ``coverage.csv`` and ``residuals.toml`` — the intervals' coverage on the held-out
@@ -40,6 +41,7 @@ from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
 from sigma_lab.studies.validation.grid import Plan
+from sigma_lab.studies.validation.kneeplot import knee_plot
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
 from sigma_lab.studies.validation.scoring import (
     BAND,
@@ -191,6 +193,27 @@ def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[
                          "des_knee": dk, "des_knee_on_live_grid": dg,
                          "verdict": knee_verdict(lk, dk, max(ns))})
     return rows
+
+
+def knee_points(plan: Plan, outcome: Outcome) -> dict[str, dict[str, dict[str, list[Any]]]]:
+    """Per mode and method, ``live`` and ``des`` ``(N, missed_frac)`` pairs (for
+    :func:`~sigma_lab.studies.validation.kneeplot.knee_plot`)."""
+    live, des, _ = outcome
+    out: dict[str, dict[str, dict[str, list[Any]]]] = {}
+    for mode in ("node", "bundle"):
+        pts = [c for c in plan.cells if c.mode == mode and not c.impairment
+               and c.repeat <= 1 and c.copy == 1 and c.name in live]
+        if not pts:
+            continue
+        fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode}
+                      | {c.nodes for c in pts})
+        out[mode] = {m: {
+            "live": [(c.nodes, _live_of(_copies(plan, live, c.name) if not c.repeat
+                                        else [live[c.name]], m, "missed_frac")[0])
+                     for c in pts],
+            "des": [(n, _des_fig(des, n, mode, m)["missed_frac"]) for n in fine]}
+            for m in plan.methods}
+    return out
 
 
 def _des_fig(des: dict[str, dict[str, Any]], n: int, mode: str, method: str
@@ -443,5 +466,6 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
                  + "\n".join(process_md(procs)) + "\n")
     (out / "summary.md").write_text(text)
     plot(rows, out / "live_vs_des.png")
+    knee_plot(knee_points(plan, outcome), knees, KNEE_MISSED, out / "knee.png")
     return rows
 
