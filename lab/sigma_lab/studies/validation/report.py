@@ -315,11 +315,10 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
     quiet = [r for r in rows if not r["under_load"]]
     if len(quiet) != len(rows):
         lines += ["", "Cells not under load only:", ""] + _share_table(quiet)[0]
-    lines += ["", "## Knee (smallest N with > "
-              f"{KNEE_MISSED:.0%} of frames missed)", ""]
-    lines.append("The search and predicate of `sigma-des capacity` (rate held, missed "
-                 "frames within the budget) on each grid: capacity = the largest N that "
-                 "holds, knee = the first that does not.")
+    lines += ["", f"## Knee (the first N that does not hold: rate held, ≤ {KNEE_MISSED:.0%} "
+              "of frames missed)", ""]
+    lines.append("The predicate of `sigma-des capacity` on each grid, in order: capacity = "
+                 "the last N that holds before the knee, knee = the first that does not.")
     lines.append("")
     lines.append(md_table(["mode", "method", "live grid", "live capacity", "live knee",
                            "DES capacity", "DES knee", "DES knee on live grid",
