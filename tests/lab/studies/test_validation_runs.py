@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sigma_lab.studies.validation.grid import Plan
+from sigma_lab.studies.validation.grid import Cell, Plan
 from sigma_lab.studies.validation.report import (
     cell_rows,
     knee_rows,
@@ -215,6 +215,14 @@ def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:
     assert one["passed"] is False and one["rule"] == "band"  # +25 %
     fit = r[("cal-r2", "aoi_mean")]
     assert fit["held_out"] is False and fit["live"] == 30.0 and fit["passed"] is True
+    # a bundled calibration run (a campaign's) makes no row: it is neither scored nor
+    # the in-sample row, which stays the fitted repeat
+    plan_b = replace(plan, cells=(*plan.cells, Cell("cal-bundle", 20, "bundle",
+                                                    cal_extra=True)))
+    live["cal-bundle"] = _live(0.0, 18.0)
+    des["n20-bundle"] = _des(0.0, 19.0)
+    rb = cell_rows(plan_b, outcome, 100.0, cores=2)
+    assert {x["cell"] for x in rb} == {"cal-r2", "n10-node", "n30-node"}
 
 
 def test_calibrate_run_passes_its_extra_options_to_calibrate(tmp_path: Path) -> None:

@@ -182,6 +182,17 @@ def test_select_keeps_the_calibration_run() -> None:
                                                              "cal-r2"]
 
 
+def test_a_bundled_calibration_run_is_neither_held_out_nor_a_repeat() -> None:
+    plan = full_plan(("none",), cell_repeats=1, cal_bundle=True).select("n30-node")
+    assert [c.name for c in plan.cells] == ["cal-r1", "cal-bundle", "n30-node"]
+    cb = plan.cells[1]
+    assert (cb.nodes, cb.mode, cb.repeat, cb.held_out, cb.cal_extra) == (20, "bundle", 0,
+                                                                          False, True)
+    # every scored cell differs from both calibration runs in size
+    assert all(c.nodes != 20 for c in full_plan(("none",), cal_bundle=True).cells
+               if c.held_out)
+
+
 def test_estimate_hand_computed() -> None:
     plan = Plan(("none",), 4.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6, repeats=1)
     # live: 7 cells x (4 + 1 x (4 + 1.6)); DES: 7 keys, 1 + 0.05 N each; calibration 40

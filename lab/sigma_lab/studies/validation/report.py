@@ -132,7 +132,8 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
         (c.name for c in plan.cells if c.repeat == 1), "")
     rows = []
     for cell in plan.cells:
-        if (cell.repeat and cell.name != fitted) or cell.copy > 1 or cell.name not in live \
+        if (cell.repeat and cell.name != fitted) or cell.copy > 1 or cell.cal_extra \
+                or cell.name not in live \
                 or des_key(cell) not in des:
             continue
         runs = [live[cell.name]] if cell.repeat else _copies(plan, live, cell.name)
@@ -300,13 +301,14 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
             and r["noise_floor"] > 0.5]
     copies = sum(r["held_out"] and r["floor_source"] == "cell" for r in rows
                  if r["metric"] == METRICS[0])
+    fitted = report.get("calibration_cell") or "cal-r1"
+    used = ", ".join(c for c in report.get("calibration_cells") or [] if c) or fitted
     lines += ["", f"The headline is the strict share: within the band of the mean of the "
               f"cell's live runs. {by_range} more passes are by the live-range rule (live "
               "did not reproduce itself within 10 %: the DES inside the range of the cell's "
               f"own runs, at least two). {copies} of {len(held)} held-out cell x method "
-              "pairs ran more than once (live = the mean of the runs). Calibrated on "
-              f"{report.get('calibration_cell') or 'cal-r1'}, the most typical run of the "
-              "calibration setting."]
+              f"pairs ran more than once (live = the mean of the runs). Calibrated on {used} "
+              f"({fitted}: the most typical run of the calibration setting)."]
     if wide:
         lines.append(f"**Live did not reproduce itself**: the noise floor exceeds 50 % for "
                      f"{len(wide)} of {sum(r['unit'] == 'rel' for r in noise)} method x "

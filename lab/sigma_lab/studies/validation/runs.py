@@ -152,11 +152,11 @@ def _num(v: Any) -> float:
     return float(v) if isinstance(v, int | float) else math.nan
 
 
-def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0,
+def calibrate_run(source: Path | Sequence[Path], cal_dir: Path, timeout: float = 600.0,
                   extra: Sequence[str] = ()) -> tuple[Scenario, dict[str, Any]]:
-    """``sigma-des calibrate SOURCE --out CAL_DIR/calibrated.toml [EXTRA...]`` (with its
-    in-sample check), bounded; the calibrated scenario and its report. ``extra``: more
-    ``calibrate`` options (e.g. ``--one-thread``).
+    """``sigma-des calibrate SOURCE... --out CAL_DIR/calibrated.toml [EXTRA...]`` (with
+    its in-sample check on every run), bounded; the calibrated scenario and its report.
+    ``extra``: more ``calibrate`` options (e.g. ``--one-thread``).
 
     Raises:
         ConfigError: (``calibration``) calibrate failed or ran out of time (its log named).
@@ -164,11 +164,12 @@ def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0,
     cal_dir.mkdir(parents=True, exist_ok=True)
     toml = cal_dir / "calibrated.toml"
     log = cal_dir / "calibrate.log"
-    status, timed_out = bounded_run([*_cli(), "calibrate", str(source), "--out", str(toml),
-                                  *extra], log, timeout)
+    sources = [source] if isinstance(source, Path) else list(source)
+    status, timed_out = bounded_run([*_cli(), "calibrate", *map(str, sources), "--out",
+                                     str(toml), *extra], log, timeout)
     if status != 0 or timed_out:
         tail = log.read_text(errors="replace").strip().splitlines()[-1:] or [""]
-        raise ConfigError("calibration", f"`sigma-des calibrate {source}` "
+        raise ConfigError("calibration", f"`sigma-des calibrate {' '.join(map(str, sources))}` "
                           f"{'timed out' if timed_out else f'exited {status}'}: {tail[0]} "
                           f"(log: {log})")
     return load_calibration(cal_dir)
