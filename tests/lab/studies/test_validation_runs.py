@@ -171,6 +171,7 @@ def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
     assert "| aoi_mean | ±15% | 2 | 0 (0 %) | 0 | ≥ 80% | ✘ |" in md
     assert "| latency_state_mean | ±15% | 2 | 2 (100 %) | 2 | ≥ 80% | ✔ |" in md
     assert "## Interval coverage" in md
+    assert "**2 of 2 held-out cell x method pairs ran once**" in md
     cov = {r["metric"]: r for r in csv.DictReader((tmp_path / "coverage.csv").open())}
     assert cov["aoi_mean"]["cells"] == "2"  # each held-out cell, the other's residual
     assert "[[residual]]" in (tmp_path / "residuals.toml").read_text()

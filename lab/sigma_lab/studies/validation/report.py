@@ -309,6 +309,10 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
               f"own runs, at least two). {copies} of {len(held)} held-out cell x method "
               f"pairs ran more than once (live = the mean of the runs). Calibrated on {used} "
               f"({fitted}: the most typical run of the calibration setting)."]
+    if copies < len(held):
+        lines.append(f"**{len(held) - copies} of {len(held)} held-out cell x method pairs ran "
+                     "once**: their live value is one run, not the mean of at least two the "
+                     "headline asks for (run with --cell-repeats 2).")
     if wide:
         lines.append(f"**Live did not reproduce itself**: the noise floor exceeds 50 % for "
                      f"{len(wide)} of {sum(r['unit'] == 'rel' for r in noise)} method x "
