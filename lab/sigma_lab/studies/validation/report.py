@@ -280,6 +280,25 @@ def judge_row(r: dict[str, Any]) -> Verdict:
     return Verdict(r["passed"] != "", bool(r["passed"]), bool(r["within_band"]), r["rule"])
 
 
+def _knee_md(knees: list[dict[str, Any]]) -> list[str]:
+    """The knee section of ``summary.md``."""
+    lines: list[str] = []
+    lines += ["", f"## Knee (the first N that does not hold: rate held, ≤ {KNEE_MISSED:.0%} "
+              "of frames missed)", ""]
+    lines.append("The predicate of `sigma-des capacity` on each grid, in order: capacity = "
+                 "the last N that holds before the knee, knee = the first that does not.")
+    lines.append("")
+    lines.append(md_table(["mode", "method", "live grid", "live capacity", "live knee",
+                           "DES capacity", "DES knee", "DES knee on live grid",
+                           "within ±25 %"],
+                          [[r["mode"], r["method"], r["live_grid"],
+                            str(r["live_capacity"] or "-"), str(r["live_knee"] or "-"),
+                            str(r["des_capacity"] or "-"), str(r["des_knee"] or "-"),
+                            str(r["des_knee_on_live_grid"] or "-"),
+                            r["verdict"]] for r in knees]))
+    return lines
+
+
 def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any]],
                noise: list[dict[str, Any]], report: dict[str, Any], command: str,
                cov: list[dict[str, Any]] | None = None) -> str:
@@ -321,19 +340,7 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
     quiet = [r for r in rows if not r["under_load"]]
     if len(quiet) != len(rows):
         lines += ["", "Cells not under load only:", ""] + _share_table(quiet)[0]
-    lines += ["", f"## Knee (the first N that does not hold: rate held, ≤ {KNEE_MISSED:.0%} "
-              "of frames missed)", ""]
-    lines.append("The predicate of `sigma-des capacity` on each grid, in order: capacity = "
-                 "the last N that holds before the knee, knee = the first that does not.")
-    lines.append("")
-    lines.append(md_table(["mode", "method", "live grid", "live capacity", "live knee",
-                           "DES capacity", "DES knee", "DES knee on live grid",
-                           "within ±25 %"],
-                          [[r["mode"], r["method"], r["live_grid"],
-                            str(r["live_capacity"] or "-"), str(r["live_knee"] or "-"),
-                            str(r["des_capacity"] or "-"), str(r["des_knee"] or "-"),
-                            str(r["des_knee_on_live_grid"] or "-"),
-                            r["verdict"]] for r in knees]))
+    lines += _knee_md(knees)
     knee_ok = {mode: all(r["verdict"] == "met" for r in knees if r["mode"] == mode)
                and any(r["mode"] == mode for r in knees) for mode in ("node", "bundle")}
     ins = [r for r in report.get("in_sample", []) if math.isfinite(r.get("error", math.nan))
