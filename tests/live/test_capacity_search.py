@@ -75,3 +75,13 @@ def test_search_on_a_grid_by_hand() -> None:
     assert search(lambda n: True, 0, 0, grid=grid) == (150, None, [10, 20, 40, 100, 150])
     assert search(lambda n: False, 0, 0, grid=grid) == (None, 10, [10])
     assert search(lambda n: n < 20, 0, 0, grid=grid) == (10, 20, [10, 20])
+
+
+def test_search_brackets_every_threshold() -> None:
+    """For every threshold T of a monotone predicate: capacity <= T < first failing,
+    within the tolerance, in at most 16 evaluations (10..400: 6 doublings, then
+    bisection of a bracket of at most 200)."""
+    for t in range(10, 400):
+        cap, bad, seen = search(lambda n, t=t: n <= t, 10, 400)
+        assert cap is not None and bad is not None and len(seen) <= 16
+        assert cap <= t < bad and bad - cap <= max(1.0, 0.05 * cap)
