@@ -105,8 +105,15 @@ COMMANDS: dict[str, Command] = {
                       "sigma_des.replay.cli:add_replay_args", extra="record"),
     "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
                     "sigma_des.live.cli:add_live_args", True, "live"),
-    "calibrate": Command("fit DES parameters from a live run; writes a scenario TOML",
+    "calibrate": Command("fit DES parameters from one or more live runs; writes a scenario "
+                         "TOML",
                          "sigma_des.calibrate.cli:add_calibrate_args", extra="live"),
+    "predict": Command("predict a target from a calibration, every method, with intervals "
+                       "(docs/howto/predict.md)",
+                       "sigma_des.calibrate.predict_cli:add_predict_args", extra="live"),
+    "capacity": Command("the largest N each method holds within missed-frame and latency "
+                        "budgets, from a calibration",
+                        "sigma_des.calibrate.predict_cli:add_capacity_args", extra="live"),
     "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
                     "sigma_des.tuning.cli:add_args", extra="tuning"),
     "warmup": Command("compile the numba kernels once, after installing (in parallel)",
@@ -176,6 +183,8 @@ def _run(args: argparse.Namespace) -> int:
         return _function("sigma_des.tuning.cli:run")(args)  # type: ignore[no-any-return]
     if command == "warmup":
         return _function("sigma_des.warmup.cli:run")(args)  # type: ignore[no-any-return]
+    if command in ("predict", "capacity"):
+        return _function(f"sigma_des.calibrate.predict_cli:run_{command}")(args)  # type: ignore[no-any-return]
     if command == "calibrate":
         return _function("sigma_des.calibrate.cli:run_calibrate")(args)  # type: ignore[no-any-return]
     from sigma_des.config import load

@@ -67,6 +67,7 @@ from numpy.typing import NDArray
 from sigma_des.calibrate.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
 from sigma_des.calibrate.fit_cpu import fit_deployment, path_services
 from sigma_des.calibrate.fit_step import MIN_SAMPLES, fit_compute
+from sigma_des.calibrate.report import calibrated_toml, report_lines
 from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
@@ -466,34 +467,3 @@ def for_target(cal: Scenario, report: dict[str, Any], overrides: list[str]) -> S
     per = _per_delivery(float(report["delivery_service_per_client_s"]), sc, sc.deployment)
     return replace(sc, broker=replace(sc.broker,
                                       delivery_service=Dist(dist="constant", value=per)))
-
-
-def report_lines(report: dict[str, Any]) -> list[str]:
-    """The report as readable lines: the fitted figures (``key = value``), the CPU
-    demands, the in-sample errors (flagged cells marked) and the warnings."""
-    lines = [f"{k} = {v}" for k, v in report.items() if not isinstance(v, list | dict)]
-    for m, cores in report.get("background_cores", {}).items():
-        lines.append(f"background_cores.{m} = {cores:.3f} (CPU other processes used)")
-    for r in report.get("cpu_demands", []):
-        lines.append(f"cpu demand {r['method']}/{r['process']}: {r['demand_s'] * 1e6:.1f} "
-                     f"µs per message ({r['messages']:.0f} messages, busy {r['busy_s']:.3f} s "
-                     f"of {r['window_s']:.2f} s, idle rate {r['idle_rate']:.4f})")
-    for r in report.get("in_sample", []):
-        unit = "pp" if r["metric"] == "missed_frac" else "%"
-        lines.append(f"in-sample {r['method']} {r['metric']}: live {r['live']:.4g}, DES "
-                     f"{r['des']:.4g}, error {100 * r['error']:+.1f} {unit}"
-                     + ("  > 10: FLAGGED" if r["flagged"] else ""))
-    cells = [r for r in report.get("in_sample", []) if math.isfinite(r["error"])]
-    if cells:
-        ok = sum(not r["flagged"] for r in cells)
-        lines.append(f"in-sample: {ok} of {len(cells)} cells within 10 % (10 pp)")
-    lines += [f"warning: {w}" for w in report.get("warnings", [])]
-    return lines
-
-
-def calibrated_toml(sc: Scenario, report: dict[str, Any]) -> str:
-    """The calibrated scenario as TOML, the report (:func:`report_lines`) as a comment
-    header."""
-    head = ["# calibrated by `sigma-des calibrate` from a live run"]
-    head += [f"# {line}" for line in report_lines(report)]
-    return "\n".join(head) + "\n" + to_toml(sc)
