@@ -16,7 +16,7 @@ from sigma_des.calibrate.campaign import RunInfo, check_combinable, combine, und
 from sigma_des.cli import main
 from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist
-from tests.live.test_calibrate_cpu import BACKGROUND_CPU, WINDOW, _cpu_run
+from tests.calibrate.test_calibrate_cpu import BACKGROUND_CPU, WINDOW, _cpu_run
 
 
 def _info(name: str, bundle: bool, **scen: object) -> RunInfo:

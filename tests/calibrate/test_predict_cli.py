@@ -16,7 +16,7 @@ from sigma_des.calibrate.predict import load_calibration
 from sigma_des.calibrate.target import prepare
 from sigma_des.cli import main
 from sigma_des.config import config_hash
-from tests.live.test_calibrate_cpu import _cpu_run
+from tests.calibrate.test_calibrate_cpu import _cpu_run
 
 SHORT = ["--set", "duration=0.6", "--set", "warmup=0.2", "--no-progress"]
 
