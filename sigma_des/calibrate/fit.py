@@ -226,7 +226,8 @@ def _stall_note(x: NDArray[np.float64], what: str, warn: list[str]) -> int:
         warn.append(f"{k} of {x.size} {what} latencies above {STALL_FACTOR:g} x their 99th "
                     f"percentile (> {STALL_FACTOR * np.percentile(x, 99) * 1e3:.3g} ms, mean "
                     f"{x[cut].mean() * 1e3:.3g} ms) taken as process stalls and left out of "
-                    "the hop draws (the DES has no stall model; docs/LIVE.md)")
+                    "the hop draws (the DES has no stall model; "
+                    "docs/concepts/live-and-calibration.md)")
     return k
 
 

@@ -354,7 +354,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
         warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
                     "a bundle of a loop turn's states; the DES bundles the states published "
                     "while a host's process is busy, so its bundles are as large as its "
-                    "host demand makes them (docs/MODEL.md, Bundles)")
+                    "host demand makes them (docs/concepts/deployment.md, 'Bundles')")
     background, measured, busy = _background(cpu, cores, warn)
     k = {kind: _kind_fit(cpu, table, kind, threads, warn) for kind in ("host", "server")}
     host_rep, server_rep = k["host"]["rep"], k["server"]["rep"]

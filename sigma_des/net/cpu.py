@@ -1,4 +1,4 @@
-"""The CPU stage: machines, processes and bursts (docs/MODEL.md, "Deployment and CPU").
+"""The CPU stage: machines, processes and bursts (docs/concepts/deployment.md).
 
 Every process of a deployment (the broker, the alignment server, each physics
 host's client process) is ONE thread on a machine of ``cores`` cores. A *burst*

@@ -1,7 +1,6 @@
 """Brokerless DDS/RTPS publish/subscribe over the modelled links (``net.middleware = "dds"``).
 
-The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/MODEL.md,
-"Peer architectures"):
+The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/concepts/peers.md):
 
 * **Participants.** Every physics node and the server is one DDS participant with
   one middleware thread, a FIFO server for all of that participant's sends and

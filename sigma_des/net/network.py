@@ -1,4 +1,4 @@
-"""MQTT clients over the modelled links, through the broker (docs/MODEL.md, "Network").
+"""MQTT clients over the modelled links, through the broker (docs/concepts/model.md, "Network").
 
 Links and transports (FIFO serialization, latency, loss, in-order streams) are
 in :mod:`sigma_des.net.links`, the broker's FIFO service in

@@ -1,4 +1,4 @@
-"""docs/ENV.md from the env study outputs: speed (``bench_env.py``), training
+"""lab/record/ENV.md from the env study outputs: speed (``bench_env.py``), training
 (``train_formation.py``) and the training-under-delay studies (``train_under_delay.py``,
 each followed by its ages control, ``train_ages_control.py``).
 
@@ -318,7 +318,7 @@ def delay_studies(outputs: Path, templates: Templates, img_dir: Path) -> str:
 
 
 def build(outputs: Path, templates: Templates, img_dir: Path) -> str:
-    """The whole of docs/ENV.md: the fixed prose of ``templates`` (``env_*``) around the
+    """The whole of lab/record/ENV.md: the fixed prose of ``templates`` (``env_*``) around the
     sections of the study outputs under ``outputs``."""
     intro = templates.text("env_intro")
     return "\n".join([intro, bench_section(outputs, templates), train_section(outputs),

@@ -4,7 +4,7 @@ The alignment server keeps the last ``k`` states of every node in
 :class:`RingBuffers` (slot ``frame % k``) and :func:`align` builds a snapshot of
 the whole swarm at one frame, vectorised over nodes (no Python loop per node).
 
-Decisions where the model (docs/MODEL.md, "Alignment methods") leaves room (documented
+Decisions where the model (docs/concepts/methods.md) leaves room (documented
 here and in the tests):
 
 * **Considered nodes** are those with any state; with ``theta_lag`` set, a node

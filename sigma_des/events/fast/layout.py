@@ -1,4 +1,4 @@
-"""The compiled message core's state, declared once by name (docs/MODEL.md, "Engines").
+"""The compiled message core's state, declared once by name (docs/concepts/engines.md).
 
 All state of the core is one tuple ``S`` of numpy arrays, built from the
 declaration :data:`FIELDS`: each :class:`Field` gives the array's name, dtype and
@@ -128,7 +128,7 @@ T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
 T_ILEN = 6
 C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
-# F3 — deployment (issue 24, docs/MODEL.md "Deployment and CPU"): event types of a
+# F3 — deployment (issue 24, docs/concepts/deployment.md): event types of a
 # publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to the
 # application (after its receive burst, or at once with per-host clients), S.cpu_ip, S.cpu_acc
 EV_SEND, EV_APP = 4, 5

@@ -2,7 +2,7 @@
 
 Features whose per-message behaviour the core does not reproduce are listed by
 :func:`unsupported`; a run that needs them uses the per-message engine for the
-whole run and says why (docs/MODEL.md, "Engines"). The link and clock tables the
+whole run and says why (docs/concepts/engines.md). The link and clock tables the
 core reads for Gilbert–Elliott loss and NTP clocks cover the run and
 :data:`TABLE_MARGIN` seconds more; :func:`ge_slots` and :func:`ntp_syncs` size
 them.

@@ -9,7 +9,7 @@
 * :mod:`~sigma_lab.studies.validation.suite` — the plan run resumably;
 * :mod:`~sigma_lab.studies.validation.report` — ``cells.csv``, ``summary.md``, the plot.
 
-``experiments/live_vs_des.py`` is the command line; docs/LIVE.md (*Validation*) says
+``experiments/live_vs_des.py`` is the command line; lab/record/LIVE.md (*Validation*) says
 how to read the outputs.
 """
 
