@@ -68,7 +68,7 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: the DDS
-    middleware and the ``rpc`` method (issue 16: per-message models only); bundled
+    middleware and the ``rpc`` method (per-message models only); bundled
     states (``deployment.bundle``: a variable number of records in one PUBLISH); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,
