@@ -5,8 +5,7 @@ Topics of run ``R`` (``R`` is a per-run token, so two runs on one broker never m
 * downstream (server -> hosts): ``sd/R/down/trig`` (triggers, one per frame, to
   every host), ``sd/R/down/h<H>/cmd`` (behaviour commands for nodes of host H),
   ``sd/R/down/h<H>/rereq`` (Lock-Step re-requests), ``sd/R/down/ctl`` (``stop``);
-* upstream (hosts -> server): ``sd/R/up/h<H>/state`` (one message per node state),
-  ``sd/R/up/h<H>/ready`` and ``sd/R/up/h<H>/stats`` (JSON, once per run).
+* upstream (hosts -> server): ``sd/R/up/h<H>/state``, ``…/ready``, ``…/stats`` (JSON).
 
 Payloads (bytes in brackets; ``f64`` times in s since the run's start; the kind byte
 is the message kind of :mod:`sigma_des.net.kinds`):
