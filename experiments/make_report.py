@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--outputs", type=Path, default=Path("out"), help="studies' output directory")
     p.add_argument(
-        "--report", type=Path, default=ROOT / "lab" / "record" / "REPRODUCTION.md", help="report to write"
+        "--report", type=Path, default=ROOT / "lab" / "record" / "REPRODUCTION.md",
+        help="report to write",
     )
     p.add_argument(
         "--check",

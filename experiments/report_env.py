@@ -26,7 +26,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--outputs", default="/work/out/env")
     ap.add_argument("--doc", default=str(ROOT / "lab" / "record" / "ENV.md"))
     args = ap.parse_args(argv)
-    Path(args.doc).write_text(build(Path(args.outputs), TEMPLATES, ROOT / "lab" / "record" / "img" / "env"))
+    img = ROOT / "lab" / "record" / "img" / "env"
+    Path(args.doc).write_text(build(Path(args.outputs), TEMPLATES, img))
     return 0
 
 

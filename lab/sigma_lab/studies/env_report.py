@@ -237,7 +237,7 @@ def delay_study(path: Path, img_dir: Path) -> str:
     figs = [f"![{name}: {f}](img/env/{name}_{f}.png)" for f in ("learning_curves", "eval")
             if (img_dir / f"{name}_{f}.png").exists()]
     lines += ["", f"Plots: `{name}/learning_curves.png` and `{name}/eval.png` under the "
-              "outputs" + (" (copies in `docs/img/env/`):" if figs else "."), *(
+              "outputs" + (" (copies in `lab/record/img/env/`):" if figs else "."), *(
                   ["", *figs] if figs else [])]
     lines += ["", f"Shown at p < 0.05 by both tests in: {', '.join(shown) or 'no cell'} "
               f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells).",
