@@ -16,7 +16,7 @@
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
 with the project's own Mosquitto; its load average and background CPU are kept.
 Rerunning with the same ``--out`` keeps every finished cell (a results file per
-cell). The rules and outputs: ``sigma_lab.studies.validation`` and docs/LIVE.md
+cell). The rules and outputs: ``sigma_lab.studies.validation`` and lab/record/LIVE.md
 (*Validation*).
 
     python experiments/live_vs_des.py --out out/validation        # ~15 min on 2 idle cores

@@ -99,11 +99,11 @@ COMMANDS: dict[str, Command] = {
     "config": Command("print the full resolved scenario as TOML (start from the defaults)",
                       _no_args, True),
     "sweep": Command("a grid of scenario keys x methods x seeds on Dask, resumable "
-                     "(docs/SWEEPS.md)", "sigma_des.sweep.cli:add_sweep_args", True,
+                     "(docs/howto/sweep-dask.md)", "sigma_des.sweep.cli:add_sweep_args", True,
                      "experiments"),
     "replay": Command("rebuild recorded trajectories (compare --record) at any rate",
                       "sigma_des.replay.cli:add_replay_args", extra="record"),
-    "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
+    "live": Command("run the scenario live over a real Mosquitto broker (docs/howto/live.md)",
                     "sigma_des.live.cli:add_live_args", True, "live"),
     "calibrate": Command("fit DES parameters from one or more live runs; writes a scenario "
                          "TOML",

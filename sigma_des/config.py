@@ -1,4 +1,4 @@
-"""The scenario: one validated, frozen configuration for a whole run (docs/MODEL.md).
+"""The scenario: one validated, frozen configuration for a whole run (docs/concepts/model.md).
 
 Every default lives here (or in the net-layer spec classes it embeds). A scenario is
 loaded from TOML and/or ``--set key=value`` overrides through :func:`load`; an unknown
@@ -114,7 +114,7 @@ class Scenario:
             command tick coincide with a trigger instant (a tie, not a deployment).
         render_phase: render tick j is at ``(j + render_phase) / f_render``; the
             default 0.6 samples half an alignment period after each alignment tick,
-            so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
+            so ``aoi_mean`` is close to the time average (see docs/concepts/metrics.md).
         duration: simulated time (s), at most 86400 (one day).
         warmup: metrics ignore everything before this time (s), in ``[0, duration)``.
             -1 (the default) means ``WARMUP_FRACTION * duration`` (0.1: 1 s of the
@@ -134,8 +134,9 @@ class Scenario:
         history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
         record: how ``--record`` stores runs (not part of the config hash).
-        deployment: machines, CPU demands and MQTT clients (docs/MODEL.md "Deployment
-            and CPU"); all defaults is not written out nor part of the config hash.
+        deployment: machines, CPU demands and MQTT clients
+            (docs/concepts/deployment.md); all defaults is not written out nor part of
+            the config hash.
     """
 
     seed: int = 1

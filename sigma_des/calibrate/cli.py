@@ -43,15 +43,15 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--one-thread", action="store_true",
                    help="fit each process as one thread even when the live run recorded its "
                    "threads apart (default: the loop and paho's network thread apart; "
-                   "docs/MODEL.md, 'The network thread')")
+                   "docs/concepts/deployment.md, 'The network thread')")
     p.add_argument("--runq-growth", action="store_true",
                    help="run-queue waits that grow with the DES machine's load (Erlang C; "
                    "default: each process kind's measured wait per CPU second, kept; "
-                   "docs/MODEL.md, 'Run-queue waits')")
+                   "docs/concepts/deployment.md, 'Run-queue waits')")
     p.add_argument("--no-match", action="store_true",
                    help="keep the fitted hop latencies as they are (default: rescale each "
                    "direction's until the DES re-predicts the run's mean state and trigger "
-                   "latency within 3 %%; docs/LIVE.md, Calibration)")
+                   "latency within 3 %%; docs/concepts/live-and-calibration.md)")
 
 
 def _put(body: str, fh: IO[str]) -> None:

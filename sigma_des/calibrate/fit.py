@@ -3,51 +3,24 @@
 From the message table (``messages.csv.gz`` or an MCAP recording) inside the metrics
 window, and the run's ``cpu.csv`` and ``summary.json``:
 
-* **the deployment** (:mod:`sigma_des.calibrate.fit_cpu`): ``colocated``, the ``cores``,
-  the ``background``, each process's threads' demands by the Utilization Law,
-  ``clients = "host"``, ``bundle`` as run; the broker's demand as both
-  ``broker.publish_service`` and ``delivery_service``. Without a ``cpu.csv`` next to it:
-  no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
-  between consecutive receivers of a trigger (:func:`delivery_floor`: scheduling noise
-  only adds to a gap), its publish service the base scenario's; the least-squares
-  fan-out slope (:func:`fanout_slope`) is reported either way;
-* **per-hop latency per direction** (empirical sample files): a state travels
-  host -> broker -> server (``net.host_link.latency`` and
-  ``net.server_link.latency_down``), a trigger or command server -> broker -> host
-  (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
-  ``(path latency - CPU services on the path) / 2``, the CPU services being what the
-  DES adds itself (:func:`~sigma_des.calibrate.fit_cpu.path_services`: the broker's two
-  services, and with a CPU stage the sender's publish burst with its expected wake-up,
-  slowed by the background; the receiver's burst comes after the receipt live stamps). The down hop
-  is fitted from triggers only: a tick's commands leave the server together and their
-  latencies hold its publish queue, which the DES adds itself. The path latency is
-  **de-queued** first (:mod:`sigma_des.calibrate.dequeue`): a delivery that came while the
-  receiver's thread may still have been busy (its receipts replayed with one burst
-  each, within ``hold_tol``) may have waited behind the stream's order or for the
-  receiver's thread (both of which the DES adds itself), so it is a left-censored
-  sample;
-* **the server's receive cost** (time from the client's receipt to the loop handling
-  the state): with a CPU stage it is the server's receive burst and its thread's
-  queue, modelled; without one it is folded into the server link's down latency
-  (fitted as a hop from each state's path latency plus twice its receive queueing)
-  when its mean exceeds 5 % of the hop's;
-* **node step time** (:mod:`sigma_des.calibrate.fit_step`): ``compute.step_time`` from each
-  job's service without its wait for a core, ``compute.host_share`` as the
-  intraclass correlation of the services' normal scores within a host and frame;
-* **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
-  and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
-  so the DES counts the same bytes.
+* **the deployment** (:mod:`sigma_des.calibrate.fit_cpu`). Without a ``cpu.csv``: no
+  CPU stage, the broker's per-delivery service the 5th percentile of the gaps between
+  consecutive receivers of a trigger (:func:`delivery_floor`), its publish service
+  the base scenario's;
+* **per-hop latency per direction** (empirical sample files): states give the upward
+  path, triggers (not commands, which hold the server's publish queue) the downward
+  one; a hop is ``(path latency - CPU services on the path) / 2``
+  (:func:`~sigma_des.calibrate.fit_cpu.path_services`), the path latency **de-queued**
+  first (:mod:`sigma_des.calibrate.dequeue`). Without a CPU stage the server's receive
+  cost is folded into the server link's down latency when it exceeds 5 % of the hop;
+* **node step time** (:mod:`sigma_des.calibrate.fit_step`) and ``compute.host_share``;
+* **wire sizes** set to the live payloads and topics, so the DES counts the same bytes.
 
-What cannot be fitted is said, never filled in silently: hosts whose states arrived without
-their per-node publish rows are refused (``strict``) or warned about, and too few samples,
-a single receiver per trigger or a missing ``cpu.csv`` are warnings in
-``report["warnings"]``. :mod:`sigma_des.calibrate.insample` checks the result against its run.
-
-With one client per host (a CPU fit) the broker's per-delivery service is per receiving
-client, as measured. Without (one DES client per node, live one per host) :func:`for_target`
-scales it by ``hosts / nodes`` of the scenario it prepares, so a trigger's total fan-out
-time is the measured one. The result is the live run's scenario with these parameters
-replaced, written as TOML that ``sigma-des compare`` runs (the sample files beside it).
+What cannot be fitted is said, never filled in silently (``report["warnings"]``, or
+refused with ``strict``). With one DES client per node (live has one per host)
+:func:`for_target` scales the per-delivery service by ``hosts / nodes``. The result is
+the live run's scenario with these parameters replaced, as TOML that ``sigma-des
+compare`` runs. The rules and why: docs/concepts/live-and-calibration.md.
 """
 
 from __future__ import annotations
@@ -227,7 +200,8 @@ def _stall_note(x: NDArray[np.float64], what: str, warn: list[str]) -> int:
         warn.append(f"{k} of {x.size} {what} latencies above {STALL_FACTOR:g} x their 99th "
                     f"percentile (> {STALL_FACTOR * np.percentile(x, 99) * 1e3:.3g} ms, mean "
                     f"{x[cut].mean() * 1e3:.3g} ms) taken as process stalls and left out of "
-                    "the hop draws (the DES has no stall model; docs/LIVE.md)")
+                    "the hop draws (the DES has no stall model; "
+                    "docs/concepts/live-and-calibration.md)")
     return k
 
 

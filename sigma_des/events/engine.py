@@ -1,6 +1,6 @@
 """The per-message engine: one alignment method over the whole distributed loop.
 
-This is the executable specification (docs/MODEL.md, "Engines"). Every message
+This is the executable specification (docs/concepts/engines.md). Every message
 is an event (SimPy events with callbacks, no process per message):
 
 trigger source ──PUBLISH──▶ broker ──N deliveries──▶ physics nodes ──(compute on
@@ -279,7 +279,7 @@ class MethodRun(AlignmentServer):
         self.core.close()  # the messages still in flight: no result reads them
         out = self.finish()
         # the run is over: its rings go now, not when a full collection finds the run
-        # (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs"); trajectory() stays
+        # (docs/concepts/engines.md, "The event table's memory"); trajectory() stays
         self.truth.release()
         run_finished(self.truth.nodes.size * self.spec.duration)  # the next run collects it
         return out

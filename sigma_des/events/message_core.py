@@ -2,7 +2,7 @@
 
 :class:`~sigma_des.events.engine.MethodRun` keeps the frame-level and control
 events (trigger issue, alignment and render ticks) and hands every message to a
-:class:`MessageCore` (docs/MODEL.md, "Engines"):
+:class:`MessageCore` (docs/concepts/engines.md):
 
 * :class:`EventCore` (``engine = "events"``): every message is a SimPy event on
   the run's :class:`~sigma_des.net.network.Network` — the executable

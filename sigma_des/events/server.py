@@ -1,6 +1,6 @@
 """The alignment server's loop: trigger issue, alignment, command and render ticks.
 
-Written once for both engines (docs/MODEL.md, "Engines"): the DES
+Written once for both engines (docs/concepts/engines.md): the DES
 (:class:`~sigma_des.events.engine.MethodRun`) and the live server
 (:class:`~sigma_des.live.server.LiveServer`) are subclasses that supply only the
 transport, in the spirit of SimPy's ``BaseResource`` (``_do_put``/``_do_get``):

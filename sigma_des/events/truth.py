@@ -1,6 +1,6 @@
 """The physics truth: the whole swarm's true state per frame, its checkpoints and re-simulation.
 
-By the frame-boundary rule (docs/MODEL.md, "Physics nodes") the true state of
+By the frame-boundary rule (docs/concepts/model.md, "Physics nodes") the true state of
 every node at frame k is known when trigger k is issued, so the swarm is stepped
 then, in one vectorised call of the dynamics model. The truth keeps the last
 ``history_frames`` frames in a ring: each frame's published-state rows (what a
@@ -14,7 +14,7 @@ still in the ring enter the log and the rings are let go: they are the run's lar
 arrays (164 MB at N = 1 000 once filled), and a finished run lingers as cyclic garbage
 until a full collection, so a process running one run after another (``compare``, a
 sweep, a benchmark) would otherwise keep every earlier run's rings resident and fault
-fresh pages for each new one (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs").
+fresh pages for each new one (docs/concepts/engines.md).
 
 A rollback re-simulates at once (:meth:`SwarmTruth.rollback`, the per-message
 engine's path) or, for the compiled core, later and in a batch: the core counts the

@@ -102,7 +102,7 @@ def check_reachable(workers: list[Worker], own_broker: bool) -> None:
             raise ConfigError("--broker", f"worker {w.name} ({w.address}) is on another "
                               "machine, and the broker this command starts listens on "
                               "127.0.0.1 only; run Mosquitto where every machine reaches it "
-                              "and pass --broker HOST:PORT (docs/LIVE.md, 'On a cluster')")
+                              "and pass --broker HOST:PORT (docs/howto/live.md)")
 
 
 class HostActor:

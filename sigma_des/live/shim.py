@@ -96,8 +96,8 @@ class Impairment:
                 self.lost += 1
                 if net.transport == "datagram" and net.qos == 0:
                     return math.inf
-                # the DES's stream doubles its RTO on each try (until session 10 this
-                # added rto per try: a twice-lost message waited 0.4 s here, 0.6 s there)
+                # the DES's stream doubles its RTO on each try (adding rto per try instead,
+                # a twice-lost message would wait 0.4 s here against 0.6 s in the DES)
                 penalty += (net.rto * 2**attempt if net.transport == "stream"
                             else net.qos1_timeout)
             else:

@@ -5,13 +5,10 @@ Topics of run ``R`` (``R`` is a per-run token, so two runs on one broker never m
 * downstream (server -> hosts): ``sd/R/down/trig`` (triggers, one per frame, to
   every host), ``sd/R/down/h<H>/cmd`` (behaviour commands for nodes of host H),
   ``sd/R/down/h<H>/rereq`` (Lock-Step re-requests), ``sd/R/down/ctl`` (``stop``);
-* upstream (hosts -> server): ``sd/R/up/h<H>/state`` (one message per node state),
-  ``sd/R/up/h<H>/ready`` and ``sd/R/up/h<H>/stats`` (JSON, once per run).
+* upstream (hosts -> server): ``sd/R/up/h<H>/state``, ``…/ready``, ``…/stats`` (JSON).
 
-Payloads (byte sizes in brackets; ``f64`` times are seconds since the run's start
-on one monotonic clock):
-
-The kind byte is the message kind of :mod:`sigma_des.net.kinds` (the DES's):
+Payloads (bytes in brackets; ``f64`` times in s since the run's start; the kind byte
+is the message kind of :mod:`sigma_des.net.kinds`):
 
 * trigger [33]: kind u8 = 1, frame u32, t_send f64, dt f64, hlc_l f64, hlc_c u32
 * state [85]: kind u8 = 2 (5 = republished), node u32, frame u32, t_gen f64,
@@ -20,20 +17,16 @@ The kind byte is the message kind of :mod:`sigma_des.net.kinds` (the DES's):
   m u16, m x f64 values
 * rerequest [21]: kind u8 = 4, node u32, frame u32, retry u32, t_send f64
 
-With ``--bundle``, a host packs the states its nodes finish in one turn of its loop
-into one PUBLISH: the payload is those 85-byte records back to back (at most
-:data:`MAX_BUNDLE`); the server accepts any whole number of records.
+With ``--bundle`` a host's states of one loop turn are 85-byte records back to back in
+one PUBLISH (at most :data:`MAX_BUNDLE`).
 
-The paper's state is 150 bits (19 bytes: pose and velocity packed at reduced
-precision); ours is 85 bytes because it carries the whole 12-column published
-state in float32 plus the time and HLC fields the measurements need. The DES
-counts ``payload_bits`` (default 150) on the wire; to compare wire throughput,
-set ``payload_bits = 680`` (85 bytes) in the DES. Every decoder checks length,
+Ours is 85 bytes, not the paper's 150 bits: it carries the whole published state in
+float32 plus the times and HLC fields the measurements need (``calibrate`` sets the
+DES's ``payload_bits`` to match). Every decoder checks length,
 kind, ranges and finiteness and raises :class:`WireError` on anything else; given
 the run's :class:`Window`, also that frames and times lie within the run (a forged
 trigger for frame 2^32-1 would otherwise make a host step four billion frames).
-The control messages (``go:<t0>``, ``stop``) are parsed by :func:`decode_control`
-and the hosts' end-of-run counters checked field by field by :func:`check_stats`.
+Control messages: :func:`decode_control`; the hosts' counters: :func:`check_stats`.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Every component hands over its own small frozen dataclass through one hook
 (``report()`` on the aligner, :meth:`NetReport.of` for the network's public
 counters, the engine's :class:`RunReport`); :meth:`~sigma_des.metrics.collector.
-Collector.finish` turns them into the tidy result rows (docs/MODEL.md, "Metrics").
+Collector.finish` turns them into the tidy result rows (docs/concepts/metrics.md).
 Nothing here knows which engine, aligner or network produced them.
 """
 

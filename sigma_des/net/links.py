@@ -1,4 +1,4 @@
-"""Access links and transports of the modelled network (docs/MODEL.md, "Network").
+"""Access links and transports of the modelled network (docs/concepts/model.md, "Network").
 
 Every client (physics node ``0..n-1``, and the server ``n`` that hosts the
 interface, the alignment server and the renderer) reaches the broker over its

@@ -1,4 +1,4 @@
-"""The compiled message core as a backend of the engine (docs/MODEL.md, "Engines").
+"""The compiled message core as a backend of the engine (docs/concepts/engines.md).
 
 :class:`CompiledCore` processes the messages of a
 :class:`~sigma_des.events.engine.MethodRun` — trigger fan-out, node computation,
@@ -242,7 +242,7 @@ class CompiledCore:
         """Load, for this state's types, the loop's entry points Python calls; return how
         many were not loaded yet. For benchmarks' warm-ups: a tiny run never reaches
         ``publish_commands`` or the rollbacks' entry points (≈ 30 ms to load, which the
-        timed run would then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
+        timed run would then pay)."""
         from numba import typeof, types
 
         s, i64, f64 = typeof(self.S), types.int64, types.float64

@@ -6,7 +6,7 @@ reaching the server is stored in the aligner's ring buffers (BiDES: the rule of
 :func:`~sigma_des.events.align.ring.insert_row`, in arrival order) or buffered for
 its ``on_states`` (and for a recording tap), and under Lock-Step the
 barrier's count is mirrored so the loop can stop when the barrier completes
-(docs/MODEL.md, "Alignment methods").
+(docs/concepts/methods.md).
 """
 
 from __future__ import annotations

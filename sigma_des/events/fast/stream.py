@@ -1,4 +1,5 @@
-"""The stream transport with hold-back in the compiled message core (docs/MODEL.md, "Network").
+"""The stream transport with hold-back in the compiled message core (docs/concepts/model.md,
+"Network").
 
 On a link with loss or random latency a ``stream`` delivers each connection's
 segments in order (:mod:`sigma_des.net.links`: ``transmit``, ``_stream_try``,

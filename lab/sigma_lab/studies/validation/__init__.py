@@ -12,7 +12,7 @@
   held-out cells and the ``residuals.toml`` ``sigma-des predict`` reads;
   :mod:`~sigma_lab.studies.validation.kneeplot` — ``knee.png``.
 
-``experiments/live_vs_des.py`` is the command line; docs/LIVE.md (*Validation*) says
+``experiments/live_vs_des.py`` is the command line; lab/record/LIVE.md (*Validation*) says
 how to read the outputs.
 """
 
