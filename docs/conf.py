@@ -52,7 +52,7 @@ exclude_patterns = [
     *sorted(p.name for p in DOCS.glob("*.md") if p.name not in TOP_PAGES),
 ]
 
-myst_enable_extensions = ["colon_fence", "deflist", "dollarmath", "fieldlist"]
+myst_enable_extensions = ["colon_fence", "deflist", "fieldlist"]
 myst_heading_anchors = 3
 
 autodoc_default_options = {"members": True, "show-inheritance": False}
