@@ -69,6 +69,9 @@ napoleon_attr_annotations = True
 # (numpy arrays, simpy, pandas) have no target in an offline build
 nitpicky = False
 
+# command lines keep their "--" (no en dashes)
+smartquotes = False
+
 html_theme = "furo"
 html_title = f"sigma_des {__version__}"
 html_static_path: list[str] = []

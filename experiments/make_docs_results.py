@@ -143,6 +143,10 @@ def run_study(s: Study, quick: bool) -> bool:
             if f.is_file() and f.suffix in KEEP:  # per-run folders stay out of git
                 shutil.copy2(f, dest / f.name)
         (dest / "stdout.txt").write_text(r.stdout)
+        for f in dest.iterdir():  # no path of this machine in what is committed
+            if f.suffix != ".png":
+                f.write_text(f.read_text().replace(str(out), f"OUT/{s.name}")
+                             .replace(str(ROOT), "."))
         run = {"name": s.name, "title": s.title, "page": s.page, "about": s.about,
                "date": started.isoformat().replace("+00:00", "Z"),
                "command": shlex.join(shown),

@@ -62,7 +62,7 @@ def _facts(run: dict[str, Any]) -> list[str]:
     m = run.get("machine", {})
     load = (f"{' / '.join(map(str, run['load_before']))} before, "
             f"{' / '.join(map(str, run['load_after']))} after (1, 5, 15 min)")
-    return ["| | |", "| --- | --- |",
+    return ["| Run | |", "| --- | --- |",
             f"| Date | {run['date']} |",
             f"| Command | `{run['command']}` |",
             f"| Scale | {run['scale']} |",
@@ -79,13 +79,20 @@ def study_section(folder: Path, rel: str) -> list[str]:
     run = json.loads((folder / "run.json").read_text())
     out = [f"## {run['title']}", "", run.get("about", ""), ""]
     if "quick" in run["scale"] or "small" in run["scale"]:
-        out += [":::{note}", f"A small-scale run ({run['scale']}, {run['date'][:10]}): the "
+        out += [":::{note}", f"A small-scale run, made on {run['date'][:10]}: the "
                 "figures show what the study reports, not its full-size result. "
                 "Regenerate with `python experiments/make_docs_results.py`.", ":::", ""]
+    cores = run.get("machine", {}).get("cores") or 0
+    peak = max(run["load_before"][0], run["load_after"][0])
+    if cores and peak > cores:
+        out += [":::{warning}", f"The machine was overloaded during this run (1-minute "
+                f"load average up to {peak:g} on {cores} cores): timings and live "
+                "figures are distorted by the other work and are not representative.",
+                ":::", ""]
     out += [*_facts(run), ""]
     summary = folder / "summary.md"
     if summary.exists():
-        out += ["### Summary", "", "```{include} " + f"{rel}/summary.md",
+        out += ["```{include} " + f"{rel}/summary.md",
                 ":heading-offset: 2", "```", ""]
     for png in sorted(folder.glob("*.png")):
         out += [f"```{{figure}} {rel}/{png.name}", ":width: 100%", "", png.stem, "```", ""]
