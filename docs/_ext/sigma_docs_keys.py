@@ -60,11 +60,15 @@ def keys_page() -> str:
     for name, keys in tables.items():
         if not keys:
             continue
-        title = f"`[{name}]`" if name else "Top level"
+        title = (f"`[[{name[:-2]}]]`" if name.endswith("[]") else f"`[{name}]`" if name
+                 else "Top level")
         anchor = name.replace(".", "-").replace("[]", "") or "top-level"
         out.append(f"({'keys-' + anchor})=\n## {title}\n")
         if name in heads and heads[name].doc:
             out.append(myst_inline(heads[name].doc) + "\n")
+        if name.endswith("[]"):
+            out.append(f"A list, empty by default: each `[[{name[:-2]}]]` entry is one table "
+                       "with the keys below (the defaults are those of a key left out).\n")
         out.append("| Key | Type | Unit | Default | Range | What it does |")
         out.append("| --- | --- | --- | --- | --- | --- |")
         out += [_row(k) for k in keys]
