@@ -24,7 +24,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
-from sigma_des import config as _cfg
+import sigma_des.config as _cfg
 from sigma_des.events.spec import DROP_MESSAGES, FAULT_KINDS, MAX_EXTRA_DELAY, MAX_SLOW_FACTOR
 from sigma_des.net.deployment import (
     CLIENTS,
