@@ -32,12 +32,19 @@ def test_docs_build_with_warnings_as_errors(tmp_path: Path) -> None:
         assert key in page, key
     assert "[0, 1)" in page and "(0, 10000]" in page  # loss p; the rates
     cli = (out / "reference" / "cli.html").read_text()
-    for option in ("--jobs", "--bundle", "--runq-growth", "--grid", "--rate"):
+    for option in ("--jobs", "--bundle", "--grid", "--rate"):
         assert option in cli, option
     api = (out / "reference" / "api.html").read_text()
     assert "run_method" in api and "ConfigError" in api
     outputs = (out / "reference" / "generated" / "outputs.html").read_text()
     assert "aoi_peak_mean" in outputs and "foxglove.PosesInFrame" in outputs
+    data = ROOT / "docs" / "results" / "data"
+    for name in ("validation", "performance"):
+        html = (out / "results" / f"{name}.html").read_text()
+        for run in data.glob("*/run.json"):
+            facts = json.loads(run.read_text())
+            if facts["page"] == name:  # every filed study is on its page, with its date
+                assert facts["title"] in html and facts["date"] in html, run
     glossary = (out / "glossary.html").read_text()
     assert 'id="term-BiDES"' in glossary
     assert "0.1.0" in (out / "changelog.html").read_text()

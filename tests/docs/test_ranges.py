@@ -197,3 +197,29 @@ def test_generated_reference_lists_every_key(tmp_path: Path) -> None:
         assert row is not None, f"{k} has no row in the scenario-key reference"
         cells = [c.strip() for c in row.strip("|").split(" | ")]
         assert len(cells) == 6 and cells[4], f"{k}: no range in its row {row!r}"
+
+
+def test_ranges_in_words_agree_too() -> None:
+    """The keys whose range is words, not bounds: each choice named is accepted."""
+    from sigma_des.config import ALL_METHODS, DYNAMICS_BUILTIN
+    from sigma_des.factory import make_behaviour
+
+    keys = {k.key: k for k in scenario_keys()}
+    assert [k.key for k in keys.values() if k.type != "table" and not k.range.probe
+            and k.name not in ("file", "dynamics_params")] == [
+        "dynamics", "methods", "commands.behaviour"]
+    for d in DYNAMICS_BUILTIN + ("jsbsim:c172x",):
+        assert f'"{d.split(":")[0]}' in keys["dynamics"].range.describe()
+        load(None, dynamics=d)
+    with pytest.raises(ConfigError):
+        load(None, dynamics="glider")
+    for m in ALL_METHODS:
+        assert f'"{m}"' in keys["methods"].range.describe()
+        load(None, methods=[m])
+    for bad in ([], ["none", "none"], ["warp"]):
+        with pytest.raises(ConfigError):
+            load(None, methods=bad)
+    for b in keys["commands.behaviour"].range.choices:
+        make_behaviour(load(None, **{"commands.behaviour": b}))
+    with pytest.raises(ConfigError):
+        make_behaviour(load(None, **{"commands.behaviour": "swarm-dance"}))
