@@ -113,7 +113,7 @@ def results_page(page: str, data: Path) -> str:
     """The page ``page`` as MyST Markdown, from the study folders under ``data``."""
     title, intro = PAGES[page]
     out = [f"# {title}", "", intro, ""]
-    folders = [d for d in sorted(data.iterdir()) if (d / "run.json").exists()
+    folders = [d for d in sorted(data.glob("*")) if (d / "run.json").exists()
                and json.loads((d / "run.json").read_text()).get("page") == page]
     if not folders:
         out += ["No study has been filed for this page yet: run "
