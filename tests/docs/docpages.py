@@ -142,9 +142,13 @@ def run_page(page: Path, workdir: Path) -> int:
                 ran += 1
             elif b.lang == "bash":
                 for cmd in _bash_lines(b.code):
-                    r = subprocess.run(["bash", "-c", cmd], cwd=workdir, env=_env(),
-                                       capture_output=True, text=True,
-                                       timeout=LINE_TIMEOUT_S)
+                    try:
+                        r = subprocess.run(["bash", "-c", cmd], cwd=workdir, env=_env(),
+                                           capture_output=True, text=True,
+                                           timeout=LINE_TIMEOUT_S)
+                    except subprocess.TimeoutExpired:
+                        raise PageError(f"{where}: `{cmd}` still running after "
+                                        f"{LINE_TIMEOUT_S} s") from None
                     if r.returncode != 0:
                         raise PageError(f"{where}: `{cmd}` exited {r.returncode}\n"
                                         f"{r.stdout[-1500:]}{r.stderr[-1500:]}")
