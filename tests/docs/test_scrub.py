@@ -101,7 +101,6 @@ def test_findings_name_file_line_and_kind(tmp_path: Path) -> None:
     ]
 
 
-@pytest.mark.xfail(strict=False, reason="until the docs scrub lands")
 def test_no_research_log_in_package_or_docs() -> None:
     found = findings(scanned_files())
     assert not found, f"{len(found)} lines:\n" + "\n".join(found[:200])
@@ -125,7 +124,6 @@ def test_long_docstring_is_found(tmp_path: Path) -> None:
         assert (len(doc.splitlines()) > MAX_DOCSTRING_LINES) is over
 
 
-@pytest.mark.xfail(strict=False, reason="until the docs scrub lands")
 def test_module_docstrings_are_short() -> None:
     long = long_docstrings()
     assert not long, "module docstrings over 30 lines:\n" + "\n".join(long)
