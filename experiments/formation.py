@@ -68,7 +68,8 @@ from sigma_lab.studies.formation_flight import (
     write_outputs,
 )
 
-from sigma_des import load, studies
+from sigma_des import load
+from sigma_lab import studies
 from sigma_des.config import Scenario
 
 NAME = "formation"
