@@ -58,6 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sigma_lab import studies
 from sigma_lab.studies.formation_flight import (
     IDEAL,
     LEADER,
@@ -69,7 +70,6 @@ from sigma_lab.studies.formation_flight import (
 )
 
 from sigma_des import load
-from sigma_lab import studies
 from sigma_des.config import Scenario
 
 NAME = "formation"
