@@ -173,8 +173,8 @@ def _assert_equal(des: DesServer, live: VirtualLiveServer, hosts: list[Host]) ->
     assert ts_live.keys() == ts_des.keys()
     for key in ts_des:  # render ticks: times, AoI mean/max, spread, rate, frames
         assert np.array_equal(ts_live[key], ts_des[key], equal_nan=True), key
-    assert sum(h.rollbacks for h in hosts) == des.truth.rollbacks
-    assert sum(h.resim_steps for h in hosts) == des.truth.resim_steps
+    assert sum(h.truth.rollbacks for h in hosts) == des.truth.rollbacks
+    assert sum(h.truth.resim_steps for h in hosts) == des.truth.resim_steps
 
 
 def test_the_scenario_exercises_what_it_claims() -> None:
