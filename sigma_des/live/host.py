@@ -42,6 +42,7 @@ from sigma_des.live.wire import (
     Topics,
     Window,
     WireError,
+    command_bytes,
     decode_command,
     decode_control,
     decode_rerequest,
@@ -50,7 +51,7 @@ from sigma_des.live.wire import (
 )
 from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 
 __all__ = ["ClockLoop", "Host", "HostNodes", "main"]
 
@@ -230,7 +231,7 @@ class Host(ImpairedSender):
             elif topic == tp.rereq(self.h):
                 node, frame, retry, t_send = decode_rerequest(payload, self.window)
                 j = self._local_index(node)
-                index = frame * 64 + min(retry, 63)
+                index = rerequest_index(frame, retry)
                 self._deliver(t, REREQUEST, node, index, t_send, len(topic), len(payload),
                               self._on_rerequest, j, frame, index)
             elif topic == tp.ctl:
@@ -243,7 +244,7 @@ class Host(ImpairedSender):
     def _commands(self, t: float, topic: str, payload: bytes) -> None:
         """One command, or (``--bundle``) a whole number of same-size command records."""
         width = self.cmd.shape[1]
-        size = 23 + 8 * width
+        size = command_bytes(width)
         if len(payload) % size or len(payload) // size > MAX_BUNDLE:
             raise WireError(f"command: {len(payload)} bytes is not a multiple of {size}")
         recs = []

@@ -45,7 +45,7 @@ from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
 from sigma_des.live.procs import HostGroup, LocalHosts
 from sigma_des.live.server import LiveServer
-from sigma_des.live.wire import Topics
+from sigma_des.live.wire import Topics, run_token
 from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
@@ -197,7 +197,7 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
             d = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
             janitor.watch(d)
         d.mkdir(parents=True, exist_ok=True)
-        runs = [(m, secrets.token_hex(4) + m) for m in ms]
+        runs = [(m, run_token(m)) for m in ms]
         group = _host_group(sc, opts, d, stack)
         group.start([_host_cfg(sc, runs, addr, opts, h, group.own_clocks)
                      for h in range(sc.hosts)])

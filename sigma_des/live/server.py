@@ -40,7 +40,7 @@ from sigma_des.live.wire import (
     encode_trigger,
 )
 from sigma_des.metrics.reports import NetReport, RunReport
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 
 __all__ = ["LiveNet", "LiveServer"]
 
@@ -153,7 +153,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         t = self.now()
         self._publish(self.topics.rereq(self.host_of[node]),
                       encode_rerequest(node, frame, retry, t), t, REREQUEST, node,
-                      frame * 64 + min(retry, 63))
+                      rerequest_index(frame, retry))
 
     def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]

@@ -4,11 +4,10 @@ Each live process owns one access link (a host's ``net.host_link`` or the server
 ``net.server_link``). Its :class:`Impairment` decides, per message and direction,
 the extra one-way delay drawn from the link's ``latency`` distribution and whether
 the message is lost (the link's Bernoulli or Gilbert–Elliott ``loss``). A lost
-message is resent the way the DES transport would: ``stream`` adds ``rto · 2^a`` for
-lost attempt ``a`` (TCP retransmission with its doubling timeout, as
-``Links._stream_try``; order is kept), ``datagram`` with QoS 1 adds ``qos1_timeout``
-per attempt, ``datagram`` with QoS 0 drops it; after
-``max_retries`` lost attempts it is gone. Draws use the counter-based streams
+message is resent by the DES transport's rules (:mod:`sigma_des.net.resend`: ``stream``
+waits ``rto · 2^a`` after lost attempt ``a`` and keeps each direction in order,
+``datagram`` with QoS 1 waits ``qos1_timeout``, with QoS 0 drops it; after
+``max_retries`` lost resends it is gone). Draws use the counter-based streams
 keyed by (link, direction, kind, subject, index, attempt): same seed, same
 impairment decisions. A Bernoulli loss uses the DES's own draw of that packet: stream
 ``lossu.<host|server>.<up|down>`` at ``(kind, subject, index, attempt)``, as
@@ -30,6 +29,7 @@ from typing import TYPE_CHECKING
 
 from sigma_des.core.rng import RandomStreams
 from sigma_des.net.loss import LossProcess
+from sigma_des.net.resend import InOrderRelease, walk_tries
 from sigma_des.net.spec import LinkSpec, NetSpec
 
 if TYPE_CHECKING:  # only for annotations: the shim itself needs no MQTT client
@@ -69,7 +69,7 @@ class Impairment:
                    for up in (True, False))
         self.enabled = enabled and not (lossless and zero)
         self._lossless = lossless
-        self._last = [0.0, 0.0]  # stream transport: release times stay in order
+        self._order = [InOrderRelease(), InOrderRelease()]  # UP, DOWN (stream transport)
         self.lost = 0
         self.gave_up = 0
 
@@ -87,27 +87,20 @@ class Impairment:
             return 0.0
         ids = (self.link_id, direction, kind, subject, index)
         d = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
+        stream = self.net.transport == "stream"
         if not self._lossless:
-            net = self.net
-            penalty = 0.0
-            for attempt in range(net.max_retries + 1):
-                if not self._lost(t + penalty, direction, kind, subject, index, attempt):
-                    break
-                self.lost += 1
-                if net.transport == "datagram" and net.qos == 0:
-                    return math.inf
-                # the DES's stream doubles its RTO on each try (until session 10 this
-                # added rto per try: a twice-lost message waited 0.4 s here, 0.6 s there)
-                penalty += (net.rto * 2**attempt if net.transport == "stream"
-                            else net.qos1_timeout)
-            else:
+            tries = walk_tries(self.net, lambda offset, attempt: self._lost(
+                t + offset, direction, kind, subject, index, attempt))
+            self.lost += tries.lost
+            if tries.gave_up:
                 self.gave_up += 1
-                return math.inf
-            d += penalty
-        if self.net.transport == "stream":
-            release = max(t + d, self._last[direction])
-            self._last[direction] = release
-            d = release - t
+                if stream:  # it still takes its place in the order, at its last try
+                    self._order[direction].give_up(t + tries.last)
+            d += tries.delay
+            if math.isinf(d):
+                return d
+        if stream:
+            d = self._order[direction].release(t + d) - t
         return d
 
 
