@@ -1,19 +1,13 @@
 """The transports' resend rules and in-order release, on hand-computed cases.
 
 The simulated stream (``Links._stream_try``/``_stream_arrive``) and the live shim both
-apply these; the shim's side is checked here against the DES's own give-up ordering.
+apply these (tests/live/test_shim.py checks the shim against the DES's stream).
 """
 
 from __future__ import annotations
 
 import math
 
-from sigma_des import load
-from sigma_des.core.rng import RandomStreams
-from sigma_des.core.sim import Kernel
-from sigma_des.live.shim import UP, Impairment
-from sigma_des.net.message import Msg
-from sigma_des.net.network import Network
 from sigma_des.net.resend import InOrderRelease, Tries, resend_wait, stream_backoff, walk_tries
 from sigma_des.net.spec import NetSpec
 
@@ -60,31 +54,3 @@ def test_in_order_release_waits_for_the_message_sent_before() -> None:
     assert order.release(0.6) == 0.9
     order.give_up(0.2)  # an earlier give-up changes nothing
     assert order.release(1.0) == 1.0
-
-
-def test_the_des_stream_holds_later_segments_behind_a_given_up_one() -> None:
-    """``Links``: a segment lost on every try releases the segments behind it when it
-    is given up (its last try); the shim keeps the same order (its give-up at
-    ``t + rto·(2^(max_retries) - 1)``)."""
-
-    sets = ["nodes=2", "hosts=1", "net.host_link.loss.p=0.5", "net.transport='stream'",
-            "net.rto=0.1", "net.max_retries=1", "net.host_link.latency.value=0.002"]
-    sc = load(None, sets)
-    imp = Impairment(sc.net.host_link, sc.net, RandomStreams(sc.seed), 0)
-    lost = RandomStreams(sc.seed).stream("lossu.host.up")
-    fates = [[bool(lost.uniform(2, 0, k, a)[()] < 0.5) for a in range(2)] for k in range(40)]
-    gone = next(k for k, f in enumerate(fates) if all(f))  # lost on both tries
-    after = next(k for k in range(gone + 1, 40) if not fates[k][0])  # through at once
-    assert imp.delay(0.0, UP, 2, 0, gone) == math.inf
-    # sent 1 ms later, it arrives at 0.003 s but waits for the give-up at 0.1 s
-    assert imp.delay(0.001, UP, 2, 0, after) == 0.1 - 0.001
-    # the DES's stream: the same two messages on node 0's uplink
-    k = Kernel()
-    got: list[tuple[float, int]] = []
-    net = Network(k, sc.net_setup(), RandomStreams(sc.seed), lambda m: None)
-    for t, idx in ((0.0, gone), (0.001, after)):
-        m = Msg(0, 2, 0, idx, None, 100, (), 0, t, t)
-        k.at(t, net.transmit, m, True, 100, lambda m: got.append((k.now, m.index)))
-    k.run(until=1.0)
-    assert got == [(0.1, after)]
-    assert net.gave_up == 1
