@@ -11,7 +11,6 @@ Anything malformed or on an unknown topic is counted and dropped.
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -39,7 +38,7 @@ from sigma_des.live.wire import (
     encode_rerequest,
     encode_trigger,
 )
-from sigma_des.metrics.reports import NetReport, RunReport
+from sigma_des.metrics.reports import LinkCount
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 
 __all__ = ["LiveNet", "LiveServer"]
@@ -62,11 +61,10 @@ class LiveNet:
             cur[0] += int(b)
             cur[1] += int(p)
 
-    def links(self) -> list[SimpleNamespace]:
-        """Link directions with ``name``, ``bytes`` and ``packets`` (uplinks first)."""
+    def links(self) -> list[LinkCount]:
+        """Link directions' counts (uplinks first)."""
         keys = sorted(self._links, key=lambda k: (not k.endswith(".up"), _link_order(k)))
-        return [SimpleNamespace(name=k, bytes=v[0], packets=v[1])
-                for k, v in ((k, self._links[k]) for k in keys)]
+        return [LinkCount(k, *self._links[k]) for k in keys]
 
 
 def _link_order(name: str) -> tuple[int, str]:
@@ -295,7 +293,6 @@ class LiveServer(AlignmentServer, ImpairedSender):
             self.net.gave_up += int(st.get("gave_up", 0))
         self.net.retransmissions += self.impair.lost
         self.net.gave_up += self.impair.gave_up
-        run = RunReport(f_trig=self.f_trig, rollbacks=self.rollbacks, resim_steps=self.resim_steps,
-                        history_misses=self.history_misses, wall_seconds=self.wall_seconds,
-                        events=self.loop.handled)
-        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))
+        return self.results(rollbacks=self.rollbacks, resim_steps=self.resim_steps,
+                            history_misses=self.history_misses, wall_seconds=self.wall_seconds,
+                            events=self.loop.handled, net=self.net)
