@@ -288,11 +288,11 @@ class Host(ImpairedSender):
     def _deliver(self, t: float, kind: int, subject: int, index: int, t_send: float,
                  topic_len: int, size: int, fn: Any, *args: Any) -> None:
         self.ledger.received(t_send, topic_len, size, self.qos)
-        d = self.impair.delay(t, DOWN, kind, subject, index)
-        if math.isinf(d):
+        at = self.impair.arrival(t, DOWN, kind, subject, index)
+        if math.isinf(at):
             return
-        if d > 0:
-            self.loop.call_at(t + d, self._release, fn, args)
+        if at > t:
+            self.loop.call_at(at, self._release, fn, args)
         else:
             fn(t, *args)
 
@@ -380,7 +380,7 @@ class Host(ImpairedSender):
             "resim_steps": self.truth.resim_steps,
             "history_misses": self.jobs.history_misses,
             "rejected": self.rejected,
-            "lost": self.impair.lost,
+            "resent": self.impair.resent,
             "gave_up": self.impair.gave_up,
             "connects": self.client.connects,
             "disconnects": self.client.disconnects,

@@ -71,10 +71,12 @@ class Impairment:
         self._lossless = lossless
         self._order = [InOrderRelease(), InOrderRelease()]  # UP, DOWN (stream transport)
         self.lost = 0
+        self.resent = 0
         self.gave_up = 0
 
-    def delay(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
-        """Extra delay (s) of one message sent/received at ``t``; ``inf`` if it is lost.
+    def arrival(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
+        """When one message that enters this link at ``t`` is handed on (s); ``inf`` if
+        it is lost (``t`` itself without impairment).
 
         Args:
             t: time the message enters this link (s).
@@ -84,24 +86,30 @@ class Impairment:
             index: frame, tick or re-request index.
         """
         if not self.enabled:
-            return 0.0
+            return t
         ids = (self.link_id, direction, kind, subject, index)
-        d = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
+        lat = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
         stream = self.net.transport == "stream"
+        sent = t
         if not self._lossless:
-            tries = walk_tries(self.net, lambda offset, attempt: self._lost(
-                t + offset, direction, kind, subject, index, attempt))
+            tries = walk_tries(self.net, t, lambda t_try, attempt: self._lost(
+                t_try, direction, kind, subject, index, attempt))
             self.lost += tries.lost
+            self.resent += tries.resent
             if tries.gave_up:
                 self.gave_up += 1
                 if stream:  # it still takes its place in the order, at its last try
-                    self._order[direction].give_up(t + tries.last)
-            d += tries.delay
-            if math.isinf(d):
-                return d
+                    self._order[direction].give_up(tries.last)
+            sent = tries.sent
+            if math.isinf(sent):
+                return sent
         if stream:
-            d = self._order[direction].release(t + d) - t
-        return d
+            return self._order[direction].release(sent + lat)
+        return sent + lat
+
+    def delay(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
+        """:meth:`arrival` less ``t``: the extra delay (s); ``inf`` if it is lost."""
+        return self.arrival(t, direction, kind, subject, index) - t
 
 
     def _lost(self, t: float, direction: int, kind: int, subject: int, index: int,
@@ -130,11 +138,11 @@ class ImpairedSender:
 
     def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
                  index: int) -> None:
-        d = self.impair.delay(t, UP, kind, subject, index)
-        if math.isinf(d):
+        at = self.impair.arrival(t, UP, kind, subject, index)
+        if math.isinf(at):
             return
         self.ledger.sent(t, len(topic), len(payload), self.qos)
-        if d > 0:
-            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
+        if at > t:
+            self.loop.call_at(at, self.client.publish, topic, payload, self.qos)
         else:
             self.client.publish(topic, payload, self.qos)

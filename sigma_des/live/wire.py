@@ -354,7 +354,7 @@ def decode_control(b: bytes, mono_now: float) -> tuple[str, float]:
 
 #: The hosts' end-of-run counters: non-negative integers, but ``links`` (a dict of
 #: ``"<link>.<dir>": [bytes, packets]``), ``host`` and ``step_real_s`` (seconds).
-STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "lost", "gave_up",
+STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "resent", "gave_up",
                 "connects", "disconnects", "steps")
 
 

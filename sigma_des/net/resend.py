@@ -48,39 +48,46 @@ class Tries(NamedTuple):
     """The tries of one message, as :func:`walk_tries` found them.
 
     Attributes:
-        delay: when the try that gets through is sent, after the first (s); ``inf``:
-            none does (the message is gone).
+        sent: when the try that gets through is sent (s); ``inf``: none does (the
+            message is gone).
         lost: tries lost.
         gave_up: all ``max_retries + 1`` tries were lost (a QoS 0 datagram is gone
             after its one try without giving up).
-        last: when the last try is sent, after the first (s).
+        last: when the last try is sent (s).
     """
 
-    delay: float
+    sent: float
     lost: int
     gave_up: bool
     last: float
 
+    @property
+    def resent(self) -> int:
+        """Lost tries that were sent again (the network's ``retransmissions``)."""
+        return self.lost - 1 if math.isinf(self.sent) else self.lost
 
-def walk_tries(net: NetSpec, lost: Callable[[float, int], bool]) -> Tries:
+
+def walk_tries(net: NetSpec, t: float, lost: Callable[[float, int], bool]) -> Tries:
     """Apply the resend rule to one message whose tries' fates are known at once.
+
+    Each try is sent at the previous try's time plus its wait, the very sum the
+    simulated transport's clock makes (so the times are the DES's to the bit).
 
     Args:
         net: the network spec.
-        lost: ``lost(offset, attempt)``: is try ``attempt``, sent ``offset`` s after
-            the first, lost?
+        t: when the first try is sent (s).
+        lost: ``lost(t_try, attempt)``: is try ``attempt``, sent at ``t_try``, lost?
     """
-    offset = 0.0
     for attempt in range(net.max_retries + 1):
-        if not lost(offset, attempt):
-            return Tries(offset, attempt, False, offset)
+        if not lost(t, attempt):
+            return Tries(t, attempt, False, t)
         wait = resend_wait(net, attempt)
         if math.isinf(wait):
-            return Tries(math.inf, attempt + 1, False, offset)
+            return Tries(math.inf, attempt + 1, False, t)
         if attempt == net.max_retries:
             break
-        offset += wait
-    return Tries(math.inf, net.max_retries + 1, True, offset)
+        t = t + wait
+    return Tries(math.inf, net.max_retries + 1, True, t)
 
 
 class InOrderRelease:

@@ -39,7 +39,7 @@ def test_constant_latency_and_stream_order() -> None:
     assert release == sorted(release)  # stream transport keeps order
     dg = Impairment(LinkSpec(latency=Dist(dist="constant", value=0.003)),
                     NetSpec(transport="datagram"), RandomStreams(3), 1)
-    assert dg.delay(1.0, UP, 2, 5, 7) == 0.003
+    assert dg.arrival(1.0, UP, 2, 5, 7) == 1.0 + 0.003
 
 
 def test_loss_follows_the_link_loss_process() -> None:
@@ -123,7 +123,7 @@ def test_the_des_stream_holds_later_segments_behind_a_given_up_one() -> None:
     after = next(k for k in range(gone + 1, 40) if not fates[k][0])  # through at once
     assert imp.delay(0.0, UP, 2, 0, gone) == math.inf
     # sent 1 ms later, it arrives at 0.003 s but waits for the give-up at 0.1 s
-    assert imp.delay(0.001, UP, 2, 0, after) == 0.1 - 0.001
+    assert imp.arrival(0.001, UP, 2, 0, after) == 0.1
     # the DES's stream: the same two messages on node 0's uplink
     k = Kernel()
     got: list[tuple[float, int]] = []

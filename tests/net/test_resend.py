@@ -13,11 +13,11 @@ from sigma_des.net.spec import NetSpec
 
 
 def _fates(*lost: bool):  # type: ignore[no-untyped-def]
-    """``lost(offset, attempt)`` from a fixed list of fates, recording the offsets asked."""
+    """``lost(t_try, attempt)`` from a fixed list of fates, recording the tries asked."""
     asked: list[tuple[float, int]] = []
 
-    def lost_try(offset: float, attempt: int) -> bool:
-        asked.append((offset, attempt))
+    def lost_try(t_try: float, attempt: int) -> bool:
+        asked.append((t_try, attempt))
         return lost[attempt]
 
     return lost_try, asked
@@ -35,16 +35,16 @@ def test_the_stream_doubles_its_wait_and_qos1_waits_its_timeout() -> None:
 def test_walking_the_tries_of_one_message() -> None:
     stream = NetSpec(transport="stream", rto=0.25, max_retries=3)
     lost, asked = _fates(True, True, False, False)
-    assert walk_tries(stream, lost) == Tries(0.75, 2, False, 0.75)  # 0.25 + 0.5
-    assert asked == [(0.0, 0), (0.25, 1), (0.75, 2)]
+    assert walk_tries(stream, 2.0, lost) == Tries(2.75, 2, False, 2.75)  # 2 + 0.25 + 0.5
+    assert asked == [(2.0, 0), (2.25, 1), (2.75, 2)]
     lost, asked = _fates(True, True, True, True)
-    assert walk_tries(stream, lost) == Tries(math.inf, 4, True, 1.75)  # last try at 1.75
-    assert [a for _o, a in asked] == [0, 1, 2, 3]
+    assert walk_tries(stream, 2.0, lost) == Tries(math.inf, 4, True, 3.75)  # last try
+    assert [a for _t, a in asked] == [0, 1, 2, 3]
     qos0 = NetSpec(transport="datagram", qos=0)
-    assert walk_tries(qos0, _fates(True)[0]) == Tries(math.inf, 1, False, 0.0)
-    qos1 = NetSpec(transport="datagram", qos=1, qos1_timeout=0.1, max_retries=1)
-    assert walk_tries(qos1, _fates(True, False)[0]) == Tries(0.1, 1, False, 0.1)
-    assert walk_tries(qos1, _fates(False)[0]) == Tries(0.0, 0, False, 0.0)
+    assert walk_tries(qos0, 2.0, _fates(True)[0]) == Tries(math.inf, 1, False, 2.0)
+    qos1 = NetSpec(transport="datagram", qos=1, qos1_timeout=0.125, max_retries=1)
+    assert walk_tries(qos1, 2.0, _fates(True, False)[0]) == Tries(2.125, 1, False, 2.125)
+    assert walk_tries(qos1, 2.0, _fates(False)[0]) == Tries(2.0, 0, False, 2.0)
 
 
 def test_in_order_release_waits_for_the_message_sent_before() -> None:
