@@ -173,10 +173,10 @@ def test_live_rules_on_a_virtual_clock_equal_the_des(method: str, step: str) -> 
     assert sum(h.jobs.history_misses for h in hosts) == des.nodes.history_misses
 
 
-#: 5 % of the tries lost on every link, both ways, over a stream (one MQTT client per
-#: host, as live): resent after 20 ms, 40 ms, ...; a message lost twice is given up.
+#: 7 % of the tries lost on every link, both ways, over a stream (one MQTT client per
+#: host, as live): resent after 20 ms, then 40 ms; a message lost three times is given up.
 LOSSY = ['deployment.clients="host"', 'net.transport="stream"', "net.rto=0.02",
-         "net.max_retries=1", "net.host_link.loss.p=0.05", "net.server_link.loss.p=0.05"]
+         "net.max_retries=2", "net.host_link.loss.p=0.07", "net.server_link.loss.p=0.07"]
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -186,17 +186,20 @@ def test_live_over_a_lossy_stream_equals_the_des(method: str) -> None:
     shims = [live.impair] + [h.impair for h in hosts]
     for compiled in (False, True):
         des = run_des(sc, method, compiled)
-        _assert_equal(des, live, hosts)
+        _assert_equal(des, live, hosts, min_triggers=40)  # Lock-Step's barriers wait
         # the same tries lost, resent and given up (lost = resent + given up)
-        assert sum(s.resent for s in shims) == des.net.retransmissions > 25
+        assert sum(s.resent for s in shims) == des.net.retransmissions > 30
         assert sum(s.gave_up for s in shims) == des.net.gave_up
         assert sum(s.lost for s in shims) == des.net.retransmissions + des.net.gave_up
-    if method == "lockstep":  # a state given up; re-requests answered over the lossy links
-        assert des.net.gave_up == 1 and des.aligner.report().rerequests == 7
+    if method == "none":  # a message lost on all three tries
+        assert des.net.gave_up == 1
+    if method == "lockstep":  # re-requested states answered over the lossy links
+        assert des.aligner.report().rerequests > 10
 
 
-def _assert_equal(des: DesServer, live: VirtualLiveServer, hosts: list[Host]) -> None:
-    assert len(des.triggers) > 50 and len(des.ticks) > 60
+def _assert_equal(des: DesServer, live: VirtualLiveServer, hosts: list[Host],
+                  min_triggers: int = 50) -> None:
+    assert len(des.triggers) > min_triggers and len(des.ticks) > 60
     assert live.triggers == des.triggers
     assert live.ticks == des.ticks
     assert np.array_equal(_aoi(live), _aoi(des))
