@@ -14,17 +14,32 @@ from typing import Any
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["parse_set", "read_toml", "set_key"]
+__all__ = ["parse_set", "read_toml", "set_key", "split_item"]
+
+
+def split_item(item: str, form: str, where: str) -> tuple[str, str]:
+    """``(key, raw value)`` of ``item``, a ``key=...`` text.
+
+    Args:
+        item: the text.
+        form: what it must look like (the error message when it has no ``=``).
+        where: where it was given (``empty key in <where>``).
+
+    Raises:
+        ConfigError: no ``=``, or an empty key.
+    """
+    if "=" not in item:
+        raise ConfigError(item, form)
+    key, raw = item.split("=", 1)
+    key = key.strip()
+    if not key:
+        raise ConfigError(item, f"empty key in {where}")
+    return key, raw
 
 
 def parse_set(item: str) -> tuple[str, Any]:
     """Parse one ``key=value`` override; the value is read as TOML, else as a string."""
-    if "=" not in item:
-        raise ConfigError(item, "an override must look like key=value")
-    key, raw = item.split("=", 1)
-    key = key.strip()
-    if not key:
-        raise ConfigError(item, "empty key in override")
+    key, raw = split_item(item, "an override must look like key=value", "override")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
