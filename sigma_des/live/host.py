@@ -1,7 +1,8 @@
 """A live physics host: one OS process, one MQTT client, the nodes placed on it.
 
 On every trigger the host steps all its nodes' aircraft to the trigger's frame with
-the scenario's dynamics model (catching up over lost triggers), for real; then
+the scenario's dynamics model (catching up over lost triggers), for real, in the DES's
+physics truth of those nodes (:class:`~sigma_des.events.truth.SwarmTruth`); then
 its nodes follow the DES's node rules (:class:`~sigma_des.events.node.NodeRules`,
 here :class:`HostNodes` on the live loop): each job's cost is the DES's
 :func:`~sigma_des.events.jobs.job_cost` (the drawn ``compute.step_time``, when
