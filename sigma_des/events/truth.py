@@ -124,8 +124,9 @@ class SwarmTruth:
         self.latest = -1
         self.phys_t = 0.0
         self.phys_hist = np.zeros(H)
-        self.traj = (TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12])
-                     if log is None else log)
+        self.traj: TrajectoryLog | FrameTrack = (
+            TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12]) if log is None
+            else log)
         self.rollbacks = 0
         self.resim_steps = 0
         self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
@@ -309,13 +310,19 @@ class SwarmTruth:
         """The log :meth:`trajectory` reads, the ring's frames logged first: for readers
         that take it a block of samples at a time (:meth:`TrajectoryLog.rows`)."""
         log = self.traj
-        if self.released:  # the ring's frames were logged by release()
-            return log
+        if not isinstance(log, TrajectoryLog):
+            raise TypeError("this truth logs every frame (a FrameTrack), not samples")
+        self._log_ring()
+        return log
+
+    def _log_ring(self) -> None:
+        """Log the frames the ring holds (none once released: release() logged them)."""
+        if self.released:
+            return
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):
             slot = f % self.H
-            log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
-        return log
+            self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
 
     def release(self) -> None:
         """The run is over: log the frames the ring still holds, then drop the rings.
@@ -326,7 +333,7 @@ class SwarmTruth:
         """
         if self.released:
             return
-        self.trajectory_log()
+        self._log_ring()
         self.released = True
         self.slot_frame[:] = -1  # in place: the compiled core holds this array
         self.ckpt = np.empty((0, *self.ckpt.shape[1:]))

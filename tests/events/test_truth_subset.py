@@ -9,6 +9,7 @@ must hold every frame's true positions in frame order.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.pointmass import PointMass
@@ -50,6 +51,8 @@ def test_a_subset_truth_steps_and_rolls_back_as_the_whole_swarm_rows() -> None:
     # the rows differ per aircraft: keying the dynamics by row would fail the above
     assert not np.array_equal(whole.state[1], whole.state[0])
     assert (part.rollbacks, part.resim_steps) == (1, 5)
+    with pytest.raises(TypeError, match="FrameTrack"):
+        part.trajectory_log()  # its log is every frame's, not the fidelity samples
     part.release()
     frames, t, pos = track.arrays()
     assert frames.tolist() == list(range(14))
