@@ -46,7 +46,7 @@ from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
 from sigma_des.guard import atomic_write, output_file, read_text
 from sigma_des.live.messages import read_messages
-from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
+from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES, command_bytes, state_topic_bytes
 from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist
 from sigma_des.net.spec import BrokerSpec, DeploymentSpec, NetSpec
@@ -395,7 +395,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
                                  "--out" if files_dir else str(source))
     compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
                                        warn)
-    topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")
+    topic_len = int(round(float(np.mean([state_topic_bytes(m, int(h))
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
     width = make_dynamics(base).command_dim
@@ -403,7 +403,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         base,
         payload_bits=STATE_BYTES * 8,
         trigger_payload_bits=TRIGGER_BYTES * 8,
-        commands=replace(base.commands, payload_bits=(23 + 8 * width) * 8),
+        commands=replace(base.commands, payload_bits=command_bytes(width) * 8),
         net=replace(net, topic_bytes=topic_len),
         broker=BrokerSpec(publish_service=publish,
                           delivery_service=Dist(dist="constant",

@@ -45,7 +45,6 @@ from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.fidelity import TrajectoryLog
-from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
 from sigma_des.net.kinds import COMMAND
@@ -286,16 +285,10 @@ class MethodRun(AlignmentServer):
 
     def finish(self) -> dict[str, Any]:
         """The collector's results, from the run's, the aligner's and the network's reports."""
-        run = RunReport(
-            f_trig=self.f_trig,
-            rollbacks=self.truth.rollbacks,
-            resim_steps=self.truth.resim_steps,
-            history_misses=self.nodes.history_misses,
-            wall_seconds=self.wall_seconds,
-            events=self.kernel.events,
-        )
-        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net),
-                                     self.net.cpu_report())
+        return self.results(rollbacks=self.truth.rollbacks, resim_steps=self.truth.resim_steps,
+                            history_misses=self.nodes.history_misses,
+                            wall_seconds=self.wall_seconds, events=self.kernel.events,
+                            net=self.net, cpu=self.net.cpu_report())
 
     def load_kernels(self) -> int:
         """Load the compiled kernels this run's message core calls from Python, now.

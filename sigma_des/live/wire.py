@@ -1,6 +1,7 @@
 """Live-mode topics and the binary payload layout (little-endian ``struct``).
 
-Topics of run ``R`` (``R`` is a per-run token, so two runs on one broker never mix):
+Topics of run ``R`` (``R`` is a per-run token, :func:`run_token`: 8 random hex digits
+and the method, so two runs on one broker never mix):
 
 * downstream (server -> hosts): ``sd/R/down/trig`` (triggers, one per frame, to
   every host), ``sd/R/down/h<H>/cmd`` (behaviour commands for nodes of host H),
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import json
 import math
+import secrets
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -63,8 +65,13 @@ __all__ = [
     "encode_state",
     "encode_trigger",
     "MAX_BUNDLE",
+    "REREQUEST_BYTES",
+    "RUN_TOKEN_DIGITS",
     "STATE_BYTES",
     "TRIGGER_BYTES",
+    "command_bytes",
+    "run_token",
+    "state_topic_bytes",
 ]
 
 _TRIG = struct.Struct("<BIdddI")
@@ -73,6 +80,9 @@ _CMD_HEAD = struct.Struct("<BIiIdH")
 _REREQ = struct.Struct("<BIIId")
 TRIGGER_BYTES = _TRIG.size
 STATE_BYTES = _STATE.size
+REREQUEST_BYTES = _REREQ.size
+#: Random hex digits that open a run's topic token (:func:`run_token`).
+RUN_TOKEN_DIGITS = 8
 MAX_COMMAND_VALUES = 64
 #: Most states one PUBLISH may carry (``--bundle``: a host's states of one loop turn).
 MAX_BUNDLE = 4096
@@ -131,6 +141,22 @@ class Window:
 def _hlc_ok(hl: float) -> bool:
     """An HLC time: ``-inf`` (HLC off) or a finite time of sane magnitude."""
     return hl == -math.inf or (math.isfinite(hl) and abs(hl) <= MAX_VALUE)
+
+
+def command_bytes(width: int) -> int:
+    """Bytes of one command record of ``width`` values (``23 + 8 * width``)."""
+    return _CMD_HEAD.size + 8 * width
+
+
+def run_token(method: str) -> str:
+    """A fresh run token for a run of ``method``: random hex digits, then the method."""
+    return secrets.token_hex(RUN_TOKEN_DIGITS // 2) + method
+
+
+def state_topic_bytes(method: str, host: int) -> int:
+    """Bytes of ``host``'s state topic in any run of ``method`` (its token's length is
+    fixed)."""
+    return len(Topics("0" * RUN_TOKEN_DIGITS + method).state(host).encode("utf-8"))
 
 
 class Topics:
@@ -263,7 +289,7 @@ def decode_command(b: bytes, width: int, win: Window | None = None
     if len(b) < h:
         raise WireError(f"command: {len(b)} bytes, shorter than its {h}-byte header")
     kind, node, stamp, tick, t_send, m = _CMD_HEAD.unpack(b[:h])
-    if kind != COMMAND or m != width or m > MAX_COMMAND_VALUES or len(b) != h + 8 * m:
+    if kind != COMMAND or m != width or m > MAX_COMMAND_VALUES or len(b) != command_bytes(m):
         raise WireError(f"command: bad kind {kind}, width {m} or length {len(b)}")
     if not math.isfinite(t_send) or stamp < -1:
         raise WireError("command: bad time or stamp")
@@ -321,7 +347,7 @@ def decode_control(b: bytes, mono_now: float) -> tuple[str, float]:
 
 #: The hosts' end-of-run counters: non-negative integers, but ``links`` (a dict of
 #: ``"<link>.<dir>": [bytes, packets]``), ``host`` and ``step_real_s`` (seconds).
-STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "lost", "gave_up",
+STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "resent", "gave_up",
                 "connects", "disconnects", "steps")
 
 

@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 
 from sigma_des import config
 from sigma_des.pool import run_all
+from sigma_lab.studies.engine_case import Case
 from sigma_lab.studies.engine_norm import target_of
 
 __all__ = ["ALL_METHODS", "BASELINE_RTOL", "COLUMNS", "COMPARED", "ENGINES", "NODES_PER_HOST",
@@ -131,27 +132,6 @@ COLUMNS: tuple[str, ...] = (
 
 #: Thread-count variables set to 1: one core per case.
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-
-
-class Case(NamedTuple):
-    """One planned run.
-
-    Attributes:
-        impl: ``cohort``, ``events`` or ``baseline``.
-        method: alignment method.
-        scenario: ``full`` or ``restricted``.
-        sim_s: simulated seconds.
-        role: ``main`` (a timed case of the tables) or ``twin`` (a cohort run at
-            the capped duration of an ``events`` or ``baseline`` case, so that
-            metrics are compared between runs of equal duration) or ``reference``
-            (a baseline run only to normalise the figures: ``engine_norm``).
-    """
-
-    impl: str
-    method: str
-    scenario: str
-    sim_s: float
-    role: str = "main"
 
 
 # ---------------------------------------------------------------- one case (child process)

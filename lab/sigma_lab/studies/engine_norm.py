@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from sigma_lab.studies.engine_bench import Case
+from sigma_lab.studies.engine_case import Case
 
 __all__ = ["REF_CPU_PER_SIM_S", "REF_NODES", "REF_SIM_S", "normalise", "reference_row",
            "target_of"]

@@ -60,7 +60,7 @@ from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 from sigma_des.net.network import Network
 
 __all__ = ["SLACK", "CompiledCore", "Host"]
@@ -315,7 +315,7 @@ class CompiledCore:
 
     def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
-        index = checked_int(frame * 64 + min(retry, 63), "re-request index")
+        index = checked_int(rerequest_index(frame, retry), "re-request index")
         self.tables.fill(REREQUEST, index)
         self.tables.fill(REPUBLISH, index)
         self.attempts.fill_ack(REREQUEST, index)
