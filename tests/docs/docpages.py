@@ -122,7 +122,10 @@ def run_page(page: Path, workdir: Path) -> int:
     namespace: dict[str, object] = {"__name__": "__main__"}
     ran = 0
     old = Path.cwd()
+    old_path = os.environ.get("PATH", "")
     os.chdir(workdir)
+    # python blocks too see the venv's commands first, as a reader with it activated does
+    os.environ["PATH"] = _env()["PATH"]
     try:
         for b in blocks(page.read_text()):
             where = f"{name}:{b.line}"
@@ -155,4 +158,5 @@ def run_page(page: Path, workdir: Path) -> int:
                 ran += 1
     finally:
         os.chdir(old)
+        os.environ["PATH"] = old_path
     return ran
