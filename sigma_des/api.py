@@ -127,6 +127,8 @@ class Results:
             extra = {"live": self.live, "interrupted": self.interrupted}
         elif self.interrupted:
             extra = {"interrupted": True}
+        if notes := self.warnings():
+            extra["warnings"] = notes
         return _json_safe(
             {
                 **extra,
@@ -141,6 +143,12 @@ class Results:
                 "engines": self.engines,
             }
         )
+
+    def warnings(self) -> list[str]:
+        """Notes on methods that measured nothing (see :mod:`sigma_des.empty`)."""
+        from sigma_des.empty import empty_notes
+
+        return empty_notes(self.scenario, self.methods)
 
     def table(self) -> str:
         """The per-method comparison table printed by ``sigma-des compare``."""

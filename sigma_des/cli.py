@@ -242,6 +242,8 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
     with Interrupts() as sig:
         sig.mask()  # the results are in hand: a Ctrl-C now is noted, never cuts the writes
         print(res.table())
+        for note in res.warnings():
+            print(f"sigma-des: warning: {note}", file=sys.stderr)
         if res.interrupted:
             print(f"sigma-des: interrupted; kept the {len(res.methods)} finished method(s): "
                   f"{', '.join(res.methods)}", file=sys.stderr)
