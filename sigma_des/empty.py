@@ -22,8 +22,10 @@ DELAY_KEYS = ("net.host_link.latency", "net.server_link.latency", "broker.publis
 
 
 def _largest_delay(sc: Any) -> tuple[str, float]:
-    """The delay key of ``sc`` with the largest mean (s), and that mean."""
-    best = ("", 0.0)
+    """The delay key of ``sc`` with the largest mean (s), and that mean; a state's
+    serialization on the host link counts as one (its payload over the link's rate)."""
+    best = ("payload_bits / net.host_link.bandwidth_mbps (a state's serialization)",
+            sc.payload_bits / (sc.net.host_link.bandwidth_mbps * 1e6))
     for key in DELAY_KEYS:
         obj = sc
         for part in key.split("."):

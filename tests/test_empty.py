@@ -54,3 +54,11 @@ def test_an_empirical_sample_beyond_a_million_seconds_is_refused(tmp_path: Path)
     f.write_text("0.001\n2e6\n")
     with pytest.raises(Exception, match=r"d.txt:2: samples must be in \[0, 1e\+06\] s"):
         load(None, [f'net.host_link.latency={{dist="empirical", file="{f}"}}'])
+
+
+def test_a_state_longer_to_serialize_than_the_run_is_named() -> None:
+    sc = load(None, [*SMALL, "payload_bits=1073741824", "net.host_link.bandwidth_mbps=1000"])
+    (note,) = empty_notes(sc, {"none": {"aoi_mean": math.nan}})
+    # 2^30 bits at 1e9 bit/s: 1.07374 s, longer than any delay key
+    assert note.endswith("the largest mean delay is payload_bits / net.host_link.bandwidth_mbps "
+                         "(a state's serialization) = 1.07374 s")
