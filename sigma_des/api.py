@@ -145,10 +145,12 @@ class Results:
         )
 
     def warnings(self) -> list[str]:
-        """Notes on methods that measured nothing (see :mod:`sigma_des.empty`)."""
+        """Notes on live methods that lost hosts or their broker (``live[m]["warnings"]``)
+        and on methods that measured nothing (see :mod:`sigma_des.empty`)."""
         from sigma_des.empty import empty_notes
 
-        return empty_notes(self.scenario, self.methods)
+        lost = [f"{m}: {w}" for m, info in self.live.items() for w in info.get("warnings", ())]
+        return lost + empty_notes(self.scenario, self.methods)
 
     def table(self) -> str:
         """The per-method comparison table printed by ``sigma-des compare``."""
