@@ -144,6 +144,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # e.g. Ctrl-C while the libraries load: no traceback
         print("sigma-des: interrupted", file=sys.stderr)
         return 130
+    finally:  # an --out folder made for a run that wrote nothing into it goes again
+        from sigma_des.outputs import remove_unused
+
+        remove_unused()
 
 
 def _main(argv: Sequence[str] | None) -> int:
