@@ -22,6 +22,9 @@ from sigma_des.version import __version__
 
 __all__ = ["COMMANDS", "main"]
 
+#: The lock file ``compare`` holds in its ``--out`` folder while it runs.
+LOCK_NAME = ".sigma-des.lock"
+
 
 class Command(NamedTuple):
     """One subcommand: its help line, where its arguments are added, what it needs."""
@@ -228,6 +231,22 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
 
             need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
+    lock = None
+    if args.out:  # a second run into the same folder is refused while this one runs
+        from pathlib import Path
+
+        from sigma_des.lock import OutputLock
+
+        lock = OutputLock(Path(args.out) / LOCK_NAME, "--out", args.out)
+    try:
+        return _compare_run(args, sc, methods)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _compare_run(args: argparse.Namespace, sc: Any, methods: list[str] | None) -> int:
+    """``compare`` once its options are checked (and its ``--out`` locked)."""
     if args.record is not None:
         from sigma_des.extras import need
 
