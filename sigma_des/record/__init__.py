@@ -8,7 +8,11 @@ per-node states (:func:`read_states`). ``mode="incremental"`` stores states as
 per-node deltas with a dead-band and keyframes (:mod:`sigma_des.record.delta`).
 """
 
-from sigma_des.record.reader import (
+from sigma_des.extras import need_import
+
+need_import("sigma_des.record", "mcap", "orjson", extra="record")
+
+from sigma_des.record.reader import (  # noqa: E402  (after the check of the extra)
     RecordError,
     Recording,
     StateTable,
@@ -16,7 +20,7 @@ from sigma_des.record.reader import (
     read_states,
     read_table,
 )
-from sigma_des.record.writer import RECORD_MODES, MethodRecorder, Recorder
+from sigma_des.record.writer import RECORD_MODES  # noqa: E402, MethodRecorder, Recorder
 
 __all__ = [
     "MethodRecorder",
