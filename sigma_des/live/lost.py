@@ -1,18 +1,23 @@
-"""What a live method lost: hosts that sent no end-of-method report, a broker gone.
+"""What a live method lost: hosts that sent no end-of-method report, a broker gone, a
+slow broker hop.
 
 A host reports its counters and message rows once the method ends. A host that does
 not (it died, a forged ``stop`` ended it early, the broker went away and never came
 back) leaves its part of the tables missing: the run is not "complete" even though it
 was not interrupted. :func:`lost_notes` words that for the method's ``warnings``
 (``summary.json``'s ``live.<method>.warnings`` and ``warnings``; ``sigma-des live``
-prints them).
+prints them). :func:`hop_notes` flags an external broker whose hop is far above a
+loopback broker's (Nagle's algorithm left on: ``set_tcp_nodelay`` missing).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["lost_notes"]
+__all__ = ["HOP_WARN_S", "hop_notes", "lost_notes"]
+
+#: A broker hop above this (s) is far above a loopback broker's (a fraction of a ms).
+HOP_WARN_S = 0.005
 
 
 def _hosts(hs: list[int]) -> str:
@@ -46,3 +51,34 @@ def lost_notes(info: dict[str, Any], hosts: int, broker_down: bool) -> list[str]
                      "away, or a forged stop); missed_frac = "
                      f"{info['missed_frac']:.2f}")
     return notes
+
+
+def hop_notes(table: Any, sc: Any, impair: bool) -> list[str]:
+    """A warning when the broker hop of the states is far above the loopback floor.
+
+    The hop is the median state latency (host publish to server receipt, first sends
+    only) less the mean latencies the clients add for the links (``net.host_link`` up,
+    ``net.server_link`` down; none with ``--no-impair``).
+
+    Args:
+        table: the method's message table.
+        sc: the scenario.
+        impair: the clients applied the links' latencies.
+
+    Returns:
+        One line if the hop exceeds :data:`HOP_WARN_S`, else nothing.
+    """
+    states = table[(table["kind"] == "state") & ~table["republish"].astype(bool)]
+    if states.empty:
+        return []
+    lat = float((states["t_recv"] - states["t_send"]).median())
+    links = (sc.net.host_link.latency_of(True).mean_value()
+             + sc.net.server_link.latency_of(False).mean_value()) if impair else 0.0
+    hop = lat - links
+    if not hop > HOP_WARN_S:
+        return []
+    return [f"the broker hop took {1e3 * hop:.1f} ms (median state latency "
+            f"{1e3 * lat:.1f} ms less the links' {1e3 * links:.2f} ms), far above a loopback "
+            "broker's fraction of a millisecond: a Mosquitto without `set_tcp_nodelay true` "
+            "holds small messages back (Nagle's algorithm); see docs/LIVE.md, 'What an "
+            "external broker must be configured with'"]

@@ -43,7 +43,7 @@ from sigma_des.live.cpu import CpuMeter, message_counts, wake_sums
 from sigma_des.live.interrupts import Interrupts
 from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
-from sigma_des.live.lost import lost_notes
+from sigma_des.live.lost import hop_notes, lost_notes
 from sigma_des.live.procs import HostGroup, LocalHosts
 from sigma_des.live.server import LiveServer
 from sigma_des.live.wire import Topics
@@ -329,7 +329,8 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
             _fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
     out["live"] = _live_info(srv, group, table, sc)
-    out["live"]["warnings"] = lost_notes(out["live"], sc.hosts, broker_down)
+    out["live"]["warnings"] = lost_notes(out["live"], sc.hosts, broker_down) + (
+        hop_notes(table, sc, opts.impair) if opts.broker is not None else [])
     if book is not None:
         out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),

@@ -8,12 +8,13 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 import pytest
 
 from sigma_des.cli import main
 from sigma_des.live.broker import Broker
 from sigma_des.live.loop import Client
-from sigma_des.live.lost import lost_notes
+from sigma_des.live.lost import hop_notes, lost_notes
 from sigma_des.live.runner import LiveOptions, run_live
 from tests.live.live_helpers import LIVE_SETS, live_scenario, needs_mosquitto
 
@@ -80,4 +81,25 @@ def test_an_external_broker_that_dies_for_good_is_flagged(
     assert "sigma-des: warning: none: every host of 2 sent no end-of-method report" in err
     summ = json.loads((out / "summary.json").read_text())
     assert summ["live"]["none"]["lost_hosts"] == [0, 1]
-    assert len(summ["warnings"]) == 2 and summ["interrupted"] is False
+    assert summ["interrupted"] is False
+    assert [w.split(": ")[1][:20] for w in summ["warnings"][:2]] == [
+        "the broker connecti", "every host of 2 sen"]
+
+
+def _states(latencies: list[float], republish: bool = False) -> pd.DataFrame:
+    return pd.DataFrame({"kind": "state", "t_send": 1.0, "t_recv": [1.0 + x for x in latencies],
+                         "republish": republish})
+
+
+def test_a_slow_broker_hop_is_flagged() -> None:
+    sc = live_scenario()  # links: 0.25 ms up + 0.25 ms down
+    # median 40.5 ms: Nagle's algorithm and a 40 ms delayed ACK on the broker's sends
+    (note,) = hop_notes(_states([0.0006, 0.0405, 0.041]), sc, impair=True)
+    assert note.startswith("the broker hop took 40.0 ms (median state latency 40.5 ms less "
+                           "the links' 0.50 ms), far above")
+    assert "set_tcp_nodelay true" in note
+    assert hop_notes(_states([0.0006, 0.0009, 0.041]), sc, impair=True) == []
+    # without the links' latencies (--no-impair) the whole latency is the hop
+    assert hop_notes(_states([0.0052] * 3), sc, impair=True) == []
+    assert len(hop_notes(_states([0.0052] * 3), sc, impair=False)) == 1
+    assert hop_notes(_states([0.05] * 3, republish=True), sc, impair=True) == []
