@@ -148,9 +148,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("sigma-des: interrupted", file=sys.stderr)
         return 130
     finally:  # an --out folder made for a run that wrote nothing into it goes again
-        from sigma_des.outputs import remove_unused
-
-        remove_unused()
+        outputs = sys.modules.get("sigma_des.outputs")  # not loaded: nothing was made
+        if outputs is not None:
+            outputs.remove_unused()
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -45,14 +45,14 @@ def test_a_delay_beyond_a_million_seconds_is_refused(
         key: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["config", "--set", f"{key}=1e300"]) == 2
     err = capsys.readouterr().err
-    assert f"{key}: must be in [0, 1e+06] s, got 1e+300" in err
+    assert f"{key}: must be >= 0 and <= 1e+06 s, got 1e+300" in err
     assert "Traceback" not in err
 
 
 def test_an_empirical_sample_beyond_a_million_seconds_is_refused(tmp_path: Path) -> None:
     f = tmp_path / "d.txt"
     f.write_text("0.001\n2e6\n")
-    with pytest.raises(Exception, match=r"d.txt:2: samples must be in \[0, 1e\+06\] s"):
+    with pytest.raises(Exception, match=r"d.txt:2: samples must be >= 0 and <= 1e\+06 s"):
         load(None, [f'net.host_link.latency={{dist="empirical", file="{f}"}}'])
 
 

@@ -59,7 +59,7 @@ def _nonneg_float(name: str, value: object) -> float:
         raise ConfigError(name, f"must be a number of seconds >= 0, got {value!r}")
     v = float(value)
     if not math.isfinite(v) or v < 0.0 or v > DELAY_MAX:
-        raise ConfigError(name, f"must be in [0, {DELAY_MAX:g}] s, got {value!r}")
+        raise ConfigError(name, f"must be >= 0 and <= {DELAY_MAX:g} s, got {value!r}")
     return v
 
 
@@ -114,8 +114,8 @@ def _load_cached(path: str, mtime_ns: int) -> NDArray[np.float64]:
                     "file", f"{path}:{lineno}: not a number of seconds: {cell!r}"
                 ) from None
             if not math.isfinite(v) or v < 0.0 or v > DELAY_MAX:
-                raise ConfigError("file", f"{path}:{lineno}: samples must be in "
-                                          f"[0, {DELAY_MAX:g}] s, got {v!r}")
+                raise ConfigError("file", f"{path}:{lineno}: samples must be >= 0 and "
+                                          f"<= {DELAY_MAX:g} s, got {v!r}")
             values.append(v)
     if not values:
         raise ConfigError("file", f"{path}: no samples")

@@ -101,7 +101,7 @@ def test_empirical_file_errors(tmp_path: Path) -> None:
     assert e.value.key == "file"
     with pytest.raises(ConfigError) as e:
         Dist(dist="empirical", file=_write(tmp_path, "neg.txt", "0.1\n-0.2\n"))
-    assert e.value.key == "file" and "[0, 1e+06]" in e.value.reason
+    assert e.value.key == "file" and ">= 0" in e.value.reason
     with pytest.raises(ConfigError):
         Dist(dist="empirical", file=_write(tmp_path, "empty.txt", "x\n"))
 
@@ -131,7 +131,7 @@ def test_scalar_call_matches_array_call(d: Dist) -> None:
 def test_validation_names_the_field() -> None:
     with pytest.raises(ConfigError) as e:
         Dist(value=-1)
-    assert e.value.key == "value" and "[0, 1e+06]" in e.value.reason
+    assert e.value.key == "value" and ">= 0" in e.value.reason
     for field in ("low", "high", "mean", "std"):
         with pytest.raises(ConfigError) as e:
             Dist(dist="uniform", **{field: -0.5})
