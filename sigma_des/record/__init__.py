@@ -20,7 +20,7 @@ from sigma_des.record.reader import (  # noqa: E402  (after the check of the ext
     read_states,
     read_table,
 )
-from sigma_des.record.writer import RECORD_MODES  # noqa: E402, MethodRecorder, Recorder
+from sigma_des.record.writer import RECORD_MODES, MethodRecorder, Recorder  # noqa: E402
 
 __all__ = [
     "MethodRecorder",
