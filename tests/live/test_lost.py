@@ -82,8 +82,9 @@ def test_an_external_broker_that_dies_for_good_is_flagged(
     summ = json.loads((out / "summary.json").read_text())
     assert summ["live"]["none"]["lost_hosts"] == [0, 1]
     assert summ["interrupted"] is False
-    assert [w.split(": ")[1][:20] for w in summ["warnings"][:2]] == [
-        "the broker connecti", "every host of 2 sen"]
+    down, every = summ["warnings"][:2]  # and, under load, perhaps a slow-hop note
+    assert down.startswith("none: the broker connection was down when the method ended")
+    assert every.startswith("none: every host of 2 sent no end-of-method report")
 
 
 def _states(latencies: list[float], republish: bool = False) -> pd.DataFrame:
