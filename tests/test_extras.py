@@ -93,8 +93,8 @@ def test_the_errors_survive_a_worker_process() -> None:
 
 _IMPORT = ("import sys; sys.modules[sys.argv[1]] = None\n"
            "try:\n    exec(sys.argv[2])\n"
-           "except ImportError as e:\n    print(type(e).__name__, e.name, isinstance(e, ImportError)"
-           ", str(e), sep='|')\n")
+           "except ImportError as e:\n"
+           "    print(type(e).__name__, e.name, isinstance(e, ImportError), str(e), sep='|')\n")
 
 
 @pytest.mark.parametrize(("hidden", "code", "extra"), [
