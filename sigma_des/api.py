@@ -127,6 +127,8 @@ class Results:
             extra = {"live": self.live, "interrupted": self.interrupted}
         elif self.interrupted:
             extra = {"interrupted": True}
+        if notes := self.warnings():
+            extra["warnings"] = notes
         return _json_safe(
             {
                 **extra,
@@ -141,6 +143,14 @@ class Results:
                 "engines": self.engines,
             }
         )
+
+    def warnings(self) -> list[str]:
+        """Notes on live methods that lost hosts or their broker (``live[m]["warnings"]``)
+        and on methods that measured nothing (see :mod:`sigma_des.empty`)."""
+        from sigma_des.empty import empty_notes
+
+        lost = [f"{m}: {w}" for m, info in self.live.items() for w in info.get("warnings", ())]
+        return lost + empty_notes(self.scenario, self.methods)
 
     def table(self) -> str:
         """The per-method comparison table printed by ``sigma-des compare``."""

@@ -33,8 +33,13 @@ def estimate_bytes(sc: Scenario, concurrent: int = 1) -> int:
         concurrent: method runs held in memory at once (``compare --jobs``).
 
     Returns:
-        The estimate (bytes).
+        The estimate (bytes): the sum of :func:`estimate_terms`.
     """
+    return sum(estimate_terms(sc, concurrent).values())
+
+
+def estimate_terms(sc: Scenario, concurrent: int = 1) -> dict[str, int]:
+    """The terms of :func:`estimate_bytes`, each named by the keys that size it."""
     n = sc.nodes
     window = sc.duration - sc.warmup
     warp = "bides" in sc.methods and sc.bides.time_warp
@@ -46,8 +51,17 @@ def estimate_bytes(sc: Scenario, concurrent: int = 1) -> int:
     trajectory = 0
     if sc.fidelity.enabled:
         trajectory = (int(sc.duration * sc.fidelity.log_rate) + 1) * n * 3 * _F8
-    per_run = history + ring + samples + latencies + trajectory + n * _PER_NODE
-    return concurrent * per_run + trajectory  # + the ideal run, shared by all methods
+    return {  # the trajectory once more: the ideal run, shared by all methods
+        f"history_frames {sc.history_frames} × nodes {n}": concurrent * history,
+        f"bides.ring_size {sc.bides.ring_size} × nodes {n}": concurrent * ring,
+        f"duration {sc.duration:g} s × f_render {sc.f_render:g} Hz × nodes {n}":
+            concurrent * samples,
+        f"duration {sc.duration:g} s × f_trig {sc.f_trig:g} Hz × nodes {n}":
+            concurrent * latencies,
+        f"fidelity.log_rate {sc.fidelity.log_rate:g} Hz × duration {sc.duration:g} s × "
+        f"nodes {n}": (concurrent + 1) * trajectory,
+        f"nodes {n}": concurrent * n * _PER_NODE,
+    }
 
 
 def available_bytes() -> int | None:
@@ -82,14 +96,15 @@ def check_memory(sc: Scenario, concurrent: int = 1, force: bool = False) -> int:
     Raises:
         ConfigError: (key ``memory``) the estimate exceeds the available memory.
     """
-    need = estimate_bytes(sc, concurrent)
+    terms = estimate_terms(sc, concurrent)
+    need = sum(terms.values())
     have = available_bytes()
     if not force and have is not None and need > have:
+        cause = max(terms, key=lambda k: terms[k])
         raise ConfigError(
             "memory",
-            f"this run needs about {_gib(need)} (history_frames {sc.history_frames} × nodes "
-            f"{sc.nodes} × {concurrent} run(s) at once, plus samples over duration "
-            f"{sc.duration:g} s), but {_gib(have)} is available; lower history_frames, "
-            "nodes, duration or --jobs, or pass --force",
+            f"this run needs about {_gib(need)}, most of it for {cause} "
+            f"({_gib(terms[cause])}, × {concurrent} run(s) at once), but {_gib(have)} is "
+            "available; lower one of those keys or --jobs, or pass --force",
         )
     return need

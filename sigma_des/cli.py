@@ -22,6 +22,9 @@ from sigma_des.version import __version__
 
 __all__ = ["COMMANDS", "main"]
 
+#: The lock file ``compare`` holds in its ``--out`` folder while it runs.
+LOCK_NAME = ".sigma-des.lock"
+
 
 class Command(NamedTuple):
     """One subcommand: its help line, where its arguments are added, what it needs."""
@@ -151,6 +154,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:  # e.g. Ctrl-C while the libraries load: no traceback
         print("sigma-des: interrupted", file=sys.stderr)
         return 130
+    finally:  # an --out folder made for a run that wrote nothing into it goes again
+        outputs = sys.modules.get("sigma_des.outputs")  # not loaded: nothing was made
+        if outputs is not None:
+            outputs.remove_unused()
 
 
 def _main(argv: Sequence[str] | None) -> int:
@@ -243,6 +250,22 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
 
             need("--out", "matplotlib", instead="pass --no-plots")
         check_out_dir(args.out)
+    lock = None
+    if args.out:  # a second run into the same folder is refused while this one runs
+        from pathlib import Path
+
+        from sigma_des.lock import OutputLock
+
+        lock = OutputLock(Path(args.out) / LOCK_NAME, "--out", args.out)
+    try:
+        return _compare_run(args, sc, methods)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _compare_run(args: argparse.Namespace, sc: Any, methods: list[str] | None) -> int:
+    """``compare`` once its options are checked (and its ``--out`` locked)."""
     if args.record is not None:
         from sigma_des.extras import need
 
@@ -261,6 +284,8 @@ def _compare(args: argparse.Namespace, sc: Any) -> int:
     with Interrupts() as sig:
         sig.mask()  # the results are in hand: a Ctrl-C now is noted, never cuts the writes
         print(res.table())
+        for note in res.warnings():
+            print(f"sigma-des: warning: {note}", file=sys.stderr)
         if res.interrupted:
             print(f"sigma-des: interrupted; kept the {len(res.methods)} finished method(s): "
                   f"{', '.join(res.methods)}", file=sys.stderr)

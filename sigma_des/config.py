@@ -39,6 +39,7 @@ from sigma_des.net.spec import (
     NetSpec,
     Topology,
 )
+from sigma_des.net.wire import require_payload
 from sigma_des.overrides import parse_set, read_toml, set_key
 from sigma_des.specs import RecordSpec
 
@@ -79,6 +80,8 @@ WARMUP_AUTO = -1.0
 MAX_RATE_HZ = 10_000.0
 #: Longest simulated duration (s): one day.
 MAX_DURATION_S = 86_400.0
+#: Largest ``cores_per_host`` (each core is a server of the host's CPU queue).
+MAX_CORES_PER_HOST = 4096
 #: Largest ``history_frames``.
 MAX_HISTORY_FRAMES = 100_000
 
@@ -189,9 +192,8 @@ class Scenario:
             f"must be 0 (auto: ceil(nodes/{NODES_PER_HOST})) or in 1..nodes ({self.nodes}), "
             f"got {self.hosts}",
         )
-        require(
-            self.cores_per_host >= 1, "cores_per_host", f"must be >= 1, got {self.cores_per_host}"
-        )
+        require(1 <= self.cores_per_host <= MAX_CORES_PER_HOST, "cores_per_host",
+                f"must be in 1..{MAX_CORES_PER_HOST}, got {self.cores_per_host}")
         require(
             self.placement in ("block", "round_robin"),
             "placement",
@@ -220,12 +222,8 @@ class Scenario:
             f"must be in [0, duration={self.duration}) s, or -1 (auto: "
             f"{WARMUP_FRACTION:g} x duration), got {self.warmup}",
         )
-        require(self.payload_bits >= 1, "payload_bits", f"must be >= 1, got {self.payload_bits}")
-        require(
-            self.trigger_payload_bits >= 0,
-            "trigger_payload_bits",
-            f"must be >= 0, got {self.trigger_payload_bits}",
-        )
+        require_payload("payload_bits", self.payload_bits, 1)
+        require_payload("trigger_payload_bits", self.trigger_payload_bits, 0)
         self._check_dynamics()
         require(
             self.engine in ENGINES, "engine", f"must be one of {ENGINES}, got {self.engine!r}"

@@ -13,7 +13,8 @@ import importlib.util
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["EXTRAS", "MissingExtra", "missing_extra", "need"]
+__all__ = ["EXTRAS", "ExtraImportError", "MissingExtra", "missing_extra", "need",
+           "need_import"]
 
 #: Top-level module -> the extras that install it (the first is named by default).
 EXTRAS: dict[str, tuple[str, ...]] = {
@@ -67,6 +68,24 @@ def need(what: str, *modules: str, extra: str = "", instead: str = "") -> None:
     for m in modules:
         if importlib.util.find_spec(m) is None:
             raise MissingExtra(what, m, extra, instead)
+
+
+class ExtraImportError(ModuleNotFoundError):
+    """Importing a module of an extra (``sigma_des.record``, ``sigma_des.env``) without
+    that extra installed: an :class:`ImportError` whose message names the extra to
+    install (``name`` is the missing package, so the CLI words it as :func:`need`)."""
+
+
+def need_import(package: str, *modules: str, extra: str) -> None:
+    """At the top of ``package``'s ``__init__``: its extra's ``modules`` must be importable.
+
+    Raises:
+        ExtraImportError: naming ``package``, the first missing module and ``extra``.
+    """
+    for m in modules:
+        if importlib.util.find_spec(m) is None:
+            raise ExtraImportError(f"{package} needs the optional package {m!r}, which is not "
+                                   f"installed: pip install 'sigma-des[{extra}]'", name=m)
 
 
 def missing_extra(e: ModuleNotFoundError, what: str, extra: str = "") -> MissingExtra | None:

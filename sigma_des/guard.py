@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from sigma_des.errors import ConfigError
-from sigma_des.outputs import umask
+from sigma_des.outputs import make_dir, umask
 
 __all__ = [
     "atomic_write",
@@ -101,7 +101,9 @@ def read_text(path: str | Path, key: str, what: str = "file") -> str:
 def output_file(path: str | Path, key: str = "--out", force: bool = True) -> Path:
     """Check, before any work, that ``path`` can be written as a file.
 
-    The folder is created if missing; a probe file is created and removed in it.
+    The folder is created if missing (and removed again if the command ends with it
+    still empty: :func:`sigma_des.outputs.remove_unused`); a probe file is created and
+    removed in it.
 
     Args:
         path: the output file.
@@ -122,7 +124,7 @@ def output_file(path: str | Path, key: str = "--out", force: bool = True) -> Pat
             raise ConfigError(key, f"{p} lies under {parent}, which is a file")
     d = p.parent
     try:
-        d.mkdir(parents=True, exist_ok=True)
+        make_dir(d)  # removed again if the command ends without writing into it
         fd, probe = tempfile.mkstemp(dir=d, prefix=f".{p.name}.", suffix=".probe")
         os.close(fd)
         os.unlink(probe)

@@ -22,7 +22,10 @@ from typing import IO
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["check_out_dir", "temp_file", "umask", "write_files"]
+__all__ = ["check_out_dir", "make_dir", "remove_unused", "temp_file", "umask", "write_files"]
+
+#: The directories :func:`check_out_dir` created: (the directory, its topmost new parent).
+_CREATED: list[tuple[Path, Path]] = []
 
 #: A writer fills one open text file.
 Writer = Callable[[IO[str]], None]
@@ -66,7 +69,9 @@ def check_out_dir(path: str | Path, key: str = "--out") -> Path:
         key: the option or key named in the error message.
 
     Returns:
-        The directory, created if it did not exist.
+        The directory, created (with its missing parents) if it did not exist; what it
+        created and is still empty when the command ends is removed
+        (:func:`remove_unused`), so a refused or failed run leaves no empty folder.
 
     Raises:
         ConfigError: ``path`` is a file, lies under a file, or cannot be written.
@@ -78,13 +83,42 @@ def check_out_dir(path: str | Path, key: str = "--out") -> Path:
         if parent.exists() and not parent.is_dir():
             raise ConfigError(key, f"{d} lies under {parent}, which is a file")
     try:
-        d.mkdir(parents=True, exist_ok=True)
+        make_dir(d)
         fd, probe = tempfile.mkstemp(dir=d, prefix=".probe-")
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
         raise ConfigError(key, f"cannot write to directory {d}: {e.strerror or e}") from None
     return d
+
+
+def make_dir(d: Path) -> None:
+    """``d.mkdir(parents=True, exist_ok=True)``, noting what it created for
+    :func:`remove_unused`.
+
+    Raises:
+        OSError: as ``mkdir``.
+    """
+    top = next((p for p in reversed((d, *d.parents)) if not p.exists()), None)
+    d.mkdir(parents=True, exist_ok=True)
+    if top is not None:
+        _CREATED.append((d, top))
+
+
+def remove_unused() -> None:
+    """Remove the directories :func:`check_out_dir` created that are still empty (the
+    command ended before writing into them), up to the topmost one it created."""
+    while _CREATED:
+        d, top = _CREATED.pop()
+        p = d
+        while True:
+            try:
+                p.rmdir()  # only an empty directory
+            except OSError:
+                break
+            if p == top:
+                break
+            p = p.parent
 
 
 @contextlib.contextmanager

@@ -89,3 +89,24 @@ def test_the_errors_survive_a_worker_process() -> None:
         "pip install 'sigma-des[record]', or not that")
     c = pickle.loads(pickle.dumps(ConfigError("a.b", "bad")))
     assert (c.key, c.reason) == ("a.b", "bad")
+
+
+_IMPORT = ("import sys; sys.modules[sys.argv[1]] = None\n"
+           "try:\n    exec(sys.argv[2])\n"
+           "except ImportError as e:\n"
+           "    print(type(e).__name__, e.name, isinstance(e, ImportError), str(e), sep='|')\n")
+
+
+@pytest.mark.parametrize(("hidden", "code", "extra"), [
+    ("pettingzoo", "from sigma_des.env import SwarmEnv", "env"),
+    ("gymnasium", "import sigma_des.env", "env"),
+    ("mcap", "from sigma_des.record import read_table", "record"),
+    ("orjson", "from sigma_des.record.parts import RecordParts", "record"),
+])
+def test_a_python_import_of_a_missing_extra_names_it(hidden: str, code: str, extra: str) -> None:
+    r = subprocess.run([sys.executable, "-c", _IMPORT, hidden, code], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    package = "sigma_des." + extra
+    assert r.stdout == (f"ExtraImportError|{hidden}|True|{package} needs the optional package "
+                        f"'{hidden}', which is not installed: pip install 'sigma-des[{extra}]'\n")

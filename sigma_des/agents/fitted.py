@@ -97,9 +97,15 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
     kind = doc.get("dynamics")
     if kind not in KINDS:
         raise ConfigError(f"{src}: dynamics", f"must be one of {KINDS}, got {kind!r}")
-    params = doc.get("params", {})
+    if "params" not in doc:  # else the preset would fly, silently
+        raise ConfigError(f"{src}: params", "missing: a fitted file holds a [params] table of "
+                          "name = fitted value (what `sigma-des tune` writes)")
+    params = doc["params"]
     if not isinstance(params, dict):
         raise ConfigError(f"{src}: params", "must be a table of name = value")
+    if not params:
+        raise ConfigError(f"{src}: params", "is empty: a fitted file holds at least one "
+                          f"fitted value; allowed names: {', '.join(PARAM_NAMES)}")
     values: dict[str, float] = {}
     for k, v in params.items():
         if k not in PARAM_NAMES:

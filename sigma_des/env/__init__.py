@@ -9,9 +9,14 @@ controllers of the ``tight`` task: :mod:`sigma_des.env.controllers`; the CEM
 learner: :mod:`sigma_des.env.learn`; how to train: ``docs/howto/train-agent.md``.
 """
 
-from sigma_des.env.parallel import SwarmEnv
-from sigma_des.env.tasks import TASKS, FormationTask, GoalTask, TightTask
-from sigma_des.env.vector import SwarmVec, SwarmVectorEnv
+from sigma_des.extras import need_import
+
+need_import("sigma_des.env", "pettingzoo", "gymnasium", extra="env")
+
+# after the check of the extra
+from sigma_des.env.parallel import SwarmEnv  # noqa: E402
+from sigma_des.env.tasks import TASKS, FormationTask, GoalTask, TightTask  # noqa: E402
+from sigma_des.env.vector import SwarmVec, SwarmVectorEnv  # noqa: E402
 
 __all__ = ["SwarmEnv", "SwarmVec", "SwarmVectorEnv", "TASKS", "FormationTask", "GoalTask",
            "TightTask"]

@@ -22,6 +22,7 @@ from sigma_des.metrics.collector import CollectorSpec
 from sigma_des.net.clocks import ClockSpec
 from sigma_des.net.latency import Dist
 from sigma_des.net.spec import NetSetup
+from sigma_des.net.wire import require_payload
 
 __all__ = [
     "CommandSpec",
@@ -82,7 +83,7 @@ class CommandSpec:
 
     def __post_init__(self) -> None:
         require(self.every >= 1, "every", f"must be >= 1, got {self.every}")
-        require(self.payload_bits >= 0, "payload_bits", f"must be >= 0, got {self.payload_bits}")
+        require_payload("payload_bits", self.payload_bits, 0)
 
 
 

@@ -134,6 +134,8 @@ def run_live_command(args: argparse.Namespace, sc: Scenario) -> int:
             return 1
         sig.mask()  # the run is over: a signal now must not cut the writing short
         print(res.table())
+        for note in res.warnings():
+            print(f"sigma-des: warning: {note}", file=sys.stderr)
         if res.interrupted:
             print("interrupted: partial results", file=sys.stderr)
         if args.out:

@@ -97,10 +97,6 @@ class SyncTopics:
         """Server -> host ``host``: ``go:<t0>`` with ``t0`` on the host's own clock."""
         return f"{self.base}/h{host}/go"
 
-    def down(self, host: int) -> str:
-        """What host ``host`` subscribes to."""
-        return f"{self.base}/h{host}/+"
-
     def pong(self, host: int) -> str:
         """Host ``host`` -> server: the reply."""
         return f"{self.base}/h{host}/pong"

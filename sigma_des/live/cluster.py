@@ -25,6 +25,7 @@ import math
 import os
 import shutil
 import socket
+import struct
 import tempfile
 import time
 from pathlib import Path
@@ -65,17 +66,56 @@ def parse_scheduler(text: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def connect(address: str, timeout: float = 5.0) -> Any:
-    """A ``distributed.Client`` of the scheduler at ``address``.
+def probe(address: str, timeout: float = 5.0) -> None:
+    """Check that a plain-TCP ``address`` speaks Dask before Dask's handshake runs.
+
+    A Dask scheduler sends its handshake as soon as it accepts a connection: a length
+    (8 bytes, little-endian) and a frame count (8 bytes). A listener that stays silent
+    (Dask would wait for it without end) or answers otherwise (an HTTP server, whose
+    reply Dask would read as a length of exabytes) is refused here. ``tls://`` is not
+    probed (TLS waits for the client to speak first).
 
     Raises:
-        ConfigError: naming ``--scheduler``: nothing answers within ``timeout`` s.
+        ConfigError: naming ``--scheduler`` and what answered.
+    """
+    if address.startswith("tls://"):
+        return
+    host, port = parse_scheduler(address)
+    head = b""
+    try:
+        with socket.create_connection((host, port), timeout=timeout) as s:
+            s.settimeout(timeout)
+            while len(head) < 16:
+                chunk = s.recv(16 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        pass
+    except OSError as e:
+        raise ConfigError("--scheduler", f"no Dask scheduler answers at {address} "
+                          f"({e.strerror or e})") from None
+    size, frames = struct.unpack("<QQ", head) if len(head) == 16 else (0, 0)
+    if not (0 < size < 2**20 and 0 < frames < 64):
+        what = ("an HTTP server" if head.startswith(b"HTTP/") else
+                f"sent nothing within {timeout:g} s" if not head else f"sent {head[:16]!r}")
+        raise ConfigError("--scheduler", f"{address} is not a Dask scheduler ({what}); give "
+                          "the scheduler's tcp://HOST:PORT")
+
+
+def connect(address: str, timeout: float = 5.0) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` (after :func:`probe`).
+
+    Raises:
+        ConfigError: naming ``--scheduler``: nothing answers within ``timeout`` s, or
+            what answers is not a Dask scheduler.
     """
     from distributed import Client
 
+    probe(address, timeout)
     try:
         return Client(address, timeout=f"{timeout}s")  # actors find it as the default
-    except (OSError, TimeoutError) as e:
+    except Exception as e:  # noqa: BLE001  (every failure of the handshake is the option's)
         why = str(e).splitlines()[0] if str(e) else type(e).__name__
         raise ConfigError("--scheduler", f"no Dask scheduler answers at {address} "
                           f"within {timeout:g} s ({why})") from None

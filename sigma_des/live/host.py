@@ -187,8 +187,8 @@ class Host(ImpairedSender):
         subs = [(topics.trig, self.qos), (topics.host_down(host), self.qos), (topics.ctl, 1)]
         # across machines (--scheduler): clock exchanges and a go on this host's own clock
         self.sync = SyncTopics(topics.run) if cfg.get("sync") else None
-        if self.sync is not None:
-            subs.append((self.sync.down(host), 1))
+        if self.sync is not None:  # not its own pongs: they are no forged traffic
+            subs += [(self.sync.ping(host), 1), (self.sync.go(host), 1)]
         if client_factory is None:
             self.client = Client(addr, f"{topics.run}-h{host}", subs, self._on_message,
                                  int(cfg["max_inflight"]))

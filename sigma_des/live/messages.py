@@ -19,6 +19,7 @@ All times are seconds since the method's first trigger on one monotonic clock.
 from __future__ import annotations
 
 import os
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -68,7 +69,8 @@ def read_messages(source: Path) -> pd.DataFrame:
         df = pd.read_csv(path)
     except pd.errors.EmptyDataError:
         raise ConfigError(str(path), f"is empty; expected {expected}") from None
-    except (OSError, EOFError, UnicodeDecodeError, pd.errors.ParserError, ValueError) as e:
+    except (OSError, EOFError, zlib.error, UnicodeDecodeError, pd.errors.ParserError,
+            ValueError) as e:
         why = str(e).splitlines()[0] if str(e) else type(e).__name__
         raise ConfigError(str(path), f"not readable as {expected} ({why})") from None
     need = {"method", "kind", "node", "frame", "t_send", "t_recv"}
@@ -77,6 +79,9 @@ def read_messages(source: Path) -> pd.DataFrame:
     if df.empty:
         raise ConfigError(str(path), "has a header but no message rows; expected the "
                           "messages of a live run")
+    from sigma_des.live.message_rows import drop_malformed
+
+    df = drop_malformed(df, str(path))
     for col in ("node", "frame", "t_send", "t_recv"):
         if not pd.api.types.is_numeric_dtype(df[col]):
             raise ConfigError(str(path), f"column {col!r} is not numeric")

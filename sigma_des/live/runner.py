@@ -42,6 +42,7 @@ from sigma_des.live.cpu import CpuMeter, message_counts, wake_sums
 from sigma_des.live.interrupts import Interrupts
 from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
+from sigma_des.live.lost import hop_notes, lost_notes
 from sigma_des.live.procs import HostGroup, LocalHosts, rows_file
 from sigma_des.live.results import (
     LIVE_METRICS,
@@ -317,6 +318,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         srv.wall_seconds = time.perf_counter() - w0
         srv.running = False
         srv.stats.clear()  # counters sent before stop are not the hosts' (forged)
+        broker_down = srv.client.disconnects >= srv.client.connects  # and never came back
         srv.client.publish(topics.ctl, b"stop", 1)
         alive = group.alive()
         deadline = time.monotonic() + 5.0
@@ -330,6 +332,8 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
             host_fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
     out["live"] = live_info(srv, group, table, sc)
+    out["live"]["warnings"] = lost_notes(out["live"], sc.hosts, broker_down) + (
+        hop_notes(table, sc, opts.impair) if opts.broker is not None else [])
     if book is not None:
         out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),

@@ -35,6 +35,10 @@ __all__ = [
 BLOCK = 256
 
 
+#: Largest trajectory sampling rate (Hz): that of the fastest clock a scenario may have.
+MAX_LOG_RATE_HZ = 10_000.0
+
+
 @dataclass(frozen=True)
 class FidelitySpec:
     """Swarm fidelity against an ideal run (zero latency, perfect alignment).
@@ -51,6 +55,8 @@ class FidelitySpec:
 
     def __post_init__(self) -> None:
         require_positive(self, "log_rate")
+        require(self.log_rate <= MAX_LOG_RATE_HZ, "log_rate",
+                f"must be in (0, {MAX_LOG_RATE_HZ:g}] Hz, got {self.log_rate:g}")
         require(self.dtw_nodes >= 1, "dtw_nodes", f"must be >= 1, got {self.dtw_nodes}")
 
 

@@ -49,13 +49,17 @@ DIST_NAMES: tuple[str, ...] = (
 )
 
 
+#: The largest delay parameter accepted (s): a million seconds, far beyond any run.
+DELAY_MAX = 1e6
+
+
 def _nonneg_float(name: str, value: object) -> float:
-    """``value`` as a float, or ConfigError unless it is a finite real ``>= 0``."""
+    """``value`` as a float, or ConfigError unless it is a real in ``[0, DELAY_MAX]``."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ConfigError(name, f"must be a number of seconds >= 0, got {value!r}")
     v = float(value)
-    if not math.isfinite(v) or v < 0.0:
-        raise ConfigError(name, f"must be >= 0 s (finite), got {value!r}")
+    if not math.isfinite(v) or v < 0.0 or v > DELAY_MAX:
+        raise ConfigError(name, f"must be >= 0 and <= {DELAY_MAX:g} s, got {value!r}")
     return v
 
 
@@ -109,8 +113,9 @@ def _load_cached(path: str, mtime_ns: int) -> NDArray[np.float64]:
                 raise ConfigError(
                     "file", f"{path}:{lineno}: not a number of seconds: {cell!r}"
                 ) from None
-            if not math.isfinite(v) or v < 0.0:
-                raise ConfigError("file", f"{path}:{lineno}: samples must be >= 0 s, got {v!r}")
+            if not math.isfinite(v) or v < 0.0 or v > DELAY_MAX:
+                raise ConfigError("file", f"{path}:{lineno}: samples must be >= 0 and "
+                                          f"<= {DELAY_MAX:g} s, got {v!r}")
             values.append(v)
     if not values:
         raise ConfigError("file", f"{path}: no samples")

@@ -34,6 +34,7 @@ from sigma_des.core.validate import require, require_in, require_nonneg, require
 from sigma_des.net.deployment import CLIENTS, PRESETS, DeploymentSpec
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossSpec
+from sigma_des.net.wire import MAX_HEADER_BYTES
 
 __all__ = [
     "BrokerSpec",
@@ -153,7 +154,8 @@ class NetSpec:
         )
         require(self.qos in (0, 1), "qos", f"must be 0 or 1, got {self.qos}")
         require_positive(self, "rto", "qos1_timeout")
-        require_nonneg(self, "tcpip_bytes", "ethernet_bytes")
+        for key in ("tcpip_bytes", "ethernet_bytes"):
+            require_in(self, key, 0, MAX_HEADER_BYTES, " bytes")
         # every resend is an event: beyond a few dozen a packet is long given up in practice
         require_in(self, "max_retries", 0, MAX_RETRIES)
         require(

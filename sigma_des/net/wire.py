@@ -18,9 +18,13 @@ pass ``mss`` to :func:`frame_bytes` to count segmentation of larger packets.
 
 from __future__ import annotations
 
+from sigma_des.errors import ConfigError
+
 __all__ = [
     "ETHERNET_BYTES",
     "ETHERNET_MIN_PAYLOAD",
+    "MAX_HEADER_BYTES",
+    "MAX_PAYLOAD_BITS",
     "MAX_REMAINING_LENGTH",
     "PUBACK_BYTES",
     "TCPIP_BYTES",
@@ -28,6 +32,7 @@ __all__ = [
     "payload_bytes",
     "publish_bytes",
     "remaining_length_bytes",
+    "require_payload",
 ]
 
 #: MQTT PUBACK: 0x40, remaining length 2, packet identifier (2).
@@ -40,6 +45,19 @@ ETHERNET_BYTES = 38
 ETHERNET_MIN_PAYLOAD = 46
 #: Largest value the MQTT remaining-length varint can encode (4 bytes).
 MAX_REMAINING_LENGTH = 268_435_455
+#: Largest message payload a scenario may ask for (bits): 128 MiB, so that the payload
+#: with the longest topic (65535 bytes) and its headers fits one MQTT packet.
+MAX_PAYLOAD_BITS = 2**30
+#: Largest per-packet header a scenario may give (``net.tcpip_bytes``,
+#: ``net.ethernet_bytes``): an IP packet's whole length field.
+MAX_HEADER_BYTES = 65_535
+
+
+def require_payload(key: str, bits: int, low: int) -> None:
+    """ConfigError naming ``key`` unless ``low <= bits <= MAX_PAYLOAD_BITS``."""
+    if not low <= bits <= MAX_PAYLOAD_BITS:
+        raise ConfigError(key, f"must be in {low}..{MAX_PAYLOAD_BITS} bits (128 MiB, what one "
+                               f"MQTT packet carries), got {bits}")
 
 
 def remaining_length_bytes(n: int) -> int:

@@ -8,8 +8,12 @@ per-node states (:func:`read_states`). ``mode="incremental"`` stores states as
 per-node deltas with a dead-band and keyframes (:mod:`sigma_des.record.delta`).
 """
 
-from sigma_des.record.method import MethodRecorder
-from sigma_des.record.reader import (
+from sigma_des.extras import need_import
+
+need_import("sigma_des.record", "mcap", "orjson", extra="record")
+
+from sigma_des.record.method import MethodRecorder  # noqa: E402  (after the check of the extra)
+from sigma_des.record.reader import (  # noqa: E402
     RecordError,
     Recording,
     StateTable,
@@ -17,7 +21,7 @@ from sigma_des.record.reader import (
     read_states,
     read_table,
 )
-from sigma_des.record.writer import RECORD_MODES, Recorder
+from sigma_des.record.writer import RECORD_MODES, Recorder  # noqa: E402
 
 __all__ = [
     "MethodRecorder",

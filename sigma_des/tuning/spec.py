@@ -50,13 +50,21 @@ DEFAULT_CHANNELS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: Largest population: a generation of 10000 on a 3 s, 100 Hz log is a batched flight
+#: estimated at 0.7 GiB, about a minute (population 5000 measured 0.5 GB peak RSS and
+#: 33 s on a loaded machine; 100000 grew for minutes into gigabytes). Longer logs are
+#: bounded further by the memory estimate (``--force`` skips it).
+MAX_POPULATION = 10_000
+
+
 @dataclass(frozen=True)
 class TuneSpec:
     """GA and fitness settings (TOML table ``[tune]``; ``--set tune.<key>=...``).
 
     Attributes:
         seed: root seed of the GA's random stream (``tuning.ga``).
-        population: individuals per generation (P; one batched flight of P aircraft).
+        population: individuals per generation (P; one batched flight of P aircraft),
+            at most :data:`MAX_POPULATION`.
         generations: generations after the initial one.
         tournament: tournament size of the selection.
         cxpb: probability that a pair is recombined by arithmetic crossover (eq. 12).
@@ -113,8 +121,8 @@ class TuneSpec:
                 raise ConfigError(f"tune.{key}", why)
 
         req(0 <= self.seed < 2**63, "seed", f"must be in 0..2^63-1, got {self.seed}")
-        req(2 <= self.population <= 100_000, "population",
-            f"must be in 2..100000, got {self.population}")
+        req(2 <= self.population <= MAX_POPULATION, "population",
+            f"must be in 2..{MAX_POPULATION}, got {self.population}")
         req(0 <= self.generations <= 100_000, "generations",
             f"must be in 0..100000, got {self.generations}")
         req(1 <= self.tournament <= self.population, "tournament",

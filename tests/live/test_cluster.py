@@ -109,6 +109,8 @@ def test_hosts_on_both_workers_clocks_reconciled_and_calibrate_accepts(
     assert [(w["host"], w["name"]) for w in info["where"]] == [(0, "w0"), (1, "w1")]
     assert len({w["worker"] for w in info["where"]}) == 2
     assert info["hosts_reported"] == [0, 1] and info["hosts_killed"] == []
+    # a fault-free run rejects nothing: a host's own clock replies are not forged traffic
+    assert info["rejected"] == 0 and summ["methods"]["bides"]["rejected"] == 0
     clock = info["clock"]
     for h, off in (("0", 0.0), ("1", OFFSET)):
         c = clock[h]

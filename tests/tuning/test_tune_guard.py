@@ -99,14 +99,23 @@ def test_out_read_only(log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[
 
 def test_population_memory_check(log: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    spec = TuneSpec(population=100_000)
+    spec = TuneSpec(population=10_000)
     # 3 windows of 51 samples, 28 states + 12 observations, float64, 1.5x reserve
-    assert tune_bytes(read_csv(log, "quadrotor"), spec) == int(1.5 * 100_000 * 3 * 51 * 40 * 8)
+    assert tune_bytes(read_csv(log, "quadrotor"), spec) == int(1.5 * 10_000 * 3 * 51 * 40 * 8)
     import sigma_des.budget as budget
 
-    monkeypatch.setattr(budget, "available_bytes", lambda: 2**30)
-    err = _err(["--log", str(log), "--set", "tune.population=100000", "--out",
+    monkeypatch.setattr(budget, "available_bytes", lambda: 2**29)
+    err = _err(["--log", str(log), "--set", "tune.population=10000", "--out",
                 str(tmp_path / "o")], capsys)
-    assert "memory: tune.population=100000 needs about 6.84 GiB, but 1 GiB is available" in err
+    assert "memory: tune.population=10000 needs about 0.684 GiB, but 0.5 GiB is available" in err
     assert "lower tune.population" in err and "--force" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_population_beyond_the_maximum_is_refused(log: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    # the old documented maximum: a batched flight of gigabytes that ran for minutes
+    err = _err(["--log", str(log), "--set", "tune.population=100000", "--set",
+                "tune.generations=1", "--out", str(tmp_path / "o")], capsys)
+    assert "tune.population: must be in 2..10000, got 100000" in err
     assert not (tmp_path / "o").exists()
