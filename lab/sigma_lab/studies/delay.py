@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["cells", "ci95", "env_kwargs", "paired_cells"]
+__all__ = ["cells", "ci95", "env_kwargs", "paired_cells", "perfect_rows"]
 
 
 def cells(delays: list[float], methods: list[str]) -> list[str]:
@@ -74,4 +74,24 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
         for name in ("untrained", "naive", "extrapolating"):
             row[f"{name}_fitness"] = fit.get((name, -1, cell), float("nan"))
         rows.append(row)
+    return rows
+
+
+def perfect_rows(evals: list[dict[str, Any]], seeds: list[int]) -> list[dict[str, Any]]:
+    """Every policy evaluated under ``perfect``: the hand-written ones (seed -1) and, per
+    training condition, the mean ± 95 % CI over ``seeds`` of its policies."""
+    rows: list[dict[str, Any]] = []
+    per: dict[str, list[float]] = {}
+    for e in evals:
+        if e["evaluated"] != "perfect":
+            continue
+        if e["seed"] == -1:
+            rows.append({"policy": e["trained"], "mean": e["fitness"], "ci95": 0.0, "n": 1,
+                         "seed_mean": False})
+        elif e["seed"] in seeds:
+            per.setdefault(e["trained"], []).append(e["fitness"])
+    for name, v in per.items():
+        x = np.array(v)
+        rows.append({"policy": f"trained {name}", "mean": float(x.mean()), "ci95": ci95(x),
+                     "n": len(x), "seed_mean": True})
     return rows
