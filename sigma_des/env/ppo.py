@@ -104,6 +104,72 @@ def _norm_of(env: Any) -> Any:
     return env
 
 
+class _Saves:
+    """The files of a checkpoint prefix (None: no saves)."""
+
+    def __init__(self, prefix: str | Path | None) -> None:
+        self.prefix = Path(prefix) if prefix is not None else None
+        self.zip = self.prefix.with_suffix(".zip") if self.prefix else None
+        self.norm = self.prefix.with_suffix(".norm.pkl") if self.prefix else None
+        self.curve = self.prefix.with_suffix(".curve.json") if self.prefix else None
+
+    def curve_rows(self) -> list[dict[str, float]]:
+        """The saved learning curve (empty if none)."""
+        if self.curve is None or not self.curve.exists():
+            return []
+        return list(json.loads(self.curve.read_text()))
+
+    def save(self, model: Any, env: Any, history: list[dict[str, float]]) -> None:
+        """Save the model, the normaliser and the curve (nothing without a prefix)."""
+        if self.prefix is None or self.zip is None or self.norm is None or self.curve is None:
+            return
+        self.prefix.parent.mkdir(parents=True, exist_ok=True)
+        model.save(str(self.zip))
+        _norm_of(env).save(str(self.norm))
+        self.curve.write_text(json.dumps(history) + "\n")
+
+
+def _curve(save: Callable[[], None], history: list[dict[str, float]],
+           log: Callable[[dict[str, float]], None] | None, save_every: int,
+           max_wall_s: float | None, start_steps: int) -> Any:
+    """The callback that appends a curve row per rollout, saves and keeps the budget."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    wall0 = history[-1]["wall_s"] if history else 0.0
+    t0 = time.perf_counter()
+
+    class _Curve(BaseCallback):  # type: ignore[misc]
+        last_save = start_steps
+        finished: list[float] = []
+        stop = False
+
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                if "episode" in info:
+                    self.finished.append(info["episode"]["r"] / info["episode"]["l"])
+            return True
+
+        def _on_rollout_end(self) -> None:
+            done, self.finished[:] = list(self.finished), []
+            row = {"agent_steps": float(self.num_timesteps),
+                   "fitness": float(np.mean(done)) if done else float("nan"),
+                   "episodes": float(len(done)), "wall_s": wall0 + time.perf_counter() - t0}
+            history.append(row)
+            if log is not None:
+                log(row)
+            if self.num_timesteps - self.last_save >= save_every:
+                self.last_save = self.num_timesteps
+                save()
+            if max_wall_s is not None and time.perf_counter() - t0 >= max_wall_s:
+                self.stop = True
+
+        def _on_rollout_start(self) -> None:
+            if self.stop:
+                raise _Stop
+
+    return _Curve()
+
+
 def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: str = "mlp",
           n_scenes: int = 16, n_stack: int = 4, checkpoint: str | Path | None = None,
           save_every: int = 200_000, log: Callable[[dict[str, float]], None] | None = None,
@@ -133,74 +199,32 @@ def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: st
         raise ValueError(f"policy: must be one of {POLICIES}, got {policy!r}")
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
 
     torch.set_num_threads(1)  # a shared machine: one core per training
     kw = {**PPO_DEFAULTS, **ppo_kwargs}
     kw.setdefault("policy_kwargs", {"log_std_init": -1.0, "net_arch": [64, 64]})
-    prefix = Path(checkpoint) if checkpoint is not None else None
-    zip_path = prefix.with_suffix(".zip") if prefix else None
-    norm_path = prefix.with_suffix(".norm.pkl") if prefix else None
-    curve_path = prefix.with_suffix(".curve.json") if prefix else None
-    env = _wrap(env_kwargs, n_scenes, seed, policy, n_stack, norm_path, kw["gamma"])
+    saves = _Saves(checkpoint)
+    env = _wrap(env_kwargs, n_scenes, seed, policy, n_stack, saves.norm, kw["gamma"])
     if policy == "lstm":
         from sb3_contrib import RecurrentPPO as Algo
         name = "MlpLstmPolicy"
     else:
         Algo, name = PPO, "MlpPolicy"
     history: list[dict[str, float]] = []
-    if zip_path is not None and zip_path.exists():
-        model = Algo.load(str(zip_path), env=env, device="cpu")
-        history = json.loads(curve_path.read_text()) if curve_path.exists() else []
+    if saves.zip is not None and saves.zip.exists():
+        model = Algo.load(str(saves.zip), env=env, device="cpu")
+        history = saves.curve_rows()
     else:
         model = Algo(name, env, seed=seed, device="cpu", verbose=0, **kw)
-    wall0 = history[-1]["wall_s"] if history else 0.0
-    t0 = time.perf_counter()
-
-    def save() -> None:
-        if prefix is None:
-            return
-        prefix.parent.mkdir(parents=True, exist_ok=True)
-        model.save(str(zip_path))
-        _norm_of(env).save(str(norm_path))
-        curve_path.write_text(json.dumps(history) + "\n")
-
-    class _Curve(BaseCallback):  # type: ignore[misc]
-        last_save = model.num_timesteps
-        finished: list[float] = []
-
-        def _on_step(self) -> bool:
-            for info in self.locals["infos"]:
-                if "episode" in info:
-                    self.finished.append(info["episode"]["r"] / info["episode"]["l"])
-            return True
-
-        def _on_rollout_end(self) -> None:
-            done, self.finished[:] = list(self.finished), []
-            row = {"agent_steps": float(self.num_timesteps),
-                   "fitness": float(np.mean(done)) if done else float("nan"),
-                   "episodes": float(len(done)), "wall_s": wall0 + time.perf_counter() - t0}
-            history.append(row)
-            if log is not None:
-                log(row)
-            if self.num_timesteps - _Curve.last_save >= save_every:
-                _Curve.last_save = self.num_timesteps
-                save()
-            if max_wall_s is not None and time.perf_counter() - t0 >= max_wall_s:
-                self.stop = True
-
-        def _on_rollout_start(self) -> None:
-            if getattr(self, "stop", False):
-                raise _Stop
-
     remaining = total_steps - model.num_timesteps
     if remaining > 0 and (max_wall_s is None or max_wall_s > 0):
+        cb = _curve(lambda: saves.save(model, env, history), history, log, save_every,
+                    max_wall_s, model.num_timesteps)
         try:
-            model.learn(total_timesteps=remaining, callback=_Curve(),
-                        reset_num_timesteps=False)
+            model.learn(total_timesteps=remaining, callback=cb, reset_num_timesteps=False)
         except _Stop:
             pass
-        save()
+        saves.save(model, env, history)
     norm = _norm_of(env)
     norm.training = False
     return Acting(model, norm, policy, n_stack), history
