@@ -221,11 +221,12 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         "version": __version__, "args": args, "cells": cells(a.delay_list, a.method_list),
         "seeds_done": done, "perfect": perfect_rows(evals, done),
         "stats": table, "eval": evals, "cost": cost, "wall_s": wall}, indent=2) + "\n")
-    _plots(out, a, history, table, len(done))
+    refs = {r["policy"]: r["mean"] for r in perfect_rows(evals, done) if not r["seed_mean"]}
+    _plots(out, a, history, table, len(done), refs)
 
 
 def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
-           table: list[dict[str, Any]], n_seeds: int) -> None:
+           table: list[dict[str, Any]], n_seeds: int, refs: dict[str, float]) -> None:
     plt = plot_setup(fast=a.quick)
     conds = cells(a.delay_list, a.method_list)
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -242,6 +243,11 @@ def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         color = f"C{i}"
         ax.plot(xs, m_, color=color, marker="o", ms=3, label=f"trained {cond}")
         ax.fill_between(xs, m_ - h_, m_ + h_, color=color, alpha=0.15)
+    for name, style in (("naive", "--"), ("extrapolating", ":")):
+        if name in refs:  # the hand-written controllers under perfect information
+            ax.axhline(refs[name], color="k", ls=style, lw=1,
+                       label=f"{name}, perfect info (held-out)")
+    ax.set_yscale("symlog", linthresh=0.1)  # early failures (-10 each) beside the tail
     ax.set_xlabel("agent-steps of training")
     ax.set_ylabel("reward per agent-step (own condition)")
     ax.set_title(f"tight task, {a.learner.upper()}: mean ± 95% CI over {n_seeds} seeds",
