@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 
+from sigma_lab.studies.delay import cells
 from sigma_lab.studies.delay_study import merge, run
 
 OUT = "out/env/delay_study"
@@ -58,6 +59,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--ppo-wall", type=float, default=None,
                     help="PPO: wall seconds per training in this invocation (rerun goes on)")
     ap.add_argument("--progress", type=int, default=10, help="PPO: rollouts per progress line")
+    ap.add_argument("--train", default=None,
+                    help="train only these conditions (comma list, e.g. perfect); every "
+                         "trained policy is still evaluated as usual")
     ap.add_argument("--checkpoints", default=None,
                     help="resume folder (default <out>/checkpoints; '' = none)")
     ap.add_argument("--seeds", type=int, default=5)
@@ -107,6 +111,11 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                          else f"{a.out}/checkpoints")
     a.delay_list = [] if a.delays == "none" else [float(x) for x in a.delays.split(",")]
     a.method_list = a.methods.split(",")
+    a.train_list = None if a.train is None else a.train.split(",")
+    known = cells(a.delay_list, a.method_list)
+    for c in a.train_list or []:
+        if c not in known:
+            ap.error(f"--train: unknown condition {c!r}; the study's are {known}")
     return a
 
 

@@ -57,6 +57,8 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
     fit = {(e["trained"], e["seed"], e["evaluated"]): e["fitness"] for e in evals}
     rows = []
     for cell in conds[1:]:
+        if any((cell, s, cell) not in fit for s in seeds):  # not trained under it
+            continue
         d = np.array([fit[(cell, s, cell)] for s in seeds])
         p = np.array([fit[("perfect", s, cell)] for s in seeds])
         diff = d - p
@@ -77,13 +79,14 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
     return rows
 
 
-def perfect_rows(evals: list[dict[str, Any]], seeds: list[int]) -> list[dict[str, Any]]:
-    """Every policy evaluated under ``perfect``: the hand-written ones (seed -1) and, per
+def perfect_rows(evals: list[dict[str, Any]], seeds: list[int], where: str = "perfect"
+                 ) -> list[dict[str, Any]]:
+    """Every policy evaluated under ``where``: the hand-written ones (seed -1) and, per
     training condition, the mean ± 95 % CI over ``seeds`` of its policies."""
     rows: list[dict[str, Any]] = []
     per: dict[str, list[float]] = {}
     for e in evals:
-        if e["evaluated"] != "perfect":
+        if e["evaluated"] != where:
             continue
         if e["seed"] == -1:
             rows.append({"policy": e["trained"], "mean": e["fitness"], "ci95": 0.0, "n": 1,

@@ -115,7 +115,7 @@ def run(a: argparse.Namespace) -> int:
     for name, pol in baselines.items() if not a.skip_baselines else ():
         evaluate(name, -1, pol, conds)
     for k, seed in enumerate(seeds):
-        for cond in conds:
+        for cond in [c for c in conds if a.train_list is None or c in a.train_list]:
             rec = Path(a.checkpoints) / f"{cond}_{_tag(a)}_s{seed}.done.json" \
                 if a.checkpoints else None
             if rec is not None and rec.exists():  # resume: this training is finished
@@ -143,10 +143,10 @@ def run(a: argparse.Namespace) -> int:
         table = paired_cells(evals, conds, seeds[: k + 1])
         _write(out, a, history, evals, cost, table, time.perf_counter() - t_start,
                seeds[: k + 1])
-    for r in perfect_rows(evals, seeds):
-        print(f"under perfect information: {r['policy']:24s} {r['mean']:.3f} ± "
-              f"{r['ci95']:.3f} ({r['n']} {'seeds' if r['seed_mean'] else 'controller'})",
-              flush=True)
+    for cond in conds:
+        for r in perfect_rows(evals, seeds, cond):
+            print(f"under {cond:12s}: {r['policy']:24s} {r['mean']:.3f} ± {r['ci95']:.3f} "
+                  f"({r['n']} {'seeds' if r['seed_mean'] else 'controller'})", flush=True)
     for r in table:
         print(f"{r['cell']:14s} delay-trained {r['delay_trained_mean']:.3f} ± "
               f"{r['delay_trained_ci95']:.3f}  perfect-trained {r['perfect_trained_mean']:.3f} "
@@ -220,6 +220,8 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
     (out / "summary.json").write_text(json.dumps({
         "version": __version__, "args": args, "cells": cells(a.delay_list, a.method_list),
         "seeds_done": done, "perfect": perfect_rows(evals, done),
+        "evaluated_under": {c: perfect_rows(evals, done, c)
+                            for c in cells(a.delay_list, a.method_list)},
         "stats": table, "eval": evals, "cost": cost, "wall_s": wall}, indent=2) + "\n")
     refs = {r["policy"]: r["mean"] for r in perfect_rows(evals, done) if not r["seed_mean"]}
     _plots(out, a, history, table, len(done), refs)
