@@ -234,6 +234,8 @@ def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
     fig, ax = plt.subplots(figsize=(7, 4))
     for i, cond in enumerate(conds):
         rows = [r for r in history if r["trained"] == cond]
+        if not rows:  # not trained (--train)
+            continue
         xs = sorted({r["agent_steps"] for r in rows})
         m, h = [], []
         for x in xs:
