@@ -12,7 +12,13 @@ allocated by ``reset`` (tracemalloc) of a batch of ``--mem-scenes`` scenes / sce
 For reference, the same scenario run on its own by the simulator (no env; the
 built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
 
-Usage: ``python experiments/bench_env.py [--quick] [--out /work/out/env]``
+``--study``: instead, the delay study's configuration (``tight`` task, 5 nodes = 4
+agents, BiDES at 200 ms with 10 % loss, and ``perfect``), 4 and 64 scenes, random
+actions, against the targets (>= 50 000 agent-steps per CPU-s at 64 scenes, >= 20 000
+at 4); memory: the process's resident set (``VmRSS``) grown by building and resetting
+``--fit`` scenes (default 512), per scene and in all (target: 512 scenes in 2 GB).
+
+Usage: ``python experiments/bench_env.py [--quick] [--study] [--out out/env]``
 """
 
 from __future__ import annotations
@@ -92,6 +98,59 @@ def memory(method: str, scenes: int) -> float:
     return (after - before) / scenes
 
 
+STUDY_TARGETS = {4: 20_000, 64: 50_000}
+
+
+def _rss() -> int:
+    """Resident set of this process (bytes, ``/proc/self/status``)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    return 0
+
+
+def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, Any]:
+    """Agent-steps per CPU-s on the delay study's configuration, and memory per scene."""
+    import gc
+
+    from sigma_lab.studies.delay import env_kwargs
+
+    rows = []
+    for cond in ("bides@200ms", "perfect"):
+        kw = env_kwargs(cond, 5, 10_000, 0.1)
+        for scenes in sizes:
+            env = SwarmVec(n_scenes=scenes, **kw)
+            env.reset(seed=1)
+            acts = np.random.default_rng(0).uniform(-1, 1, (steps, scenes, env.n_agents, 3))
+            best = float("inf")
+            for _ in range(reps):
+                t = time.thread_time()
+                for k in range(steps):
+                    env.step(acts[k])
+                best = min(best, time.thread_time() - t)
+            r = {"condition": cond, "scenes": scenes, "steps": steps,
+                 "agent_steps_per_s": scenes * env.n_agents * steps / best}
+            rows.append(r)
+            goal = STUDY_TARGETS.get(scenes)
+            met = "" if goal is None else (
+                f"  target >= {goal:,}: {'met' if r['agent_steps_per_s'] >= goal else 'not met'}")
+            print(f"study {cond:12s} {scenes:4d} scenes: {r['agent_steps_per_s']:9.0f} "
+                  f"agent-steps per CPU-s{met}; load {os.getloadavg()[0]:.1f}", flush=True)
+            del env
+            gc.collect()
+    gc.collect()
+    before = _rss()
+    env = SwarmVec(n_scenes=fit, **env_kwargs("bides@200ms", 5, 50, 0.1))
+    env.reset(seed=1)
+    env.step(np.zeros((fit, env.n_agents, 3)))
+    grown = _rss() - before
+    print(f"memory: {fit} scenes (bides@200ms) grew the resident set by {grown / 2**20:.1f} MiB "
+          f"= {grown / fit / 1024:.1f} KiB per scene; in 2 GiB: "
+          f"{'yes' if grown < 2 * 2**30 else 'no'}", flush=True)
+    return {"rows": rows, "fit_scenes": fit, "rss_grown_bytes": grown,
+            "rss_bytes_per_scene": grown / fit, "fits_2gib": grown < 2 * 2**30}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark, print the table, write CSV and JSON."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -100,8 +159,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--mem-scenes", type=int, default=50)
     ap.add_argument("--variant", choices=["default", "const", "both"], default="both")
+    ap.add_argument("--study", action="store_true",
+                    help="the delay study's configuration (see the module docstring)")
+    ap.add_argument("--fit", type=int, default=512, help="--study: scenes of the memory check")
     ap.add_argument("--out", default="out/env")
     args = ap.parse_args(argv)
+    if args.study:
+        res = study((1, 2) if args.quick else (4, 64), 2 if args.quick else args.steps,
+                    1 if args.quick else args.reps, 4 if args.quick else args.fit)
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "bench_study.json").write_text(json.dumps(
+            {"version": __version__, **res, "quick": args.quick}, indent=2) + "\n")
+        return 0
     sizes = (1, 2) if args.quick else (1, 10, 500)
     steps = 2 if args.quick else args.steps
     reps = 1 if args.quick else args.reps

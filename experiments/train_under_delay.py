@@ -10,33 +10,60 @@ budgets, seeds ``0..seeds-1`` each:
   (``--methods``); agents observe that method's aligned view.
 
 Learner: ``cem`` (zero-dependency cross-entropy method over a shared linear policy,
-``sigma_des.env.learn``) or ``ppo`` (Stable-Baselines3 PPO, ``MlpPolicy``; the
-``learn`` extra). Every trained policy, the untrained (zero) policy and the two
-hand-written controllers (``sigma_des.env.controllers``) are evaluated on the same
-held-out episodes (root seed ``--eval-seed``) of every delay cell and of ``perfect``.
+``sigma_des.env.learn``) or ``ppo`` (``sigma_des.env.ppo``: Stable-Baselines3 PPO with
+observation and reward normalisation, ``--policy mlp``, ``stack`` = frame-stacked MLP
+or ``lstm`` = sb3-contrib RecurrentPPO; the ``learn`` extra). Every trained policy,
+the untrained (zero) policy and the two hand-written controllers
+(``sigma_des.env.controllers``) are evaluated on the same held-out episodes (root
+seed ``--eval-seed``) of every delay cell and of ``perfect``.
 Per delay cell: mean ± 95 % CI over seeds (t distribution) and a paired one-sided
 test over seeds of "delay-trained beats perfect-trained under that delay" (paired t
 test and Wilcoxon signed-rank, ``scipy.stats``).
 
 Outputs (``--out``): ``history.csv`` (learning curves), ``eval.csv`` (per policy and
-evaluation condition), ``stats.csv`` (per delay cell), ``summary.json``,
-``learning_curves.png``, ``eval.png``.
+evaluation condition), ``stats.csv`` (per delay cell), ``summary.json`` (also the
+``perfect`` comparison with the hand-written controllers), ``learning_curves.png``,
+``eval.png``, written after every seed.
 
-Usage: ``python experiments/train_under_delay.py [--quick] [--learner cem|ppo]
-[--seeds 5] [--out out/env/delay_study]``
+Resumable (``--checkpoints``, default ``<out>/checkpoints``): PPO saves every policy
+there as it trains and a rerun goes on from the save; a finished training (and its
+evaluations) is recorded there and not redone. ``--ppo-wall`` bounds one training's
+wall time per invocation (rerun to continue). Progress: a line every ``--progress``
+rollouts (agent-steps, reward, rate, ETA) and one per finished training.
+
+``--full``: the full PPO study in one command (5 seeds; 50 and 200 ms; BiDES and
+none; 2 x 10^6 agent-steps per policy on 16 scenes; ``--policy`` kept), outputs in
+``docs/results/data/delay_ppo_<policy>``. ``--delays none``: ``perfect`` only.
+
+Usage: ``python experiments/train_under_delay.py [--quick | --full] [--learner cem|ppo]
+[--policy mlp|stack|lstm] [--seeds 5] [--out out/env/delay_study]``
 """
 
 from __future__ import annotations
 
 import argparse
 
+from sigma_lab.studies.delay import cells
 from sigma_lab.studies.delay_study import merge, run
+
+OUT = "out/env/delay_study"
 
 
 def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="tiny scale (CEM, seconds)")
+    ap.add_argument("--full", action="store_true", help="the full PPO study (docstring)")
     ap.add_argument("--learner", choices=("cem", "ppo"), default="cem")
+    ap.add_argument("--policy", choices=("mlp", "stack", "lstm"), default="mlp", help="PPO")
+    ap.add_argument("--n-stack", type=int, default=4, help="PPO stack: frames")
+    ap.add_argument("--ppo-wall", type=float, default=None,
+                    help="PPO: wall seconds per training in this invocation (rerun goes on)")
+    ap.add_argument("--progress", type=int, default=10, help="PPO: rollouts per progress line")
+    ap.add_argument("--train", default=None,
+                    help="train only these conditions (comma list, e.g. perfect); every "
+                         "trained policy is still evaluated as usual")
+    ap.add_argument("--checkpoints", default=None,
+                    help="resume folder (default <out>/checkpoints; '' = none)")
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--delays", default="0.05,0.2", help="mean host-link latencies (s)")
     ap.add_argument("--methods", default="bides,none")
@@ -58,14 +85,20 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                     help="do not evaluate the untrained and hand-written policies (a shard)")
     ap.add_argument("--merge", nargs="+", default=None, metavar="DIR",
                     help="merge the outputs of shards (same settings) into --out; no training")
-    ap.add_argument("--out", default="out/env/delay_study")
+    ap.add_argument("--out", default=OUT)
     a = ap.parse_args(argv)
+    if a.full:
+        a.learner, a.seeds, a.delays, a.methods, a.nodes = "ppo", 5, "0.05,0.2", "bides,none", 5
+        a.max_steps, a.ppo_steps, a.ppo_scenes, a.ppo_n_steps, a.ppo_batch = (
+            50, 2_000_000, 16, 64, 1024)
+        if a.out == OUT:
+            a.out = f"docs/results/data/delay_ppo_{a.policy}"
     if a.quick:
         a.learner, a.seeds, a.delays, a.methods = "cem", 2, "0.2", "bides"
         a.nodes, a.max_steps, a.eval_episodes = 3, 10, 2
         a.iterations, a.population, a.episodes = 2, 4, 1
     for key in ("seeds", "nodes", "max_steps", "eval_episodes", "iterations", "population",
-                "episodes", "ppo_steps", "ppo_scenes"):
+                "episodes", "ppo_steps", "ppo_scenes", "n_stack", "progress"):
         if getattr(a, key) < 1 or (key == "nodes" and a.nodes < 2):
             ap.error(f"--{key.replace('_', '-')}: must be >= {2 if key == 'nodes' else 1}, "
                      f"got {getattr(a, key)}")
@@ -73,8 +106,16 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
         ap.error(f"--loss: must be in [0, 1), got {a.loss}")
     a.seed_ids = (list(range(a.seeds)) if a.seed_list is None
                   else [int(x) for x in a.seed_list.split(",")])
-    a.delay_list = [float(x) for x in a.delays.split(",")]
+    if a.checkpoints is None:  # --full: model files outside the docs folder
+        a.checkpoints = (f"out/env/delay_ppo_{a.policy}/checkpoints" if a.full
+                         else f"{a.out}/checkpoints")
+    a.delay_list = [] if a.delays == "none" else [float(x) for x in a.delays.split(",")]
     a.method_list = a.methods.split(",")
+    a.train_list = None if a.train is None else a.train.split(",")
+    known = cells(a.delay_list, a.method_list)
+    for c in a.train_list or []:
+        if c not in known:
+            ap.error(f"--train: unknown condition {c!r}; the study's are {known}")
     return a
 
 

@@ -95,12 +95,17 @@ def score(policy: Callable[[NDArray[np.float32]], Array], env_kwargs: Mapping[st
 
     Runs ``copies x episodes`` scenes of one :class:`SwarmVec`; scene ``c * episodes +
     e`` plays held-out episode ``e`` (scene id ``e``, root ``seed``), so every copy and
-    every policy scored with the same ``seed`` meets the same episodes.
+    every policy scored with the same ``seed`` meets the same episodes. A policy with a
+    ``reset()`` method (a stateful one, e.g. :class:`sigma_des.env.ppo.Acting`) is reset
+    first.
 
     Returns:
         Per scene: ``fitness``, ``error`` (m) and ``failed`` (0 or 1), see the module
         docstring.
     """
+    begin = getattr(policy, "reset", None)
+    if callable(begin):  # a stateful policy (frame stack, LSTM): new episodes start here
+        begin()
     ids = [e for _ in range(copies) for e in range(episodes)]
     vec = SwarmVec(n_scenes=copies * episodes, scene_ids=ids, **dict(env_kwargs))
     obs, _ = vec.reset(seed=seed)

@@ -25,6 +25,7 @@ import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv
 
+from sigma_des.env.resets import RENDER_MODES
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP
 from sigma_des.env.vector import SwarmVec
 
@@ -42,19 +43,23 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
         max_steps: decisions per episode.
         perfect_info: observe the true state instead of the aligned view.
         seed: root seed used by the first ``reset()`` without a seed.
+        render_mode: None or ``"ansi"`` (:meth:`render` returns a text table of the
+            true state, the agents' ages and errors).
     """
 
-    metadata = {"name": "sigma_des_swarm_v0", "render_modes": []}
+    metadata = {"name": "sigma_des_swarm_v0", "render_modes": RENDER_MODES}
 
     def __init__(self, task: str = "formation", method: str = "bides",
                  scenario: Mapping[str, Any] | None = None,
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
-                 perfect_info: bool = False, seed: int | None = None) -> None:
+                 perfect_info: bool = False, seed: int | None = None,
+                 render_mode: str | None = None) -> None:
         self.vec = SwarmVec(task, method, 1, scenario, task_params, max_steps, perfect_info,
-                            seed, autoreset="disabled")
+                            seed, autoreset="disabled", render_mode=render_mode)
         self.possible_agents = [f"node_{i}" for i in self.vec.agent_nodes]
         self.agents: list[str] = []
-        self.render_mode = None
+        self.render_mode = self.vec.render_mode
+        self.state_space = self.vec.state_space
 
     @functools.cache  # noqa: B019 - spaces must be the same objects
     def observation_space(self, agent: str) -> gymnasium.spaces.Box:
@@ -125,8 +130,18 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
                 for j, a in enumerate(self.possible_agents)}
 
     def state(self) -> np.ndarray:
-        """The true ``(n, 12)`` published-state columns of every node (for a critic)."""
+        """The true ``(n, 12)`` published-state columns of every node (for a critic), an
+        element of :attr:`state_space` (unbounded float64 ``(n, 12)``)."""
         return self.vec.batch.scenes[0].truth()
+
+    def render(self) -> str | None:
+        """``ansi``: the scene's text table (see ``render_mode``); None without a mode."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("SwarmEnv.render() without a render_mode: pass "
+                                  f"render_mode= one of {RENDER_MODES} at construction")
+            return None
+        out = self.vec.render()
+        return None if out is None else out[0]
 
     def close(self) -> None:
         """Nothing to release."""

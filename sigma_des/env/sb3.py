@@ -60,8 +60,6 @@ class SwarmSB3VecEnv(VecEnv):  # type: ignore[misc]
             ``same_step``; passing another value is an error).
     """
 
-    render_mode = None
-
     def __init__(self, **kwargs: Any) -> None:
         mode = kwargs.pop("autoreset", "same_step")
         if mode != "same_step":
@@ -132,8 +130,7 @@ class SwarmSB3VecEnv(VecEnv):  # type: ignore[misc]
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
         """The attribute of this env (sub-envs share it), once per index."""
-        value = getattr(self, attr_name) if attr_name == "render_mode" else getattr(
-            self.vec, attr_name)
+        value = getattr(self.vec, attr_name)  # incl. render_mode (SB3 reads it at init)
         return [value for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: Any = None) -> None:

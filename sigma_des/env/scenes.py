@@ -21,6 +21,7 @@ next command tick or reached the end of its scenario.
 from __future__ import annotations
 
 import gc
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -170,25 +171,40 @@ class SceneBatch:
         self.ids = list(range(n_scenes)) if scene_ids is None else [int(i) for i in scene_ids]
         if len(self.ids) != n_scenes:
             raise ValueError(f"scene_ids: needs {n_scenes} ids, got {len(self.ids)}")
-        self.root = sc.seed
+        self.roots = [sc.seed] * n_scenes
         self.episode = [0] * n_scenes
         self.scenes: list[Scene] = []
 
-    def reset(self, root: int | None) -> None:
-        """Restart every scene (episode 0 under ``root`` if given, else the next episode)."""
-        if root is not None:
-            self.root = int(root)
-            self.episode = [0] * self.n_scenes
-        elif self.scenes:
-            self.episode = [e + 1 for e in self.episode]
-        if self.scenes:
+    def reset(self, roots: Sequence[int | None], ids: Sequence[int] | None = None) -> None:
+        """Restart scenes ``ids`` (default: all) and run them to their first tick.
+
+        Scene ``s`` plays episode 0 of root ``roots[s]`` if that is given, else its next
+        episode under its current root. The first reset must restart every scene.
+        """
+        ids = list(range(self.n_scenes)) if ids is None else [int(s) for s in ids]
+        if not self.scenes and len(ids) != self.n_scenes:
+            raise ValueError("reset_mask: the first reset must reset every scene")
+        for s in ids:
+            root = roots[s]
+            if root is not None:
+                self.roots[s] = int(root)
+                self.episode[s] = 0
+            elif self.scenes:
+                self.episode[s] += 1
+        if not self.scenes:
+            self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+        elif len(ids) < self.n_scenes:
+            for s in ids:
+                _retire(self.scenes[s])
+                self.scenes[s] = self._fresh(s)
+        else:
             for old in self.scenes:
                 _retire(old)
             del old  # the loop's name would keep the last scene's run alive
             self.scenes = []
             gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
-        self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
-        self.advance(self.scenes)
+            self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+        self.advance([self.scenes[s] for s in ids])
 
     def restart(self, ids: list[int], advance: bool = True) -> None:
         """Start the next episode of scenes ``ids`` (run to their first tick if ``advance``).
@@ -204,7 +220,7 @@ class SceneBatch:
             self.advance([self.scenes[s] for s in ids])
 
     def _fresh(self, s: int) -> Scene:
-        sc = replace(self.sc, seed=scene_seed(self.root, self.ids[s], self.episode[s]))
+        sc = replace(self.sc, seed=scene_seed(self.roots[s], self.ids[s], self.episode[s]))
         return Scene(sc, self.method, self.dyn, self.task)
 
     def advance(self, scenes: list[Scene]) -> None:

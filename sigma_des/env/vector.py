@@ -40,6 +40,14 @@ from numpy.typing import NDArray
 
 from sigma_des.core.models import SwarmView
 from sigma_des.env.options import EnvOptions, build_scenario
+from sigma_des.env.resets import (
+    RENDER_MODES,
+    check_render_mode,
+    check_seed,
+    parse_reset,
+    per_scene,
+    render_ansi,
+)
 from sigma_des.env.scenes import Scene, SceneBatch
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task
 from sigma_des.factory import make_dynamics
@@ -47,24 +55,6 @@ from sigma_des.factory import make_dynamics
 __all__ = ["SwarmVec", "SwarmVectorEnv", "check_actions", "check_mapping", "check_seed"]
 
 Array = NDArray[np.float64]
-
-
-def check_seed(seed: Any, name: str = "seed") -> int | None:
-    """``seed`` if it is None or a non-negative integer (Gymnasium's rule), else an error
-    naming ``name``.
-
-    Raises:
-        TypeError: not an integer (a bool is refused too).
-        ValueError: a negative integer.
-    """
-    if seed is None:
-        return None
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
-        raise TypeError(f"{name}: must be a non-negative int or None, got "
-                        f"{type(seed).__name__} {seed!r}")
-    if seed < 0:
-        raise ValueError(f"{name}: must be a non-negative int or None, got {seed}")
-    return int(seed)
 
 
 def check_mapping(value: Any, name: str, example: str) -> Mapping[str, Any]:
@@ -121,6 +111,7 @@ class SwarmVec:
         batched: the control plane (commands, observations, rewards) as numpy over all
             scenes at once (the task's ``*_many`` methods); False: scene by scene (the
             reference; both give the same bits).
+        render_mode: None or ``"ansi"`` (:meth:`render` gives one text table per scene).
 
     Raises:
         ConfigError: (a ValueError) an unknown task, key or out-of-range option.
@@ -131,7 +122,8 @@ class SwarmVec:
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
                  autoreset: str = "next_step", scene_ids: list[int] | None = None,
-                 batched: bool = True) -> None:
+                 batched: bool = True, render_mode: str | None = None) -> None:
+        self.render_mode = check_render_mode(render_mode)
         scenario = check_mapping(scenario, "scenario", "{'nodes': 8}")
         task_params = check_mapping(task_params, "task_params", "{'w_u': 0.1}")
         seed = check_seed(seed)
@@ -151,22 +143,54 @@ class SwarmVec:
         self.done = np.ones(n_scenes, dtype=bool)
         self._started = False
         self.batched = bool(batched)
+        self._last_error = np.full((n_scenes, self.n_agents), np.nan)
         self._names = [f"scene {s} node_{i}" for s in range(n_scenes) for i in self.agent_nodes]
 
     # ------------------------------------------------------------ API
-    def reset(self, seed: int | None = None) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        """Restart every scene: episode 0 under ``seed``, else each scene's next episode.
+    def reset(self, seed: Any = None, options: Mapping[str, Any] | None = None
+              ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        """Restart the scenes (all, or those of ``options["reset_mask"]``).
+
+        ``seed``: None (each scene's next episode; the first reset: the construction
+        seed), an int (episode 0 of that root seed) or one such entry per scene; see
+        :mod:`sigma_des.env.resets`. Scenes outside the mask keep their episode and
+        observation (their infos' ``error`` is NaN, as at any reset).
 
         Raises:
-            TypeError, ValueError: ``seed`` is not None or a non-negative int.
+            TypeError, ValueError: a bad seed, option or mask, named.
         """
-        seed = check_seed(seed)
-        root = seed if seed is not None else (None if self._started else self._seed)
-        self.batch.reset(root)
+        roots, mask = parse_reset(seed, options, self.n_scenes)
+        if not self._started:
+            if mask is not None and not mask.all():
+                raise ValueError("options['reset_mask']: the first reset must reset every "
+                                 "scene")
+            roots = [self._seed if r is None else r for r in roots]
+        ids = np.arange(self.n_scenes) if mask is None else np.flatnonzero(mask)
+        self.batch.reset(roots, ids.tolist())
         self._started = True
-        self.steps[:] = 0
-        self.done[:] = False
+        self.steps[ids] = 0
+        self.done[ids] = False
+        self._last_error[ids] = np.nan
         return self._observe_all(), self._infos(None)
+
+    def state(self) -> Array:
+        """The true ``(n_scenes, nodes, 12)`` published states (:data:`state_space`'s
+        batch; a centralised critic's input)."""
+        return np.stack([sc.truth() for sc in self.batch.scenes])
+
+    @property
+    def state_space(self) -> gymnasium.spaces.Box:
+        """One scene's state space: unbounded float64 ``(nodes, 12)``."""
+        return gymnasium.spaces.Box(-np.inf, np.inf, (self.sc.nodes, 12), dtype=np.float64)
+
+    def render(self) -> list[str] | None:
+        """``ansi``: one text table per scene (true state, ages, errors); else None."""
+        if self.render_mode is None:
+            return None
+        info = self._infos(None)
+        return [render_ansi(sc.truth(), sc.now(), self.agent_nodes, info["aoi"][s],
+                            self._last_error[s], f"scene {s} episode {self.batch.episode[s]}")
+                for s, sc in enumerate(self.batch.scenes)]
 
     def step(self, actions: Any) -> tuple[NDArray[np.float32], Array, NDArray[np.bool_],
                                           NDArray[np.bool_], dict[str, Any]]:
@@ -292,6 +316,8 @@ class SwarmVec:
 
     def _infos(self, err: Array | None) -> dict[str, Any]:
         S, A = self.n_scenes, self.n_agents
+        if err is not None:
+            self._last_error = err.copy()  # the last call of a step is what it returns
         aoi = np.full((S, A), np.nan)
         frame = np.full((S, A), -1, dtype=np.int64)
         t = np.zeros(S)
@@ -317,17 +343,22 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
     ``metadata["autoreset_mode"]`` is the :class:`SwarmVec`'s ``autoreset`` (default
     next-step), so Gymnasium's vector wrappers (e.g. ``RecordEpisodeStatistics``)
     count every transition once. Per-scene infos are repeated for its agents.
+    ``reset`` takes Gymnasium's ``seed`` list and ``options["reset_mask"]`` in their
+    ``(num_envs,)`` forms (the agents of a scene must agree) or one entry per scene.
 
     Args:
-        **kwargs: the arguments of :class:`SwarmVec`.
+        **kwargs: the arguments of :class:`SwarmVec` (incl. ``render_mode``).
     """
 
-    metadata = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}
+    metadata = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP,
+                "render_modes": RENDER_MODES}
 
     def __init__(self, **kwargs: Any) -> None:
         self.vec = SwarmVec(**kwargs)
         v = self.vec
-        self.metadata = {"autoreset_mode": _MODES[v.opts.autoreset]}
+        self.metadata = {"autoreset_mode": _MODES[v.opts.autoreset],
+                         "render_modes": RENDER_MODES}
+        self.render_mode = v.render_mode
         self.num_envs = v.n_scenes * v.n_agents
         self.single_observation_space = gymnasium.spaces.Box(
             -OBS_CLIP, OBS_CLIP, (v.obs_dim,), dtype=np.float32)
@@ -344,14 +375,22 @@ class SwarmVectorEnv(gymnasium.vector.VectorEnv):  # type: ignore[misc]
                     else np.repeat(v, A) if v.ndim == 1 else v.reshape((n,) + v.shape[2:]))
                 for k, v in infos.items()}
 
-    def reset(self, *, seed: int | None = None,
+    def reset(self, *, seed: Any = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        """Reset every scene (``options`` must be empty: the env takes none per reset)."""
-        if options:
-            raise ValueError(f"options: unknown reset options {sorted(options)}; "
-                             "configure the env at construction")
-        obs, infos = self.vec.reset(seed)
+        """Reset the scenes (all, or those of ``options["reset_mask"]``), see the class."""
+        v = self.vec
+        seed = per_scene(seed, v.n_scenes, v.n_agents, "seed")
+        opts = dict(options or {})
+        if "reset_mask" in opts:
+            opts["reset_mask"] = per_scene(opts["reset_mask"], v.n_scenes, v.n_agents,
+                                           "options['reset_mask']")
+        obs, infos = v.reset(seed, opts)
         return obs.reshape(self.num_envs, -1), self._flat_infos(infos)
+
+    def render(self) -> tuple[str, ...] | None:
+        """``ansi``: one text table per scene (see :meth:`SwarmVec.render`); else None."""
+        out = self.vec.render()
+        return None if out is None else tuple(out)
 
     def step(self, actions: Any) -> tuple[Any, Any, Any, Any, dict[str, Any]]:
         """Step with ``(num_envs, 3)`` actions."""

@@ -47,9 +47,9 @@ def test_reset_seed_must_be_a_non_negative_int_or_none(cls: Any) -> None:
     for bad in ("a", -1):
         with pytest.raises((TypeError, ValueError)):
             env.reset(seed=bad)
-    assert env.vec.batch.root == 7 and env.vec.batch.episode[0] == 0
+    assert env.vec.batch.roots[0] == 7 and env.vec.batch.episode[0] == 0
     env.reset(seed=np.int64(0))
-    assert env.vec.batch.root == 0 and type(env.vec.batch.root) is int
+    assert env.vec.batch.roots[0] == 0 and type(env.vec.batch.roots[0]) is int
 
 def test_swarm_env_actions_must_be_a_dict() -> None:
     env = SwarmEnv(scenario=SMALL, max_steps=3)

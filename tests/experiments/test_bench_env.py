@@ -23,3 +23,12 @@ def test_quick_run_writes_every_case(tmp_path: Path) -> None:
     # a scene holds at least its history rings: 64 frames x 11 nodes x 12 float64
     assert all(b > 64 * 11 * 12 * 8 for b in data["memory_bytes_per_scene"].values())
     assert (tmp_path / "bench.csv").read_text().count("\n") == len(data["rows"]) + 1
+
+def test_study_mode_measures_the_delay_study_configuration(tmp_path: Path) -> None:
+    assert bench_env.main(["--study", "--quick", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "bench_study.json").read_text())
+    cases = {(r["condition"], r["scenes"]) for r in data["rows"]}
+    assert cases == {(c, s) for c in ("bides@200ms", "perfect") for s in (1, 2)}
+    assert all(r["agent_steps_per_s"] > 0 for r in data["rows"])
+    assert data["fit_scenes"] == 4 and data["rss_bytes_per_scene"] == (
+        data["rss_grown_bytes"] / 4)

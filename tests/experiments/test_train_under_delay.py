@@ -70,3 +70,25 @@ def test_shards_merge_to_the_same_study(tmp_path: Path) -> None:
     assert len(rows) == 2 * 2 * 2 and rows[0]["learner"] == "cem"  # seeds x cells x iterations
     with pytest.raises(SystemExit, match="share a seed"):
         train_under_delay.main(["--merge", str(a), str(full), "--out", str(m)])
+
+
+def test_train_only_perfect_evaluates_it_everywhere(tmp_path: Path) -> None:
+    assert train_under_delay.main(["--quick", "--train", "perfect", "--out",
+                                   str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "summary.json").read_text())
+    assert data["stats"] == []  # no delay-trained policy: no paired cell
+    assert {e["trained"] for e in data["eval"]} == {"untrained", "naive", "extrapolating",
+                                                    "perfect"}
+    assert len(data["eval"]) == 3 * 2 + 2 * 2
+    under = data["evaluated_under"]["bides@200ms"]
+    fit = [e["fitness"] for e in data["eval"]
+           if e["trained"] == "perfect" and e["evaluated"] == "bides@200ms"]
+    (row,) = [r for r in under if r["policy"] == "trained perfect"]
+    assert row["n"] == 2 and row["mean"] == pytest.approx(np.mean(fit), rel=1e-12)
+
+
+def test_train_names_an_unknown_condition(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        train_under_delay.main(["--quick", "--train", "hlc@5ms"])
+    assert exc.value.code == 2 and "--train: unknown condition 'hlc@5ms'" in (
+        capsys.readouterr().err)

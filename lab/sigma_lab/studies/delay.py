@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["cells", "ci95", "env_kwargs", "paired_cells"]
+__all__ = ["cells", "ci95", "env_kwargs", "paired_cells", "perfect_rows"]
 
 
 def cells(delays: list[float], methods: list[str]) -> list[str]:
@@ -57,6 +57,8 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
     fit = {(e["trained"], e["seed"], e["evaluated"]): e["fitness"] for e in evals}
     rows = []
     for cell in conds[1:]:
+        if any((cell, s, cell) not in fit for s in seeds):  # not trained under it
+            continue
         d = np.array([fit[(cell, s, cell)] for s in seeds])
         p = np.array([fit[("perfect", s, cell)] for s in seeds])
         diff = d - p
@@ -74,4 +76,25 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
         for name in ("untrained", "naive", "extrapolating"):
             row[f"{name}_fitness"] = fit.get((name, -1, cell), float("nan"))
         rows.append(row)
+    return rows
+
+
+def perfect_rows(evals: list[dict[str, Any]], seeds: list[int], where: str = "perfect"
+                 ) -> list[dict[str, Any]]:
+    """Every policy evaluated under ``where``: the hand-written ones (seed -1) and, per
+    training condition, the mean ± 95 % CI over ``seeds`` of its policies."""
+    rows: list[dict[str, Any]] = []
+    per: dict[str, list[float]] = {}
+    for e in evals:
+        if e["evaluated"] != where:
+            continue
+        if e["seed"] == -1:
+            rows.append({"policy": e["trained"], "mean": e["fitness"], "ci95": 0.0, "n": 1,
+                         "seed_mean": False})
+        elif e["seed"] in seeds:
+            per.setdefault(e["trained"], []).append(e["fitness"])
+    for name, v in per.items():
+        x = np.array(v)
+        rows.append({"policy": f"trained {name}", "mean": float(x.mean()), "ci95": ci95(x),
+                     "n": len(x), "seed_mean": True})
     return rows

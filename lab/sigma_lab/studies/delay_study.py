@@ -24,7 +24,7 @@ from sigma_des.env.controllers import extrapolating, naive
 from sigma_des.env.learn import CEMConfig, act, score, train
 from sigma_des.env.tasks import TightTask, make_task
 from sigma_lab.studies import plot_setup, save
-from sigma_lab.studies.delay import cells, ci95, env_kwargs, paired_cells
+from sigma_lab.studies.delay import cells, ci95, env_kwargs, paired_cells, perfect_rows
 
 __all__ = ["Policy", "merge", "run", "train_one"]
 
@@ -52,13 +52,38 @@ def train_one(a: argparse.Namespace, cond: str, seed: int, history: list[dict[st
             return act(np.broadcast_to(th, (obs.shape[0],) + th.shape), obs)
         policy: Policy = linear
     else:
-        from sigma_des.env.sb3 import train_ppo
-
-        policy, hist = train_ppo(kw, a.ppo_steps, seed, n_scenes=a.ppo_scenes,
-                                 n_steps=a.ppo_n_steps, batch_size=a.ppo_batch)
-        history += [{"learner": "ppo", "trained": cond, "seed": seed, **r} for r in hist]
-        used = hist[-1]["agent_steps"] if hist else float(a.ppo_steps)
+        policy, hist = _train_ppo(a, kw, cond, seed)
+        history += [{"learner": "ppo", "trained": cond, "seed": seed,
+                     **{k: r[k] for k in ("agent_steps", "fitness")}} for r in hist]
+        if hist:  # a resumed training: its wall time and agent-steps in all
+            return policy, hist[-1]["wall_s"], hist[-1]["agent_steps"]
+        used = float(a.ppo_steps)
     return policy, time.perf_counter() - t0, used
+
+
+def _train_ppo(a: argparse.Namespace, kw: dict[str, Any], cond: str, seed: int
+               ) -> tuple[Policy, list[dict[str, float]]]:
+    """One PPO policy (``sigma_des.env.ppo``), checkpointed under ``a.checkpoints``
+    (resumed from there), with a progress line every ``a.progress`` rollouts."""
+    from sigma_des.env.ppo import train as train_ppo
+
+    t0 = time.perf_counter()
+    rollouts = [0]
+
+    def progress(row: dict[str, float]) -> None:
+        rollouts[0] += 1
+        if rollouts[0] % a.progress == 0 or row["agent_steps"] >= a.ppo_steps:
+            rate = row["agent_steps"] / max(row["wall_s"], 1e-9)
+            eta = (a.ppo_steps - row["agent_steps"]) / max(rate, 1e-9)
+            print(f"  [{time.perf_counter() - t0:6.0f} s] {cond} seed {seed} {a.policy}: "
+                  f"{row['agent_steps']:,.0f}/{a.ppo_steps:,} agent-steps, reward per "
+                  f"agent-step {row['fitness']:.3f}, {rate:,.0f}/s, ETA {eta / 60:.0f} min",
+                  flush=True)
+
+    ck = Path(a.checkpoints) / f"{cond}_{a.policy}_s{seed}" if a.checkpoints else None
+    return train_ppo(kw, a.ppo_steps, seed, policy=a.policy, n_scenes=a.ppo_scenes,
+                 n_stack=a.n_stack, checkpoint=ck, log=progress, max_wall_s=a.ppo_wall,
+                 n_steps=a.ppo_n_steps, batch_size=a.ppo_batch)
 
 
 def run(a: argparse.Namespace) -> int:
@@ -90,7 +115,17 @@ def run(a: argparse.Namespace) -> int:
     for name, pol in baselines.items() if not a.skip_baselines else ():
         evaluate(name, -1, pol, conds)
     for k, seed in enumerate(seeds):
-        for cond in conds:
+        for cond in [c for c in conds if a.train_list is None or c in a.train_list]:
+            rec = Path(a.checkpoints) / f"{cond}_{_tag(a)}_s{seed}.done.json" \
+                if a.checkpoints else None
+            if rec is not None and rec.exists():  # resume: this training is finished
+                done = json.loads(rec.read_text())
+                history += done["history"]
+                cost.append(done["cost"])
+                evals += done["eval"]
+                print(f"seed {seed} {cond:14s} done before ({rec.name})", flush=True)
+                continue
+            n_hist, n_eval = len(history), len(evals)
             pol, wall, used = train_one(a, cond, seed, history)
             cost.append({"trained": cond, "seed": seed, "train_wall_s": wall,
                          "agent_steps": used, "agent_steps_per_s": used / wall})
@@ -100,16 +135,29 @@ def run(a: argparse.Namespace) -> int:
             print(f"[{time.perf_counter() - t_start:7.0f} s] seed {seed} {cond:14s} trained "
                   f"({wall:.0f} s, {used / wall:,.0f} agent-steps/s); evaluated under it: "
                   f"{own['fitness']:.3f}", flush=True)
+            if rec is not None and (a.learner == "cem" or used >= a.ppo_steps):
+                rec.parent.mkdir(parents=True, exist_ok=True)
+                rec.write_text(json.dumps({"history": history[n_hist:], "cost": cost[-1],
+                                           "eval": evals[n_eval:]}) + "\n")
         # outputs after every seed: an interrupted study keeps its finished seeds
         table = paired_cells(evals, conds, seeds[: k + 1])
         _write(out, a, history, evals, cost, table, time.perf_counter() - t_start,
                seeds[: k + 1])
+    for cond in conds:
+        for r in perfect_rows(evals, seeds, cond):
+            print(f"under {cond:12s}: {r['policy']:24s} {r['mean']:.3f} ± {r['ci95']:.3f} "
+                  f"({r['n']} {'seeds' if r['seed_mean'] else 'controller'})", flush=True)
     for r in table:
         print(f"{r['cell']:14s} delay-trained {r['delay_trained_mean']:.3f} ± "
               f"{r['delay_trained_ci95']:.3f}  perfect-trained {r['perfect_trained_mean']:.3f} "
               f"± {r['perfect_trained_ci95']:.3f}  paired t p={r['t_p_greater']:.3g} "
               f"wilcoxon p={r['wilcoxon_p_greater']:.3g}", flush=True)
     return 0
+
+
+def _tag(a: argparse.Namespace) -> str:
+    """The learner's part of a training's file names (``cem`` or the PPO policy)."""
+    return "cem" if a.learner == "cem" else a.policy
 
 
 def merge(a: argparse.Namespace) -> int:
@@ -125,7 +173,7 @@ def merge(a: argparse.Namespace) -> int:
             raise SystemExit(f"--merge: {d} differs from {a.merge[0]} in {bad}")
     for k in keep:
         setattr(a, k, first[k])
-    a.delay_list = [float(x) for x in a.delays.split(",")]
+    a.delay_list = [] if a.delays == "none" else [float(x) for x in a.delays.split(",")]
     a.method_list = a.methods.split(",")
     done = sorted({s for p in parts for s in p["seeds_done"]})
     if sum(len(p["seeds_done"]) for p in parts) != len(done):
@@ -171,18 +219,23 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
     args = {k: v for k, v in vars(a).items()}
     (out / "summary.json").write_text(json.dumps({
         "version": __version__, "args": args, "cells": cells(a.delay_list, a.method_list),
-        "seeds_done": done,
+        "seeds_done": done, "perfect": perfect_rows(evals, done),
+        "evaluated_under": {c: perfect_rows(evals, done, c)
+                            for c in cells(a.delay_list, a.method_list)},
         "stats": table, "eval": evals, "cost": cost, "wall_s": wall}, indent=2) + "\n")
-    _plots(out, a, history, table, len(done))
+    refs = {r["policy"]: r["mean"] for r in perfect_rows(evals, done) if not r["seed_mean"]}
+    _plots(out, a, history, table, len(done), refs)
 
 
 def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
-           table: list[dict[str, Any]], n_seeds: int) -> None:
+           table: list[dict[str, Any]], n_seeds: int, refs: dict[str, float]) -> None:
     plt = plot_setup(fast=a.quick)
     conds = cells(a.delay_list, a.method_list)
     fig, ax = plt.subplots(figsize=(7, 4))
     for i, cond in enumerate(conds):
         rows = [r for r in history if r["trained"] == cond]
+        if not rows:  # not trained (--train)
+            continue
         xs = sorted({r["agent_steps"] for r in rows})
         m, h = [], []
         for x in xs:
@@ -194,6 +247,11 @@ def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         color = f"C{i}"
         ax.plot(xs, m_, color=color, marker="o", ms=3, label=f"trained {cond}")
         ax.fill_between(xs, m_ - h_, m_ + h_, color=color, alpha=0.15)
+    for name, style in (("naive", "--"), ("extrapolating", ":")):
+        if name in refs:  # the hand-written controllers under perfect information
+            ax.axhline(refs[name], color="k", ls=style, lw=1,
+                       label=f"{name}, perfect info (held-out)")
+    ax.set_yscale("symlog", linthresh=0.1)  # early failures (-10 each) beside the tail
     ax.set_xlabel("agent-steps of training")
     ax.set_ylabel("reward per agent-step (own condition)")
     ax.set_title(f"tight task, {a.learner.upper()}: mean ± 95% CI over {n_seeds} seeds",
