@@ -177,7 +177,7 @@ def _fixtures(recording: Path, d: Path) -> dict[str, Path]:
     from sigma_des.tuning.synth import fly
 
     log = write_csv(fly("quadrotor", "quadrotor", duration=3.0, seed=1), d / "l.csv")
-    from tests.live.test_calibrate_inputs import SETS, _run, _write
+    from tests.calibrate.test_calibrate_inputs import SETS, _run, _write
 
     sc = load(None, SETS)
     return {"log": log, "live": _write(d / "live", sc, _run(sc)), "rec": recording}

@@ -40,12 +40,12 @@ from numpy.typing import NDArray
 from sigma_des.calibrate.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
 from sigma_des.calibrate.fit_cpu import fit_deployment, path_services
 from sigma_des.calibrate.fit_step import MIN_SAMPLES, fit_compute
+from sigma_des.calibrate.messages import read_messages
 from sigma_des.calibrate.report import calibrated_toml, report_lines
 from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
 from sigma_des.guard import atomic_write, output_file, read_text
-from sigma_des.live.messages import read_messages
 from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES, command_bytes, state_topic_bytes
 from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist

@@ -77,7 +77,7 @@ def _des_figures(sc: Scenario, method: str) -> dict[str, float]:
 
 def live_trigger_latency(source: Path, sc: Scenario) -> dict[str, float]:
     """Mean trigger latency (ms) per method, from the live run's message table."""
-    from sigma_des.live.messages import read_messages
+    from sigma_des.calibrate.messages import read_messages
 
     try:
         t = read_messages(source)

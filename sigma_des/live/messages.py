@@ -1,4 +1,4 @@
-"""The live run's per-message timestamp table: write, read, and record to MCAP.
+"""The live run's per-message timestamp table: write it, and record it to MCAP.
 
 ``messages.csv.gz`` holds one row per message event, columns
 :data:`~sigma_des.live.results.MESSAGE_COLUMNS`:
@@ -14,12 +14,12 @@
 * ``command`` (host received node ``node``'s command of tick ``frame``).
 
 All times are seconds since the method's first trigger on one monotonic clock.
+Calibration reads the table back (:mod:`sigma_des.calibrate.messages`).
 """
 
 from __future__ import annotations
 
 import os
-import zlib
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +28,8 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from sigma_des.config import to_dict
-from sigma_des.errors import ConfigError
 
-__all__ = ["read_messages", "record_messages", "write_messages"]
+__all__ = ["FILE", "record_messages", "write_messages"]
 
 FILE = "messages.csv.gz"
 
@@ -43,49 +42,6 @@ def write_messages(df: pd.DataFrame, out_dir: Path) -> Path:
     df.to_csv(tmp, index=False, float_format="%.9g", compression="gzip")
     os.replace(tmp, path)  # never a half-written table under the final name
     return path
-
-
-def read_messages(source: Path) -> pd.DataFrame:
-    """The message table of a live ``--out`` directory (or its ``messages.csv.gz``), or of
-    an MCAP recording (through ``sigma_des.record.read_table``).
-
-    Raises:
-        ConfigError: naming the path if it is missing or not a live output.
-    """
-    if source.suffix == ".mcap":
-        try:
-            from sigma_des.record import read_table
-        except ImportError:
-            raise ConfigError(str(source), "reading MCAP needs sigma_des.record") from None
-        return read_table(source)
-    path = source / FILE if source.is_dir() else source
-    if not path.exists():
-        raise ConfigError(str(source), f"no {FILE} here: pass a `sigma-des live --out` directory")
-    from sigma_des.guard import input_file
-
-    input_file(path, str(path), "live message table (messages.csv.gz)")
-    expected = "a gzip-compressed CSV written by `sigma-des live --out`"
-    try:
-        df = pd.read_csv(path)
-    except pd.errors.EmptyDataError:
-        raise ConfigError(str(path), f"is empty; expected {expected}") from None
-    except (OSError, EOFError, zlib.error, UnicodeDecodeError, pd.errors.ParserError,
-            ValueError) as e:
-        why = str(e).splitlines()[0] if str(e) else type(e).__name__
-        raise ConfigError(str(path), f"not readable as {expected} ({why})") from None
-    need = {"method", "kind", "node", "frame", "t_send", "t_recv"}
-    if not need <= set(df.columns):
-        raise ConfigError(str(path), f"missing columns {sorted(need - set(df.columns))}")
-    if df.empty:
-        raise ConfigError(str(path), "has a header but no message rows; expected the "
-                          "messages of a live run")
-    from sigma_des.live.message_rows import drop_malformed
-
-    df = drop_malformed(df, str(path))
-    for col in ("node", "frame", "t_send", "t_recv"):
-        if not pd.api.types.is_numeric_dtype(df[col]):
-            raise ConfigError(str(path), f"column {col!r} is not numeric")
-    return df
 
 
 def ned(obs: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64],

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.calibrate.test_calibrate_cpu import BACKGROUND_CPU, WINDOW, _cpu_run
 
 from sigma_des import load
 from sigma_des.calibrate.campaign import RunInfo, check_combinable, combine, under_load_warning
 from sigma_des.cli import main
 from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist
+from tests.calibrate.test_calibrate_cpu import BACKGROUND_CPU, WINDOW, _cpu_run
 
 
 def _info(name: str, bundle: bool, **scen: object) -> RunInfo:

@@ -9,7 +9,6 @@ import json
 from pathlib import Path
 
 import pytest
-from tests.calibrate.test_calibrate_cpu import _cpu_run
 
 from sigma_des.calibrate.capacity import holds
 from sigma_des.calibrate.intervals import interval, load_residuals, lookup
@@ -17,6 +16,7 @@ from sigma_des.calibrate.predict import load_calibration
 from sigma_des.calibrate.target import prepare
 from sigma_des.cli import main
 from sigma_des.config import config_hash
+from tests.calibrate.test_calibrate_cpu import _cpu_run
 
 SHORT = ["--set", "duration=0.6", "--set", "warmup=0.2", "--no-progress"]
 

@@ -24,7 +24,7 @@ from sigma_des.cli import main
 from sigma_des.live.cpu import write_cpu
 from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
-from tests.live.test_calibrate_inputs import SETS, STATE_LAT, TRIG_LAT, _run, _write
+from tests.calibrate.test_calibrate_inputs import SETS, STATE_LAT, TRIG_LAT, _run, _write
 
 WINDOW, IDLE = 4.0, 1.0
 #: process -> (idle CPU rate, messages, busy CPU seconds in the window)

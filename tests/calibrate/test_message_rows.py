@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from sigma_des.calibrate.fit import calibrate
+from sigma_des.calibrate.messages import read_messages
 from sigma_des.cli import main
 from sigma_des.config import to_toml
 from sigma_des.errors import ConfigError
-from sigma_des.live.messages import read_messages
-from tests.live.test_calibrate_bad_inputs import _good
+from tests.calibrate.test_calibrate_bad_inputs import _good
 
 M = "messages.csv.gz"
 

@@ -16,7 +16,7 @@ from sigma_des import load
 from sigma_des.calibrate.fit import calibrate
 from sigma_des.cli import main
 from sigma_des.errors import ConfigError
-from tests.live.test_calibrate_inputs import SETS, _run, _write
+from tests.calibrate.test_calibrate_inputs import SETS, _run, _write
 
 
 def _good(d: Path) -> Path:
