@@ -3,13 +3,12 @@
 A broadcast (a trigger) leaves the broker as one delivery per subscriber, their
 departures one cumulative sum of delivery services (the broker's FIFO); without
 hold-back on the links each arrives at its departure plus serialization plus latency.
-In the specification every delivery is an event keyed ``(arrival, sequence)``. Here the
-deliveries of a maximal stretch of subscribers (in the broker's delivery order) whose
-arrivals do not decrease are one *batch*: one event slot carrying the message, and the
-stretch's arrivals, sequence numbers and subscribers in a ring of elements (``bat_t``,
-``bat_k``, ``bat_w``). The sequence numbers are taken as the specification's pushes take
-them (one per delivery not lost, in delivery order); within a stretch arrival and
-sequence both increase, so its head is its earliest element. The batch is queued under
+In the specification every delivery is an event keyed ``(arrival, sequence)``. Here a
+broadcast whose arrivals do not decrease in the broker's delivery order is one *batch*:
+one event slot carrying the message, and the arrivals, sequence numbers and subscribers
+in a ring of elements (``bat_t``, ``bat_k``, ``bat_w``). The sequence numbers are taken
+as the specification's pushes take them (one per delivery not lost, in delivery order);
+arrival and sequence both increase, so the head is the earliest element. It is queued under
 its head's key; when the loop takes it, the head delivery runs (the same handler on the
 same fields: :func:`head`), and the batch goes back under its next element's key
 (:func:`requeue`): in place in its run when that key still precedes the run's next
@@ -19,9 +18,11 @@ specification's events in the specification's order: results are bit-identical.
 The broker fans out per message where batching does not apply: a CPU stage at the
 clients (receive bursts, host clients), QoS 1 over datagram or a stream with hold-back
 (:func:`applies`), a broadcast carrying a payload, or a ring without room for one more
-broadcast (:func:`fits`). A stretch of one delivery (out-of-order arrivals: random
-latency, a degraded link) is queued as a plain delivery event. A lost delivery takes
-no sequence number and no element, as in the specification.
+broadcast (:func:`fits`); a broadcast whose arrivals are out of order (random latency,
+a degraded link, hosts' links slower than the broker) is queued as one plain delivery
+event per delivery, as batches of its in-order stretches would interleave (each
+element going back through the pending buffer, measured slower than per message). A
+lost delivery takes no sequence number and no element, as in the specification.
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def applies(S: tuple[NDArray[Any], ...]) -> bool:
 def counts(S: tuple[NDArray[Any], ...]) -> dict[str, int]:
     """The run's fan-out counters: whether it batches (``on``), deliveries run from
     batches (``batched``), batches queued (``batches``), batches queued again
-    (``requeued``), deliveries of a broadcast queued alone (``single``)."""
+    (``requeued``), deliveries queued one by one (``single``: out-of-order broadcasts)."""
     iv = S[L.INTS]
     return {"on": int(S[L.IPARAMS][L.Q_FAN]), "batched": int(iv[L.I_BELEM]),
             "batches": int(iv[L.I_BPUSH]), "requeued": int(iv[L.I_BREIN]),
@@ -154,23 +155,32 @@ def _slot(S, src, typ, who, d):  # type: ignore[no-untyped-def]
 
 @jit
 def _emit(S, src, first, m, d):  # type: ignore[no-untyped-def]
-    """Queue the stretch of ``m`` elements from ring row ``first`` (``d``: the departure
-    of its last): a batch, or a plain delivery event for one."""
-    bt = S[BAT_T]
-    bk = S[BAT_K]
-    iv = S[INTS]
+    """Queue the ``m`` elements in order from ring row ``first`` (``d``: the last
+    departure) as one batch, or as a plain delivery event if there is one."""
     if m == 1:
-        slot = _slot(S, src, EV_CLIENT, S[BAT_W][first], d)
-        push_key(S, bt[first], bk[first] | slot)
-        _consume(S, first)
-        iv[I_BSING] += 1
+        _singles(S, src, first, 1, d)
         return
     slot = _slot(S, src, EV_BATCH, S[BAT_W][first], d)
     evi = S[EV_INT]
     evi[slot, E_SEQ] = first
     evi[slot, E_NEXT] = m
-    push_key(S, bt[first], bk[first] | slot)
-    iv[I_BPUSH] += 1
+    push_key(S, S[BAT_T][first], S[BAT_K][first] | slot)
+    S[INTS][I_BPUSH] += 1
+
+
+@jit
+def _singles(S, src, first, m, d):  # type: ignore[no-untyped-def]
+    """Queue the ``m`` elements from ring row ``first`` as plain delivery events, in
+    sequence order (``d``: the broadcast's last departure, the slots' ``EF_TDEP``, which
+    only QoS 1 over datagram and the CPU stage read: :func:`applies`)."""
+    r = S[BAT_T].shape[0]
+    i = first
+    for _ in range(m):
+        slot = _slot(S, src, EV_CLIENT, S[BAT_W][i], d)
+        push_key(S, S[BAT_T][i], S[BAT_K][i] | slot)
+        _consume(S, i)
+        i = i + 1 if i + 1 < r else 0
+    S[INTS][I_BSING] += m
 
 
 @jit
@@ -178,8 +188,9 @@ def fan_out(S, src, kind, index, att, scaled, sc, d):  # type: ignore[no-untyped
     """The broker's deliveries of the broadcast in slot ``src`` (after :func:`fits`), the
     first departing after ``d``: the operations of its per-message loop (``broker``: the
     delivery service, scaled by ``sc`` if ``scaled``; ``_deliver``'s hop: serialization,
-    latency, loss; a sequence number per delivery not lost), each stretch of arrivals
-    that do not decrease queued as one batch. Returns the last departure."""
+    latency, loss; a sequence number per delivery not lost), queued as one batch if no
+    arrival is earlier than the one before, else one event per delivery. Returns the
+    last departure."""
     bc = S[BCAST]
     bt = S[BAT_T]
     bk = S[BAT_K]
@@ -191,7 +202,7 @@ def fan_out(S, src, kind, index, att, scaled, sc, d):  # type: ignore[no-untyped
     first = h
     m = 0
     last = 0.0
-    dl = d
+    split = False
     for j in range(S[CPU_IP][CP_NSUB]):
         sub = bc[j]
         x = draw_at(S, SVC_DEL, kind, sub, index, att, False)
@@ -205,11 +216,7 @@ def fan_out(S, src, kind, index, att, scaled, sc, d):  # type: ignore[no-untyped
         e = iv[I_EID]  # the sequence number the specification's push takes
         iv[I_EID] = e + 1
         iv[I_NEV] += 1
-        if m > 0 and arr < last:  # earlier than the stretch's last: the stretch is queued
-            _emit(S, src, first, m, dl)
-            m = 0
-        if m == 0:
-            first = h
+        split = split or (m > 0 and arr < last)  # out of order: one event per delivery
         bt[h] = arr
         bk[h] = e << SLOT_BITS
         bw[h] = sub
@@ -217,10 +224,11 @@ def fan_out(S, src, kind, index, att, scaled, sc, d):  # type: ignore[no-untyped
         h = h + 1 if h + 1 < r else 0
         m += 1
         last = arr
-        dl = d
-    if m > 0:
-        _emit(S, src, first, m, dl)
     iv[I_BHEAD] = h
+    if split:
+        _singles(S, src, first, m, d)
+    elif m > 0:
+        _emit(S, src, first, m, d)
     return d
 
 
