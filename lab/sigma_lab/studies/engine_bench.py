@@ -24,10 +24,11 @@ peak RSS is per case, single-threaded):
 
 and reports wall seconds per simulated second, times real time, events per
 wall second (engines: kernel events, the cohort core's message events included;
-baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
-the engine really used (the cohort engine falls back to the per-message engine
-for features it does not reproduce, see ``sigma_des.events.fast.support.unsupported``,
-or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
+baseline: SimPy processes + timeouts + resource requests it created), the share
+of events the compiled core ran from fan-out batches, peak RSS, the engine really
+used (the cohort engine falls back to the per-message engine for features it does
+not reproduce, see ``sigma_des.events.fast.support.unsupported``, or mid-run on
+``CohortFallback``; the reason is recorded), and the speed-ups
 cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
 per simulated second).
 
