@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Paper study "formation": five fixed-wing aircraft in a leader–follower V.
 
-The paper's figures: docs/MODEL.md, "Reference figures from the paper".
+The paper's figures: docs/concepts/paper.md.
 
 The swarm: 5 fixed-wing aircraft (``dynamics = "fixedwing"``, the TALON-class
 preset, trimmed at 20 m/s and 100 m), behaviour ``formation`` — the leader (node
@@ -58,6 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sigma_lab import studies
 from sigma_lab.studies.formation_flight import (
     IDEAL,
     LEADER,
@@ -68,7 +69,7 @@ from sigma_lab.studies.formation_flight import (
     write_outputs,
 )
 
-from sigma_des import load, studies
+from sigma_des import load
 from sigma_des.config import Scenario
 
 NAME = "formation"

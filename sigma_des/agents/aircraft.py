@@ -188,7 +188,7 @@ class GeneralAircraft:
             return [fx / p.mass - g * math.sin(alpha), fz / p.mass + g * math.cos(alpha),
                     mm / p.iyy]
 
-        from scipy.optimize import fsolve  # here: its import holds ~36 MB (issue 27)
+        from scipy.optimize import fsolve  # here: its import holds ~36 MB
 
         sol, _, ok, msg = fsolve(residual, [0.05, 0.0, 0.9 * p.omega_max], full_output=True)
         alpha, de, om = (float(s) for s in sol)

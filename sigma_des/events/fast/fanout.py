@@ -1,4 +1,4 @@
-"""Fan-out batches: a broadcast's deliveries as few queue entries (docs/MODEL.md, "Engines").
+"""Fan-out batches: a broadcast's deliveries as few queue entries (docs/concepts/engines.md).
 
 A broadcast (a trigger) leaves the broker as one delivery per subscriber, their
 departures one cumulative sum of delivery services (the broker's FIFO); without
