@@ -69,6 +69,7 @@ EXPECTED_COLUMNS = [
     "target_x",
     "events",
     "events_per_s",
+    "batched_share",
     "peak_rss_mb",
     "ratio_vs_events",
     "ratio_vs_baseline",
@@ -141,6 +142,10 @@ def test_quick_run_writes_tables_and_csv_and_engines_agree(tmp_path: Path) -> No
         assert float(r["peak_rss_mb"]) > 0
         if r["impl"] == "cohort":
             assert float(r["ratio_vs_events"]) > 0, r
+            # constant latency: every trigger's deliveries are one fan-out batch
+            assert 0.0 < float(r["batched_share"]) < 1.0, r
+        else:  # only the compiled core batches
+            assert float(r["batched_share"]) == 0.0, r
         if r["scenario"] == "restricted" and r["impl"] != "baseline":
             assert float(r["ratio_vs_baseline"]) > 0, r
     for n in (10, 50):

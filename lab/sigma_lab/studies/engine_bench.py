@@ -24,10 +24,11 @@ peak RSS is per case, single-threaded):
 
 and reports wall seconds per simulated second, times real time, events per
 wall second (engines: kernel events, the cohort core's message events included;
-baseline: SimPy processes + timeouts + resource requests it created), peak RSS,
-the engine really used (the cohort engine falls back to the per-message engine
-for features it does not reproduce, see ``sigma_des.events.fast.support.unsupported``,
-or mid-run on ``CohortFallback``; the reason is recorded), and the speed-ups
+baseline: SimPy processes + timeouts + resource requests it created), the share
+of events the compiled core ran from fan-out batches, peak RSS, the engine really
+used (the cohort engine falls back to the per-message engine for features it does
+not reproduce, see ``sigma_des.events.fast.support.unsupported``, or mid-run on
+``CohortFallback``; the reason is recorded), and the speed-ups
 cohort / events, cohort / baseline and events / baseline (ratios of wall seconds
 per simulated second).
 
@@ -106,22 +107,10 @@ def col(name: str, unit: str) -> str:
 
 #: CSV columns, one row per case.
 COLUMNS: tuple[str, ...] = (
-    "n",
-    "impl",
-    "method",
-    "scenario",
-    "role",
-    "engine_used",
-    "fallback",
-    "sim_s",
-    "wall_s",
-    "wall_per_sim_s",
-    "x_realtime",
-    "cpu_per_sim_s",
-    "x_realtime_cpu",
+    "n", "impl", "method", "scenario", "role", "engine_used", "fallback",
+    "sim_s", "wall_s", "wall_per_sim_s", "x_realtime", "cpu_per_sim_s", "x_realtime_cpu",
     "load1", "cpu_per_sim_s_norm", "x_realtime_norm", "target_x",  # engine_norm
-    "events",
-    "events_per_s",
+    "events", "events_per_s", "batched_share",  # engine_tables' "batched"
     "peak_rss_mb",
     "ratio_vs_events",
     "ratio_vs_baseline",
@@ -176,6 +165,7 @@ class Sim(NamedTuple):
         fallback: why the cohort engine was not used ("" if it was or not asked for).
         cpu_s: CPU seconds of this process over the same span (``time.process_time``;
             on a shared machine the figure that descheduling does not inflate).
+        batched: events the compiled core ran from fan-out batches (``fanout.counts``).
     """
 
     wall_s: float
@@ -184,6 +174,7 @@ class Sim(NamedTuple):
     engine_used: str
     fallback: str
     cpu_s: float = math.nan
+    batched: int = 0
 
 
 def simulate(impl: str, method: str, sc: Any) -> Sim:
@@ -199,6 +190,7 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
 
     if impl in ENGINES:
         from sigma_des.events.cohort import execute
+        from sigma_des.events.fast.fanout import counts
         from sigma_des.factory import make_behaviour, make_dynamics
 
         if sc.engine != impl:
@@ -207,8 +199,10 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
         run, out, eng = execute(sc.run_spec(), method, lambda: make_dynamics(sc),
                                 lambda: make_behaviour(sc))
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        core = getattr(run.core, "S", None)  # the compiled core's state, if it ran
+        batched = counts(core)["batched"] if core is not None else 0
         return Sim(wall, int(run.kernel.events), dict(out["metrics"]), eng["used"],
-                   eng["fallback"], cpu)
+                   eng["fallback"], cpu, batched)
     if impl == "baseline":
         from sigma_lab.reference.process_model import ProcessModel, check_supported
 
@@ -264,6 +258,7 @@ def run_case(
         "wall_s": sim.wall_s,
         "cpu_s": sim.cpu_s,
         "events": sim.events,
+        "batched": sim.batched,
         "peak_rss_mb": rss_mb,
         "engine_used": sim.engine_used,
         "fallback": sim.fallback,
@@ -413,6 +408,7 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
         "target_x": target_of(case, n),
         "events": res["events"],
         "events_per_s": res["events"] / wall,
+        "batched_share": res.get("batched", 0) / max(1, res["events"]),
         "peak_rss_mb": res["peak_rss_mb"],
         "ratio_vs_events": "",
         "ratio_vs_baseline": "",

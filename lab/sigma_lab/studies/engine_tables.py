@@ -45,6 +45,7 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
         "target",
         "met",
         "ev/s",
+        "batched",
         "RSS MB",
     ]
     lines = [head]
@@ -66,6 +67,7 @@ def speed_table(rows: list[dict[str, Any]]) -> str:
                 _target(r),
                 _met(r),
                 cell(r["events_per_s"], ",.0f"),
+                cell(r["batched_share"], ".1%"),
                 cell(r["peak_rss_mb"], ".0f"),
             ]
         )

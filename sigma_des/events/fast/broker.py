@@ -4,6 +4,8 @@ One FIFO server (the Lindley recursion, one departure after another): a PUBLISH
 takes its publish service, then each matching subscriber its delivery service,
 and every delivery leaves over the subscriber's down link — the same operations,
 in the same order, as :mod:`sigma_des.net.network` and :mod:`sigma_des.net.broker`.
+A broadcast fans out in batches where it can
+(:mod:`~sigma_des.events.fast.fanout`: the same operations, fewer queue entries).
 With a CPU stage the broker is a process (:mod:`~sigma_des.events.fast.cpu`): a
 service starts on its machine's core, its times are scaled by the background
 slow-down, and the core is held until the last delivery leaves.
@@ -12,6 +14,7 @@ slow-down, and the core is held until the last delivery leaves.
 from __future__ import annotations
 
 from sigma_des.events.fast.cpu import acquire, hold, run_wait
+from sigma_des.events.fast.fanout import fan_out, fits
 from sigma_des.events.fast.layout import (
     BCAST,
     CL_OF,
@@ -40,6 +43,7 @@ from sigma_des.events.fast.layout import (
     K_REPUB,
     K_STATE,
     Q_ACK,
+    Q_FAN,
     Q_N,
     Q_QOS1S,
     SVC_DEL,
@@ -131,9 +135,12 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     elif S[TR_PARAMS][T_QOS1D]:
         puback_broker(S, s, start + s_pub, now)
     d = start + s_pub
-    if subject == n:  # a broadcast: one delivery per subscriber, keyed by the subscriber
+    nsub = S[CPU_IP][CP_NSUB]
+    if subject == n and q[Q_FAN] and fits(S, s, nsub):  # in batches (fanout.py)
+        d = fan_out(S, s, kind, index, att, scaled, sc, d)
+    elif subject == n:  # a broadcast: one delivery per subscriber, keyed by the subscriber
         bc = S[BCAST]
-        for j in range(S[CPU_IP][CP_NSUB]):
+        for j in range(nsub):
             sub = bc[j]
             x = draw_at(S, SVC_DEL, kind, sub, index, att, False)
             if scaled:

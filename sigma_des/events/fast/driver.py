@@ -31,8 +31,8 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import OBS_WIDTH, Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
+from sigma_des.events.fast import fanout, loop
 from sigma_des.events.fast import layout as L
-from sigma_des.events.fast import loop
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
 from sigma_des.events.fast.growth import TABLE, before_run, grow
@@ -118,6 +118,7 @@ class CompiledCore:
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
+        self.S[L.IPARAMS][L.Q_FAN] = int(fanout.applies(self.S))
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
         self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
@@ -134,6 +135,7 @@ class CompiledCore:
         cap = 4 * (n + 1) + SLACK
         return {
             "cap": cap, "arena": int(ARENA * cap), "pool": cap, "n": n, "clients": n + 1,
+            "bat": 2 * cap,  # fan-out elements: a few broadcasts in flight (else per message)
             "links": spec.hosts + 1,
             "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
             "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay_w": max(OBS_WIDTH, M),

@@ -63,7 +63,10 @@ I_PFREE = 19  # free rows of the payload pool (S.pool_free's top)
 # the truth's newest stepped frame (set by the driver before the loop runs: a rollback's
 # first frame is clamped to the ring by it) and the rollbacks deferred in S.def_int
 I_LATEST, I_DEFN = 20, 21
-I_LEN = 22
+# fan-out batches (fanout.py): the element ring's head, tail and used rows; deliveries
+# run from batches, batches queued, batches queued again (pending), single deliveries
+I_BHEAD, I_BTAIL, I_BUSED, I_BELEM, I_BPUSH, I_BREIN, I_BSING = range(22, 29)
+I_LEN = 29
 # run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
 # runs sealed since the last compaction, heap size, current run and whether there is one
 QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
@@ -81,7 +84,8 @@ Q_BATCH = 10  # the truth re-simulates deferred rollbacks in a batch (else: Pyth
 # align.ring.insert_row); Q_OUT: they are also buffered for Python (S.out_*: the aligner's
 # on_states without a ring, or a recording tap)
 Q_RING, Q_OUT = 11, 12
-Q_LEN = 13
+Q_FAN = 13  # a broadcast fans out in batches (fanout.py)
+Q_LEN = 14
 # float parameters (S.fparams)
 G_WARMUP, G_END = 0, 1
 G_LEN = 2
@@ -137,6 +141,8 @@ EV_SEND, EV_APP = 4, 5
 EV_LEAVE = 6
 #: network thread (``*_net_msg``): a copy it read reaches the loop; a PUBLISH it took leaves
 EV_LOOP, EV_NSEND = 7, 8
+#: a fan-out batch: a broadcast's deliveries whose arrivals do not decrease (fanout.py)
+EV_BATCH = 9
 #: most publishes of one process waiting in its outbox (beyond: ``ERR_OUTBOX``)
 OB_CAP = 4096
 # CP_MAXMEM: the most nodes one client hands a message to (room a delivery event
@@ -319,6 +325,10 @@ FIELDS: tuple[Field, ...] = (
     Field("ring_gen", _f, ("ring_n", "ring_k"), None, "aligner's ring: generation times"),
     Field("ring_obs", _f, ("ring_n", "ring_k", "W"), None, "aligner's ring: the states"),
     Field("ring_latest", _i, ("ring_n",), None, "aligner's ring: newest frame of each node"),
+    # fan-out batches (fanout.py): a ring of ``bat`` elements, one per delivery
+    Field("bat_t", _f, ("bat",), 0.0, "fan-out elements: arrival times"),
+    Field("bat_k", _i, ("bat",), 0.0, "fan-out elements: sequence << SLOT_BITS (-1: delivered)"),
+    Field("bat_w", _i, ("bat",), 0.0, "fan-out elements: subscriber"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -379,11 +389,9 @@ Q_FLOAT = INDEX["q_float"]
 LINK_DYN = INDEX["link_dyn"]
 GE_PAR = INDEX["ge_par"]
 GE_BAD = INDEX["ge_bad"]
-DEG_PTR = INDEX["deg_ptr"]
-DEG = INDEX["deg"]
+DEG_PTR, DEG = INDEX["deg_ptr"], INDEX["deg"]
 DROPS = INDEX["drops"]
-NTP_PERIOD = INDEX["ntp_period"]
-NTP_RES = INDEX["ntp_res"]
+NTP_PERIOD, NTP_RES = INDEX["ntp_period"], INDEX["ntp_res"]
 #: ``S.ints[I_ERR]`` when a send time or clock reading lies beyond the link or clock
 #: tables (the run's end + :data:`~sigma_des.events.fast.support.TABLE_MARGIN`)
 ERR_HORIZON = 2
@@ -402,12 +410,10 @@ RESIM_PEND = INDEX["resim_pend"]
 TR_PARAMS = INDEX["tr_params"]
 TR_FPARAMS = INDEX["tr_fparams"]
 TR_INTS = INDEX["tr_ints"]
-ACK_MAP = INDEX["ack_map"]
-ACK_VAL = INDEX["ack_val"]
+ACK_MAP, ACK_VAL = INDEX["ack_map"], INDEX["ack_val"]
 ACK_TAG = INDEX["ack_tag"]
 X_MAP = INDEX["x_map"]
-X_CONST = INDEX["x_const"]
-X_FIRST = INDEX["x_first"]
+X_CONST, X_FIRST = INDEX["x_const"], INDEX["x_first"]
 X_VAL = INDEX["x_val"]
 X_TAG = INDEX["x_tag"]
 CONN = INDEX["conn"]
@@ -424,28 +430,21 @@ CPU_ACC = INDEX["cpu_acc"]
 CPU_BURSTS = INDEX["cpu_bursts"]
 CL_OF = INDEX["cl_of"]
 BCAST = INDEX["bcast"]
-MEM_PTR = INDEX["mem_ptr"]
-MEM = INDEX["mem"]
-CPU_WAKE = INDEX["cpu_wake"]
-CPU_SIDE = INDEX["cpu_side"]
-CPU_RUNQ = INDEX["cpu_runq"]
-CPU_LOAD = INDEX["cpu_load"]
+MEM_PTR, MEM = INDEX["mem_ptr"], INDEX["mem"]
+CPU_WAKE, CPU_SIDE = INDEX["cpu_wake"], INDEX["cpu_side"]
+CPU_RUNQ, CPU_LOAD = INDEX["cpu_runq"], INDEX["cpu_load"]
 CPU_SWITCH = INDEX["cpu_switch"]
-CPU_OB = INDEX["cpu_ob"]
-CPU_OBQ = INDEX["cpu_obq"]
-CPU_OBT = INDEX["cpu_obt"]
-CPU_INB = INDEX["cpu_inb"]
+CPU_OB, CPU_OBQ = INDEX["cpu_ob"], INDEX["cpu_obq"]
+CPU_OBT, CPU_INB = INDEX["cpu_obt"], INDEX["cpu_inb"]
 CPU_NET, CPU_NFREE = INDEX["cpu_net"], INDEX["cpu_nfree"]
-POOL = INDEX["pool"]
-POOL_FREE = INDEX["pool_free"]
-DEF_INT = INDEX["def_int"]
-DEF_ROW = INDEX["def_row"]
-RB_VAL = INDEX["rb_val"]
-RB_TAG = INDEX["rb_tag"]
+POOL, POOL_FREE = INDEX["pool"], INDEX["pool_free"]
+DEF_INT, DEF_ROW = INDEX["def_int"], INDEX["def_row"]
+RB_VAL, RB_TAG = INDEX["rb_val"], INDEX["rb_tag"]
 RING_FRAME = INDEX["ring_frame"]
 RING_GEN = INDEX["ring_gen"]
 RING_OBS = INDEX["ring_obs"]
 RING_LATEST = INDEX["ring_latest"]
+BAT_T, BAT_K, BAT_W = INDEX["bat_t"], INDEX["bat_k"], INDEX["bat_w"]
 
 
 def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:

@@ -28,6 +28,7 @@ from __future__ import annotations
 from sigma_des.events.fast.broker import broker
 from sigma_des.events.fast.clients import hand_over, loop_receive, receive
 from sigma_des.events.fast.cpu import tick
+from sigma_des.events.fast.fanout import head, requeue
 from sigma_des.events.fast.job import owe, start_job
 from sigma_des.events.fast.layout import (
     CP_APP,
@@ -45,6 +46,7 @@ from sigma_des.events.fast.layout import (
     EF_L,
     EF_TPUB,
     EF_TRECV,
+    EV_BATCH,
     EV_BROKER,
     EV_CLIENT,
     EV_DONE,
@@ -325,6 +327,21 @@ def _handle(S, s, t):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _run(S, s, t, c, p):  # type: ignore[no-untyped-def]
+    """Run event ``s`` at ``t`` and free its slot; a fan-out batch (taken at arena row
+    ``p`` of run ``c``) runs its head delivery and goes back to the queue with the rest
+    (:mod:`~sigma_des.events.fast.fanout`)."""
+    if S[EV_INT][s, E_TYPE] == EV_BATCH:
+        head(S, s)
+        _client(S, s, t)
+        if requeue(S, s, c, p):
+            return
+    else:
+        _handle(S, s, t)
+    release(S, s)
+
+
+@jit
 def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     """Process message events up to ``t_stop`` (``< t_stop`` if ``strict``): OK when done, else
     the reason Python must act first. A draining stream's segments first, then the queue's head."""
@@ -345,6 +362,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
     while True:
         if S[TR_INTS][T_DRAIN]:  # a stream arrival hands its connection's segments on
             code, s, t = _drain_step(S, spare)
+            c = p = -1  # not from a run (no batch drains: fanout.applies)
             if code != OK:
                 return code
             if s < 0:
@@ -393,8 +411,7 @@ def advance(S, t_stop, strict):  # type: ignore[no-untyped-def]
                 _ahead(S, ak, p, e)
             if qi[QI_HEAP] > 0:  # the heap top's head is next if the run does not continue
                 _rows(S, hk[0] & SLOT_MASK)
-        _handle(S, s, t)
-        release(S, s)
+        _run(S, s, t, c, p)
         if iv[I_ERR]:
             return DRAW_MISS
         code = iv[I_PEND]

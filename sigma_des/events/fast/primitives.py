@@ -119,6 +119,25 @@ def push(S, t, slot):  # type: ignore[no-untyped-def]
         qi[QI_PMINK] = key
 
 
+@jit
+def push_key(S, t, key):  # type: ignore[no-untyped-def]
+    """Queue an event at ``t`` under a ``key`` it already has (a fan-out's delivery, whose
+    sequence number the broker took: :mod:`~sigma_des.events.fast.fanout`).
+
+    The key may be older than pending ones, so the pending minimum is kept by the whole
+    ``(time, key)`` comparison; the sealing sorts by it anyway.
+    """
+    qi = S[Q_INT]
+    m = qi[QI_PN]
+    S[PEND_T][m] = t
+    S[PEND_K][m] = key
+    qi[QI_PN] = m + 1
+    qf = S[Q_FLOAT]
+    if m == 0 or precedes(t, key, qf[QF_PMIN], qi[QI_PMINK]):
+        qf[QF_PMIN] = t
+        qi[QI_PMINK] = key
+
+
 #: Allocations ahead whose rows :func:`alloc` and :func:`give_payload` ask the cache for:
 #: a broadcast takes a slot per subscriber in a row, most of them long unused.
 AHEAD = 4

@@ -21,7 +21,7 @@ DIMS = {
     "links_1": 4, "ge_slots": 5, "deg": 1, "drops": 1, "ntp_j": 2,
     "ack_tables": 1, "x_tables": 1, "x_rows": 1,
     "procs": 4, "machines": 1, "cpu_cores": 2, "clients_1": 5, "rb_t": 2, "rb_j": 3,
-    "ring_n": 3, "ring_k": 4,
+    "ring_n": 3, "ring_k": 4, "bat": 6,
 }
 
 
@@ -36,11 +36,11 @@ def _given() -> dict[str, np.ndarray]:
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
     # 39 + 11 queue + 8 link + 1 resim + 13 transport + 25 deployment + 2 payload pool
-    # + 4 rollbacks in the loop + 4 the aligner's ring
-    assert len(set(names)) == len(names) == 107
+    # + 4 rollbacks in the loop + 4 the aligner's ring + 3 fan-out elements
+    assert len(set(names)) == len(names) == 110
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(107))
+    assert [getattr(L, name.upper()) for name in names] == list(range(110))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
@@ -112,6 +112,8 @@ def test_a_run_state_follows_the_declaration() -> None:
     assert S[L.CMD] is run.nodes.cmd
     q = S[L.IPARAMS]
     assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
+    assert q[L.Q_FAN] == 1  # the tiny scenario's broadcasts fan out in batches
+    assert S[L.BAT_T].shape == (2 * S[L.HEAP_T].size,)
     assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
 
 
