@@ -14,7 +14,10 @@ Format (TOML)::
     seed = 1
 
 Every other parameter keeps the preset's value. A scenario uses the file with
-``dynamics = "quadrotor"`` and ``dynamics_params = "fitted.toml"``.
+``dynamics = "quadrotor"`` and ``dynamics_params = "fitted.toml"``. A bare name
+that is not a file names a fit shipped in ``sigma_des/fits/`` (:func:`shipped_fits`):
+``dynamics = "fixedwing"``, ``dynamics_params = "minisgs"`` flies the fixed wing
+fitted to JSBSim's minisgs glider (with the preset's propeller).
 """
 
 from __future__ import annotations
@@ -33,8 +36,11 @@ from sigma_des.agents.presets import preset
 from sigma_des.errors import ConfigError
 from sigma_des.guard import read_text
 
-__all__ = ["KINDS", "PARAM_NAMES", "fitted_params", "get_value", "read_fitted", "with_values",
-           "write_fitted"]
+__all__ = ["KINDS", "PARAM_NAMES", "FITS_DIR", "fitted_params", "get_value", "read_fitted",
+           "resolve_fitted", "shipped_fits", "with_values", "write_fitted"]
+
+#: Where the shipped fitted files live (package data).
+FITS_DIR = Path(__file__).resolve().parent.parent / "fits"
 
 #: Presets a fitted file may apply to.
 KINDS: tuple[str, ...] = ("quadrotor", "fixedwing")
@@ -82,9 +88,23 @@ def write_fitted(path: str | Path, kind: str, values: dict[str, float],
     return path
 
 
-def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
-    """``(kind, values)`` of a fitted file, validated (ConfigError names file and key)."""
+def shipped_fits() -> list[str]:
+    """Names of the fitted files shipped with the package, sorted."""
+    return sorted(p.stem for p in FITS_DIR.glob("*.toml"))
+
+
+def resolve_fitted(path: str | Path) -> Path:
+    """An existing file, else the shipped fit of that bare name (else ``path`` unchanged)."""
     p = Path(path)
+    if p.exists() or len(p.parts) != 1:
+        return p
+    shipped = FITS_DIR / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
+    return shipped if shipped.is_file() else p
+
+
+def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
+    """``(kind, values)`` of a fitted file or shipped fit (ConfigError names file and key)."""
+    p = resolve_fitted(path)
     src = str(p)
     text = read_text(p, src, "fitted parameter file")
     try:

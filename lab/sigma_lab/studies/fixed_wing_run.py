@@ -1,0 +1,185 @@
+"""One run of the fixed-wing fit: logs, ``sigma-des tune``, held-out scores, identifiability.
+
+:func:`run` writes the glider's logs (CSV, made by ``sigma-des flightlog``'s
+generator), the starting parameters (``start.toml``) and the GA settings
+(``tune.toml``), runs ``sigma-des tune`` on them in process (its outputs in
+``tune/``), and scores the starting, the tuned and the JSBSim-coefficient
+parameter sets on every log: RMS and R² per channel over the tuning replay
+(``tune.segment``-second windows restarted from the logged state). Results:
+``metrics.csv`` (log x parameter set x channel), ``genes.csv`` (bounds, start,
+fitted, JSBSim's value, local sensitivity), ``summary.json`` and ``run.json``
+(date, machine, load, command, wall and CPU time).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import socket
+import time
+from dataclasses import asdict
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from sigma_des import __version__
+from sigma_des.agents.fitted import fitted_params, write_fitted
+from sigma_des.agents.params import AircraftParams
+from sigma_des.tuning.flightlog import FlightLog, write_csv
+from sigma_des.tuning.glider_log import GlideSpec, fly_glider, glider_structure
+from sigma_des.tuning.report import PAPER_VALUES, replayed, score
+from sigma_des.tuning.spec import TuneSpec, get_value, with_values
+from sigma_lab.studies.fixed_wing import (
+    GENES,
+    glide_cd0,
+    glider_start,
+    inertia_ridge,
+    jsbsim_coefficients,
+    sensitivity,
+)
+
+__all__ = ["LOGS", "CHANNELS", "Budget", "run", "machine"]
+
+#: The logs: name -> (variant, trim speed m/s, seed offset). ``tuning`` is the only
+#: one the GA sees; the others are held out (other inputs; other inputs and speed).
+LOGS: dict[str, tuple[int, float, int]] = {
+    "tuning": (0, 10.0, 0), "heldout_inputs": (1, 10.0, 1000), "heldout_speed": (2, 12.0, 2000)}
+#: Channels reported (the paper's: pitch and roll rate; plus the angles and yaw rate).
+CHANNELS = ("q", "p", "theta", "phi", "r")
+#: Sensitivity threshold: a gene whose +-10 % moves the fitness by less is "flat".
+FLAT = 0.01
+
+
+class Budget:
+    """Log length and GA size of a run (full or quick)."""
+
+    def __init__(self, quick: bool) -> None:
+        self.duration = 6.0 if quick else 30.0
+        self.population = 8 if quick else 96
+        self.generations = 3 if quick else 200
+
+
+def machine() -> dict[str, Any]:
+    """Host name, CPU model and count, Python and sigma_des versions."""
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"host": socket.gethostname(), "cpu": cpu, "cpus": os.cpu_count(),
+            "python": platform.python_version(), "sigma_des": __version__}
+
+
+def _logs(out: Path, seed: int, duration: float) -> dict[str, FlightLog]:
+    logs = {}
+    for name, (variant, speed, off) in LOGS.items():
+        logs[name] = fly_glider(GlideSpec(speed=speed, variant=variant, duration=duration,
+                                          seed=seed + off))
+        write_csv(logs[name], out / "logs" / f"{name}.csv")
+    return logs
+
+
+def _scores(logs: dict[str, FlightLog], sets: dict[str, AircraftParams], spec: TuneSpec
+            ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    rows: list[dict[str, Any]] = []
+    series: dict[str, Any] = {}
+    names = list(sets)
+    for lname, log in logs.items():
+        win, sims = replayed(log, [sets[n] for n in names], spec)
+        series[lname] = {"win": win, "sims": dict(zip(names, sims, strict=True))}
+        for n, sim in zip(names, sims, strict=True):
+            ch = score(win, sim, "fixedwing")["channels"]
+            rows += [{"log": lname, "params": n, "channel": c, "rms": ch[c]["rms"],
+                      "r2": ch[c]["r2"]} for c in CHANNELS]
+    return rows, series
+
+
+def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _tune(out: Path, logs: dict[str, FlightLog], start: AircraftParams, spec: TuneSpec) -> Path:
+    """``sigma-des tune`` on the tuning log (held-out inputs as its --validate log)."""
+    from sigma_des.cli import main as cli
+
+    values = {n: get_value(start, n) for n in
+              ("mass", "ixx", "iyy", "izz", "ixz", "s", "b", "c", "delta_max", "tau_servo",
+               "cd_0")}
+    write_fitted(out / "start.toml", "fixedwing", values, {"what": "glider structure + preset "
+                 "derivatives; cd_0 from the logged steady glide"})
+    tune = {k: v for k, v in asdict(spec).items() if k in (
+        "seed", "population", "generations", "segment", "params", "lower", "upper")}
+    (out / "tune.toml").write_text(tomli_w.dumps({"tune": tune}))
+    argv = ["tune", "--dynamics", "fixedwing", "--log", str(out / "logs" / "tuning.csv"),
+            "--validate", str(out / "logs" / "heldout_inputs.csv"), "--init",
+            str(out / "start.toml"), "--config", str(out / "tune.toml"), "--out", str(out / "tune")]
+    if cli(argv) != 0:
+        raise RuntimeError(f"sigma-des {' '.join(argv)} failed")
+    return out / "tune" / "fitted.toml"
+
+
+def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
+    """The whole study into ``out``; returns the summary (also written as JSON)."""
+    t_wall, t_cpu, load0 = time.perf_counter(), time.process_time(), os.getloadavg()
+    out.mkdir(parents=True, exist_ok=True)
+    b = Budget(quick)
+    logs = _logs(out, seed, b.duration)
+    st = glider_structure()
+    start = glider_start(st)
+    start = with_values(start, {"cd_0": glide_cd0(logs["tuning"], start)})
+    names = tuple(GENES)
+    spec = TuneSpec(seed=seed, population=b.population, generations=b.generations,
+                    segment=1.0, params=names, lower=tuple(GENES[g][0] for g in names),
+                    upper=tuple(GENES[g][1] for g in names))
+    t_tune = time.perf_counter()
+    fitted = fitted_params(_tune(out, logs, start, spec), "fixedwing")
+    tune_s = time.perf_counter() - t_tune
+    alpha = np.arctan2(logs["tuning"].obs[:, 2], logs["tuning"].obs[:, 0])
+    ref = jsbsim_coefficients("minisgs", (float(alpha.min()), float(alpha.max())))
+    mapped = with_values(start, ref)
+    sets = {"initial": start, "tuned": fitted, "jsbsim_coeffs": mapped}
+    rows, series = _scores(logs, sets, spec)
+    sens = sensitivity(logs["tuning"], fitted, names, spec)
+    ridge = inertia_ridge(logs["tuning"], fitted, spec)
+    genes = [{"name": g, "lower": GENES[g][0], "upper": GENES[g][1],
+              "start": get_value(start, g), "fitted": get_value(fitted, g),
+              "jsbsim": ref.get(g), "rise_low": s["rise_low"], "rise_high": s["rise_high"],
+              "identifiable": min(s["rise_low"], s["rise_high"]) >= FLAT}
+             for g, s in zip(names, sens, strict=True)]
+    _write_csv(out / "metrics.csv", rows)
+    _write_csv(out / "genes.csv", genes)
+    rep = json.loads((out / "tune" / "report.json").read_text())
+    summary = {
+        "study": "fixed_wing", "quick": quick, "seed": seed, "version": __version__,
+        "aircraft": "jsbsim:minisgs", "structure": st, "logs": {
+            n: {"variant": v, "speed_m_s": s, "seed": seed + o, "duration_s": b.duration,
+                "source": logs[n].source} for n, (v, s, o) in LOGS.items()},
+        "tune": {"population": b.population, "generations": b.generations, "segment_s": 1.0,
+                 "rate_hz": spec.rate, "band": spec.band, "channels": list(
+                     spec.channels_of("fixedwing")), "evaluations": rep["evaluations"],
+                 "fitness_start": rep["fitness_start"], "fitness_best": rep["fitness_best"],
+                 "seconds": tune_s, "history": rep["history"]},
+        "metrics": rows, "genes": genes, "inertia_ridge": ridge, "flat_threshold": FLAT,
+        "paper_talon": PAPER_VALUES["fixedwing"],
+        "caveat": "the reference is JSBSim's minisgs model, not a flight; the paper's TALON "
+                  "figures are from real flights",
+    }
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float) + "\n")
+    (out / "run.json").write_text(json.dumps({
+        "date": datetime.now(UTC).isoformat(timespec="seconds"), "machine": machine(),
+        "load_before": list(load0), "load_after": list(os.getloadavg()), "command": command,
+        "wall_s": time.perf_counter() - t_wall, "cpu_s": time.process_time() - t_cpu,
+        "tune_wall_s": tune_s}, indent=1) + "\n")
+    summary["series"] = series
+    return summary
