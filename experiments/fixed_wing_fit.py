@@ -14,8 +14,8 @@ reference is JSBSim, not a flight), the genes' local sensitivity and the
 inertia ridge (sigma_lab.studies.fixed_wing, fixed_wing_run).
 
 Outputs (``--out``, default ``out/fixed_wing``): summary.json, run.json,
-metrics.csv, genes.csv, logs/*.csv, start.toml, tune.toml, tune/ (what
-``sigma-des tune`` writes: fitted.toml, report.json/md), and
+metrics.csv, genes.csv, logs/*.csv, start.toml, tune_<stage>.toml, tune/<stage>/
+(what ``sigma-des tune`` writes: fitted.toml, report.json/md), fitted.toml, and
 fig15_<log>.png (simulated vs reference response and residuals per held-out log).
 
 Usage: ``python experiments/fixed_wing_fit.py [--quick] [--seeds 1] [--out DIR]``
@@ -35,7 +35,8 @@ from sigma_des.tuning.flightlog import STATE_COLUMNS
 
 PANELS = (("q", "(a) pitch rate", "rad/s"), ("p", "(b) roll rate", "rad/s"),
           ("theta", "(c) pitch angle", "rad"), ("phi", "(d) roll angle", "rad"))
-STYLE = {"initial": ("0.55", "--", 0.9), "tuned": ("C0", "-", 1.1)}
+STYLE = {"initial": ("0.55", "--", 0.9), "jsbsim_coeffs": ("C2", ":", 1.0),
+         "tuned": ("C0", "-", 1.1)}
 
 
 def _joined(win: Any, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -71,10 +72,12 @@ def fig15(s: dict[str, Any], log: str, out: Path, quick: bool) -> None:
     axs[-1, 1].set_xlabel("time (s)")
     p = s["paper_talon"]
     info = s["logs"][log]
-    fig.suptitle(f"Fixed wing vs JSBSim minisgs, held-out log '{log}' (input programme "
-                 f"{info['variant']}, {info['speed_m_s']:g} m/s). Paper, TALON real flight: RMS "
-                 f"q {p['rms_pitch']}, p {p['rms_roll']} rad/s, R² {p['r2']} "
-                 "(ours: reference is JSBSim, not a flight)", fontsize=9)
+    fig.suptitle(f"Our fixed wing vs JSBSim minisgs, held-out log '{log}' (input programme "
+                 f"{info['variant']}, {info['speed_m_s']:g} m/s); jsbsim_coeffs = JSBSim's own "
+                 "coefficients in our structure (not fitted)\n"
+                 f"Paper (Fig. 15, TALON, real flight): RMS q {p['rms_pitch']}, p "
+                 f"{p['rms_roll']} rad/s, R² {p['r2']}. Ours: the reference is a JSBSim model, "
+                 "not a flight", fontsize=9)
     fig.tight_layout()
     save(fig, out, f"fig15_{log}.png")
 
@@ -93,8 +96,10 @@ def main(argv: list[str] | None = None) -> int:
             m = {r["channel"]: r for r in s["metrics"] if r["log"] == log and r["params"] == name}
             print(f"{log:16} {name:14} " + " ".join(
                 f"{m[c]['rms']:9.4f} {m[c]['r2']:7.3f}" for c, _, _ in PANELS))
-    print(f"tuning: population {s['tune']['population']}, {s['tune']['generations']} "
-          f"generations, {s['tune']['seconds']:.0f} s; wrote {out}")
+    t = s["tune"]
+    print(f"tuning: {len(t['stages'])} stages of population {t['population']} x "
+          f"{t['generations']} generations, {t['seconds']:.0f} s wall, {t['cpu_s']:.0f} s CPU; "
+          f"wrote {out}")
     return 0
 
 

@@ -60,6 +60,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from sigma_lab import studies
 from sigma_lab.studies.formation_flight import (
     IDEAL,
     LEADER,
@@ -70,7 +71,7 @@ from sigma_lab.studies.formation_flight import (
     write_outputs,
 )
 
-from sigma_des import load, studies
+from sigma_des import load
 from sigma_des.config import Scenario
 
 NAME = "formation"

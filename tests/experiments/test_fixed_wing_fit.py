@@ -24,7 +24,9 @@ def test_fixed_wing_fit_quick(tmp_path: Path) -> None:
                        text=True, cwd=ROOT, timeout=600)
     assert "heldout_speed" in r.stdout
     s = json.loads((out / "summary.json").read_text())
-    assert s["quick"] is True and s["tune"]["fitness_best"] <= s["tune"]["fitness_start"]
+    assert s["quick"] is True and [st["stage"] for st in s["tune"]["stages"]] == [
+        "lateral", "longitudinal"]
+    assert all(st["fitness_best"] <= st["fitness_start"] for st in s["tune"]["stages"])
     assert set(s["logs"]) == {"tuning", "heldout_inputs", "heldout_speed"}
     run = json.loads((out / "run.json").read_text())
     assert {"date", "machine", "load_before", "command", "wall_s", "cpu_s"} <= set(run)
@@ -32,14 +34,15 @@ def test_fixed_wing_fit_quick(tmp_path: Path) -> None:
     assert len(rows) == 3 * 3 * 5
     assert {r["channel"] for r in rows} == {"q", "p", "theta", "phi", "r"}
     genes = list(csv.DictReader((out / "genes.csv").open()))
-    assert [g["name"] for g in genes][:2] == ["cl_0", "cl_a"]
-    for name in ("fig15_heldout_inputs.png", "fig15_heldout_speed.png", "tune/fitted.toml",
-                 "tune/report.json", "start.toml", "tune.toml", "logs/tuning.csv"):
+    assert [g["name"] for g in genes][:2] == ["cll_p", "cll_da"]
+    for name in ("fig15_heldout_inputs.png", "fig15_heldout_speed.png", "fitted.toml",
+                 "tune/lateral/report.json", "tune/longitudinal/fitted.toml", "start.toml",
+                 "tune_lateral.toml", "logs/tuning.csv", "logs/heldout_speed.csv"):
         assert (out / name).is_file(), name
     # the fitted file is complete: the glider's structure and the genes
     from sigma_des.agents.fitted import fitted_params
 
-    p = fitted_params(out / "tune" / "fitted.toml", "fixedwing")
+    p = fitted_params(out / "fitted.toml", "fixedwing")
     assert p.mass == pytest.approx(s["structure"]["mass"])
     assert p.aero.cm_q == pytest.approx(next(g["fitted"] for g in s["genes"]
                                              if g["name"] == "cm_q"))

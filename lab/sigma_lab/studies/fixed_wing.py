@@ -30,30 +30,38 @@ from sigma_des.tuning.ga import Evaluator
 from sigma_des.tuning.replay import windows
 from sigma_des.tuning.spec import TuneSpec, get_value, with_values
 
-__all__ = ["GENES", "STRUCTURE", "glider_start", "glide_cd0", "jsbsim_coefficients",
-           "sensitivity", "inertia_ridge", "MOMENT_COEFFS"]
+__all__ = ["GENES", "LATERAL", "LONGITUDINAL", "STAGES", "STRUCTURE", "PROP_11X10", "powered",
+           "glider_start",
+           "glide_cd0", "jsbsim_coefficients", "sensitivity", "inertia_ridge", "MOMENT_COEFFS"]
 
 #: Genes and their bounds. Ranges span the small-UAV and sailplane values of the
 #: literature (Beard & McLain App. E: Aerosonde and Zagi; Roskam, *Airplane Flight
-#: Dynamics* I, ch. 4 trends; JSBSim's own small-aircraft sets): lift slope 2–6.5
+#: Dynamics* I, ch. 4 trends; JSBSim's own small-aircraft sets): lift from pitch rate
+#: 0–10 and from elevator 0–0.5 per rad, lift slope 2–6.5
 #: per rad (low-aspect to high-aspect wings), static margin from neutral to very
 #: stable (cm_a 0 to -3), pitch damping -2 to -50, elevator power -0.3 to -2.5,
 #: roll damping -0.2 to -0.8, aileron power 0.05 to 0.4, dihedral effect 0 to
 #: -0.2, weathercock 0 to 0.15, yaw damping -0.005 to -0.2, adverse yaw 0.05 to
 #: -0.25, rudder power -0.01 to -0.12, side force -0.1 to -1.2.
 GENES: dict[str, tuple[float, float]] = {
-    "cl_0": (0.0, 0.8), "cl_a": (2.0, 6.5), "cm_0": (-0.05, 0.05), "cm_a": (-3.0, 0.0),
-    "cm_q": (-50.0, -2.0), "cm_de": (-2.5, -0.3),
+    "cl_q": (0.0, 10.0), "cl_de": (0.0, 0.5), "cl_0": (0.0, 0.8), "cl_a": (2.0, 6.5),
+    "cm_0": (-0.05, 0.05), "cm_a": (-3.0, 0.0), "cm_q": (-50.0, -2.0), "cm_de": (-2.5, -0.3),
     "cll_p": (-0.8, -0.2), "cll_da": (0.05, 0.4), "cll_b": (-0.2, 0.0), "cll_r": (0.0, 0.3),
     "cn_b": (0.0, 0.15), "cn_r": (-0.2, -0.005), "cn_p": (-0.25, 0.05),
     "cn_dr": (-0.12, -0.01), "cy_b": (-1.2, -0.1),
 }
+#: The longitudinal genes (tuned on pitch) and the lateral-directional ones (on roll, yaw).
+LONGITUDINAL = ("cl_q", "cl_de", "cl_0", "cl_a", "cm_0", "cm_a", "cm_q", "cm_de")
+LATERAL = ("cll_p", "cll_da", "cll_b", "cll_r", "cn_b", "cn_r", "cn_p", "cn_dr", "cy_b")
+#: Tuning stages (name, genes, DTW channels): decoupled axes, as in flight-test system
+#: identification; each stage is one ``sigma-des tune`` run started from the previous fit.
+STAGES: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
+    ("lateral", LATERAL, ("phi", "p", "r")), ("longitudinal", LONGITUDINAL, ("theta", "q")))
 #: Structural parameters taken from JSBSim (the "measured" ones), not tuned.
 STRUCTURE = ("mass", "ixx", "iyy", "izz", "ixz", "s", "b", "c", "delta_max")
 #: Moment coefficients: scaled with the inertia they leave the motion unchanged.
 MOMENT_COEFFS = ("cll_b", "cll_p", "cll_r", "cll_da", "cll_dr", "cm_0", "cm_a", "cm_q",
                  "cm_de", "cn_b", "cn_p", "cn_r", "cn_da", "cn_dr")
-_G = 9.80665
 
 
 def glider_start(structure: dict[str, float]) -> AircraftParams:
@@ -68,20 +76,39 @@ def glide_cd0(log: FlightLog, params: AircraftParams, seconds: float = 1.0) -> f
 
     In a steady glide ``D = W sin(-gamma)`` and ``L = W cos(gamma)``; ``cd_0 = CD -
     cd_k CL^2`` with the preset's induced-drag factor. The density is ISA at the
-    logged altitude.
+    logged altitude, gravity the model's at that altitude.
     """
-    from sigma_des.agents.atmosphere import isa_scalar
+    from sigma_des.agents.atmosphere import gravity_scalar, isa_scalar
 
     k = max(2, int(round(seconds / float(log.t[1] - log.t[0]))))
     o = log.obs[:k]
     v = float(np.sqrt((o[:, 0:3] ** 2).sum(axis=1)).mean())
     sink = -float(np.polyfit(log.t[:k], o[:, 11], 1)[0])
     gamma = -math.asin(min(1.0, max(-1.0, sink / v)))
-    rho = float(isa_scalar(float(o[:, 11].mean()))[0])
+    h = float(o[:, 11].mean())
+    rho = float(isa_scalar(h)[2])
     qs = 0.5 * rho * v * v * params.aero.s
-    w = params.mass * _G
+    w = params.mass * gravity_scalar(h)
     cl, cd = w * math.cos(gamma) / qs, -w * math.sin(gamma) / qs
     return max(1e-4, cd - params.aero.cd_k * cl * cl)
+
+
+#: 11x10 propeller (pitch angle at 3/4 radius): the preset's 11x7 runs out of thrust
+#: at the preset's 20 m/s cruise on the glider's large wing; the coarser pitch trims it.
+PROP_11X10 = math.atan(10 * 0.0254 / (2 * math.pi * 0.75 * 11 * 0.0254 / 2))
+
+
+def powered(fitted: Path, out: Path) -> Path:
+    """The fitted glider with the preset's motor and an 11x10 propeller (for ``compare``
+    and the formation study, which fly at the preset's cruise speed)."""
+    from sigma_des.agents.fitted import read_fitted, write_fitted
+
+    kind, values = read_fitted(fitted)
+    values["rotor_pitch"] = PROP_11X10
+    return write_fitted(out, kind, values, {
+        "what": "fixed wing fitted to JSBSim's minisgs glider (sigma-des tune, decoupled "
+                "stages) with the preset's motor and an 11x10 propeller",
+        "source": "experiments/fixed_wing_fit.py"})
 
 
 def _coefficients(xml: Path) -> dict[str, float]:

@@ -2,10 +2,12 @@
 
 :func:`run` writes the glider's logs (CSV, made by ``sigma-des flightlog``'s
 generator), the starting parameters (``start.toml``) and the GA settings
-(``tune.toml``), runs ``sigma-des tune`` on them in process (its outputs in
-``tune/``), and scores the starting, the tuned and the JSBSim-coefficient
-parameter sets on every log: RMS and R² per channel over the tuning replay
-(``tune.segment``-second windows restarted from the logged state). Results:
+(``tune_<stage>.toml``), runs ``sigma-des tune`` on them in process, one run per
+stage (:data:`~sigma_lab.studies.fixed_wing.STAGES`; outputs in ``tune/<stage>/``,
+the final ``fitted.toml`` beside them, and ``minisgs_powered.toml``: the same with
+an 11x10 propeller, the shipped ``minisgs`` fit), and scores the starting, the tuned and
+the JSBSim-coefficient parameter sets on every log: RMS and R² per channel over
+the tuning replay (``tune.segment``-second windows restarted from the logged state). Results:
 ``metrics.csv`` (log x parameter set x channel), ``genes.csv`` (bounds, start,
 fitted, JSBSim's value, local sensitivity), ``summary.json`` and ``run.json``
 (date, machine, load, command, wall and CPU time).
@@ -19,7 +21,6 @@ import os
 import platform
 import socket
 import time
-from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -36,21 +37,28 @@ from sigma_des.tuning.report import PAPER_VALUES, replayed, score
 from sigma_des.tuning.spec import TuneSpec, get_value, with_values
 from sigma_lab.studies.fixed_wing import (
     GENES,
+    STAGES,
     glide_cd0,
     glider_start,
     inertia_ridge,
     jsbsim_coefficients,
+    powered,
     sensitivity,
 )
 
 __all__ = ["LOGS", "CHANNELS", "Budget", "run", "machine"]
 
-#: The logs: name -> (variant, trim speed m/s, seed offset). ``tuning`` is the only
-#: one the GA sees; the others are held out (other inputs; other inputs and speed).
-LOGS: dict[str, tuple[int, float, int]] = {
-    "tuning": (0, 10.0, 0), "heldout_inputs": (1, 10.0, 1000), "heldout_speed": (2, 12.0, 2000)}
+#: The logs: name -> (variant, trim speed m/s, speed step halfway m/s, seed offset).
+#: ``tuning`` (two trims, 9 then 11 m/s: the static pitch balance needs more than one)
+#: is the only one the GA sees; the others are held out: other inputs at 10 m/s, other
+#: inputs at 12 m/s (outside the tuning speeds).
+LOGS: dict[str, tuple[int, float, float, int]] = {
+    "tuning": (0, 9.0, 2.0, 0), "heldout_inputs": (1, 10.0, 0.0, 1000),
+    "heldout_speed": (2, 12.0, 0.0, 2000)}
 #: Channels reported (the paper's: pitch and roll rate; plus the angles and yaw rate).
 CHANNELS = ("q", "p", "theta", "phi", "r")
+#: Replay window (s): every window restarts from the logged state.
+SEGMENT = 1.0
 #: Sensitivity threshold: a gene whose +-10 % moves the fitness by less is "flat".
 FLAT = 0.01
 
@@ -59,7 +67,7 @@ class Budget:
     """Log length and GA size of a run (full or quick)."""
 
     def __init__(self, quick: bool) -> None:
-        self.duration = 6.0 if quick else 30.0
+        self.duration = 6.0 if quick else 40.0
         self.population = 8 if quick else 96
         self.generations = 3 if quick else 200
 
@@ -80,9 +88,9 @@ def machine() -> dict[str, Any]:
 
 def _logs(out: Path, seed: int, duration: float) -> dict[str, FlightLog]:
     logs = {}
-    for name, (variant, speed, off) in LOGS.items():
-        logs[name] = fly_glider(GlideSpec(speed=speed, variant=variant, duration=duration,
-                                          seed=seed + off))
+    for name, (variant, speed, step, off) in LOGS.items():
+        logs[name] = fly_glider(GlideSpec(speed=speed, speed_step=step, variant=variant,
+                                          duration=duration, seed=seed + off))
         write_csv(logs[name], out / "logs" / f"{name}.csv")
     return logs
 
@@ -109,24 +117,43 @@ def _write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
         w.writerows(rows)
 
 
-def _tune(out: Path, logs: dict[str, FlightLog], start: AircraftParams, spec: TuneSpec) -> Path:
-    """``sigma-des tune`` on the tuning log (held-out inputs as its --validate log)."""
+def _stage_spec(genes: tuple[str, ...], channels: tuple[str, ...], b: Budget,
+                seed: int) -> dict[str, Any]:
+    """The ``[tune]`` table of one stage."""
+    return {"seed": seed, "population": b.population, "generations": b.generations,
+            "segment": SEGMENT, "params": list(genes), "channels": list(channels),
+            "lower": [GENES[g][0] for g in genes], "upper": [GENES[g][1] for g in genes]}
+
+
+def _tune(out: Path, start: AircraftParams, b: Budget, seed: int) -> list[dict[str, Any]]:
+    """``sigma-des tune`` per stage on the tuning log (held-out inputs as --validate);
+    the last stage's fitted file is copied to ``out/fitted.toml``."""
     from sigma_des.cli import main as cli
 
     values = {n: get_value(start, n) for n in
               ("mass", "ixx", "iyy", "izz", "ixz", "s", "b", "c", "delta_max", "tau_servo",
                "cd_0")}
-    write_fitted(out / "start.toml", "fixedwing", values, {"what": "glider structure + preset "
-                 "derivatives; cd_0 from the logged steady glide"})
-    tune = {k: v for k, v in asdict(spec).items() if k in (
-        "seed", "population", "generations", "segment", "params", "lower", "upper")}
-    (out / "tune.toml").write_text(tomli_w.dumps({"tune": tune}))
-    argv = ["tune", "--dynamics", "fixedwing", "--log", str(out / "logs" / "tuning.csv"),
-            "--validate", str(out / "logs" / "heldout_inputs.csv"), "--init",
-            str(out / "start.toml"), "--config", str(out / "tune.toml"), "--out", str(out / "tune")]
-    if cli(argv) != 0:
-        raise RuntimeError(f"sigma-des {' '.join(argv)} failed")
-    return out / "tune" / "fitted.toml"
+    init = write_fitted(out / "start.toml", "fixedwing", values, {
+        "what": "glider structure + preset derivatives; cd_0 from the logged steady glide"})
+    reports = []
+    for name, genes, channels in STAGES:
+        cfg = out / f"tune_{name}.toml"
+        cfg.write_text(tomli_w.dumps({"tune": _stage_spec(genes, channels, b, seed)}))
+        argv = ["tune", "--dynamics", "fixedwing", "--log", str(out / "logs" / "tuning.csv"),
+                "--validate", str(out / "logs" / "heldout_inputs.csv"), "--init", str(init),
+                "--config", str(cfg), "--out", str(out / "tune" / name)]
+        t0 = time.perf_counter()
+        if cli(argv) != 0:
+            raise RuntimeError(f"sigma-des {' '.join(argv)} failed")
+        rep = json.loads((out / "tune" / name / "report.json").read_text())
+        reports.append({"stage": name, "genes": list(genes), "channels": list(channels),
+                        "fitness_start": rep["fitness_start"],
+                        "fitness_best": rep["fitness_best"], "evaluations": rep["evaluations"],
+                        "seconds": time.perf_counter() - t0, "history": rep["history"],
+                        "command": "sigma-des " + " ".join(argv)})
+        init = out / "tune" / name / "fitted.toml"
+    (out / "fitted.toml").write_text(init.read_text())
+    return reports
 
 
 def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
@@ -138,13 +165,13 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
     st = glider_structure()
     start = glider_start(st)
     start = with_values(start, {"cd_0": glide_cd0(logs["tuning"], start)})
-    names = tuple(GENES)
-    spec = TuneSpec(seed=seed, population=b.population, generations=b.generations,
-                    segment=1.0, params=names, lower=tuple(GENES[g][0] for g in names),
-                    upper=tuple(GENES[g][1] for g in names))
-    t_tune = time.perf_counter()
-    fitted = fitted_params(_tune(out, logs, start, spec), "fixedwing")
-    tune_s = time.perf_counter() - t_tune
+    names = tuple(g for _, genes, _ in STAGES for g in genes)
+    spec = TuneSpec(seed=seed, segment=SEGMENT)
+    t_tune, c_tune = time.perf_counter(), time.process_time()
+    stages = _tune(out, start, b, seed)
+    tune_s, tune_cpu = time.perf_counter() - t_tune, time.process_time() - c_tune
+    fitted = fitted_params(out / "fitted.toml", "fixedwing")
+    powered(out / "fitted.toml", out / "minisgs_powered.toml")
     alpha = np.arctan2(logs["tuning"].obs[:, 2], logs["tuning"].obs[:, 0])
     ref = jsbsim_coefficients("minisgs", (float(alpha.min()), float(alpha.max())))
     mapped = with_values(start, ref)
@@ -159,17 +186,19 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
              for g, s in zip(names, sens, strict=True)]
     _write_csv(out / "metrics.csv", rows)
     _write_csv(out / "genes.csv", genes)
-    rep = json.loads((out / "tune" / "report.json").read_text())
     summary = {
         "study": "fixed_wing", "quick": quick, "seed": seed, "version": __version__,
         "aircraft": "jsbsim:minisgs", "structure": st, "logs": {
-            n: {"variant": v, "speed_m_s": s, "seed": seed + o, "duration_s": b.duration,
-                "source": logs[n].source} for n, (v, s, o) in LOGS.items()},
-        "tune": {"population": b.population, "generations": b.generations, "segment_s": 1.0,
-                 "rate_hz": spec.rate, "band": spec.band, "channels": list(
-                     spec.channels_of("fixedwing")), "evaluations": rep["evaluations"],
-                 "fitness_start": rep["fitness_start"], "fitness_best": rep["fitness_best"],
-                 "seconds": tune_s, "history": rep["history"]},
+            n: {"variant": v, "speed_m_s": s, "speed_step_m_s": st_, "seed": seed + o,
+                "duration_s": b.duration, "source": logs[n].source,
+                "command": f"sigma-des flightlog --speed {s:g} --speed-step {st_:g} --variant "
+                           f"{v} --duration {b.duration:g} --seed {seed + o} --out {n}.csv"}
+            for n, (v, s, st_, o) in LOGS.items()},
+        "tune": {"population": b.population, "generations": b.generations,
+                 "segment_s": SEGMENT, "rate_hz": spec.rate, "band": spec.band,
+                 "stages": stages, "seconds": tune_s, "cpu_s": tune_cpu,
+                 "evaluations": sum(st_["evaluations"] for st_ in stages),
+                 "score_channels": list(spec.channels_of("fixedwing"))},
         "metrics": rows, "genes": genes, "inertia_ridge": ridge, "flat_threshold": FLAT,
         "paper_talon": PAPER_VALUES["fixedwing"],
         "caveat": "the reference is JSBSim's minisgs model, not a flight; the paper's TALON "
@@ -180,6 +209,6 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
         "date": datetime.now(UTC).isoformat(timespec="seconds"), "machine": machine(),
         "load_before": list(load0), "load_after": list(os.getloadavg()), "command": command,
         "wall_s": time.perf_counter() - t_wall, "cpu_s": time.process_time() - t_cpu,
-        "tune_wall_s": tune_s}, indent=1) + "\n")
+        "tune_wall_s": tune_s, "tune_cpu_s": tune_cpu}, indent=1) + "\n")
     summary["series"] = series
     return summary
