@@ -1,6 +1,6 @@
 """Smoke run of experiments/fixed_wing_fit.py --quick: every output is written, the GA
 does not end worse than it started, and the table covers every log, parameter set and
-channel. Timings are never asserted."""
+channel, and the report section renders it. Timings are never asserted."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_fixed_wing_fit_quick(tmp_path: Path) -> None:
-    out = tmp_path / "fw"
+    out = tmp_path / "fixed_wing"
     r = subprocess.run([sys.executable, str(ROOT / "experiments" / "fixed_wing_fit.py"),
                         "--quick", "--out", str(out)], check=True, capture_output=True,
                        text=True, cwd=ROOT, timeout=600)
@@ -46,3 +46,11 @@ def test_fixed_wing_fit_quick(tmp_path: Path) -> None:
     assert p.mass == pytest.approx(s["structure"]["mass"])
     assert p.aero.cm_q == pytest.approx(next(g["fitted"] for g in s["genes"]
                                              if g["name"] == "cm_q"))
+    # the REPRODUCTION page's model-tuning section shows the held-out table
+    sys.path.insert(0, str(ROOT / "experiments"))
+    try:
+        import report_model_tuning
+    finally:
+        sys.path.remove(str(ROOT / "experiments"))
+    text = "\n".join(report_model_tuning._fixed_wing(tmp_path))
+    assert "| heldout_speed | tuned |" in text and "0.073" in text
