@@ -52,3 +52,37 @@ def test_the_minisgs_fit_trims_and_flies_in_compare(tmp_path: Path) -> None:
     assert main(["compare", "--set", 'dynamics="fixedwing"', "--set",
                  'dynamics_params="minisgs"', "--set", "nodes=2", "--set", "duration=1.0",
                  "--methods", "none", "--out", str(tmp_path / "o"), "--no-plots"]) == 0
+
+
+def test_gains_in_fitted_files(tmp_path: Path) -> None:
+    from sigma_des.agents.fitted import get_value, with_values
+    from sigma_des.agents.presets import preset
+
+    base = preset("fixedwing")
+    p = with_values(base, {"gains.k_chi": 0.6, "cm_q": -20.0})
+    assert p.gains["k_chi"] == 0.6 and p.aero.cm_q == -20.0
+    assert {k: v for k, v in p.gains.items() if k != "k_chi"} == {
+        k: v for k, v in base.gains.items() if k != "k_chi"}
+    assert get_value(p, "gains.k_chi") == 0.6
+    f = tmp_path / "g.toml"
+    f.write_text('dynamics = "fixedwing"\n[params]\n"gains.k_r" = 0.5\n')
+    assert fitted_params(f, "fixedwing").gains["k_r"] == 0.5
+    f.write_text('dynamics = "fixedwing"\n[params]\n"gains.nope" = 0.5\n')
+    with pytest.raises(ConfigError) as ei:
+        fitted_params(f, "fixedwing")
+    assert ei.value.key.endswith("params") and "gains.nope" in ei.value.reason
+    # the shipped fit carries the gains retuned for its airframe
+    assert fitted_params("minisgs", "fixedwing").gains["k_chi"] == 0.6
+
+
+def test_tune_writes_the_init_files_values_with_the_genes() -> None:
+    """fitted.toml alone rebuilds the tuned aircraft: an --init file's departures from the
+    preset (structure, gains) are written with the fitted genes."""
+    from sigma_des.agents.fitted import with_values
+    from sigma_des.agents.presets import preset
+    from sigma_des.tuning.pipeline import _file_values
+
+    start = with_values(preset("fixedwing"), {"mass": 4.0, "gains.k_chi": 0.5, "cm_q": -30.0})
+    assert _file_values(start, "fixedwing", {"cm_q": -10.0}) == {
+        "mass": 4.0, "gains.k_chi": 0.5, "cm_q": -10.0}
+    assert _file_values(preset("fixedwing"), "fixedwing", {"cm_q": -10.0}) == {"cm_q": -10.0}

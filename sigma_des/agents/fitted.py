@@ -10,6 +10,7 @@ Format (TOML)::
     [params]                        # parameter name = fitted value (PARAM_NAMES)
     ixx = 0.0191
     rotor_pitch = 0.3012
+    "gains.k_att" = 4.5             # autopilot gains: "gains.<key>" (optional)
     [provenance]                    # optional, free-form: seed, log, fitness, version
     seed = 1
 
@@ -52,26 +53,36 @@ _AERO = tuple(f.name for f in fields(AeroCoeffs))
 #: Every parameter a fitted file (or a tuning gene) may set: the float fields of
 #: :class:`AircraftParams` and of its :class:`AeroCoeffs`, by bare name.
 PARAM_NAMES: tuple[str, ...] = _TOP + _AERO
+#: A fitted file may also set the preset's autopilot gains, as ``"gains.<key>"``.
+GAIN_PREFIX = "gains."
 
 
 def get_value(p: AircraftParams, name: str) -> float:
-    """Current value of parameter ``name`` (top-level or aerodynamic)."""
+    """Current value of parameter ``name`` (top-level, aerodynamic or ``gains.<key>``)."""
     if name in _TOP:
         return float(getattr(p, name))
     if name in _AERO:
         return float(getattr(p.aero, name))
-    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+    if name.startswith(GAIN_PREFIX) and name[len(GAIN_PREFIX):] in p.gains:
+        return float(p.gains[name[len(GAIN_PREFIX):]])
+    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}, "
+                      f"or gains.<key> ({', '.join(sorted(p.gains))})")
 
 
 def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
     """A copy of ``p`` with the named parameters replaced (validated)."""
     top = {k: float(v) for k, v in values.items() if k in _TOP}
     aero = {k: float(v) for k, v in values.items() if k in _AERO}
-    bad = sorted(set(values) - set(top) - set(aero))
+    gains = {k[len(GAIN_PREFIX):]: float(v) for k, v in values.items()
+             if k.startswith(GAIN_PREFIX) and k[len(GAIN_PREFIX):] in p.gains}
+    bad = sorted(set(values) - set(top) - set(aero) - {GAIN_PREFIX + k for k in gains})
     if bad:
-        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}, "
+                          f"or gains.<key> ({', '.join(sorted(p.gains))})")
     if aero:
         top["aero"] = dataclasses.replace(p.aero, **aero)  # type: ignore[assignment]
+    if gains:
+        top["gains"] = {**p.gains, **gains}  # type: ignore[dict-item]
     return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 
@@ -122,7 +133,7 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
         raise ConfigError(f"{src}: params", "must be a table of name = value")
     values: dict[str, float] = {}
     for k, v in params.items():
-        if k not in PARAM_NAMES:
+        if k not in PARAM_NAMES and not k.startswith(GAIN_PREFIX):
             raise ConfigError(f"{src}: params.{k}",
                               f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):

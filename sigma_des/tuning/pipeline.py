@@ -16,7 +16,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from sigma_des.agents.fitted import PARAM_NAMES, get_value, write_fitted
+from sigma_des.agents.fitted import GAIN_PREFIX, PARAM_NAMES, get_value, write_fitted
 from sigma_des.agents.params import AircraftParams
 from sigma_des.agents.presets import preset
 from sigma_des.agents.wind import WindConfig
@@ -45,6 +45,7 @@ def _file_values(start: AircraftParams, kind: str, genes: dict[str, float]) -> d
     base = preset(kind)
     vals = {n: get_value(start, n) for n in PARAM_NAMES
             if get_value(start, n) != get_value(base, n)}
+    vals.update({GAIN_PREFIX + k: v for k, v in start.gains.items() if base.gains.get(k) != v})
     vals.update(genes)
     return vals
 

@@ -98,17 +98,49 @@ def glide_cd0(log: FlightLog, params: AircraftParams, seconds: float = 1.0) -> f
 PROP_11X10 = math.atan(10 * 0.0254 / (2 * math.pi * 0.75 * 11 * 0.0254 / 2))
 
 
+#: Autopilot gains retuned for the glider's airframe (the preset's weave on it: a 90 deg
+#: course step overshoots 0.4 rad and has not settled after 28 s): a slower course loop,
+#: more roll-rate damping and a stronger yaw damper (:func:`course_step`).
+GAINS = {"k_chi": 0.6, "k_p": 0.2, "k_r": 0.5}
+
+
 def powered(fitted: Path, out: Path) -> Path:
-    """The fitted glider with the preset's motor and an 11x10 propeller (for ``compare``
-    and the formation study, which fly at the preset's cruise speed)."""
-    from sigma_des.agents.fitted import read_fitted, write_fitted
+    """The fitted glider with the preset's motor, an 11x10 propeller and :data:`GAINS`
+    (for ``compare`` and the formation study, which fly at the preset's cruise speed)."""
+    from sigma_des.agents.fitted import GAIN_PREFIX, read_fitted, write_fitted
 
     kind, values = read_fitted(fitted)
     values["rotor_pitch"] = PROP_11X10
+    values.update({GAIN_PREFIX + k: v for k, v in GAINS.items()})
     return write_fitted(out, kind, values, {
         "what": "fixed wing fitted to JSBSim's minisgs glider (sigma-des tune, decoupled "
-                "stages) with the preset's motor and an 11x10 propeller",
+                "stages) with the preset's motor, an 11x10 propeller and retuned course, "
+                "roll-rate and yaw-damper gains",
         "source": "experiments/fixed_wing_fit.py"})
+
+
+def course_step(params: AircraftParams, seconds: float = 30.0, dt: float = 0.01
+                ) -> dict[str, float]:
+    """A 90 deg course step at cruise under the autopilot: overshoot (rad), the last time
+    the course error exceeds 0.05 rad (s), the largest sideslip and bank (rad)."""
+    from sigma_des.agents.aircraft import GeneralAircraft
+
+    m = GeneralAircraft(params)
+    s = m.initial_state(1)
+    cmd = m.default_command(s)
+    cmd[:, 1] = math.pi / 2
+    rows = []
+    for k in range(int(round(seconds / dt))):
+        s = m.step(s, cmd, dt, k + 1, np.zeros(1, dtype=np.int64))
+        rows.append(m.observe(s)[0])
+    o = np.array(rows)
+    v = np.sqrt((o[:, 0:3] ** 2).sum(axis=1))
+    err = math.pi / 2 - np.unwrap(o[:, 5] + np.arctan2(o[:, 1], o[:, 0]))
+    late = np.flatnonzero(np.abs(err) > 0.05)
+    return {"overshoot": float(max(0.0, -err.min())),
+            "settle_s": float((late[-1] + 1) * dt) if late.size else 0.0,
+            "beta_max": float(np.abs(np.arcsin(o[:, 1] / v)).max()),
+            "phi_max": float(np.abs(o[:, 3]).max())}
 
 
 def _coefficients(xml: Path) -> dict[str, float]:
@@ -182,6 +214,24 @@ def sensitivity(log: FlightLog, params: AircraftParams, names: tuple[str, ...],
     return [{"name": g, "value": float(x0[i]), "r0": r0,
              "rise_low": float(r[1 + 2 * i] / r0 - 1.0),
              "rise_high": float(r[2 + 2 * i] / r0 - 1.0)} for i, g in enumerate(names)]
+
+
+#: Gene groups whose joint scaling is profiled: roll damping with aileron power (a roll
+#: mode faster than the log interval shows only their ratio) and the static pitch balance.
+GROUPS: dict[str, tuple[str, ...]] = {"roll": ("cll_p", "cll_da"),
+                                      "pitch_static": ("cm_0", "cm_a", "cm_de")}
+
+
+def joint_profile(log: FlightLog, params: AircraftParams, spec: TuneSpec,
+                  factors: tuple[float, ...] = (0.8, 1.25)) -> dict[str, list[dict[str, float]]]:
+    """Fitness with each :data:`GROUPS` group scaled by ``k`` together, relative to none."""
+    out: dict[str, list[dict[str, float]]] = {}
+    for name, genes in GROUPS.items():
+        ev = _evaluator(log, params, genes, spec)
+        x0 = np.array([get_value(params, g) for g in genes])
+        r = ev(np.array([x0] + [x0 * k for k in factors]))
+        out[name] = [{"k": k, "rise": float(r[1 + i] / r[0] - 1.0)} for i, k in enumerate(factors)]
+    return out
 
 
 def inertia_ridge(log: FlightLog, params: AircraftParams, spec: TuneSpec,

@@ -16,6 +16,7 @@ fitted, JSBSim's value, local sensitivity), ``summary.json`` and ``run.json``
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import os
 import platform
@@ -31,6 +32,7 @@ import tomli_w
 from sigma_des import __version__
 from sigma_des.agents.fitted import fitted_params, write_fitted
 from sigma_des.agents.params import AircraftParams
+from sigma_des.agents.presets import preset
 from sigma_des.tuning.flightlog import FlightLog, write_csv
 from sigma_des.tuning.glider_log import GlideSpec, fly_glider, glider_structure
 from sigma_des.tuning.report import PAPER_VALUES, replayed, score
@@ -38,9 +40,11 @@ from sigma_des.tuning.spec import TuneSpec, get_value, with_values
 from sigma_lab.studies.fixed_wing import (
     GENES,
     STAGES,
+    course_step,
     glide_cd0,
     glider_start,
     inertia_ridge,
+    joint_profile,
     jsbsim_coefficients,
     powered,
     sensitivity,
@@ -171,7 +175,11 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
     stages = _tune(out, start, b, seed)
     tune_s, tune_cpu = time.perf_counter() - t_tune, time.process_time() - c_tune
     fitted = fitted_params(out / "fitted.toml", "fixedwing")
-    powered(out / "fitted.toml", out / "minisgs_powered.toml")
+    flying = fitted_params(powered(out / "fitted.toml", out / "minisgs_powered.toml"),
+                           "fixedwing")
+    steps = {"preset gains": course_step(dataclasses.replace(flying, gains=preset(
+        "fixedwing").gains)), "retuned gains": course_step(flying),
+        "preset airframe": course_step(preset("fixedwing"))}
     alpha = np.arctan2(logs["tuning"].obs[:, 2], logs["tuning"].obs[:, 0])
     ref = jsbsim_coefficients("minisgs", (float(alpha.min()), float(alpha.max())))
     mapped = with_values(start, ref)
@@ -179,6 +187,7 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
     rows, series = _scores(logs, sets, spec)
     sens = sensitivity(logs["tuning"], fitted, names, spec)
     ridge = inertia_ridge(logs["tuning"], fitted, spec)
+    joint = joint_profile(logs["tuning"], fitted, spec)
     genes = [{"name": g, "lower": GENES[g][0], "upper": GENES[g][1],
               "start": get_value(start, g), "fitted": get_value(fitted, g),
               "jsbsim": ref.get(g), "rise_low": s["rise_low"], "rise_high": s["rise_high"],
@@ -199,7 +208,9 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
                  "stages": stages, "seconds": tune_s, "cpu_s": tune_cpu,
                  "evaluations": sum(st_["evaluations"] for st_ in stages),
                  "score_channels": list(spec.channels_of("fixedwing"))},
-        "metrics": rows, "genes": genes, "inertia_ridge": ridge, "flat_threshold": FLAT,
+        "metrics": rows, "genes": genes, "inertia_ridge": ridge, "joint_profile": joint,
+        "course_step": steps,
+        "flat_threshold": FLAT,
         "paper_talon": PAPER_VALUES["fixedwing"],
         "caveat": "the reference is JSBSim's minisgs model, not a flight; the paper's TALON "
                   "figures are from real flights",
