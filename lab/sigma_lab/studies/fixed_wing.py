@@ -143,6 +143,27 @@ def course_step(params: AircraftParams, seconds: float = 30.0, dt: float = 0.01
             "phi_max": float(np.abs(o[:, 3]).max())}
 
 
+def trim_moments(params: AircraftParams, speeds: tuple[float, ...] = (9.0, 10.0, 11.0, 12.0)
+                 ) -> list[dict[str, float]]:
+    """Our pitch moment at JSBSim's trimmed glide, per speed: ``cm_0 + cm_a alpha + cm_de
+    de`` and the pitch acceleration it gives (rad/s^2); JSBSim's is 0 (it is trimmed)."""
+    from sigma_des.agents.atmosphere import isa_scalar
+    from sigma_des.tuning.glider_log import GlideSpec, fly_glider
+
+    out = []
+    a = params.aero
+    for v in speeds:
+        log = fly_glider(GlideSpec(speed=v, duration=2.0, warmup=12.0, noise=False))
+        o = log.obs[:50]
+        alpha = float(np.arctan2(o[:, 2], o[:, 0]).mean())
+        de = float(log.act[:50, 2].mean())
+        cm = a.cm_0 + a.cm_a * alpha + a.cm_de * de
+        qbar = 0.5 * float(isa_scalar(float(o[:, 11].mean()))[2]) * v * v
+        out.append({"speed": v, "alpha": alpha, "delta_e": de, "cm": cm,
+                    "q_dot": qbar * a.s * a.c * cm / params.iyy})
+    return out
+
+
 def _coefficients(xml: Path) -> dict[str, float]:
     """Every constant ``aero/coefficient/<name>`` of a JSBSim aircraft file."""
     out: dict[str, float] = {}

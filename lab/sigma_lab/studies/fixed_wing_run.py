@@ -48,6 +48,7 @@ from sigma_lab.studies.fixed_wing import (
     jsbsim_coefficients,
     powered,
     sensitivity,
+    trim_moments,
 )
 
 __all__ = ["LOGS", "CHANNELS", "Budget", "run", "machine"]
@@ -209,7 +210,7 @@ def run(out: Path, quick: bool, seed: int, command: str) -> dict[str, Any]:
                  "evaluations": sum(st_["evaluations"] for st_ in stages),
                  "score_channels": list(spec.channels_of("fixedwing"))},
         "metrics": rows, "genes": genes, "inertia_ridge": ridge, "joint_profile": joint,
-        "course_step": steps,
+        "course_step": steps, "trim_moments": trim_moments(fitted),
         "flat_threshold": FLAT,
         "paper_talon": PAPER_VALUES["fixedwing"],
         "caveat": "the reference is JSBSim's minisgs model, not a flight; the paper's TALON "

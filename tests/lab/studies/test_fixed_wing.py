@@ -82,3 +82,19 @@ def test_replay_through_jsbsim_coefficients_and_the_inertia_ridge(start: object)
     for row in inertia_ridge(log, p, spec):
         assert row["both"] == pytest.approx(1.0, abs=1e-6)
         assert abs(row["inertia_only"] - 1.0) > 0.05
+
+
+def test_trim_moments_of_jsbsim_s_own_coefficients(start: object) -> None:
+    """At JSBSim's trimmed glides, JSBSim's Cmalpha alpha + Cmde de is a nearly constant
+    -0.008 (the moment of its aero reference point 2.08 in above the CG balances it), so
+    the logged elevator and angle of attack are consistent with its moment model."""
+    from sigma_lab.studies.fixed_wing import trim_moments
+
+    p = with_values(start, jsbsim_coefficients("minisgs", (-0.12, -0.05)))  # type: ignore[arg-type]
+    rows = trim_moments(p, (9.0, 12.0))
+    assert [r["speed"] for r in rows] == [9.0, 12.0]
+    assert rows[0]["alpha"] > rows[1]["alpha"] and rows[0]["delta_e"] < rows[1]["delta_e"]
+    for r in rows:
+        assert -0.011 < r["cm"] < -0.005
+        assert r["cm"] == pytest.approx(-0.573 * r["alpha"] - 1.261 * r["delta_e"])
+    assert abs(rows[0]["cm"] - rows[1]["cm"]) < 0.003
