@@ -205,6 +205,8 @@ def jsbsim_coefficients(aircraft: str, alpha: tuple[float, float]) -> dict[str, 
              "Cnr": "cn_r", "Cnda": "cn_da", "Cndr": "cn_dr"}
     out = {ours: c[theirs] for theirs, ours in names.items() if theirs in c}
     out["cm_q"] = c.get("Cmq", 0.0) + c.get("Cmadot", 0.0)
+    for ours, theirs in (("cl_q", "CLq"), ("cy_p", "CYp"), ("cy_r", "CYr")):
+        out[ours] = c.get(theirs, 0.0)          # a term the file lacks is 0, not our prior
     out["cl_0"], out["cl_a"] = float(icpt), float(slope)
     return out
 

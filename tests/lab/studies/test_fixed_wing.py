@@ -36,6 +36,7 @@ def test_jsbsim_coefficients_are_the_files() -> None:
     # minisgs.xml: Clp -0.47, Clda 0.25, Cmalpha -0.573, Cmde -1.261, Cmq -9 + Cmadot -5.2
     assert c["cll_p"] == -0.47 and c["cll_da"] == 0.25 and c["cm_a"] == -0.573
     assert c["cm_de"] == -1.261 and c["cm_q"] == pytest.approx(-14.2)
+    assert c["cl_q"] == 0.0 and c["cy_p"] == 0.0          # minisgs has no CLq, no CYp
     # CLwbh table points in [-0.14, -0.03]: (-0.1369, .06), (-0.1222, .12), (-0.09, .19),
     # (-0.0524, .26), (-0.0349, .33): least-squares slope and intercept
     a = np.array([-0.1369, -0.1222, -0.09, -0.0524, -0.0349])
