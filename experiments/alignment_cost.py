@@ -12,7 +12,7 @@ The cost of receiving the states (``ingest``: ring-buffer inserts, HLC buffer
 pushes, barrier bookkeeping, one Python call per state) is timed separately from
 the alignment step itself (``align``).
 
-Paper (docs/MODEL.md, "Reference figures from the paper"):
+Paper (docs/concepts/paper.md):
 Algorithm 1 at n = 1000, k = 30 takes < 8 ms.
 Timings depend on the machine and its load; nothing asserts on them.
 

@@ -4,7 +4,7 @@
 Every case runs in a fresh child process (peak RSS per case, single-threaded); the
 cases, the metric checks (cohort vs events bit-identical, cohort vs baseline within
 ``BASELINE_RTOL``) and the caps at large N are described in
-:mod:`sigma_lab.studies.engine_bench` and ``docs/BENCHMARKS.md``. The exit status is 1
+:mod:`sigma_lab.studies.engine_bench` and ``lab/record/BENCHMARKS.md``. The exit status is 1
 if a check fails.
 
 Examples::

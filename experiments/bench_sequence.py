@@ -8,7 +8,7 @@ each method and the ideal run flown once, and prints per run its CPU seconds (us
 system), minor page faults (memory touched for the first time) and the process's peak
 RSS so far, then the median CPU seconds per simulated second. Unlike
 ``bench_engine.py`` (every case in a fresh process), it shows what a run pays because
-runs came before it in the process (docs/BENCHMARKS.md, "Issue 27, fixed per-run
+runs came before it in the process (lab/record/BENCHMARKS.md, "Issue 27, fixed per-run
 costs"). Nothing here asserts on a time.
 
 Usage::

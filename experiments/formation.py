@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Paper study "formation": five fixed-wing aircraft in a leader–follower V.
 
-The paper's figures: docs/MODEL.md, "Reference figures from the paper".
+The paper's figures: docs/concepts/paper.md.
 
 The swarm: 5 fixed-wing aircraft (``dynamics = "fixedwing"``, the TALON-class
 preset, trimmed at 20 m/s and 100 m; ``--dynamics-params minisgs`` flies the fixed

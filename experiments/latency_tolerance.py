@@ -15,7 +15,7 @@ distribution, the displacement ("flicker") of the shown swarm — the frame spre
 of the shown snapshot as time, and the position error of the shown states against
 the true positions at the snapshot's frame — and the achieved frame rates.
 
-Paper (docs/MODEL.md, "Reference figures from the paper"):
+Paper (docs/concepts/paper.md):
 without alignment the swarm flickers (30–90 ms displacement),
 HLC mean AoI ≈ 70 ms, BiDES ≈ 38 ms at a stable 20 Hz.
 

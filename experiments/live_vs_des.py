@@ -16,7 +16,7 @@
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
 with the project's own Mosquitto; its load average and background CPU are kept.
 Rerunning with the same ``--out`` keeps every finished cell (a results file per
-cell). The rules and outputs: ``sigma_lab.studies.validation`` and docs/LIVE.md
+cell). The rules and outputs: ``sigma_lab.studies.validation`` and lab/record/LIVE.md
 (*Validation*).
 
     python experiments/live_vs_des.py --out out/validation        # ~15 min on 2 idle cores
@@ -57,6 +57,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="more `sigma-des calibrate` options, one string given with '=' "
                         "(e.g. --calibrate-args=--one-thread); a kept calibration made "
                         "with others is redone")
+    p.add_argument("--calibrate-bundled", action="store_true",
+                   help="also run the calibration setting with bundled messages (cal-bundle) "
+                        "and calibrate on it with the most typical repeat (a campaign of "
+                        "two runs: `sigma-des calibrate RUN RUN`)")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -66,8 +70,11 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             raise ConfigError("--methods", f"unknown {unknown}; allowed: {', '.join(METHODS)}")
         make = quick_plan if a.quick else full_plan
-        kw = {k: v for k, v in (("duration", a.duration), ("cell_repeats", a.cell_repeats))
-              if v is not None}
+        kw: dict[str, object] = {k: v for k, v in (("duration", a.duration),
+                                                   ("cell_repeats", a.cell_repeats))
+                                 if v is not None}
+        if a.calibrate_bundled:
+            kw["cal_bundle"] = True
         plan = make(methods, **kw).select(a.grid)
     except ConfigError as e:
         print(f"live_vs_des: {e}", file=sys.stderr)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Regenerate ``docs/REPRODUCTION.md`` from the studies' outputs.
+"""Regenerate ``lab/record/REPRODUCTION.md`` from the studies' outputs.
 
 Reads ``summary.json`` of every study under the outputs directory (default
 ``out/``): ``scale_200``, ``scale_1000``, ``latency_tolerance``, ``alignment_cost``,
@@ -9,7 +9,7 @@ whose outputs are missing is listed with the command that would produce them.
 
 Examples::
 
-    python experiments/make_report.py                          # out/ -> docs/REPRODUCTION.md
+    python experiments/make_report.py                          # out/ -> lab/record/REPRODUCTION.md
     python experiments/make_report.py --outputs /tmp/q --report /tmp/q/REPORT.md
 """
 
@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--outputs", type=Path, default=Path("out"), help="studies' output directory")
     p.add_argument(
-        "--report", type=Path, default=ROOT / "docs" / "REPRODUCTION.md", help="report to write"
+        "--report", type=Path, default=ROOT / "lab" / "record" / "REPRODUCTION.md",
+        help="report to write",
     )
     p.add_argument(
         "--check",

@@ -1,4 +1,4 @@
-"""The ``alignment_cost`` section of ``docs/REPRODUCTION.md``."""
+"""The ``alignment_cost`` section of ``lab/record/REPRODUCTION.md``."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
-"""Regenerate docs/ENV.md from the env study outputs (bench_env.py, train_formation.py,
+"""Regenerate lab/record/ENV.md from the env study outputs (bench_env.py, train_formation.py,
 train_under_delay.py).
 
-Usage: ``python experiments/report_env.py --outputs /work/out/env [--doc docs/ENV.md]``
+Usage: ``python experiments/report_env.py --outputs /work/out/env [--doc lab/record/ENV.md]``
 (reads ``bench.json``, ``train/summary.json`` and every ``delay_*/summary.json`` under
 ``--outputs``; a missing one leaves its section saying so).
 """
@@ -21,12 +21,13 @@ TEMPLATES = Templates(Path(__file__).resolve().parent / "templates")
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Write docs/ENV.md (or ``--doc``) from ``--outputs``."""
+    """Write lab/record/ENV.md (or ``--doc``) from ``--outputs``."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--outputs", default="/work/out/env")
-    ap.add_argument("--doc", default=str(ROOT / "docs" / "ENV.md"))
+    ap.add_argument("--doc", default=str(ROOT / "lab" / "record" / "ENV.md"))
     args = ap.parse_args(argv)
-    Path(args.doc).write_text(build(Path(args.outputs), TEMPLATES, ROOT / "docs" / "img" / "env"))
+    img = ROOT / "lab" / "record" / "img" / "env"
+    Path(args.doc).write_text(build(Path(args.outputs), TEMPLATES, img))
     return 0
 
 

@@ -1,4 +1,4 @@
-"""The ``faults`` section of ``docs/REPRODUCTION.md``."""
+"""The ``faults`` section of ``lab/record/REPRODUCTION.md``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The ``docs/REPRODUCTION.md`` section of ``experiments/interpolation.py`` (Table III).
+"""The ``lab/record/REPRODUCTION.md`` section of ``experiments/interpolation.py`` (Table III).
 
 ``render(summary)`` turns the study's ``summary.json`` into Markdown; ``section(outputs)``
 reads ``<outputs>/interpolation/summary.json`` (and ``<outputs>/bench_record/*.json``

@@ -1,4 +1,4 @@
-"""The ``latency_tolerance`` section of ``docs/REPRODUCTION.md``."""
+"""The ``latency_tolerance`` section of ``lab/record/REPRODUCTION.md``."""
 
 from __future__ import annotations
 

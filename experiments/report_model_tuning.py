@@ -1,4 +1,4 @@
-"""The ``model_tuning`` section of ``docs/REPRODUCTION.md`` (hooked into make_report.py).
+"""The ``model_tuning`` section of ``lab/record/REPRODUCTION.md`` (hooked into make_report.py).
 
 ``section(outputs)`` reads ``<outputs>/model_tuning/summary.json`` (written by
 ``experiments/model_tuning.py``) and returns Markdown: the paper's validation

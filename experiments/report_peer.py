@@ -1,4 +1,4 @@
-"""The ``peer_architectures`` section of ``docs/REPRODUCTION.md`` (hooked into make_report.py).
+"""The ``peer_architectures`` section of ``lab/record/REPRODUCTION.md`` (make_report.py).
 
 ``section(outputs)`` reads ``<outputs>/peer_architectures/summary.json`` (written by
 ``experiments/peer_architectures.py``) and returns Markdown: per architecture and

@@ -1,4 +1,4 @@
-"""The ``scale_200`` and ``scale_1000`` sections of ``docs/REPRODUCTION.md``."""
+"""The ``scale_200`` and ``scale_1000`` sections of ``lab/record/REPRODUCTION.md``."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The ``sweep_nodes`` section of ``docs/REPRODUCTION.md``."""
+"""The ``sweep_nodes`` section of ``lab/record/REPRODUCTION.md``."""
 
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ A second variant, ``fast_broker``, runs BiDES with a broker four times faster
 (1 µs per PUBLISH, 0.75 µs per delivery) to separate what broker saturation
 does from what the alignment method does.
 
-Paper (docs/MODEL.md, "Reference figures from the paper"):
+Paper (docs/concepts/paper.md):
 208.4 Mbps, AoI 19 ± 3.7 ms, adaptive rate settles at 50 Hz.
 
 Examples::

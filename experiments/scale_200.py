@@ -7,7 +7,7 @@ Reported per method: state latency, AoI (mean ± std and its distribution), the
 alignment server's buffer memory, wire throughput and the achieved frame rates,
 plus AoI over time.
 
-Paper (docs/MODEL.md, "Reference figures from the paper"):
+Paper (docs/concepts/paper.md):
 BiDES latency 3.5 ms, AoI 8.7 ± 1.7 ms, < 650 MB per host,
 rendering > 60 Hz; the Lock-Step baseline (Gazebo/FastDDS) 62 ± 15 ms at 200 nodes.
 

@@ -375,8 +375,9 @@ def compare(
     if progress:
         from tqdm import tqdm
 
+        # disable=None: no bar when stderr is not a terminal (no \r frames in logs)
         bar = tqdm(total=round(sc.duration * len(ms), 3), unit="sim-s", delay=2.0,
-                   leave=False, desc="sigma-des")
+                   leave=False, desc="sigma-des", disable=None)
     outs: dict[str, dict[str, Any]] = {}
     try:
         _run_methods(sc, ms, jobs, parts, bar, outs)

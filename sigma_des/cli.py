@@ -99,14 +99,21 @@ COMMANDS: dict[str, Command] = {
     "config": Command("print the full resolved scenario as TOML (start from the defaults)",
                       _no_args, True),
     "sweep": Command("a grid of scenario keys x methods x seeds on Dask, resumable "
-                     "(docs/SWEEPS.md)", "sigma_des.sweep.cli:add_sweep_args", True,
+                     "(docs/howto/sweep-dask.md)", "sigma_des.sweep.cli:add_sweep_args", True,
                      "experiments"),
     "replay": Command("rebuild recorded trajectories (compare --record) at any rate",
                       "sigma_des.replay.cli:add_replay_args", extra="record"),
-    "live": Command("run the scenario live over a real Mosquitto broker (docs/LIVE.md)",
+    "live": Command("run the scenario live over a real Mosquitto broker (docs/howto/live.md)",
                     "sigma_des.live.cli:add_live_args", True, "live"),
-    "calibrate": Command("fit DES parameters from a live run; writes a scenario TOML",
+    "calibrate": Command("fit DES parameters from one or more live runs; writes a scenario "
+                         "TOML",
                          "sigma_des.calibrate.cli:add_calibrate_args", extra="live"),
+    "predict": Command("predict a target from a calibration, every method, with intervals "
+                       "(docs/howto/predict.md)",
+                       "sigma_des.calibrate.predict_cli:add_predict_args", extra="live"),
+    "capacity": Command("the largest N each method holds within missed-frame and latency "
+                        "budgets, from a calibration",
+                        "sigma_des.calibrate.predict_cli:add_capacity_args", extra="live"),
     "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
                     "sigma_des.tuning.cli:add_args", extra="tuning"),
     "flightlog": Command("write a tuning flight log flown by a JSBSim glider (minisgs)",
@@ -180,6 +187,8 @@ def _run(args: argparse.Namespace) -> int:
         return _function("sigma_des.tuning.glider_cli:run")(args)  # type: ignore[no-any-return]
     if command == "warmup":
         return _function("sigma_des.warmup.cli:run")(args)  # type: ignore[no-any-return]
+    if command in ("predict", "capacity"):
+        return _function(f"sigma_des.calibrate.predict_cli:run_{command}")(args)  # type: ignore[no-any-return]
     if command == "calibrate":
         return _function("sigma_des.calibrate.cli:run_calibrate")(args)  # type: ignore[no-any-return]
     from sigma_des.config import load
@@ -191,11 +200,21 @@ def _run(args: argparse.Namespace) -> int:
         need(f"dynamics={sc.dynamics}", "jsbsim")
     if command == "config":
         return _config(sc)
+    _say_if_compiling()
     if command == "live":
         return _function("sigma_des.live.cli:run_live_command")(args, sc)  # type: ignore[no-any-return]
     if command == "sweep":
         return _function("sigma_des.sweep.cli:run_sweep_command")(args, sc)  # type: ignore[no-any-return]
     return _compare(args, sc)
+
+
+def _say_if_compiling() -> None:
+    """One line before a run that will compile the kernels first (a silent minute otherwise)."""
+    from sigma_des.jitcache import kernels_cached
+
+    if not kernels_cached():
+        print("sigma-des: compiling kernels once (~1 min; `sigma-des warmup` does it ahead)",
+              file=sys.stderr, flush=True)
 
 
 def _config(sc: Any) -> int:

@@ -1,9 +1,10 @@
-"""The scenario: one validated, frozen configuration for a whole run (docs/MODEL.md).
+"""The scenario: one validated, frozen configuration for a whole run (docs/concepts/model.md).
 
 Every default lives here (or in the net-layer spec classes it embeds). A scenario is
 loaded from TOML and/or ``--set key=value`` overrides through :func:`load`; an unknown
 key, a wrong type or an out-of-range value raises :class:`~sigma_des.errors.ConfigError`
-naming the dotted key and what is allowed. :func:`to_toml` prints the resolved scenario.
+naming the dotted key and what is allowed (the text of overrides and scenario files is
+read by :mod:`sigma_des.overrides`). :func:`to_toml` prints the resolved scenario.
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import tomllib
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +39,7 @@ from sigma_des.net.spec import (
     NetSpec,
     Topology,
 )
+from sigma_des.overrides import parse_set, read_toml, set_key
 from sigma_des.specs import RecordSpec
 
 __all__ = [
@@ -114,7 +115,7 @@ class Scenario:
             command tick coincide with a trigger instant (a tie, not a deployment).
         render_phase: render tick j is at ``(j + render_phase) / f_render``; the
             default 0.6 samples half an alignment period after each alignment tick,
-            so ``aoi_mean`` is close to the time average (see docs/MODEL.md).
+            so ``aoi_mean`` is close to the time average (see docs/concepts/metrics.md).
         duration: simulated time (s), at most 86400 (one day).
         warmup: metrics ignore everything before this time (s), in ``[0, duration)``.
             -1 (the default) means ``WARMUP_FRACTION * duration`` (0.1: 1 s of the
@@ -134,8 +135,9 @@ class Scenario:
         history_frames: true states kept per node for consistency metrics (16..100000).
         stall_threshold: a gap between new aligned snapshots longer than this is a stall (s).
         record: how ``--record`` stores runs (not part of the config hash).
-        deployment: machines, CPU demands and MQTT clients (docs/MODEL.md "Deployment
-            and CPU"); all defaults is not written out nor part of the config hash.
+        deployment: machines, CPU demands and MQTT clients
+            (docs/concepts/deployment.md); all defaults is not written out nor part of
+            the config hash.
     """
 
     seed: int = 1
@@ -403,60 +405,6 @@ def config_hash(s: Scenario) -> str:
     return hashlib.sha256(blob).hexdigest()[:12]
 
 
-def parse_set(item: str) -> tuple[str, Any]:
-    """Parse one ``key=value`` override; the value is read as TOML, else as a string."""
-    if "=" not in item:
-        raise ConfigError(item, "an override must look like key=value")
-    key, raw = item.split("=", 1)
-    key = key.strip()
-    if not key:
-        raise ConfigError(item, "empty key in override")
-    try:
-        value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw.strip()
-    return key, value
-
-
-def set_key(data: dict[str, Any], key: str, value: Any) -> None:
-    """Set dotted ``key`` in the nested scenario table ``data`` (sub-tables made as needed).
-
-    Raises:
-        ConfigError: a prefix of ``key`` names a value that is not a table.
-    """
-    parts = key.split(".")
-    cur = data
-    for i, p in enumerate(parts[:-1]):
-        nxt = cur.get(p)
-        if nxt is None:
-            nxt = cur[p] = {}
-        if not isinstance(nxt, dict):
-            raise ConfigError(".".join(parts[: i + 1]), "is not a table; cannot set a sub-key")
-        cur = nxt
-    cur[parts[-1]] = value
-
-
-def _read_toml(p: Path) -> dict[str, Any]:
-    """The TOML table in scenario file ``p``; every file error is a ConfigError."""
-    if p.is_dir():
-        raise ConfigError(str(p), "is a directory, not a scenario file (a TOML file)")
-    try:
-        return tomllib.loads(p.read_bytes().decode("utf-8"))
-    except FileNotFoundError:
-        from sigma_des.shipped import names
-
-        raise ConfigError(str(p), "scenario file not found (shipped scenarios, runnable by "
-                                  f"name: {', '.join(names())})") from None
-    except UnicodeDecodeError as e:
-        raise ConfigError(
-            str(p), f"not a text (UTF-8 TOML) file: undecodable byte at offset {e.start}"
-        ) from None
-    except OSError as e:
-        raise ConfigError(str(p), f"cannot read scenario file: {e.strerror or e}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(str(p), f"not valid TOML: {e}") from None
-
-
 def load(
     path: str | Path | None = None, overrides: typing.Iterable[str] = (), **values: Any
 ) -> Scenario:
@@ -475,7 +423,7 @@ def load(
     if path is not None:
         from sigma_des.shipped import resolve
 
-        data = _read_toml(resolve(path))
+        data = read_toml(resolve(path))
     for item in overrides:
         k, v = parse_set(item)
         set_key(data, k, v)

@@ -10,7 +10,7 @@ stale kernels. :func:`ensure_cache_dir` points numba at::
   (:func:`sigma_des.cache.paths.root`: ``$SIGMA_DES_CACHE_DIR``, ``$XDG_CACHE_HOME/
   sigma_des`` or ``~/.cache/sigma_des``). ``SIGMA_DES_CACHE_DIR=off`` switches off the
   ideal-run cache only: kernels then use the default root (they cannot go stale, and
-  compiling them in every process would cost ~45 CPU-s each); to keep them out of
+  compiling them in every process would cost ~1.5 CPU-minutes each); to keep them out of
   ``~/.cache`` set ``NUMBA_CACHE_DIR``. If the root cannot be written (read-only HOME),
   ``<tmp>/sigma_des-numba-<uid>`` is used instead, with a one-line warning.
 * ``<fingerprint>`` is :func:`sigma_des.cache.sources.fingerprint` (16 hex digits).
@@ -24,22 +24,10 @@ load and then calls :func:`ensure_cache_dir` before the importing module continu
 before its ``@njit(cache=True)`` lines run. If numba is already loaded when the
 package is imported, :func:`install_hook` calls :func:`ensure_cache_dir` at once.
 
-The root is exported as ``NUMBA_CACHE_DIR`` when unset, so every child process
-(spawned workers, pytest-xdist, ``compare --jobs``) uses the same root even if it
-changes ``SIGMA_DES_CACHE_DIR``; each child computes the fingerprint of the sources it
-imports itself, so processes on the same sources agree on the directory.
-
-Old fingerprint directories are pruned when a new one is created (the first import
-after an edit): under a non-blocking ``flock`` (concurrent importers skip, never
-race), every sibling but the :data:`KEEP` most recently used is removed if unused for
-:data:`GRACE_S` seconds (each import touches its directory). A directory is renamed
-away before it is deleted, so no process sees it half-removed; one deleted under a
-running process is recreated by numba on its next save.
-
-Changing a ``NUMBA_*`` variable in this process after the import makes numba re-read
-its configuration at the next compilation, resetting the directory to the bare root:
-set such variables before importing the package (or call :func:`ensure_cache_dir` again).
-"""
+The root is exported as ``NUMBA_CACHE_DIR`` (child processes share it). A new
+fingerprint directory prunes its siblings but the :data:`KEEP` most recent (and any used
+in the last :data:`GRACE_S` s). Set ``NUMBA_*`` variables before importing the package.
+Details: docs/concepts/engines.md ("Where the compiled code is cached")."""
 
 from __future__ import annotations
 
@@ -59,7 +47,7 @@ from sigma_des.cache.paths import default_root, root
 from sigma_des.cache.sources import PACKAGE, fingerprint
 
 __all__ = ["GRACE_S", "KEEP", "cache_root", "ensure_cache_dir", "install_hook",
-           "loaded_specialisations", "prune"]
+           "kernels_cached", "loaded_specialisations", "prune"]
 
 #: Fingerprint directories kept besides the current one, the most recently used first.
 KEEP = 3
@@ -112,6 +100,16 @@ def _fallback(wanted: Path) -> Path:
     print(f"sigma-des: warning: cannot write numba's cache in {wanted}; "
           f"caching compiled kernels in {tmp}", file=sys.stderr)
     return tmp
+
+
+def kernels_cached(package: Path = PACKAGE) -> bool:
+    """Whether numba's cache for ``package``'s current sources holds compiled kernels.
+
+    False before the first run after an install or an edit: the next run then compiles
+    (about a minute), which the command line says instead of a silent, stalled start.
+    """
+    d = cache_root() / "numba" / fingerprint(package)
+    return d.is_dir() and any(d.rglob("*.nbi"))
 
 
 def ensure_cache_dir(package: Path = PACKAGE) -> str:

@@ -174,6 +174,11 @@ def _aoi_dist(fig: Any, res: Results) -> None:
     ax.set_title("AoI distribution (violins: per-tick mean over nodes; median line)")
 
 
+def _time_label(res: Results) -> str:
+    """The x axis of a time plot: a live run's clock is the wall clock, not simulated time."""
+    return "run time (s, wall clock)" if res.mode == "live" else "simulated time (s)"
+
+
 def _aoi_time(fig: Any, res: Results) -> None:
     ax = fig.subplots()
     n = max(1, round(_SMOOTH_S * res.scenario.f_render))
@@ -186,7 +191,7 @@ def _aoi_time(fig: Any, res: Results) -> None:
     for i, (m, (t, mean)) in enumerate(series.items()):
         mx = moving_average(np.asarray(res.timeseries[m]["aoi_max"], dtype=float) * _MS, n)
         ax.fill_between(t, mean, mx, color=line_kw(m, i)["color"], alpha=0.12, lw=0)
-    ax.set_xlabel("simulated time (s)")
+    ax.set_xlabel(_time_label(res))
     ax.set_ylabel("AoI (ms)")
     ax.set_title(f"AoI over time (mean over nodes, band to max; {_SMOOTH_S:g} s moving mean)")
     legend_outside(ax)
@@ -210,7 +215,7 @@ def _trigger_rate(fig: Any, res: Results) -> None:
         [float(np.nanmax(y)) for _, y in set_rate.values() if np.isfinite(y).any()],
         [y for _, y in achieved.values()],
     ))
-    ax.set_xlabel("simulated time (s)")
+    ax.set_xlabel(_time_label(res))
     ax.set_ylabel("trigger rate (Hz)")
     ax.set_title("Trigger rate: achieved (1 s windows) and set")
     legend_outside(ax)
@@ -238,7 +243,7 @@ def _spread(fig: Any, res: Results) -> None:
         y = moving_average(np.asarray(ts["spread"], dtype=float), n)
         series[m] = (np.asarray(ts["t"], dtype=float), y)
     plot_lines(ax_t, series)
-    ax_t.set_xlabel("simulated time (s)")
+    ax_t.set_xlabel(_time_label(res))
     ax_t.set_ylabel("frame spread (frames)")
     ax_t.set_title(f"{_SPREAD_SMOOTH_S:g} s moving mean")
     fig.suptitle("Frame spread of the shown snapshot")

@@ -163,3 +163,20 @@ def test_pngs_follow_the_umask(tmp_path: Path) -> None:
         assert head[:8] == b"\x89PNG\r\n\x1a\n"
         assert (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")) == (
             900, 400)  # 9 x 4 in at 100 dpi
+
+
+@pytest.mark.parametrize("mode, label", [("des", "simulated time (s)"),
+                                         ("live", "run time (s, wall clock)")])
+def test_time_axes_say_whose_clock(res: Any, mode: str, label: str) -> None:
+    """A live run's series are stamped by the wall clock: its plots must not say 'simulated'."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+
+    run = dataclasses.replace(res, mode=mode)
+    for name in ("aoi_time.png", "trigger_rate.png", "spread.png"):
+        fig = plots.draw(name, run)
+        try:
+            assert fig.axes[-1].get_xlabel() == label
+        finally:
+            plt.close(fig)

@@ -4,7 +4,7 @@ Import stays light (the numba kernels load on first use); the registries and
 factories are re-exported lazily from :mod:`sigma_des.agents.registry`:
 ``DYNAMICS``, ``BEHAVIOURS``, ``make_dynamics``, ``make_behaviour``; the ideal
 run :func:`~sigma_des.agents.ideal.fly` likewise (DTW is a metric:
-:mod:`sigma_des.metrics.dtw`). See docs/AGENTS.md.
+:mod:`sigma_des.metrics.dtw`). See docs/concepts/aircraft.md.
 """
 
 from __future__ import annotations

@@ -188,7 +188,7 @@ class GeneralAircraft:
             return [fx / p.mass - g * math.sin(alpha), fz / p.mass + g * math.cos(alpha),
                     mm / p.iyy]
 
-        from scipy.optimize import fsolve  # here: its import holds ~36 MB (issue 27)
+        from scipy.optimize import fsolve  # here: its import holds ~36 MB
 
         # The first start suits a small-wing UAV; a large wing trims nose-down at low
         # power, where Newton's steps from the first start leave the thrust's range.

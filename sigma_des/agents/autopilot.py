@@ -40,7 +40,7 @@ from sigma_des.agents.rigid_body import to_body
 __all__ = ["MULTIROTOR_GAINS", "FIXEDWING_GAINS", "multirotor_prepare", "multirotor_autopilot",
            "fixedwing_prepare", "fixedwing_autopilot"]
 
-#: Gain slots of the multirotor cascade (units in brackets in docs/AGENTS.md).
+#: Gain slots of the multirotor cascade (units in brackets in docs/concepts/aircraft.md).
 MULTIROTOR_GAINS: tuple[str, ...] = (
     "k_vel", "ki_vel", "k_alt", "vz_max", "k_vz", "ki_vz", "k_att", "k_rate",
     "k_yaw", "k_rate_yaw", "tilt_max", "a_max", "v_max", "yaw_rate_max",

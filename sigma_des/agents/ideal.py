@@ -1,4 +1,4 @@
-"""The ideal run: closed loop with zero latency and perfect alignment (MODEL.md, "Metrics").
+"""The ideal run: closed loop with zero latency and perfect alignment (docs/concepts/metrics.md).
 
 Every frame the behaviour sees the true current state of every node (the view a
 perfect alignment method would deliver with no delay), its commands take effect

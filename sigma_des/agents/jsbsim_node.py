@@ -16,7 +16,7 @@ returned last (a rollback, a replay, or a fresh swarm), the FDM is re-initialise
 from the row (position, body velocities, attitude, rates, integrators). Internal
 JSBSim states the row does not hold (rotor rpm, engine and FCS filter states)
 restart from their initial-condition values, so rollback by re-init + replay is
-approximate (not bit-exact) for JSBSim nodes. Cost: see docs/AGENTS.md (tens of
+approximate (not bit-exact) for JSBSim nodes. Cost: see docs/concepts/aircraft.md (tens of
 microseconds per FDM step per aircraft, ~100x the vectorised model).
 """
 

@@ -75,7 +75,7 @@ def quadrotor_f450() -> AircraftParams:
         # JSBSim F450 Metrics.xml / Aero.xml: reference area 0.016129 m^2, CD0 = 1.0.
         aero=AeroCoeffs(s=0.016129, b=0.0, c=0.0, cd_0=1.0),
         autopilot="multirotor",
-        # Cascade gains tuned on this model (docs/AGENTS.md): rate loop ~14 rad/s
+        # Cascade gains tuned on this model (docs/concepts/aircraft.md): rate loop ~14 rad/s
         # (zeta ~0.6 with the 60 ms motor lag), attitude ~4 rad/s, velocity ~1.5 rad/s.
         gains=dict(k_vel=1.5, ki_vel=0.3, k_alt=1.0, vz_max=3.0, k_vz=3.0, ki_vz=1.0,
                    k_att=4.0, k_rate=12.0, k_yaw=2.0, k_rate_yaw=4.0, tilt_max=0.6,
@@ -128,7 +128,7 @@ def fixedwing_talon() -> AircraftParams:
         tau_servo=0.02,    # 9 g micro servo: ~0.1 s / 60 deg, ~20 ms small-signal lag
         delta_max=0.44,    # +-25 deg surface throw
         autopilot="fixedwing",
-        # Successive-loop-closure gains tuned on this model (docs/AGENTS.md).
+        # Successive-loop-closure gains tuned on this model (docs/concepts/aircraft.md).
         gains=dict(k_chi=1.2, phi_max=0.6, k_phi=0.8, k_p=0.08, ki_phi=0.1, k_alt=0.03,
                    ki_alt=0.005, theta_max=0.35, k_theta=1.0, k_q=0.15, k_v=0.08,
                    ki_v=0.02, k_r=0.1, v_min=13.0, v_max=30.0, alt_err_max=30.0),
@@ -137,7 +137,7 @@ def fixedwing_talon() -> AircraftParams:
         spacing=30.0,
         # 10 ms sub-step: |lambda h| <= 0.52 for the fastest mode (roll subsidence
         # 52 1/s); a 60 s formation flight in turbulence stays within 0.3 m of a
-        # 2.5 ms reference, as at 5 ms (docs/AGENTS.md, Costs).
+        # 2.5 ms reference, as at 5 ms (docs/concepts/aircraft.md).
         max_substep=0.01,
     )
 

@@ -57,12 +57,7 @@ def make_dynamics(name: str, **params: Any) -> DynamicsModel:
     """
     if name.startswith("jsbsim:"):
         return _jsbsim(name.split(":", 1)[1], **params)
-    try:
-        factory = DYNAMICS[name]
-    except KeyError:
-        raise ConfigError("dynamics", f"unknown dynamics {name!r}; allowed: "
-                          f"{sorted(DYNAMICS)} or 'jsbsim:<model>'") from None
-    return factory(**params)
+    return _factory(DYNAMICS, "dynamics", name, " or 'jsbsim:<model>'")(**params)
 
 
 def make_behaviour(name: str, **params: Any) -> Behaviour:
@@ -71,9 +66,15 @@ def make_behaviour(name: str, **params: Any) -> Behaviour:
     Raises:
         ConfigError: (a ValueError) naming the ``behaviour`` field and the allowed values.
     """
+    return _factory(BEHAVIOURS, "behaviour", name)(**params)
+
+
+def _factory(table: dict[str, Callable[..., Any]], field: str, name: str,
+             more: str = "") -> Callable[..., Any]:
+    """The factory ``table[name]``; ConfigError naming ``field`` and the allowed names
+    (and ``more`` of them) if there is none."""
     try:
-        factory = BEHAVIOURS[name]
+        return table[name]
     except KeyError:
-        raise ConfigError("behaviour", f"unknown behaviour {name!r}; allowed: "
-                          f"{sorted(BEHAVIOURS)}") from None
-    return factory(**params)
+        raise ConfigError(field, f"unknown {field} {name!r}; allowed: "
+                          f"{sorted(table)}{more}") from None

@@ -15,22 +15,15 @@ second-order ``v``/``w`` filters), discretised exactly over the frame step::
     x_{k+1} = a x_k + sigma sqrt(1 - a^2) eta_k,   a = exp(-V dt / L)
 
 so its variance is ``sigma^2`` whatever ``dt`` is. The filters are updated at
-``turb_rate`` (default 20 Hz), not at every frame: an update happens when the
-aircraft's time crosses a multiple of ``1 / turb_rate`` and covers the whole
-elapsed number of periods exactly (``a = exp(-V m T / L)`` for ``m`` periods), so
-the process and its variance are unchanged, only sampled more coarsely. The
-Dryden correlation times ``L / V`` are seconds (at 100 m and 20 m/s: ``L_w / V``
-= 5 s, ``L_uv / V`` = 13 s; even at 10 m and 30 m/s 0.3 s), so a 20 Hz sample-
-and-hold is more than ten samples per correlation time and changes the forces
-the airframe sees by a negligible amount, while costing a fifth of a per-frame
-update at 100 Hz. ``eta`` are counter-based normals keyed by (node id, update
-index, component) — the update index is ``floor(t * turb_rate)`` of the row's own
-time — so rolling a node back and re-running reproduces the same gusts, and the
-gusts do not depend on the frame rate (an adaptive ``f_trig`` sees the same
-turbulence). The filter states are state columns, held
-constant over the kernel's sub-steps. Components are in along-heading / cross /
-down axes and rotated to NED with the aircraft's heading.
-"""
+``turb_rate`` (default 20 Hz) over the whole elapsed number of periods exactly: the
+correlation times are seconds, so a 20 Hz sample-and-hold is more than ten samples per
+correlation time, at a fifth of a per-frame update's cost. ``eta`` are counter-based
+normals keyed by (node id, update index, component) — the update index is ``floor(t *
+turb_rate)`` of the row's own time — so rolling a node back and re-running reproduces
+the same gusts, and the gusts do not depend on the frame rate (an adaptive ``f_trig``
+sees the same turbulence). The filter states are state columns, held constant over the
+kernel's sub-steps. Components are in along-heading / cross / down axes and rotated to
+NED with the aircraft's heading."""
 
 from __future__ import annotations
 

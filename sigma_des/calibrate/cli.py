@@ -11,7 +11,7 @@ import argparse
 import sys
 from functools import partial
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 from sigma_des.errors import ConfigError
 
@@ -20,7 +20,15 @@ __all__ = ["add_calibrate_args", "run_calibrate"]
 
 def add_calibrate_args(p: argparse.ArgumentParser) -> None:
     """Add the arguments of ``calibrate`` to its subparser ``p``."""
-    p.add_argument("source", help="a `sigma-des live --out` directory or an MCAP recording")
+    p.add_argument("source", nargs="+", metavar="RUN",
+                   help="one or more `sigma-des live --out` directories (or MCAP recordings) "
+                   "of one scenario: per node and bundled, several sizes; each parameter "
+                   "comes from the runs that show it (the report says which)")
+    p.add_argument("--background", type=float, default=0.0, metavar="CORES",
+                   help="deployment.background of the calibrated scenario: the cores' worth "
+                   "of CPU other processes use on the TARGET machine (default 0; the "
+                   "calibration runs' own background is measured, taken out of the fit "
+                   "and reported, never carried into predictions)")
     p.add_argument("--out", default=None, metavar="SCENARIO.toml",
                    help="write the calibrated scenario here, the report next to it as "
                    "SCENARIO.json (default: print the scenario)")
@@ -35,15 +43,15 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--one-thread", action="store_true",
                    help="fit each process as one thread even when the live run recorded its "
                    "threads apart (default: the loop and paho's network thread apart; "
-                   "docs/MODEL.md, 'The network thread')")
+                   "docs/concepts/deployment.md, 'The network thread')")
     p.add_argument("--runq-growth", action="store_true",
                    help="run-queue waits that grow with the DES machine's load (Erlang C; "
                    "default: each process kind's measured wait per CPU second, kept; "
-                   "docs/MODEL.md, 'Run-queue waits')")
+                   "docs/concepts/deployment.md, 'Run-queue waits')")
     p.add_argument("--no-match", action="store_true",
                    help="keep the fitted hop latencies as they are (default: rescale each "
                    "direction's until the DES re-predicts the run's mean state and trigger "
-                   "latency within 3 %%; docs/LIVE.md, Calibration)")
+                   "latency within 3 %%; docs/concepts/live-and-calibration.md)")
 
 
 def _put(body: str, fh: IO[str]) -> None:
@@ -52,41 +60,72 @@ def _put(body: str, fh: IO[str]) -> None:
 
 def run_calibrate(args: argparse.Namespace) -> int:
     """Run ``calibrate``; ConfigError propagates (exit 2). Warnings go to stderr."""
-    import json
-
-    from sigma_des.calibrate.fit import (
-        calibrate,
-        calibrated_toml,
-        remove_files,
-        report_lines,
-        sample_files,
+    from sigma_des.calibrate.campaign import (
+        check_combinable,
+        run_info,
+        under_load_warning,
+        with_background,
     )
-    from sigma_des.calibrate.insample import in_sample
-
-    source = Path(args.source)
     from sigma_des.calibrate.dequeue import HOLD_TOL
-    from sigma_des.guard import atomic_write, input_file, output_file
+    from sigma_des.calibrate.fit import calibrate
+    from sigma_des.guard import input_file, output_file
 
+    sources = [Path(s) for s in args.source]
     tol = HOLD_TOL if args.hold_tol is None else args.hold_tol
-    if not source.is_dir():
-        input_file(source, str(source), "live run directory, messages.csv.gz or MCAP recording")
+    for source in sources:
+        if not source.is_dir():
+            input_file(source, str(source), "live run directory, messages.csv.gz or MCAP "
+                       "recording")
+    if len(set(sources)) != len(sources):
+        raise ConfigError("RUN", "a run is named twice")
+    infos = [run_info(s) for s in sources]
+    if len(sources) > 1:
+        check_combinable(infos)
     if args.out:  # a bad output location must cost nothing: checked before the fit
         output_file(args.out, "--out")
         output_file(Path(args.out).with_suffix(".json"), "--out")
-    sc, report = calibrate(source, Path(args.out).parent if args.out else None,
-                           strict=not args.allow_incomplete, hold_tol=tol,
-                           threads=not args.one_thread, runq_growth=args.runq_growth)
-    out_dir = Path(args.out).parent if args.out else (source if source.is_dir()
-                                                      else source.parent)
+    out_dir = Path(args.out).parent if args.out else (sources[0] if sources[0].is_dir()
+                                                      else sources[0].parent)
+    fits = []
+    for i, source in enumerate(sources):
+        files = (out_dir / f"run{i + 1}") if len(sources) > 1 else (
+            Path(args.out).parent if args.out else None)
+        if files is not None:
+            files.mkdir(parents=True, exist_ok=True)
+        sc_i, rep_i = calibrate(source, files, strict=not args.allow_incomplete, hold_tol=tol,
+                                threads=not args.one_thread, runq_growth=args.runq_growth)
+        if "background_cores_measured" in rep_i:  # the fit's own figure, from cpu.csv
+            infos[i]["background"] = float(rep_i["background_cores_measured"])
+            infos[i]["cores"] = int(rep_i.get("deployment_cores", infos[i]["cores"]))
+        fits.append((sc_i, rep_i, infos[i]))
+    sc, report, primary = _combined(fits, out_dir)
     if not args.no_match:
         from sigma_des.calibrate.match import match_hops
 
-        sc, matched = match_hops(sc, source, out_dir)
+        sc, matched = match_hops(sc, sources[primary], out_dir)
         report.update(matched)
     if not args.no_check:
-        rows, warn = in_sample(sc, source)
+        rows, warn = _in_sample(sc, report, fits, sources, primary)
         report["in_sample"] = rows
         report["warnings"] += warn
+    report["warnings"] += [w for w in map(under_load_warning, infos) if w]
+    report["background_cores_of_runs"] = {inf["name"]: inf["background"] for inf in infos}
+    sc = with_background(sc, args.background)
+    report["deployment_background_cores"] = sc.deployment.background
+    report["background_note"] = (
+        "deployment.background is the target machine's (calibrate --background, default 0): "
+        "the calibration runs' own background was taken out of the fit")
+    _write_out(args, sc, report)
+    return 0
+
+
+def _write_out(args: argparse.Namespace, sc: Any, report: dict[str, Any]) -> None:
+    """Write (or print) the calibrated scenario, its report and sample files."""
+    import json
+
+    from sigma_des.calibrate.fit import calibrated_toml, remove_files, report_lines, sample_files
+    from sigma_des.guard import atomic_write
+
     text = calibrated_toml(sc, report)
     if args.out:
         out = Path(args.out)
@@ -108,7 +147,43 @@ def run_calibrate(args: argparse.Namespace) -> int:
     else:
         _warn(report["warnings"])
         sys.stdout.write(text)
-    return 0
+
+
+def _combined(fits: list[Any], out_dir: Path) -> tuple[Any, dict[str, Any], int]:
+    """One run's fit as it is; several combined (:func:`~sigma_des.calibrate.campaign.combine`)."""
+    if len(fits) == 1:
+        return fits[0][0], fits[0][1], 0
+    from sigma_des.calibrate.campaign import combine
+
+    return combine(fits, out_dir)
+
+
+def _in_sample(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],
+               primary: int) -> tuple[list[dict[str, Any]], list[str]]:
+    """The in-sample check on every run: the calibrated scenario prepared for the run
+    (its size, hosts, window, seed, message mode) with the run's own background."""
+    from dataclasses import replace
+
+    from sigma_des.calibrate.insample import in_sample
+    from sigma_des.calibrate.target import prepare
+
+    rows: list[dict[str, Any]] = []
+    warn: list[str] = []
+    for i, (own, _rep, info) in enumerate(fits):
+        if len(fits) == 1:
+            target = sc
+        else:
+            target = prepare(sc, report, [f"nodes={own.nodes}", f"hosts={own.hosts}",
+                                          f"duration={own.duration}", f"warmup={own.warmup}",
+                                          f"seed={own.seed}"]
+                             + ([] if info["bundle"] else ["deployment.bundle=false"]),
+                             bundle=bool(info["bundle"]))
+            target = replace(target, deployment=replace(
+                target.deployment, background=own.deployment.background))
+        r, w = in_sample(target, sources[i])
+        rows += [{**x, "run": info["name"]} for x in r]
+        warn += [f"{info['name']}: {x}" if len(fits) > 1 else x for x in w]
+    return rows, warn
 
 
 def _warn(warnings: list[str]) -> None:

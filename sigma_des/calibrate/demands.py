@@ -18,7 +18,7 @@ second of the window).
 One run gives one equation per process, so each process gets one demand per
 message of any kind; separating, e.g., the broker's per-inbound from its
 per-delivery cost needs runs with different fan-outs. These demands are measured
-and reported; the DES does not consume them yet (docs/LIVE.md).
+and reported; the DES does not consume them yet (docs/concepts/live-and-calibration.md).
 """
 
 from __future__ import annotations

@@ -102,7 +102,7 @@ def _busy_held(same: NDArray[np.bool_], ds: NDArray[np.float64], tol: float,
 def sender_waits(sender: ArrayLike, t_send: ArrayLike, length: float,
                  tol: float = HOLD_TOL) -> NDArray[np.float64]:
     """How long each message waited, after its publish burst, for its sender's thread
-    to go idle (when the DES lets it leave: MODEL.md "Deployment and CPU").
+    to go idle (when the DES lets it leave: docs/concepts/deployment.md).
 
     Each sender's publishes are replayed in time order: a publish stamped at ``t`` (its
     handler's start) holds the thread for ``length``; the next one stamped within

@@ -3,51 +3,24 @@
 From the message table (``messages.csv.gz`` or an MCAP recording) inside the metrics
 window, and the run's ``cpu.csv`` and ``summary.json``:
 
-* **the deployment** (:mod:`sigma_des.calibrate.fit_cpu`): ``colocated``, the ``cores``,
-  the ``background``, each process's threads' demands by the Utilization Law,
-  ``clients = "host"``, ``bundle`` as run; the broker's demand as both
-  ``broker.publish_service`` and ``delivery_service``. Without a ``cpu.csv`` next to it:
-  no CPU stage, and the broker's per-delivery service is the 5th percentile of the gaps
-  between consecutive receivers of a trigger (:func:`delivery_floor`: scheduling noise
-  only adds to a gap), its publish service the base scenario's; the least-squares
-  fan-out slope (:func:`fanout_slope`) is reported either way;
-* **per-hop latency per direction** (empirical sample files): a state travels
-  host -> broker -> server (``net.host_link.latency`` and
-  ``net.server_link.latency_down``), a trigger or command server -> broker -> host
-  (``net.server_link.latency`` and ``net.host_link.latency_down``); one hop is
-  ``(path latency - CPU services on the path) / 2``, the CPU services being what the
-  DES adds itself (:func:`~sigma_des.calibrate.fit_cpu.path_services`: the broker's two
-  services, and with a CPU stage the sender's publish burst with its expected wake-up,
-  slowed by the background; the receiver's burst comes after the receipt live stamps). The down hop
-  is fitted from triggers only: a tick's commands leave the server together and their
-  latencies hold its publish queue, which the DES adds itself. The path latency is
-  **de-queued** first (:mod:`sigma_des.calibrate.dequeue`): a delivery that came while the
-  receiver's thread may still have been busy (its receipts replayed with one burst
-  each, within ``hold_tol``) may have waited behind the stream's order or for the
-  receiver's thread (both of which the DES adds itself), so it is a left-censored
-  sample;
-* **the server's receive cost** (time from the client's receipt to the loop handling
-  the state): with a CPU stage it is the server's receive burst and its thread's
-  queue, modelled; without one it is folded into the server link's down latency
-  (fitted as a hop from each state's path latency plus twice its receive queueing)
-  when its mean exceeds 5 % of the hop's;
-* **node step time** (:mod:`sigma_des.calibrate.fit_step`): ``compute.step_time`` from each
-  job's service without its wait for a core, ``compute.host_share`` as the
-  intraclass correlation of the services' normal scores within a host and frame;
-* **wire sizes**: ``payload_bits``, ``trigger_payload_bits``, ``commands.payload_bits``
-  and ``net.topic_bytes`` set to the live payloads and topics (``sigma_des.live.wire``),
-  so the DES counts the same bytes.
+* **the deployment** (:mod:`sigma_des.calibrate.fit_cpu`). Without a ``cpu.csv``: no
+  CPU stage, the broker's per-delivery service the 5th percentile of the gaps between
+  consecutive receivers of a trigger (:func:`delivery_floor`), its publish service
+  the base scenario's;
+* **per-hop latency per direction** (empirical sample files): states give the upward
+  path, triggers (not commands, which hold the server's publish queue) the downward
+  one; a hop is ``(path latency - CPU services on the path) / 2``
+  (:func:`~sigma_des.calibrate.fit_cpu.path_services`), the path latency **de-queued**
+  first (:mod:`sigma_des.calibrate.dequeue`). Without a CPU stage the server's receive
+  cost is folded into the server link's down latency when it exceeds 5 % of the hop;
+* **node step time** (:mod:`sigma_des.calibrate.fit_step`) and ``compute.host_share``;
+* **wire sizes** set to the live payloads and topics, so the DES counts the same bytes.
 
-What cannot be fitted is said, never filled in silently: hosts whose states arrived without
-their per-node publish rows are refused (``strict``) or warned about, and too few samples,
-a single receiver per trigger or a missing ``cpu.csv`` are warnings in
-``report["warnings"]``. :mod:`sigma_des.calibrate.insample` checks the result against its run.
-
-With one client per host (a CPU fit) the broker's per-delivery service is per receiving
-client, as measured. Without (one DES client per node, live one per host) :func:`for_target`
-scales it by ``hosts / nodes`` of the scenario it prepares, so a trigger's total fan-out
-time is the measured one. The result is the live run's scenario with these parameters
-replaced, written as TOML that ``sigma-des compare`` runs (the sample files beside it).
+What cannot be fitted is said, never filled in silently (``report["warnings"]``, or
+refused with ``strict``). With one DES client per node (live has one per host)
+:func:`for_target` scales the per-delivery service by ``hosts / nodes``. The result is
+the live run's scenario with these parameters replaced, as TOML that ``sigma-des
+compare`` runs. The rules and why: docs/concepts/live-and-calibration.md.
 """
 
 from __future__ import annotations
@@ -67,12 +40,13 @@ from numpy.typing import NDArray
 from sigma_des.calibrate.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
 from sigma_des.calibrate.fit_cpu import fit_deployment, path_services
 from sigma_des.calibrate.fit_step import MIN_SAMPLES, fit_compute
+from sigma_des.calibrate.report import calibrated_toml, report_lines
 from sigma_des.config import Scenario, load, to_toml
 from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
 from sigma_des.guard import atomic_write, output_file, read_text
 from sigma_des.live.messages import read_messages
-from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
+from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES, command_bytes, state_topic_bytes
 from sigma_des.loading import from_dict
 from sigma_des.net.latency import Dist
 from sigma_des.net.spec import BrokerSpec, DeploymentSpec, NetSpec
@@ -226,7 +200,8 @@ def _stall_note(x: NDArray[np.float64], what: str, warn: list[str]) -> int:
         warn.append(f"{k} of {x.size} {what} latencies above {STALL_FACTOR:g} x their 99th "
                     f"percentile (> {STALL_FACTOR * np.percentile(x, 99) * 1e3:.3g} ms, mean "
                     f"{x[cut].mean() * 1e3:.3g} ms) taken as process stalls and left out of "
-                    "the hop draws (the DES has no stall model; docs/LIVE.md)")
+                    "the hop draws (the DES has no stall model; "
+                    "docs/concepts/live-and-calibration.md)")
     return k
 
 
@@ -420,7 +395,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
                                  "--out" if files_dir else str(source))
     compute, step_report = fit_compute(base, msgs, states, source.suffix == ".mcap", strict,
                                        warn)
-    topic_len = int(round(float(np.mean([len(f"sd/{'x' * 8}{m}/up/h{int(h)}/state")
+    topic_len = int(round(float(np.mean([state_topic_bytes(m, int(h))
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
     width = make_dynamics(base).command_dim
@@ -428,7 +403,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         base,
         payload_bits=STATE_BYTES * 8,
         trigger_payload_bits=TRIGGER_BYTES * 8,
-        commands=replace(base.commands, payload_bits=(23 + 8 * width) * 8),
+        commands=replace(base.commands, payload_bits=command_bytes(width) * 8),
         net=replace(net, topic_bytes=topic_len),
         broker=BrokerSpec(publish_service=publish,
                           delivery_service=Dist(dist="constant",
@@ -466,34 +441,3 @@ def for_target(cal: Scenario, report: dict[str, Any], overrides: list[str]) -> S
     per = _per_delivery(float(report["delivery_service_per_client_s"]), sc, sc.deployment)
     return replace(sc, broker=replace(sc.broker,
                                       delivery_service=Dist(dist="constant", value=per)))
-
-
-def report_lines(report: dict[str, Any]) -> list[str]:
-    """The report as readable lines: the fitted figures (``key = value``), the CPU
-    demands, the in-sample errors (flagged cells marked) and the warnings."""
-    lines = [f"{k} = {v}" for k, v in report.items() if not isinstance(v, list | dict)]
-    for m, cores in report.get("background_cores", {}).items():
-        lines.append(f"background_cores.{m} = {cores:.3f} (CPU other processes used)")
-    for r in report.get("cpu_demands", []):
-        lines.append(f"cpu demand {r['method']}/{r['process']}: {r['demand_s'] * 1e6:.1f} "
-                     f"µs per message ({r['messages']:.0f} messages, busy {r['busy_s']:.3f} s "
-                     f"of {r['window_s']:.2f} s, idle rate {r['idle_rate']:.4f})")
-    for r in report.get("in_sample", []):
-        unit = "pp" if r["metric"] == "missed_frac" else "%"
-        lines.append(f"in-sample {r['method']} {r['metric']}: live {r['live']:.4g}, DES "
-                     f"{r['des']:.4g}, error {100 * r['error']:+.1f} {unit}"
-                     + ("  > 10: FLAGGED" if r["flagged"] else ""))
-    cells = [r for r in report.get("in_sample", []) if math.isfinite(r["error"])]
-    if cells:
-        ok = sum(not r["flagged"] for r in cells)
-        lines.append(f"in-sample: {ok} of {len(cells)} cells within 10 % (10 pp)")
-    lines += [f"warning: {w}" for w in report.get("warnings", [])]
-    return lines
-
-
-def calibrated_toml(sc: Scenario, report: dict[str, Any]) -> str:
-    """The calibrated scenario as TOML, the report (:func:`report_lines`) as a comment
-    header."""
-    head = ["# calibrated by `sigma-des calibrate` from a live run"]
-    head += [f"# {line}" for line in report_lines(report)]
-    return "\n".join(head) + "\n" + to_toml(sc)

@@ -3,80 +3,18 @@
 ``sigma-des live`` runs the broker, the alignment server and every host process on
 this one machine, so the calibrated scenario gets ``deployment.preset = "colocated"``
 and, from the live run's ``summary.json`` (``live.<method>``) and ``cpu.csv``:
-
-* ``cores``: the CPUs the live runner could use (``os.sched_getaffinity``);
-* ``background``: the cores' worth of CPU other processes took during the metrics
-  windows (machine busy CPU minus ours, :mod:`sigma_des.live.cpu`), pooled over the
-  methods (total CPU seconds / total window seconds), at most
-  :data:`BACKGROUND_CAP` × ``cores`` (the deployment needs ``background < cores``).
-  On a saturated machine (busy ≥ :data:`SATURATED` × ``cores``) this is ``cores``
-  minus what our processes got, which puts the DES's CPU at utilization ≈ 1 by
-  construction: warned about;
-* ``host_wake``, ``server_wake`` and ``host_demand``, ``server_demand``: a process's
-  CPU is split into a cost per *wake-up* (a burst that finds its loop idle) and a cost
-  per message. Each live loop records its wake-ups in the metrics window (``cpu.csv``'s
-  :data:`~sigma_des.live.cpu.WAKE_COLUMNS`: wake-ups ``W``, calls ``K``, the loop
-  thread's CPU ``C`` and the moments of a least-squares line ``cpu = a + b·k`` of a
-  wake-up's CPU against its ``k`` calls). Pooled over the processes of one kind and
-  the methods, a message costs one call in each of the process's two threads,
-  ``D = 2·b`` (the loop's slope, and as much in paho's network thread, which reads,
-  parses and hands over each message), and the Utilization Law gives the rest per
-  wake-up, ``wake = (Σ busy − D · Σ messages) / W``: both threads leave their waits
-  together (a message wakes the network thread, which wakes the loop), and what they
-  do once per wake-up is shared by every message handled before they wait again.
-  *Why* (session 13): the previous split (``wake = a``, the rest per message: 150–165
-  µs a message, 90 µs a wake-up) kept a process's CPU per message from falling below
-  its N = 20 value, where live's fell from 188 to 72 µs between N = 20 and 100; this
-  one (36–42 µs a message, 236–264 µs a wake-up on ``s13``) matches the least-squares
-  fit over every cell of ``s11c`` (65 µs + 260 µs), which it was not fitted to. A
-  host's messages are the PUBLISHes its
-  ledger counted with a send time in the metrics window: triggers, commands and
-  Lock-Step re-requests received, states sent (a bundle once); the server's: states
-  received, triggers, commands and re-requests sent. Without wake-up columns (a run
-  recorded before them), or with a line that leaves no positive wake-up cost, the
-  wake-up is 0 and ``D = Σ busy / Σ messages`` (said in a warning);
-* with ``cpu.csv``'s thread columns (:data:`~sigma_des.live.cpu.THREAD_COLUMNS`: each
-  process's main thread and its other threads, paho's network thread, apart) the
-  process is fitted as *two threads* (``_threads``; session 15): its busy CPU split as
-  the threads' measured CPU is, each thread's message one call ``b`` (``*_demand =
-  *_net_msg = b``), the loop's rest per loop wake-up (``*_wake``), the network
-  thread's rest per voluntary switch of that thread (``*_net_wake``), and the part
-  beside the thread (``*_wake_side``, per network wake-up) starting at ``*_net_wake``
-  for the hop match to scale to the live CPU. *Why*: with the network thread's CPU
-  charged per loop wake-up the DES's server CPU stayed flat in N where live's grew
-  (LIVE.md, session 15); without the columns (or without a positive rest in both
-  threads) the one-thread split above, said in a warning;
-* ``host_runq``, ``server_runq``, ``broker_runq``: each kind's measured run-queue wait
-  (``cpu.csv``'s :data:`~sigma_des.live.cpu.RUNQ_COLUMN`) per CPU second it used, ``q``,
-  kept as it is; ``runq_growth`` off. *Why* (LIVE.md, sessions 17–19): live's waits grow
-  with the machine's load far less than the M/M/c queue's above u ≈ 0.5, and the DES's
-  own bursts already queue for its cores; on two idle datasets the growth cost 2–5
-  mean-AoI and 1–4 latency cells and nothing was better with it. With ``growth``
-  (``calibrate --runq-growth``): ``floor = max(q − queue_wait(cores, u), 0)`` at the
-  run's utilisation ``u`` (our processes' CPU plus the background, over the cores), and
-  ``runq_growth`` on when any kind's wait was measured (the DES then adds
-  ``queue_wait`` at its own machine's recent load);
-* ``host_record``, ``server_record``: the loop line's slope ``b`` (the loop thread's CPU
-  per call, at most the demand), the CPU of one more record in a bundle: a live loop
-  handles each record of a bundle (a host's states of one turn, the server's
-  commands to one host) with the code that handles a record in a message of its own,
-  one call's worth, while the per-message part (paho's thread, the wake-up) is paid
-  once. From a run without bundles this is the only handle on it; 0 without wake-up
-  columns;
-* the broker's demand ``D_b`` (its busy CPU over every PUBLISH that came in plus every
-  delivery that went out) as **both** ``broker.publish_service`` and
-  ``broker.delivery_service`` (constants): one run gives one equation,
-  ``busy = D_pub · inbound + D_del · deliveries``, so the split is the one that charges
-  an inbound PUBLISH and each delivery the same;
-* ``lock_switch`` = :data:`LIVE_LOCK_SWITCH`: a live process's PUBLISH is written by
-  paho's network thread when the loop thread gives up the interpreter lock (when it
-  waits, or at Python's 5 ms switch interval);
-* ``server_tick = 0``: the server's per-tick CPU cannot be told apart from its
-  per-message CPU in one run; it is inside ``server_demand``;
-* ``clients = "host"`` (live runs one MQTT client per host process), ``bundle`` as the
-  live run had it (``summary.json``).
-
-Without a ``cpu.csv`` nothing is fitted (no CPU stage; a warning says so).
+``cores`` (the CPUs the runner could use), ``background`` (other processes' CPU in the
+metrics windows, at most :data:`BACKGROUND_CAP` × ``cores``; warned about on a
+saturated machine), each process kind's CPU per message and per wake-up by the
+Utilization Law on its busy CPU (one thread, or with the thread columns two threads in
+tandem: ``*_demand``, ``*_wake``, ``*_wake_side``, ``*_net_msg``, ``*_net_wake``), the
+measured run-queue waits (``*_runq``, kept constant unless ``growth``), the record cost
+of a bundle (``*_record``, the loop line's slope), the broker's busy CPU per message in
+or out as both of its service times, ``lock_switch`` = :data:`LIVE_LOCK_SWITCH`,
+``server_tick = 0``, ``clients = "host"`` and ``bundle`` as run. Without a ``cpu.csv``
+nothing is fitted (no CPU stage; a warning says so). Each rule, its formula and why it
+is so: docs/concepts/live-and-calibration.md ("The machine") and
+docs/concepts/decisions.md.
 """
 
 from __future__ import annotations
@@ -354,7 +292,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
         warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
                     "a bundle of a loop turn's states; the DES bundles the states published "
                     "while a host's process is busy, so its bundles are as large as its "
-                    "host demand makes them (docs/MODEL.md, Bundles)")
+                    "host demand makes them (docs/concepts/deployment.md, 'Bundles')")
     background, measured, busy = _background(cpu, cores, warn)
     k = {kind: _kind_fit(cpu, table, kind, threads, warn) for kind in ("host", "server")}
     host_rep, server_rep = k["host"]["rep"], k["server"]["rep"]
@@ -409,7 +347,7 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     """CPU service the DES spends on one message's measured path, per direction (s).
 
     The latency ends at the receiving client's receipt (where live stamps it, before
-    the receiver's burst; MODEL.md "Deployment and CPU"), so a path holds the sender's
+    the receiver's burst; docs/concepts/deployment.md), so a path holds the sender's
     publish burst and the broker's two services: ``up`` (a state: the host's burst) and
     ``down`` (a trigger: the server's), every burst slowed by the background
     (``cores / (cores - background)``). A sender's burst holds its wake-up cost when its

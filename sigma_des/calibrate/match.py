@@ -4,8 +4,8 @@
 the path (the sender's burst, the broker's services, waits for threads): a guess of
 the DES's own waits, made before the DES ran. With waits that depend on load (the
 CPU stage's run-queue waits, backlogs behind busy threads) the guess misses, and the
-calibrated DES overshot its own calibration run's state latency by 12–53 % (LIVE.md,
-sessions 11–13). :func:`match_hops` closes that loop by running the DES: each round
+calibrated DES overshot its own calibration run's state latency by 12–53 %
+(docs/concepts/decisions.md). :func:`match_hops` closes that loop by running the DES: each round
 runs the calibrated scenario for every method of the live run, compares the mean
 state latency and the mean trigger latency (each pooled over the methods) with the
 live run's, and rescales each direction's hop samples (``hop_up``: the states' two
@@ -21,7 +21,7 @@ the live run's ``cpu.csv`` and of the DES's metrics) by scaling the wake-up's pa
 beside the thread (``deployment.<kind>_wake_side``), the secant again, within
 ``[0, SIDE_MAX]`` times the fitted value. *Why*: the Utilization Law splits the live CPU
 over live's wake-ups, and the DES's messages, timed by its own draws, find a thread
-idle less often than live's do (``s13``'s calibration run: the server 0.21 wake-ups a
+idle less often than live's do (on a calibration run: the server 0.21 wake-ups a
 message against live's 0.53), so the fitted demands gave the DES half of live's CPU, and
 its machine's load (which sets the run-queue waits) half of live's. The part beside the
 thread is the one that can take the difference without changing how often the thread
@@ -175,7 +175,7 @@ def _pairs(tried: list[tuple[dict[str, float], dict[str, float]]], now: dict[str
     """``name``'s ``(scale, DES value)`` pairs from the rounds whose *other* scales were
     within :data:`SAME_REL` of ``now``'s. *Why*: a round moves every scale at once, and
     a side part's CPU also lengthens the latency, so a pair from a round with other
-    side parts is not a point of the same curve (on ``s15``'s ``cal-r3`` the stale
+    side parts is not a point of the same curve (on one calibration run the stale
     pairs held the up hop's scale still for five rounds, 9 % off live)."""
     def same(ks: dict[str, float]) -> bool:
         return all(abs(v - now[o]) <= SAME_REL * max(abs(now[o]), 1e-12)

@@ -2,7 +2,7 @@
 
 The alignment methods (:mod:`sigma_des.events.align`) set one flag per node of the
 snapshot they show; the metrics (:mod:`sigma_des.metrics.collector`) count them
-(docs/MODEL.md, "Alignment methods" and "Metrics"). They sit on the ground floor so
+(docs/concepts/methods.md and "Metrics"). They sit on the ground floor so
 that both import them downward.
 """
 

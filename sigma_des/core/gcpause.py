@@ -1,7 +1,7 @@
 """Python's cyclic garbage collector paused around a run (the DES engine's and the live
 loops'): reference counting still frees everything that is not a cycle, and a run makes
-no cycles worth a collection in its middle (docs/MODEL.md "Engines", docs/LIVE.md
-"Known pitfalls")."""
+no cycles worth a collection in its middle (docs/concepts/engines.md,
+docs/concepts/decisions.md)."""
 
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 __all__ = ["OBS_FIELDS", "DynamicsModel", "Behaviour", "SwarmView"]
 
-#: Columns of the published state (docs/MODEL.md, "Published state"): body velocities, Euler angles,
+#: Columns of the published state (docs/concepts/aircraft.md): body velocities, Euler angles,
 #: body rates, north/east position and altitude (up), all SI units and radians.
 OBS_FIELDS: tuple[str, ...] = ("u", "v", "w", "phi", "theta", "psi", "p", "q", "r", "x", "y", "h")
 

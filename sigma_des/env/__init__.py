@@ -6,7 +6,7 @@ batched array API over many isolated scenes with physics batched across them;
 Stable-Baselines3 ``VecEnv`` (the ``learn`` extra, imported on its own). Tasks,
 observations, actions and rewards: :mod:`sigma_des.env.tasks`; hand-written
 controllers of the ``tight`` task: :mod:`sigma_des.env.controllers`; the CEM
-learner: :mod:`sigma_des.env.learn`; details and figures: ``docs/ENV.md``.
+learner: :mod:`sigma_des.env.learn`; how to train: ``docs/howto/train-agent.md``.
 """
 
 from sigma_des.env.parallel import SwarmEnv

@@ -16,7 +16,7 @@ ended step are that step's (``aoi``, ``frame``, ``error``, ``t``,
 
 Why our own adapter rather than SuperSuit's ``pettingzoo_env_to_vec_env_v1`` +
 ``concat_vec_envs_v1(..., base_class="stable_baselines3")`` over
-:class:`~sigma_des.env.SwarmEnv` (which also runs, see ``docs/ENV.md``): SuperSuit
+:class:`~sigma_des.env.SwarmEnv` (which also runs, see ``docs/howto/train-agent.md``): SuperSuit
 runs one :class:`SwarmEnv` per scene (no physics batched across scenes), and it
 never sets ``TimeLimit.truncated``, so SB3 treats every ``max_steps`` truncation as
 a terminal state and learns a biased value there. SuperSuit's wrapper cannot take

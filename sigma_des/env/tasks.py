@@ -8,42 +8,25 @@ terminations. Observations see the network; rewards see the truth.
 
 Action (every task): ``a in [-1, 1]^3`` per agent = desired north and east velocity
 ``(a0, a1) * v_max`` (m/s) and an altitude change ``a2 * dh_max`` (m) from the
-agent's shown altitude. It becomes the guidance row ``[v, chi, h, nan]`` of the
-behaviour library and, through :func:`~sigma_des.agents.behaviours.to_command`,
-the dynamics model's own command columns (velocity for the point mass, the
-autopilot's speed/course/altitude for the aircraft models). The paper's action is
-"desired attitude and throttle"; our dynamics models take their commands at the
-autopilot's guidance interface, one level up.
+agent's shown altitude, sent as the guidance row ``[v, chi, h, nan]`` (the autopilot's
+guidance interface, one level above the paper's attitude and throttle).
 
 Tasks:
 
-* :class:`FormationTask` (the paper's demonstration): node 0 is the leader, flown
-  by the task along a random route per episode (piecewise-constant turn rate drawn
-  from the scene's counter-based stream ``env.route``; its commands travel over the
-  network like the agents'); nodes ``1..n-1`` are the agents and keep the V-slots
-  of :func:`~sigma_des.agents.formation.formation_slots`. Observation (9 columns,
-  each clipped to [-10, 10]): slot error north/east ``/ d``, altitude error to the
-  leader ``/ 10 m``, leader velocity north/east ``/ v_ref``, own velocity
-  north/east ``/ v_ref``, nearest neighbour's offset north/east ``/ d`` — all from
-  the shown (delayed, aligned) states. Reward per agent: ``-(e / d)^2 -
-  w_sep max(0, 1 - d_min / r_safe)^2 - w_u |a|^2 / 3`` with ``e`` the true 3-D
-  slot error (clipped at ``div * d``) and ``d_min`` the true distance to the nearest
-  node; ``-penalty`` more for an agent that collides (``d_min < r_col``) or
-  diverges (``e > div * d``), which terminates every agent.
-* :class:`GoalTask` (quick tests): every node is an agent and flies to its own goal
-  (start position plus an offset of up to ``radius`` drawn from stream
-  ``env.goal``). Observation (7 columns): goal offset north/east ``/ radius``,
-  altitude error ``/ 10 m``, own velocity ``/ v_ref``, nearest neighbour offset
-  ``/ radius``. Reward ``-(e / radius)^2`` plus the same separation, effort,
-  collision and divergence (``e > div * radius``) terms.
+* :class:`FormationTask` (the paper's demonstration): node 0, the leader, flies a
+  random route per episode (stream ``env.route``; its commands travel over the
+  network too); nodes ``1..n-1`` are the agents and keep the V-slots. Observation (9 columns,
+  clipped to [-10, 10], from the shown states): slot error, altitude error to the
+  leader, leader and own velocity, nearest neighbour's offset. Reward per agent:
+  ``-(e / d)^2 - w_sep max(0, 1 - d_min / r_safe)^2 - w_u |a|^2 / 3`` (``e`` the true
+  slot error clipped at ``div * d``); ``-penalty`` more for a collision or a
+  divergence, which terminates every agent.
+* :class:`GoalTask` (quick tests): every node flies to its own goal (7 columns);
+  reward ``-(e / radius)^2`` plus the same separation, effort and ending terms.
+* :class:`TightTask` (delay matters by construction): a fast, sharply turning leader
+  and 6 m slots; the observation adds the *age* of every shown state it uses (14).
 
-* :class:`TightTask` (delay matters by construction): the formation task with a fast,
-  sharply turning leader and 6 m slots; its observation adds the *age* of every shown
-  state it uses (own, leader, nearest neighbour) and the neighbour's velocity, so a
-  policy can extrapolate (14 columns, see the class).
-
-An agent whose own state has not been shown yet observes zeros and its command is
-not sent (there is no altitude to command from).
+An agent whose own state has not been shown yet observes zeros and sends nothing.
 """
 
 from __future__ import annotations

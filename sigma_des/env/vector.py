@@ -20,18 +20,13 @@ scenario) truncates them. A finished scene restarts by Gymnasium's autoreset mod
   transition (what Stable-Baselines3 expects, see :mod:`sigma_des.env.sb3`);
 * ``disabled``: stepping a finished scene raises ``RuntimeError``.
 
-Both restarting modes play the same episodes for the same actions (a restarted
-scene's episode does not depend on when it restarts).
+Both restarting modes play the same episodes for the same actions.
 
-:class:`SwarmVectorEnv` adapts it to Gymnasium's :class:`~gymnasium.vector.VectorEnv`
-with one sub-environment per (scene, agent) pair, scene-major (SuperSuit's
-convention for parameter-shared multi-agent training): ``num_envs = S * A``.
+:class:`SwarmVectorEnv` adapts it to Gymnasium's :class:`~gymnasium.vector.VectorEnv`,
+one sub-environment per (scene, agent), scene-major: ``num_envs = S * A``.
 
-Infos: ``aoi`` (s, age of the agent's own shown state: now - its generation
-time; NaN before any), ``frame`` (frame of the shown own state), ``error`` (true
-slot or goal error, m; NaN on a step that is no transition), ``t`` (simulated time,
-per scene), ``episode_index`` (per scene: episodes it started before this one;
-``episode`` is left to the episode statistics of RL libraries).
+Infos: ``aoi`` (s, age of the agent's own shown state; NaN before any), ``frame``,
+``error`` (true error, m; NaN on a non-transition), ``t``, ``episode_index``.
 """
 
 from __future__ import annotations

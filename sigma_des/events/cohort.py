@@ -6,7 +6,7 @@ compiled message core (:mod:`sigma_des.events.fast.driver`) into the same
 engine. Features whose per-message behaviour the core does not reproduce are
 listed by :func:`~sigma_des.events.fast.support.unsupported`; for them the run
 falls back to the per-message engine for the whole run and says why
-(docs/MODEL.md, "Engines").
+(docs/concepts/engines.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The per-message engine: one alignment method over the whole distributed loop.
 
-This is the executable specification (docs/MODEL.md, "Engines"). Every message
+This is the executable specification (docs/concepts/engines.md). Every message
 is an event (SimPy events with callbacks, no process per message):
 
 trigger source ──PUBLISH──▶ broker ──N deliveries──▶ physics nodes ──(compute on
@@ -45,7 +45,6 @@ from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.fidelity import TrajectoryLog
-from sigma_des.metrics.reports import NetReport, RunReport
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
 from sigma_des.net.kinds import COMMAND
@@ -279,23 +278,17 @@ class MethodRun(AlignmentServer):
         self.core.close()  # the messages still in flight: no result reads them
         out = self.finish()
         # the run is over: its rings go now, not when a full collection finds the run
-        # (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs"); trajectory() stays
+        # (docs/concepts/engines.md, "The event table's memory"); trajectory() stays
         self.truth.release()
         run_finished(self.truth.nodes.size * self.spec.duration)  # the next run collects it
         return out
 
     def finish(self) -> dict[str, Any]:
         """The collector's results, from the run's, the aligner's and the network's reports."""
-        run = RunReport(
-            f_trig=self.f_trig,
-            rollbacks=self.truth.rollbacks,
-            resim_steps=self.truth.resim_steps,
-            history_misses=self.nodes.history_misses,
-            wall_seconds=self.wall_seconds,
-            events=self.kernel.events,
-        )
-        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net),
-                                     self.net.cpu_report())
+        return self.results(rollbacks=self.truth.rollbacks, resim_steps=self.truth.resim_steps,
+                            history_misses=self.nodes.history_misses,
+                            wall_seconds=self.wall_seconds, events=self.kernel.events,
+                            net=self.net, cpu=self.net.cpu_report())
 
     def load_kernels(self) -> int:
         """Load the compiled kernels this run's message core calls from Python, now.

@@ -5,7 +5,7 @@ one ``step_time`` draw per frame (keyed ``(STEP_DRAW, node, frame, 0)``), plus o
 draw per re-simulated step after a time-warp rollback (keyed
 ``(ROLLBACK_DRAW, node, target, j)``) — independent per node, or tied within a host by
 ``compute.host_share`` (:func:`step_draws`) — scaled by every slow fault active at the
-start (docs/MODEL.md, "Physics nodes"). The per-message engine computes
+start (docs/concepts/model.md, "Physics nodes"). The per-message engine computes
 :func:`job_cost`; the compiled core's loop sums the same draws in the same order
 (:mod:`sigma_des.events.fast.job`), the rollback draws from a table of whole
 ``(ROLLBACK_DRAW, ·, target, j)`` vectors (:mod:`sigma_des.events.fast.rollbacks`).

@@ -2,7 +2,7 @@
 
 :class:`~sigma_des.events.engine.MethodRun` keeps the frame-level and control
 events (trigger issue, alignment and render ticks) and hands every message to a
-:class:`MessageCore` (docs/MODEL.md, "Engines"):
+:class:`MessageCore` (docs/concepts/engines.md):
 
 * :class:`EventCore` (``engine = "events"``): every message is a SimPy event on
   the run's :class:`~sigma_des.net.network.Network` — the executable
@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.events.align.hlc_clock import Stamp
-from sigma_des.net.kinds import COMMAND, REREQUEST, TRIGGER
+from sigma_des.net.kinds import COMMAND, REREQUEST, TRIGGER, rerequest_index
 from sigma_des.net.network import Network
 
 __all__ = ["EventCore", "MessageCore"]
@@ -112,8 +112,8 @@ class EventCore:
             self.net.publish(self.server, COMMAND, i, tick, (stamp, cmds[i].copy()), bits, (i,))
 
     def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
-        """One PUBLISH to ``node`` (payload ``frame``, index ``frame * 64 + min(retry, 63)``)."""
-        self.net.publish(self.server, REREQUEST, node, frame * 64 + min(retry, 63), frame,
+        """One PUBLISH to ``node`` (payload ``frame``, index :func:`rerequest_index`)."""
+        self.net.publish(self.server, REREQUEST, node, rerequest_index(frame, retry), frame,
                          self.trigger_bits, (node,))
 
     def server_tick(self, t: float) -> None:

@@ -1,6 +1,6 @@
 """The physics nodes: jobs on host cores, commands, time-warp rollbacks, published states.
 
-Each node (docs/MODEL.md, "Physics nodes") computes one job at a time: on
+Each node (docs/concepts/model.md, "Physics nodes") computes one job at a time: on
 trigger k it steps from its last computed frame to k, each step costing a
 ``step_time`` draw keyed by node and frame (plus the re-simulation steps a
 rollback owes), times a ``slow`` fault factor, served first come first served by
@@ -69,7 +69,7 @@ def slow_windows(faults: Sequence[FaultSpec]) -> dict[int, list[SlowWindow]]:
 
 
 class NodeRules:
-    """The physics nodes' rules (docs/MODEL.md, "Physics nodes"); transport in hooks.
+    """The physics nodes' rules (docs/concepts/model.md, "Physics nodes"); transport in hooks.
 
     Subclasses supply :meth:`publish_state` and :meth:`republish` (how a state
     leaves the node); :meth:`cost` and :meth:`rollback` are hooks with the model's

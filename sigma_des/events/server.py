@@ -1,6 +1,6 @@
 """The alignment server's loop: trigger issue, alignment, command and render ticks.
 
-Written once for both engines (docs/MODEL.md, "Engines"): the DES
+Written once for both engines (docs/concepts/engines.md): the DES
 (:class:`~sigma_des.events.engine.MethodRun`) and the live server
 (:class:`~sigma_des.live.server.LiveServer`) are subclasses that supply only the
 transport, in the spirit of SimPy's ``BaseResource`` (``_do_put``/``_do_get``):
@@ -40,6 +40,8 @@ from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
 from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.reports import NetCounters, NetReport, RunReport
+from sigma_des.net.cpu import CpuReport
 
 __all__ = ["AlignmentServer"]
 
@@ -252,3 +254,23 @@ class AlignmentServer:
         self.trigger.start()
         self.clock.call_at(self.align_time(0), self.align, priority=ALIGN)
         self.clock.call_at(self.render_time(0), self.render, priority=RENDER)
+
+    def results(self, *, rollbacks: int, resim_steps: int, history_misses: int,
+                wall_seconds: float, events: int, net: NetCounters,
+                cpu: CpuReport | None = None) -> dict[str, Any]:
+        """The collector's results of the finished run: the run's own report (with the
+        trigger rate in force), the aligner's and the network's.
+
+        Args:
+            rollbacks: time-warp rollbacks of the nodes.
+            resim_steps: physics steps they re-simulated.
+            history_misses: states published of a frame no longer held.
+            wall_seconds: wall-clock time of the run (s).
+            events: events the clock handled.
+            net: the network's counters (simulated, or measured live).
+            cpu: the CPU stage's counters (None: none).
+        """
+        run = RunReport(f_trig=self.f_trig, rollbacks=rollbacks, resim_steps=resim_steps,
+                        history_misses=history_misses, wall_seconds=wall_seconds,
+                        events=events)
+        return self.collector.finish(run, self.aligner.report(), NetReport.of(net), cpu)

@@ -5,7 +5,7 @@ multiplication, so the grid never drifts); a rate change (BiDES adaptation)
 rebases the grid at the next trigger, counting periods from there. Lock-Step
 and RPC issue no periodic triggers: the aligner calls :meth:`TriggerSource.barrier_done`
 when a frame is complete, and trigger ``k+1`` follows at the grid time or at
-once if the barrier was late (docs/MODEL.md, "Alignment methods").
+once if the barrier was late (docs/concepts/methods.md).
 
 The source owns only the clock of triggers; what happens at an issue (the
 whole-swarm physics step, the collector, the aligner) is the server's

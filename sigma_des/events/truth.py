@@ -1,6 +1,6 @@
 """The physics truth: the whole swarm's true state per frame, its checkpoints and re-simulation.
 
-By the frame-boundary rule (docs/MODEL.md, "Physics nodes") the true state of
+By the frame-boundary rule (docs/concepts/model.md, "Physics nodes") the true state of
 every node at frame k is known when trigger k is issued, so the swarm is stepped
 then, in one vectorised call of the dynamics model. The truth keeps the last
 ``history_frames`` frames in a ring: each frame's published-state rows (what a
@@ -14,7 +14,7 @@ still in the ring enter the log and the rings are let go: they are the run's lar
 arrays (164 MB at N = 1 000 once filled), and a finished run lingers as cyclic garbage
 until a full collection, so a process running one run after another (``compare``, a
 sweep, a benchmark) would otherwise keep every earlier run's rings resident and fault
-fresh pages for each new one (docs/BENCHMARKS.md, "Issue 27, fixed per-run costs").
+fresh pages for each new one (docs/concepts/engines.md).
 
 A rollback re-simulates at once (:meth:`SwarmTruth.rollback`, the per-message
 engine's path) or, for the compiled core, later and in a batch: the core counts the
@@ -34,24 +34,58 @@ from numpy.typing import NDArray
 from sigma_des.core.models import OBS_FIELDS, DynamicsModel
 from sigma_des.metrics.fidelity import TrajectoryLog
 
-__all__ = ["SwarmTruth"]
+__all__ = ["FrameTrack", "SwarmTruth"]
 
 #: Columns of the published state.
 OBS_COLUMNS = len(OBS_FIELDS)
 
 
+class FrameTrack:
+    """Every frame's true positions, in frame order: the log of a live host's truth.
+
+    A host holds some of the swarm's nodes; the runner joins the hosts' logs by frame
+    and samples them at the fidelity log rate as the DES's
+    :class:`~sigma_des.metrics.fidelity.TrajectoryLog` does. The truth steps every frame
+    from 0 and logs each as it leaves its ring, so the ``k``-th sample is frame ``k``.
+
+    Args:
+        columns: nodes of each sample.
+    """
+
+    def __init__(self, columns: int) -> None:
+        self.times: list[float] = []
+        self.pos: list[NDArray[np.float64]] = []
+        self._columns = columns
+
+    def add(self, t: float, pos: NDArray[np.float64]) -> None:
+        """The frame leaving the ring: physics time ``t``, positions ``pos`` (copied)."""
+        self.times.append(t)
+        self.pos.append(pos.copy())
+
+    def arrays(self) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+        """``(frames (T,), times (T,), positions (T, columns, 3))``."""
+        pos = np.stack(self.pos) if self.pos else np.zeros((0, self._columns, 3))
+        return (np.arange(len(self.times), dtype=np.int64),
+                np.array(self.times, dtype=np.float64), pos)
+
+
 class SwarmTruth:
-    """The true swarm, frame by frame.
+    """The true swarm, or a subset of its nodes, frame by frame.
 
     Args:
         dynamics: the vectorised dynamics model.
-        n: number of nodes.
+        n: number of nodes of the swarm.
         history_frames: length of the frame ring.
         log_rate: rate (Hz of physics time) of the fidelity log.
         checkpoints: keep state checkpoints (only time-warp rollbacks read them).
+        nodes: the node ids served, ascending (None: all ``n``); rows are indexed by
+            position in it, the dynamics keyed by the id (a live host's nodes).
+        log: where frames leaving the ring go (None: the fidelity log at ``log_rate``;
+            a live host passes a :class:`FrameTrack`).
 
     Attributes:
-        state: ``(n, state_dim)`` true state at the latest frame.
+        nodes: the node id of every row.
+        state: ``(m, state_dim)`` true state at the latest frame (``m`` nodes served).
         ckpt: state after frame ``f`` at ``f % H`` (empty without checkpoints).
         obs_hist: published rows of frame ``f`` at ``f % H``.
         slot_frame: the frame held at each ring slot (-1: none yet).
@@ -63,12 +97,19 @@ class SwarmTruth:
 
     def __init__(
         self, dynamics: DynamicsModel, n: int, history_frames: int, log_rate: float,
-        checkpoints: bool,
+        checkpoints: bool, nodes: NDArray[np.int64] | None = None,
+        log: TrajectoryLog | FrameTrack | None = None,
     ) -> None:
         H = self.H = history_frames
         self.dyn = dynamics
-        self.nodes = np.arange(n, dtype=np.int64)
-        self.initial = dynamics.initial_state(n)
+        initial = dynamics.initial_state(n)
+        if nodes is None:
+            self.nodes = np.arange(n, dtype=np.int64)
+            self.initial = initial
+        else:
+            self.nodes = np.asarray(nodes, dtype=np.int64)
+            self.initial = initial[self.nodes].copy()
+        n = self.nodes.size
         self.state = self.initial.copy()
         # uninitialised (a slot is read only once written, see _checkpoint): a fresh
         # zeroed array of this size faults its pages in one by one at first touch,
@@ -83,7 +124,9 @@ class SwarmTruth:
         self.latest = -1
         self.phys_t = 0.0
         self.phys_hist = np.zeros(H)
-        self.traj = TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12])
+        self.traj: TrajectoryLog | FrameTrack = (
+            TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12]) if log is None
+            else log)
         self.rollbacks = 0
         self.resim_steps = 0
         self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
@@ -140,7 +183,7 @@ class SwarmTruth:
         oldest frame whose previous checkpoint is held).
 
         Args:
-            i: the node.
+            i: the node's row (its position in :attr:`nodes`).
             c: the frame the command applies from.
             current: the node's own frame (the one it computes or last computed).
             row: the command row.
@@ -157,12 +200,12 @@ class SwarmTruth:
         if step_frames is not None and c <= latest:
             # the same row steps, compiled in one call (identical to the loop below)
             slots = np.arange(c, latest + 1) % H
-            states = step_frames(prev, row, self.frame_dt[slots], c, i)
+            states = step_frames(prev, row, self.frame_dt[slots], c, int(self.nodes[i]))
             self.ckpt[slots, i] = states
             s = states[-1:]
         else:
             cmd = row[None, :]
-            node = np.array([i])
+            node = self.nodes[i : i + 1]
             for f in range(c, latest + 1):
                 slot = f % H
                 s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
@@ -207,7 +250,7 @@ class SwarmTruth:
         arrival order, one per node.
 
         Args:
-            nodes: the nodes, one rollback each, in arrival order.
+            nodes: the nodes' rows, one rollback each, in arrival order.
             first: the first frame each re-simulates (clamped; at most :attr:`latest`).
             rows: the command row each re-simulates with.
             steps: the compute steps each rollback owed (counted in :attr:`resim_steps`).
@@ -232,12 +275,13 @@ class SwarmTruth:
         nodes, first, rows = nodes[order], first[order], rows[order]
         H, latest = self.H, self.latest
         cur = self._checkpoints(nodes, first)
+        ids = self.nodes[nodes]  # the dynamics is keyed by node id (rows: by position)
         m = 0
         for f in range(int(first[0]), latest + 1):
             while m < nodes.size and first[m] <= f:
                 m += 1
             slot = f % H
-            cur[:m] = self.dyn.step(cur[:m], rows[:m], float(self.frame_dt[slot]), f, nodes[:m])
+            cur[:m] = self.dyn.step(cur[:m], rows[:m], float(self.frame_dt[slot]), f, ids[:m])
             self.ckpt[slot, nodes[:m]] = cur[:m]
             # observed frame by frame (rows are independent: the same bits as one call
             # over every re-simulated row, without gathering them again from the ring,
@@ -266,13 +310,19 @@ class SwarmTruth:
         """The log :meth:`trajectory` reads, the ring's frames logged first: for readers
         that take it a block of samples at a time (:meth:`TrajectoryLog.rows`)."""
         log = self.traj
-        if self.released:  # the ring's frames were logged by release()
-            return log
+        if not isinstance(log, TrajectoryLog):
+            raise TypeError("this truth logs every frame (a FrameTrack), not samples")
+        self._log_ring()
+        return log
+
+    def _log_ring(self) -> None:
+        """Log the frames the ring holds (none once released: release() logged them)."""
+        if self.released:
+            return
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):
             slot = f % self.H
-            log.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
-        return log
+            self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
 
     def release(self) -> None:
         """The run is over: log the frames the ring still holds, then drop the rings.
@@ -283,7 +333,7 @@ class SwarmTruth:
         """
         if self.released:
             return
-        self.trajectory_log()
+        self._log_ring()
         self.released = True
         self.slot_frame[:] = -1  # in place: the compiled core holds this array
         self.ckpt = np.empty((0, *self.ckpt.shape[1:]))

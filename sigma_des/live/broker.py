@@ -209,7 +209,7 @@ class Broker:
         janitor: removes the broker's folder (its password file) even if we are killed.
         users: more users (name: password) besides the per-run one, e.g. observers.
         acl: the text of a Mosquitto ``acl_file`` (``user`` and ``topic`` lines; see
-            docs/LIVE.md); None: no ACL (every user may use every topic).
+            docs/howto/live.md); None: no ACL (every user may use every topic).
 
     Raises:
         ConfigError: ``mosquitto`` missing (the message says how to install it), or

@@ -69,7 +69,7 @@ def add_live_args(p: argparse.ArgumentParser) -> None:
                    "settings: record.*)")
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run each physics host on a worker of this Dask scheduler (clocks "
-                   "reconciled over the broker; docs/LIVE.md, 'On a cluster')")
+                   "reconciled over the broker; docs/howto/live.md)")
     p.add_argument("--placement", default="spread", metavar="spread|pack|FILE",
                    help="with --scheduler: hosts round-robin over the workers (spread), all "
                    "on one (pack), or a TOML host -> worker map (default: spread)")

@@ -38,7 +38,7 @@ from sigma_des.live.broker import reap
 from sigma_des.live.clocksync import ClockBook
 from sigma_des.live.cpu import CpuMeter, wake_columns
 from sigma_des.live.placement import Pin, Worker
-from sigma_des.live.procs import log_tail, spawn_host
+from sigma_des.live.procs import log_tail, rows_file, spawn_host
 from sigma_des.live.server import LiveServer
 
 __all__ = ["ClockedServer", "DaskHosts", "HostActor", "RemoteCpuMeter", "check_reachable",
@@ -102,7 +102,7 @@ def check_reachable(workers: list[Worker], own_broker: bool) -> None:
             raise ConfigError("--broker", f"worker {w.name} ({w.address}) is on another "
                               "machine, and the broker this command starts listens on "
                               "127.0.0.1 only; run Mosquitto where every machine reaches it "
-                              "and pass --broker HOST:PORT (docs/LIVE.md, 'On a cluster')")
+                              "and pass --broker HOST:PORT (docs/howto/live.md)")
 
 
 class HostActor:
@@ -126,7 +126,7 @@ class HostActor:
 
     def start(self, cfg: dict[str, Any]) -> dict[str, Any]:
         """Start the host process from ``cfg``; where it runs."""
-        cfg = {**cfg, "rows_path": str(self.d / ("rows_{run}" + f"_h{self.h}.npz"))}
+        cfg = {**cfg, "rows_path": str(rows_file(self.d, "{run}", self.h))}
         self.proc = spawn_host(cfg, self.d, self.h)
         self.info["pid"] = self.proc.pid
         return dict(self.info)
@@ -138,7 +138,7 @@ class HostActor:
 
     def rows(self, run: str, timeout: float) -> bytes | None:
         """The rows file of ``run`` (waiting up to ``timeout`` s for it), None if absent."""
-        p = self.d / f"rows_{run}_h{self.h}.npz"
+        p = rows_file(self.d, run, self.h)
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline and not p.exists():
             time.sleep(0.01)

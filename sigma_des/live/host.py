@@ -1,7 +1,8 @@
 """A live physics host: one OS process, one MQTT client, the nodes placed on it.
 
 On every trigger the host steps all its nodes' aircraft to the trigger's frame with
-the scenario's dynamics model (catching up over lost triggers), for real; then
+the scenario's dynamics model (catching up over lost triggers), for real, in the DES's
+physics truth of those nodes (:class:`~sigma_des.events.truth.SwarmTruth`); then
 its nodes follow the DES's node rules (:class:`~sigma_des.events.node.NodeRules`,
 here :class:`HostNodes` on the live loop): each job's cost is the DES's
 :func:`~sigma_des.events.jobs.job_cost` (the drawn ``compute.step_time``, when
@@ -30,6 +31,7 @@ from sigma_des.core.rng import RandomStreams
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.jobs import step_draws
 from sigma_des.events.node import NodeRules, Published
+from sigma_des.events.truth import FrameTrack, SwarmTruth
 from sigma_des.factory import make_dynamics
 from sigma_des.live.broker import BrokerAddress
 from sigma_des.live.clocksync import PING, PONG, SyncTopics, host_clock, now_fn
@@ -41,6 +43,7 @@ from sigma_des.live.wire import (
     Topics,
     Window,
     WireError,
+    command_bytes,
     decode_command,
     decode_control,
     decode_rerequest,
@@ -49,7 +52,7 @@ from sigma_des.live.wire import (
 )
 from sigma_des.loading import from_dict
 from sigma_des.net.clocks import NodeClocks
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 
 __all__ = ["ClockLoop", "Host", "HostNodes", "main"]
 
@@ -82,7 +85,7 @@ class HostNodes(NodeRules):
     """
 
     def __init__(self, host: Host, step_delay: bool, **rules: Any) -> None:
-        super().__init__(truth=host, **rules)
+        super().__init__(truth=host.truth, **rules)
         self.host = host
         self.step_delay = step_delay
         self.trig_t = [0.0] * len(self.ids)
@@ -150,20 +153,12 @@ class Host(ImpairedSender):
         self.local = {int(g): j for j, g in enumerate(self.nodes)}
         m = self.m = self.nodes.size
         self.dyn = make_dynamics(sc)
-        full = self.dyn.initial_state(n)
-        self.initial = full[self.nodes].copy()
-        self.state = self.initial.copy()
-        self.cmd = self.dyn.default_command(full)[self.nodes].copy()
-        H = self.H = sc.history_frames
-        self.frame = -1
-        self.frame_dt = np.zeros(H)
-        self.obs_hist = np.zeros((H, m, 12))
-        self.slot_frame = np.full(H, -1, dtype=np.int64)
-        self.phys_hist = np.zeros(H)
-        self.phys_t = 0.0
-        self.track: list[tuple[int, float, NDArray[np.float64]]] = []
+        self.cmd = self.dyn.default_command(self.dyn.initial_state(n))[self.nodes].copy()
         self.warp = method == "bides" and sc.bides.time_warp
-        self.ckpt = np.zeros((H if self.warp else 0, m, self.state.shape[1]))
+        # the DES's truth of this host's nodes: every frame's true positions logged
+        self.track = FrameTrack(m)
+        self.truth = SwarmTruth(self.dyn, n, sc.history_frames, sc.fidelity.log_rate,
+                                self.warp, self.nodes, self.track)
         streams = RandomStreams(sc.seed)
         self.use_hlc = method == "hlc"
         self.jobs = HostNodes(
@@ -184,8 +179,6 @@ class Host(ImpairedSender):
         self.impair = Impairment(sc.net.host_link, sc.net, streams, host, bool(cfg["impair"]))
         self.ledger = Ledger(sc, f"host{host}")
         self.rows: list[tuple[Any, ...]] = []
-        self.rollbacks = 0
-        self.resim_steps = 0
         self.step_real_s = 0.0
         self.steps = 0
         self.rejected = 0
@@ -239,7 +232,7 @@ class Host(ImpairedSender):
             elif topic == tp.rereq(self.h):
                 node, frame, retry, t_send = decode_rerequest(payload, self.window)
                 j = self._local_index(node)
-                index = frame * 64 + min(retry, 63)
+                index = rerequest_index(frame, retry)
                 self._deliver(t, REREQUEST, node, index, t_send, len(topic), len(payload),
                               self._on_rerequest, j, frame, index)
             elif topic == tp.ctl:
@@ -252,7 +245,7 @@ class Host(ImpairedSender):
     def _commands(self, t: float, topic: str, payload: bytes) -> None:
         """One command, or (``--bundle``) a whole number of same-size command records."""
         width = self.cmd.shape[1]
-        size = 23 + 8 * width
+        size = command_bytes(width)
         if len(payload) % size or len(payload) // size > MAX_BUNDLE:
             raise WireError(f"command: {len(payload)} bytes is not a multiple of {size}")
         recs = []
@@ -296,11 +289,11 @@ class Host(ImpairedSender):
     def _deliver(self, t: float, kind: int, subject: int, index: int, t_send: float,
                  topic_len: int, size: int, fn: Any, *args: Any) -> None:
         self.ledger.received(t_send, topic_len, size, self.qos)
-        d = self.impair.delay(t, DOWN, kind, subject, index)
-        if math.isinf(d):
+        at = self.impair.arrival(t, DOWN, kind, subject, index)
+        if math.isinf(at):
             return
-        if d > 0:
-            self.loop.call_at(t + d, self._release, fn, args)
+        if at > t:
+            self.loop.call_at(at, self._release, fn, args)
         else:
             fn(t, *args)
 
@@ -312,47 +305,27 @@ class Host(ImpairedSender):
     def _on_trigger(self, t: float, k: int, t_send: float, dt: float, hl: float,
                     hc: int) -> None:
         self.rows.append(("trigger", self.h, -1, k, t_send, t, math.nan, math.nan, 0.0))
-        if k > self.frame:
+        truth = self.truth
+        if k > truth.latest:
             w0 = time.perf_counter()
-            for f in range(self.frame + 1, k + 1):
-                self._step(f, dt)
+            self.steps += k - truth.latest
+            for f in range(truth.latest + 1, k + 1):  # catching up over lost triggers
+                truth.step_frame(f, dt, self.cmd, None)
             self.step_real_s += time.perf_counter() - w0
         stamp = Stamp(hl, hc) if self.use_hlc else None
         for j in range(self.m):
             self.jobs.receive_trigger(j, k, stamp, t)
 
-    def _step(self, f: int, dt: float) -> None:
-        slot = f % self.H
-        self._log_slot(slot)
-        self.frame_dt[slot] = dt
-        self.phys_t += dt
-        self.phys_hist[slot] = self.phys_t
-        self.slot_frame[slot] = f
-        self.state = self.dyn.step(self.state, self.cmd, dt, f, self.nodes)
-        if self.warp:
-            self.ckpt[slot] = self.state
-        self.obs_hist[slot] = self.dyn.observe(self.state)
-        self.frame = f
-        self.steps += 1
-
-    def _log_slot(self, slot: int) -> None:
-        """Log the true positions of the frame leaving ``slot`` (it can no longer be
-        rolled back), for the fidelity metrics, as the DES engine does."""
-        f = int(self.slot_frame[slot])
-        if f >= 0:
-            self.track.append((f, float(self.phys_hist[slot]),
-                               self.obs_hist[slot, :, 9:12].copy()))
+    @property
+    def frame(self) -> int:
+        """The newest frame stepped (-1 before the first)."""
+        return self.truth.latest
 
     def track_arrays(self) -> dict[str, NDArray[Any]]:
-        """Every logged frame (frames still in the ring flushed), in frame order."""
-        first = max(0, self.frame - self.H + 1)
-        for f in range(first, self.frame + 1):
-            self._log_slot(f % self.H)
-            self.slot_frame[f % self.H] = -1
-        fr = np.array([x[0] for x in self.track], dtype=np.int64)
-        t = np.array([x[1] for x in self.track], dtype=np.float64)
-        pos = (np.stack([x[2] for x in self.track]) if self.track
-               else np.zeros((0, self.m, 3)))
+        """Every frame's true positions, in frame order: the run is over (the truth's
+        ring is released)."""
+        self.truth.release()
+        fr, t, pos = self.track.arrays()
         return {"track_frames": fr, "track_t": t, "track_pos": pos, "nodes": self.nodes}
 
     def send_state(self, j: int, payload: Published, t: float, republish: bool,
@@ -380,29 +353,6 @@ class Host(ImpairedSender):
             self._publish(self.topics.state(self.h), b"".join(p for p, _n, _f in pend), t,
                           STATE, pend[0][1], pend[0][2])
 
-    def rollback(self, j: int, c: int, current: int, row: NDArray[np.float64]) -> int:
-        """Re-simulate node ``j`` from frame ``c`` with command ``row`` (time warp).
-
-        The live truth's :meth:`~sigma_des.events.truth.SwarmTruth.rollback`: the
-        frames this host stepped, from ``c`` clamped to the oldest held.
-
-        Returns:
-            The compute steps the node's next job owes: ``current - c + 1`` (≥ 0).
-        """
-        c = max(c, self.frame - self.H + 2, 0)
-        s = (self.initial[j] if c == 0 else self.ckpt[(c - 1) % self.H, j])[None, :].copy()
-        node = self.nodes[j : j + 1]
-        for f in range(c, self.frame + 1):
-            slot = f % self.H
-            s = self.dyn.step(s, row[None, :], float(self.frame_dt[slot]), f, node)
-            self.ckpt[slot, j] = s[0]
-            self.obs_hist[slot, j] = self.dyn.observe(s)[0]
-        self.state[j] = s[0]
-        steps = max(0, current - c + 1)
-        self.rollbacks += 1
-        self.resim_steps += steps
-        return steps
-
     # ------------------------------------------------------------ run
 
     def announce(self) -> None:
@@ -415,10 +365,11 @@ class Host(ImpairedSender):
     def warm_up(self) -> None:
         """Call every compiled kernel once (numba loads its cache lazily on first call)."""
         dt = 1.0 / self.sc.f_trig
-        s = self.dyn.step(self.state.copy(), self.cmd, dt, 0, self.nodes)
+        state = self.truth.state
+        s = self.dyn.step(state.copy(), self.cmd, dt, 0, self.nodes)
         self.dyn.observe(s)
         if self.m:
-            one = self.dyn.step(self.state[:1].copy(), self.cmd[:1], dt, 0, self.nodes[:1])
+            one = self.dyn.step(state[:1].copy(), self.cmd[:1], dt, 0, self.nodes[:1])
             self.dyn.observe(one)
 
     def stats(self) -> dict[str, Any]:
@@ -426,11 +377,11 @@ class Host(ImpairedSender):
         return {
             "host": self.h,
             "links": self.ledger.as_dict(),
-            "rollbacks": self.rollbacks,
-            "resim_steps": self.resim_steps,
+            "rollbacks": self.truth.rollbacks,
+            "resim_steps": self.truth.resim_steps,
             "history_misses": self.jobs.history_misses,
             "rejected": self.rejected,
-            "lost": self.impair.lost,
+            "resent": self.impair.resent,
             "gave_up": self.impair.gave_up,
             "connects": self.client.connects,
             "disconnects": self.client.disconnects,

@@ -163,7 +163,7 @@ class Loop:
         Python's cyclic garbage collector is paused during the run (reference counting
         still frees everything that is not a cycle; the processes collect between
         runs): a full collection over what the process's earlier runs left stalled a
-        live host for 100-130 ms in the fourth method's run (validation ``s11b``), a
+        live host for 100-130 ms in the fourth method's run, a
         pause no real simulator node has."""
         with gc_paused():
             self._run(until)

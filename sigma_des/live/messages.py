@@ -1,7 +1,7 @@
 """The live run's per-message timestamp table: write, read, and record to MCAP.
 
 ``messages.csv.gz`` holds one row per message event, columns
-:data:`~sigma_des.live.runner.MESSAGE_COLUMNS`:
+:data:`~sigma_des.live.results.MESSAGE_COLUMNS`:
 
 * ``trigger_sent`` (server): ``frame``, ``t_send`` (the trigger's issue time, as the collector
   counts triggers: the publish stamp, µs later, could fall on the other side of a window edge);

@@ -20,7 +20,7 @@ from typing import Any, Protocol
 from sigma_des.live.broker import child_setup, reap
 from sigma_des.live.cpu import CpuMeter
 
-__all__ = ["HostGroup", "LocalHosts", "log_tail", "spawn_host"]
+__all__ = ["HostGroup", "LocalHosts", "log_tail", "rows_file", "spawn_host"]
 
 
 class HostGroup(Protocol):
@@ -74,6 +74,12 @@ def spawn_host(cfg: dict[str, Any], d: Path, h: int, **popen: Any) -> subprocess
                                 env=env, preexec_fn=child_setup, **popen)
 
 
+def rows_file(d: Path, run: str, h: int) -> Path:
+    """The file in ``d`` where host ``h`` writes its rows of ``run`` (``run = "{run}"``:
+    the template a host's config carries)."""
+    return d / f"rows_{run}_h{h}.npz"
+
+
 def log_tail(d: Path, h: int) -> str:
     """The last lines of host ``h``'s log."""
     p = d / f"host{h}.log"
@@ -96,7 +102,7 @@ class LocalHosts:
     def start(self, cfgs: list[dict[str, Any]]) -> None:
         """One child process per host."""
         for h, cfg in enumerate(cfgs):
-            cfg = {**cfg, "rows_path": str(self.d / ("rows_{run}" + f"_h{h}.npz"))}
+            cfg = {**cfg, "rows_path": str(rows_file(self.d, "{run}", h))}
             self.procs.append(spawn_host(cfg, self.d, h))
 
     def alive(self) -> list[int]:

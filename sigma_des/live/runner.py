@@ -31,7 +31,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pandas as pd
 
 from sigma_des.api import Results
@@ -43,16 +42,20 @@ from sigma_des.live.cpu import CpuMeter, message_counts, wake_sums
 from sigma_des.live.interrupts import Interrupts
 from sigma_des.live.limits import check_live, check_size
 from sigma_des.live.loop import Client
-from sigma_des.live.procs import HostGroup, LocalHosts
+from sigma_des.live.procs import HostGroup, LocalHosts, rows_file
+from sigma_des.live.results import (
+    LIVE_METRICS,
+    MESSAGE_COLUMNS,
+    host_fidelity,
+    live_info,
+    message_table,
+)
 from sigma_des.live.server import LiveServer
-from sigma_des.live.wire import Topics
+from sigma_des.live.wire import Topics, run_token
 from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
-MESSAGE_COLUMNS = ("method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig",
-                   "cost", "republish")
-LIVE_METRICS = ("rejected", "unknown_topic", "reconnects", "missed_frac", "late")
 
 
 @dataclass(frozen=True)
@@ -197,7 +200,7 @@ def _run_all(sc: Scenario, ms: tuple[str, ...], opts: LiveOptions, progress: boo
             d = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="sigma-des-live-")))
             janitor.watch(d)
         d.mkdir(parents=True, exist_ok=True)
-        runs = [(m, secrets.token_hex(4) + m) for m in ms]
+        runs = [(m, run_token(m)) for m in ms]
         group = _host_group(sc, opts, d, stack)
         group.start([_host_cfg(sc, runs, addr, opts, h, group.own_clocks)
                      for h in range(sc.hosts)])
@@ -320,13 +323,13 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         while time.monotonic() < deadline and not set(alive) <= set(srv.stats):
             _pump(srv, 0.05)
         for h in alive:  # the rows file follows the stats message
-            group.rows(run, h, d / f"rows_{run}_h{h}.npz", deadline)
+            group.rows(run, h, rows_file(d, run, h), deadline)
         out = srv.finish()
-        table = _messages(run, m, srv, d, sc.hosts, book)
+        table = message_table(run, m, srv, d, sc.hosts, book)
         if sc.fidelity.enabled:
-            _fidelity(out, sc, srv, d, run)
+            host_fidelity(out, sc, srv, d, run)
     out["kept"] = srv.kept
-    out["live"] = _live_info(srv, group, table, sc)
+    out["live"] = live_info(srv, group, table, sc)
     if book is not None:
         out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),
@@ -382,42 +385,6 @@ def _cpu_meter(group: HostGroup, broker: Broker | None) -> CpuMeter:
     return group.meter(procs)
 
 
-def _fidelity(out: dict[str, Any], sc: Scenario, srv: LiveServer, d: Path, run: str) -> None:
-    """Formation error and DTW against the ideal run, from the hosts' true positions.
-
-    The hosts log every frame's true positions (as the DES engine does); frames that
-    every host logged are sampled at ``fidelity.log_rate`` Hz of physics time. A host
-    that did not report (killed) leaves the metrics NaN.
-    """
-    from sigma_des.api import ideal_run
-    from sigma_des.metrics.fidelity import TrajectoryLog, add_fidelity
-
-    n = sc.nodes
-    tracks = []
-    for h in range(sc.hosts):
-        p = d / f"rows_{run}_h{h}.npz"
-        if not p.exists():
-            return
-        with np.load(p) as z:
-            tracks.append((z["nodes"], z["track_frames"], z["track_t"], z["track_pos"]))
-    common = set(tracks[0][1].tolist())
-    for tr in tracks[1:]:
-        common &= set(tr[1].tolist())
-    frames = np.array(sorted(common), dtype=np.int64)
-    if frames.size < 2:
-        return
-    pos = np.zeros((frames.size, n, 3))
-    t = np.zeros(frames.size)
-    for nodes, fr, tt, pp in tracks:
-        idx = np.searchsorted(fr, frames)
-        pos[:, nodes] = pp[idx]
-        t = tt[idx]
-    log = TrajectoryLog(sc.fidelity.log_rate, srv.dyn.observe(srv.dyn.initial_state(n))[:, 9:12])
-    for k in range(frames.size):
-        log.add(float(t[k]), pos[k])
-    add_fidelity(out, *log.arrays(), ideal_run(sc)[1], sc.fidelity)
-
-
 def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,
             group: HostGroup) -> None:
     if opts.kill_broker_at is not None and broker is not None:
@@ -426,51 +393,3 @@ def _inject(srv: LiveServer, opts: LiveOptions, broker: Broker | None,
     if opts.kill_host_at is not None:
         h, t = opts.kill_host_at
         srv.loop.call_at(t, group.kill, h)
-
-
-def _messages(run: str, m: str, srv: LiveServer, d: Path, hosts: int,
-              book: ClockBook | None = None) -> pd.DataFrame:
-    kinds: list[np.ndarray] = [np.array([r[0] for r in srv.rows], dtype="U12")]
-    vals: list[np.ndarray] = [np.array([r[1:] for r in srv.rows], dtype=np.float64).reshape(-1, 8)]
-    for h in range(hosts):
-        p = d / f"rows_{run}_h{h}.npz"
-        if p.exists():
-            with np.load(p) as z:
-                kinds.append(z["kinds"].astype("U12"))
-                vals.append(z["values"])
-            if book is not None:  # host clock -> ours, with every exchange of the run
-                from sigma_des.live.cluster import correct_rows
-
-                vals[-1] = correct_rows(kinds[-1], vals[-1], h, book)
-    v = np.concatenate(vals)
-    df = pd.DataFrame(v, columns=list(MESSAGE_COLUMNS[2:]))
-    df.insert(0, "kind", np.concatenate(kinds))
-    df.insert(0, "method", m)
-    for c in ("host", "node", "frame"):
-        df[c] = df[c].astype(np.int64)
-    df["republish"] = df["republish"].astype(bool)
-    return df.sort_values(["kind", "frame", "node"], kind="stable").reset_index(drop=True)
-
-
-def _live_info(srv: LiveServer, group: HostGroup, table: pd.DataFrame,
-               sc: Scenario) -> dict[str, Any]:
-    st = srv.stats
-    states = table[(table["kind"] == "state") & ~table["republish"]]
-    trig = table[table["kind"] == "trigger_sent"]
-    win = trig[(trig["t_send"] >= sc.warmup) & (trig["t_send"] < sc.duration)]
-    frames = set(win["frame"].tolist())
-    got = states[states["frame"].isin(frames)].drop_duplicates(["node", "frame"])
-    expected = len(frames) * sc.nodes
-    return {
-        "rejected": srv.rejected + sum(int(s.get("rejected", 0)) for s in st.values()),
-        "unknown_topic": srv.unknown_topic,
-        "reconnects": max(0, srv.client.connects - 1)
-        + sum(max(0, int(s.get("connects", 1)) - 1) for s in st.values()),
-        "missed_frac": 1.0 - len(got) / expected if expected else float("nan"),
-        "late": srv.late,
-        "hosts_reported": sorted(st),
-        "hosts_killed": group.killed(),
-        "where": group.where(),
-        "step_real_ms": 1000.0 * sum(float(s.get("step_real_s", 0)) for s in st.values())
-        / max(1, sum(int(s.get("steps", 0)) for s in st.values())),
-    }

@@ -11,7 +11,6 @@ Anything malformed or on an unknown topic is counted and dropped.
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -39,8 +38,8 @@ from sigma_des.live.wire import (
     encode_rerequest,
     encode_trigger,
 )
-from sigma_des.metrics.reports import NetReport, RunReport
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.metrics.reports import LinkCount
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, TRIGGER, rerequest_index
 
 __all__ = ["LiveNet", "LiveServer"]
 
@@ -62,11 +61,10 @@ class LiveNet:
             cur[0] += int(b)
             cur[1] += int(p)
 
-    def links(self) -> list[SimpleNamespace]:
-        """Link directions with ``name``, ``bytes`` and ``packets`` (uplinks first)."""
+    def links(self) -> list[LinkCount]:
+        """Link directions' counts (uplinks first)."""
         keys = sorted(self._links, key=lambda k: (not k.endswith(".up"), _link_order(k)))
-        return [SimpleNamespace(name=k, bytes=v[0], packets=v[1])
-                for k, v in ((k, self._links[k]) for k in keys)]
+        return [LinkCount(k, *self._links[k]) for k in keys]
 
 
 def _link_order(name: str) -> tuple[int, str]:
@@ -120,6 +118,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.rejected = 0
         self.unknown_topic = 0
         self.late = 0
+        self.rereq_index: dict[tuple[int, int], int] = {}  # (node, frame): newest re-request
         self.running = False
         self.rollbacks = 0
         self.resim_steps = 0
@@ -151,9 +150,9 @@ class LiveServer(AlignmentServer, ImpairedSender):
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
         t = self.now()
+        index = self.rereq_index[node, frame] = rerequest_index(frame, retry)
         self._publish(self.topics.rereq(self.host_of[node]),
-                      encode_rerequest(node, frame, retry, t), t, REREQUEST, node,
-                      frame * 64 + min(retry, 63))
+                      encode_rerequest(node, frame, retry, t), t, REREQUEST, node, index)
 
     def publish_commands(
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
@@ -231,12 +230,16 @@ class LiveServer(AlignmentServer, ImpairedSender):
             self.late += len(recs)
             return
         self.ledger.received(recs[0][4], len(topic), len(payload), self.qos)
-        d = self.impair.delay(t, DOWN, STATE, recs[0][1], recs[0][2])
-        if math.isinf(d):
+        kind, node, frame = recs[0][:3]
+        # a republished state's draws are keyed by the re-request it answers (the DES's
+        # REPUBLISH); its record does not say which, so by the newest one sent
+        index = self.rereq_index.get((node, frame), frame) if kind == REPUBLISH else frame
+        at = self.impair.arrival(t, DOWN, kind, node, index)
+        if math.isinf(at):
             return
         for args in recs:
-            if d > 0:
-                self.loop.call_at(t + d, self._state_at, args)
+            if at > t:
+                self.loop.call_at(at, self._state_at, args)
             else:
                 self._state(t, *args)
 
@@ -291,11 +294,10 @@ class LiveServer(AlignmentServer, ImpairedSender):
             self.rollbacks += int(st.get("rollbacks", 0))
             self.resim_steps += int(st.get("resim_steps", 0))
             self.history_misses += int(st.get("history_misses", 0))
-            self.net.retransmissions += int(st.get("lost", 0))
+            self.net.retransmissions += int(st.get("resent", 0))
             self.net.gave_up += int(st.get("gave_up", 0))
-        self.net.retransmissions += self.impair.lost
+        self.net.retransmissions += self.impair.resent
         self.net.gave_up += self.impair.gave_up
-        run = RunReport(f_trig=self.f_trig, rollbacks=self.rollbacks, resim_steps=self.resim_steps,
-                        history_misses=self.history_misses, wall_seconds=self.wall_seconds,
-                        events=self.loop.handled)
-        return self.collector.finish(run, self.aligner.report(), NetReport.of(self.net))
+        return self.results(rollbacks=self.rollbacks, resim_steps=self.resim_steps,
+                            history_misses=self.history_misses, wall_seconds=self.wall_seconds,
+                            events=self.loop.handled, net=self.net)

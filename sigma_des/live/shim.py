@@ -4,11 +4,10 @@ Each live process owns one access link (a host's ``net.host_link`` or the server
 ``net.server_link``). Its :class:`Impairment` decides, per message and direction,
 the extra one-way delay drawn from the link's ``latency`` distribution and whether
 the message is lost (the link's Bernoulli or Gilbert–Elliott ``loss``). A lost
-message is resent the way the DES transport would: ``stream`` adds ``rto · 2^a`` for
-lost attempt ``a`` (TCP retransmission with its doubling timeout, as
-``Links._stream_try``; order is kept), ``datagram`` with QoS 1 adds ``qos1_timeout``
-per attempt, ``datagram`` with QoS 0 drops it; after
-``max_retries`` lost attempts it is gone. Draws use the counter-based streams
+message is resent by the DES transport's rules (:mod:`sigma_des.net.resend`: ``stream``
+waits ``rto · 2^a`` after lost attempt ``a`` and keeps each direction in order,
+``datagram`` with QoS 1 waits ``qos1_timeout``, with QoS 0 drops it; after
+``max_retries`` lost resends it is gone). Draws use the counter-based streams
 keyed by (link, direction, kind, subject, index, attempt): same seed, same
 impairment decisions. A Bernoulli loss uses the DES's own draw of that packet: stream
 ``lossu.<host|server>.<up|down>`` at ``(kind, subject, index, attempt)``, as
@@ -30,6 +29,7 @@ from typing import TYPE_CHECKING
 
 from sigma_des.core.rng import RandomStreams
 from sigma_des.net.loss import LossProcess
+from sigma_des.net.resend import InOrderRelease, walk_tries
 from sigma_des.net.spec import LinkSpec, NetSpec
 
 if TYPE_CHECKING:  # only for annotations: the shim itself needs no MQTT client
@@ -69,12 +69,14 @@ class Impairment:
                    for up in (True, False))
         self.enabled = enabled and not (lossless and zero)
         self._lossless = lossless
-        self._last = [0.0, 0.0]  # stream transport: release times stay in order
+        self._order = [InOrderRelease(), InOrderRelease()]  # UP, DOWN (stream transport)
         self.lost = 0
+        self.resent = 0
         self.gave_up = 0
 
-    def delay(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
-        """Extra delay (s) of one message sent/received at ``t``; ``inf`` if it is lost.
+    def arrival(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
+        """When one message that enters this link at ``t`` is handed on (s); ``inf`` if
+        it is lost (``t`` itself without impairment).
 
         Args:
             t: time the message enters this link (s).
@@ -84,31 +86,30 @@ class Impairment:
             index: frame, tick or re-request index.
         """
         if not self.enabled:
-            return 0.0
+            return t
         ids = (self.link_id, direction, kind, subject, index)
-        d = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
+        lat = float(self.link.latency_of(direction == UP).sample(self.lat_stream, *ids)[0])
+        stream = self.net.transport == "stream"
+        sent = t
         if not self._lossless:
-            net = self.net
-            penalty = 0.0
-            for attempt in range(net.max_retries + 1):
-                if not self._lost(t + penalty, direction, kind, subject, index, attempt):
-                    break
-                self.lost += 1
-                if net.transport == "datagram" and net.qos == 0:
-                    return math.inf
-                # the DES's stream doubles its RTO on each try (until session 10 this
-                # added rto per try: a twice-lost message waited 0.4 s here, 0.6 s there)
-                penalty += (net.rto * 2**attempt if net.transport == "stream"
-                            else net.qos1_timeout)
-            else:
+            tries = walk_tries(self.net, t, lambda t_try, attempt: self._lost(
+                t_try, direction, kind, subject, index, attempt))
+            self.lost += tries.lost
+            self.resent += tries.resent
+            if tries.gave_up:
                 self.gave_up += 1
-                return math.inf
-            d += penalty
-        if self.net.transport == "stream":
-            release = max(t + d, self._last[direction])
-            self._last[direction] = release
-            d = release - t
-        return d
+                if stream:  # it still takes its place in the order, at its last try
+                    self._order[direction].give_up(tries.last)
+            sent = tries.sent
+            if math.isinf(sent):
+                return sent
+        if stream:
+            return self._order[direction].release(sent + lat)
+        return sent + lat
+
+    def delay(self, t: float, direction: int, kind: int, subject: int, index: int) -> float:
+        """:meth:`arrival` less ``t``: the extra delay (s); ``inf`` if it is lost."""
+        return self.arrival(t, direction, kind, subject, index) - t
 
 
     def _lost(self, t: float, direction: int, kind: int, subject: int, index: int,
@@ -137,11 +138,11 @@ class ImpairedSender:
 
     def _publish(self, topic: str, payload: bytes, t: float, kind: int, subject: int,
                  index: int) -> None:
-        d = self.impair.delay(t, UP, kind, subject, index)
-        if math.isinf(d):
+        at = self.impair.arrival(t, UP, kind, subject, index)
+        if math.isinf(at):
             return
         self.ledger.sent(t, len(topic), len(payload), self.qos)
-        if d > 0:
-            self.loop.call_at(t + d, self.client.publish, topic, payload, self.qos)
+        if at > t:
+            self.loop.call_at(at, self.client.publish, topic, payload, self.qos)
         else:
             self.client.publish(topic, payload, self.qos)

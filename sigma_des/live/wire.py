@@ -1,17 +1,15 @@
 """Live-mode topics and the binary payload layout (little-endian ``struct``).
 
-Topics of run ``R`` (``R`` is a per-run token, so two runs on one broker never mix):
+Topics of run ``R`` (``R`` is a per-run token, :func:`run_token`: 8 random hex digits
+and the method, so two runs on one broker never mix):
 
 * downstream (server -> hosts): ``sd/R/down/trig`` (triggers, one per frame, to
   every host), ``sd/R/down/h<H>/cmd`` (behaviour commands for nodes of host H),
   ``sd/R/down/h<H>/rereq`` (Lock-Step re-requests), ``sd/R/down/ctl`` (``stop``);
-* upstream (hosts -> server): ``sd/R/up/h<H>/state`` (one message per node state),
-  ``sd/R/up/h<H>/ready`` and ``sd/R/up/h<H>/stats`` (JSON, once per run).
+* upstream (hosts -> server): ``sd/R/up/h<H>/state``, ``…/ready``, ``…/stats`` (JSON).
 
-Payloads (byte sizes in brackets; ``f64`` times are seconds since the run's start
-on one monotonic clock):
-
-The kind byte is the message kind of :mod:`sigma_des.net.kinds` (the DES's):
+Payloads (bytes in brackets; ``f64`` times in s since the run's start; the kind byte
+is the message kind of :mod:`sigma_des.net.kinds`):
 
 * trigger [33]: kind u8 = 1, frame u32, t_send f64, dt f64, hlc_l f64, hlc_c u32
 * state [85]: kind u8 = 2 (5 = republished), node u32, frame u32, t_gen f64,
@@ -20,26 +18,23 @@ The kind byte is the message kind of :mod:`sigma_des.net.kinds` (the DES's):
   m u16, m x f64 values
 * rerequest [21]: kind u8 = 4, node u32, frame u32, retry u32, t_send f64
 
-With ``--bundle``, a host packs the states its nodes finish in one turn of its loop
-into one PUBLISH: the payload is those 85-byte records back to back (at most
-:data:`MAX_BUNDLE`); the server accepts any whole number of records.
+With ``--bundle`` a host's states of one loop turn are 85-byte records back to back in
+one PUBLISH (at most :data:`MAX_BUNDLE`).
 
-The paper's state is 150 bits (19 bytes: pose and velocity packed at reduced
-precision); ours is 85 bytes because it carries the whole 12-column published
-state in float32 plus the time and HLC fields the measurements need. The DES
-counts ``payload_bits`` (default 150) on the wire; to compare wire throughput,
-set ``payload_bits = 680`` (85 bytes) in the DES. Every decoder checks length,
+Ours is 85 bytes, not the paper's 150 bits: it carries the whole published state in
+float32 plus the times and HLC fields the measurements need (``calibrate`` sets the
+DES's ``payload_bits`` to match). Every decoder checks length,
 kind, ranges and finiteness and raises :class:`WireError` on anything else; given
 the run's :class:`Window`, also that frames and times lie within the run (a forged
 trigger for frame 2^32-1 would otherwise make a host step four billion frames).
-The control messages (``go:<t0>``, ``stop``) are parsed by :func:`decode_control`
-and the hosts' end-of-run counters checked field by field by :func:`check_stats`.
+Control messages: :func:`decode_control`; the hosts' counters: :func:`check_stats`.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import secrets
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -70,8 +65,13 @@ __all__ = [
     "encode_state",
     "encode_trigger",
     "MAX_BUNDLE",
+    "REREQUEST_BYTES",
+    "RUN_TOKEN_DIGITS",
     "STATE_BYTES",
     "TRIGGER_BYTES",
+    "command_bytes",
+    "run_token",
+    "state_topic_bytes",
 ]
 
 _TRIG = struct.Struct("<BIdddI")
@@ -80,6 +80,9 @@ _CMD_HEAD = struct.Struct("<BIiIdH")
 _REREQ = struct.Struct("<BIIId")
 TRIGGER_BYTES = _TRIG.size
 STATE_BYTES = _STATE.size
+REREQUEST_BYTES = _REREQ.size
+#: Random hex digits that open a run's topic token (:func:`run_token`).
+RUN_TOKEN_DIGITS = 8
 MAX_COMMAND_VALUES = 64
 #: Most states one PUBLISH may carry (``--bundle``: a host's states of one loop turn).
 MAX_BUNDLE = 4096
@@ -138,6 +141,22 @@ class Window:
 def _hlc_ok(hl: float) -> bool:
     """An HLC time: ``-inf`` (HLC off) or a finite time of sane magnitude."""
     return hl == -math.inf or (math.isfinite(hl) and abs(hl) <= MAX_VALUE)
+
+
+def command_bytes(width: int) -> int:
+    """Bytes of one command record of ``width`` values (``23 + 8 * width``)."""
+    return _CMD_HEAD.size + 8 * width
+
+
+def run_token(method: str) -> str:
+    """A fresh run token for a run of ``method``: random hex digits, then the method."""
+    return secrets.token_hex(RUN_TOKEN_DIGITS // 2) + method
+
+
+def state_topic_bytes(method: str, host: int) -> int:
+    """Bytes of ``host``'s state topic in any run of ``method`` (its token's length is
+    fixed)."""
+    return len(Topics("0" * RUN_TOKEN_DIGITS + method).state(host).encode("utf-8"))
 
 
 class Topics:
@@ -270,7 +289,7 @@ def decode_command(b: bytes, width: int, win: Window | None = None
     if len(b) < h:
         raise WireError(f"command: {len(b)} bytes, shorter than its {h}-byte header")
     kind, node, stamp, tick, t_send, m = _CMD_HEAD.unpack(b[:h])
-    if kind != COMMAND or m != width or m > MAX_COMMAND_VALUES or len(b) != h + 8 * m:
+    if kind != COMMAND or m != width or m > MAX_COMMAND_VALUES or len(b) != command_bytes(m):
         raise WireError(f"command: bad kind {kind}, width {m} or length {len(b)}")
     if not math.isfinite(t_send) or stamp < -1:
         raise WireError("command: bad time or stamp")
@@ -328,7 +347,7 @@ def decode_control(b: bytes, mono_now: float) -> tuple[str, float]:
 
 #: The hosts' end-of-run counters: non-negative integers, but ``links`` (a dict of
 #: ``"<link>.<dir>": [bytes, packets]``), ``host`` and ``step_real_s`` (seconds).
-STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "lost", "gave_up",
+STATS_FIELDS = ("rollbacks", "resim_steps", "history_misses", "rejected", "resent", "gave_up",
                 "connects", "disconnects", "steps")
 
 

@@ -1,4 +1,4 @@
-"""Exact Age-of-Information accounting at the consumer (docs/MODEL.md, "Metrics").
+"""Exact Age-of-Information accounting at the consumer (docs/concepts/metrics.md).
 
 The AoI of node ``i`` at time ``t`` is ``t − g_i(t)``, where ``g_i(t)`` is the
 generation time of the state of node ``i`` the consumer shows at ``t``. Between

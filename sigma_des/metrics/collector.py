@@ -1,4 +1,4 @@
-"""Accumulates one run's measurements and turns them into metrics (docs/MODEL.md, "Metrics").
+"""Accumulates one run's measurements and turns them into metrics (docs/concepts/metrics.md).
 
 The engine reports deliveries, triggers, snapshot changes and render ticks; the
 collector keeps only what the metrics need (samples after the warm-up) and, at

@@ -1,4 +1,4 @@
-"""Swarm fidelity (docs/MODEL.md, "Metrics"): how the swarm flew compared with an ideal run.
+"""Swarm fidelity (docs/concepts/metrics.md): how the swarm flew compared with an ideal run.
 
 The engine logs every node's true position at ``log_rate`` Hz of *physics* time
 (interpolating between frames, as :func:`sigma_des.agents.ideal.fly` does for the

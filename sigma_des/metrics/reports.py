@@ -3,7 +3,7 @@
 Every component hands over its own small frozen dataclass through one hook
 (``report()`` on the aligner, :meth:`NetReport.of` for the network's public
 counters, the engine's :class:`RunReport`); :meth:`~sigma_des.metrics.collector.
-Collector.finish` turns them into the tidy result rows (docs/MODEL.md, "Metrics").
+Collector.finish` turns them into the tidy result rows (docs/concepts/metrics.md).
 Nothing here knows which engine, aligner or network produced them.
 """
 
@@ -11,9 +11,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
-__all__ = ["AlignerReport", "MethodReport", "NetCounters", "NetReport", "RunReport"]
+__all__ = ["AlignerReport", "LinkCount", "MethodReport", "NetCounters", "NetReport",
+           "RunReport"]
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,20 @@ class AlignerReport:
     evicted: int = 0
     rejoined: int = 0
     rerequests: int = 0
+
+
+class LinkCount(NamedTuple):
+    """One link direction's counts, as a network reports them (:meth:`NetCounters.links`).
+
+    Attributes:
+        name: ``<link>.<up|down>``.
+        bytes: wire bytes.
+        packets: packets.
+    """
+
+    name: str
+    bytes: int
+    packets: int
 
 
 class NetCounters(Protocol):

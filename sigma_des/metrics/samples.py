@@ -1,4 +1,4 @@
-"""Growing stores of float64 samples, 8 bytes a sample (docs/MODEL.md, "Metrics").
+"""Growing stores of float64 samples, 8 bytes a sample (docs/concepts/metrics.md).
 
 A run's collector keeps samples it needs whole at the end (exact percentiles, and
 numpy's pairwise-summed mean over the whole sample, which no incremental sum

@@ -1,4 +1,4 @@
-"""Summary statistics of metric samples (docs/MODEL.md, "Metrics")."""
+"""Summary statistics of metric samples (docs/concepts/metrics.md)."""
 
 from __future__ import annotations
 

@@ -1,10 +1,10 @@
-"""Exact summaries of a spilled sample store in bounded memory (docs/MODEL.md, "Metrics").
+"""Exact summaries of a spilled sample store in bounded memory (docs/concepts/metrics.md).
 
 :func:`~sigma_des.metrics.stats.summarize` of ``store.values()`` reads a spilled
 :class:`~sigma_des.metrics.samples.Samples` store back whole, and numpy then makes
 full-size temporaries of it (``percentile``'s copy, ``std``'s deviations): at the end
 of a run, about twice its largest store, which grows with the simulated duration
-(docs/BENCHMARKS.md, issue 27, session 13). :func:`summarize_store` gives the same
+(docs/concepts/metrics.md). :func:`summarize_store` gives the same
 numbers, bit for bit, reading at most :data:`CHUNK` values at a time:
 
 * the sum is numpy's pairwise summation (``add.reduce`` of a contiguous float64 array,

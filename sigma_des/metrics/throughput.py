@@ -1,4 +1,4 @@
-"""Throughput: wire bits per second on the links, in the metrics window (docs/MODEL.md, "Metrics").
+"""Throughput: wire bits per second on the links, in the metrics window (docs/concepts/metrics.md).
 
 Every packet on every link direction counts with all its overheads (headers,
 framing), as the network counted it in :class:`~sigma_des.metrics.reports.NetReport`.

@@ -1,4 +1,4 @@
-"""The MQTT broker: one FIFO server (docs/MODEL.md, "Network").
+"""The MQTT broker: one FIFO server (docs/concepts/model.md, "Network").
 
 An inbound PUBLISH costs ``publish_service`` plus one ``delivery_service`` per
 subscriber; delivery ``j`` leaves after the publish part and ``j+1`` delivery

@@ -1,6 +1,6 @@
 """Per-node local clocks: offset, drift and optional NTP correction.
 
-See docs/MODEL.md, "Components and message flow" (Clocks).
+See docs/concepts/model.md, "Components and message flow" (Clocks).
 
 The DES clock is true time ``t``; only HLC timestamps and live-mode measurements
 read a node's local clock. Node ``i`` has an initial offset ``offset_i ~ N(0,

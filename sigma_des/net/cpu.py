@@ -1,4 +1,4 @@
-"""The CPU stage: machines, processes and bursts (docs/MODEL.md, "Deployment and CPU").
+"""The CPU stage: machines, processes and bursts (docs/concepts/deployment.md).
 
 Every process of a deployment (the broker, the alignment server, each physics
 host's client process) is ONE thread on a machine of ``cores`` cores. A *burst*
@@ -23,20 +23,10 @@ sends): its bursts (:meth:`Process.net_span`) are served in arrival order on a t
 of their own, placed on the same cores, and a burst that finds that thread idle costs
 ``net_wake`` more.
 
-Live processes are single-threaded loops that serve one message at a time, and
-a message's demand (~0.1 ms) is far below a scheduler quantum, so bursts run to
-completion (non-preemptive); processor sharing would re-time every burst in
-service at every arrival. A core keeps at most :data:`RESERVATIONS` reservations
-(those ended by the arrival are dropped first); beyond that its two earliest merge
-into one (the gap between them is then not used), the same rule as the compiled
-core's. A zero demand is no burst: callers do not call :meth:`Process.burst` for
-it, so nothing is touched.
-
-Like SimPy's resources, this module only computes times; the network
-(:mod:`sigma_des.net.network`) and the broker (:mod:`sigma_des.net.broker`)
-schedule what they say. Each process counts its busy CPU seconds and its longest
-wait in the metrics window; :meth:`Cpu.report` hands them over in one
-:class:`CpuReport`.
+Bursts run to completion (non-preemptive; why: docs/concepts/decisions.md). A core
+keeps at most :data:`RESERVATIONS` reservations; beyond that its two earliest merge. A
+zero demand is no burst. This module only computes times; the network and the broker
+schedule them; :meth:`Cpu.report` hands the CPU figures over (:class:`CpuReport`).
 """
 
 from __future__ import annotations

@@ -1,38 +1,19 @@
 """Brokerless DDS/RTPS publish/subscribe over the modelled links (``net.middleware = "dds"``).
 
-The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/MODEL.md,
-"Peer architectures"):
+The model (parameters and sources in :class:`sigma_des.net.spec.DdsSpec`, docs/concepts/peers.md):
 
 * **Participants.** Every physics node and the server is one DDS participant with
-  one middleware thread, a FIFO server for all of that participant's sends and
-  receives. There is no broker: a packet crosses the writer's host uplink and the
-  reader's host downlink (a switch in between, no queueing there).
-* **User data.** A writer sends one DATA per matched reader (unicast, one
-  ``writer_cost`` each, in reader order), or with ``multicast`` one send that the
-  switch copies to every reader's downlink. At the reader the thread spends
-  ``reader_cost + executor_per_entity × entities`` (entities: the ROS 2 node's
-  ``endpoints`` plus its simulation subscriptions: 2 for a node, one per vehicle
-  for the server) and then delivers. A writer only sends to readers it has
-  matched through discovery; earlier samples are not sent (VOLATILE durability).
-* **Reliability** (``reliable``). Each matched writer→reader pair (server → every
-  node, every node → server: the simulation's topics) gets a HEARTBEAT every
-  ``heartbeat_period``; the reader answers with an ACKNACK after
-  ``heartbeat_response_delay``, naming the samples sent before that HEARTBEAT whose
-  DATA was lost; the writer resends each after ``nack_response_delay`` if it is
-  still among the last ``history_depth`` samples of that topic, else the reader
-  gets a GAP (``gave_up``). Resends count in ``retransmissions``, up to
-  ``net.max_retries`` per sample. A reliable reader delivers each writer's samples in
-  order: one behind a missing sample waits until it is repaired or a GAP for it
-  arrives (head-of-line blocking). HEARTBEATs piggybacked on DATA are not modelled.
-* **Discovery.** SPDP: every participant multicasts an announcement
-  ``spdp_initial_count`` times ``spdp_initial_period`` apart from a launch time
-  drawn in ``[0, spdp_initial_period)``, then every ``spdp_period``; the switch
-  copies it to every other host's downlink and every other participant handles it
-  (``meta_cost``). A participant hearing a new one answers with its own
-  announcement (unicast) and sends its SEDP endpoint records (one RTPS message of
-  ``entities × sedp_bytes``, ``meta_cost`` per record at both ends); receiving a
-  participant's SEDP records matches its readers. So discovery traffic grows with
-  participants² × endpoints.
+  one middleware thread, a FIFO server for all its sends and receives. No broker: a
+  packet crosses the writer's host uplink and the reader's host downlink.
+* **User data.** One DATA per matched reader (``writer_cost`` each, in reader order;
+  ``multicast``: one send the switch copies); the reader's thread spends
+  ``reader_cost + executor_per_entity × entities`` before delivering. Only matched
+  readers get samples (VOLATILE durability).
+* **Reliability** (``reliable``): periodic HEARTBEATs, ACKNACKs naming lost samples,
+  resends while within ``history_depth``, else a GAP (``gave_up``); a reliable reader
+  delivers each writer's samples in order (head-of-line blocking).
+* **Discovery.** SPDP announcements and SEDP endpoint records, all-to-all: discovery
+  traffic grows with participants² × endpoints.
 
 This module knows nothing of alignment methods or aircraft.
 """

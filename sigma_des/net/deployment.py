@@ -1,5 +1,4 @@
-"""The ``[deployment]`` table: machines, CPU demands and MQTT clients (docs/MODEL.md,
-"Deployment and CPU").
+"""The ``[deployment]`` table: machines, CPU demands and MQTT clients (docs/concepts/deployment.md).
 
 A frozen, validated dataclass the CPU stage (:mod:`sigma_des.net.cpu`) and the network
 (:mod:`sigma_des.net.network`) take; :mod:`sigma_des.net.spec` re-exports it with the
@@ -16,7 +15,7 @@ from sigma_des.core.validate import require, require_in
 __all__ = ["CLIENTS", "CPU_SECONDS", "LATER_KEYS", "MAX_CORES", "MAX_DEMAND", "MAX_RUNQ",
            "PRESETS", "RUNQ_KEYS", "DeploymentSpec"]
 
-#: ``deployment.preset`` choices (docs/MODEL.md, "Deployment and CPU").
+#: ``deployment.preset`` choices (docs/concepts/deployment.md).
 PRESETS: tuple[str, ...] = ("none", "colocated", "dedicated")
 #: ``deployment.clients`` choices: one MQTT client per node, or per physics host.
 CLIENTS: tuple[str, ...] = ("node", "host")
@@ -41,7 +40,7 @@ RUNQ_KEYS = ("host_runq", "server_runq", "broker_runq")
 
 @dataclass(frozen=True)
 class DeploymentSpec:
-    """Where the processes run and the CPU they spend (docs/MODEL.md, "Deployment and CPU").
+    """Where the processes run and the CPU they spend (docs/concepts/deployment.md).
 
     Each process (the broker, the alignment server, each physics host's client
     process) is one thread; its CPU bursts are served first come first served on
@@ -73,7 +72,8 @@ class DeploymentSpec:
         host_net_msg: CPU a physics host's process spends per PUBLISH it sends or
             receives on its network thread (paho's), 0..1 s, needs ``host_demand > 0``:
             with it or ``host_net_wake`` the process is two threads in tandem
-            (docs/MODEL.md, "The network thread"; :meth:`~sigma_des.net.cpu.Process.net_span`).
+            (docs/concepts/deployment.md, "The network thread";
+            :meth:`~sigma_des.net.cpu.Process.net_span`).
         server_net_msg: the same for the server's process.
         host_net_wake: CPU a network-thread burst that finds that thread idle costs
             more, 0..1 s, needs ``host_demand > 0``.

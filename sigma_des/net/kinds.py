@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-__all__ = ["ACK", "COMMAND", "KIND_NAMES", "REPUBLISH", "REREQUEST", "STATE", "TRIGGER", "Kind"]
+__all__ = ["ACK", "COMMAND", "KIND_NAMES", "REPUBLISH", "REREQUEST", "RETRY_SLOTS", "STATE",
+           "TRIGGER", "Kind", "rerequest_index"]
 
 
 class Kind(IntEnum):
@@ -28,3 +29,11 @@ TRIGGER, STATE, COMMAND, REREQUEST, REPUBLISH = (int(k) for k in Kind)
 KIND_NAMES: dict[int, str] = {int(k): k.name.lower() for k in Kind}
 #: added to a message kind for its PUBACK's draws
 ACK = 16
+#: Re-request retries of one frame keyed apart (later retries share the last index).
+RETRY_SLOTS = 64
+
+
+def rerequest_index(frame: int, retry: int) -> int:
+    """The index of Lock-Step re-request ``retry`` of ``frame`` and of its republished
+    answer (part of their draws' key): ``frame * 64 + min(retry, 63)``."""
+    return frame * RETRY_SLOTS + min(retry, RETRY_SLOTS - 1)

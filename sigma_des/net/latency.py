@@ -1,4 +1,4 @@
-"""Base-latency distributions of a network hop (docs/MODEL.md, "Network").
+"""Base-latency distributions of a network hop (docs/concepts/model.md, "Network").
 
 A :class:`Dist` is a frozen, validated configuration value that samples
 non-negative delays in seconds from a counter-based :class:`~sigma_des.core.rng.Stream`.

@@ -1,4 +1,4 @@
-"""Access links and transports of the modelled network (docs/MODEL.md, "Network").
+"""Access links and transports of the modelled network (docs/concepts/model.md, "Network").
 
 Every client (physics node ``0..n-1``, and the server ``n`` that hosts the
 interface, the alignment server and the renderer) reaches the broker over its
@@ -10,7 +10,7 @@ direction, so results do not depend on event order.
 
 Transports: ``datagram`` (a lost packet is gone) and ``stream`` (per-connection
 in-order delivery; a lost segment is resent after an RTO doubling on each try,
-holding back everything behind it). MQTT on top of this is in
+holding back everything behind it: :mod:`sigma_des.net.resend`). MQTT on top of this is in
 :mod:`sigma_des.net.network`, the broker in :mod:`sigma_des.net.broker`.
 
 This module takes the net layer's own :class:`~sigma_des.net.spec.NetSetup`
@@ -31,6 +31,7 @@ from sigma_des.core.sim import Kernel
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossProcess
 from sigma_des.net.message import Msg
+from sigma_des.net.resend import stream_backoff
 from sigma_des.net.spec import NetSetup
 
 __all__ = ["LinkDir", "Links", "dist_cache"]
@@ -260,7 +261,7 @@ class Links:
             self.k.at(t, self._stream_arrive, seg, False)
             return
         self.retransmissions += 1
-        self.k.at(t + self.rto * (2**attempt), self._stream_retry, seg, attempt + 1)
+        self.k.at(t + stream_backoff(self.rto, attempt), self._stream_retry, seg, attempt + 1)
 
     def _stream_retry(self, seg: _Segment, attempt: int) -> None:
         t = self.k.env.now

@@ -1,4 +1,4 @@
-"""Packet loss on a link: Bernoulli or Gilbert–Elliott bursts (docs/MODEL.md, "Network").
+"""Packet loss on a link: Bernoulli or Gilbert–Elliott bursts (docs/concepts/model.md, "Network").
 
 :class:`LossSpec` is the validated configuration; :class:`LossProcess` decides,
 for a packet sent at time ``t`` and keyed by integer ids (e.g. message kind,

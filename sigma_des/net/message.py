@@ -1,4 +1,4 @@
-"""One message on one hop: the record the network passes along (docs/MODEL.md, "Network").
+"""One message on one hop: the record the network passes along (docs/concepts/model.md, "Network").
 
 A PUBLISH crosses two hops: publisher → broker (its ``client`` is the publisher,
 ``subs`` the clients the broker fans it out to) and broker → each subscriber (its

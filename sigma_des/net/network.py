@@ -1,4 +1,5 @@
-"""MQTT clients over the modelled links, through the broker (docs/MODEL.md, "Network").
+"""MQTT clients over the modelled links, through the broker (docs/concepts/model.md,
+"Network").
 
 Links and transports (FIFO serialization, latency, loss, in-order streams) are
 in :mod:`sigma_des.net.links`, the broker's FIFO service in
@@ -9,25 +10,18 @@ PUBACKs and resends, receive. QoS 1 over ``datagram`` resends with DUP after
 broker in service order, so downlink FIFO reservations are made when the broker
 serves.
 
-With a CPU stage (``deployment.preset`` other than ``none``, :mod:`sigma_des.net.cpu`),
-a client's publish is a burst of its process's demand (the PUBLISH leaves at the
-burst's end) and every copy it receives is a burst at its arrival (the application
-gets it at the burst's end; the PUBACK leaves at the arrival; the latency ends at the
-burst's start, when the process takes it). A burst that finds its process's thread idle
-costs the process's wake-up more (:class:`~sigma_des.net.cpu.Process`). A process with a
-network thread (``deployment.*_net_msg``, ``*_net_wake``) also passes every copy it
-receives and every PUBLISH it sends through that thread (``Process.net_span``): a
-receipt is stamped when the network thread takes the copy, which then goes to the loop
-thread; a PUBLISH leaves when the network thread takes it. A zero demand is no
-burst and no event. With per-host clients (``deployment.clients = "host"``) the MQTT
-clients are the physics hosts (client id: the host's first node) and the server: a
-node's state leaves through its host's client, and what a host client receives is
-handed to its nodes (a trigger, the only broadcast, to each in node order; a message
-about node ``i`` to ``i``). With ``bundle`` a host client's state publishes of one loop
-turn are one PUBLISH (:class:`Bundle`), and so are the server's commands of one turn to
-one host, handed over record by record at the receiver: the publishes of one instant
-or, with a CPU stage, every publish made while the sender's process is busy joins the
-PUBLISH that leaves when it is free.
+With a CPU stage (:mod:`sigma_des.net.cpu`) a client's publish is a burst of its
+process's demand (the PUBLISH leaves at its end) and every copy it receives is a burst
+at its arrival (the latency ends at the burst's start; with a network thread, at that
+thread's burst's end); what is charged where: docs/concepts/deployment.md. With per-host
+clients (``deployment.clients = "host"``) the MQTT clients are the physics hosts (client
+id: the host's first node) and the server: a node's state leaves through its host's
+client, and what a host client receives is handed to its nodes (a trigger, the only
+broadcast, to each in node order; a message about node ``i`` to ``i``). With ``bundle``
+a host client's state publishes of one loop turn are one PUBLISH (:class:`Bundle`), and
+so are the server's commands of one turn to one host, handed over record by record at
+the receiver: the publishes of one instant or, with a CPU stage, every publish made
+while the sender's process is busy joins the PUBLISH that leaves when it is free.
 
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
@@ -393,7 +387,7 @@ class Network(Links):
         """(A process with a network thread) ``m`` is stamped at the end of that
         thread's burst (paho's callback): a loop-thread burst of its cost is charged,
         and the application gets it at once. Live's loop runs a state 1-3 µs after
-        paho stamps it, at every load (session 16, LIVE.md): its waits are before the
+        paho stamps it, at every load (docs/concepts/decisions.md): its waits are before the
         stamp, not after it."""
         proc = self._proc[m.client]
         assert proc is not None

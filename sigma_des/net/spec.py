@@ -7,7 +7,7 @@ run: the net takes that setup, never the scenario. Validation happens on
 construction and raises :class:`~sigma_des.errors.ConfigError` with the local
 field name (the scenario loader prefixes the dotted path).
 
-DDS defaults name their source (docs/MODEL.md, "Peer architectures"):
+DDS defaults name their source (docs/concepts/peers.md):
 
 Sources:
     [RTPS]  OMG DDS Interoperability Wire Protocol (DDSI-RTPS) 2.5, §8.3 (message

@@ -1,4 +1,4 @@
-"""Wire sizes of MQTT 3.1.1 packets and their framing (docs/MODEL.md, "Network").
+"""Wire sizes of MQTT 3.1.1 packets and their framing (docs/concepts/model.md, "Network").
 
 Throughput is reported in wire bits, so every packet is counted with all its
 overheads:

@@ -8,6 +8,7 @@ per-node states (:func:`read_states`). ``mode="incremental"`` stores states as
 per-node deltas with a dead-band and keyframes (:mod:`sigma_des.record.delta`).
 """
 
+from sigma_des.record.method import MethodRecorder
 from sigma_des.record.reader import (
     RecordError,
     Recording,
@@ -16,7 +17,7 @@ from sigma_des.record.reader import (
     read_states,
     read_table,
 )
-from sigma_des.record.writer import RECORD_MODES, MethodRecorder, Recorder
+from sigma_des.record.writer import RECORD_MODES, Recorder
 
 __all__ = [
     "MethodRecorder",

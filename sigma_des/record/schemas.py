@@ -10,7 +10,7 @@ one window** (one trigger period by default: a small per-frame message) as an ar
 of row objects, one per delivery, each with its own send and receive time. In
 Foxglove, ``/<method>/state.rows[:]{node==3}.z`` plots node 3 over time.
 
-Values that may be missing are never ``null`` (see docs/MODEL.md, *Recording*):
+Values that may be missing are never ``null`` (see docs/concepts/recording.md):
 
 * a row field whose value is not known or not finite is **absent** (``t_recv`` of a
   trigger issue or a command send; a non-finite state value);

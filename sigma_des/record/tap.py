@@ -5,12 +5,12 @@ delivered, snapshots change and render ticks sample. Both engines call it in
 simulated-time order, and states reach it no later than the next tick, so at an
 alignment or render tick at ``t`` (one every 0.2 s of simulated time at most) the tap
 promises the recorder that nothing older than ``t`` follows
-(:meth:`~sigma_des.record.writer.MethodRecorder.advance`): the recording is written as
+(:meth:`~sigma_des.record.method.MethodRecorder.advance`): the recording is written as
 the run goes, in ``log_time`` order, one message per trigger period and channel. The
 tap converts the published state rows (columns
 :data:`~sigma_des.core.models.OBS_FIELDS`: body velocities, Euler angles, body rates,
 north/east position, altitude up) to NED position, NED velocity and Euler angles, and
-writes them through a :class:`~sigma_des.record.writer.MethodRecorder`.
+writes them through a :class:`~sigma_des.record.method.MethodRecorder`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.events.tap import Tap
-from sigma_des.record.writer import MethodRecorder, Recorder
+from sigma_des.record.method import MethodRecorder
+from sigma_des.record.writer import Recorder
 
 __all__ = ["RecordTap", "obs_to_ned"]
 

@@ -62,7 +62,7 @@ def replay(
         methods: recorded alignment methods to replay (default: all).
         window: the dynamic-window rule (``hermite-dw``); default ``rule="none"``: the
             simulator records exact states, and on noise-free samples any tangent window
-            only adds bias (see docs/REPLAY.md).
+            only adds bias (see docs/concepts/recording.md).
 
     Returns:
         A ``pandas.DataFrame`` of :data:`REPLAY_COLUMNS` (NED m, rad).

@@ -8,7 +8,7 @@
 * :func:`aggregate_rows` — mean, std, n and 95 % CI half-width over seeds.
 * :func:`parse_grid_args`, :func:`parse_seeds` — the ``--grid``/``--seeds`` syntax.
 
-See ``docs/SWEEPS.md``.
+See ``docs/howto/sweep-dask.md``.
 """
 
 from sigma_des.sweep.aggregate import aggregate_rows, t975, write_csv

@@ -26,6 +26,7 @@ from sigma_des.config import (
 )
 from sigma_des.errors import ConfigError
 from sigma_des.loading import from_dict
+from sigma_des.overrides import split_item
 
 __all__ = [
     "Grid",
@@ -88,12 +89,7 @@ def parse_grid_args(items: Iterable[str]) -> dict[str, list[Any]]:
     """
     grid: dict[str, list[Any]] = {}
     for item in items:
-        if "=" not in item:
-            raise ConfigError(item, "a grid axis must look like key=v1,v2,...")
-        key, raw = item.split("=", 1)
-        key = key.strip()
-        if not key:
-            raise ConfigError(item, "empty key in --grid")
+        key, raw = split_item(item, "a grid axis must look like key=v1,v2,...", "--grid")
         if key in grid:
             raise ConfigError(key, "given twice in --grid; list all its values in one --grid")
         pieces = split_values(raw)

@@ -268,6 +268,7 @@ class Sweep:
             bar_format="{l_bar}{bar}| [{elapsed}<{remaining}{postfix}]",
             postfix=f"runs 0/{len(todo)}, failed 0",
             leave=False,
+            disable=None,  # no bar when stderr is not a terminal (no \r frames in logs)
         )
 
     # ------------------------------------------------------------ results

@@ -73,7 +73,7 @@ def tune_bytes(log: Any, spec: Any) -> int:
     observations over the window (float64): 49 KB per candidate on a 3 s, 100 Hz
     log, which is what the peak RSS grew by per candidate from population 200 to
     4000. Selection briefly holds two generations' arrays, so 1.5 times that is
-    reserved (issue 26 measured 7.3 GB at population 100000).
+    reserved (measured: 7.3 GB at population 100000).
     """
     from sigma_des.agents import layout as L
     from sigma_des.tuning.replay import windows

@@ -1,7 +1,7 @@
 """Compile every numba kernel a default run uses into numba's on-disk cache, in parallel.
 
-A fresh install compiles its kernels on first use (about 45 CPU-seconds on the 2-core
-reference machine; see docs/BENCHMARKS.md, "First-run cost"), so the first ``compare``
+A fresh install compiles its kernels on first use (about 1.5 CPU-minutes on a 2-core
+machine; docs/concepts/engines.md), so the first ``compare``
 spends most of a minute before it simulates. ``sigma-des warmup`` (run once after
 installing) pays that cost up front and splits it over the CPUs: the kernels fall in
 two independent groups of similar size, each compiled in its own process —

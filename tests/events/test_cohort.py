@@ -1,4 +1,4 @@
-"""The cohort engine reproduces the per-message engine exactly (docs/MODEL.md, "Engines").
+"""The cohort engine reproduces the per-message engine exactly (docs/concepts/engines.md).
 
 Every test runs one scenario on both engines and compares the whole result:
 every metric, per-link throughput, the per-render-tick time series and the

@@ -1,4 +1,4 @@
-"""The cohort core reproduces the deployment exactly (docs/MODEL.md, "Engines",
+"""The cohort core reproduces the deployment exactly (docs/concepts/engines.md,
 "Deployment and CPU").
 
 The CPU stage (bursts at publish, receive, broker service and the server's alignment

@@ -1,4 +1,4 @@
-"""The cohort core reproduces the transports exactly (docs/MODEL.md, "Engines").
+"""The cohort core reproduces the transports exactly (docs/concepts/engines.md).
 
 MQTT QoS 1 over datagram: resends after a lost or late PUBLISH, lost or late PUBACKs
 (a resend only while the sender's timer still runs), redeliveries by the broker,

@@ -1,4 +1,4 @@
-"""The message core behind MethodRun (docs/MODEL.md, "Engines"): one interface, two cores."""
+"""The message core behind MethodRun (docs/concepts/engines.md): one interface, two cores."""
 
 from __future__ import annotations
 

@@ -29,7 +29,7 @@ BENCH = EXPERIMENTS / "bench_engine.py"
 
 # The engine books a broker service's end as start + (publish + Σ deliveries) but its
 # deliveries leave at start + publish + d0 + d1 …; the two floats differ in the last bits
-# (docs/BENCHMARKS.md), which moves absolute times by ~1e-16 s. 1e-12 s is far above
+# (lab/record/BENCHMARKS.md), which moves absolute times by ~1e-16 s. 1e-12 s is far above
 # that and far below any modelling difference (serialization ~1 µs, service ~3 µs).
 TOL_S = 1e-12
 

@@ -1,4 +1,4 @@
-"""experiments/report_env.py turns quick env outputs into docs/ENV.md text."""
+"""experiments/report_env.py turns quick env outputs into lab/record/ENV.md text."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import report_env  # noqa: E402
 import train_formation  # noqa: E402
 from sigma_lab.studies.env_report import build, delay_studies, delay_verdict  # noqa: E402
 
-IMG = ROOT / "docs" / "img" / "env"
+IMG = ROOT / "lab" / "record" / "img" / "env"
 
 
 def test_report_from_quick_outputs(tmp_path: Path) -> None:

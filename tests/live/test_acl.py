@@ -1,5 +1,5 @@
 """An external broker's ACL keeps a client without rights to the control topics from
-stopping a run (docs/LIVE.md, "What an external broker must be configured with")."""
+stopping a run (docs/howto/live.md, "With a broker of your own")."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ GUEST_PW = "guest-password"
 
 
 def _acl(sim: str, guest_rights: str) -> str:
-    """The LIVE.md ACL: the simulator's user reads and writes ``sd/#``; the guest has
+    """The how-to's ACL: the simulator's user reads and writes ``sd/#``; the guest has
     ``guest_rights`` on it (``read``: an observer)."""
     return f"user {sim}\ntopic readwrite sd/#\n\nuser guest\ntopic {guest_rights} sd/#\n"
 

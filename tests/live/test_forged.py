@@ -100,7 +100,7 @@ def test_forged_messages_are_counted_and_dropped_and_the_run_completes() -> None
 
 WIN = Window.of(1.5, 100.0, 10.0)
 GOOD_STATS = {"host": 0, "links": {"host0.up": [100, 2]}, "step_real_s": 0.01,
-              "rollbacks": 0, "resim_steps": 0, "history_misses": 0, "rejected": 0, "lost": 0,
+              "rollbacks": 0, "resim_steps": 0, "history_misses": 0, "rejected": 0, "resent": 0,
               "gave_up": 0, "connects": 1, "disconnects": 0, "steps": 5,
               "wake": {"wakes": 3, "calls": 7, "cpu_s": 0.002, "skk": 19.0, "skc": 0.005}}
 
@@ -115,7 +115,7 @@ def test_window_of_a_run() -> None:
 
 def test_good_stats_pass_and_each_bad_field_is_named() -> None:
     assert check_stats(json.dumps(GOOD_STATS).encode(), 0) == GOOD_STATS
-    for key, bad in [("rollbacks", -1), ("steps", "5"), ("lost", 1.5), ("rejected", True),
+    for key, bad in [("rollbacks", -1), ("steps", "5"), ("resent", 1.5), ("rejected", True),
                      ("step_real_s", "x"), ("links", {"a": [1]}), ("links", [1, 2]),
                      ("connects", 2**60), ("wake", {"wakes": 3}),
                      ("wake", {**GOOD_STATS["wake"], "cpu_s": -1.0}),

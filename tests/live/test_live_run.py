@@ -98,7 +98,8 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
     down = sc.net.host_link.latency_down
     assert down is not None and down.file != sc.net.host_link.latency.file  # per direction
     assert sc.compute.step_time.dist == "lognormal"
-    # the CPU stage is on: the live machine's deployment, fitted (docs/LIVE.md)
+    # the CPU stage is on: the live machine's deployment, fitted
+    # (docs/concepts/live-and-calibration.md)
     summ = json.loads((live_dir / "summary.json").read_text())["live"]
     dep = sc.deployment
     assert (dep.preset, dep.clients, dep.server_tick) == ("colocated", "host", 0.0)

@@ -9,10 +9,12 @@ import numpy as np
 import pytest
 
 from sigma_des.live.wire import (
+    REREQUEST_BYTES,
     STATE_BYTES,
     TRIGGER_BYTES,
     Topics,
     WireError,
+    command_bytes,
     decode_command,
     decode_rerequest,
     decode_state,
@@ -21,14 +23,24 @@ from sigma_des.live.wire import (
     encode_rerequest,
     encode_state,
     encode_trigger,
+    run_token,
+    state_topic_bytes,
 )
 
 
 def test_sizes_are_the_documented_ones() -> None:
     assert TRIGGER_BYTES == 33
     assert STATE_BYTES == 85
-    assert len(encode_command(1, 2, 3, 0.5, np.zeros(4))) == 23 + 8 * 4
-    assert len(encode_rerequest(1, 2, 3, 0.5)) == 21
+    assert len(encode_command(1, 2, 3, 0.5, np.zeros(4))) == command_bytes(4) == 23 + 8 * 4
+    assert len(encode_rerequest(1, 2, 3, 0.5)) == REREQUEST_BYTES == 21
+
+
+def test_a_state_topic_has_the_same_length_in_every_run_of_a_method() -> None:
+    tokens = {run_token("bides") for _ in range(3)}
+    assert len(tokens) == 3 and all(len(t) == 8 + 5 for t in tokens)
+    for t in tokens:
+        assert len(Topics(t).state(12)) == state_topic_bytes("bides", 12)
+    assert state_topic_bytes("bides", 12) == len("sd/") + 13 + len("/up/h12/state") == 29
 
 
 def test_round_trips() -> None:

@@ -7,10 +7,14 @@ from typing import Any
 
 import pytest
 
+from sigma_des import load
 from sigma_des.core.rng import RandomStreams
+from sigma_des.core.sim import Kernel
 from sigma_des.live.shim import DOWN, UP, Impairment
 from sigma_des.net.latency import Dist
 from sigma_des.net.loss import LossSpec
+from sigma_des.net.message import Msg
+from sigma_des.net.network import Network
 from sigma_des.net.spec import LinkSpec, NetSpec
 
 
@@ -35,7 +39,7 @@ def test_constant_latency_and_stream_order() -> None:
     assert release == sorted(release)  # stream transport keeps order
     dg = Impairment(LinkSpec(latency=Dist(dist="constant", value=0.003)),
                     NetSpec(transport="datagram"), RandomStreams(3), 1)
-    assert dg.delay(1.0, UP, 2, 5, 7) == 0.003
+    assert dg.arrival(1.0, UP, 2, 5, 7) == 1.0 + 0.003
 
 
 def test_loss_follows_the_link_loss_process() -> None:
@@ -85,10 +89,7 @@ def test_live_loses_the_messages_the_des_loses(up: bool) -> None:
     """Same seed, same packets lost: the shim's decision for (kind, subject, index,
     attempt) on a host link is the DES network's own (``Links.hop``), both directions
     (states up; triggers, keyed by the host's first node, and commands down)."""
-    from sigma_des import load
-    from sigma_des.core.sim import Kernel
     from sigma_des.net.kinds import COMMAND, STATE, TRIGGER
-    from sigma_des.net.network import Network
 
     sc = load(None, ["nodes=4", "hosts=2", "net.host_link.loss.p=0.2", "net.qos=0",
                      "net.transport='datagram'"])
@@ -105,3 +106,31 @@ def test_live_loses_the_messages_the_des_loses(up: bool) -> None:
                 assert math.isinf(d) == lost_des
                 n_lost += lost_des
     assert 40 * len(kinds) < n_lost < 120 * len(kinds)  # p = 0.2 of 400 per kind
+
+
+def test_the_des_stream_holds_later_segments_behind_a_given_up_one() -> None:
+    """``Links``: a segment lost on every try releases the segments behind it when it
+    is given up (its last try); the shim keeps the same order (its give-up at
+    ``t + rto·(2^(max_retries) - 1)``)."""
+
+    sets = ["nodes=2", "hosts=1", "net.host_link.loss.p=0.5", "net.transport='stream'",
+            "net.rto=0.1", "net.max_retries=1", "net.host_link.latency.value=0.002"]
+    sc = load(None, sets)
+    imp = Impairment(sc.net.host_link, sc.net, RandomStreams(sc.seed), 0)
+    lost = RandomStreams(sc.seed).stream("lossu.host.up")
+    fates = [[bool(lost.uniform(2, 0, k, a)[()] < 0.5) for a in range(2)] for k in range(40)]
+    gone = next(k for k, f in enumerate(fates) if all(f))  # lost on both tries
+    after = next(k for k in range(gone + 1, 40) if not fates[k][0])  # through at once
+    assert imp.delay(0.0, UP, 2, 0, gone) == math.inf
+    # sent 1 ms later, it arrives at 0.003 s but waits for the give-up at 0.1 s
+    assert imp.arrival(0.001, UP, 2, 0, after) == 0.1
+    # the DES's stream: the same two messages on node 0's uplink
+    k = Kernel()
+    got: list[tuple[float, int]] = []
+    net = Network(k, sc.net_setup(), RandomStreams(sc.seed), lambda m: None)
+    for t, idx in ((0.0, gone), (0.001, after)):
+        m = Msg(0, 2, 0, idx, None, 100, (), 0, t, t)
+        k.at(t, net.transmit, m, True, 100, lambda m: got.append((k.now, m.index)))
+    k.run(until=1.0)
+    assert got == [(0.1, after)]
+    assert net.gave_up == 1

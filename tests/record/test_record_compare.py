@@ -63,7 +63,7 @@ def test_both_engines_record_the_same_states(recorded: dict) -> None:
 
 
 def test_triggers_and_commands_per_engine(recorded: dict) -> None:
-    """Events engine: every delivery; cohort engine: the sends (see docs/MODEL.md)."""
+    """Events engine: every delivery; cohort engine: the sends (see docs/concepts/model.md)."""
     ev = read_table(recorded["events"][1])
     co = read_table(recorded["cohort"][1])
     n = 3

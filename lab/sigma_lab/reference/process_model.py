@@ -1,7 +1,7 @@
 """An idiomatic one-process-per-message SimPy model of the sigma_des loop.
 
 This is the *baseline* of ``experiments/bench_engine.py``: an independent
-re-implementation of the model contract (``docs/MODEL.md``, "Components and message
+re-implementation of the model contract (``docs/concepts/model.md``, "Components and message
 flow" and "Network") for a restricted scenario class, written the textbook SimPy
 way, so that the engine's speed can be compared with it and its metrics
 cross-checked against it:

@@ -7,7 +7,7 @@ per-message engine and the process-per-message reference model
 what it runs: :func:`plan` (the cases of one N), :func:`run_fresh` (one case in a
 fresh child process on the local executor, :mod:`sigma_des.pool`, so peak RSS
 is per case), :func:`make_row` (one CSV row) and :func:`annotate` (speed-up ratios
-and the metric checks). See ``docs/BENCHMARKS.md``.
+and the metric checks). See ``lab/record/BENCHMARKS.md``.
 
 For every node count N this measures, each case in a fresh child process (so
 peak RSS is per case, single-threaded):
@@ -39,7 +39,7 @@ N >= ``--large-n`` (1000) they simulate ``min(duration, --events-cap)`` and
 It also checks the metrics: cohort and events must be bit-identical on every
 metric (max relative difference exactly 0), cohort and baseline must agree to
 :data:`BASELINE_RTOL` on :data:`COMPARED` (two independent implementations of the
-same model with the same keyed random draws; see docs/BENCHMARKS.md). Metrics
+same model with the same keyed random draws; see lab/record/BENCHMARKS.md). Metrics
 are only compared between runs of the same simulated duration: where
 ``--events-cap`` or ``--baseline-cap`` shortens a run, a cohort *twin* of that
 duration is run as well. The exit status is 1 if a check fails.
@@ -54,6 +54,7 @@ from typing import Any, NamedTuple
 
 from sigma_des import config
 from sigma_des.pool import run_all
+from sigma_lab.studies.engine_case import Case
 from sigma_lab.studies.engine_norm import target_of
 
 __all__ = ["ALL_METHODS", "BASELINE_RTOL", "COLUMNS", "COMPARED", "ENGINES", "NODES_PER_HOST",
@@ -131,27 +132,6 @@ COLUMNS: tuple[str, ...] = (
 
 #: Thread-count variables set to 1: one core per case.
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
-
-
-class Case(NamedTuple):
-    """One planned run.
-
-    Attributes:
-        impl: ``cohort``, ``events`` or ``baseline``.
-        method: alignment method.
-        scenario: ``full`` or ``restricted``.
-        sim_s: simulated seconds.
-        role: ``main`` (a timed case of the tables) or ``twin`` (a cohort run at
-            the capped duration of an ``events`` or ``baseline`` case, so that
-            metrics are compared between runs of equal duration) or ``reference``
-            (a baseline run only to normalise the figures: ``engine_norm``).
-    """
-
-    impl: str
-    method: str
-    scenario: str
-    sim_s: float
-    role: str = "main"
 
 
 # ---------------------------------------------------------------- one case (child process)
@@ -294,7 +274,7 @@ def run_case(
 
 def warm_duration(sc: Any) -> float:
     """:func:`run_case`'s warm-up length (s): past the first command tick, where the behaviour
-    loads its kernels (≈ 25 ms; docs/BENCHMARKS.md, issue 27, fixed costs, session 16)."""
+    loads its kernels (≈ 25 ms; lab/record/BENCHMARKS.md, issue 27, fixed costs, session 16)."""
     return max(0.05, (sc.commands.every + 2) / sc.f_align)
 
 

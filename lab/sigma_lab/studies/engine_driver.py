@@ -6,7 +6,7 @@ and :func:`bench_options` turn its command line into :class:`BenchOptions`,
 :func:`sigma_lab.studies.engine_bench.run_fresh`) and returns the rows, the metric
 checks and the notes, :func:`sigma_lab.studies.engine_tables.report_text` formats
 them and :func:`write_csv` writes the rows. What a case is and how it is compared is
-:mod:`sigma_lab.studies.engine_bench`; see ``docs/BENCHMARKS.md``.
+:mod:`sigma_lab.studies.engine_bench`; see ``lab/record/BENCHMARKS.md``.
 """
 
 from __future__ import annotations

@@ -3,22 +3,21 @@
 Machines differ, so ``experiments/bench_engine.py`` scales every CPU-s/s figure by the
 SimPy baseline measured in the same run (:func:`normalise`, :func:`reference_row`) and
 checks each cohort row against issue 27's target (:func:`target_of`); see
-``docs/BENCHMARKS.md``, "How to run".
+``lab/record/BENCHMARKS.md``, "How to run".
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from sigma_lab.studies.engine_bench import Case
+from sigma_lab.studies.engine_case import Case
 
 __all__ = ["REF_CPU_PER_SIM_S", "REF_NODES", "REF_SIM_S", "normalise", "reference_row",
            "target_of"]
 
-#: The reference machine of the speed targets (issue 27, docs/BENCHMARKS.md): there the
+#: The reference machine of the speed targets (issue 27, lab/record/BENCHMARKS.md): there the
 #: in-repo SimPy baseline (:mod:`sigma_lab.reference.process_model`) costs this many CPU
 #: seconds per simulated second at ``REF_NODES`` nodes, restricted scenario, ``REF_SIM_S``
 #: simulated seconds. A figure measured here is scaled by ``REF_CPU_PER_SIM_S / b``, ``b``

@@ -1,4 +1,4 @@
-"""docs/ENV.md from the env study outputs: speed (``bench_env.py``), training
+"""lab/record/ENV.md from the env study outputs: speed (``bench_env.py``), training
 (``train_formation.py``) and the training-under-delay studies (``train_under_delay.py``,
 each followed by its ages control, ``train_ages_control.py``).
 
@@ -237,7 +237,7 @@ def delay_study(path: Path, img_dir: Path) -> str:
     figs = [f"![{name}: {f}](img/env/{name}_{f}.png)" for f in ("learning_curves", "eval")
             if (img_dir / f"{name}_{f}.png").exists()]
     lines += ["", f"Plots: `{name}/learning_curves.png` and `{name}/eval.png` under the "
-              "outputs" + (" (copies in `docs/img/env/`):" if figs else "."), *(
+              "outputs" + (" (copies in `lab/record/img/env/`):" if figs else "."), *(
                   ["", *figs] if figs else [])]
     lines += ["", f"Shown at p < 0.05 by both tests in: {', '.join(shown) or 'no cell'} "
               f"(of {len(d['stats'])}; {len(done)} seeds, no correction for multiple cells).",
@@ -318,7 +318,7 @@ def delay_studies(outputs: Path, templates: Templates, img_dir: Path) -> str:
 
 
 def build(outputs: Path, templates: Templates, img_dir: Path) -> str:
-    """The whole of docs/ENV.md: the fixed prose of ``templates`` (``env_*``) around the
+    """The whole of lab/record/ENV.md: the fixed prose of ``templates`` (``env_*``) around the
     sections of the study outputs under ``outputs``."""
     intro = templates.text("env_intro")
     return "\n".join([intro, bench_section(outputs, templates), train_section(outputs),

@@ -75,7 +75,7 @@ METHODS = ("none", "lockstep", "hlc", "bides")
 IDEAL = "ideal"
 N_AIRCRAFT = 5
 LEADER = 0
-#: The paper's formation parameters (docs/MODEL.md, "Reference figures from the paper").
+#: The paper's formation parameters (docs/concepts/paper.md).
 PAPER: dict[str, Any] = {
     "d": 30.0, "theta_deg": 45.0, "p_phi": 0.015, "p_psi": 0.4, "p_v": 0.3, "v_cru": 20.0,
     "route_m": [1000.0, 750.0], "log_rate_hz": 30.0, "aircraft": 5,

@@ -6,7 +6,7 @@ host, as in the paper) × methods × seeds; after it ran, :func:`key_figures` pi
 the :data:`KEY_METRICS` of the aggregate rows, :func:`lockstep_degradation` finds
 where Lock-Step falls behind BiDES, :func:`summary` is ``summary.json``,
 :func:`figure_table` the printed table and :func:`plot_figures` the PNGs. See
-``docs/SWEEPS.md``.
+``lab/record/SWEEPS.md``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Reading study summaries into Markdown: numbers, per-method tables, templates.
 
-The section modules of ``docs/REPRODUCTION.md`` (``experiments/report_*.py``, joined
+The section modules of ``lab/record/REPRODUCTION.md`` (``experiments/report_*.py``, joined
 by ``experiments/make_report.py``) read each study's ``summary.json`` (written by
 :func:`sigma_lab.studies.write_study`) and fill a ``str.format`` template of prose
 (:class:`Templates`) with figures formatted here.

@@ -1,7 +1,7 @@
 """Study tables: :func:`variant_table` and, re-exported, the project's one formatter.
 
 :func:`text_table` right-aligns plain-text columns (printed by the scripts) and
-:func:`md_table` writes a Markdown table (``docs/REPRODUCTION.md``); both live in
+:func:`md_table` writes a Markdown table (``lab/record/REPRODUCTION.md``); both live in
 :mod:`sigma_des.tables`, shared with ``compare``'s table. :func:`variant_table` is a
 study variant's seed means as a text table.
 """

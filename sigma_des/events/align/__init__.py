@@ -1,6 +1,6 @@
 """The alignment methods, one module each, and the registry users pick them by name from.
 
-docs/MODEL.md, "Alignment methods". Every method is an
+docs/concepts/methods.md. Every method is an
 :class:`~sigma_des.events.align.base.Aligner` with one batch interface
 (``on_trigger``, ``on_states``, ``align``, ``report``); :data:`ALIGNERS` maps a
 method's name to its class, and :func:`make_aligner` builds one from

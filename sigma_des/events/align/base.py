@@ -1,6 +1,6 @@
 """What every alignment method shares: the server context, the batch interface, the snapshot.
 
-An aligner lives at the alignment server (docs/MODEL.md, "Alignment methods"). The
+An aligner lives at the alignment server (docs/concepts/methods.md). The
 engine hands it the delivered states in batches (:meth:`Aligner.on_states` with a
 :class:`StateBatch`; a single state is a batch of one, :func:`one_state`; a method that
 keeps nothing but ring buffers may let a compiled core store them,

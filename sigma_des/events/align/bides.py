@@ -1,6 +1,6 @@
 """The ``bides`` method: Algorithm 1 over ring buffers, lag exclusion, adaptive trigger rate.
 
-docs/MODEL.md, "Alignment methods": the server keeps each node's last ``ring_size``
+docs/concepts/methods.md: the server keeps each node's last ``ring_size``
 states (:class:`~sigma_des.events.align.ring.RingBuffers`), builds the snapshot with
 Algorithm 1 (:func:`~sigma_des.events.align.ring.align`: hole filling, lag
 exclusion) and adapts the trigger rate to the alignment lag (latest trigger minus

@@ -1,6 +1,6 @@
 """The ``hlc`` method: states shown in hybrid-logical-clock order once causally stable.
 
-docs/MODEL.md, "Alignment methods": every state carries its node's HLC stamp; the
+docs/concepts/methods.md: every state carries its node's HLC stamp; the
 server buffers them in a :class:`~sigma_des.events.align.hlc_clock.StabilityBuffer`
 and, at each alignment tick, shows the newest frame per node among the states that
 became stable. A node silent for ``liveness_timeout`` no longer blocks stability

@@ -1,6 +1,6 @@
 """Hybrid logical clocks and the HLC consumer's stability buffer.
 
-docs/MODEL.md, "Alignment methods", ``hlc``.
+docs/concepts/methods.md, ``hlc``.
 
 :class:`HLC` implements the send and receive rules of Kulkarni et al., "Logical
 Physical Clocks" (OPODIS 2014); the physical part ``pt`` is the node's (drifting)

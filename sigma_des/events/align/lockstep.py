@@ -1,6 +1,6 @@
 """The ``lockstep`` method: a central barrier, trigger k+1 only after every live node's frame k.
 
-docs/MODEL.md, "Alignment methods": after trigger k the server waits for the state
+docs/concepts/methods.md: after trigger k the server waits for the state
 of frame k from every live node, re-requests a missing one every ``retry_timeout``
 and, with ``eviction_timeout`` set, evicts nodes still missing after it (an evicted
 node rejoins when it delivers the newest frame). The completed frame is the shown

@@ -1,6 +1,6 @@
 """The ``none`` method: no alignment, each node's newest received state whatever its frame.
 
-The baseline of docs/MODEL.md, "Alignment methods": the server shows, per node, the
+The baseline of docs/concepts/methods.md: the server shows, per node, the
 state of the highest frame it has received; the snapshot's reference frame is the
 highest of those.
 """

@@ -1,18 +1,15 @@
 """BiDES swarm state alignment (the paper's Algorithm 1) over per-node ring buffers.
 
-The alignment server keeps the last ``k`` states of every node in
-:class:`RingBuffers` (slot ``frame % k``) and :func:`align` builds a snapshot of
-the whole swarm at one frame, vectorised over nodes (no Python loop per node).
+The server keeps the last ``k`` states of every node in :class:`RingBuffers` (slot
+``frame % k``); :func:`align` builds a snapshot at one frame, vectorised over nodes.
 
-Decisions where the model (docs/MODEL.md, "Alignment methods") leaves room (documented
-here and in the tests):
+Decisions where the model (docs/concepts/methods.md) leaves room (tested):
 
 * **Considered nodes** are those with any state; with ``theta_lag`` set, a node
   whose newest frame lags the swarm's newest by more than ``theta_lag`` frames is
   left out of the minimum (optimistic alignment) and shown EXTRAPOLATED.
-* **Aligned frame** ``F = max(prev_frame, min latest over considered nodes)``, so
-  it never goes back.
-* A considered node with a state at exactly ``F`` shows it: EXACT.
+* **Aligned frame** ``F = max(prev_frame, min latest over considered)``: never back.
+* A considered node with a state at exactly ``F`` shows it (EXACT).
 * A hole at ``F`` (lost packet, or a node behind ``F`` because ``prev_frame``
   held ``F`` up):
 
@@ -28,11 +25,8 @@ here and in the tests):
   from its two newest buffered frames to ``F`` (a copy of the newest if it has
   only one) and reported at ``frame`` ``F`` (the model: the slot stands for the
   aligned frame), ``gen_time`` that of its newest state (so its AoI stays honest).
-* So a shown state's ``frame`` differs from ``F`` only for a hole shown as a
-  single buffered neighbour (held older state, or with ``hole_fill`` the oldest
-  newer state when every older one has left the ring): the only cases of a
-  non-zero frame spread.
-* MISSING rows have ``frame = -1``, ``gen_time = NaN`` and ``obs = NaN``.
+* A shown ``frame`` differs from ``F`` only for a hole shown as a single buffered
+  neighbour: the only non-zero frame spread. MISSING rows: ``frame = -1``, NaN times.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Each class is one TOML table of the scenario (``[lockstep]``, ``[hlc]``, ``[bide
 ``[rpc]``); :class:`sigma_des.config.Scenario` embeds them and keeps their keys,
 defaults and messages. :class:`AlignParams` bundles what an aligner may be built
 from (its method's spec and a few scalars of the run), so the methods never see the
-whole scenario (docs/MODEL.md, "Alignment methods"). Validation happens on
+whole scenario (docs/concepts/methods.md). Validation happens on
 construction and raises :class:`~sigma_des.errors.ConfigError` with the local field
 name (the loader prefixes the dotted path).
 """

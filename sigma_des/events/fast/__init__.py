@@ -1,4 +1,4 @@
-"""The compiled message core: a backend of the engine (docs/MODEL.md, "Engines").
+"""The compiled message core: a backend of the engine (docs/concepts/engines.md).
 
 ``layout`` declares its state by name; ``primitives`` holds the queueing, slot,
 draw and link operations; ``queue`` the event queue (a merge of sorted runs);

@@ -1,4 +1,4 @@
-"""The broker in the compiled message core (docs/MODEL.md, "Network").
+"""The broker in the compiled message core (docs/concepts/model.md, "Network").
 
 One FIFO server (the Lindley recursion, one departure after another): a PUBLISH
 takes its publish service, then each matching subscriber its delivery service,

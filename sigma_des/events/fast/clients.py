@@ -1,5 +1,4 @@
-"""What a client's application gets, in the compiled message core (docs/MODEL.md,
-"Deployment and CPU").
+"""What a client's application gets, in the compiled message core (docs/concepts/deployment.md).
 
 ``Network._client_receive`` and ``_hand_over``, with the same operations in the
 same order: a copy that reaches its client (after the PUBACK) is a burst of the

@@ -1,4 +1,4 @@
-"""Node local clocks in the compiled core (docs/MODEL.md, "Components", Clocks).
+"""Node local clocks in the compiled core (docs/concepts/model.md, Clocks).
 
 :func:`local_time` is :meth:`sigma_des.net.clocks.NodeClocks.local_time` for one
 node and time, the same floating point operations in the same order: without NTP

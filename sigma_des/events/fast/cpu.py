@@ -1,4 +1,4 @@
-"""The CPU stage in the compiled message core (docs/MODEL.md, "Deployment and CPU").
+"""The CPU stage in the compiled message core (docs/concepts/deployment.md).
 
 Every process (the broker, the server, each physics host's client process) is one
 thread on a machine's cores; a burst is placed at its arrival —

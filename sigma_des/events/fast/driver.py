@@ -1,4 +1,4 @@
-"""The compiled message core as a backend of the engine (docs/MODEL.md, "Engines").
+"""The compiled message core as a backend of the engine (docs/concepts/engines.md).
 
 :class:`CompiledCore` processes the messages of a
 :class:`~sigma_des.events.engine.MethodRun` — trigger fan-out, node computation,
@@ -60,7 +60,7 @@ from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 from sigma_des.net.network import Network
 
 __all__ = ["SLACK", "CompiledCore", "Host"]
@@ -242,7 +242,7 @@ class CompiledCore:
         """Load, for this state's types, the loop's entry points Python calls; return how
         many were not loaded yet. For benchmarks' warm-ups: a tiny run never reaches
         ``publish_commands`` or the rollbacks' entry points (≈ 30 ms to load, which the
-        timed run would then pay; docs/BENCHMARKS.md, "Issue 27, fixed per-run costs")."""
+        timed run would then pay)."""
         from numba import typeof, types
 
         s, i64, f64 = typeof(self.S), types.int64, types.float64
@@ -315,7 +315,7 @@ class CompiledCore:
 
     def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""
-        index = checked_int(frame * 64 + min(retry, 63), "re-request index")
+        index = checked_int(rerequest_index(frame, retry), "re-request index")
         self.tables.fill(REREQUEST, index)
         self.tables.fill(REPUBLISH, index)
         self.attempts.fill_ack(REREQUEST, index)

@@ -1,11 +1,11 @@
-"""How the compiled core's event table grows (docs/MODEL.md, "Engines").
+"""How the compiled core's event table grows (docs/concepts/engines.md).
 
 Every queued message holds an event slot. When a method saturates the broker
 (``none`` and ``hlc`` at N = 1 000) the broker's backlog is model state that grows for
 the whole run: ≈ 10^6 slots after 60 simulated seconds. Growing such a table by
 allocating a larger one and copying held the old and the new table at once, twice
 the table at the moment of each growth, which set the run's peak memory
-(docs/BENCHMARKS.md, issue 27, part "memory"). Here each array of ``cap`` (or
+(docs/concepts/engines.md, "The event table's memory"). Here each array of ``cap`` (or
 ``arena``) rows keeps its contents in one of three ways:
 
 * **in place** (:data:`IN_PLACE`: the event slots, the free list, the run arena):
@@ -123,7 +123,7 @@ def run_finished(node_seconds: float) -> None:
 
 def before_run() -> None:
     """Give the memory the runs before this one left back to the system (a ``compare
-    --jobs`` worker runs several; docs/BENCHMARKS.md, issue 27, "memory").
+    --jobs`` worker runs several).
 
     A finished run is cyclic garbage (its kernel's queue, handlers and engine refer to
     each other), with its physics ring (47 MB at N = 1 000) and draw tables: freed at

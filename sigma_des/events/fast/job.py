@@ -1,4 +1,4 @@
-"""A node's compute job in the compiled message core (docs/MODEL.md, "Physics nodes").
+"""A node's compute job in the compiled message core (docs/concepts/model.md, "Physics nodes").
 
 A job steps node ``i`` from its newest computed frame to its newest request: its cost
 is :func:`sigma_des.events.jobs.job_cost` — the step draws ``(STEP_DRAW, i, f, 0)`` of

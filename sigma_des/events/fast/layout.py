@@ -1,4 +1,4 @@
-"""The compiled message core's state, declared once by name (docs/MODEL.md, "Engines").
+"""The compiled message core's state, declared once by name (docs/concepts/engines.md).
 
 All state of the core is one tuple ``S`` of numpy arrays, built from the
 declaration :data:`FIELDS`: each :class:`Field` gives the array's name, dtype and
@@ -128,7 +128,7 @@ T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
 T_ILEN = 6
 C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
 
-# F3 — deployment (issue 24, docs/MODEL.md "Deployment and CPU"): event types of a
+# F3 — deployment (docs/concepts/deployment.md): event types of a
 # publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to the
 # application (after its receive burst, or at once with per-host clients), S.cpu_ip, S.cpu_acc
 EV_SEND, EV_APP = 4, 5
@@ -230,7 +230,7 @@ FIELDS: tuple[Field, ...] = (
     Field("ls_mirror", _i, (2, "n"), 0.0, "Lock-Step barrier mirror: got, live"),
     Field("seen", _i, ("seen_k", "seen_n", "seen_h"), -1.0,
           "duplicate rule: newest index per (kind row, subject, index % seen_h)"),
-    # issue 15 item 1: the run-merge event queue (sigma_des.events.fast.queue)
+    # the run-merge event queue (sigma_des.events.fast.queue)
     Field("heap_r", _i, ("cap",), 0.0, "heap of run heads: run ids"),
     Field("pend_t", _f, ("cap",), 0.0, "pending events (creation order): times"),
     Field("pend_k", _i, ("cap",), 0.0, "pending events: keys"),
@@ -302,18 +302,18 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_inb", _f, ("procs",), -np.inf, "receipts: when the open batch is read"),
     Field("cpu_net", _f, ("procs", 2), None, "network thread: CPU a message, more a wake-up"),
     Field("cpu_nfree", _f, ("procs",), -np.inf, "network thread: free again at"),
-    # issue 27 (memory): the payloads of the event slots that carry one (a state's
+    # memory: the payloads of the event slots that carry one (a state's
     # observation, a command's row; a trigger or re-request carries none), ``pool`` rows
     # of ``pay_w`` = max(W, M) floats; a slot names its row in E_PAY (+ 1)
     Field("pool", _f, ("pool", "pay_w"), 0.0, "payload pool: one payload a row"),
     Field("pool_free", np.int32, ("pool",), None, "free list of payload rows (top: I_PFREE)"),
-    # issue 27 (speed): rollbacks resolved in the loop (``rb_t`` targets of ``rb_j`` draws)
+    # speed: rollbacks resolved in the loop (``rb_t`` targets of ``rb_j`` draws)
     Field("def_int", _i, ("n", 3), 0.0, "deferred rollbacks in arrival order: D_* (I_DEFN)"),
     Field("def_row", _f, ("n", "M"), 0.0, "deferred rollbacks: the command row re-simulated"),
     Field("rb_val", _f, ("rb_t", "rb_j", "n"), None,
           "rollback draws (ROLLBACK_DRAW, node, target, j) of target row target % rb_t"),
     Field("rb_tag", _i, ("rb_t", 2), None, "rollback draws: target held, draws filled RB_*"),
-    # issue 27 (speed): the aligner's ring buffers (align.ring.RingBuffers, shared in
+    # speed: the aligner's ring buffers (align.ring.RingBuffers, shared in
     # place: ``ring_n`` nodes x ``ring_k`` slots; 1 x 1 and unused unless Q_RING)
     Field("ring_frame", _i, ("ring_n", "ring_k"), None, "aligner's ring: frame of each slot"),
     Field("ring_gen", _f, ("ring_n", "ring_k"), None, "aligner's ring: generation times"),

@@ -8,7 +8,7 @@ merge of sorted runs of ``(time, sequence)`` keys held in numpy arrays
 (:mod:`~sigma_des.events.fast.queue`: the heap orders only the runs' heads). It performs the same
 floating point operations in the same order as the specification and numbers
 events in the same relative order, so simultaneous events are broken the same way
-and the results are bit-identical (docs/MODEL.md, "Engines").
+and the results are bit-identical (docs/concepts/engines.md).
 
 All state is one state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`), shared with the
 Python driver (:mod:`sigma_des.events.fast.driver`). :func:`advance` hands control

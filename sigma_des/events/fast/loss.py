@@ -1,4 +1,4 @@
-"""Time-dependent link loss and delay in the compiled core (docs/MODEL.md, "Network").
+"""Time-dependent link loss and delay in the compiled core (docs/concepts/model.md, "Network").
 
 :func:`link_loss` is :meth:`sigma_des.net.links.Links._loss_at` in compiled form:
 the loss probability of a packet sent at ``t`` on a client's access link —

@@ -1,4 +1,4 @@
-"""Physics nodes in the compiled message core (docs/MODEL.md, "Physics nodes").
+"""Physics nodes in the compiled message core (docs/concepts/model.md, "Physics nodes").
 
 A node takes triggers, re-requests and commands; it computes a job on its host's
 earliest-free core (:mod:`~sigma_des.events.fast.job`: the job's cost, rollback draws

@@ -1,5 +1,5 @@
 """Publishes waiting for their process's thread, in the compiled message core
-(docs/MODEL.md, "Deployment and CPU", ``deployment.lock_switch``).
+(docs/concepts/deployment.md, ``deployment.lock_switch``).
 
 ``Network._burst_done`` and ``_leave`` with the same operations in the same order: a
 PUBLISH whose publish burst ends while its process's thread is busy (or while earlier

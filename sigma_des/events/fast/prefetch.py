@@ -2,8 +2,8 @@
 
 The event loop is bound by memory latency, not arithmetic: an event's slot row was
 written when the event was queued, often thousands of events earlier, and has left
-the cache by the time the event is taken (docs/BENCHMARKS.md, issue 27, "the message
-core per event": the first read of the slot's type was 11 % of the loop's samples).
+the cache by the time the event is taken (measured: the first read of the slot's
+type was 11 % of the loop's samples).
 :func:`prefetch` asks the CPU to start loading a row (LLVM's ``llvm.prefetch``, read,
 high locality, data cache) and returns at once; the loop issues it for the events it
 will take next, while it handles the current one. A prefetch never faults and changes

@@ -153,7 +153,7 @@ def release(S, slot):  # type: ignore[no-untyped-def]
 
 # A payload (a state's observation, a command's row) is a row of the pool, allocated
 # with the slot that carries it and freed with it: a trigger or re-request, half of a
-# saturated broker's backlog, carries none (docs/BENCHMARKS.md, issue 27, "memory").
+# saturated broker's backlog, carries none.
 # The pool has as many rows as the loop may need before Python grows it (loop._limits).
 
 

@@ -1,4 +1,4 @@
-"""Python's part of the compiled core's time-warp rollbacks (docs/MODEL.md, "Engines").
+"""Python's part of the compiled core's time-warp rollbacks (docs/concepts/engines.md).
 
 The loop resolves a rollback and the job start it causes itself
 (:mod:`~sigma_des.events.fast.warp`, :mod:`~sigma_des.events.fast.job`); Python keeps

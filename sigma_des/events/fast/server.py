@@ -6,7 +6,7 @@ reaching the server is stored in the aligner's ring buffers (BiDES: the rule of
 :func:`~sigma_des.events.align.ring.insert_row`, in arrival order) or buffered for
 its ``on_states`` (and for a recording tap), and under Lock-Step the
 barrier's count is mirrored so the loop can stop when the barrier completes
-(docs/MODEL.md, "Alignment methods").
+(docs/concepts/methods.md).
 """
 
 from __future__ import annotations
@@ -71,7 +71,7 @@ def delivered(S, s, now):  # type: ignore[no-untyped-def]
     index = evi[s, E_INDEX]
     t_pub = S[EV_FLOAT][s, EF_TPUB]
     # Collector.delivered: without QoS 1 over datagram only a re-request or republished
-    # state can come twice (a retry index is capped at 63: frame * 64 + min(retry, 63));
+    # state can come twice (a retry index is capped: sigma_des.net.kinds.rerequest_index);
     # with it, a resend makes any kind a possible duplicate (one seen row per kind)
     dup = False
     dup_all = S[TR_PARAMS][T_DUPALL]

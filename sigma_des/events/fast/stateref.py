@@ -3,8 +3,8 @@
 numba passes a tuple argument by value: every array descriptor of the state tuple
 (:data:`~sigma_des.events.fast.layout.FIELDS`, ≈ 600 machine words) is pushed onto
 the stack for each call LLVM does not inline, several times per message event. That
-copy, not the model's arithmetic, was most of a message event's cost (docs/BENCHMARKS.md,
-"State reference"). An entry point called from Python stores the tuple once in its own
+copy, not the model's arithmetic, was most of a message event's cost
+(docs/concepts/decisions.md). An entry point called from Python stores the tuple once in its own
 stack frame (:func:`ref`) and hands the handlers a :class:`StateRef`, a typed pointer
 to it; ``S[FIELD]`` on a reference reads that one field's descriptor, so the handlers'
 code is the same for a tuple and for a reference.

@@ -1,4 +1,5 @@
-"""The stream transport with hold-back in the compiled message core (docs/MODEL.md, "Network").
+"""The stream transport with hold-back in the compiled message core (docs/concepts/model.md,
+"Network").
 
 On a link with loss or random latency a ``stream`` delivers each connection's
 segments in order (:mod:`sigma_des.net.links`: ``transmit``, ``_stream_try``,
@@ -48,8 +49,12 @@ from sigma_des.events.fast.layout import (
     WIRE_BYTES,
 )
 from sigma_des.events.fast.primitives import count, fly, jit, key_of, push, put_int, release
+from sigma_des.net.resend import stream_backoff
 
 __all__ = ["next_ready", "stream_arrive", "stream_send", "stream_try"]
+
+#: The stream's resend wait ``rto · 2^attempt``, compiled from the net's one definition.
+_backoff = jit(stream_backoff)
 
 
 @jit
@@ -82,7 +87,7 @@ def stream_try(S, slot, t):  # type: ignore[no-untyped-def]
     ti[T_RETX] += 1
     evi[slot, E_TACT] = TA_RETRY
     evi[slot, E_ATT] = att + 1
-    push(S, t + S[TR_FPARAMS][TF_RTO] * (2**att), slot)
+    push(S, t + _backoff(S[TR_FPARAMS][TF_RTO], att), slot)
 
 
 @jit

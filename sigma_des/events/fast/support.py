@@ -2,7 +2,7 @@
 
 Features whose per-message behaviour the core does not reproduce are listed by
 :func:`unsupported`; a run that needs them uses the per-message engine for the
-whole run and says why (docs/MODEL.md, "Engines"). The link and clock tables the
+whole run and says why (docs/concepts/engines.md). The link and clock tables the
 core reads for Gilbert–Elliott loss and NTP clocks cover the run and
 :data:`TABLE_MARGIN` seconds more; :func:`ge_slots` and :func:`ntp_syncs` size
 them.
@@ -68,7 +68,7 @@ def unsupported(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: the DDS
-    middleware and the ``rpc`` method (issue 16: per-message models only); bundled
+    middleware and the ``rpc`` method (per-message models only); bundled
     states (``deployment.bundle``: a variable number of records in one PUBLISH); a
     Gilbert–Elliott or NTP table larger than :data:`MAX_TABLE_BYTES` (a very short
     slot or NTP period over a long run). The core reproduces Gilbert–Elliott loss,

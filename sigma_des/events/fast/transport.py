@@ -1,4 +1,4 @@
-"""MQTT QoS 1 over datagram in the compiled message core (docs/MODEL.md, "Network").
+"""MQTT QoS 1 over datagram in the compiled message core (docs/concepts/model.md, "Network").
 
 The transport side of a PUBLISH's hop, the same operations in the same order as
 :mod:`sigma_des.net.network`: :func:`send` is ``Network._send_publish`` with

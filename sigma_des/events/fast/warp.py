@@ -1,4 +1,4 @@
-"""BiDES time-warp rollbacks in the compiled message core (docs/MODEL.md, "Engines").
+"""BiDES time-warp rollbacks in the compiled message core (docs/concepts/engines.md).
 
 A command stamped more than Θ_warp frames behind a node's own frame rolls the node
 back (``NodeRules.on_command``): the node owes ``max(0, current − c + 1)`` compute steps,

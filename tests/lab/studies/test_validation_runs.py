@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sigma_lab.studies.validation.grid import Plan
+from sigma_lab.studies.validation.grid import Cell, Plan
 from sigma_lab.studies.validation.report import (
     cell_rows,
     knee_rows,
@@ -147,25 +147,37 @@ def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
     assert len(rows) == 3 * 5  # cal-r1 (in-sample) and two held-out cells; cal-r2 not a row
     r = {(x["cell"], x["metric"]): x for x in rows}
     assert r[("n10-node", "aoi_mean")]["rel_error"] == pytest.approx(0.3)
-    assert r[("n10-node", "aoi_mean")]["passed"] is True  # 30 % <= the 40 % floor
-    assert r[("n10-node", "aoi_mean")]["rule"] == "live range"
-    assert r[("n30-node", "aoi_mean")]["passed"] is True  # +20 %, floor 40 %
+    # run once: the band alone, the calibration setting's 40 % floor is no licence
+    assert r[("n10-node", "aoi_mean")]["passed"] is False  # +30 %
+    assert r[("n10-node", "aoi_mean")]["rule"] == "band"
+    assert r[("n30-node", "aoi_mean")]["passed"] is False  # +20 %
+    assert r[("n10-node", "aoi_mean")]["regime"] == "node-near"  # DES missed 1 %
+    assert r[("n30-node", "aoi_mean")]["regime"] == "node-near"
+    assert r[("cal-r1", "aoi_mean")]["regime"] == "node-near"  # DES (n20) missed 8 %
     assert r[("n30-node", "missed_frac")]["rel_error"] == pytest.approx(-18.0)
     assert r[("n30-node", "missed_frac")]["passed"] is False
     assert r[("n30-node", "latency_state_mean")]["within_band"] is True  # +10 %
     assert r[("n30-node", "aoi_mean")]["load"] == 5.5
     assert r[("cal-r1", "aoi_mean")]["held_out"] is False
     assert r[("cal-r1", "aoi_mean")]["passed"] is True  # 22 inside the repeats' 20..30
-    (k,) = knee_rows(plan, outcome)
+    (k,) = knee_rows(plan, outcome, 100.0)
     assert (k["live_knee"], k["des_knee"], k["des_knee_on_live_grid"]) == (30, 20, 20)
+    assert (k["live_capacity"], k["des_capacity"]) == (20, 10)
     assert k["live_grid"] == "10 20 30" and k["verdict"] == "missed"  # 20 is 33 % early
     write_outputs(plan, outcome, tmp_path, 100.0, "test")
     got = list(csv.DictReader((tmp_path / "cells.csv").open()))
     assert len(got) == 15 and got[0]["config_hash"] == "des0"
     md = (tmp_path / "summary.md").read_text()
-    assert "| aoi_mean | ±15% | 2 | 2 (100 %) | 0 | ≥ 80% | ✔ |" in md
+    assert "| aoi_mean | ±15% | 2 | 0 (0 %) | 0 | ≥ 80% | ✘ |" in md
+    assert "| latency_state_mean | ±15% | 2 | 2 (100 %) | 2 | ≥ 80% | ✔ |" in md
+    assert "## Interval coverage" in md
+    assert "**2 of 2 held-out cell x method pairs ran once**" in md
+    cov = {r["metric"]: r for r in csv.DictReader((tmp_path / "coverage.csv").open())}
+    assert cov["aoi_mean"]["cells"] == "2"  # each held-out cell, the other's residual
+    assert "[[residual]]" in (tmp_path / "residuals.toml").read_text()
     assert "- [ ] knee within ±25 % (node messages)" in md
     assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
+    assert (tmp_path / "knee.png").stat().st_size > 10_000
 
 
 def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:
@@ -198,12 +210,20 @@ def test_rows_of_a_cell_run_twice_and_the_fitted_repeat() -> None:
     des["n10-node"]["methods"]["none"]["aoi_mean"] = 14.1  # outside the runs' range
     c = {(x["cell"], x["metric"]): x for x in cell_rows(plan, outcome, 100.0, cores=2)}
     assert c[("n10-node", "aoi_mean")]["passed"] is False
-    one = r[("n30-node", "aoi_mean")]  # one run: the calibration setting's floor (40 %)
+    one = r[("n30-node", "aoi_mean")]  # one run: the floor is shown, the band decides
     assert one["floor_source"] == "calibration"
     assert one["noise_floor"] == pytest.approx(10.0 / 25.0)
-    assert one["passed"] is True  # +25 %, within the 40 % floor
+    assert one["passed"] is False and one["rule"] == "band"  # +25 %
     fit = r[("cal-r2", "aoi_mean")]
     assert fit["held_out"] is False and fit["live"] == 30.0 and fit["passed"] is True
+    # a bundled calibration run (a campaign's) makes no row: it is neither scored nor
+    # the in-sample row, which stays the fitted repeat
+    plan_b = replace(plan, cells=(*plan.cells, Cell("cal-bundle", 20, "bundle",
+                                                    cal_extra=True)))
+    live["cal-bundle"] = _live(0.0, 18.0)
+    des["n20-bundle"] = _des(0.0, 19.0)
+    rb = cell_rows(plan_b, outcome, 100.0, cores=2)
+    assert {x["cell"] for x in rb} == {"cal-r2", "n10-node", "n30-node"}
 
 
 def test_calibrate_run_passes_its_extra_options_to_calibrate(tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from sigma_lab.studies.validation.scoring import (
     error,
     judge,
     knee,
+    knee_of,
     knee_verdict,
     noise_floor,
     share,
@@ -40,10 +41,15 @@ def test_noise_floor_is_range_over_mean() -> None:
 def test_judge_band_and_the_live_range_rule() -> None:
     assert judge("aoi_mean", 100.0, 114.0) == Verdict(True, True, True, "band")
     assert judge("aoi_mean", 100.0, 116.0, floor=0.05) == Verdict(True, False, False, "band")
-    # live moved 30 % between its repeats: a held-out DES within 30 % of live passes
-    assert judge("aoi_mean", 100.0, 125.0, floor=0.30) == Verdict(True, True, False,
-                                                                  "live range")
-    assert judge("aoi_mean", 100.0, 135.0, floor=0.30).ok is False
+    # live moved 30 % between the calibration setting's repeats: a cell run once is
+    # still judged by the band alone (a borrowed floor is no licence)
+    assert judge("aoi_mean", 100.0, 125.0, floor=0.30) == Verdict(True, False, False, "band")
+    assert judge("aoi_mean", 100.0, 125.0, floor=0.30, repeats=[110.0]) == Verdict(
+        True, False, False, "band")  # one run of its own: no range
+    # two runs of its own, 80 and 120 (mean 100): inside their range passes
+    assert judge("aoi_mean", 100.0, 119.0, 0.4, repeats=[80.0, 120.0]) == Verdict(
+        True, True, False, "live range")
+    assert not judge("aoi_mean", 100.0, 121.0, 0.4, repeats=[80.0, 120.0]).ok
     # the calibration setting itself: inside [min, max] of its repeats
     assert judge("latency_state_mean", 100.0, 125.0, 0.4, repeats=[90, 100, 130]).ok
     assert not judge("latency_state_mean", 100.0, 80.0, 0.4, repeats=[90, 100, 130]).ok
@@ -54,6 +60,46 @@ def test_judge_band_and_the_live_range_rule() -> None:
     # the DES delivered nothing where live did: a miss, not a cell left out
     assert judge("latency_state_mean", 5.0, math.nan) == Verdict(True, False, False,
                                                                  "no DES value")
+
+
+def test_knee_of_is_capacitys_predicate_on_a_grid() -> None:
+    ok = {"trigger_rate_hz": 100.0, "missed_frac": 0.0}
+    figs = [ok, ok, {"trigger_rate_hz": 100.0, "missed_frac": 0.06}, ok]
+    # 10, 20 hold; 30 misses 6 % > 5 %: capacity 20, knee 30 (60 holding again: noise)
+    assert knee_of([10, 20, 30, 60], figs, 100.0) == (20, 30)
+    slow = [ok, {"trigger_rate_hz": 94.0, "missed_frac": 0.0}, ok, ok]
+    assert knee_of([10, 20, 30, 60], slow, 100.0) == (10, 20)  # rate not held at 20
+    assert knee_of([10, 20], [ok, ok], 100.0) == (20, None)
+    assert knee_of([10, 20], [{"trigger_rate_hz": math.nan, "missed_frac": 0.0}, ok],
+                   100.0) == (None, 10)
+
+
+def test_coverage_leave_one_out_by_hand() -> None:
+    from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
+
+    def row(i: int, live: float, des: float, reg: str = "node-below") -> dict[str, object]:
+        return {"held_out": True, "passed": True, "metric": "aoi_mean", "regime": reg,
+                "live": live, "des": des, "rel_error": (des - live) / live, "cell": i}
+
+    # residuals +10, -10, +20, -20, +5, +50 % in one regime; each cell's interval from
+    # the other five (n = 5 < 9: their range, k = 0)
+    errs = [0.1, -0.1, 0.2, -0.2, 0.05, 0.5]
+    rows = [row(i, 10.0, 10.0 * (1 + e)) for i, e in enumerate(errs)]
+    rows.append({**row(9, 10.0, 30.0), "held_out": False})  # in-sample: left out
+    rows.append({**row(8, 10.0, 30.0), "passed": ""})  # not scored: left out
+    (c,) = coverage_rows(rows, ["aoi_mean"])
+    # covered iff its residual lies within the others' range: all but +50 % (others'
+    # max +20 %) and -20 % (others' min -10 %)
+    assert (c["cells"], c["covered"]) == (6, 4)
+    assert c["share"] == pytest.approx(4 / 6)
+    # the +10 % cell: others -20..+50 -> live in [11 / 1.5, 11 / 0.8]: width 0.7167
+    a = 1 / 0.8 - 1 / 1.5
+    widths = sorted([1.1 * a, 0.9 * a, 1.2 * a, 0.8 * (1 / 0.9 - 1 / 1.5), 1.05 * a,
+                     1.5 * (1 / 0.8 - 1 / 1.2)])
+    assert c["median_width"] == pytest.approx((widths[2] + widths[3]) / 2)
+    vals = residual_values(rows)
+    assert sorted(vals[("aoi_mean", "node-below")]) == pytest.approx(sorted(errs))
+    assert vals[("aoi_mean", "any")] == vals[("aoi_mean", "node-below")]
 
 
 def test_judge_trigger_rate_only_where_live_holds_it() -> None:
@@ -120,8 +166,7 @@ def test_full_plan_cells_and_repeats_spread() -> None:
     assert {c.nodes for c in plan.cells if c.held_out and not c.impairment} == {10, 30, 60, 100}
     lat = next(c for c in plan.cells if c.name == "lat5-bundle")
     assert lat.live_sets() == ["nodes=30", "hosts=2", "net.host_link.latency.value=0.00525"]
-    assert lat.des_sets() == ["nodes=30", "hosts=2", 'deployment.clients="host"',
-                              "deployment.bundle=true"]
+    assert lat.des_sets() == ["nodes=30", "hosts=2"]  # bundle and +5 ms: prepare's options
     loss = next(c for c in plan.cells if c.name == "loss5-node")
     assert loss.des_sets() == ["nodes=30", "hosts=2", "net.host_link.loss.p=0.05"]
 
@@ -135,6 +180,17 @@ def test_select_keeps_the_calibration_run() -> None:
         full_plan(("none",)).select("n31-*")
     assert [c.name for c in quick_plan(("none",)).cells] == ["cal-r1", "n6-node", "n6-bundle",
                                                              "cal-r2"]
+
+
+def test_a_bundled_calibration_run_is_neither_held_out_nor_a_repeat() -> None:
+    plan = full_plan(("none",), cell_repeats=1, cal_bundle=True).select("n30-node")
+    assert [c.name for c in plan.cells] == ["cal-r1", "cal-bundle", "n30-node"]
+    cb = plan.cells[1]
+    assert (cb.nodes, cb.mode, cb.repeat, cb.held_out, cb.cal_extra) == (20, "bundle", 0,
+                                                                          False, True)
+    # every scored cell differs from both calibration runs in size
+    assert all(c.nodes != 20 for c in full_plan(("none",), cal_bundle=True).cells
+               if c.held_out)
 
 
 def test_estimate_hand_computed() -> None:

@@ -1,4 +1,4 @@
-"""Live vs DES validation (issue 24, item 6): calibrate on one live run, predict the rest.
+"""Live vs DES validation (the suite): calibrate on one live run, predict the rest.
 
 * :mod:`~sigma_lab.studies.validation.grid` — the cells (N, hosts, message mode,
   impairment, repeats of the calibration setting) and the wall-time estimate;
@@ -7,9 +7,12 @@
 * :mod:`~sigma_lab.studies.validation.runs` — bounded live runs, the calibration,
   the DES predictions;
 * :mod:`~sigma_lab.studies.validation.suite` — the plan run resumably;
-* :mod:`~sigma_lab.studies.validation.report` — ``cells.csv``, ``summary.md``, the plot.
+* :mod:`~sigma_lab.studies.validation.report` — ``cells.csv``, ``summary.md``, the plot;
+* :mod:`~sigma_lab.studies.validation.coverage` — the intervals' coverage on the
+  held-out cells and the ``residuals.toml`` ``sigma-des predict`` reads;
+  :mod:`~sigma_lab.studies.validation.kneeplot` — ``knee.png``.
 
-``experiments/live_vs_des.py`` is the command line; docs/LIVE.md (*Validation*) says
+``experiments/live_vs_des.py`` is the command line; lab/record/LIVE.md (*Validation*) says
 how to read the outputs.
 """
 

@@ -58,6 +58,8 @@ class Cell:
         impairment: ``""``, ``loss5`` or ``lat5``.
         repeat: 1, 2, 3… for the calibration setting; 0 for a held-out cell.
         copy: 1, 2… for the runs of one held-out cell (1 for the calibration setting).
+        cal_extra: a further calibration run of a campaign (``cal-bundle``: the
+            calibration setting with bundled messages), neither held out nor a repeat.
     """
 
     name: str
@@ -66,6 +68,7 @@ class Cell:
     impairment: str = ""
     repeat: int = 0
     copy: int = 1
+    cal_extra: bool = False
 
     @property
     def base(self) -> str:
@@ -79,8 +82,8 @@ class Cell:
 
     @property
     def held_out(self) -> bool:
-        """True unless this is a run of the calibration setting."""
-        return self.repeat == 0
+        """True unless this is a calibration run (a repeat or a campaign's extra)."""
+        return self.repeat == 0 and not self.cal_extra
 
     def live_sets(self) -> list[str]:
         """The live scenario's own keys (``key=value``), without duration and warmup."""
@@ -92,12 +95,12 @@ class Cell:
         return sets
 
     def des_sets(self) -> list[str]:
-        """The keys the DES prediction changes on the calibrated scenario."""
+        """The keys the DES prediction changes on the calibrated scenario (the message
+        mode and an added latency are :func:`sigma_des.calibrate.target.prepare`'s
+        options)."""
         sets = [f"nodes={self.nodes}", f"hosts={self.hosts}"]
         if self.impairment == "loss5":
             sets.append(f"net.host_link.loss.p={LOSS_P}")
-        if self.mode == "bundle":
-            sets += ['deployment.clients="host"', "deployment.bundle=true"]
         return sets
 
 
@@ -115,6 +118,10 @@ class Plan:
         repeats: runs of the calibration setting (the most typical one is the
             calibration run: :func:`~sigma_lab.studies.validation.scoring.central`).
         cell_repeats: runs of each held-out cell (copies in later passes over the grid).
+        cal_bundle: also a bundled run of the calibration setting (``cal-bundle``, right
+            after ``cal-r1``), calibrated on with the most typical repeat: a campaign of
+            two runs (``sigma-des calibrate RUN RUN``). Every scored cell differs from it
+            in size (the calibration setting's N is not in the held-out grid).
         knee_nodes: the DES's finer N grid for its knee prediction.
         cells: the cells (built from the fields above).
     """
@@ -129,6 +136,7 @@ class Plan:
     knee_nodes: tuple[int, ...] = ()
     cells: tuple[Cell, ...] = field(default=())
     cell_repeats: int = 1
+    cal_bundle: bool = False
 
     def __post_init__(self) -> None:
         if not 0 <= self.warmup < self.duration:
@@ -150,7 +158,8 @@ class Plan:
         reps = [Cell(f"cal-r{r}", self.cal_nodes, "node", "", r)
                 for r in range(1, self.repeats + 1)]
         # the repeats spread over the grid: first, in the middle, last
-        out = [reps[0]]
+        out = [reps[0]] + ([Cell("cal-bundle", self.cal_nodes, "bundle", cal_extra=True)]
+                           if self.cal_bundle else [])
         cuts = [round(len(held) * k / max(1, len(reps) - 1)) for k in range(1, len(reps))]
         start = 0
         for rep, cut in zip(reps[1:], cuts, strict=True):
@@ -160,7 +169,8 @@ class Plan:
 
     def select(self, patterns: str | None) -> Plan:
         """The plan with only the cells matching ``patterns`` (comma-separated globs,
-        e.g. ``n30-*,loss5-node``); the calibration run ``cal-r1`` is always kept.
+        e.g. ``n30-*,loss5-node``); the calibration runs ``cal-r1`` (and ``cal-bundle``)
+        are always kept.
 
         Raises:
             ConfigError: (``--grid``) a pattern that matches no cell.
@@ -173,7 +183,8 @@ class Plan:
             if not fnmatch.filter(names, p):
                 raise ConfigError("--grid", f"{p!r} matches no cell; cells: {', '.join(names)}")
         keep = tuple(c for c in self.cells
-                     if c.repeat == 1 or any(fnmatch.fnmatch(c.name, p) for p in pats))
+                     if c.repeat == 1 or c.cal_extra
+                     or any(fnmatch.fnmatch(c.name, p) for p in pats))
         return replace(self, cells=keep)
 
     def knee_cells(self) -> tuple[Cell, ...]:
@@ -202,19 +213,20 @@ class Plan:
 
 
 def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1.0,
-              cell_repeats: int = 2) -> Plan:
+              cell_repeats: int = 2, cal_bundle: bool = False) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
     N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
                 knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150),
-                cell_repeats=cell_repeats)
+                cell_repeats=cell_repeats, cal_bundle=cal_bundle)
 
 
 def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5,
-               cell_repeats: int = 1) -> Plan:
+               cell_repeats: int = 1, cal_bundle: bool = False) -> Plan:
     """A smoke run: calibration at N = 4 twice, N = 6 both modes, no impairments."""
     plan = Plan(methods, duration, warmup, cal_nodes=4, nodes=(6,), extra_nodes=6,
-                repeats=2, knee_nodes=(4, 6, 8), cell_repeats=cell_repeats)
+                repeats=2, knee_nodes=(4, 6, 8), cell_repeats=cell_repeats,
+                cal_bundle=cal_bundle)
     return plan.select("cal-r*,n6-*")

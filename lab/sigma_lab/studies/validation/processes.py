@@ -7,7 +7,7 @@ process kind (``broker``, ``server``, ``host``: the mean over a run's hosts) thi
 turns them into cores: CPU seconds, loop-busy seconds and run-queue seconds per second
 of the metrics window. A run-queue wait as large as the CPU says the machine's
 scheduler, not the process's own work, holds its messages: the CPU stage of the DES
-places bursts on free cores and does not model that wait (docs/LIVE.md, Session 12).
+places bursts on free cores and does not model that wait (lab/record/LIVE.md, Session 12).
 """
 
 from __future__ import annotations

@@ -24,20 +24,14 @@ import subprocess
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from sigma_des.calibrate.fit import for_target
+from sigma_des.calibrate.target import MissedTap, des_figures, prepare, shift_host_link
 from sigma_des.config import Scenario, config_hash, load
 from sigma_des.errors import ConfigError
-from sigma_des.events.cohort import execute
-from sigma_des.events.tap import Tap
-from sigma_des.factory import make_behaviour, make_dynamics
-from sigma_des.net.latency import Dist, load_samples
 from sigma_des.version import __version__
 from sigma_lab.studies.validation.grid import EXTRA_LATENCY_S, Cell, Plan
 from sigma_lab.studies.validation.scoring import METRICS
@@ -158,11 +152,11 @@ def _num(v: Any) -> float:
     return float(v) if isinstance(v, int | float) else math.nan
 
 
-def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0,
+def calibrate_run(source: Path | Sequence[Path], cal_dir: Path, timeout: float = 600.0,
                   extra: Sequence[str] = ()) -> tuple[Scenario, dict[str, Any]]:
-    """``sigma-des calibrate SOURCE --out CAL_DIR/calibrated.toml [EXTRA...]`` (with its
-    in-sample check), bounded; the calibrated scenario and its report. ``extra``: more
-    ``calibrate`` options (e.g. ``--one-thread``).
+    """``sigma-des calibrate SOURCE... --out CAL_DIR/calibrated.toml [EXTRA...]`` (with
+    its in-sample check on every run), bounded; the calibrated scenario and its report.
+    ``extra``: more ``calibrate`` options (e.g. ``--one-thread``).
 
     Raises:
         ConfigError: (``calibration``) calibrate failed or ran out of time (its log named).
@@ -170,11 +164,12 @@ def calibrate_run(source: Path, cal_dir: Path, timeout: float = 600.0,
     cal_dir.mkdir(parents=True, exist_ok=True)
     toml = cal_dir / "calibrated.toml"
     log = cal_dir / "calibrate.log"
-    status, timed_out = bounded_run([*_cli(), "calibrate", str(source), "--out", str(toml),
-                                  *extra], log, timeout)
+    sources = [source] if isinstance(source, Path) else list(source)
+    status, timed_out = bounded_run([*_cli(), "calibrate", *map(str, sources), "--out",
+                                     str(toml), *extra], log, timeout)
     if status != 0 or timed_out:
         tail = log.read_text(errors="replace").strip().splitlines()[-1:] or [""]
-        raise ConfigError("calibration", f"`sigma-des calibrate {source}` "
+        raise ConfigError("calibration", f"`sigma-des calibrate {' '.join(map(str, sources))}` "
                           f"{'timed out' if timed_out else f'exited {status}'}: {tail[0]} "
                           f"(log: {log})")
     return load_calibration(cal_dir)
@@ -188,87 +183,16 @@ def load_calibration(cal_dir: Path) -> tuple[Scenario, dict[str, Any]]:
     return load(str(cal_dir / "calibrated.toml")), report
 
 
-def shift_host_link(sc: Scenario, delta: float, d: Path) -> Scenario:
-    """``sc`` with ``delta`` seconds added to every host-link latency draw, both
-    directions (the live ``lat5`` cell's shim adds it on the host link each way).
-
-    An empirical latency gets a shifted copy of its sample file in ``d``; another
-    distribution is first sampled (a constant is shifted exactly).
-    """
-    def shifted(dist: Dist, name: str) -> Dist:
-        if dist.dist == "constant":
-            return Dist(dist="constant", value=dist.value + delta)
-        if dist.dist != "empirical":
-            raise ConfigError("net.host_link.latency", f"cannot shift a {dist.dist!r} "
-                              "latency; the suite expects calibrate's empirical samples")
-        d.mkdir(parents=True, exist_ok=True)
-        path = d / f"{name}_plus_{delta * 1e3:g}ms.txt"
-        np.savetxt(path, np.asarray(load_samples(dist.file)) + delta, fmt="%.9g")
-        return Dist(dist="empirical", file=str(path))
-
-    link = sc.net.host_link
-    down = link.latency_down if link.latency_down is not None else link.latency
-    link = replace(link, latency=shifted(link.latency, "host_up"),
-                   latency_down=shifted(down, "host_down"))
-    return replace(sc, net=replace(sc.net, host_link=link))
-
-
-class MissedTap(Tap):
-    """Counts what the live runner's missed-frame fraction needs: the frames whose
-    trigger left in the window, and the (node, frame) states that reached the server."""
-
-    def __init__(self, warmup: float, duration: float) -> None:
-        self.window = (warmup, duration)
-        self.frames: set[int] = set()
-        self.got: list[NDArray[np.int64]] = []
-
-    def issue(self, frame: int, t_send: float) -> None:
-        """A trigger's issue: its frame counts if it left in the window (the issue, not
-        the deliveries: a frame whose trigger reached no node in time counts too, as
-        live's runner counts the triggers it sent)."""
-        if self.window[0] <= t_send < self.window[1]:
-            self.frames.add(int(frame))
-
-    def states(self, t_recv: NDArray[np.float64], nodes: NDArray[np.int64],
-               frames: NDArray[np.int64], gens: NDArray[np.float64],
-               obs: NDArray[np.float64]) -> None:
-        """State deliveries to the server."""
-        self.got.append(np.asarray(frames, dtype=np.int64) * (1 << 32)
-                        + np.asarray(nodes, dtype=np.int64))
-
-    def missed_frac(self, nodes: int) -> float:
-        """``1 - delivered / (window frames x nodes)``; NaN without a trigger."""
-        if not self.frames:
-            return math.nan
-        keys = np.unique(np.concatenate(self.got)) if self.got else np.zeros(0, np.int64)
-        fr = np.fromiter(self.frames, dtype=np.int64)
-        return 1.0 - int(np.isin(keys >> 32, fr).sum()) / (fr.size * nodes)
-
-
-def des_figures(sc: Scenario, method: str) -> dict[str, Any]:
-    """One DES run: :data:`~sigma_lab.studies.validation.scoring.METRICS` and the engine."""
-    taps: list[MissedTap] = []
-
-    def tap() -> Tap:
-        taps.append(MissedTap(sc.warmup, sc.duration))
-        return taps[-1]
-
-    _run, out, engine = execute(sc.run_spec(), method, lambda: make_dynamics(sc),
-                                lambda: make_behaviour(sc), None, tap)
-    figs = {k: _num(out["metrics"].get(k)) for k in METRICS if k != "missed_frac"}
-    figs["missed_frac"] = taps[-1].missed_frac(sc.nodes)
-    return {**figs, "engine": engine["used"], "fallback": engine["fallback"]}
-
-
 def des_scenario(cal: Scenario, report: dict[str, Any], cell: Cell, plan: Plan, d: Path
                  ) -> Scenario:
-    """The calibrated scenario prepared for ``cell`` (``for_target`` with the cell's
-    keys, the window of the plan, and the +5 ms of a ``lat5`` cell)."""
-    sc = for_target(cal, report, [*cell.des_sets(), f"duration={plan.duration}",
-                                  f"warmup={plan.warmup}"])
-    if cell.impairment == "lat5":
-        sc = shift_host_link(sc, EXTRA_LATENCY_S, d)
-    return sc
+    """The calibrated scenario prepared for ``cell`` by
+    :func:`sigma_des.calibrate.target.prepare` (what ``sigma-des predict`` runs): the
+    cell's keys, its message mode, the window of the plan, and the +5 ms of a ``lat5``
+    cell."""
+    return prepare(cal, report, [*cell.des_sets(), f"duration={plan.duration}",
+                                 f"warmup={plan.warmup}"], bundle=cell.mode == "bundle",
+                   add_latency_s=EXTRA_LATENCY_S if cell.impairment == "lat5" else 0.0,
+                   samples_dir=d)
 
 
 def des_cell(cal: Scenario, report: dict[str, Any], cell: Cell, plan: Plan, d: Path

@@ -97,17 +97,20 @@ def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
 def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say,
                  args: Sequence[str]) -> None:
     kept = read_json(out / "cal" / "source.json")
-    if (read_json(out / "cal" / "calibrated.json") is not None and kept is not None
-            and kept.get("args", []) == list(args)):
-        say(f"calibration: kept from an earlier run (on {kept['cell']})")
-        return
     name = calibration_cell(plan, live)
-    say(f"calibrating on {name}, the most typical of the calibration setting's "
-        f"{sum(1 for c in plan.cells if c.repeat and c.name in live)} runs "
-        "(`sigma-des calibrate`, with its in-sample check) ...")
+    cells = [name] + [c.name for c in plan.cells if c.cal_extra and c.name in live]
+    if (read_json(out / "cal" / "calibrated.json") is not None and kept is not None
+            and kept.get("args", []) == list(args)
+            and kept.get("cells", [kept.get("cell")]) == cells):
+        say(f"calibration: kept from an earlier run (on {', '.join(cells)})")
+        return
+    say(f"calibrating on {', '.join(cells)} ({name}: the most typical of the calibration "
+        f"setting's {sum(1 for c in plan.cells if c.repeat and c.name in live)} runs; "
+        "`sigma-des calibrate`, with its in-sample check on each) ...")
     t = time.perf_counter()
-    calibrate_run(out / "live" / name, out / "cal", extra=args)
-    write_json(out / "cal" / "source.json", {"cell": name, "args": list(args)})
+    calibrate_run([out / "live" / c for c in cells], out / "cal", extra=args)
+    write_json(out / "cal" / "source.json", {"cell": name, "cells": cells,
+                                             "args": list(args)})
     say(f"    calibrated in {time.perf_counter() - t:.0f} s")
 
 
@@ -167,6 +170,8 @@ def run_suite(plan: Plan, out: Path, say: Say = _say,
     _calibration(plan, live, out, say, calibrate_args)
     des = _des_all(plan, out, say, t0)
     report = read_json(out / "cal" / "calibrated.json") or {}
-    report["calibration_cell"] = (read_json(out / "cal" / "source.json") or {}).get("cell")
+    src = read_json(out / "cal" / "source.json") or {}
+    report["calibration_cell"] = src.get("cell")
+    report["calibration_cells"] = src.get("cells", [src.get("cell")])
     say(f"validation: all runs done in {_clock(time.perf_counter() - t0)}")
     return live, des, report

@@ -1,0 +1,123 @@
+"""The result pages (validation, performance), generated from ``docs/results/data/``.
+
+Each folder ``docs/results/data/<name>/`` holds one study's committed outputs, filed by
+``python experiments/make_docs_results.py``: its ``run.json`` (title, page, date,
+machine, load, command, scale), its tables (CSV), summary (Markdown), plots (PNG) and
+what it printed (``stdout.txt``). A page lists its studies in folder order; nothing on
+it is written by hand.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+__all__ = ["PAGES", "results_page"]
+
+#: page name -> (title, introduction)
+PAGES = {
+    "validation": ("Validation", "How well the calibrated DES predicts live runs on a real "
+                   "Mosquitto broker. Every figure below was produced by the command shown "
+                   "with it, on the machine and at the load shown; the tables and plots are "
+                   "the command's own output files."),
+    "performance": ("Performance", "What the simulator costs: engine speed, the learning "
+                    "environment's speed and the cost per run. Timings depend on the machine "
+                    "and its load (both shown with each study); the tables are the "
+                    "benchmark scripts' own output files."),
+}
+#: CSV files longer than this are shown in part (the whole file is a download).
+MAX_ROWS = 40
+
+
+def _cell(v: str) -> str:
+    return v.replace("|", "\\|").strip()
+
+
+def csv_table(path: Path) -> list[str]:
+    """A CSV file as a Markdown table (its first :data:`MAX_ROWS` rows)."""
+    with path.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        return ["(empty)"]
+    head, body = rows[0], rows[1:]
+    out = ["| " + " | ".join(_cell(h) for h in head) + " |",
+           "| " + " | ".join("---" for _ in head) + " |"]
+    out += ["| " + " | ".join(_cell(c) for c in r) + " |" for r in body[:MAX_ROWS]]
+    if len(body) > MAX_ROWS:
+        out += ["", f"*First {MAX_ROWS} of {len(body)} rows; the whole table is the "
+                "download above.*"]
+    return out
+
+
+def _demote(md: str, levels: int) -> str:
+    """A Markdown text with its headings moved ``levels`` down (to nest in a section)."""
+    return re.sub(r"^(#+) ", lambda m: "#" * min(6, len(m.group(1)) + levels) + " ", md,
+                  flags=re.M)
+
+
+def _facts(run: dict[str, Any]) -> list[str]:
+    m = run.get("machine", {})
+    load = (f"{' / '.join(map(str, run['load_before']))} before, "
+            f"{' / '.join(map(str, run['load_after']))} after (1, 5, 15 min)")
+    return ["| Run | |", "| --- | --- |",
+            f"| Date | {run['date']} |",
+            f"| Command | `{run['command']}` |",
+            f"| Scale | {run['scale']} |",
+            f"| Machine | {m.get('cpu', '?')}, {m.get('cores', '?')} cores, "
+            f"{m.get('memory_gb', '?')} GB, {m.get('system', '?')}, "
+            f"Python {m.get('python', '?')} |",
+            f"| Load average | {load} |",
+            f"| Wall time | {run['wall_s']} s |",
+            f"| Version | sigma_des {run['version']} (commit {run.get('commit') or '?'}) |"]
+
+
+def study_section(folder: Path, rel: str) -> list[str]:
+    """One study's section: facts, summary, plots, tables and printed output."""
+    run = json.loads((folder / "run.json").read_text())
+    out = [f"## {run['title']}", "", run.get("about", ""), ""]
+    if "quick" in run["scale"] or "small" in run["scale"]:
+        out += [":::{note}", f"A small-scale run, made on {run['date'][:10]}: the "
+                "figures show what the study reports, not its full-size result. "
+                "Regenerate with `python experiments/make_docs_results.py`.", ":::", ""]
+    cores = run.get("machine", {}).get("cores") or 0
+    peak = max(run["load_before"][0], run["load_after"][0])
+    if cores and peak > cores:
+        out += [":::{warning}", f"The machine was overloaded during this run (1-minute "
+                f"load average up to {peak:g} on {cores} cores): timings and live "
+                "figures are distorted by the other work and are not representative.",
+                ":::", ""]
+    out += [*_facts(run), ""]
+    summary = folder / "summary.md"
+    if summary.exists():
+        out += ["```{include} " + f"{rel}/summary.md",
+                ":heading-offset: 2", "```", ""]
+    for png in sorted(folder.glob("*.png")):
+        out += [f"```{{figure}} {rel}/{png.name}", ":width: 100%", "", png.stem, "```", ""]
+    for table in sorted(folder.glob("*.csv")):
+        out += [f"### `{table.name}`", "", f"{{download}}`Download {table.name} "
+                f"<{rel}/{table.name}>`", "", *csv_table(table), ""]
+    for js in sorted(p for p in folder.glob("*.json") if p.name != "run.json"):
+        out += [f"### `{js.name}`", "", f"{{download}}`Download {js.name} <{rel}/{js.name}>`",
+                ""]
+    printed = folder / "stdout.txt"
+    if printed.exists() and printed.read_text().strip():
+        out += ["### What the command printed", "", "```text",
+                printed.read_text().rstrip(), "```", ""]
+    return out
+
+
+def results_page(page: str, data: Path) -> str:
+    """The page ``page`` as MyST Markdown, from the study folders under ``data``."""
+    title, intro = PAGES[page]
+    out = [f"# {title}", "", intro, ""]
+    folders = [d for d in sorted(data.glob("*")) if (d / "run.json").exists()
+               and json.loads((d / "run.json").read_text()).get("page") == page]
+    if not folders:
+        out += ["No study has been filed for this page yet: run "
+                "`python experiments/make_docs_results.py`.", ""]
+    for d in folders:
+        out += study_section(d, f"data/{d.name}")
+    return "\n".join(out)

@@ -1,0 +1,183 @@
+#!/usr/bin/env python
+"""Run the validation suite and the benchmarks, and file their outputs for the docs.
+
+Each study runs its own script (``experiments/live_vs_des.py``, ``bench_engine.py``,
+``bench_env.py``, ``bench_sequence.py``) into a fresh folder; its output files, the
+text it printed (``stdout.txt``) and a ``run.json`` (date, machine, load average
+before and after, command, scale, wall time, version, git commit) are then copied to
+``docs/results/data/<name>/``, replacing what was there. The documentation build
+turns those folders into ``docs/results/validation.md`` and ``performance.md``
+(``docs/_ext/sigma_docs_results.py``): commit the folders, never the pages.
+
+    python experiments/make_docs_results.py                  # every study, full size
+    python experiments/make_docs_results.py --quick          # small-scale runs (labelled)
+    python experiments/make_docs_results.py --only engine,env
+    python experiments/make_docs_results.py --list
+
+Nothing is made up: a study that fails leaves its folder as it was and the command
+exits 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "docs" / "results" / "data"
+#: the kinds of output file filed for the docs
+KEEP = (".csv", ".json", ".md", ".png", ".txt")
+
+
+@dataclass(frozen=True)
+class Study:
+    """One script whose outputs go to ``docs/results/data/<name>/``.
+
+    Attributes:
+        name: the folder name.
+        title: the section title on the page.
+        page: ``validation`` or ``performance``.
+        script: the script under ``experiments/``.
+        full: its arguments for a full-size run (``{out}`` is the output folder).
+        quick: its arguments for a small-scale run.
+        about: one paragraph: what the study measures.
+    """
+
+    name: str
+    title: str
+    page: str
+    script: str
+    full: tuple[str, ...]
+    quick: tuple[str, ...]
+    about: str
+
+
+STUDIES = (
+    Study("validation", "Live against the DES", "validation", "live_vs_des.py",
+          ("--out", "{out}"), ("--quick", "--out", "{out}"),
+          "The DES is calibrated on one live run (`sigma-des calibrate`), then predicts "
+          "held-out live runs at other sizes, message modes and impairments; each "
+          "prediction is scored against the live runs' own spread (the noise floor)."),
+    Study("engine", "Engine speed", "performance", "bench_engine.py",
+          ("--out", "{out}/engine.csv"), ("--quick", "--out", "{out}/engine.csv"),
+          "Wall time, events per second and peak memory of the compiled `cohort` engine, "
+          "the per-message `events` engine and a process-per-message SimPy baseline, each "
+          "case in a fresh process; the two engines' metrics must be bit-identical."),
+    Study("env", "Learning environment speed", "performance", "bench_env.py",
+          ("--out", "{out}"), ("--quick", "--out", "{out}"),
+          "CPU time per agent-step of the PettingZoo environment for 1 to 500 scenes and "
+          "each alignment method, and memory per scene."),
+    Study("sequence", "Cost per run in a sequence", "performance", "bench_sequence.py",
+          (), ("--quick",),
+          "Many short runs in one process (as a sweep runs them): CPU seconds, page faults "
+          "and peak memory per run."),
+)
+
+
+def machine() -> dict[str, object]:
+    """What the figures were measured on."""
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem_gb = None
+    try:
+        pages = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        mem_gb = round(pages / 2**30, 1)
+    except (ValueError, OSError):
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gb": mem_gb,
+            "system": f"{platform.system()} {platform.release()}",
+            "python": platform.python_version()}
+
+
+def _load() -> list[float]:
+    return [round(x, 2) for x in os.getloadavg()]
+
+
+def _git(*args: str) -> str:
+    r = subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True)
+    return r.stdout.strip() if r.returncode == 0 else ""
+
+
+def run_study(s: Study, quick: bool) -> bool:
+    """Run one study and file its outputs; False (folder untouched) if it failed."""
+    from sigma_des.version import __version__
+
+    with tempfile.TemporaryDirectory(prefix=f"docs_{s.name}_") as tmp:
+        out = Path(tmp) / "out"
+        out.mkdir()
+        args = [a.format(out=out) for a in (s.quick if quick else s.full)]
+        shown = ["python", f"experiments/{s.script}",
+                 *[a.replace(str(out), f"OUT/{s.name}") for a in args]]
+        print(f"== {s.name}: {shlex.join(shown)}", flush=True)
+        load0, t0 = _load(), time.monotonic()
+        started = dt.datetime.now(dt.UTC).replace(microsecond=0)
+        r = subprocess.run([sys.executable, str(ROOT / "experiments" / s.script), *args],
+                           cwd=ROOT, capture_output=True, text=True)
+        wall, load1 = time.monotonic() - t0, _load()
+        sys.stdout.write(r.stdout[-2000:])
+        if r.returncode not in (0,):
+            print(f"{s.name}: exit {r.returncode}; its folder is left as it was\n"
+                  f"{r.stderr[-2000:]}", file=sys.stderr)
+            return False
+        dest = DATA / s.name
+        shutil.rmtree(dest, ignore_errors=True)
+        dest.mkdir(parents=True)
+        for f in sorted(out.iterdir()):  # the study's tables, summary and plots; the
+            if f.is_file() and f.suffix in KEEP:  # per-run folders stay out of git
+                shutil.copy2(f, dest / f.name)
+        (dest / "stdout.txt").write_text(r.stdout)
+        for f in dest.iterdir():  # no path of this machine in what is committed
+            if f.suffix != ".png":
+                f.write_text(f.read_text().replace(str(out), f"OUT/{s.name}")
+                             .replace(str(ROOT), "."))
+        run = {"name": s.name, "title": s.title, "page": s.page, "about": s.about,
+               "date": started.isoformat().replace("+00:00", "Z"),
+               "command": shlex.join(shown),
+               "scale": "small-scale run (--quick)" if quick else "full size",
+               "wall_s": round(wall, 1), "load_before": load0, "load_after": load1,
+               "machine": machine(), "version": __version__,
+               "commit": _git("rev-parse", "--short", "HEAD")}
+        (dest / "run.json").write_text(json.dumps(run, indent=2) + "\n")
+        print(f"filed {dest.relative_to(ROOT)} ({wall:.0f} s)")
+        return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the chosen studies; 1 if any failed."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--quick", action="store_true",
+                   help="small-scale runs (each script's --quick), labelled as such")
+    p.add_argument("--only", default="", help="comma-separated study names")
+    p.add_argument("--list", action="store_true", help="list the studies and exit")
+    args = p.parse_args(argv)
+    if args.list:
+        for s in STUDIES:
+            print(f"{s.name:12} {s.page:12} experiments/{s.script}")
+        return 0
+    names = [n for n in args.only.split(",") if n] or [s.name for s in STUDIES]
+    unknown = sorted(set(names) - {s.name for s in STUDIES})
+    if unknown:
+        p.error(f"--only: unknown {unknown}; allowed: {', '.join(s.name for s in STUDIES)}")
+    ok = [run_study(s, args.quick) for s in STUDIES if s.name in names]
+    return 0 if all(ok) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,219 @@
+"""``sigma-des capacity``: the largest N each method holds, by a bounded search with ``predict``.
+
+A method **holds** N (:func:`holds`) when its achieved trigger rate is at least
+:data:`RATE_HELD` of the nominal one, at most ``max_missed`` of the frames' states are
+missed and (with a latency budget) the mean state latency is within it. The same
+function decides the knee the validation suite scores, for live's runs and for the DES.
+
+:func:`search` finds the largest N that holds, on a monotone predicate, in a bounded
+number of evaluations: from ``n_lo`` it doubles N until it fails (or reaches
+``n_max``), then bisects between the last N that held and the first that failed until
+they are within ``tol`` of each other (relative, at least one node). Each method gets
+three searches sharing one cache of predictions: on the predicted means, and on each
+end of their intervals (the pessimistic end: the interval's high missed fraction and
+latency, its low rate; the optimistic end the other way), which gives the capacity's
+interval. :func:`plot` draws missed frames and mean latency against N per method,
+the capacity marked.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sigma_des.calibrate.intervals import Interval
+from sigma_des.errors import ConfigError
+
+__all__ = ["MAX_EVALS", "RATE_HELD", "Capacity", "HostsRule", "find_capacity", "holds",
+           "holds_at", "plot", "search"]
+
+#: Live holds its rate at or above this share of the nominal trigger rate.
+RATE_HELD = 0.95
+#: Most predictions one search makes.
+MAX_EVALS = 16
+
+
+def holds(rate: float, missed: float, latency_ms: float, f_trig: float, max_missed: float,
+          max_latency_ms: float | None) -> bool:
+    """Does a run with these figures hold (see the module doc)? A NaN figure fails."""
+    vals = [rate, missed] + ([latency_ms] if max_latency_ms is not None else [])
+    if not all(math.isfinite(v) for v in vals):
+        return False
+    ok = rate >= RATE_HELD * f_trig and missed <= max_missed
+    return ok and (max_latency_ms is None or latency_ms <= max_latency_ms)
+
+
+def holds_at(ivs: dict[str, Interval], end: str, f_trig: float, max_missed: float,
+             max_latency_ms: float | None) -> bool:
+    """:func:`holds` on a prediction's intervals: ``end`` ``mean``, ``pessimistic`` (high
+    missed and latency, low rate) or ``optimistic`` (the other ends)."""
+    r, m, la = ivs["trigger_rate_hz"], ivs["missed_frac"], ivs["latency_state_mean"]
+    if end == "mean":
+        return holds(r.mean, m.mean, la.mean, f_trig, max_missed, max_latency_ms)
+    if end == "pessimistic":
+        return holds(r.lo, m.hi, la.hi, f_trig, max_missed, max_latency_ms)
+    return holds(r.hi, m.lo, la.lo, f_trig, max_missed, max_latency_ms)
+
+
+def search(ok: Callable[[int], bool], n_lo: int, n_max: int, tol: float = 0.05,
+           max_evals: int = MAX_EVALS, grid: Sequence[int] | None = None
+           ) -> tuple[int | None, int | None, list[int]]:
+    """The largest N in ``n_lo..n_max`` for which ``ok`` holds (see the module doc).
+
+    Args:
+        ok: the predicate, assumed monotone (holds up to some N, fails beyond).
+        n_lo: the first N tried; n_max: the largest.
+        tol: bisection stops when the bracket is within ``tol`` x N (at least 1).
+        max_evals: most evaluations.
+        grid: search only these N (sorted; ``n_lo``/``n_max`` then unused): the same
+            doubling and bisection over their positions, to the neighbouring point
+            (the validation suite's grids).
+
+    Returns:
+        ``(capacity, first_failing, evaluated)``: capacity None when the first N fails;
+        first_failing None when the last holds; the N evaluated, in order.
+    """
+    pts = sorted(set(grid)) if grid is not None else None
+    seen: list[int] = []
+
+    def test(i: int) -> bool:
+        n = pts[i] if pts is not None else i
+        seen.append(n)
+        return ok(n)
+
+    def at(i: int | None) -> int | None:
+        return None if i is None or pts is None else pts[i]
+
+    lo, top = (0, len(pts) - 1) if pts is not None else (n_lo, n_max)
+    if pts is not None and not pts:
+        return None, None, seen
+    if not test(lo):
+        return (None, at(lo), seen) if pts is not None else (None, lo, seen)
+    good, bad, i = lo, None, lo
+    while bad is None and i < top and len(seen) < max_evals:
+        i = min(top, 2 * i if pts is None else 2 * i + 1)
+        if test(i):
+            good = i
+        else:
+            bad = i
+    width = 1.0 if pts is not None else None
+    while bad is not None and len(seen) < max_evals and (
+            bad - good > (width or max(1.0, tol * good))):
+        mid = (good + bad) // 2
+        if test(mid):
+            good = mid
+        else:
+            bad = mid
+    if pts is not None:
+        return at(good), at(bad), seen
+    return good, bad, seen
+
+
+@dataclass(frozen=True)
+class HostsRule:
+    """How many hosts a target of N nodes runs on: ``validation`` (``max(2, ceil(N /
+    25))``, the validation grid's), ``fixed`` (the calibration's) or ``per=K``
+    (``ceil(N / K)``)."""
+
+    kind: str
+    per: int = 25
+    fixed: int = 1
+
+    @staticmethod
+    def parse(text: str, fixed: int) -> HostsRule:
+        """``--hosts-rule``.
+
+        Raises:
+            ConfigError: (``--hosts-rule``) anything else.
+        """
+        if text in ("validation", "fixed"):
+            return HostsRule(text, fixed=fixed)
+        if text.startswith("per="):
+            try:
+                k = int(text[4:])
+            except ValueError:
+                k = 0
+            if k >= 1:
+                return HostsRule("per", per=k)
+        raise ConfigError("--hosts-rule", f"must be validation, fixed or per=K (K >= 1 "
+                          f"nodes per host), got {text!r}")
+
+    def hosts(self, nodes: int) -> int:
+        """Host processes for ``nodes``."""
+        if self.kind == "fixed":
+            return min(self.fixed, nodes)
+        if self.kind == "per":
+            return max(1, math.ceil(nodes / self.per))
+        return max(2, math.ceil(nodes / 25))
+
+
+@dataclass
+class Capacity:
+    """One method's capacity: the search on the means and on each end of the intervals."""
+
+    method: str
+    capacity: int | None
+    first_failing: int | None
+    lo: int | None
+    hi: int | None
+    evaluated: list[int] = field(default_factory=list)
+    points: dict[int, dict[str, Any]] = field(default_factory=dict)
+
+
+def find_capacity(method: str, predict_at: Callable[[int], dict[str, Interval]], n_lo: int,
+                  n_max: int, f_trig: float, max_missed: float, max_latency_ms: float | None,
+                  max_evals: int = MAX_EVALS) -> Capacity:
+    """``method``'s capacity and its interval: three :func:`search` es (the means, the
+    pessimistic and the optimistic ends) over one cache of ``predict_at(N)``."""
+    cache: dict[int, dict[str, Interval]] = {}
+
+    def at(n: int) -> dict[str, Interval]:
+        if n not in cache:
+            cache[n] = predict_at(n)
+        return cache[n]
+
+    def ok(end: str) -> Callable[[int], bool]:
+        return lambda n: holds_at(at(n), end, f_trig, max_missed, max_latency_ms)
+
+    cap, bad, seen = search(ok("mean"), n_lo, n_max, max_evals=max_evals)
+    lo, _, _ = search(ok("pessimistic"), n_lo, n_max, max_evals=max_evals)
+    hi, _, _ = search(ok("optimistic"), n_lo, n_max, max_evals=max_evals)
+    return Capacity(method, cap, bad, lo, hi, seen, dict(sorted(cache.items())))
+
+
+def plot(caps: list[Capacity], path: Path, max_missed: float,
+         max_latency_ms: float | None) -> None:
+    """Missed frames and mean state latency against N per method, the capacity marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sigma_des.plotstyle import MIN_DPI, line_kw
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+    for c in caps:
+        ns = sorted(c.points)
+        kw = line_kw(c.method, n_points=len(ns))
+        for ax, k, scale in ((a1, "missed_frac", 100.0), (a2, "latency_state_mean", 1.0)):
+            ivs = [c.points[n][k] for n in ns]
+            ax.plot(ns, [scale * iv.mean for iv in ivs], label=c.method, **kw)
+            ax.fill_between(ns, [scale * iv.lo for iv in ivs], [scale * iv.hi for iv in ivs],
+                            color=kw["color"], alpha=0.12, lw=0)
+            if c.capacity is not None:
+                ax.axvline(c.capacity, color=kw["color"], ls=":", lw=1)
+    a1.axhline(100 * max_missed, color="k", lw=0.8, ls="--")
+    if max_latency_ms is not None:
+        a2.axhline(max_latency_ms, color="k", lw=0.8, ls="--")
+    a1.set_ylabel("missed frames (%)")
+    a2.set_ylabel("mean state latency (ms)")
+    a2.set_yscale("log")
+    for ax in (a1, a2):
+        ax.set_xlabel("nodes N")
+        ax.set_xscale("log")
+    a1.legend(title="dotted: capacity; dashed: budget", fontsize=8)
+    fig.savefig(path, dpi=max(MIN_DPI, 110))
+    plt.close(fig)

@@ -1,0 +1,163 @@
+"""A calibrated scenario prepared for a target, and the DES's figures of it.
+
+One function, :func:`prepare`, turns a calibration (the scenario ``calibrate`` wrote
+and its report) into the DES scenario of a target setting; ``sigma-des predict``,
+``sigma-des capacity`` and the validation suite all call it, so a prediction a user
+makes is the one the validation scored:
+
+* the target's keys (``--set KEY=VALUE``) on the calibrated scenario;
+* bundled messages (``--bundle``): one client per host and a host's states of one
+  turn in one PUBLISH (``deployment.clients = "host"``, ``deployment.bundle = true``),
+  as live ``--bundle`` runs them;
+* the broker's per-delivery service for the target
+  (:func:`~sigma_des.calibrate.fit.for_target`: rescaled to ``hosts / nodes`` unless the
+  DES has one client per host);
+* an added latency (``--add-latency``) shifts every calibrated host-link sample by that
+  much in both directions (:func:`shift_host_link`), as the live shim adds it to each
+  host-link crossing.
+
+:func:`des_figures` runs one method and returns the figures the validation compares:
+mean and p99 AoI, mean state latency, achieved trigger rate and the missed-frame
+fraction counted with the live runner's definition (:class:`MissedTap`), plus the
+machine's CPU utilisation that decides the regime of an interval.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sigma_des.calibrate.fit import for_target
+from sigma_des.config import Scenario
+from sigma_des.errors import ConfigError
+from sigma_des.events.tap import Tap
+from sigma_des.net.latency import Dist, load_samples
+
+__all__ = ["BUNDLE_SETS", "FIGURES", "MissedTap", "des_figures", "prepare", "shift_host_link"]
+
+#: The figures a prediction reports and the validation scores, in table order.
+FIGURES = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac")
+#: The keys of bundled messages (live ``--bundle``).
+BUNDLE_SETS = ('deployment.clients="host"', "deployment.bundle=true")
+#: The largest latency ``prepare`` adds (s): beyond, a target is not a calibrated one.
+MAX_ADD_LATENCY_S = 1.0
+
+
+def shift_host_link(sc: Scenario, delta: float, d: Path) -> Scenario:
+    """``sc`` with ``delta`` seconds added to every host-link latency draw, both
+    directions (the live shim adds it on the host link each way).
+
+    An empirical latency gets a shifted copy of its sample file in ``d``; a constant is
+    shifted exactly; any other distribution is refused.
+
+    Raises:
+        ConfigError: (``net.host_link.latency``) a latency that is neither.
+    """
+    def shifted(dist: Dist, name: str) -> Dist:
+        if dist.dist == "constant":
+            return Dist(dist="constant", value=dist.value + delta)
+        if dist.dist != "empirical":
+            raise ConfigError("net.host_link.latency", f"cannot shift a {dist.dist!r} "
+                              "latency; expected calibrate's empirical samples or a constant")
+        d.mkdir(parents=True, exist_ok=True)
+        path = d / f"{name}_plus_{delta * 1e3:g}ms.txt"
+        np.savetxt(path, np.asarray(load_samples(dist.file)) + delta, fmt="%.9g")
+        return Dist(dist="empirical", file=str(path))
+
+    link = sc.net.host_link
+    down = link.latency_down if link.latency_down is not None else link.latency
+    link = replace(link, latency=shifted(link.latency, "host_up"),
+                   latency_down=shifted(down, "host_down"))
+    return replace(sc, net=replace(sc.net, host_link=link))
+
+
+def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: bool = False,
+            add_latency_s: float = 0.0, samples_dir: Path | None = None) -> Scenario:
+    """The calibrated scenario prepared for a target (see the module doc).
+
+    Args:
+        cal: the calibrated scenario (``sigma-des calibrate --out``).
+        report: its report (the JSON next to it).
+        sets: the target's keys, ``key=value``.
+        bundle: bundled messages, as live ``--bundle``.
+        add_latency_s: seconds added to each host-link crossing (0..1).
+        samples_dir: where shifted sample files go (needed when ``add_latency_s`` > 0).
+
+    Raises:
+        ConfigError: a bad key (named), ``--add-latency`` out of range, or a report
+            without ``delivery_service_per_client_s``.
+    """
+    if not (math.isfinite(add_latency_s) and 0.0 <= add_latency_s <= MAX_ADD_LATENCY_S):
+        raise ConfigError("--add-latency", f"must be in 0..{MAX_ADD_LATENCY_S * 1e3:g} ms, "
+                          f"got {add_latency_s * 1e3:g}")
+    if "delivery_service_per_client_s" not in report:
+        raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
+                          "recalibrate with this version of `sigma-des calibrate`")
+    sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
+    if add_latency_s > 0.0:
+        if samples_dir is None:
+            raise ConfigError("--add-latency", "needs a directory for the shifted samples")
+        sc = shift_host_link(sc, add_latency_s, samples_dir)
+    return sc
+
+
+class MissedTap(Tap):
+    """Counts what the live runner's missed-frame fraction needs: the frames whose
+    trigger left in the window, and the (node, frame) states that reached the server."""
+
+    def __init__(self, warmup: float, duration: float) -> None:
+        self.window = (warmup, duration)
+        self.frames: set[int] = set()
+        self.got: list[NDArray[np.int64]] = []
+
+    def issue(self, frame: int, t_send: float) -> None:
+        """A trigger's issue: its frame counts if it left in the window (the issue, not
+        the deliveries: a frame whose trigger reached no node in time counts too, as
+        live's runner counts the triggers it sent)."""
+        if self.window[0] <= t_send < self.window[1]:
+            self.frames.add(int(frame))
+
+    def states(self, t_recv: NDArray[np.float64], nodes: NDArray[np.int64],
+               frames: NDArray[np.int64], gens: NDArray[np.float64],
+               obs: NDArray[np.float64]) -> None:
+        """State deliveries to the server."""
+        self.got.append(np.asarray(frames, dtype=np.int64) * (1 << 32)
+                        + np.asarray(nodes, dtype=np.int64))
+
+    def missed_frac(self, nodes: int) -> float:
+        """``1 - delivered / (window frames x nodes)``; NaN without a trigger."""
+        if not self.frames:
+            return math.nan
+        keys = np.unique(np.concatenate(self.got)) if self.got else np.zeros(0, np.int64)
+        fr = np.fromiter(self.frames, dtype=np.int64)
+        return 1.0 - int(np.isin(keys >> 32, fr).sum()) / (fr.size * nodes)
+
+
+def _num(v: Any) -> float:
+    return float(v) if isinstance(v, int | float) else math.nan
+
+
+def des_figures(sc: Scenario, method: str) -> dict[str, Any]:
+    """One DES run of ``method``: :data:`FIGURES`, ``machine_cpu_util_max`` (NaN without
+    a CPU stage) and the engine used (``engine``, ``fallback``)."""
+    from sigma_des.events.cohort import execute
+    from sigma_des.factory import make_behaviour, make_dynamics
+
+    taps: list[MissedTap] = []
+
+    def tap() -> Tap:
+        taps.append(MissedTap(sc.warmup, sc.duration))
+        return taps[-1]
+
+    _run, out, engine = execute(sc.run_spec(), method, lambda: make_dynamics(sc),
+                                lambda: make_behaviour(sc), None, tap)
+    m = out["metrics"]
+    figs = {k: _num(m.get(k)) for k in FIGURES if k != "missed_frac"}
+    figs["missed_frac"] = taps[-1].missed_frac(sc.nodes)
+    figs["machine_cpu_util_max"] = _num(m.get("machine_cpu_util_max"))
+    return {**figs, "engine": engine["used"], "fallback": engine["fallback"]}

@@ -1,0 +1,111 @@
+"""``calibrate RUN [RUN...]``: runs that cannot be combined refused naming the key, each
+parameter from the runs that show it (hand-made fits), the background kept apart."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tests.calibrate.test_calibrate_cpu import BACKGROUND_CPU, WINDOW, _cpu_run
+
+from sigma_des import load
+from sigma_des.calibrate.campaign import RunInfo, check_combinable, combine, under_load_warning
+from sigma_des.cli import main
+from sigma_des.errors import ConfigError
+from sigma_des.net.latency import Dist
+
+
+def _info(name: str, bundle: bool, **scen: object) -> RunInfo:
+    return RunInfo(name=name, scenario={"nodes": 4, "f_trig": 100.0, **scen}, bundle=bundle,
+                   cores=2, background=0.1)
+
+
+def test_runs_of_different_scenarios_are_refused_naming_the_key() -> None:
+    check_combinable([_info("a", False), _info("b", True, nodes=60, hosts=3, seed=9)])
+    with pytest.raises(ConfigError, match=r"^f_trig: differs between the runs a \(100.0\)"):
+        check_combinable([_info("a", False), _info("b", False, f_trig=50.0)])
+    with pytest.raises(ConfigError, match="net.host_link.loss.p"):
+        check_combinable([_info("a", False),
+                          _info("b", False, **{"net.host_link.loss.p": 0.02})])
+    other = _info("b", False)
+    other["cores"] = 4
+    with pytest.raises(ConfigError, match="^cores"):
+        check_combinable([_info("a", False), other])
+
+
+def test_under_load_warning() -> None:
+    busy = _info("r", False)
+    busy["background"] = 0.62
+    assert "0.62 of its 2 cores" in (under_load_warning(busy) or "")
+    assert under_load_warning(_info("q", False)) is None  # 0.1 cores
+
+
+def _fit(tmp: Path, name: str, up: list[float], bundle: bool, **dep: float) -> tuple:  # type: ignore[type-arg]
+    f = tmp / f"{name}_up.txt"
+    np.savetxt(f, up)
+    sc = load(None, ["nodes=4", "hosts=2"])
+    d = replace(sc.deployment, preset="colocated", clients="host", bundle=bundle, **dep)
+    link = replace(sc.net.host_link, latency=Dist(dist="empirical", file=str(f)))
+    sc = replace(sc, deployment=d, net=replace(sc.net, host_link=link),
+                 broker=replace(sc.broker, publish_service=Dist(dist="constant",
+                                                                value=dep["host_demand"] / 10)))
+    return sc, {"delivery_service_per_client_s": dep["host_demand"] / 5, "warnings": []}, \
+        _info(name, bundle)
+
+
+def test_combine_takes_each_parameter_from_the_runs_that_show_it(tmp_path: Path) -> None:
+    fits = [_fit(tmp_path, "n20", [1e-3, 2e-3], False, host_demand=1e-4, host_record=1e-5),
+            _fit(tmp_path, "b30", [9e-3], True, host_demand=3e-4, host_record=4e-5),
+            _fit(tmp_path, "n60", [3e-3], False, host_demand=2e-4, host_record=2e-5)]
+    sc, rep, primary = combine(fits, tmp_path)
+    assert primary == 0
+    # hops: the per-node runs' samples pooled (the bundled run's 9 ms left out)
+    assert sorted(np.loadtxt(sc.net.host_link.latency.file)) == [1e-3, 2e-3, 3e-3]  # type: ignore[union-attr]
+    # per message: the mean over the per-node runs; per record: the bundled run's
+    assert sc.deployment.host_demand == pytest.approx(1.5e-4)
+    assert sc.deployment.host_record == pytest.approx(4e-5)
+    assert sc.broker.publish_service.value == pytest.approx(1.5e-5)
+    assert rep["delivery_service_per_client_s"] == pytest.approx(3e-5)
+    assert not sc.deployment.bundle  # the primary run's (per node)
+    src = rep["parameter_sources"]
+    assert src["per-record CPU of bundles"] == ["b30"]
+    assert src["hop latencies (pooled samples)"] == ["n20", "n60"]
+    assert src["step time, host share, scenario keys, cores"] == ["n20"]
+    assert set(rep["runs"]) == {"n20", "b30", "n60"}
+
+
+def test_cli_two_runs_in_sample_on_each_background_kept_apart(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    a = _cpu_run(tmp_path / "a", live={"cores": 4, "bundle": False, "load1": 0.5})
+    b = _cpu_run(tmp_path / "b")  # bundled
+    for run in (a, b):  # live figures for the in-sample check to compare with
+        summ = json.loads((run / "summary.json").read_text())
+        summ["methods"] = {"bides": {"aoi_mean": 20.0, "aoi_p99": 30.0,
+                                     "latency_state_mean": 6.0, "trigger_rate_hz": 100.0,
+                                     "missed_frac": 0.0}}
+        (run / "summary.json").write_text(json.dumps(summ))
+    out = tmp_path / "cal" / "cal.toml"
+    assert main(["calibrate", str(a), str(b), "--out", str(out), "--no-match"]) == 0
+    rep = json.loads(out.with_suffix(".json").read_text())
+    assert {r["run"] for r in rep["in_sample"]} == {str(a), str(b)}
+    assert rep["parameter_sources"]["per-record CPU of bundles"] == [str(b)]
+    assert rep["background_cores_measured"] == pytest.approx(BACKGROUND_CPU / WINDOW)
+    assert rep["deployment_background_cores"] == 0.0
+    assert load(str(out)).deployment.background == 0.0  # the target's, not the run's
+    assert "from " in capsys.readouterr().out
+    assert main(["calibrate", str(a), "--out", str(out), "--no-match", "--no-check",
+                 "--background", "0.5"]) == 0
+    assert load(str(out)).deployment.background == 0.5
+    capsys.readouterr()
+    assert main(["calibrate", str(a), "--no-check", "--background", "4"]) == 2
+    assert "--background" in capsys.readouterr().err
+    summ = json.loads((b / "summary.json").read_text())
+    summ["scenario"]["f_trig"] = 50.0
+    (b / "summary.json").write_text(json.dumps(summ))
+    assert main(["calibrate", str(a), str(b), "--no-check"]) == 2
+    assert capsys.readouterr().err.startswith("sigma-des: error: f_trig: differs")
+    assert math.isfinite(rep["background_cores_of_runs"][str(a)])

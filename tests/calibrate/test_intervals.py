@@ -1,0 +1,119 @@
+"""Prediction intervals: residual bounds by hand, their coverage on synthetic residuals
+whose distribution is known, the interval's two parts, regimes and the residual file."""
+
+from __future__ import annotations
+
+import math
+import statistics
+
+import numpy as np
+import pytest
+
+from sigma_des.calibrate.intervals import (
+    Residual,
+    interval,
+    load_residuals,
+    lookup,
+    regime,
+    residual_bounds,
+    residuals_toml,
+)
+from sigma_des.errors import ConfigError
+
+
+def test_residual_bounds_are_the_kth_order_statistics() -> None:
+    # n = 19, coverage 0.8: k = floor(20 * 0.1) = 2 -> the 2nd smallest and 2nd largest
+    vals = [float(v) for v in range(19)][::-1]
+    assert residual_bounds(vals, 0.8) == (1.0, 17.0, True)
+    # n = 9: k = floor(10 * 0.1) = 1 -> min and max
+    assert residual_bounds([0.3, -0.1, 0.2, 0.0, 0.1, -0.2, 0.4, -0.3, 0.5], 0.8) == (
+        -0.3, 0.5, True)
+    # n = 5: k = floor(6 * 0.1) = 0 -> too few: the range, said
+    assert residual_bounds([0.1, -0.2, 0.05, math.nan, 0.3, 0.0], 0.8) == (-0.2, 0.3, False)
+    with pytest.raises(ValueError):
+        residual_bounds([math.nan], 0.8)
+    with pytest.raises(ValueError):
+        residual_bounds([0.1], 1.0)
+
+
+def test_coverage_on_synthetic_residuals_is_the_stated_one() -> None:
+    """Residuals r ~ 0.1 + 0.2 * t(3) (skewed use: live = DES / (1 + r) needs r > -1,
+    clipped far in the tail). With n = 199 calibration residuals, k = 20: a new cell's
+    live value is inside with probability (n + 1 - 2k) / (n + 1) = 0.8 exactly, whatever
+    the distribution; averaged over 400 validations x 500 new cells."""
+    rng = np.random.default_rng(7)
+
+    def draw(size: int) -> np.ndarray:
+        return np.clip(0.1 + 0.2 * rng.standard_t(3, size), -0.9, None)
+
+    hits = []
+    widths = []
+    for _ in range(400):
+        lo, hi, enough = residual_bounds(draw(199).tolist(), 0.8)
+        assert enough
+        res = Residual("aoi_mean", "any", lo, hi, 199, True, "synthetic")
+        live = 20.0 + 5.0 * rng.random(500)
+        des = live * (1.0 + draw(500))
+        for d, x in zip(des[:50], live[:50], strict=True):  # the interval, by its formula
+            iv = interval("aoi_mean", [float(d)], res, 0.8)
+            assert (iv.lo <= x <= iv.hi) == (lo <= d / x - 1.0 <= hi)
+        inside = (des / (1.0 + hi) <= live) & (live <= des / (1.0 + lo))
+        hits.append(inside.mean())
+        widths.append(hi - lo)
+    assert statistics.fmean(hits) == pytest.approx(0.8, abs=0.01)
+    # the 10th-90th percentile width of 0.2 t(3) is 2 * 0.2 * 1.638 = 0.655
+    assert statistics.median(widths) == pytest.approx(0.655, rel=0.1)
+
+
+def test_interval_joins_seed_spread_and_residuals_by_hand() -> None:
+    res = Residual("latency_state_mean", "node-below", -0.2, 0.5, 10, True, "hand")
+    iv = interval("latency_state_mean", [2.0, 4.0, math.nan], res, 0.8)
+    h = 1.2815515655446004 * math.sqrt(2.0)  # z(0.9) x the seeds' sd
+    assert (iv.mean, iv.sd) == (3.0, pytest.approx(math.sqrt(2.0)))
+    assert iv.lo == pytest.approx((3.0 - h) / 1.5)
+    assert iv.hi == pytest.approx((3.0 + h) / 0.8)
+    one = interval("latency_state_mean", [3.0], res, 0.8)  # one seed: residuals alone
+    assert (one.lo, one.hi) == (pytest.approx(2.0), pytest.approx(3.75))
+    pp = Residual("missed_frac", "any", -10.0, 4.0, 10, True, "hand")
+    m = interval("missed_frac", [0.02], pp, 0.8)  # live = DES - r / 100, clipped to 0..1
+    assert (m.lo, m.hi) == (0.0, pytest.approx(0.12))
+    bare = interval("aoi_mean", [5.0], None)
+    assert (bare.lo, bare.hi, bare.residual) == (5.0, 5.0, None)
+    assert math.isnan(interval("aoi_mean", [math.nan], res).mean)
+
+
+def test_regime_and_lookup_order() -> None:
+    assert regime(False, 0.5, 0.0) == "node-below"
+    assert regime(False, 0.7, 0.0) == "node-near"
+    assert regime(True, math.nan, 0.01) == "bundle-near"
+    assert regime(True, math.nan, math.nan) == "bundle-below"
+    r = {k: Residual(k[0], k[1], -0.1, 0.1, 1, True, "") for k in
+         [("aoi_mean", "node-near"), ("aoi_mean", "node-any"), ("aoi_mean", "any"),
+          ("aoi_p99", "bundle-any")]}
+    assert lookup(r, "aoi_mean", "node-near").regime == "node-near"  # type: ignore[union-attr]
+    assert lookup(r, "aoi_mean", "node-below").regime == "node-any"  # type: ignore[union-attr]
+    assert lookup(r, "aoi_mean", "bundle-near").regime == "any"  # type: ignore[union-attr]
+    assert lookup(r, "aoi_p99", "node-below") is None
+
+
+def test_residual_file_round_trip_and_the_shipped_one(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    vals = {("aoi_mean", "node-below"): [float(v) / 100 for v in range(-9, 10)],
+            ("missed_frac", "any"): [0.0, 1.5, math.nan]}
+    p = tmp_path / "residuals.toml"
+    p.write_text(residuals_toml(vals, {"coverage": 0.8, "source": 'run "x"'}))
+    table, meta = load_residuals(p)
+    assert meta == {"coverage": 0.8, "source": 'run "x"'}
+    a = table[("aoi_mean", "node-below")]
+    assert (a.lo, a.hi, a.n, a.enough) == (-0.08, 0.08, 19, True)
+    assert (table[("missed_frac", "any")].n, table[("missed_frac", "any")].enough) == (2, False)
+    shipped, meta = load_residuals()
+    assert meta["coverage"] == 0.8
+    for r in shipped.values():  # every entry says where it comes from; 0 inside
+        assert r.source and r.lo <= 0.0 <= r.hi
+    for metric in ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz",
+                   "missed_frac"):
+        for reg in ("node-below", "node-near", "bundle-below", "bundle-near"):
+            assert lookup(shipped, metric, reg) is not None
+    p.write_text('[[residual]]\nmetric = "aoi_mean"\nregime = "any"\nlo = 0.2\nhi = 0.1\n')
+    with pytest.raises(ConfigError, match="residuals"):
+        load_residuals(p)

@@ -1,0 +1,45 @@
+"""The result pages are built from the study folders, facts and files as they are."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+from sigma_docs_results import MAX_ROWS, results_page  # noqa: E402
+
+
+def _study(data: Path, name: str, page: str, load: float, scale: str, rows: int) -> None:
+    d = data / name
+    d.mkdir(parents=True)
+    (d / "run.json").write_text(json.dumps({
+        "name": name, "title": f"Study {name}", "page": page, "about": "What it measures.",
+        "date": "2026-01-02T03:04:05Z", "command": f"python experiments/{name}.py",
+        "scale": scale, "wall_s": 12.5, "load_before": [load, 1.0, 1.0],
+        "load_after": [0.5, 1.0, 1.0], "version": "9.9.9", "commit": "abc1234",
+        "machine": {"cpu": "Test CPU", "cores": 4, "memory_gb": 8.0, "system": "Linux",
+                    "python": "3.11"}}))
+    (d / "table.csv").write_text("n,x\n" + "".join(f"{i},{i * i}\n" for i in range(rows)))
+    (d / "stdout.txt").write_text("printed line\n")
+
+
+def test_a_page_shows_each_study_with_its_facts(tmp_path: Path) -> None:
+    _study(tmp_path, "a", "performance", 0.3, "full size", 3)
+    _study(tmp_path, "b", "performance", 7.5, "small-scale run (--quick)", MAX_ROWS + 5)
+    _study(tmp_path, "c", "validation", 0.1, "full size", 1)
+    page = results_page("performance", tmp_path)
+    assert page.index("## Study a") < page.index("## Study b") and "Study c" not in page
+    a, b = page.split("## Study b")
+    assert "| Date | 2026-01-02T03:04:05Z |" in a and "`python experiments/a.py`" in a
+    assert "Test CPU, 4 cores, 8.0 GB" in a and "0.3 / 1.0 / 1.0 before" in a
+    assert "| 2 | 4 |" in a and ":::{warning}" not in a and ":::{note}" not in a
+    assert "printed line" in a and "{download}`Download table.csv <data/a/table.csv>`" in a
+    assert ":::{note}" in b and "up to 7.5 on 4 cores" in b  # small scale, overloaded
+    assert f"| {MAX_ROWS - 1} |" in b and f"| {MAX_ROWS} |" not in b
+    assert f"First {MAX_ROWS} of {MAX_ROWS + 5} rows" in b
+
+
+def test_a_page_without_studies_says_so(tmp_path: Path) -> None:
+    assert "No study has been filed" in results_page("validation", tmp_path / "none")
