@@ -35,7 +35,7 @@ def test_fixed_wing_fit_quick(tmp_path: Path) -> None:
     assert {r["channel"] for r in rows} == {"q", "p", "theta", "phi", "r"}
     genes = list(csv.DictReader((out / "genes.csv").open()))
     assert [g["name"] for g in genes][:2] == ["cll_p", "cll_da"]
-    for name in ("fig15_heldout_inputs.png", "fig15_heldout_speed.png", "fitted.toml",
+    for name in ("fig15_heldout_inputs.png", "fig15_heldout_speed.png", "fitted.toml", "summary.md",
                  "tune/lateral/report.json", "tune/longitudinal/fitted.toml", "start.toml",
                  "tune_lateral.toml", "logs/tuning.csv", "logs/heldout_speed.csv"):
         assert (out / name).is_file(), name
