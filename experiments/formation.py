@@ -4,12 +4,14 @@
 The paper's figures: docs/concepts/paper.md.
 
 The swarm: 5 fixed-wing aircraft (``dynamics = "fixedwing"``, the TALON-class
-preset, trimmed at 20 m/s and 100 m), behaviour ``formation`` — the leader (node
-0) flies the clockwise 1 km × 0.75 km rectangle, the followers hold V slots with
-the paper's law (eqs. 16–19) and a separation rule. The paper's parameters
-d = 30 m, θ = 45°, P_φ = 0.015, P_ψ = 0.4, P_v = 0.3, v_cru = 20 m/s are the
-defaults of ``formation_rule`` / ``formation_behaviour``; the script checks that
-at start-up and records them in ``summary.json``. Trajectories are logged at 30 Hz
+preset, trimmed at 20 m/s and 100 m; ``--dynamics-params minisgs`` flies the fixed
+wing fitted to JSBSim's minisgs glider instead, with the preset's propeller),
+behaviour ``formation`` — the leader (node 0) flies the clockwise 1 km × 0.75 km
+rectangle, the followers hold V slots with the paper's law (eqs. 16–19) and a
+separation rule. The paper's parameters d = 30 m, θ = 45°, P_φ = 0.015,
+P_ψ = 0.4, P_v = 0.3, v_cru = 20 m/s are the defaults of ``formation_rule`` /
+``formation_behaviour``; the script checks that at start-up and records them in
+``summary.json``. Trajectories are logged at 30 Hz
 of physics time (``fidelity.log_rate``).
 
 Runs, per seed: every alignment method (none, lockstep, hlc, bides) over the
@@ -84,12 +86,13 @@ NETWORKS: dict[str, tuple[Path | None, tuple[str, ...]]] = {
 }
 
 
-def scenario(network: str, duration: float, seed: int) -> Scenario:
-    """The scenario of one network, flight duration and seed."""
+def scenario(network: str, duration: float, seed: int, params: str = "") -> Scenario:
+    """The scenario of one network, flight duration and seed (``params``: a fitted file)."""
     path, extra = NETWORKS[network]
     warm = min(1.0, 0.2 * duration)
-    return load(path, [*studies.known(COMMON), *extra, f"duration={duration}", f"warmup={warm}",
-                       f"seed={seed}"])
+    fit = [f"dynamics_params={json.dumps(params)}"] if params else []
+    return load(path, [*studies.known(COMMON), *extra, *fit, f"duration={duration}",
+                       f"warmup={warm}", f"seed={seed}"])
 
 
 def plots(args: argparse.Namespace, r: dict[str, Any]) -> None:
@@ -183,6 +186,9 @@ def parser() -> argparse.ArgumentParser:
                    help="network between hosts and broker (default: lossy)")
     p.add_argument("--duration", type=float, default=None,
                    help="flight time, s (default 150; --quick: 6)")
+    p.add_argument("--dynamics-params", dest="dynamics_params", default="", metavar="TOML",
+                   help="fitted fixed-wing parameters (a sigma-des tune file or a shipped "
+                   "fit, e.g. minisgs: the fixed wing fitted to JSBSim's glider)")
     p.add_argument("--start", choices=("offset", "grid"), default="offset",
                    help="initial positions (default: followers offset from their slots)")
     p.add_argument("--offset", type=lambda s: tuple(float(x) for x in s.split(",")),
@@ -212,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
         args.match_flight = not args.quick
     params = check_paper_parameters()
     t0 = time.perf_counter()
-    runs = [run_seed(args, scenario(args.network, args.duration, s)) for s in args.seeds]
+    runs = [run_seed(args, scenario(args.network, args.duration, s, args.dynamics_params))
+            for s in args.seeds]
     wall = time.perf_counter() - t0
     write_outputs(args, runs, params, wall)
     plots(args, runs[0])

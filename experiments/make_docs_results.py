@@ -1,9 +1,9 @@
 #!/usr/bin/env python
 """Run the validation suite and the benchmarks, and file their outputs for the docs.
 
-Each study runs its own script (``experiments/live_vs_des.py``, ``bench_engine.py``,
-``bench_env.py``, ``bench_sequence.py``) into a fresh folder; its output files, the
-text it printed (``stdout.txt``) and a ``run.json`` (date, machine, load average
+Each study runs its own script (``experiments/live_vs_des.py``, ``fixed_wing_fit.py``,
+``bench_engine.py``, ``bench_env.py``, ``bench_sequence.py``) into a fresh folder; its
+output files, the text it printed (``stdout.txt``) and a ``run.json`` (date, machine, load average
 before and after, command, scale, wall time, version, git commit) are then copied to
 ``docs/results/data/<name>/``, replacing what was there. The documentation build
 turns those folders into ``docs/results/validation.md`` and ``performance.md``
@@ -69,6 +69,12 @@ STUDIES = (
           "The DES is calibrated on one live run (`sigma-des calibrate`), then predicts "
           "held-out live runs at other sizes, message modes and impairments; each "
           "prediction is scored against the live runs' own spread (the noise floor)."),
+    Study("fixed_wing", "Fixed-wing model fidelity against JSBSim's minisgs", "validation",
+          "fixed_wing_fit.py", ("--out", "{out}"), ("--quick", "--out", "{out}"),
+          "Our 6-DoF fixed wing tuned by `sigma-des tune` (GA + DTW) to a log flown by "
+          "JSBSim's minisgs sailplane, scored on held-out logs (other inputs; another trim "
+          "speed): RMS and R² of pitch and roll rate and angle, the paper's Fig. 15 in kind. "
+          "The reference is a JSBSim model, not a flight."),
     Study("engine", "Engine speed", "performance", "bench_engine.py",
           ("--out", "{out}/engine.csv"), ("--quick", "--out", "{out}/engine.csv"),
           "Wall time, events per second and peak memory of the compiled `cohort` engine, "

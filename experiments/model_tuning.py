@@ -17,10 +17,8 @@ Cross-model (JSBSim): JSBSim's F450 (shipped with the ``jsbsim`` package) flies
 the same kind of manoeuvre under its own FCS (sigma_des.tuning.jsbsim_log); the
 logged control signals are its four propeller speeds. Our quadrotor preset is
 tuned on one log and validated on another manoeuvre. Because the logged speeds
-are measured, not commanded, the motor-lag gene may go down to 0.5 ms. No
-small fixed wing ships with jsbsim (only full-size aircraft: c172x, pa28, J3Cub,
-...), and our fixed-wing model has an electric propeller where those have piston
-engines; the fixed-wing cross-fit is therefore not run (see the report).
+are measured, not commanded, the motor-lag gene may go down to 0.5 ms. The
+fixed-wing cross-fit, against JSBSim's minisgs glider, is experiments/fixed_wing_fit.py.
 
 Outputs in ``--out`` (default ``out/model_tuning``): ``summary.json``,
 ``results.csv`` (tidy: study, kind, seed, name, value, config_hash, version),
@@ -164,8 +162,7 @@ def main(argv: list[str] | None = None) -> int:
                            for k, v in (QUICK if args.quick else FULL).items()},
                "factors": FACTORS, "mean_wind": MEAN_WIND, "turbulence_w20": TURB,
                "paper": PAPER_VALUES, "identifiability": per, "jsbsim": cross,
-               "jsbsim_fixedwing": "not run: no small fixed wing ships with jsbsim; its "
-               "fixed wings are full-size aircraft with piston engines"}
+               "jsbsim_fixedwing": "experiments/fixed_wing_fit.py (JSBSim minisgs)"}
     write_summary(out, summary)
     print(f"wrote {out / 'summary.json'} and {out / 'results.csv'}")
     return 0

@@ -54,13 +54,32 @@ def _jsbsim(s: dict[str, Any]) -> list[str]:
         "that remains: izz and rotor_cd0 run to their bounds and the yaw-rate R² stays low; "
         "the likely cause (not isolated) is JSBSim's propeller torque — its C_POWER table "
         "and the propellers' own inertia, whose spin-up reaction torque acts on yaw — which "
-        "our blade-element torque does not reproduce.", "",
-        "Fixed wing: not run. No small fixed wing ships with jsbsim 1.3 (its fixed wings are "
-        "full-size aircraft — c172x, pa28, J3Cub, … — with piston engines and variable-"
-        "pitch or fixed-pitch propeller models); our fixed-wing model is the 3.3 kg TALON "
-        "with an electric propeller, so a fit would first need a new preset (mass, inertia, "
-        "geometry, engine) per JSBSim aircraft, which we have not built. The 0.91 of the "
-        "paper's TALON is compared with our identifiability result only.", ""]
+        "our blade-element torque does not reproduce.", ""]
+    return out
+
+
+def _fixed_wing(outputs: Path) -> list[str]:
+    """The fixed-wing cross-fit against JSBSim's minisgs (experiments/fixed_wing_fit.py)."""
+    path = Path(outputs) / "fixed_wing" / "summary.json"
+    head = ["", "Cross-model fit, fixed wing: our fixed wing tuned on a log flown by JSBSim's "
+            "`minisgs` sailplane (2.44 m, 5 kg; `python experiments/fixed_wing_fit.py`), "
+            "scored on held-out logs (other inputs at 10 m/s; other inputs at 12 m/s, outside "
+            "the 9–11 m/s tuning log). The reference is a JSBSim model, not a flight.", ""]
+    if not path.exists():
+        return head + [f"Not run: no `{Path(outputs).name}/fixed_wing/summary.json`.", ""]
+    s = json.loads(path.read_text())
+    m = {(r["log"], r["params"], r["channel"]): r for r in s["metrics"]}
+    out = head + ["| held-out log | parameters | RMS q (rad/s) | RMS p (rad/s) | R² q | R² p | "
+                  "R² theta | R² phi |", "|---|---|---|---|---|---|---|---|"]
+    for log in ("heldout_inputs", "heldout_speed"):
+        for name in ("initial", "tuned"):
+            r = {c: m[(log, name, c)] for c in ("q", "p", "theta", "phi")}
+            out.append(f"| {log} | {name} | {_f(r['q']['rms'], 4)} | {_f(r['p']['rms'], 4)} | "
+                       f"{_f(r['q']['r2'])} | {_f(r['p']['r2'])} | {_f(r['theta']['r2'])} | "
+                       f"{_f(r['phi']['r2'])} |")
+    p = s["paper_talon"]
+    out += [f"| paper (TALON, real flight) | – | {p['rms_pitch']} | {p['rms_roll']} | "
+            f"{p['r2']} (pitch and roll) | | | |", ""]
     return out
 
 
@@ -98,6 +117,7 @@ def section(outputs: Path) -> str:
             out.append(f"| {kind} | {g['name']} | {100 * start:+.0f} % | "
                        f"{100 * _mean(errs):+.1f} % | {100 * max(abs(e) for e in errs):.1f} % |")
     out += _jsbsim(s)
+    out += _fixed_wing(outputs)
     gps = {k: _mean([r["timing"]["generations_per_s"] for r in runs])
            for k, runs in s["identifiability"].items()}
     b = s["budgets"]
@@ -119,8 +139,7 @@ def section(outputs: Path) -> str:
         "frame drag not at these speeds. For the fixed wing, inertia is held at its measured "
         "value (only moment coefficient / inertia is identifiable); roll damping and aileron "
         "power and lift slope are recovered best, the pitch-moment derivatives lie on a ridge. "
-        "(4) Cross-model: see the JSBSim table; the fixed-wing cross-fit is not run "
-        "(below).")
+        "(4) Cross-model: see the JSBSim tables (F450 and minisgs).")
     mode = " (**quick mode** — a smoke test, not the study)" if s.get("quick") else ""
     out += ["", f"Command: `{s['command']}`{mode} — seeds "
             f"{','.join(str(x) for x in s['seeds'])}, sigma_des {s['version']}. Per-run "

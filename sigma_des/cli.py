@@ -119,6 +119,8 @@ COMMANDS: dict[str, Command] = {
                         "sigma_des.calibrate.predict_cli:add_capacity_args", extra="live"),
     "tune": Command("fit the aircraft model to a flight log (GA + DTW); writes fitted.toml",
                     "sigma_des.tuning.cli:add_args", extra="tuning"),
+    "flightlog": Command("write a tuning flight log flown by a JSBSim glider (minisgs)",
+                         "sigma_des.tuning.glider_cli:add_args", extra="physics"),
     "warmup": Command("compile the numba kernels once, after installing (in parallel)",
                       "sigma_des.warmup.cli:add_args"),
 }
@@ -188,6 +190,8 @@ def _run(args: argparse.Namespace) -> int:
         return _function("sigma_des.replay.cli:run_replay")(args)  # type: ignore[no-any-return]
     if command == "tune":
         return _function("sigma_des.tuning.cli:run")(args)  # type: ignore[no-any-return]
+    if command == "flightlog":
+        return _function("sigma_des.tuning.glider_cli:run")(args)  # type: ignore[no-any-return]
     if command == "warmup":
         return _function("sigma_des.warmup.cli:run")(args)  # type: ignore[no-any-return]
     if command in ("predict", "capacity"):

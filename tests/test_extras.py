@@ -23,6 +23,7 @@ _RUN = ("import sys; sys.modules[sys.argv[1]] = None; from sigma_des.cli import 
     ("mcap", ["replay", "x.mcap", "--rate", "10", "--out", "t.csv"], "record", ""),
     ("dask", ["sweep", "--set", "nodes=2", "--out", "sw"], "experiments", "--in-process"),
     ("jsbsim", ["compare", "--set", 'dynamics="jsbsim:c172x"'], "physics", ""),
+    ("jsbsim", ["flightlog", "--out", "t.csv"], "physics", ""),
     ("paho", ["live", "--set", "nodes=2"], "live", ""),
     ("matplotlib", ["compare", "--set", "nodes=2", "--out", "o"], "experiments", "--no-plots"),
 ])

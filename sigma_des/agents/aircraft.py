@@ -190,9 +190,14 @@ class GeneralAircraft:
 
         from scipy.optimize import fsolve  # here: its import holds ~36 MB
 
-        sol, _, ok, msg = fsolve(residual, [0.05, 0.0, 0.9 * p.omega_max], full_output=True)
-        alpha, de, om = (float(s) for s in sol)
-        if ok != 1 or not 0 < om < p.omega_max or abs(de) > p.delta_max:
+        # The first start suits a small-wing UAV; a large wing trims nose-down at low
+        # power, where Newton's steps from the first start leave the thrust's range.
+        for a0, om0 in ((0.05, 0.9), (-0.1, 0.7), (0.0, 0.5)):
+            sol, _, ok, msg = fsolve(residual, [a0, 0.0, om0 * p.omega_max], full_output=True)
+            alpha, de, om = (float(s) for s in sol)
+            if ok == 1 and 0 < om < p.omega_max and abs(de) <= p.delta_max:
+                break
+        else:
             raise ConfigError(f"{p.name}.v_cruise", f"no level-flight trim at {v} m/s ({msg})")
         prm[L.TRIM_OMEGA], prm[L.TRIM_DE], prm[L.TRIM_THETA] = om, de, alpha
         prm[L.TRIM_THROTTLE] = om / p.omega_max

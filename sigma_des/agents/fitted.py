@@ -10,11 +10,15 @@ Format (TOML)::
     [params]                        # parameter name = fitted value (PARAM_NAMES)
     ixx = 0.0191
     rotor_pitch = 0.3012
+    "gains.k_att" = 4.5             # autopilot gains: "gains.<key>" (optional)
     [provenance]                    # optional, free-form: seed, log, fitness, version
     seed = 1
 
 Every other parameter keeps the preset's value. A scenario uses the file with
-``dynamics = "quadrotor"`` and ``dynamics_params = "fitted.toml"``.
+``dynamics = "quadrotor"`` and ``dynamics_params = "fitted.toml"``. A bare name
+that is not a file names a fit shipped in ``sigma_des/fits/`` (:func:`shipped_fits`):
+``dynamics = "fixedwing"``, ``dynamics_params = "minisgs"`` flies the fixed wing
+fitted to JSBSim's minisgs glider (with the preset's propeller).
 """
 
 from __future__ import annotations
@@ -33,8 +37,11 @@ from sigma_des.agents.presets import preset
 from sigma_des.errors import ConfigError
 from sigma_des.guard import read_text
 
-__all__ = ["KINDS", "PARAM_NAMES", "fitted_params", "get_value", "read_fitted", "with_values",
-           "write_fitted"]
+__all__ = ["KINDS", "PARAM_NAMES", "FITS_DIR", "fitted_params", "get_value", "read_fitted",
+           "resolve_fitted", "shipped_fits", "with_values", "write_fitted"]
+
+#: Where the shipped fitted files live (package data).
+FITS_DIR = Path(__file__).resolve().parent.parent / "fits"
 
 #: Presets a fitted file may apply to.
 KINDS: tuple[str, ...] = ("quadrotor", "fixedwing")
@@ -46,26 +53,36 @@ _AERO = tuple(f.name for f in fields(AeroCoeffs))
 #: Every parameter a fitted file (or a tuning gene) may set: the float fields of
 #: :class:`AircraftParams` and of its :class:`AeroCoeffs`, by bare name.
 PARAM_NAMES: tuple[str, ...] = _TOP + _AERO
+#: A fitted file may also set the preset's autopilot gains, as ``"gains.<key>"``.
+GAIN_PREFIX = "gains."
 
 
 def get_value(p: AircraftParams, name: str) -> float:
-    """Current value of parameter ``name`` (top-level or aerodynamic)."""
+    """Current value of parameter ``name`` (top-level, aerodynamic or ``gains.<key>``)."""
     if name in _TOP:
         return float(getattr(p, name))
     if name in _AERO:
         return float(getattr(p.aero, name))
-    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+    if name.startswith(GAIN_PREFIX) and name[len(GAIN_PREFIX):] in p.gains:
+        return float(p.gains[name[len(GAIN_PREFIX):]])
+    raise ConfigError(name, f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}, "
+                      f"or gains.<key> ({', '.join(sorted(p.gains))})")
 
 
 def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
     """A copy of ``p`` with the named parameters replaced (validated)."""
     top = {k: float(v) for k, v in values.items() if k in _TOP}
     aero = {k: float(v) for k, v in values.items() if k in _AERO}
-    bad = sorted(set(values) - set(top) - set(aero))
+    gains = {k[len(GAIN_PREFIX):]: float(v) for k, v in values.items()
+             if k.startswith(GAIN_PREFIX) and k[len(GAIN_PREFIX):] in p.gains}
+    bad = sorted(set(values) - set(top) - set(aero) - {GAIN_PREFIX + k for k in gains})
     if bad:
-        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
+        raise ConfigError(bad[0], f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}, "
+                          f"or gains.<key> ({', '.join(sorted(p.gains))})")
     if aero:
         top["aero"] = dataclasses.replace(p.aero, **aero)  # type: ignore[assignment]
+    if gains:
+        top["gains"] = {**p.gains, **gains}  # type: ignore[dict-item]
     return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 
@@ -82,9 +99,23 @@ def write_fitted(path: str | Path, kind: str, values: dict[str, float],
     return path
 
 
-def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
-    """``(kind, values)`` of a fitted file, validated (ConfigError names file and key)."""
+def shipped_fits() -> list[str]:
+    """Names of the fitted files shipped with the package, sorted."""
+    return sorted(p.stem for p in FITS_DIR.glob("*.toml"))
+
+
+def resolve_fitted(path: str | Path) -> Path:
+    """An existing file, else the shipped fit of that bare name (else ``path`` unchanged)."""
     p = Path(path)
+    if p.exists() or len(p.parts) != 1:
+        return p
+    shipped = FITS_DIR / (p.name if p.suffix == ".toml" else f"{p.name}.toml")
+    return shipped if shipped.is_file() else p
+
+
+def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
+    """``(kind, values)`` of a fitted file or shipped fit (ConfigError names file and key)."""
+    p = resolve_fitted(path)
     src = str(p)
     text = read_text(p, src, "fitted parameter file")
     try:
@@ -108,7 +139,7 @@ def read_fitted(path: str | Path) -> tuple[str, dict[str, float]]:
                           f"fitted value; allowed names: {', '.join(PARAM_NAMES)}")
     values: dict[str, float] = {}
     for k, v in params.items():
-        if k not in PARAM_NAMES:
+        if k not in PARAM_NAMES and not k.startswith(GAIN_PREFIX):
             raise ConfigError(f"{src}: params.{k}",
                               f"unknown parameter; allowed: {', '.join(PARAM_NAMES)}")
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):

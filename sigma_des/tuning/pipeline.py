@@ -16,8 +16,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from sigma_des.agents.fitted import write_fitted
+from sigma_des.agents.fitted import GAIN_PREFIX, PARAM_NAMES, get_value, write_fitted
 from sigma_des.agents.params import AircraftParams
+from sigma_des.agents.presets import preset
 from sigma_des.agents.wind import WindConfig
 from sigma_des.tuning.flightlog import FlightLog
 from sigma_des.tuning.ga import tune
@@ -36,6 +37,17 @@ def _clean(x: Any) -> Any:
     if isinstance(x, list | tuple):
         return [_clean(v) for v in x]
     return x
+
+
+def _file_values(start: AircraftParams, kind: str, genes: dict[str, float]) -> dict[str, float]:
+    """What fitted.toml holds: the start's values that differ from the preset (an
+    ``--init`` file's structure) and the fitted genes, so the file alone rebuilds it."""
+    base = preset(kind)
+    vals = {n: get_value(start, n) for n in PARAM_NAMES
+            if get_value(start, n) != get_value(base, n)}
+    vals.update({GAIN_PREFIX + k: v for k, v in start.gains.items() if base.gains.get(k) != v})
+    vals.update(genes)
+    return vals
 
 
 def tune_and_report(log: FlightLog, start: AircraftParams, spec: TuneSpec, out: str | Path,
@@ -83,7 +95,7 @@ def tune_and_report(log: FlightLog, start: AircraftParams, spec: TuneSpec, out: 
         png = plot_fit(out / f"fit_{name}.png", win, {"initial": sims[0], "tuned": sims[1]},
                        kind, f"{kind}: {name} log {lg.source}")
         rep[name]["plot"] = png.name if png else None
-    write_fitted(out / "fitted.toml", kind, res.values(),
+    write_fitted(out / "fitted.toml", kind, _file_values(start, kind, res.values()),
                  {"seed": spec.seed, "log": log.source, "fitness": res.best_fitness,
                   "fitness_start": res.start_fitness, "version": __version__})
     rep = _clean(rep)

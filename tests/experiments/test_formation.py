@@ -95,3 +95,17 @@ def test_dtw_of_the_ideal_run_to_itself_is_zero(values: dict[str, dict[str, floa
     assert values["none"]["dtw_r"] > 0.0
     for lab in LABELS:
         assert values[lab]["dtw_r"] >= 0.0
+
+
+def test_dynamics_params_option_flies_a_fitted_wing() -> None:
+    """``--dynamics-params minisgs``: the scenario carries the shipped fit (the run itself is
+    the same code path as the default preset's)."""
+    sys.path.insert(0, str(SCRIPT.parent))
+    try:
+        import formation
+    finally:
+        sys.path.remove(str(SCRIPT.parent))
+    args = formation.parser().parse_args(["--dynamics-params", "minisgs"])
+    sc = formation.scenario("default", 2.0, 1, args.dynamics_params)
+    assert sc.dynamics == "fixedwing" and sc.dynamics_params == "minisgs"
+    assert formation.scenario("default", 2.0, 1).dynamics_params == ""

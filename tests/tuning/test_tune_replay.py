@@ -75,6 +75,21 @@ def test_fitness_by_hand() -> None:
     assert fitness(win, sim, spec)[0] == np.inf
 
 
+def test_r2_and_rms_by_hand() -> None:
+    """Two windows of 4 steps, theta = 0, 1, 2, 3, 4 logged; the replay off by +-0.5 after
+    the start. Scored samples (starts excluded): 1, 2, 3, 4 twice, mean 2.5, SS_tot =
+    2 (2.25 + 0.25 + 0.25 + 2.25) = 10, SS_res = 8 x 0.25 = 2: R² = 0.8, RMS = 0.5."""
+    obs = np.zeros((2, 5, 12))
+    obs[:, :, 4] = np.arange(5.0)
+    win = Windows(dt=0.1, steps=4, start=np.zeros((2, 28)), act=np.zeros((2, 4, 7)), obs=obs)
+    sim = obs.copy()
+    sim[:, :, 4] += np.array([9.0, 0.5, -0.5, 0.5, -0.5])   # the start is not scored
+    m = fit_metrics(win, sim, ("theta",))["theta"]
+    assert m["r2"] == pytest.approx(0.8) and m["rms"] == pytest.approx(0.5)
+    sim[:, :, 4] = 2.5                                        # the mean: R² = 0
+    assert fit_metrics(win, sim, ("theta",))["theta"]["r2"] == pytest.approx(0.0)
+
+
 def test_dtw_rows_matches_dtw_and_band() -> None:
     rng = np.random.default_rng(1)
     a, b = rng.normal(size=(3, 30, 2)), rng.normal(size=(3, 30, 2))
