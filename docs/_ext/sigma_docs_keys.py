@@ -2,7 +2,7 @@
 
 One table per scenario table (``[net.host_link.loss]`` …): dotted key, type, unit,
 default (as ``sigma-des config`` prints it), allowed range (:mod:`sigma_des.ranges`,
-probed against the validation by ``tests/docs/test_ranges.py``) and what the key does
+probed against the validation by ``tests/docs/test_key_ranges.py``) and what the key does
 (the class's ``Attributes:`` docstring).
 """
 
