@@ -20,8 +20,6 @@ import csv
 import dataclasses
 import json
 import os
-import platform
-import socket
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -51,6 +49,7 @@ from sigma_lab.studies.fixed_wing import (
     sensitivity,
     trim_moments,
 )
+from sigma_lab.studies.machine import machine
 
 __all__ = ["LOGS", "CHANNELS", "Budget", "run", "machine"]
 
@@ -76,20 +75,6 @@ class Budget:
         self.duration = 6.0 if quick else 40.0
         self.population = 8 if quick else 96
         self.generations = 3 if quick else 200
-
-
-def machine() -> dict[str, Any]:
-    """Host name, CPU model and count, Python and sigma_des versions."""
-    cpu = platform.processor()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"host": socket.gethostname(), "cpu": cpu, "cpus": os.cpu_count(),
-            "python": platform.python_version(), "sigma_des": __version__}
 
 
 def _logs(out: Path, seed: int, duration: float) -> dict[str, FlightLog]:
