@@ -13,6 +13,7 @@ turns those folders into ``docs/results/validation.md`` and ``performance.md``
     python experiments/make_docs_results.py --quick          # small-scale runs (labelled)
     python experiments/make_docs_results.py --only engine,env
     python experiments/make_docs_results.py --list
+    python experiments/make_docs_results.py --only validation --work runs/  # keep outputs
 
 Nothing is made up: a study that fails leaves its folder as it was and the command
 exits 1.
@@ -66,8 +67,9 @@ class Study:
 
 STUDIES = (
     Study("validation", "Live against the DES", "validation", "live_vs_des.py",
-          ("--out", "{out}"), ("--quick", "--out", "{out}"),
-          "The DES is calibrated on one live run (`sigma-des calibrate`), then predicts "
+          ("--calibrate-bundled", "--out", "{out}"), ("--quick", "--out", "{out}"),
+          "The DES is calibrated on a campaign of two live runs, per node and bundled "
+          "(`sigma-des calibrate RUN RUN`), then predicts "
           "held-out live runs at other sizes, message modes and impairments; each "
           "prediction is scored against the live runs' own spread (the noise floor)."),
     Study("fixed_wing", "Fixed-wing model fidelity against JSBSim's minisgs", "validation",
@@ -101,13 +103,18 @@ def _git(*args: str) -> str:
     return r.stdout.strip() if r.returncode == 0 else ""
 
 
-def run_study(s: Study, quick: bool) -> bool:
-    """Run one study and file its outputs; False (folder untouched) if it failed."""
+def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
+    """Run one study and file its outputs; False (folder untouched) if it failed.
+
+    With ``work`` the study writes to ``work/<name>`` and the folder is kept: a
+    resumable script (the validation suite) resumes there, and its per-run folders
+    stay for later rescoring. Otherwise a temporary folder is used.
+    """
     from sigma_des.version import __version__
 
     with tempfile.TemporaryDirectory(prefix=f"docs_{s.name}_") as tmp:
-        out = Path(tmp) / "out"
-        out.mkdir()
+        out = (work / s.name) if work is not None else Path(tmp) / "out"
+        out.mkdir(parents=True, exist_ok=True)
         args = [a.format(out=out) for a in (s.quick if quick else s.full)]
         shown = ["python", f"experiments/{s.script}",
                  *[a.replace(str(out), f"OUT/{s.name}") for a in args]]
@@ -152,6 +159,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="small-scale runs (each script's --quick), labelled as such")
     p.add_argument("--only", default="", help="comma-separated study names")
     p.add_argument("--list", action="store_true", help="list the studies and exit")
+    p.add_argument("--work", type=Path, default=None, metavar="DIR",
+                   help="keep each study's output folder under DIR (resumable scripts "
+                        "resume there); default: a temporary folder")
     args = p.parse_args(argv)
     if args.list:
         for s in STUDIES:
@@ -161,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     unknown = sorted(set(names) - {s.name for s in STUDIES})
     if unknown:
         p.error(f"--only: unknown {unknown}; allowed: {', '.join(s.name for s in STUDIES)}")
-    ok = [run_study(s, args.quick) for s in STUDIES if s.name in names]
+    ok = [run_study(s, args.quick, args.work) for s in STUDIES if s.name in names]
     return 0 if all(ok) else 1
 
 
