@@ -16,7 +16,11 @@ built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
 agents, BiDES at 200 ms with 10 % loss, and ``perfect``), 4 and 64 scenes, random
 actions, against the targets (>= 50 000 agent-steps per CPU-s at 64 scenes, >= 20 000
 at 4); memory: the process's resident set (``VmRSS``) grown by building and resetting
-``--fit`` scenes (default 512), per scene and in all (target: 512 scenes in 2 GB).
+``--fit`` scenes (default 512), per scene and in all (target: 512 scenes in 2 GB). For
+normalisation across machines it also prints the CPU seconds per simulated second of
+the in-repo process-per-message SimPy baseline (``sigma_lab.reference.process_model``)
+on a fixed scenario (50 nodes, stream transport, method ``none``, 2 s), run in the same
+process: divide an env figure by it to compare machines.
 
 Usage: ``python experiments/bench_env.py [--quick] [--study] [--out out/env]``
 """
@@ -109,12 +113,28 @@ def _rss() -> int:
     return 0
 
 
+def baseline_cpu_per_sim_s(duration: float = 2.0) -> float:
+    """CPU seconds (this thread) per simulated second of the SimPy baseline (module doc)."""
+    from sigma_lab.reference.process_model import ProcessModel
+
+    from sigma_des.config import load
+
+    sc = load(None, ["nodes=50", "net.transport=\"stream\"", "fidelity.enabled=false",
+                     "commands.enabled=false", f"duration={duration}", "warmup=0.5"])
+    t = time.thread_time()
+    ProcessModel(sc).run()
+    return (time.thread_time() - t) / duration
+
+
 def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, Any]:
     """Agent-steps per CPU-s on the delay study's configuration, and memory per scene."""
     import gc
 
     from sigma_lab.studies.delay import env_kwargs
 
+    base = baseline_cpu_per_sim_s()
+    print(f"SimPy baseline (50 nodes, stream, none): {base:.3f} CPU-s per simulated second; "
+          f"load {os.getloadavg()[0]:.1f}", flush=True)
     rows = []
     for cond in ("bides@200ms", "perfect"):
         kw = env_kwargs(cond, 5, 10_000, 0.1)
@@ -147,7 +167,8 @@ def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, 
     print(f"memory: {fit} scenes (bides@200ms) grew the resident set by {grown / 2**20:.1f} MiB "
           f"= {grown / fit / 1024:.1f} KiB per scene; in 2 GiB: "
           f"{'yes' if grown < 2 * 2**30 else 'no'}", flush=True)
-    return {"rows": rows, "fit_scenes": fit, "rss_grown_bytes": grown,
+    return {"rows": rows, "baseline_cpu_per_sim_s": base, "fit_scenes": fit,
+            "rss_grown_bytes": grown,
             "rss_bytes_per_scene": grown / fit, "fits_2gib": grown < 2 * 2**30}
 
 

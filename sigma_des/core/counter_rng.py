@@ -62,6 +62,28 @@ def mix_column(h: np.uint64, ids: np.ndarray, tail: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def mix_outer(h: np.uint64, a: np.ndarray, mid: np.ndarray, b: np.ndarray, tail: np.ndarray,
+              a_is_row: bool) -> np.ndarray:
+    """``rng.mix(key, *prefix, A, *mid, B, *tail)`` for a row ``(1, n)`` and a column
+    ``(m, 1)`` (``A`` the row if ``a_is_row``, else the column; ``a``, ``b`` their
+    values), scalar ``mid`` and ``tail``, ``h`` the hash of the key and the prefix:
+    ``(m, n)``, the same SplitMix64 steps per element."""
+    n = a.shape[0] if a_is_row else b.shape[0]
+    m = b.shape[0] if a_is_row else a.shape[0]
+    out = np.empty((m, n), dtype=np.uint64)
+    for r in range(m):
+        for c in range(n):
+            z = absorb(h, a[c] if a_is_row else a[r])
+            for t in mid:
+                z = absorb(z, t)
+            z = absorb(z, b[r] if a_is_row else b[c])
+            for t in tail:
+                z = absorb(z, t)
+            out[r, c] = _fin(z)
+    return out
+
+
+@njit(cache=True)
 def uniform3(key: np.uint64, a: np.int64, b: np.int64, c: np.int64) -> float:
     """``Stream.uniform(a, b, c)`` for the stream whose key is ``key``."""
     return to_uniform(absorb(absorb(absorb(key, a), b), c))

@@ -6,6 +6,12 @@ by one through numpy costs tens of microseconds each; instead the first request
 for a ``(kind, index, attempt)`` draws the values of *all* subjects at once and
 caches the vector. Because draws are counter-based, evicting and redrawing gives
 the same numbers: the cache changes speed, never results.
+
+A *blockable* cache's sampler also takes a column of indices or attempts (``(m, 1)``)
+against a row of subjects (``(1, n)``) and broadcasts: :meth:`DrawCache.block` then
+draws ``m`` keys in one call (:class:`DrawBlock` keeps consecutive indices for the
+compiled core's per-frame table fills), each row the bits of :meth:`DrawCache.vector`
+of its key (the counter hash is exact; the quantiles are elementwise ufuncs).
 """
 
 from __future__ import annotations
@@ -16,7 +22,10 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["DrawCache"]
+__all__ = ["BLOCK", "DrawBlock", "DrawCache"]
+
+#: Indices a :class:`DrawBlock` draws at once.
+BLOCK = 16
 
 Sampler = Callable[[NDArray[np.int64], int, int, int], NDArray[np.float64]]
 
@@ -30,16 +39,18 @@ class DrawCache:
         limit: number of cached vectors kept (least recently created evicted).
     """
 
-    __slots__ = ("_subjects", "_sampler", "_cache", "_limit", "constant")
+    __slots__ = ("_subjects", "_sampler", "_cache", "_limit", "constant", "blockable")
 
     def __init__(
-        self, n_subjects: int, sampler: Sampler, limit: int = 512, constant: float | None = None
+        self, n_subjects: int, sampler: Sampler, limit: int = 512, constant: float | None = None,
+        blockable: bool = False,
     ) -> None:
         self._subjects = np.arange(n_subjects, dtype=np.int64)
         self._sampler = sampler
         self._cache: OrderedDict[tuple[int, int, int], NDArray[np.float64]] = OrderedDict()
         self._limit = limit
         self.constant = constant
+        self.blockable = blockable
 
     def get(self, kind: int, subject: int, index: int, attempt: int) -> float:
         """The value for one message."""
@@ -60,3 +71,54 @@ class DrawCache:
         if self.constant is not None:
             return np.full(len(self._subjects), self.constant)
         return self._sampler(self._subjects, kind, index, attempt)
+
+    def block(self, kind: int, index: int | NDArray[np.int64],
+              attempt: int | NDArray[np.int64] = 0) -> NDArray[np.float64]:
+        """``(m, n_subjects)`` values in one sampler call (only for a blockable cache).
+
+        One of ``index`` and ``attempt`` is a 1-d array of ``m`` keys, the other an int;
+        row ``j`` is :meth:`vector` of the ``j``-th key.
+        """
+        idx, att = np.asarray(index, dtype=np.int64), np.asarray(attempt, dtype=np.int64)
+        if idx.ndim + att.ndim != 1:
+            raise ValueError("block: one of index and attempt must be a 1-d array")
+        m = idx.size if idx.ndim else att.size
+        if self.constant is not None:
+            return np.full((m, len(self._subjects)), self.constant)
+        if not self.blockable:
+            raise ValueError("block: this cache's sampler takes one index at a time")
+        out = self._sampler(self._subjects[None, :], kind,  # type: ignore[arg-type]
+                            idx[:, None] if idx.ndim else int(idx),
+                            att[:, None] if att.ndim else int(att))
+        return np.ascontiguousarray(out, dtype=np.float64)
+
+
+class DrawBlock:
+    """The draws of one ``(cache, kind)`` for a block of consecutive indices, attempt 0.
+
+    :meth:`row` of an index outside the block draws the :data:`BLOCK` indices from it
+    in one call (a blockable cache; else one index per call, as :meth:`DrawCache.vector`).
+
+    Args:
+        cache: the draw cache.
+        kind: the kind the cache is sampled with.
+    """
+
+    __slots__ = ("cache", "kind", "first", "values")
+
+    def __init__(self, cache: DrawCache, kind: int) -> None:
+        self.cache = cache
+        self.kind = kind
+        self.first = 0
+        self.values = np.zeros((0, 0))
+
+    def row(self, index: int) -> NDArray[np.float64]:
+        """The values of all subjects at ``index`` (:meth:`DrawCache.vector`'s bits)."""
+        j = index - self.first
+        if 0 <= j < self.values.shape[0]:
+            return self.values[j]
+        if not self.cache.blockable:
+            return self.cache.vector(self.kind, index, 0)
+        self.first = index
+        self.values = self.cache.block(self.kind, np.arange(index, index + BLOCK), 0)
+        return self.values[0]

@@ -73,12 +73,41 @@ def _mix_column(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.
     return mix_column(np.uint64(h), arr, tail)  # type: ignore[no-any-return]
 
 
+def _mix_outer(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.uint64] | None:
+    """:func:`mix` compiled when ``ids`` are int64-range scalars and two integer arrays,
+    a row ``(1, n)`` and a column ``(m, 1)`` in either order (a block of the draw tables'
+    keys: subjects by indices or attempts); None otherwise."""
+    pos = [j for j, i in enumerate(ids) if isinstance(i, np.ndarray)]
+    if len(pos) != 2:
+        return None
+    p, q = pos
+    x, y = ids[p], ids[q]
+    assert isinstance(x, np.ndarray) and isinstance(y, np.ndarray)
+    if x.dtype.kind != "i" or y.dtype.kind != "i" or x.ndim != 2 or y.ndim != 2:
+        return None
+    if not ((x.shape[0] == 1 and y.shape[1] == 1) or (x.shape[1] == 1 and y.shape[0] == 1)):
+        return None
+    rest = [i for j, i in enumerate(ids) if j not in (p, q)]
+    if not all(isinstance(i, int | np.integer) and _I64[0] <= int(i) < _I64[1] for i in rest):
+        return None
+    from sigma_des.core.counter_rng import mix_outer  # numba: imported on first use
+
+    h = int(key)
+    for i in ids[:p]:
+        h = _absorb_int(h, int(i))  # type: ignore[arg-type]
+    mid = np.array([int(i) for i in ids[p + 1:q]], dtype=np.int64)  # type: ignore[arg-type]
+    tail = np.array([int(i) for i in ids[q + 1:]], dtype=np.int64)  # type: ignore[arg-type]
+    return mix_outer(np.uint64(h), np.ascontiguousarray(x.ravel(), dtype=np.int64), mid,  # type: ignore[no-any-return]
+                     np.ascontiguousarray(y.ravel(), dtype=np.int64), tail, x.shape[0] == 1)
+
+
 def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     """Hash a 64-bit key and any number of integer id arrays (broadcast together).
 
-    Scalars around one 1-d array (the per-frame draw fills) are hashed in compiled code
-    (:func:`sigma_des.core.counter_rng.mix_column`), the same SplitMix64 steps modulo
-    2**64, so the bits are those of the numpy path.
+    Scalars around one 1-d array (the per-frame draw fills), or around a row and a column
+    (a block of them), are hashed in compiled code
+    (:func:`sigma_des.core.counter_rng.mix_column`, ``mix_outer``), the same SplitMix64
+    steps modulo 2**64, so the bits are those of the numpy path.
 
     Args:
         key: the stream key.
@@ -88,6 +117,8 @@ def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
         A uint64 array of the broadcast shape (at least 1-d).
     """
     fast = _mix_column(key, ids)
+    if fast is None:
+        fast = _mix_outer(key, ids)
     if fast is not None:
         return fast
     arrays = [np.atleast_1d(np.asarray(i)).astype(np.int64).view(np.uint64) for i in ids]

@@ -23,7 +23,8 @@ owed compute steps (arithmetic) and keeps the pending rollbacks in its own array
 re-simulates them. The rows of different aircraft are independent, so one step call
 per frame over every pending aircraft gives each row the very bits its own
 re-simulation gives it (the dynamics' ``step_frames`` marks a model whose rows do not
-depend on the batch; others re-simulate at once).
+depend on the batch; others, and a model whose ``defer_rollbacks`` is False, re-simulate
+at once).
 """
 
 from __future__ import annotations
@@ -129,7 +130,8 @@ class SwarmTruth:
             else log)
         self.rollbacks = 0
         self.resim_steps = 0
-        self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
+        self.batched = (getattr(dynamics, "step_frames", None) is not None and checkpoints
+                        and getattr(dynamics, "defer_rollbacks", True))
         self.released = False
 
     def step_frame(

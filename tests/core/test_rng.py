@@ -68,3 +68,30 @@ def test_stream_uniform_is_the_top_53_bits_of_the_hash() -> None:
     u = s.uniform(2, np.arange(50), 9, 0)
     h = [_ref(int(s.key), 2, b, 9, 0) for b in range(50)]
     assert u.tolist() == [((x >> 11) + 0.5) / 2.0**53 for x in h]
+
+
+@pytest.mark.parametrize("order", ["row_first", "col_first"])
+@pytest.mark.parametrize("shape", [(1, 1), (4, 7), (0, 3), (5, 0)])
+def test_mix_of_a_row_and_a_column_among_scalars_is_splitmix64(order: str,
+                                                               shape: tuple[int, int]) -> None:
+    # the draw blocks' key: (kind, subjects (1, n), indices (m, 1), attempt), and
+    # (kind, subjects, index, attempts (m, 1)); the compiled outer path
+    m, n = shape
+    rng = np.random.default_rng(m * 10 + n)
+    key = int(rng.integers(0, 1 << 63)) * 2 + 1
+    row = rng.integers(*I64, size=n, endpoint=True)
+    col = rng.integers(*I64, size=m, endpoint=True)
+    if n:
+        row[0] = -1
+    if m:
+        col[0] = I64[1]
+    a, b, c = (int(x) for x in rng.integers(*I64, size=3, endpoint=True))
+    if order == "row_first":
+        got = mix(np.uint64(key), a, row[None, :], b, col[:, None], c)
+        want = [[_ref(key, a, int(row[j]), b, int(col[i]), c) for j in range(n)]
+                for i in range(m)]
+    else:
+        got = mix(np.uint64(key), a, col[:, None], row[None, :], c)
+        want = [[_ref(key, a, int(col[i]), int(row[j]), c) for j in range(n)] for i in range(m)]
+    assert got.dtype == np.uint64 and got.shape == (m, n)
+    assert [[int(x) for x in r] for r in got] == want

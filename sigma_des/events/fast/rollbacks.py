@@ -89,8 +89,12 @@ class Rollbacks:
             big[:, : val.shape[1]] = val
             S = L.replaced(S, {"rb_val": big})
             val = big
-        for j in range(have, want):
-            val[row, j] = self.step_time.vector(ROLLBACK_DRAW, target, j)
+        if self.step_time.blockable:  # every missing draw in one sampler call
+            val[row, have:want] = self.step_time.block(ROLLBACK_DRAW, target,
+                                                       np.arange(have, want))
+        else:
+            for j in range(have, want):
+                val[row, j] = self.step_time.vector(ROLLBACK_DRAW, target, j)
         tag[row, L.RB_ROWS] = want
         return S
 

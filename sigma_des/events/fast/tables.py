@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.core.draws import DrawCache
+from sigma_des.core.draws import DrawBlock, DrawCache
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.layout import (
     K_COMMAND,
@@ -109,6 +109,8 @@ class DrawTables:
         self.draw_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
         self.draw_const = np.zeros(N_SOURCES)
         self._fills: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
+        #: per kind: (table, the block of draws it is filled from)
+        self._blocks: dict[int, list[tuple[int, DrawBlock]]] = {k: [] for k in range(N_KINDS)}
         tables = 0
         for src, k, cache in sources:
             if cache.constant is not None:
@@ -117,15 +119,25 @@ class DrawTables:
             self.draw_map[src, k] = tables
             sampler_kind = STEP_DRAW if src == STEP else k
             self._fills[k].append((tables, cache, sampler_kind))
+            self._blocks[k].append((tables, DrawBlock(cache, sampler_kind)))
             tables += 1
         self.tables = max(tables, 1)
         self.values = np.zeros((self.tables, history, subjects))
         self.tags = np.full((self.tables, history), -1, dtype=np.int64)
 
     def fill(self, kind: int, index: int) -> None:
-        """Make the rows of ``(kind, index)`` present (a pure function of the key)."""
-        fill_rows(self.values, self.tags, self._fills[kind], index % self.tags.shape[1], index,
-                  index)
+        """Make the rows of ``(kind, index)`` present (a pure function of the key).
+
+        :func:`fill_rows`' rule, the draws taken from a :class:`~sigma_des.core.draws.DrawBlock`
+        per table (consecutive indices drawn in one sampler call, the same bits).
+        """
+        row = index % self.tags.shape[1]
+        values, tags = self.values, self.tags
+        for c, block in self._blocks[kind]:
+            if tags[c, row] != index:
+                v = block.row(index)
+                values[c, row, : v.size] = v
+                tags[c, row] = index
 
 
 def fill_rows(
