@@ -22,10 +22,13 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BLOCK", "DrawBlock", "DrawCache"]
+__all__ = ["BLOCK", "BLOCK_VALUES", "DrawBlock", "DrawCache"]
 
-#: Indices a :class:`DrawBlock` draws at once.
-BLOCK = 16
+#: Most indices a :class:`DrawBlock` draws at once.
+BLOCK = 64
+#: Most values (indices x subjects) a :class:`DrawBlock` draws at once (large swarms draw
+#: few indices per call: the per-call overhead is small beside their vector's cost).
+BLOCK_VALUES = 4096
 
 Sampler = Callable[[NDArray[np.int64], int, int, int], NDArray[np.float64]]
 
@@ -51,6 +54,11 @@ class DrawCache:
         self._limit = limit
         self.constant = constant
         self.blockable = blockable
+
+    @property
+    def n_subjects(self) -> int:
+        """Number of subjects (values per vector)."""
+        return len(self._subjects)
 
     def get(self, kind: int, subject: int, index: int, attempt: int) -> float:
         """The value for one message."""
@@ -96,19 +104,23 @@ class DrawCache:
 class DrawBlock:
     """The draws of one ``(cache, kind)`` for a block of consecutive indices, attempt 0.
 
-    :meth:`row` of an index outside the block draws the :data:`BLOCK` indices from it
-    in one call (a blockable cache; else one index per call, as :meth:`DrawCache.vector`).
+    :meth:`row` of an index outside the block draws ``rows`` indices from it in one call
+    (a blockable cache; else one index per call, as :meth:`DrawCache.vector`).
 
     Args:
         cache: the draw cache.
         kind: the kind the cache is sampled with.
+        rows: indices per block (default: :data:`BLOCK`, at most :data:`BLOCK_VALUES`
+            values in all, at least one index).
     """
 
-    __slots__ = ("cache", "kind", "first", "values")
+    __slots__ = ("cache", "kind", "first", "values", "rows")
 
-    def __init__(self, cache: DrawCache, kind: int) -> None:
+    def __init__(self, cache: DrawCache, kind: int, rows: int | None = None) -> None:
         self.cache = cache
         self.kind = kind
+        subjects = max(1, cache.n_subjects)
+        self.rows = rows if rows is not None else max(1, min(BLOCK, BLOCK_VALUES // subjects))
         self.first = 0
         self.values = np.zeros((0, 0))
 
@@ -120,5 +132,5 @@ class DrawBlock:
         if not self.cache.blockable:
             return self.cache.vector(self.kind, index, 0)
         self.first = index
-        self.values = self.cache.block(self.kind, np.arange(index, index + BLOCK), 0)
+        self.values = self.cache.block(self.kind, np.arange(index, index + self.rows), 0)
         return self.values[0]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sigma_des.core.draws import BLOCK, DrawBlock, DrawCache
+from sigma_des.core.draws import BLOCK, BLOCK_VALUES, DrawBlock, DrawCache
 from sigma_des.core.rng import RandomStreams
 from sigma_des.events.jobs import step_draws
 from sigma_des.events.spec import ComputeSpec
@@ -35,6 +35,7 @@ def test_draw_block_serves_rows_in_and_out_of_its_block(rho: float) -> None:
     cache = step_draws(compute, RandomStreams(5), [0, 0, 1, 1, 1])
     assert cache.blockable == (rho == 0.0)  # the host copula's sampler takes one index
     b = DrawBlock(cache, 3)
+    assert b.rows == BLOCK  # 5 subjects: the most indices
     for index in [10, 11, 10 + BLOCK - 1, 10 + BLOCK, 9, 500, 10]:
         np.testing.assert_array_equal(b.row(index), cache.vector(3, index, 0))
 
@@ -70,3 +71,11 @@ def test_block_over_attempts_is_the_vectors_bits(dist: Dist) -> None:
     assert block.shape == (9, 4)
     for j in range(9):
         np.testing.assert_array_equal(block[j], cache.vector(4, 250, 2 + j))
+
+
+def test_large_swarms_draw_fewer_indices_per_block() -> None:
+    cache = DrawCache(1000, lambda s, k, i, a: s * 1.0 + i, blockable=True)
+    assert DrawBlock(cache, 0).rows == BLOCK_VALUES // 1000
+    assert DrawBlock(DrawCache(10**5, lambda s, k, i, a: s * 1.0), 0).rows == 1
+    b = DrawBlock(cache, 0, rows=3)
+    assert b.row(7)[:2].tolist() == [7.0, 8.0] and b.values.shape == (3, 1000)
