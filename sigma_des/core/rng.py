@@ -85,7 +85,8 @@ def _mix_outer(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.u
     assert isinstance(x, np.ndarray) and isinstance(y, np.ndarray)
     if x.dtype.kind != "i" or y.dtype.kind != "i" or x.ndim != 2 or y.ndim != 2:
         return None
-    if not ((x.shape[0] == 1 and y.shape[1] == 1) or (x.shape[1] == 1 and y.shape[0] == 1)):
+    row_first = x.shape[0] == 1 and y.shape[1] == 1  # (1, n) then (m, 1)
+    if not (row_first or (x.shape[1] == 1 and y.shape[0] == 1)):
         return None
     rest = [i for j, i in enumerate(ids) if j not in (p, q)]
     if not all(isinstance(i, int | np.integer) and _I64[0] <= int(i) < _I64[1] for i in rest):
@@ -98,7 +99,7 @@ def _mix_outer(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.u
     mid = np.array([int(i) for i in ids[p + 1:q]], dtype=np.int64)  # type: ignore[arg-type]
     tail = np.array([int(i) for i in ids[q + 1:]], dtype=np.int64)  # type: ignore[arg-type]
     return mix_outer(np.uint64(h), np.ascontiguousarray(x.ravel(), dtype=np.int64), mid,  # type: ignore[no-any-return]
-                     np.ascontiguousarray(y.ravel(), dtype=np.int64), tail, x.shape[0] == 1)
+                     np.ascontiguousarray(y.ravel(), dtype=np.int64), tail, row_first)
 
 
 def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:

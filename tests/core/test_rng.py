@@ -71,7 +71,7 @@ def test_stream_uniform_is_the_top_53_bits_of_the_hash() -> None:
 
 
 @pytest.mark.parametrize("order", ["row_first", "col_first"])
-@pytest.mark.parametrize("shape", [(1, 1), (4, 7), (0, 3), (5, 0)])
+@pytest.mark.parametrize("shape", [(1, 1), (4, 7), (0, 3), (5, 0), (1, 16), (6, 1)])
 def test_mix_of_a_row_and_a_column_among_scalars_is_splitmix64(order: str,
                                                                shape: tuple[int, int]) -> None:
     # the draw blocks' key: (kind, subjects (1, n), indices (m, 1), attempt), and
