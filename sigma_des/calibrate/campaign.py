@@ -82,7 +82,8 @@ def run_info(source: Path) -> RunInfo:
     except (OSError, ValueError):  # the fit refuses a broken summary, naming it
         summ = {}
     summ = summ if isinstance(summ, dict) else {}
-    live = summ.get("live") if isinstance(summ.get("live"), dict) else {}
+    got = summ.get("live")
+    live: dict[str, Any] = got if isinstance(got, dict) else {}
     bundle = any(bool(v.get("bundle")) for v in live.values() if isinstance(v, dict))
     cores = next((int(v["cores"]) for v in live.values()
                   if isinstance(v, dict) and v.get("cores")), 0)
@@ -192,14 +193,16 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     rec_runs = [i for i in bundled if i in cpu] or msg_runs
     dep, broker = sc.deployment, sc.broker
     if msg_runs:
-        dep = replace(dep, **{k: _mean_of([fits[i][0] for i in msg_runs], k)
-                              for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}})
+        means: dict[str, Any] = {k: _mean_of([fits[i][0] for i in msg_runs], k)
+                                 for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}}
+        dep = replace(dep, **means)
         svc = float(np.mean([fits[i][0].broker.publish_service.mean_value() for i in msg_runs]))
         broker = replace(broker, publish_service=Dist(dist="constant", value=svc))
     if rec_runs:
-        dep = replace(dep, **{k: min(_mean_of([fits[i][0] for i in rec_runs], k),
-                                     getattr(dep, k.replace("record", "demand")))
-                              for k in _PER_RECORD})
+        records: dict[str, Any] = {k: min(_mean_of([fits[i][0] for i in rec_runs], k),
+                                          getattr(dep, k.replace("record", "demand")))
+                                   for k in _PER_RECORD}
+        dep = replace(dep, **records)
     per_client = float(np.mean([fits[i][1]["delivery_service_per_client_s"]
                                 for i in (msg_runs or lat_runs)]))
     sc = replace(sc, net=net, deployment=dep, broker=broker)
