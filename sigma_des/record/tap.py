@@ -113,8 +113,9 @@ class RecordTap(Tap):
     def snapshot(self, t: float, frame: int, frames: NDArray[np.int64], obs: _F) -> None:
         """A new aligned snapshot shown at ``t``."""
         self._advance(t)
-        if self._incremental:  # frames only: the poses are in the state channel
-            self.run.snapshot(t=t, frame=frame, frames=frames, pos=np.zeros((0, 3)))
+        if self._incremental:  # frames only (the poses are in the state channel); the
+            pos = np.stack([obs[:, 9], obs[:, 10], -obs[:, 11]], axis=1)  # swarm frame
+            self.run.snapshot(t=t, frame=frame, frames=frames, pos=pos)
             return
         pos, _vel, att = obs_to_ned(obs)
         self.run.snapshot(t=t, frame=frame, frames=frames, pos=pos, att=att)

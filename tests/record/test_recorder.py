@@ -69,7 +69,8 @@ def test_file_layout_topics_schemas_and_indexes(tmp_path: Path) -> None:
         assert topics["/bides/snapshot"] == "foxglove.PosesInFrame"
         assert topics["/none/state"] == "sigma_des.StateRows"
         assert set(topics) == {f"/{m}/{k}" for m in ("none", "bides")
-                               for k in ("trigger", "state", "command", "snapshot", "render")}
+                               for k in ("trigger", "state", "command", "snapshot", "render",
+                                         "tf")}
         assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
         assert summary.chunk_indexes, "no chunk index: readers cannot seek"
         assert summary.statistics is not None
