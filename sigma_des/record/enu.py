@@ -65,15 +65,19 @@ def enu_poses(pos: NDArray[np.float64], att: NDArray[np.float64] | None
 
 
 def poses_in_frame(t: float, frame: int, frames: NDArray[np.int64], pos: NDArray[np.float64],
-                   att: ArrayLike | None) -> dict[str, Any]:
+                   att: ArrayLike | None, decimals: tuple[int, int] | None = None
+                   ) -> dict[str, Any]:
     """A ``foxglove.PosesInFrame`` body with sigma_des's frame fields added.
 
     Nodes whose position or attitude is not finite have no pose; ``nodes`` names the
-    node of each pose.
+    node of each pose. ``decimals``: round positions and quaternions to these many
+    decimal places (None: exact).
     """
     n = frames.size
     a = None if att is None else np.asarray(att, dtype=float).reshape(n, 3)
     p, q = enu_poses(pos.reshape(n, 3), a)
+    if decimals is not None:
+        p, q = np.round(p, decimals[0]), np.round(q, decimals[1])
     ok = np.isfinite(p).all(axis=1) & np.isfinite(q).all(axis=1)
     poses = [
         {

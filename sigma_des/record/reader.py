@@ -25,13 +25,13 @@ from numpy.typing import NDArray
 from sigma_des.errors import ConfigError
 from sigma_des.record.delta import decode
 from sigma_des.record.rows import POSE_COLS
-from sigma_des.record.schemas import KINDS, LEGACY, SCHEMAS, TABLE_KINDS
+from sigma_des.record.schemas import KINDS, LEGACY, READABLE, SCHEMAS, TABLE_KINDS
 
 __all__ = ["Recording", "RecordError", "StateTable", "open_recording", "read_states",
            "read_table"]
 
 TABLE_COLUMNS = ("method", "kind", "node", "frame", "t_send", "t_recv")
-_KNOWN = {name for name, _s in SCHEMAS.values()}
+_KNOWN = {name for name, _s in SCHEMAS.values()} | READABLE
 _MAGIC = b"\x89MCAP0\r\n"
 
 

@@ -18,12 +18,12 @@ Values that may be missing are never ``null`` (see docs/concepts/recording.md):
   ``valid[j] = 0`` (``valid[j] = 1``: ``values[j]`` is the command);
 * a render sample's AoI of a node with nothing shown yet is ``-1`` (AoI is ≥ 0).
 
-Aligned snapshots in ``full`` mode use Foxglove's ``foxglove.PosesInFrame`` in the
-z-up frame ``enu`` (x east, y north, z up; bodies forward-left-up), so the 3-D panel
-draws the swarm right side up at its altitude; the NED states stay in the state
-channel. In ``incremental`` mode a snapshot stores only the frame of each node.
-In both modes every snapshot also moves a frame to follow, ``<method>/swarm`` (child of
-``enu`` at the swarm's centre, ``foxglove.FrameTransform`` on ``/<method>/tf``).
+Aligned snapshots use Foxglove's ``foxglove.PosesInFrame`` in the z-up frame ``enu``
+(x east, y north, z up; bodies forward-left-up), so the 3-D panel draws the swarm right
+side up at its altitude; the NED states stay in the state channel. In ``incremental``
+mode the poses are rounded to display precision (1 cm, quaternion 1e-4). In both modes
+every snapshot also moves a frame to follow, ``<method>/swarm`` (child of ``enu`` at the
+swarm's centre, ``foxglove.FrameTransform`` on ``/<method>/tf``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
-__all__ = ["KINDS", "LEGACY", "SCHEMAS", "TABLE_KINDS", "schema_bytes"]
+__all__ = ["KINDS", "LEGACY", "READABLE", "SCHEMAS", "TABLE_KINDS", "schema_bytes"]
 
 #: Message kinds, one channel each per method.
 KINDS: tuple[str, ...] = ("trigger", "state", "command", "snapshot", "render", "tf")
@@ -179,19 +179,10 @@ SCHEMAS[("state", "incremental")] = (
     ),
 )
 SCHEMAS[("snapshot", "full")] = ("foxglove.PosesInFrame", _POSES_IN_FRAME)
-SCHEMAS[("snapshot", "incremental")] = (
-    "sigma_des.SnapshotFrames",
-    {
-        "type": "object",
-        "description": "an aligned snapshot: the frame shown per node",
-        "properties": {
-            "t": _NUM,
-            "frame": _INT,
-            "frames": {"type": "array", "items": _INT},
-        },
-    },
-)
-
+SCHEMAS[("snapshot", "incremental")] = ("foxglove.PosesInFrame", _POSES_IN_FRAME)
+#: Schema names written before and still read: incremental snapshots that held only the
+#: frame per node (``t``, ``frame``, ``frames``).
+READABLE: frozenset[str] = frozenset({"sigma_des.SnapshotFrames"})
 
 def schema_bytes(kind: str, mode: str) -> tuple[str, bytes]:
     """Name and encoded JSON schema of ``kind`` in record ``mode``."""
