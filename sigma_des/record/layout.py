@@ -9,8 +9,8 @@
   stays on the swarm wherever it flies; ``/<method>/snapshot``'s poses are drawn as
   arrows long enough to see from the camera's distance, over a ground grid fixed in
   ``enu`` (so the swarm is seen moving over it);
-* **Plot** of the AoI of every node, ``/<method>/render.aoi[:]`` (s; −1 before anything
-  is shown);
+* **Plot** of the AoI of every node, ``/<method>/render.aoi[:]`` (s; the axis starts at
+  0, which hides the −1 of a node with nothing shown yet);
 * **Raw Messages** of ``/<method>/tf`` (the swarm's centre, east-north-up m).
 
 The JSON is Foxglove's layout data (``configById``, ``layout``, ``globalVariables``,
@@ -33,12 +33,12 @@ __all__ = ["LAYOUT_FILE", "add_layout_args", "foxglove_layout", "layout_json", "
 #: The shipped layout (method ``bides``).
 LAYOUT_FILE = Path(__file__).with_name("foxglove_layout.json")
 
-#: Camera: distance (m) and tilt from vertical (degrees) that frame a swarm of a few
-#: dozen aircraft spread over some 100 m.
-CAMERA_DISTANCE = 300.0
-CAMERA_PHI = 55.0
+#: Camera: distance (m) and tilt from vertical (degrees): a few dozen aircraft in view
+#: while the default formation spreads to some 400 m along its route.
+CAMERA_DISTANCE = 450.0
+CAMERA_PHI = 40.0
 #: Arrow length and shaft/head width (m): an aircraft is a few pixels long otherwise.
-ARROW_SCALE = (12.0, 3.0, 3.0)
+ARROW_SCALE = (10.0, 2.0, 4.0)
 #: Ground grid in ``enu``: side and cells (m): covers the default route.
 GRID_SIZE = 2000.0
 GRID_DIVISIONS = 40
@@ -85,6 +85,7 @@ def foxglove_layout(method: str = "bides") -> dict[str, Any]:
                 "title": f"AoI per node, {method} (s)",
                 "paths": [{"value": f"/{method}/render.aoi[:]", "enabled": True,
                            "timestampMethod": "receiveTime"}],
+                "minYValue": 0.0,  # hides the -1 of nodes with nothing shown yet
                 "showLegend": True, "isSynced": True, "xAxisVal": "timestamp",
                 "showXAxisLabels": True, "showYAxisLabels": True,
                 "legendDisplay": "floating", "showPlotValuesInLegend": False,
