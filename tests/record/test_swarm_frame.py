@@ -149,3 +149,42 @@ def test_the_layout_command_writes_any_method(tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert err.startswith("sigma-des: error: --method") and "bides" in err
     assert len(err.splitlines()) == 1
+
+
+def test_incremental_snapshots_are_poses_at_display_precision(tmp_path: Path) -> None:
+    """Full mode keeps the exact poses; incremental rounds them to 1 cm and 1e-4."""
+    got = {}
+    for mode in ("full", "incremental"):
+        path = tmp_path / f"{mode}.mcap"
+        with Recorder(path, mode=mode) as rec:  # NED: 10.123456 m north, 20.987654 m east
+            rec.run("bides").snapshot(t=0.1, frame=1, frames=[1],
+                                      pos=[[10.123456, 20.987654, -100.004]])
+        ((name, _t, body),) = _messages(path, "/bides/snapshot")
+        assert name == "foxglove.PosesInFrame" and body["frames"] == [1] and body["nodes"] == [0]
+        got[mode] = body["poses"][0]
+    h = math.sqrt(0.5)  # level, heading north
+    assert got["full"]["position"] == {"x": 20.987654, "y": 10.123456, "z": 100.004}
+    assert got["full"]["orientation"] == pytest.approx({"x": 0.0, "y": 0.0, "z": h, "w": h},
+                                                       abs=1e-15)
+    assert got["incremental"] == {"position": {"x": 20.99, "y": 10.12, "z": 100.0},
+                                  "orientation": {"x": 0.0, "y": 0.0, "z": 0.7071, "w": 0.7071}}
+
+
+def test_older_frame_only_snapshots_still_read(tmp_path: Path) -> None:
+    """An incremental recording whose snapshots held only frames (no poses) reads."""
+    from mcap.writer import Writer
+
+    path = tmp_path / "older.mcap"
+    with path.open("wb") as fh:
+        w = Writer(fh)
+        w.start(profile="sigma_des", library="sigma_des (older)")
+        w.add_metadata("sigma_des", {"recording": json.dumps({"record_mode": "incremental"}),
+                                     "scenario": "{}"})
+        sid = w.register_schema("sigma_des.SnapshotFrames", "jsonschema",
+                                json.dumps({"type": "object", "properties": {}}).encode())
+        cid = w.register_channel("/bides/snapshot", "json", sid)
+        w.add_message(cid, 250_000_000, b'{"t":0.25,"frame":15,"frames":[15,14]}', 250_000_000)
+        w.finish()
+    df = read_table(path)
+    assert df[["method", "kind", "frame", "t_recv"]].values.tolist() == [
+        ["bides", "snapshot", 15.0, 0.25]]
