@@ -23,7 +23,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from sigma_des.errors import ConfigError
 from sigma_des.record.enu import FRAME_ID, swarm_frame
@@ -133,7 +133,10 @@ def run_layout(args: argparse.Namespace) -> int:
         return 0
     from sigma_des.guard import atomic_write, output_file
 
+    def write(fh: IO[Any]) -> None:
+        fh.write(text)
+
     out = output_file(args.out, "--out")
-    atomic_write(out, lambda fh: fh.write(text), "--out")
+    atomic_write(out, write, "--out")
     print(f"wrote {out}: import it in Foxglove (Layouts, Import from file)")
     return 0

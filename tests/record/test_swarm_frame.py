@@ -149,6 +149,9 @@ def test_the_layout_command_writes_any_method(tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert err.startswith("sigma-des: error: --method") and "bides" in err
     assert len(err.splitlines()) == 1
+    assert main(["layout", "--out", str(tmp_path)]) == 2  # a folder, not a file
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("sigma-des: error: --out") and len(err.splitlines()) == 1
 
 
 def test_incremental_snapshots_are_poses_at_display_precision(tmp_path: Path) -> None:
