@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Paper study "interpolation": the replay memory's Table III in kind, plus the eq. (15) ablation.
 
-Flights (closed loop, ideal alignment, 100 Hz truth: ``sigma_des.replay.study``):
+Flights (closed loop, ideal alignment, 100 Hz truth: ``sigma_lab.studies.interpolation_flights``):
 
 * ``fixedwing`` — our 6-DoF TALON-class fixed wing, formation route 400 m × 300 m
   (a 90° turn every ~15 s at 20 m/s), mean wind (3, 2, 0) m/s + moderate Dryden

@@ -39,7 +39,7 @@ from sigma_lab.studies.machine import machine
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "results" / "data"
 #: the kinds of output file filed for the docs
-KEEP = (".csv", ".json", ".md", ".png", ".txt")
+KEEP = (".csv", ".json", ".md", ".png", ".toml", ".txt")
 
 
 @dataclass(frozen=True)

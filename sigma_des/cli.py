@@ -106,6 +106,9 @@ COMMANDS: dict[str, Command] = {
                      "experiments"),
     "replay": Command("rebuild recorded trajectories (compare --record) at any rate",
                       "sigma_des.replay.cli:add_replay_args", extra="record"),
+    "layout": Command("write a Foxglove layout for a recording: 3-D panel following the "
+                      "swarm, AoI plot (docs/howto/record-foxglove.md)",
+                      "sigma_des.record.layout:add_layout_args", extra="record"),
     "live": Command("run the scenario live over a real Mosquitto broker (docs/howto/live.md)",
                     "sigma_des.live.cli:add_live_args", True, "live"),
     "calibrate": Command("fit DES parameters from one or more live runs; writes a scenario "
@@ -188,6 +191,8 @@ def _run(args: argparse.Namespace) -> int:
 
         need("replay", "mcap", "orjson")
         return _function("sigma_des.replay.cli:run_replay")(args)  # type: ignore[no-any-return]
+    if command == "layout":
+        return _function("sigma_des.record.layout:run_layout")(args)  # type: ignore[no-any-return]
     if command == "tune":
         return _function("sigma_des.tuning.cli:run")(args)  # type: ignore[no-any-return]
     if command == "flightlog":

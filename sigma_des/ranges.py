@@ -15,6 +15,7 @@ and the validation cannot disagree.
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import math
 import re
@@ -292,7 +293,7 @@ class Key:
     default: str
     range: Range
     doc: str
-    cls: type = field(repr=False)
+    cls: builtins.type = field(repr=False)
     name: str = ""
 
 
@@ -335,8 +336,9 @@ def _toml(v: Any) -> str:
 def _field_defaults(cls: type) -> types.SimpleNamespace:
     """The defaults of ``cls``'s fields (a list entry's defaults need not be valid alone)."""
     return types.SimpleNamespace(**{
-        f.name: f.default if f.default is not dataclasses.MISSING else f.default_factory()
-        for f in dataclasses.fields(cls)  # type: ignore[arg-type]
+        f.name: f.default if f.default is not dataclasses.MISSING
+        else f.default_factory()  # type: ignore[operator]
+        for f in dataclasses.fields(cls)
         if f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
     })
 
@@ -365,7 +367,7 @@ def _walk(cls: type, obj: Any, prefix: str, auto: dict[str, Any]) -> Iterator[Ke
         doc = docs.get(f.name) or _DOC.get((cls, f.name), "")
         sub: Any = None
         if typing.get_origin(tp) is tuple and dataclasses.is_dataclass(args[0]):
-            sub, value, key = args[0], _field_defaults(args[0]), key + "[]"
+            sub, value, key = args[0], _field_defaults(typing.cast(type, args[0])), key + "[]"
         elif typing.get_origin(tp) in (typing.Union, types.UnionType):
             tp = args[0]
         if sub is None and dataclasses.is_dataclass(tp):

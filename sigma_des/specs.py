@@ -31,7 +31,8 @@ class RecordSpec:
 
     Attributes:
         mode: ``full`` (every state) or ``incremental`` (per-node deltas; states inside
-            the dead-band are not stored; periodic keyframes).
+            the dead-band are not stored; periodic keyframes; snapshot poses rounded to
+            1 cm).
         deadband_pos: incremental: a state is stored when its position is further than
             this from the dead-reckoned one (previous stored position + velocity × time), m.
         deadband_vel: incremental: ... or its velocity changed by more than this, m/s.

@@ -86,7 +86,8 @@ def test_the_wheel_runs_from_an_empty_directory_with_base_dependencies(tmp_path:
         names = set(z.namelist())
         meta = z.read(next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()
     assert {"sigma_des/py.typed", "sigma_des/scenarios/latency_tolerance.toml",
-            "sigma_des/calibrate/residuals.toml"} <= names  # predict's residuals
+            "sigma_des/calibrate/residuals.toml",  # predict's residuals
+            "sigma_des/record/foxglove_layout.json"} <= names  # the Foxglove layout
     lab = sorted(n for n in names if n.startswith(("sigma_lab/", "lab/"))
                  or n.startswith(("sigma_des/studies/", "sigma_des/reference/")))
     assert lab == [], f"the wheel ships the lab: {lab[:5]}"

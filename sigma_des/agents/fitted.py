@@ -82,7 +82,7 @@ def with_values(p: AircraftParams, values: dict[str, float]) -> AircraftParams:
     if aero:
         top["aero"] = dataclasses.replace(p.aero, **aero)  # type: ignore[assignment]
     if gains:
-        top["gains"] = {**p.gains, **gains}  # type: ignore[dict-item]
+        top["gains"] = {**p.gains, **gains}  # type: ignore[assignment]
     return dataclasses.replace(p, **top)  # type: ignore[arg-type]
 
 

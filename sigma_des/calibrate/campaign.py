@@ -43,8 +43,8 @@ from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist, load_samples
 
-__all__ = ["MAY_DIFFER", "UNDER_LOAD", "RunInfo", "check_combinable", "combine", "run_info",
-           "under_load_warning", "with_background"]
+__all__ = ["MAY_DIFFER", "UNDER_LOAD", "RunInfo", "check_combinable", "combine", "loaded_runs",
+           "refuse_loaded", "run_info", "under_load_warning", "with_background"]
 
 #: Scenario keys the runs of one campaign may differ in (besides the message mode).
 MAY_DIFFER = frozenset({"nodes", "hosts", "duration", "warmup", "seed"})
@@ -82,7 +82,8 @@ def run_info(source: Path) -> RunInfo:
     except (OSError, ValueError):  # the fit refuses a broken summary, naming it
         summ = {}
     summ = summ if isinstance(summ, dict) else {}
-    live = summ.get("live") if isinstance(summ.get("live"), dict) else {}
+    got = summ.get("live")
+    live: dict[str, Any] = got if isinstance(got, dict) else {}
     bundle = any(bool(v.get("bundle")) for v in live.values() if isinstance(v, dict))
     cores = next((int(v["cores"]) for v in live.values()
                   if isinstance(v, dict) and v.get("cores")), 0)
@@ -128,9 +129,39 @@ def under_load_warning(info: RunInfo) -> str | None:
     if cores and math.isfinite(bg) and bg > UNDER_LOAD * cores:
         return (f"{info['name']} ran under load: other processes used {bg:.2f} of its "
                 f"{cores} cores (more than {UNDER_LOAD:.0%}); the fit takes their CPU out of "
-                "the demands and hops, but its run-queue waits hold their load too: "
-                "calibrate on a quieter machine if you can")
+                "the demands and hops, but its run-queue waits hold their load too; "
+                "`predict` and `capacity` refuse this calibration without --allow-load: "
+                "calibrate on a quieter machine")
     return None
+
+
+def loaded_runs(report: dict[str, Any], cores: int) -> dict[str, float]:
+    """``{run: background cores}`` of a calibration's runs that ran under load (above
+    :data:`UNDER_LOAD` of ``cores``), from its report (``calibrate`` writes them)."""
+    bgs = report.get("background_cores_of_runs")
+    if not isinstance(bgs, dict) or cores <= 0:
+        return {}
+    return {str(k): float(v) for k, v in bgs.items()
+            if isinstance(v, int | float) and math.isfinite(v) and v > UNDER_LOAD * cores}
+
+
+def refuse_loaded(report: dict[str, Any], cores: int, allow: bool) -> None:
+    """Refuse to predict from a calibration made under load, unless ``allow``.
+
+    A loaded machine's run-queue waits, CPU per message and hop latencies are all
+    larger than an idle one's, and the fit cannot tell them apart from the machine's
+    own: the prediction of an idle target comes out too slow.
+
+    Raises:
+        ConfigError: (``--allow-load``) a run ran under load and ``allow`` is False.
+    """
+    loaded = loaded_runs(report, cores)
+    if loaded and not allow:
+        runs = ", ".join(f"{k} ({v:.2f} of {cores} cores)" for k, v in loaded.items())
+        raise ConfigError("--allow-load", f"the calibration ran under load: other processes "
+                          f"used more than {UNDER_LOAD:.0%} of the cores during {runs}; its "
+                          "predictions of an idle machine are too slow. Calibrate on a "
+                          "quieter machine, or give --allow-load to predict anyway")
 
 
 def with_background(sc: Scenario, background: float) -> Scenario:
@@ -192,14 +223,16 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     rec_runs = [i for i in bundled if i in cpu] or msg_runs
     dep, broker = sc.deployment, sc.broker
     if msg_runs:
-        dep = replace(dep, **{k: _mean_of([fits[i][0] for i in msg_runs], k)
-                              for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}})
+        means: dict[str, Any] = {k: _mean_of([fits[i][0] for i in msg_runs], k)
+                                 for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}}
+        dep = replace(dep, **means)
         svc = float(np.mean([fits[i][0].broker.publish_service.mean_value() for i in msg_runs]))
         broker = replace(broker, publish_service=Dist(dist="constant", value=svc))
     if rec_runs:
-        dep = replace(dep, **{k: min(_mean_of([fits[i][0] for i in rec_runs], k),
-                                     getattr(dep, k.replace("record", "demand")))
-                              for k in _PER_RECORD})
+        records: dict[str, Any] = {k: min(_mean_of([fits[i][0] for i in rec_runs], k),
+                                          getattr(dep, k.replace("record", "demand")))
+                                   for k in _PER_RECORD}
+        dep = replace(dep, **records)
     per_client = float(np.mean([fits[i][1]["delivery_service_per_client_s"]
                                 for i in (msg_runs or lat_runs)]))
     sc = replace(sc, net=net, deployment=dep, broker=broker)

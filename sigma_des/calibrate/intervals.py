@@ -140,8 +140,8 @@ def load_residuals(path: str | Path | None = None) -> tuple[dict[tuple[str, str]
     cov = float(meta.get("coverage", COVERAGE))
     src = str(meta.get("source", ""))
     table = {}
-    for e in data.get("residual", []):
-        r = _entry(e, cov, src)
+    for entry in data.get("residual", []):
+        r = _entry(entry, cov, src)
         table[(r.metric, r.regime)] = r
     return table, meta
 

@@ -42,6 +42,10 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="the validation's residuals.toml (default: the one shipped)")
     p.add_argument("--out", default=None, metavar="DIR", help="write the results here")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
+    p.add_argument("--allow-load", action="store_true",
+                   help="predict even from a calibration whose runs ran under load (other "
+                   "processes above 25%% of the cores): refused otherwise, its predictions "
+                   "of an idle machine being too slow")
 
 
 def add_predict_args(p: argparse.ArgumentParser) -> None:
@@ -70,6 +74,7 @@ def _say(quiet: bool) -> Any:
 
 
 def _check(args: argparse.Namespace) -> tuple[Any, Any, list[str]]:
+    from sigma_des.calibrate.campaign import refuse_loaded
     from sigma_des.calibrate.predict import load_calibration, parse_methods
     from sigma_des.outputs import check_out_dir
 
@@ -77,6 +82,7 @@ def _check(args: argparse.Namespace) -> tuple[Any, Any, list[str]]:
     if not math.isfinite(args.add_latency) or not 0.0 <= args.add_latency <= 1000.0:
         raise ConfigError("--add-latency", f"must be in 0..1000 ms, got {args.add_latency}")
     cal, report = load_calibration(args.calibration)
+    refuse_loaded(report, cal.deployment.cores, args.allow_load)
     if args.out:
         check_out_dir(args.out)
     return cal, report, methods

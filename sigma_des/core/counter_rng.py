@@ -12,40 +12,31 @@ channel) like every other draw in the project.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import cast
 
 import numpy as np
 from numba import njit
 
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+from sigma_des.core.rng import GOLDEN, S11, TWO53, finalise
+
 _ONE = np.uint64(1)
-_S30 = np.uint64(30)
-_S27 = np.uint64(27)
-_S31 = np.uint64(31)
-_S11 = np.uint64(11)
-_TWO53 = 1.0 / 9007199254740992.0
 _TWO_PI = 2.0 * math.pi
-
-
-@njit(cache=True, inline="always")
-def _fin(z: np.uint64) -> np.uint64:
-    z = (z ^ (z >> _S30)) * _M1
-    z = (z ^ (z >> _S27)) * _M2
-    return z ^ (z >> _S31)
+#: rng's own finaliser, compiled for one hash (the same bits as its array form)
+_fin = cast(Callable[[np.uint64], np.uint64], njit(cache=True, inline="always")(finalise))
 
 
 @njit(cache=True, inline="always")
 def absorb(h: np.uint64, i: np.int64) -> np.uint64:
     """Mix one integer id into a running hash (one step of ``rng.mix``)."""
-    return _fin(h ^ ((np.uint64(i) + _ONE) * _GOLDEN))
+    return _fin(h ^ ((np.uint64(i) + _ONE) * GOLDEN))
 
 
 @njit(cache=True, inline="always")
 def to_uniform(h: np.uint64) -> float:
     """Final mix of a running hash and map to (0, 1), as ``Stream.uniform``."""
     z = _fin(h)
-    return (float(z >> _S11) + 0.5) * _TWO53
+    return (float(z >> S11) + 0.5) * TWO53
 
 
 @njit(cache=True)

@@ -16,26 +16,31 @@ in Python integers or compiled code (its common shape) and give the same bits.
 from __future__ import annotations
 
 import hashlib
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["RandomStreams", "Stream", "mix"]
 
-_M1 = np.uint64(0xBF58476D1CE4E5B9)
-_M2 = np.uint64(0x94D049BB133111EB)
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
-_S30 = np.uint64(30)
-_S27 = np.uint64(27)
-_S31 = np.uint64(31)
-_S11 = np.uint64(11)
-_TWO53 = 1.0 / 9007199254740992.0
+#: An array of hashes or one hash (compiled kernels).
+_U = TypeVar("_U", np.uint64, NDArray[np.uint64])
+#: SplitMix64's constants, shared with the compiled draws (:mod:`sigma_des.core.counter_rng`).
+M1 = np.uint64(0xBF58476D1CE4E5B9)
+M2 = np.uint64(0x94D049BB133111EB)
+GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+S30 = np.uint64(30)
+S27 = np.uint64(27)
+S31 = np.uint64(31)
+S11 = np.uint64(11)
+TWO53 = 1.0 / 9007199254740992.0
 
 
-def _finalise(z: NDArray[np.uint64]) -> NDArray[np.uint64]:
-    z = (z ^ (z >> _S30)) * _M1
-    z = (z ^ (z >> _S27)) * _M2
-    return z ^ (z >> _S31)
+def finalise(z: _U) -> _U:
+    """SplitMix64's finaliser, for arrays here and for scalars in compiled kernels."""
+    z = (z ^ (z >> S30)) * M1
+    z = (z ^ (z >> S27)) * M2
+    return z ^ (z >> S31)
 
 
 _MASK = (1 << 64) - 1
@@ -126,8 +131,8 @@ def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     shape = np.broadcast_shapes(*(a.shape for a in arrays)) if arrays else (1,)
     h = np.full(shape, np.uint64(key), dtype=np.uint64)
     for a in arrays:
-        h = _finalise(h ^ ((a + np.uint64(1)) * _GOLDEN))
-    return _finalise(h)
+        h = finalise(h ^ ((a + np.uint64(1)) * GOLDEN))
+    return finalise(h)
 
 
 def _key_of(seed: int, name: str) -> np.uint64:
@@ -147,7 +152,7 @@ class Stream:
     def uniform(self, *ids: ArrayLike) -> NDArray[np.float64]:
         """Uniform draws on the open interval (0, 1), one per broadcast id tuple."""
         z = mix(self.key, *ids)
-        return ((z >> _S11).astype(np.float64) + 0.5) * _TWO53
+        return ((z >> S11).astype(np.float64) + 0.5) * TWO53
 
     def normal(self, *ids: ArrayLike) -> NDArray[np.float64]:
         """Standard normal draws (inverse CDF of :meth:`uniform`)."""

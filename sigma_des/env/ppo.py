@@ -199,17 +199,19 @@ def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: st
         raise ValueError(f"policy: must be one of {POLICIES}, got {policy!r}")
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
     torch.set_num_threads(1)  # a shared machine: one core per training
     kw = {**PPO_DEFAULTS, **ppo_kwargs}
     kw.setdefault("policy_kwargs", {"log_std_init": -1.0, "net_arch": [64, 64]})
     saves = _Saves(checkpoint)
     env = _wrap(env_kwargs, n_scenes, seed, policy, n_stack, saves.norm, kw["gamma"])
+    Algo: type[OnPolicyAlgorithm] = PPO
+    name = "MlpPolicy"
     if policy == "lstm":
-        from sb3_contrib import RecurrentPPO as Algo
-        name = "MlpLstmPolicy"
-    else:
-        Algo, name = PPO, "MlpPolicy"
+        from sb3_contrib import RecurrentPPO
+
+        Algo, name = RecurrentPPO, "MlpLstmPolicy"
     history: list[dict[str, float]] = []
     if saves.zip is not None and saves.zip.exists():
         model = Algo.load(str(saves.zip), env=env, device="cpu")

@@ -18,12 +18,14 @@ import orjson
 from numpy.typing import ArrayLike, NDArray
 
 from sigma_des.record.delta import DeltaEncoder
-from sigma_des.record.enu import poses_in_frame
+from sigma_des.record.enu import poses_in_frame, swarm_transform
 from sigma_des.record.rows import Pending, pick, row_fields, rows_json
 from sigma_des.record.schemas import KINDS
 
-__all__ = ["MethodRecorder", "Msg", "RunSink"]
+__all__ = ["MethodRecorder", "Msg", "RunSink", "SNAPSHOT_DECIMALS"]
 
+#: Decimal places of positions (m) and quaternions in ``incremental`` snapshots.
+SNAPSHOT_DECIMALS = (2, 4)
 RANK = {k: i for i, k in enumerate(KINDS)}  # same-time order: bulk windows, then the rest
 Msg = tuple[int, tuple[int, ...], int, bytes]  # log_ns, sort key, channel, data
 
@@ -124,14 +126,21 @@ class MethodRecorder:
         pos: ArrayLike,
         att: ArrayLike | None = None,
     ) -> None:
-        """An aligned snapshot shown at ``t`` (``pos``: n × 3 NED m; ``att``: n × 3 rad)."""
+        """An aligned snapshot shown at ``t`` (``pos``: n × 3 NED m; ``att``: n × 3 rad).
+
+        In ``incremental`` mode the poses are rounded to :data:`SNAPSHOT_DECIMALS` (a
+        display's precision; about a quarter of the size of exact poses).
+
+        Also moves the frame ``<method>/swarm`` to the centre of the finite positions
+        (``/<method>/tf``; none if no position is finite), in both record modes.
+        """
         fr = np.asarray(frames, dtype=np.int64).ravel()
-        if self.rec.mode == "incremental":
-            body: dict[str, Any] = {"t": t, "frame": int(frame),
-                                    "frames": np.ascontiguousarray(fr)}
-        else:
-            body = poses_in_frame(t, int(frame), fr, np.asarray(pos, dtype=float), att)
-        self._single("snapshot", t, body)
+        p = np.asarray(pos, dtype=float)
+        rounded = SNAPSHOT_DECIMALS if self.rec.mode == "incremental" else None
+        self._single("snapshot", t, poses_in_frame(t, int(frame), fr, p, att, rounded))
+        tf = swarm_transform(t, self.method, p)
+        if tf is not None:
+            self._single("tf", t, tf)
 
     def render(self, t: float, aoi: ArrayLike) -> None:
         """One render sample: the Age of Information of every node (s; NaN: none shown)."""

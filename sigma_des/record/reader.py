@@ -25,13 +25,13 @@ from numpy.typing import NDArray
 from sigma_des.errors import ConfigError
 from sigma_des.record.delta import decode
 from sigma_des.record.rows import POSE_COLS
-from sigma_des.record.schemas import KINDS, LEGACY, SCHEMAS
+from sigma_des.record.schemas import KINDS, LEGACY, READABLE, SCHEMAS, TABLE_KINDS
 
 __all__ = ["Recording", "RecordError", "StateTable", "open_recording", "read_states",
            "read_table"]
 
 TABLE_COLUMNS = ("method", "kind", "node", "frame", "t_send", "t_recv")
-_KNOWN = {name for name, _s in SCHEMAS.values()}
+_KNOWN = {name for name, _s in SCHEMAS.values()} | READABLE
 _MAGIC = b"\x89MCAP0\r\n"
 
 
@@ -235,7 +235,8 @@ def read_table(path: str | Path) -> Any:
     ``node``/``frame`` are floats (NaN where not applicable: render samples have no
     node or frame, snapshots no node); ``t_send`` is NaN for snapshots and render
     samples, whose time is ``t_recv`` (the time shown). Incremental recordings list
-    the stored states only.
+    the stored states only. The swarm frame's transforms (``/<method>/tf``, derived from
+    the snapshots for the viewers) are not listed.
 
     Returns:
         A ``pandas.DataFrame``.
@@ -246,10 +247,10 @@ def read_table(path: str | Path) -> Any:
     import pandas as pd
 
     rec = open_recording(path)
-    rec.prefetch(list(rec.topics))
+    rec.prefetch([t for t, (_m, kind) in rec.topics.items() if kind in TABLE_KINDS])
     frames: list[Any] = []
     for method in rec.methods:
-        for kind in KINDS:
+        for kind in TABLE_KINDS:
             frames.append(_kind_rows(rec, method, kind))
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     if df.empty:

@@ -18,10 +18,12 @@ Values that may be missing are never ``null`` (see docs/concepts/recording.md):
   ``valid[j] = 0`` (``valid[j] = 1``: ``values[j]`` is the command);
 * a render sample's AoI of a node with nothing shown yet is ``-1`` (AoI is ≥ 0).
 
-Aligned snapshots in ``full`` mode use Foxglove's ``foxglove.PosesInFrame`` in the
-z-up frame ``enu`` (x east, y north, z up; bodies forward-left-up), so the 3-D panel
-draws the swarm right side up at its altitude; the NED states stay in the state
-channel. In ``incremental`` mode a snapshot stores only the frame of each node.
+Aligned snapshots use Foxglove's ``foxglove.PosesInFrame`` in the z-up frame ``enu``
+(x east, y north, z up; bodies forward-left-up), so the 3-D panel draws the swarm right
+side up at its altitude; the NED states stay in the state channel. In ``incremental``
+mode the poses are rounded to display precision (1 cm, quaternion 1e-4). In both modes
+every snapshot also moves a frame to follow, ``<method>/swarm`` (child of ``enu`` at the
+swarm's centre, ``foxglove.FrameTransform`` on ``/<method>/tf``).
 """
 
 from __future__ import annotations
@@ -29,10 +31,13 @@ from __future__ import annotations
 import json
 from typing import Any
 
-__all__ = ["KINDS", "LEGACY", "SCHEMAS", "schema_bytes"]
+__all__ = ["KINDS", "LEGACY", "READABLE", "SCHEMAS", "TABLE_KINDS", "schema_bytes"]
 
 #: Message kinds, one channel each per method.
-KINDS: tuple[str, ...] = ("trigger", "state", "command", "snapshot", "render")
+KINDS: tuple[str, ...] = ("trigger", "state", "command", "snapshot", "render", "tf")
+#: Kinds listed by :func:`~sigma_des.record.reader.read_table` (``tf`` is derived from
+#: the snapshots, for the viewers).
+TABLE_KINDS: tuple[str, ...] = KINDS[:5]
 #: Schema names of the column-batch layout written before (not read any more).
 LEGACY: frozenset[str] = frozenset(
     {"sigma_des.Triggers", "sigma_des.States", "sigma_des.StateDeltas", "sigma_des.Commands"}
@@ -78,6 +83,29 @@ _QUAT = {
     "properties": {"x": _NUM, "y": _NUM, "z": _NUM, "w": _NUM},
     "required": ["x", "y", "z", "w"],
 }
+_TIME = {
+    "type": "object",
+    "title": "time",
+    "properties": {
+        "sec": {"type": "integer", "minimum": 0},
+        "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
+    },
+}
+_FRAME_TRANSFORM = {
+    "title": "foxglove.FrameTransform",
+    "description": "A transform between two reference frames in 3D space (here: the frame "
+    "that follows the swarm, named after the method, e.g. bides/swarm, child of enu, at the "
+    "mean position of the snapshot's aircraft; no rotation)",
+    "type": "object",
+    "properties": {
+        "timestamp": _TIME,
+        "parent_frame_id": {"type": "string", "description": "enu: x east, y north, z up (m)"},
+        "child_frame_id": {"type": "string", "description": "the swarm frame, e.g. bides/swarm"},
+        "translation": _VEC3,
+        "rotation": _QUAT,
+    },
+    "required": ["timestamp", "parent_frame_id", "child_frame_id", "translation", "rotation"],
+}
 _POSES_IN_FRAME = {
     "title": "foxglove.PosesInFrame",
     "description": "An array of timestamped poses for an object or reference frame in 3D space "
@@ -85,14 +113,7 @@ _POSES_IN_FRAME = {
     "nodes)",
     "type": "object",
     "properties": {
-        "timestamp": {
-            "type": "object",
-            "title": "time",
-            "properties": {
-                "sec": {"type": "integer", "minimum": 0},
-                "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999},
-            },
-        },
+        "timestamp": _TIME,
         "frame_id": {"type": "string", "description": "enu: x east, y north, z up (m)"},
         "poses": {
             "type": "array",
@@ -130,6 +151,7 @@ for _mode in ("full", "incremental"):
             },
         ),
     )
+    SCHEMAS[("tf", _mode)] = ("foxglove.FrameTransform", _FRAME_TRANSFORM)
     SCHEMAS[("render", _mode)] = (
         "sigma_des.Render",
         {
@@ -157,19 +179,10 @@ SCHEMAS[("state", "incremental")] = (
     ),
 )
 SCHEMAS[("snapshot", "full")] = ("foxglove.PosesInFrame", _POSES_IN_FRAME)
-SCHEMAS[("snapshot", "incremental")] = (
-    "sigma_des.SnapshotFrames",
-    {
-        "type": "object",
-        "description": "an aligned snapshot: the frame shown per node",
-        "properties": {
-            "t": _NUM,
-            "frame": _INT,
-            "frames": {"type": "array", "items": _INT},
-        },
-    },
-)
-
+SCHEMAS[("snapshot", "incremental")] = ("foxglove.PosesInFrame", _POSES_IN_FRAME)
+#: Schema names written before and still read: incremental snapshots that held only the
+#: frame per node (``t``, ``frame``, ``frames``).
+READABLE: frozenset[str] = frozenset({"sigma_des.SnapshotFrames"})
 
 def schema_bytes(kind: str, mode: str) -> tuple[str, bytes]:
     """Name and encoded JSON schema of ``kind`` in record ``mode``."""

@@ -76,7 +76,6 @@ class RecordTap(Tap):
             window=1.0 / f_trig,
         )
         self.run: MethodRecorder = self.rec.run(method, mode="des")
-        self._incremental = spec.mode == "incremental"
         self._pending: list[tuple[_F, NDArray[np.int64], NDArray[np.int64], _F, _F]] = []
         self._n_pending = 0
         self._advanced = -math.inf
@@ -113,9 +112,6 @@ class RecordTap(Tap):
     def snapshot(self, t: float, frame: int, frames: NDArray[np.int64], obs: _F) -> None:
         """A new aligned snapshot shown at ``t``."""
         self._advance(t)
-        if self._incremental:  # frames only: the poses are in the state channel
-            self.run.snapshot(t=t, frame=frame, frames=frames, pos=np.zeros((0, 3)))
-            return
         pos, _vel, att = obs_to_ned(obs)
         self.run.snapshot(t=t, frame=frame, frames=frames, pos=pos, att=att)
 

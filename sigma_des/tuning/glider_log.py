@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -170,7 +171,7 @@ def _norm(surface: str, rad: float) -> float:
     return max(-1.0, min(1.0, deg / hi if deg >= 0 else -deg / lo))
 
 
-def _new_fdm(spec: GlideSpec) -> tuple[object, object, int]:
+def _new_fdm(spec: GlideSpec) -> tuple[Any, Any, int]:
     """A JSBSim glider at the trim-speed guess, level, at ``spec.altitude``."""
     from sigma_des.agents.jsbsim_node import JSBSimModel
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from sigma_des.calibrate.campaign import loaded_runs
 from sigma_des.calibrate.capacity import holds
 from sigma_des.calibrate.intervals import interval, load_residuals, lookup
 from sigma_des.calibrate.predict import load_calibration
@@ -54,6 +55,25 @@ def test_bad_input_is_refused_naming_the_option(cal: Path, tmp_path: Path,
     assert "--hosts-rule" in _refused(["capacity", c, "--hosts-rule", "per=0"], capsys)
     assert "--set" in _refused(["capacity", c, "--set", "nodes=9"], capsys)
     assert "--n-min" in _refused(["capacity", c, "--n-min", "50", "--n-max", "10"], capsys)
+
+
+def test_a_calibration_under_load_is_refused(cal: Path, tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """A run whose background was above 25 % of the cores makes predict and capacity exit
+    2 naming --allow-load and the run; at exactly 25 % it is not under load."""
+    busy = tmp_path / "busy.toml"
+    busy.write_text(cal.read_text())
+    report = json.loads(cal.with_suffix(".json").read_text())
+    cores = load_calibration(cal)[0].deployment.cores
+    report["background_cores_of_runs"] = {"runs/a": 0.25 * cores, "runs/b": 0.26 * cores}
+    busy.with_suffix(".json").write_text(json.dumps(report))
+    assert loaded_runs(report, cores) == {"runs/b": 0.26 * cores}
+    for cmd in ("predict", "capacity"):
+        err = _refused([cmd, str(busy), "--methods", "none"], capsys)
+        assert "--allow-load" in err and "runs/b" in err and "runs/a" not in err
+    # with --allow-load the next check (an --out that is a file) speaks: it got through
+    assert "--out" in _refused(["predict", str(busy), "--methods", "none", "--allow-load",
+                                "--out", str(busy)], capsys)
 
 
 def test_predict_is_the_suites_preparation(cal: Path, tmp_path: Path) -> None:

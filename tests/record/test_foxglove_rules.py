@@ -6,8 +6,9 @@ has a field without one supported ``type`` (no unions such as ``["number", "null
 no ``"null"``), an object without ``properties``, or an array whose items are neither
 one scalar type nor objects (no arrays of arrays). :func:`foxglove_problems` restates
 those rules; every message is then validated against its own embedded schema by the
-independent ``jsonschema`` package, and every snapshot against the official
-``foxglove.PosesInFrame`` schema (``data/foxglove.PosesInFrame.json``).
+independent ``jsonschema`` package, every snapshot against the official
+``foxglove.PosesInFrame`` schema (``data/foxglove.PosesInFrame.json``) and every swarm
+frame against the official ``foxglove.FrameTransform`` (``data/foxglove.FrameTransform.json``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ from sigma_des import compare
 from sigma_des.record.schemas import SCHEMAS
 
 OFFICIAL = json.loads((Path(__file__).parent / "data" / "foxglove.PosesInFrame.json").read_text())
+OFFICIAL_TF = json.loads((Path(__file__).parent / "data" / "foxglove.FrameTransform.json")
+                         .read_text())
 _SCALARS = ("boolean", "string", "number", "integer")
 
 
@@ -99,6 +102,7 @@ def test_every_channel_and_message_loads_under_foxglove_rules(recording: Path) -
             assert foxglove_problems(schema) == [], summary.schemas[sid].name
         validators = {sid: jsonschema.Draft202012Validator(s) for sid, s in schemas.items()}
         official = jsonschema.Draft202012Validator(OFFICIAL)
+        official_tf = jsonschema.Draft202012Validator(OFFICIAL_TF)
         seen: dict[str, int] = {}
         last = -1
         for sch, ch, m in reader.iter_messages(log_time_order=False):
@@ -108,10 +112,12 @@ def test_every_channel_and_message_loads_under_foxglove_rules(recording: Path) -
             if sch is not None and sch.name == "foxglove.PosesInFrame":
                 assert [e.message for e in official.iter_errors(body)] == [], ch.topic
                 assert all(p["position"]["z"] > 0 for p in body["poses"])  # above ground
+            if sch is not None and sch.name == "foxglove.FrameTransform":
+                assert [e.message for e in official_tf.iter_errors(body)] == [], ch.topic
             assert m.log_time >= last, ch.topic  # one timeline
             last = m.log_time
             seen[ch.topic] = seen.get(ch.topic, 0) + 1
-    kinds = ("trigger", "state", "command", "snapshot", "render")
+    kinds = ("trigger", "state", "command", "snapshot", "render", "tf")
     assert set(seen) == {f"/{m}/{k}" for m in ("none", "bides") for k in kinds}, seen
 
 

@@ -69,7 +69,8 @@ def test_file_layout_topics_schemas_and_indexes(tmp_path: Path) -> None:
         assert topics["/bides/snapshot"] == "foxglove.PosesInFrame"
         assert topics["/none/state"] == "sigma_des.StateRows"
         assert set(topics) == {f"/{m}/{k}" for m in ("none", "bides")
-                               for k in ("trigger", "state", "command", "snapshot", "render")}
+                               for k in ("trigger", "state", "command", "snapshot", "render",
+                                         "tf")}
         assert all(s.encoding == "jsonschema" for s in summary.schemas.values())
         assert summary.chunk_indexes, "no chunk index: readers cannot seek"
         assert summary.statistics is not None
@@ -122,7 +123,8 @@ def test_log_time_never_decreases_across_methods_and_channels(tmp_path: Path) ->
     _write(path)  # two methods written one after the other, no advance: sorted at close
     with path.open("rb") as fh:
         times = [m.log_time for _s, _c, m in make_reader(fh).iter_messages(log_time_order=False)]
-    assert len(times) == 2 * (4 * 3 + 4 + 4) and times == sorted(times)
+    # per method: 4 windows x 3 bulk kinds, 4 snapshots, 4 swarm frames, 4 render samples
+    assert len(times) == 2 * (4 * 3 + 4 + 4 + 4) and times == sorted(times)
     assert open_recording(path).runs["none"]["late_messages"] == "0"
 
 

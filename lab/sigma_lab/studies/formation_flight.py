@@ -63,10 +63,10 @@ from sigma_des.factory import make_behaviour, make_dynamics
 from sigma_des.metrics.collector import METRIC_UNITS
 from sigma_des.metrics.dtw import dtw, dtw_normalised
 from sigma_des.metrics.fidelity import fidelity
-from sigma_des.metrics.trajectory import convergence_time, slot_distances, window_end
 from sigma_lab.studies.args import command_line
 from sigma_lab.studies.output import write_summary
 from sigma_lab.studies.tables import text_table
+from sigma_lab.studies.trajectory import convergence_time, slot_distances, window_end
 
 Array = NDArray[np.float64]
 

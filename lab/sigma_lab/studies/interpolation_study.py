@@ -3,7 +3,7 @@
 ``experiments/interpolation.py`` (the script: command line, plots, outputs) runs
 :func:`run` (every aircraft type × seed × noise × log rate × method, plus the window
 rule ablation at the headline rate) and :func:`aggregate` (means over seeds). The
-flights, logs and scores are :mod:`sigma_des.replay.study`'s.
+flights, logs and scores are :mod:`sigma_lab.studies.interpolation_flights`'s.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from sigma_des.agents.formation import FormationRoute
 from sigma_des.agents.registry import make_dynamics
 from sigma_des.agents.wind import WindConfig
 from sigma_des.replay import INTERP_METHODS, RULES, WindowRule
-from sigma_des.replay.study import Flight, Noise, dense_flight, score, sparse_log
+from sigma_lab.studies.interpolation_flights import Flight, Noise, dense_flight, score, sparse_log
 
 DT = 0.01
 RATES = (1.0, 2.0, 5.0, 10.0, 25.0)

@@ -1,12 +1,11 @@
-"""metrics/trajectory.py: slot distances, the turn window and convergence times, by hand."""
+"""The formation study's trajectory metrics: slot distances, the turn window, convergence times."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-
-from sigma_des.metrics.trajectory import convergence_time, slot_distances, window_end
+from sigma_lab.studies.trajectory import convergence_time, slot_distances, window_end
 
 
 def test_convergence_time_is_the_sample_after_the_last_excursion() -> None:
