@@ -32,6 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.models import OBS_FIELDS, DynamicsModel
+from sigma_des.core.pages import small_pages
 from sigma_des.metrics.fidelity import TrajectoryLog
 
 __all__ = ["FrameTrack", "SwarmTruth"]
@@ -85,7 +86,9 @@ class SwarmTruth:
 
     Attributes:
         nodes: the node id of every row.
-        state: ``(m, state_dim)`` true state at the latest frame (``m`` nodes served).
+        state: ``(m, state_dim)`` true state at the latest frame (``m`` nodes served);
+            with checkpoints and a model that steps into a given array, a view of the
+            latest frame's checkpoint slot (a copy once released).
         ckpt: state after frame ``f`` at ``f % H`` (empty without checkpoints).
         obs_hist: published rows of frame ``f`` at ``f % H``.
         slot_frame: the frame held at each ring slot (-1: none yet).
@@ -100,6 +103,7 @@ class SwarmTruth:
         checkpoints: bool, nodes: NDArray[np.int64] | None = None,
         log: TrajectoryLog | FrameTrack | None = None,
     ) -> None:
+        small_pages()  # the rings below are written a frame at a time (core/pages.py)
         H = self.H = history_frames
         self.dyn = dynamics
         initial = dynamics.initial_state(n)
@@ -130,6 +134,10 @@ class SwarmTruth:
         self.rollbacks = 0
         self.resim_steps = 0
         self.batched = getattr(dynamics, "step_frames", None) is not None and checkpoints
+        # models that write a step / an observation into a given array (the same bits):
+        # the frame is stepped into its ring slots, no per-frame temporaries
+        self._step_into = getattr(dynamics, "step_into", None)
+        self._observe_into = getattr(dynamics, "observe_into", None)
         self.released = False
 
     def step_frame(
@@ -156,13 +164,24 @@ class SwarmTruth:
         self.frame_dt[slot] = dt
         self.phys_t += dt
         self.phys_hist[slot] = self.phys_t
-        if pending is None:
-            self.state = self.dyn.step(self.state, cmd, dt, k, self.nodes)
-        else:
+        keep = self.ckpt.shape[0] > 0
+        if pending is not None:
             self.state = pending
-        if self.ckpt.shape[0]:
-            self.ckpt[slot] = self.state
-        self.obs_hist[slot] = self.dyn.observe(self.state)
+            if keep:
+                self.ckpt[slot] = pending
+        elif keep and self._step_into is not None:
+            # stepped straight into its checkpoint slot: the state is that slot (a view)
+            out = self.ckpt[slot]
+            self._step_into(self.state, cmd, dt, k, self.nodes, out)
+            self.state = out
+        else:
+            self.state = self.dyn.step(self.state, cmd, dt, k, self.nodes)
+            if keep:
+                self.ckpt[slot] = self.state
+        if self._observe_into is not None:
+            self._observe_into(self.state, self.obs_hist[slot])
+        else:
+            self.obs_hist[slot] = self.dyn.observe(self.state)
         self.slot_frame[slot] = k
         self.latest = k
 
@@ -335,6 +354,8 @@ class SwarmTruth:
             return
         self._log_ring()
         self.released = True
+        if self.state.base is not None and np.may_share_memory(self.state, self.ckpt):
+            self.state = self.state.copy()  # a view of its checkpoint slot: keep the row only
         self.slot_frame[:] = -1  # in place: the compiled core holds this array
         self.ckpt = np.empty((0, *self.ckpt.shape[1:]))
         self.obs_hist = np.empty((0, *self.obs_hist.shape[1:]))
