@@ -87,23 +87,37 @@ def _observe_rows(state: np.ndarray, obs: np.ndarray, args: np.ndarray) -> None:
             obs[r, 9 + c] = state[r, L.XN + c]
 
 
-def observe_state(state: NDArray[np.float64]) -> NDArray[np.float64]:
+def observe_state(state: NDArray[np.float64], out: NDArray[np.float64] | None = None
+                  ) -> NDArray[np.float64]:
     """Published ``(n, 12)`` state ``[u v w phi theta psi p q r x y h]`` of aircraft rows.
 
     The Euler angles from the attitude quaternion: their arguments compiled
     (:func:`_observe_rows`), the inverse trigonometric functions numpy's (whose float64
     ``arctan2`` is SIMD code on AVX-512 machines, not the C library's that compiled code
-    would call: different in the last bit of some values).
+    would call: different in the last bit of some values). Each is evaluated over
+    contiguous rows (in place in its first argument's row) whatever ``out`` is, so the
+    bits do not depend on where the result goes.
+
+    Args:
+        state: ``(n, STATE_DIM)`` aircraft rows.
+        out: a C-contiguous ``(n, 12)`` float64 array to write into (e.g. a ring slot,
+            no temporary of that size), or None for a new array.
+
+    Returns:
+        ``out``, or the new array.
     """
     state = np.ascontiguousarray(state, dtype=np.float64)
     n = state.shape[0]
-    obs = np.empty((n, 12))
+    if out is None:
+        out = np.empty((n, 12))
+    elif out.shape != (n, 12) or out.dtype != np.float64 or not out.flags.c_contiguous:
+        raise ValueError(f"observe: out must be a C-contiguous float64 ({n}, 12) array")
     args = np.empty((5, n))
-    _observe_rows(state, obs, args)
-    obs[:, 3] = np.arctan2(args[0], args[1])
-    obs[:, 4] = np.arcsin(args[2])
-    obs[:, 5] = np.arctan2(args[3], args[4])
-    return obs
+    _observe_rows(state, out, args)
+    out[:, 3] = np.arctan2(args[0], args[1], out=args[0])
+    out[:, 4] = np.arcsin(args[2], out=args[2])
+    out[:, 5] = np.arctan2(args[3], args[4], out=args[3])
+    return out
 
 
 class GeneralAircraft:
@@ -249,6 +263,20 @@ class GeneralAircraft:
                     self.key, out)
         return out
 
+    def step_into(self, state: NDArray[np.float64], command: NDArray[np.float64], dt: float,
+                  frame: int, nodes: NDArray[np.int64], out: NDArray[np.float64]) -> None:
+        """:meth:`step` written into ``out`` (a C-contiguous float64 array of the state's
+        shape, not overlapping it: e.g. a checkpoint ring's slot): the same bits, no
+        new array."""
+        state, command, nodes = self._check(state, command, nodes, 4)
+        if out.shape != state.shape or out.dtype != np.float64 or not out.flags.c_contiguous:
+            raise ValueError(f"{self.name}: out must be a C-contiguous float64 "
+                             f"{state.shape} array")
+        if np.may_share_memory(out, state):
+            raise ValueError(f"{self.name}: out must not overlap the state")
+        step_kernel(state, command, _NO_ACT, float(dt), np.int64(frame), nodes, self.prm,
+                    self.key, out)
+
     def step_frames(self, state: NDArray[np.float64], command: NDArray[np.float64],
                     dts: NDArray[np.float64], first_frame: int, node: int
                     ) -> NDArray[np.float64]:
@@ -287,6 +315,10 @@ class GeneralAircraft:
     def observe(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
         """The published ``(n, 12)`` state (OBS_FIELDS)."""
         return observe_state(state)
+
+    def observe_into(self, state: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+        """:meth:`observe` written into ``out`` (C-contiguous ``(n, 12)`` float64)."""
+        observe_state(state, out)
 
     def _check(self, state: NDArray[np.float64], cmd: NDArray[np.float64],
                nodes: NDArray[np.int64], width: int

@@ -24,7 +24,9 @@ re-simulates them. The rows of different aircraft are independent, so one step c
 per frame over every pending aircraft gives each row the very bits its own
 re-simulation gives it (the dynamics' ``step_frames`` marks a model whose rows do not
 depend on the batch; others, and a model whose ``defer_rollbacks`` is False, re-simulate
-at once).
+at once). With such a model a rollback whose re-simulation would change no bit (the
+frames were stepped with that very command row) skips its physics
+(:mod:`sigma_des.events.held`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.models import OBS_FIELDS, DynamicsModel
+from sigma_des.core.pages import small_pages
+from sigma_des.events.held import HeldCommands
 from sigma_des.metrics.fidelity import TrajectoryLog
 
 __all__ = ["FrameTrack", "SwarmTruth"]
@@ -86,7 +90,9 @@ class SwarmTruth:
 
     Attributes:
         nodes: the node id of every row.
-        state: ``(m, state_dim)`` true state at the latest frame (``m`` nodes served).
+        state: ``(m, state_dim)`` true state at the latest frame (``m`` nodes served);
+            with checkpoints and a model that steps into a given array, a view of the
+            latest frame's checkpoint slot (a copy once released).
         ckpt: state after frame ``f`` at ``f % H`` (empty without checkpoints).
         obs_hist: published rows of frame ``f`` at ``f % H``.
         slot_frame: the frame held at each ring slot (-1: none yet).
@@ -94,6 +100,10 @@ class SwarmTruth:
         latest: the newest frame stepped (-1 before the first).
         rollbacks: number of time-warp rollbacks.
         resim_steps: frames re-simulated by them (node compute steps).
+        stepped_rows: the command rows the nodes' frames were stepped with (None without
+            batched steps): a rollback that would re-step frames with the very row they
+            were stepped with, from the same checkpoint, is skipped (the same bits).
+        resim_skipped: rollbacks whose physics was skipped so (still counted above).
     """
 
     def __init__(
@@ -101,6 +111,7 @@ class SwarmTruth:
         checkpoints: bool, nodes: NDArray[np.int64] | None = None,
         log: TrajectoryLog | FrameTrack | None = None,
     ) -> None:
+        small_pages()  # the rings below are written a frame at a time (core/pages.py)
         H = self.H = history_frames
         self.dyn = dynamics
         initial = dynamics.initial_state(n)
@@ -132,6 +143,14 @@ class SwarmTruth:
         self.resim_steps = 0
         self.batched = (getattr(dynamics, "step_frames", None) is not None and checkpoints
                         and getattr(dynamics, "defer_rollbacks", True))
+        # the rows each node's frames were stepped with: a rollback that would re-step
+        # them with the same row from the same checkpoint is skipped (events/held.py)
+        self.stepped_rows = HeldCommands(n, dynamics.command_dim) if self.batched else None
+        self.resim_skipped = 0
+        # models that write a step / an observation into a given array (the same bits):
+        # the frame is stepped into its ring slots, no per-frame temporaries
+        self._step_into = getattr(dynamics, "step_into", None)
+        self._observe_into = getattr(dynamics, "observe_into", None)
         self.released = False
 
     def step_frame(
@@ -158,13 +177,26 @@ class SwarmTruth:
         self.frame_dt[slot] = dt
         self.phys_t += dt
         self.phys_hist[slot] = self.phys_t
-        if pending is None:
-            self.state = self.dyn.step(self.state, cmd, dt, k, self.nodes)
-        else:
+        keep = self.ckpt.shape[0] > 0
+        if pending is not None:
             self.state = pending
-        if self.ckpt.shape[0]:
-            self.ckpt[slot] = self.state
-        self.obs_hist[slot] = self.dyn.observe(self.state)
+            if keep:
+                self.ckpt[slot] = pending
+        elif keep and self._step_into is not None:
+            # stepped straight into its checkpoint slot: the state is that slot (a view)
+            out = self.ckpt[slot]
+            self._step_into(self.state, cmd, dt, k, self.nodes, out)
+            self.state = out
+        else:
+            self.state = self.dyn.step(self.state, cmd, dt, k, self.nodes)
+            if keep:
+                self.ckpt[slot] = self.state
+        if self._observe_into is not None:
+            self._observe_into(self.state, self.obs_hist[slot])
+        else:
+            self.obs_hist[slot] = self.dyn.observe(self.state)
+        if self.stepped_rows is not None:
+            self.stepped_rows.stepped(k, cmd)
         self.slot_frame[slot] = k
         self.latest = k
 
@@ -193,9 +225,24 @@ class SwarmTruth:
         Returns:
             The compute steps the node's next job owes: ``current - c + 1`` (≥ 0).
         """
+        c = self.first_resim(c)
+        held = self.stepped_rows
+        one = (np.array([i]), np.array([c]), np.asarray(row, dtype=np.float64)[None, :])
+        if held is not None and c <= self.latest and held.redundant(*one)[0]:
+            self.resim_skipped += 1  # the ring already holds what it would write
+        else:
+            self._resimulate_one(i, c, row)
+            if held is not None and c <= self.latest:
+                held.resimulated(*one)
+        steps = max(0, current - c + 1)
+        self.rollbacks += 1
+        self.resim_steps += steps
+        return steps
+
+    def _resimulate_one(self, i: int, c: int, row: NDArray[np.float64]) -> None:
+        """:meth:`rollback`'s physics: node ``i`` from frame ``c`` (clamped) with ``row``."""
         H = self.H
         latest = self.latest
-        c = self.first_resim(c)
         prev = self._checkpoint(i, c)
         s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
@@ -217,10 +264,6 @@ class SwarmTruth:
             slots = np.arange(c, latest + 1) % H
             self.obs_hist[slots, i] = self.dyn.observe(self.ckpt[slots, i])
         self.state[i] = s[0]
-        steps = max(0, current - c + 1)
-        self.rollbacks += 1
-        self.resim_steps += steps
-        return steps
 
     def _checkpoint(self, i: int, c: int) -> NDArray[np.float64]:
         """Node ``i``'s state before frame ``c``: its checkpoint of frame ``c - 1``.
@@ -258,7 +301,9 @@ class SwarmTruth:
             steps: the compute steps each rollback owed (counted in :attr:`resim_steps`).
 
         Returns:
-            The nodes re-simulated, by first frame (stable: in arrival order on ties).
+            The nodes rolled back, by first frame (stable: in arrival order on ties):
+            re-simulated, or skipped where the ring already holds the rows their
+            re-simulation would write (:mod:`sigma_des.events.held`).
 
         Raises:
             ValueError: a node twice, a first frame outside the ring or past the latest
@@ -275,6 +320,19 @@ class SwarmTruth:
         self.resim_steps += int(steps.sum())
         order = np.argsort(first, kind="stable")  # by first frame (stable)
         nodes, first, rows = nodes[order], first[order], rows[order]
+        held = self.stepped_rows
+        assert held is not None  # batched
+        todo = ~held.redundant(nodes, first, rows)  # the others: the ring holds their rows
+        self.resim_skipped += int(nodes.size - np.count_nonzero(todo))
+        if todo.any():
+            self._resimulate(nodes[todo], first[todo], rows[todo])
+            held.resimulated(nodes[todo], first[todo], rows[todo])
+        return nodes
+
+    def _resimulate(
+        self, nodes: NDArray[np.int64], first: NDArray[np.int64], rows: NDArray[np.float64]
+    ) -> None:
+        """:meth:`flush_rollbacks`' physics: one step call per frame (``first`` ascending)."""
         H, latest = self.H, self.latest
         cur = self._checkpoints(nodes, first)
         ids = self.nodes[nodes]  # the dynamics is keyed by node id (rows: by position)
@@ -290,7 +348,6 @@ class SwarmTruth:
             # a few MB of fresh temporaries in the first second's rollback burst)
             self.obs_hist[slot, nodes[:m]] = self.dyn.observe(cur[:m])
         self.state[nodes] = cur
-        return nodes
 
     def _checkpoints(
         self, nodes: NDArray[np.int64], first: NDArray[np.int64]
@@ -337,6 +394,8 @@ class SwarmTruth:
             return
         self._log_ring()
         self.released = True
+        if self.state.base is not None and np.may_share_memory(self.state, self.ckpt):
+            self.state = self.state.copy()  # a view of its checkpoint slot: keep the row only
         self.slot_frame[:] = -1  # in place: the compiled core holds this array
         self.ckpt = np.empty((0, *self.ckpt.shape[1:]))
         self.obs_hist = np.empty((0, *self.obs_hist.shape[1:]))

@@ -51,3 +51,20 @@ def test_observe_state_hand_computed() -> None:
     assert obs[3] == 0.0 and obs[4] == 0.0
     assert obs[5] == float(np.arctan2(2.0 * c * c, 1.0 - 2.0 * c * c))
     assert obs[5] == pytest.approx(math.pi / 2, abs=1e-15)
+
+
+def test_observe_state_into_a_ring_slot_is_the_same_bits() -> None:
+    rng = np.random.default_rng(7)
+    n = 333
+    state = rng.normal(0.0, 30.0, (n, L.STATE_DIM))
+    q = rng.normal(size=(n, 4))
+    state[:, L.Q0:L.Q3 + 1] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    ring = np.full((3, n, 12), -7.0)
+    got = observe_state(state, ring[1])
+    assert got is ring[1] or np.shares_memory(got, ring[1])
+    assert ring[1].tobytes() == _reference(state).tobytes()
+    assert (ring[0] == -7.0).all() and (ring[2] == -7.0).all()  # only its slot written
+    with pytest.raises(ValueError, match="C-contiguous float64"):
+        observe_state(state, np.asfortranarray(np.empty((n, 12))))
+    with pytest.raises(ValueError, match=r"\(333, 12\)"):
+        observe_state(state, np.empty((n - 1, 12)))
