@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from sigma_des.env import SwarmVec
+from tests.env.nested import flat_arrays
 
 
 def _play(batched: bool, steps: int, **kw: Any) -> list[Any]:
@@ -25,14 +26,6 @@ def _play(batched: bool, steps: int, **kw: Any) -> list[Any]:
         a = rng.uniform(-1.0, 1.0, (env.n_scenes, env.n_agents, 3))
         out.append(env.step(a))
     return out
-
-
-def _flat(x: Any) -> list[np.ndarray]:
-    if isinstance(x, dict):
-        return [v for k in sorted(x) for v in _flat(x[k])]
-    if isinstance(x, tuple | list):
-        return [v for item in x for v in _flat(item)]
-    return [np.asarray(x)]
 
 
 @pytest.mark.parametrize(
@@ -48,7 +41,7 @@ def test_batched_control_plane_equals_scene_by_scene(kw: dict[str, Any], steps: 
     common = {"n_scenes": 3, "scenario": {"nodes": 4}, **kw}
     one = _play(False, steps, **common)
     many = _play(True, steps, **common)
-    a, b = _flat(one), _flat(many)
+    a, b = flat_arrays(one), flat_arrays(many)
     assert len(a) == len(b)
     for x, y in zip(a, b, strict=True):
         assert x.dtype == y.dtype and x.shape == y.shape

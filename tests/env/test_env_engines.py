@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from sigma_des.env import SwarmVec
+from tests.env.nested import flat_arrays
 
 STUDY = {"nodes": 5, "net.host_link.latency": {"dist": "normal", "mean": 0.2, "std": 0.04},
          "net.host_link.loss": {"p": 0.1}}
@@ -43,16 +44,8 @@ def _play(engine: str, seed: int, method: str, perfect: bool) -> list[Any]:
     return out
 
 
-def _flat(x: Any) -> list[np.ndarray]:
-    if isinstance(x, dict):
-        return [v for k in sorted(x) for v in _flat(x[k])]
-    if isinstance(x, tuple | list):
-        return [v for item in x for v in _flat(item)]
-    return [np.asarray(x)]
-
-
 def _same(a: list[Any], b: list[Any]) -> None:
-    fa, fb = _flat(a), _flat(b)
+    fa, fb = flat_arrays(a), flat_arrays(b)
     assert len(fa) == len(fb)
     for x, y in zip(fa, fb, strict=True):
         assert x.dtype == y.dtype and x.shape == y.shape
