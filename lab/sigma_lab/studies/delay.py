@@ -57,7 +57,8 @@ def paired_cells(evals: list[dict[str, Any]], conds: list[str], seeds: list[int]
     fit = {(e["trained"], e["seed"], e["evaluated"]): e["fitness"] for e in evals}
     rows = []
     for cell in conds[1:]:
-        if any((cell, s, cell) not in fit for s in seeds):  # not trained under it
+        if any((cell, s, cell) not in fit or ("perfect", s, cell) not in fit
+               for s in seeds):  # not trained under it, or no perfect-trained policy to pair
             continue
         d = np.array([fit[(cell, s, cell)] for s in seeds])
         p = np.array([fit[("perfect", s, cell)] for s in seeds])

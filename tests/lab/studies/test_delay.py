@@ -36,3 +36,11 @@ def test_paired_statistics_hand_computed() -> None:
     assert row["diff_ci95"] == pytest.approx(stats.t.ppf(0.975, 2) / 3, rel=1e-12)
 
 
+
+
+def test_a_delay_trained_policy_alone_has_no_paired_row() -> None:
+    """Trained under a delay only (``--train bides@200ms`` in one invocation): nothing to
+    pair it with yet, so no row (the runs are paired later with ``--merge``)."""
+    evals = [{"trained": "bides@200ms", "seed": 0, "evaluated": "bides@200ms", "fitness": -1.8},
+             {"trained": "bides@200ms", "seed": 0, "evaluated": "perfect", "fitness": -0.1}]
+    assert paired_cells(evals, ["perfect", "bides@200ms"], [0]) == []
