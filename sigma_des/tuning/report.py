@@ -66,7 +66,7 @@ def plot_fit(path: Path, win: Windows, sims: dict[str, NDArray[np.float64]], kin
     chans = PAPER_CHANNELS[kind]
     unit = "rad" if kind == "quadrotor" else "rad/s"
     t = (np.arange(win.count)[:, None] * win.steps + np.arange(win.steps + 1)[None, :]) * win.dt
-    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, layout="constrained")
     for ax, c, lab in zip(axes, chans, ("(a) pitch", "(b) roll"), strict=True):
         j = STATE_COLUMNS.index(c)
         ax.plot(t.ravel(), win.obs[:, :, j].ravel(), "k-", lw=1.2, label="logged")
@@ -80,7 +80,6 @@ def plot_fit(path: Path, win: Windows, sims: dict[str, NDArray[np.float64]], kin
     axes[0].legend(fontsize=8, ncol=3)
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
