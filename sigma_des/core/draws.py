@@ -95,9 +95,11 @@ class DrawCache:
             return np.full((m, len(self._subjects)), self.constant)
         if not self.blockable:
             raise ValueError("block: this cache's sampler takes one index at a time")
+        # a blockable sampler broadcasts array keys (the Sampler type says int: the
+        # per-index call every sampler supports)
         out = self._sampler(self._subjects[None, :], kind,  # type: ignore[arg-type]
-                            idx[:, None] if idx.ndim else int(idx),
-                            att[:, None] if att.ndim else int(att))
+                            idx[:, None] if idx.ndim else int(idx),  # type: ignore[arg-type]
+                            att[:, None] if att.ndim else int(att))  # type: ignore[arg-type]
         return np.ascontiguousarray(out, dtype=np.float64)
 
 
