@@ -22,8 +22,9 @@ test and Wilcoxon signed-rank, ``scipy.stats``).
 
 Outputs (``--out``): ``history.csv`` (learning curves), ``eval.csv`` (per policy and
 evaluation condition), ``stats.csv`` (per delay cell), ``summary.json`` (also the
-``perfect`` comparison with the hand-written controllers), ``learning_curves.png``,
-``eval.png``, written after every seed.
+``perfect`` comparison with the hand-written controllers), ``summary.md`` (the tables
+and what they support, in words), ``learning_curves.png``, ``eval.png``, written after
+every seed.
 
 Resumable (``--checkpoints``, default ``<out>/checkpoints``): PPO saves every policy
 there as it trains and a rerun goes on from the save; a finished training (and its
@@ -31,9 +32,14 @@ evaluations) is recorded there and not redone. ``--ppo-wall`` bounds one trainin
 wall time per invocation (rerun to continue). Progress: a line every ``--progress``
 rollouts (agent-steps, reward, rate, ETA) and one per finished training.
 
+``--jobs N``: the seeds trained in ``N`` processes (round-robin shards under
+``<out>/shards``, one checkpoint folder), merged into ``--out`` at the end.
+
 ``--full``: the full PPO study in one command (5 seeds; 50 and 200 ms; BiDES and
 none; 2 x 10^6 agent-steps per policy on 16 scenes; ``--policy`` kept), outputs in
-``docs/results/data/delay_ppo_<policy>``. ``--delays none``: ``perfect`` only.
+``out/env/delay_ppo_<policy>``; ``python experiments/make_docs_results.py --only delay
+--work DIR`` runs it with ``--jobs 2`` and files it on the documentation's Learning page.
+``--delays none``: ``perfect`` only.
 
 Usage: ``python experiments/train_under_delay.py [--quick | --full] [--learner cem|ppo]
 [--policy mlp|stack|lstm] [--seeds 5] [--out out/env/delay_study]``
@@ -42,8 +48,11 @@ Usage: ``python experiments/train_under_delay.py [--quick | --full] [--learner c
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 from sigma_lab.studies.delay import cells
+from sigma_lab.studies.delay_jobs import run_jobs
 from sigma_lab.studies.delay_study import merge, run
 
 OUT = "out/env/delay_study"
@@ -85,6 +94,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                     help="do not evaluate the untrained and hand-written policies (a shard)")
     ap.add_argument("--merge", nargs="+", default=None, metavar="DIR",
                     help="merge the outputs of shards (same settings) into --out; no training")
+    ap.add_argument("--jobs", type=int, default=1,
+                    help="train the seeds in this many processes, then merge (resumable)")
     ap.add_argument("--out", default=OUT)
     a = ap.parse_args(argv)
     if a.full:
@@ -92,13 +103,13 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
         a.max_steps, a.ppo_steps, a.ppo_scenes, a.ppo_n_steps, a.ppo_batch = (
             50, 2_000_000, 16, 64, 1024)
         if a.out == OUT:
-            a.out = f"docs/results/data/delay_ppo_{a.policy}"
+            a.out = f"out/env/delay_ppo_{a.policy}"
     if a.quick:
         a.learner, a.seeds, a.delays, a.methods = "cem", 2, "0.2", "bides"
         a.nodes, a.max_steps, a.eval_episodes = 3, 10, 2
         a.iterations, a.population, a.episodes = 2, 4, 1
     for key in ("seeds", "nodes", "max_steps", "eval_episodes", "iterations", "population",
-                "episodes", "ppo_steps", "ppo_scenes", "n_stack", "progress"):
+                "episodes", "ppo_steps", "ppo_scenes", "n_stack", "progress", "jobs"):
         if getattr(a, key) < 1 or (key == "nodes" and a.nodes < 2):
             ap.error(f"--{key.replace('_', '-')}: must be >= {2 if key == 'nodes' else 1}, "
                      f"got {getattr(a, key)}")
@@ -122,7 +133,11 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     """Parse the command line, then train, evaluate and write (or merge shards)."""
     a = _parse(argv)
-    return merge(a) if a.merge else run(a)
+    if a.merge:
+        return merge(a)
+    if a.jobs > 1:
+        return run_jobs(a, sys.argv[1:] if argv is None else list(argv), Path(__file__))
+    return run(a)
 
 
 if __name__ == "__main__":

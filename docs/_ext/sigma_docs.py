@@ -4,7 +4,7 @@ Generated on every build (and ignored by git):
 
 * ``reference/generated/keys.md``: every scenario key (:mod:`sigma_docs_keys`);
 * ``reference/generated/outputs.md``: the output files (:mod:`sigma_docs_outputs`);
-* ``results/validation.md`` and ``results/performance.md``: from the committed study
+* ``results/validation.md``, ``performance.md`` and ``learning.md``: from the committed study
   folders under ``results/data/`` (:mod:`sigma_docs_results`).
 
 The CLI reference (``reference/cli.md``) is sphinx-argparse over

@@ -1,4 +1,4 @@
-"""The result pages (validation, performance), generated from ``docs/results/data/``.
+"""The result pages (validation, performance, learning), generated from ``docs/results/data/``.
 
 Each folder ``docs/results/data/<name>/`` holds one study's committed outputs, filed by
 ``python experiments/make_docs_results.py``: its ``run.json`` (title, page, date,
@@ -27,6 +27,9 @@ PAGES = {
                     "environment's speed and the cost per run. Timings depend on the machine "
                     "and its load (both shown with each study); the tables are the "
                     "benchmark scripts' own output files."),
+    "learning": ("Learning", "What a policy learns on the aligned, delayed view the "
+                 "environment gives: the training-under-delay study's tables, learning "
+                 "curves and held-out evaluations, from its own output files."),
 }
 #: CSV files longer than this are shown in part (the whole file is a download).
 MAX_ROWS = 40

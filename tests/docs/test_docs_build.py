@@ -39,7 +39,7 @@ def test_docs_build_with_warnings_as_errors(tmp_path: Path) -> None:
     outputs = (out / "reference" / "generated" / "outputs.html").read_text()
     assert "aoi_peak_mean" in outputs and "foxglove.PosesInFrame" in outputs
     data = ROOT / "docs" / "results" / "data"
-    for name in ("validation", "performance"):
+    for name in ("validation", "performance", "learning"):
         html = (out / "results" / f"{name}.html").read_text()
         for run in data.glob("*/run.json"):
             facts = json.loads(run.read_text())

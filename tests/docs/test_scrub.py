@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 #: docs/ paths not scanned: the build, the generated pages and the study outputs
 NOT_SCANNED = ("_build", "results/data", "reference/generated", "results/validation.md",
-               "results/performance.md")
+               "results/performance.md", "results/learning.md")
 MAX_DOCSTRING_LINES = 30
 
 #: name -> pattern of what must not appear

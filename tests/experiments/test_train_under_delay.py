@@ -92,3 +92,34 @@ def test_train_names_an_unknown_condition(capsys: pytest.CaptureFixture[str]) ->
         train_under_delay.main(["--quick", "--train", "hlc@5ms"])
     assert exc.value.code == 2 and "--train: unknown condition 'hlc@5ms'" in (
         capsys.readouterr().err)
+
+
+def test_jobs_train_the_seeds_in_processes_and_merge_to_the_same_study(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    one, two = tmp_path / "one", tmp_path / "two"
+    assert train_under_delay.main(["--quick", "--out", str(one)]) == 0
+    assert train_under_delay.main(["--quick", "--jobs", "2", "--out", str(two)]) == 0
+    want = json.loads((one / "summary.json").read_text())
+    got = json.loads((two / "summary.json").read_text())
+    assert got["seeds_done"] == [0, 1] and got["stats"] == want["stats"]
+    # shard k trained seeds[k::2]; only shard 0 evaluated the baselines
+    for k, seed in enumerate((0, 1)):
+        part = json.loads((two / "shards" / str(k) / "summary.json").read_text())
+        assert part["seeds_done"] == [seed]
+        assert any(e["seed"] == -1 for e in part["eval"]) == (k == 0)
+    # a rerun resumes from the shared checkpoint folder: nothing is trained again
+    capsys.readouterr()
+    assert train_under_delay.main(["--quick", "--jobs", "2", "--out", str(two)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.count("done before") == 4 and " trained (" not in printed
+    assert "[shard 0] seed 0 perfect" in printed and "[shard 1] seed 1 perfect" in printed
+    assert json.loads((two / "summary.json").read_text())["stats"] == want["stats"]
+
+
+def test_shard_command_lines_replace_the_parents_own_options() -> None:
+    from sigma_lab.studies.delay_jobs import shard_argv
+
+    argv = ["--full", "--jobs", "2", "--out=x", "--seeds", "5", "--policy", "lstm"]
+    got = shard_argv(argv, 1, [1, 3], Path("o/1"), "ck")
+    assert got == ["--full", "--policy", "lstm", "--seed-list", "1,3", "--out", "o/1",
+                   "--checkpoints", "ck", "--skip-baselines"]

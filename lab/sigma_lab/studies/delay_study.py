@@ -25,6 +25,7 @@ from sigma_des.env.learn import CEMConfig, act, score, train
 from sigma_des.env.tasks import TightTask, make_task
 from sigma_lab.studies import plot_setup, save
 from sigma_lab.studies.delay import cells, ci95, env_kwargs, paired_cells, perfect_rows
+from sigma_lab.studies.env_report import delay_study
 
 __all__ = ["Policy", "merge", "run", "train_one"]
 
@@ -225,6 +226,9 @@ def _write(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],
         "stats": table, "eval": evals, "cost": cost, "wall_s": wall}, indent=2) + "\n")
     refs = {r["policy"]: r["mean"] for r in perfect_rows(evals, done) if not r["seed_mean"]}
     _plots(out, a, history, table, len(done), refs)
+    if any(e["seed"] == -1 for e in evals):  # a shard without the baselines has none
+        # the study's own reading, in words: the results page shows it above the plots
+        (out / "summary.md").write_text(delay_study(out / "summary.json", out, level=1))
 
 
 def _plots(out: Path, a: argparse.Namespace, history: list[dict[str, Any]],

@@ -182,17 +182,18 @@ def _verdict(ev: dict[tuple[str, str], dict[str, float]]) -> str:
     return text + "Training under delay gave no advantage under delay in this run."
 
 
-def delay_study(path: Path, img_dir: Path) -> str:
-    """The section of one ``train_under_delay.py`` run (its ``summary.json``); its plots
-    are linked where ``img_dir`` (the document's ``img/env``) holds copies."""
+def delay_study(path: Path, img_dir: Path, level: int = 3) -> str:
+    """The section of one ``train_under_delay.py`` run (its ``summary.json``), its heading
+    at ``level``; its plots are linked where ``img_dir`` (the document's ``img/env``)
+    holds copies."""
     d = json.loads(path.read_text())
     a = d["args"]
     ev = {(e["trained"], e["seed"], e["evaluated"]): e for e in d["eval"]}
     done = d.get("seeds_done", list(range(a["seeds"])))
     budget = (f"CEM: {a['iterations']} iterations × {a['population']} candidates × "
               f"{a['episodes']} episodes" if a["learner"] == "cem" else
-              f"SB3 PPO (MlpPolicy), {a['ppo_steps']:,} agent-steps on {a['ppo_scenes']} "
-              f"scenes, n_steps {a['ppo_n_steps']}, batch {a['ppo_batch']}")
+              f"SB3 PPO ({a.get('policy', 'mlp')} policy), {a['ppo_steps']:,} agent-steps on "
+              f"{a['ppo_scenes']} scenes, n_steps {a['ppo_n_steps']}, batch {a['ppo_batch']}")
     own = (f"--iterations {a['iterations']} --population {a['population']} --episodes "
            f"{a['episodes']}" if a["learner"] == "cem" else
            f"--ppo-steps {a['ppo_steps']} --ppo-scenes {a['ppo_scenes']}")
@@ -201,7 +202,7 @@ def delay_study(path: Path, img_dir: Path) -> str:
     if a.get("merged_from"):
         cmd += (f"`, run as {len(a['merged_from'])} shards (`--seed-list`) merged with "
                 "`--merge")
-    lines = [f"### `{path.parent.name}`: {a['learner'].upper()}, seeds {done}", "",
+    lines = [f"{'#' * level} `{path.parent.name}`: {a['learner'].upper()}, seeds {done}", "",
              f"Command: `{cmd}` (delays {a['delays']} s, methods {a['methods']}, loss "
              f"{a['loss']:.0%}, {a['nodes']} nodes, {a['max_steps']} decisions per episode, "
              f"{a['eval_episodes']} held-out episodes of root seed {a['eval_seed']}); "
