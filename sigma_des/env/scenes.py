@@ -100,13 +100,16 @@ class Scene:
         method: alignment method.
         dyn: the dynamics model (shared by all scenes: models are pure).
         task: the task.
+        metrics: collect the run's measurements (False: none, see ``MethodRun``).
     """
 
-    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task) -> None:
+    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
+                 metrics: bool = True) -> None:
         self.capture = _Capture()
         initial = task.initial_state(dyn, sc.nodes)
         placed = _Placed(dyn, initial)
-        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture)[0]  # type: ignore[arg-type]
+        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture,  # type: ignore[arg-type]
+                                       metrics)[0]
         self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
                                dyn.observe(initial))
         self.done = False
@@ -159,11 +162,15 @@ class SceneBatch:
         n_scenes: number of scenes.
         scene_ids: the identity of each scene in its seed (default ``0..n_scenes-1``);
             scenes with the same id replay the same episodes (common random numbers).
+        metrics: the scenes' runs collect their measurements (False: none; the same
+            episodes, see ``MethodRun``).
     """
 
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
-                 n_scenes: int, scene_ids: list[int] | None = None) -> None:
+                 n_scenes: int, scene_ids: list[int] | None = None,
+                 metrics: bool = True) -> None:
         self.sc = sc
+        self.metrics = metrics
         self.method = method
         self.dyn = dyn
         self.task = task
@@ -221,7 +228,7 @@ class SceneBatch:
 
     def _fresh(self, s: int) -> Scene:
         sc = replace(self.sc, seed=scene_seed(self.roots[s], self.ids[s], self.episode[s]))
-        return Scene(sc, self.method, self.dyn, self.task)
+        return Scene(sc, self.method, self.dyn, self.task, self.metrics)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""

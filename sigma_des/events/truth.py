@@ -39,7 +39,7 @@ from sigma_des.core.pages import small_pages
 from sigma_des.events.held import HeldCommands
 from sigma_des.metrics.fidelity import TrajectoryLog
 
-__all__ = ["FrameTrack", "SwarmTruth"]
+__all__ = ["NO_LOG", "FrameTrack", "NoLog", "SwarmTruth"]
 
 #: Columns of the published state.
 OBS_COLUMNS = len(OBS_FIELDS)
@@ -74,6 +74,18 @@ class FrameTrack:
                 np.array(self.times, dtype=np.float64), pos)
 
 
+class NoLog:
+    """Where frames leaving the ring go when nobody reads them: nowhere (a run
+    without metrics, e.g. a learning env's scene)."""
+
+    def add(self, t: float, pos: NDArray[np.float64]) -> None:
+        """Forget the frame leaving the ring."""
+
+
+#: The shared :class:`NoLog` (it holds nothing).
+NO_LOG = NoLog()
+
+
 class SwarmTruth:
     """The true swarm, or a subset of its nodes, frame by frame.
 
@@ -86,7 +98,7 @@ class SwarmTruth:
         nodes: the node ids served, ascending (None: all ``n``); rows are indexed by
             position in it, the dynamics keyed by the id (a live host's nodes).
         log: where frames leaving the ring go (None: the fidelity log at ``log_rate``;
-            a live host passes a :class:`FrameTrack`).
+            a live host passes a :class:`FrameTrack`; :data:`NO_LOG`: nowhere).
 
     Attributes:
         nodes: the node id of every row.
@@ -109,7 +121,7 @@ class SwarmTruth:
     def __init__(
         self, dynamics: DynamicsModel, n: int, history_frames: int, log_rate: float,
         checkpoints: bool, nodes: NDArray[np.int64] | None = None,
-        log: TrajectoryLog | FrameTrack | None = None,
+        log: TrajectoryLog | FrameTrack | NoLog | None = None,
     ) -> None:
         small_pages()  # the rings below are written a frame at a time (core/pages.py)
         H = self.H = history_frames
@@ -136,7 +148,7 @@ class SwarmTruth:
         self.latest = -1
         self.phys_t = 0.0
         self.phys_hist = np.zeros(H)
-        self.traj: TrajectoryLog | FrameTrack = (
+        self.traj: TrajectoryLog | FrameTrack | NoLog = (
             TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12]) if log is None
             else log)
         self.rollbacks = 0
@@ -370,13 +382,14 @@ class SwarmTruth:
         that take it a block of samples at a time (:meth:`TrajectoryLog.rows`)."""
         log = self.traj
         if not isinstance(log, TrajectoryLog):
-            raise TypeError("this truth logs every frame (a FrameTrack), not samples")
+            raise TypeError("this truth keeps no fidelity log (a FrameTrack logs every "
+                            "frame; NO_LOG none)")
         self._log_ring()
         return log
 
     def _log_ring(self) -> None:
         """Log the frames the ring holds (none once released: release() logged them)."""
-        if self.released:
+        if self.released or self.traj is NO_LOG:
             return
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):
