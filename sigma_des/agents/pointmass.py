@@ -92,12 +92,16 @@ class PointMass:
             first_frame: frame the first step leads to (the model does not depend on it).
             node: the aircraft's node id (likewise).
         """
-        d = [float(x) for x in dts]
-        gains = np.array([1.0 - math.exp(-x / self.tau) for x in d])
-        out = np.empty((len(d), 6))
+        d = np.array(dts, dtype=np.float64).reshape(-1)
+        m = d.size
+        if m and d.min() == d.max():  # one rate throughout (the usual case): one gain
+            gains = np.full(m, 1.0 - math.exp(-float(d[0]) / self.tau))
+        else:
+            gains = np.array([1.0 - math.exp(-x / self.tau) for x in d.tolist()])
+        out = np.empty((m, 6))
         _step_frames(np.ascontiguousarray(state, dtype=np.float64).reshape(6),
                      np.ascontiguousarray(command, dtype=np.float64).reshape(3),
-                     np.array(d), gains, out)
+                     d, gains, out)
         return out
 
     def observe(self, state: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -256,21 +256,23 @@ class SwarmTruth:
         H = self.H
         latest = self.latest
         prev = self._checkpoint(i, c)
-        s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
         if step_frames is not None and c <= latest:
-            # the same row steps, compiled in one call (identical to the loop below)
+            # the same row steps, compiled in one call (identical to the loop below);
+            # observed from its result, the rows just written to the ring
             slots = np.arange(c, latest + 1) % H
             states = step_frames(prev, row, self.frame_dt[slots], c, int(self.nodes[i]))
             self.ckpt[slots, i] = states
-            s = states[-1:]
-        else:
-            cmd = row[None, :]
-            node = self.nodes[i : i + 1]
-            for f in range(c, latest + 1):
-                slot = f % H
-                s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
-                self.ckpt[slot, i] = s[0]
+            self.obs_hist[slots, i] = self.dyn.observe(states)
+            self.state[i] = states[-1]
+            return
+        s = prev[None, :].copy()
+        cmd = row[None, :]
+        node = self.nodes[i : i + 1]
+        for f in range(c, latest + 1):
+            slot = f % H
+            s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
+            self.ckpt[slot, i] = s[0]
         if c <= latest:
             # one observe call for all re-simulated frames (rows are independent)
             slots = np.arange(c, latest + 1) % H
