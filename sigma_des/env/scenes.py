@@ -34,8 +34,9 @@ from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.events.spec import RunSpec
 
-__all__ = ["Scene", "SceneBatch", "scene_seed"]
+__all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
 
 Array = NDArray[np.float64]
 _SEED_KEY = np.uint64(0x5CE7E5EED0000001)
@@ -60,6 +61,13 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
     """
     key = mix(_SEED_KEY, *_root_ids(int(root)), scene, episode)
     return int(key[0] >> np.uint64(1))
+
+
+def with_seed(spec: RunSpec, seed: int) -> RunSpec:
+    """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
+    seed (the seed is in the spec and its aligner's parameters, nowhere else), without
+    validating and converting the whole scenario again for every episode."""
+    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
 
 
 class _Capture:
@@ -96,21 +104,21 @@ class Scene:
     """One isolated episode of the distributed loop (see module docstring).
 
     Args:
-        sc: the scenario of this episode (its seed already derived).
+        spec: the run spec of this episode (its seed already derived: :func:`with_seed`).
         method: alignment method.
         dyn: the dynamics model (shared by all scenes: models are pure).
         task: the task.
         metrics: collect the run's measurements (False: none, see ``MethodRun``).
     """
 
-    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
+    def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
                  metrics: bool = True) -> None:
         self.capture = _Capture()
-        initial = task.initial_state(dyn, sc.nodes)
+        initial = task.initial_state(dyn, spec.nodes)
         placed = _Placed(dyn, initial)
-        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture,  # type: ignore[arg-type]
+        self.run: MethodRun = make_run(spec, method, placed, self.capture,  # type: ignore[arg-type]
                                        metrics)[0]
-        self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
+        self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"),
                                dyn.observe(initial))
         self.done = False
         self.ended = False
@@ -170,6 +178,7 @@ class SceneBatch:
                  n_scenes: int, scene_ids: list[int] | None = None,
                  metrics: bool = True) -> None:
         self.sc = sc
+        self.spec = sc.run_spec()
         self.metrics = metrics
         self.method = method
         self.dyn = dyn
@@ -227,8 +236,8 @@ class SceneBatch:
             self.advance([self.scenes[s] for s in ids])
 
     def _fresh(self, s: int) -> Scene:
-        sc = replace(self.sc, seed=scene_seed(self.roots[s], self.ids[s], self.episode[s]))
-        return Scene(sc, self.method, self.dyn, self.task, self.metrics)
+        seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
+        return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""
