@@ -118,6 +118,8 @@ class MethodRun(AlignmentServer):
         self.one = OneState()
         self.wall_seconds = 0.0
         self.pending_state: NDArray[np.float64] | None = None
+        #: advance_until returned TRIGGER_DUE and nothing was published since
+        self._due_resumed = False
         self.tap = Tap()
         self.core: MessageCore
         if compiled:  # the core reads and writes the command rows in place
@@ -250,6 +252,7 @@ class MethodRun(AlignmentServer):
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
+        self._due_resumed = False  # new messages: the core must run again before anything
         self.core.publish_commands(tick, stamp, nodes, cmds)
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -333,6 +336,15 @@ class MethodRun(AlignmentServer):
         k = self.kernel
         core = self.core
         dur = self.spec.duration
+        if self._due_resumed:
+            self._due_resumed = False
+            if stop():
+                return PAUSED
+            if self.pending_state is not None:
+                # resumed after TRIGGER_DUE with the trigger's state: nothing ran and
+                # nothing was published since the core reached the trigger's time, so
+                # bringing it there again would run nothing; the trigger issues now
+                k.step()
         while True:
             if stop():
                 return PAUSED
@@ -344,6 +356,7 @@ class MethodRun(AlignmentServer):
                 core.write_back()
                 return END
             if self.trigger_due():
+                self._due_resumed = True
                 return TRIGGER_DUE
             k.step()
 
