@@ -92,6 +92,9 @@ class _Placed:
         self.name = dyn.name
         self.state_dim = dyn.state_dim
         self.command_dim = dyn.command_dim
+        for hot in ("step", "observe", "step_frames", "default_command"):  # no lookup each
+            if hasattr(dyn, hot):
+                setattr(self, hot, getattr(dyn, hot))
 
     def initial_state(self, n: int) -> Array:
         return self._initial.copy()

@@ -184,7 +184,7 @@ class SwarmTruth:
         if self.released:
             raise RuntimeError("the run is over: its truth was released")
         slot = k % self.H
-        if self.slot_frame[slot] >= 0:
+        if self.slot_frame[slot] >= 0 and self.traj is not NO_LOG:
             self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
         self.frame_dt[slot] = dt
         self.phys_t += dt
