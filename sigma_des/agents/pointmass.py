@@ -43,6 +43,9 @@ class PointMass:
     #: a rollback re-simulates at once through :meth:`step_frames` (one compiled call),
     #: cheaper than deferring it to a batched step per frame in Python
     defer_rollbacks = False
+    #: :meth:`step` reads neither the frame index nor the node ids: rows of different
+    #: frames (scenes of a learning env) may share one call
+    frame_free = True
 
     def __init__(self, spacing: float = 10.0, cruise: float = 10.0, altitude: float = 100.0,
                  tau: float = 0.5) -> None:

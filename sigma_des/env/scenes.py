@@ -13,7 +13,8 @@ depend on how many scenes run beside it.
 :class:`SceneBatch` drives many scenes: every scene is advanced to its next
 trigger issue (all messages before it processed, so its command rows are final),
 then the physics of every waiting scene is stepped in one call of the dynamics
-model per distinct ``(frame, dt)`` (rows are independent, so this is bit-identical
+model per distinct ``(frame, dt)`` (per ``dt`` for a model whose step reads neither
+frame nor node ids, ``frame_free``; rows are independent, so this is bit-identical
 to each scene stepping alone), and the scenes go on, until each has paused at its
 next command tick or reached the end of its scenario.
 """
@@ -259,15 +260,22 @@ class SceneBatch:
             todo = due
 
     def _step_physics(self, due: list[Scene]) -> None:
-        groups: dict[tuple[int, float], list[Scene]] = {}
+        # a model whose step reads neither the frame nor the node ids steps the scenes
+        # of every frame with the same dt in one call (rows are independent)
+        free = getattr(self.dyn, "frame_free", False)
+        groups: dict[tuple[int, float] | float, list[Scene]] = {}
         for s in due:
-            groups.setdefault(s.run.next_trigger(), []).append(s)
-        for (k, dt), group in groups.items():
+            k, dt = s.run.next_trigger()
+            groups.setdefault(dt if free else (k, dt), []).append(s)
+        for group in groups.values():
             runs = [s.run for s in group]
-            state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
-            cmds = [r.nodes.cmd for r in runs]
-            cmd = np.concatenate(cmds) if len(runs) > 1 else cmds[0]
-            nodes = np.concatenate([r.truth.nodes for r in runs])
+            k, dt = runs[0].next_trigger()
+            if len(runs) > 1:
+                state = np.concatenate([r.state for r in runs])
+                cmd = np.concatenate([r.nodes.cmd for r in runs])
+                nodes = np.concatenate([r.truth.nodes for r in runs])
+            else:
+                state, cmd, nodes = runs[0].state, runs[0].nodes.cmd, runs[0].truth.nodes
             new = self.dyn.step(state, cmd, dt, k, nodes)
             n = self.sc.nodes
             for j, r in enumerate(runs):
