@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sigma_des.env import SwarmVec
+from sigma_des.env import SwarmEnv, SwarmVec
 from sigma_des.errors import ConfigError
 from sigma_des.events.server import AlignmentServer
 from sigma_des.events.truth import NO_LOG
@@ -63,3 +63,18 @@ def test_env_without_metrics_runs_no_collector_and_no_render_ticks(
 def test_env_metrics_option_must_be_a_bool() -> None:
     with pytest.raises(ConfigError, match="metrics"):
         SwarmVec(task="tight", metrics="no")  # type: ignore[arg-type]
+
+
+def test_pettingzoo_env_without_metrics_plays_the_same_episode() -> None:
+    envs = [SwarmEnv(task="tight", max_steps=6, metrics=m) for m in (True, False)]
+    outs = []
+    for env in envs:
+        obs, infos = env.reset(seed=4)
+        out = [obs, infos]
+        rng = np.random.default_rng(4)
+        while env.agents:
+            out.append(env.step({a: rng.uniform(-1, 1, 3) for a in env.agents}))
+        outs.append(out)
+    assert isinstance(envs[1].vec.batch.scenes[0].run.collector, NullCollector)
+    assert not isinstance(envs[0].vec.batch.scenes[0].run.collector, NullCollector)
+    _same(outs[0], outs[1])
