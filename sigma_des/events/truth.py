@@ -239,12 +239,14 @@ class SwarmTruth:
         """
         c = self.first_resim(c)
         held = self.stepped_rows
-        one = (np.array([i]), np.array([c]), np.asarray(row, dtype=np.float64)[None, :])
-        if held is not None and c <= self.latest and held.redundant(*one)[0]:
-            self.resim_skipped += 1  # the ring already holds what it would write
-        else:
+        if held is None or c > self.latest:
             self._resimulate_one(i, c, row)
-            if held is not None and c <= self.latest:
+        else:
+            one = (np.array([i]), np.array([c]), np.asarray(row, dtype=np.float64)[None, :])
+            if held.redundant(*one)[0]:
+                self.resim_skipped += 1  # the ring already holds what it would write
+            else:
+                self._resimulate_one(i, c, row)
                 held.resimulated(*one)
         steps = max(0, current - c + 1)
         self.rollbacks += 1
