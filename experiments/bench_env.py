@@ -13,13 +13,15 @@ For reference, the same scenario run on its own by the simulator (no env; the
 built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
 
 ``--study``: instead, the delay study's configuration (``tight`` task, 5 nodes = 4
-agents, BiDES at 200 ms with 10 % loss, and ``perfect``), 4 and 64 scenes, random
-actions, against the targets (>= 50 000 agent-steps per CPU-s at 64 scenes, >= 20 000
-at 4); memory: the process's resident set (``VmRSS``) grown by building and resetting
-``--fit`` scenes (default 512), per scene and in all (target: 512 scenes in 2 GB). For
-normalisation across machines it also prints the CPU seconds per simulated second of
-the in-repo process-per-message SimPy baseline (``sigma_lab.reference.process_model``)
-on a fixed scenario (50 nodes, stream transport, method ``none``, 2 s), run in the same
+agents, BiDES at 200 ms with 10 % loss, and ``perfect``; the study's env arguments, so
+without simulator metrics, ``metrics=False``; ``--with-metrics``: the env's default,
+with them), 4 and 64 scenes, random actions, against the targets (>= 50 000
+agent-steps per CPU-s at 64 scenes, >= 20 000 at 4); memory: the process's resident
+set (``VmRSS``) grown by building and resetting ``--fit`` scenes (default 512), per
+scene and in all (target: 512 scenes in 2 GB). For normalisation across machines it
+also prints the CPU seconds per simulated second of the in-repo process-per-message
+SimPy baseline (``sigma_lab.reference.process_model``) on a fixed scenario (50 nodes,
+stream transport, method ``none``, 2 s), run in the same
 process: divide an env figure by it to compare machines.
 
 Usage: ``python experiments/bench_env.py [--quick] [--study] [--out out/env]``
@@ -130,8 +132,10 @@ def baseline_cpu_per_sim_s(duration: float = 2.0) -> float:
     return (time.thread_time() - t) / duration
 
 
-def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, Any]:
-    """Agent-steps per CPU-s on the delay study's configuration, and memory per scene."""
+def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int,
+          metrics: bool = False) -> dict[str, Any]:
+    """Agent-steps per CPU-s on the delay study's configuration, and memory per scene
+    (``metrics``: the scenes' runs collect the simulator's metrics, the env's default)."""
     import gc
 
     from sigma_lab.studies.delay import env_kwargs
@@ -141,7 +145,7 @@ def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, 
           f"load {os.getloadavg()[0]:.1f}", flush=True)
     rows = []
     for cond in ("bides@200ms", "perfect"):
-        kw = env_kwargs(cond, 5, 10_000, 0.1)
+        kw = {**env_kwargs(cond, 5, 10_000, 0.1), "metrics": metrics}
         for scenes in sizes:
             env = SwarmVec(n_scenes=scenes, **kw)
             env.reset(seed=1)
@@ -152,19 +156,21 @@ def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int) -> dict[str, 
                 for k in range(steps):
                     env.step(acts[k])
                 best = min(best, time.thread_time() - t)
-            r = {"condition": cond, "scenes": scenes, "steps": steps,
+            r = {"condition": cond, "scenes": scenes, "steps": steps, "metrics": metrics,
                  "agent_steps_per_s": scenes * env.n_agents * steps / best}
             rows.append(r)
             goal = STUDY_TARGETS.get(scenes)
             met = "" if goal is None else (
                 f"  target >= {goal:,}: {'met' if r['agent_steps_per_s'] >= goal else 'not met'}")
-            print(f"study {cond:12s} {scenes:4d} scenes: {r['agent_steps_per_s']:9.0f} "
+            print(f"study {cond:12s} {scenes:4d} scenes{' (metrics)' if metrics else ''}: "
+                  f"{r['agent_steps_per_s']:9.0f} "
                   f"agent-steps per CPU-s{met}; load {os.getloadavg()[0]:.1f}", flush=True)
             del env
             gc.collect()
     gc.collect()
     before = _rss()
-    env = SwarmVec(n_scenes=fit, **env_kwargs("bides@200ms", 5, 50, 0.1))
+    env = SwarmVec(n_scenes=fit, **{**env_kwargs("bides@200ms", 5, 50, 0.1),
+                                    "metrics": metrics})
     env.reset(seed=1)
     env.step(np.zeros((fit, env.n_agents, 3)))
     grown = _rss() - before
@@ -187,11 +193,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--study", action="store_true",
                     help="the delay study's configuration (see the module docstring)")
     ap.add_argument("--fit", type=int, default=512, help="--study: scenes of the memory check")
+    ap.add_argument("--with-metrics", action="store_true",
+                    help="--study: the scenes' runs collect the simulator's metrics")
     ap.add_argument("--out", default="out/env")
     args = ap.parse_args(argv)
     if args.study:
         res = study((1, 2) if args.quick else (4, 64), 2 if args.quick else args.steps,
-                    1 if args.quick else args.reps, 4 if args.quick else args.fit)
+                    1 if args.quick else args.reps, 4 if args.quick else args.fit,
+                    args.with_metrics)
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "bench_study.json").write_text(json.dumps(

@@ -43,6 +43,9 @@ class PointMass:
     #: a rollback re-simulates at once through :meth:`step_frames` (one compiled call),
     #: cheaper than deferring it to a batched step per frame in Python
     defer_rollbacks = False
+    #: :meth:`step` reads neither the frame index nor the node ids: rows of different
+    #: frames (scenes of a learning env) may share one call
+    frame_free = True
 
     def __init__(self, spacing: float = 10.0, cruise: float = 10.0, altitude: float = 100.0,
                  tau: float = 0.5) -> None:
@@ -92,12 +95,16 @@ class PointMass:
             first_frame: frame the first step leads to (the model does not depend on it).
             node: the aircraft's node id (likewise).
         """
-        d = [float(x) for x in dts]
-        gains = np.array([1.0 - math.exp(-x / self.tau) for x in d])
-        out = np.empty((len(d), 6))
+        d = np.array(dts, dtype=np.float64).reshape(-1)
+        m = d.size
+        if m and d.min() == d.max():  # one rate throughout (the usual case): one gain
+            gains = np.full(m, 1.0 - math.exp(-float(d[0]) / self.tau))
+        else:
+            gains = np.array([1.0 - math.exp(-x / self.tau) for x in d.tolist()])
+        out = np.empty((m, 6))
         _step_frames(np.ascontiguousarray(state, dtype=np.float64).reshape(6),
                      np.ascontiguousarray(command, dtype=np.float64).reshape(3),
-                     np.array(d), gains, out)
+                     d, gains, out)
         return out
 
     def observe(self, state: NDArray[np.float64]) -> NDArray[np.float64]:

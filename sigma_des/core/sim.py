@@ -9,6 +9,7 @@ before trigger k was issued" includes one arriving at the same instant).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from heapq import heappush
 from typing import Any
@@ -50,7 +51,7 @@ class Kernel:
     @property
     def now(self) -> float:
         """Current simulated (true) time in seconds."""
-        return float(self.env.now)
+        return float(self.env._now)  # type: ignore[attr-defined]  # (Environment.now's)
 
     def at(self, t: float, fn: Callable[..., Any], *args: Any, priority: int = ARRIVAL) -> None:
         """Run ``fn(*args)`` at absolute time ``t`` (not before now)."""
@@ -81,8 +82,9 @@ class Kernel:
         self.env.run(until=until)
 
     def peek(self) -> float:
-        """Time of the next event (``inf`` when none is scheduled)."""
-        return float(self.env.peek())
+        """Time of the next event (``inf`` when none is scheduled): Environment.peek's."""
+        q = self.env._queue  # type: ignore[attr-defined]
+        return float(q[0][0]) if q else math.inf
 
     def step(self) -> None:
         """Process the next event."""

@@ -45,6 +45,8 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
         seed: root seed used by the first ``reset()`` without a seed.
         render_mode: None or ``"ansi"`` (:meth:`render` returns a text table of the
             true state, the agents' ages and errors).
+        metrics: the scene's runs collect the simulator's measurements (False: none,
+            faster, the same episodes; see :class:`~sigma_des.env.vector.SwarmVec`).
     """
 
     metadata = {"name": "sigma_des_swarm_v0", "render_modes": RENDER_MODES}
@@ -53,9 +55,10 @@ class SwarmEnv(ParallelEnv):  # type: ignore[misc]
                  scenario: Mapping[str, Any] | None = None,
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, metrics: bool = True) -> None:
         self.vec = SwarmVec(task, method, 1, scenario, task_params, max_steps, perfect_info,
-                            seed, autoreset="disabled", render_mode=render_mode)
+                            seed, autoreset="disabled", render_mode=render_mode,
+                            metrics=metrics)
         self.possible_agents = [f"node_{i}" for i in self.vec.agent_nodes]
         self.agents: list[str] = []
         self.render_mode = self.vec.render_mode

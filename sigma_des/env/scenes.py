@@ -13,7 +13,8 @@ depend on how many scenes run beside it.
 :class:`SceneBatch` drives many scenes: every scene is advanced to its next
 trigger issue (all messages before it processed, so its command rows are final),
 then the physics of every waiting scene is stepped in one call of the dynamics
-model per distinct ``(frame, dt)`` (rows are independent, so this is bit-identical
+model per distinct ``(frame, dt)`` (per ``dt`` for a model whose step reads neither
+frame nor node ids, ``frame_free``; rows are independent, so this is bit-identical
 to each scene stepping alone), and the scenes go on, until each has paused at its
 next command tick or reached the end of its scenario.
 """
@@ -34,8 +35,9 @@ from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.events.spec import RunSpec
 
-__all__ = ["Scene", "SceneBatch", "scene_seed"]
+__all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
 
 Array = NDArray[np.float64]
 _SEED_KEY = np.uint64(0x5CE7E5EED0000001)
@@ -62,6 +64,13 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
     return int(key[0] >> np.uint64(1))
 
 
+def with_seed(spec: RunSpec, seed: int) -> RunSpec:
+    """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
+    seed (the seed is in the spec and its aligner's parameters, nowhere else), without
+    validating and converting the whole scenario again for every episode."""
+    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
+
+
 class _Capture:
     """A behaviour that records the view of each command tick and sends nothing."""
 
@@ -84,6 +93,9 @@ class _Placed:
         self.name = dyn.name
         self.state_dim = dyn.state_dim
         self.command_dim = dyn.command_dim
+        for hot in ("step", "observe", "step_frames", "default_command"):  # no lookup each
+            if hasattr(dyn, hot):
+                setattr(self, hot, getattr(dyn, hot))
 
     def initial_state(self, n: int) -> Array:
         return self._initial.copy()
@@ -96,18 +108,21 @@ class Scene:
     """One isolated episode of the distributed loop (see module docstring).
 
     Args:
-        sc: the scenario of this episode (its seed already derived).
+        spec: the run spec of this episode (its seed already derived: :func:`with_seed`).
         method: alignment method.
         dyn: the dynamics model (shared by all scenes: models are pure).
         task: the task.
+        metrics: collect the run's measurements (False: none, see ``MethodRun``).
     """
 
-    def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task) -> None:
+    def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
+                 metrics: bool = True) -> None:
         self.capture = _Capture()
-        initial = task.initial_state(dyn, sc.nodes)
+        initial = task.initial_state(dyn, spec.nodes)
         placed = _Placed(dyn, initial)
-        self.run: MethodRun = make_run(sc.run_spec(), method, placed, self.capture)[0]  # type: ignore[arg-type]
-        self.ep = task.episode(RandomStreams(sc.seed).stream(f"env.{task.name}"),
+        self.run: MethodRun = make_run(spec, method, placed, self.capture,  # type: ignore[arg-type]
+                                       metrics)[0]
+        self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"),
                                dyn.observe(initial))
         self.done = False
         self.ended = False
@@ -159,11 +174,16 @@ class SceneBatch:
         n_scenes: number of scenes.
         scene_ids: the identity of each scene in its seed (default ``0..n_scenes-1``);
             scenes with the same id replay the same episodes (common random numbers).
+        metrics: the scenes' runs collect their measurements (False: none; the same
+            episodes, see ``MethodRun``).
     """
 
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
-                 n_scenes: int, scene_ids: list[int] | None = None) -> None:
+                 n_scenes: int, scene_ids: list[int] | None = None,
+                 metrics: bool = True) -> None:
         self.sc = sc
+        self.spec = sc.run_spec()
+        self.metrics = metrics
         self.method = method
         self.dyn = dyn
         self.task = task
@@ -220,8 +240,8 @@ class SceneBatch:
             self.advance([self.scenes[s] for s in ids])
 
     def _fresh(self, s: int) -> Scene:
-        sc = replace(self.sc, seed=scene_seed(self.roots[s], self.ids[s], self.episode[s]))
-        return Scene(sc, self.method, self.dyn, self.task)
+        seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
+        return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""
@@ -240,15 +260,22 @@ class SceneBatch:
             todo = due
 
     def _step_physics(self, due: list[Scene]) -> None:
-        groups: dict[tuple[int, float], list[Scene]] = {}
+        # a model whose step reads neither the frame nor the node ids steps the scenes
+        # of every frame with the same dt in one call (rows are independent)
+        free = getattr(self.dyn, "frame_free", False)
+        groups: dict[tuple[int, float] | float, list[Scene]] = {}
         for s in due:
-            groups.setdefault(s.run.next_trigger(), []).append(s)
-        for (k, dt), group in groups.items():
+            k, dt = s.run.next_trigger()
+            groups.setdefault(dt if free else (k, dt), []).append(s)
+        for group in groups.values():
             runs = [s.run for s in group]
-            state = np.concatenate([r.state for r in runs]) if len(runs) > 1 else runs[0].state
-            cmds = [r.nodes.cmd for r in runs]
-            cmd = np.concatenate(cmds) if len(runs) > 1 else cmds[0]
-            nodes = np.concatenate([r.truth.nodes for r in runs])
+            k, dt = runs[0].next_trigger()
+            if len(runs) > 1:
+                state = np.concatenate([r.state for r in runs])
+                cmd = np.concatenate([r.nodes.cmd for r in runs])
+                nodes = np.concatenate([r.truth.nodes for r in runs])
+            else:
+                state, cmd, nodes = runs[0].state, runs[0].nodes.cmd, runs[0].truth.nodes
             new = self.dyn.step(state, cmd, dt, k, nodes)
             n = self.sc.nodes
             for j, r in enumerate(runs):

@@ -324,8 +324,10 @@ class FormationTask(Task):
 
     def _heading(self, ep: Any, t: float) -> float:
         m = int(t // self.segment)
-        u = ep["stream"].uniform(np.arange(m + 1))
-        w = self.turn_max * (2.0 * u - 1.0)
+        w = ep.get("turns")
+        if w is None or w.size <= m:  # the draws are per segment id: a longer prefix
+            u = ep["stream"].uniform(np.arange(max(m + 1, 32, 0 if w is None else 2 * w.size)))
+            w = ep["turns"] = self.turn_max * (2.0 * u - 1.0)
         return float(ep["psi0"] + self.segment * w[:m].sum() + (t - m * self.segment) * w[m])
 
     def targets(self, obs: Array, ep: Any, t: float) -> Array:

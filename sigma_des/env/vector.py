@@ -50,6 +50,7 @@ from sigma_des.env.resets import (
 )
 from sigma_des.env.scenes import Scene, SceneBatch
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task
+from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
 
 __all__ = ["SwarmVec", "SwarmVectorEnv", "check_actions", "check_mapping", "check_seed"]
@@ -112,6 +113,9 @@ class SwarmVec:
             scenes at once (the task's ``*_many`` methods); False: scene by scene (the
             reference; both give the same bits).
         render_mode: None or ``"ansi"`` (:meth:`render` gives one text table per scene).
+        metrics: the scenes' runs collect the simulator's measurements (AoI and latency
+            samples, render ticks, the fidelity log), which the env never returns;
+            False skips them (faster; the same observations, rewards and infos).
 
     Raises:
         ConfigError: (a ValueError) an unknown task, key or out-of-range option.
@@ -122,7 +126,8 @@ class SwarmVec:
                  task_params: Mapping[str, Any] | None = None, max_steps: int = 100,
                  perfect_info: bool = False, seed: int | None = None,
                  autoreset: str = "next_step", scene_ids: list[int] | None = None,
-                 batched: bool = True, render_mode: str | None = None) -> None:
+                 batched: bool = True, render_mode: str | None = None,
+                 metrics: bool = True) -> None:
         self.render_mode = check_render_mode(render_mode)
         scenario = check_mapping(scenario, "scenario", "{'nodes': 8}")
         task_params = check_mapping(task_params, "task_params", "{'w_u': 0.1}")
@@ -137,7 +142,10 @@ class SwarmVec:
         self.n_scenes = n_scenes
         self.n_agents = len(self.agent_nodes)
         self.obs_dim = self.task.obs_dim
-        self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes, scene_ids)
+        if not isinstance(metrics, bool):
+            raise ConfigError("metrics", f"must be true or false, got {metrics!r}")
+        self.batch = SceneBatch(self.sc, method, self.dyn, self.task, n_scenes, scene_ids,
+                                metrics)
         self._seed = self.sc.seed if seed is None else int(seed)
         self.steps = np.zeros(n_scenes, dtype=np.int64)
         self.done = np.ones(n_scenes, dtype=bool)

@@ -24,15 +24,18 @@ __all__ = ["execute", "make_run"]
 
 
 def make_run(
-    sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None
+    sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None,
+    metrics: bool = True,
 ) -> tuple[MethodRun, str]:
-    """The run object for ``sc.engine`` and the fallback reason ("" if none)."""
+    """The run object for ``sc.engine`` and the fallback reason ("" if none);
+    ``metrics=False``: a run that collects no measurements (``MethodRun``'s)."""
     if sc.engine == "cohort":
         why = unsupported(sc, method)
         if why is None:
-            return MethodRun(sc, method, dynamics, behaviour, compiled=True), ""
-        return MethodRun(sc, method, dynamics, behaviour), why
-    return MethodRun(sc, method, dynamics, behaviour), ""
+            return MethodRun(sc, method, dynamics, behaviour, compiled=True,
+                             metrics=metrics), ""
+        return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), why
+    return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), ""
 
 
 def execute(

@@ -43,7 +43,7 @@ from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.server import AlignmentServer
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
-from sigma_des.events.truth import SwarmTruth
+from sigma_des.events.truth import NO_LOG, SwarmTruth
 from sigma_des.metrics.fidelity import TrajectoryLog
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.dds import make_network
@@ -76,6 +76,9 @@ class MethodRun(AlignmentServer):
             (:class:`~sigma_des.events.fast.driver.CompiledCore`) instead of as
             SimPy events; raises ``CohortFallback`` if the scenario needs a feature
             the core does not reproduce.
+        metrics: collect the run's measurements (False: no collector, no render ticks
+            and no fidelity log, see :class:`~sigma_des.events.server.AlignmentServer`;
+            :meth:`run` then cannot return results, :meth:`trajectory` has no log).
 
     Attributes:
         trigger: the trigger source.
@@ -99,6 +102,7 @@ class MethodRun(AlignmentServer):
         dynamics: DynamicsModel,
         behaviour: Behaviour | None,
         compiled: bool = False,
+        metrics: bool = True,
     ) -> None:
         n = spec.nodes
         self.kernel = Kernel()
@@ -106,13 +110,16 @@ class MethodRun(AlignmentServer):
         self.net: Network = make_network(self.kernel, spec.net, self.streams, self.deliver)
         self.server = n
         warp = method == "bides" and spec.time_warp
-        self.truth = SwarmTruth(dynamics, n, spec.history_frames, spec.log_rate, warp)
-        super().__init__(self.kernel, spec, method, dynamics, behaviour)
+        self.truth = SwarmTruth(dynamics, n, spec.history_frames, spec.log_rate, warp,
+                                log=None if metrics else NO_LOG)
+        super().__init__(self.kernel, spec, method, dynamics, behaviour, metrics)
         self.nodes = self.make_nodes(warp)
         #: the reusable batch of one each delivered state is handed over in
         self.one = OneState()
         self.wall_seconds = 0.0
         self.pending_state: NDArray[np.float64] | None = None
+        #: advance_until returned TRIGGER_DUE and nothing was published since
+        self._due_resumed = False
         self.tap = Tap()
         self.core: MessageCore
         if compiled:  # the core reads and writes the command rows in place
@@ -245,6 +252,7 @@ class MethodRun(AlignmentServer):
         self, tick: int, stamp: int, nodes: NDArray[np.int64], cmds: NDArray[np.float64]
     ) -> None:
         """Publish ``cmds[i]`` (stamped ``stamp``) to each node ``i`` of ``nodes``, in order."""
+        self._due_resumed = False  # new messages: the core must run again before anything
         self.core.publish_commands(tick, stamp, nodes, cmds)
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -328,6 +336,15 @@ class MethodRun(AlignmentServer):
         k = self.kernel
         core = self.core
         dur = self.spec.duration
+        if self._due_resumed:
+            self._due_resumed = False
+            if stop():
+                return PAUSED
+            if self.pending_state is not None:
+                # resumed after TRIGGER_DUE with the trigger's state: nothing ran and
+                # nothing was published since the core reached the trigger's time, so
+                # bringing it there again would run nothing; the trigger issues now
+                k.step()
         while True:
             if stop():
                 return PAUSED
@@ -339,6 +356,7 @@ class MethodRun(AlignmentServer):
                 core.write_back()
                 return END
             if self.trigger_due():
+                self._due_resumed = True
                 return TRIGGER_DUE
             k.step()
 

@@ -39,7 +39,7 @@ from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
-from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.collector import Collector, NullCollector
 from sigma_des.metrics.reports import NetCounters, NetReport, RunReport
 from sigma_des.net.cpu import CpuReport
 
@@ -55,6 +55,10 @@ class AlignmentServer:
         method: ``none``, ``lockstep``, ``hlc``, ``bides`` or ``rpc``.
         dynamics: the dynamics model (the behaviour's commands are its).
         behaviour: behaviour producing commands (None: no commands).
+        metrics: collect the run's measurements; False: a
+            :class:`~sigma_des.metrics.collector.NullCollector` and no render ticks
+            (they only sample for the metrics), for runs nobody measures (a learning
+            env's scenes): every other event happens as with metrics.
 
     Attributes:
         trigger: the trigger source.
@@ -71,6 +75,7 @@ class AlignmentServer:
         method: str,
         dynamics: DynamicsModel,
         behaviour: Behaviour | None,
+        metrics: bool = True,
     ) -> None:
         self.clock = clock
         self.spec = spec
@@ -89,7 +94,8 @@ class AlignmentServer:
             spec.duration,
         )
         self.aligner: Aligner = make_aligner(method, spec.nodes, self, spec.align)
-        self.collector = Collector(spec.collect, method)
+        self.metrics = metrics
+        self.collector = (Collector if metrics else NullCollector)(spec.collect, method)
         self.align_tick = 0
         self.render_tick = 0
 
@@ -250,10 +256,12 @@ class AlignmentServer:
         return (j + self.spec.render_phase) / self.spec.f_render
 
     def start(self) -> None:
-        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases)."""
+        """Schedule the first trigger (t = 0), alignment tick and render tick (their phases;
+        no render ticks without metrics)."""
         self.trigger.start()
         self.clock.call_at(self.align_time(0), self.align, priority=ALIGN)
-        self.clock.call_at(self.render_time(0), self.render, priority=RENDER)
+        if self.metrics:
+            self.clock.call_at(self.render_time(0), self.render, priority=RENDER)
 
     def results(self, *, rollbacks: int, resim_steps: int, history_misses: int,
                 wall_seconds: float, events: int, net: NetCounters,

@@ -39,7 +39,7 @@ from sigma_des.core.pages import small_pages
 from sigma_des.events.held import HeldCommands
 from sigma_des.metrics.fidelity import TrajectoryLog
 
-__all__ = ["FrameTrack", "SwarmTruth"]
+__all__ = ["NO_LOG", "FrameTrack", "NoLog", "SwarmTruth"]
 
 #: Columns of the published state.
 OBS_COLUMNS = len(OBS_FIELDS)
@@ -74,6 +74,18 @@ class FrameTrack:
                 np.array(self.times, dtype=np.float64), pos)
 
 
+class NoLog:
+    """Where frames leaving the ring go when nobody reads them: nowhere (a run
+    without metrics, e.g. a learning env's scene)."""
+
+    def add(self, t: float, pos: NDArray[np.float64]) -> None:
+        """Forget the frame leaving the ring."""
+
+
+#: The shared :class:`NoLog` (it holds nothing).
+NO_LOG = NoLog()
+
+
 class SwarmTruth:
     """The true swarm, or a subset of its nodes, frame by frame.
 
@@ -86,7 +98,7 @@ class SwarmTruth:
         nodes: the node ids served, ascending (None: all ``n``); rows are indexed by
             position in it, the dynamics keyed by the id (a live host's nodes).
         log: where frames leaving the ring go (None: the fidelity log at ``log_rate``;
-            a live host passes a :class:`FrameTrack`).
+            a live host passes a :class:`FrameTrack`; :data:`NO_LOG`: nowhere).
 
     Attributes:
         nodes: the node id of every row.
@@ -109,7 +121,7 @@ class SwarmTruth:
     def __init__(
         self, dynamics: DynamicsModel, n: int, history_frames: int, log_rate: float,
         checkpoints: bool, nodes: NDArray[np.int64] | None = None,
-        log: TrajectoryLog | FrameTrack | None = None,
+        log: TrajectoryLog | FrameTrack | NoLog | None = None,
     ) -> None:
         small_pages()  # the rings below are written a frame at a time (core/pages.py)
         H = self.H = history_frames
@@ -136,7 +148,7 @@ class SwarmTruth:
         self.latest = -1
         self.phys_t = 0.0
         self.phys_hist = np.zeros(H)
-        self.traj: TrajectoryLog | FrameTrack = (
+        self.traj: TrajectoryLog | FrameTrack | NoLog = (
             TrajectoryLog(log_rate, dynamics.observe(self.initial)[:, 9:12]) if log is None
             else log)
         self.rollbacks = 0
@@ -172,7 +184,7 @@ class SwarmTruth:
         if self.released:
             raise RuntimeError("the run is over: its truth was released")
         slot = k % self.H
-        if self.slot_frame[slot] >= 0:
+        if self.slot_frame[slot] >= 0 and self.traj is not NO_LOG:
             self.traj.add(float(self.phys_hist[slot]), self.obs_hist[slot, :, 9:12])
         self.frame_dt[slot] = dt
         self.phys_t += dt
@@ -227,12 +239,14 @@ class SwarmTruth:
         """
         c = self.first_resim(c)
         held = self.stepped_rows
-        one = (np.array([i]), np.array([c]), np.asarray(row, dtype=np.float64)[None, :])
-        if held is not None and c <= self.latest and held.redundant(*one)[0]:
-            self.resim_skipped += 1  # the ring already holds what it would write
-        else:
+        if held is None or c > self.latest:
             self._resimulate_one(i, c, row)
-            if held is not None and c <= self.latest:
+        else:
+            one = (np.array([i]), np.array([c]), np.asarray(row, dtype=np.float64)[None, :])
+            if held.redundant(*one)[0]:
+                self.resim_skipped += 1  # the ring already holds what it would write
+            else:
+                self._resimulate_one(i, c, row)
                 held.resimulated(*one)
         steps = max(0, current - c + 1)
         self.rollbacks += 1
@@ -244,21 +258,23 @@ class SwarmTruth:
         H = self.H
         latest = self.latest
         prev = self._checkpoint(i, c)
-        s = prev[None, :].copy()
         step_frames = getattr(self.dyn, "step_frames", None)
         if step_frames is not None and c <= latest:
-            # the same row steps, compiled in one call (identical to the loop below)
+            # the same row steps, compiled in one call (identical to the loop below);
+            # observed from its result, the rows just written to the ring
             slots = np.arange(c, latest + 1) % H
             states = step_frames(prev, row, self.frame_dt[slots], c, int(self.nodes[i]))
             self.ckpt[slots, i] = states
-            s = states[-1:]
-        else:
-            cmd = row[None, :]
-            node = self.nodes[i : i + 1]
-            for f in range(c, latest + 1):
-                slot = f % H
-                s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
-                self.ckpt[slot, i] = s[0]
+            self.obs_hist[slots, i] = self.dyn.observe(states)
+            self.state[i] = states[-1]
+            return
+        s = prev[None, :].copy()
+        cmd = row[None, :]
+        node = self.nodes[i : i + 1]
+        for f in range(c, latest + 1):
+            slot = f % H
+            s = self.dyn.step(s, cmd, float(self.frame_dt[slot]), f, node)
+            self.ckpt[slot, i] = s[0]
         if c <= latest:
             # one observe call for all re-simulated frames (rows are independent)
             slots = np.arange(c, latest + 1) % H
@@ -370,13 +386,14 @@ class SwarmTruth:
         that take it a block of samples at a time (:meth:`TrajectoryLog.rows`)."""
         log = self.traj
         if not isinstance(log, TrajectoryLog):
-            raise TypeError("this truth logs every frame (a FrameTrack), not samples")
+            raise TypeError("this truth keeps no fidelity log (a FrameTrack logs every "
+                            "frame; NO_LOG none)")
         self._log_ring()
         return log
 
     def _log_ring(self) -> None:
         """Log the frames the ring holds (none once released: release() logged them)."""
-        if self.released:
+        if self.released or self.traj is NO_LOG:
             return
         first = max(0, self.latest - self.H + 1)
         for f in range(first, self.latest + 1):

@@ -22,6 +22,22 @@ def test_step_frames_equals_frame_by_frame_steps_bitwise() -> None:
     assert got.shape == (6, 6) and not np.array_equal(got[-1], state[2])
 
 
+
+def test_step_frames_at_one_rate_equals_frame_by_frame_steps_bitwise() -> None:
+    """All frames at one step (the gain computed once) give the per-frame steps' bits;
+    an empty span gives no rows."""
+    pm = PointMass(tau=0.41)
+    s0 = np.array([3.0, -7.5, 98.0, 9.5, 1.25, -0.3])
+    cmd = np.array([-4.0, 6.5, 1.1])
+    for dt in (0.02, 1.0 / 48.0):
+        dts = np.full(23, dt)
+        got = pm.step_frames(s0, cmd, dts, 5, 1)
+        s = s0[None, :]
+        for j in range(dts.size):
+            s = pm.step(s, cmd[None, :], dt, 5 + j, np.array([1]))
+            np.testing.assert_array_equal(got[j], s[0])
+    assert pm.step_frames(s0, cmd, np.zeros(0), 5, 1).shape == (0, 6)
+
 def test_hand_computed_first_frame() -> None:
     # tau = dt / ln 2: the gain 1 - exp(-ln 2) is 1/2 up to rounding
     pm = PointMass(tau=0.5)

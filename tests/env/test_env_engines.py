@@ -22,10 +22,11 @@ STUDY = {"nodes": 5, "net.host_link.latency": {"dist": "normal", "mean": 0.2, "s
          "net.host_link.loss": {"p": 0.1}}
 
 
-def _play(engine: str, seed: int, method: str, perfect: bool) -> list[Any]:
+def _play(engine: str, seed: int, method: str, perfect: bool, **kw: Any) -> list[Any]:
     env = SwarmVec(task="tight", method=method, n_scenes=3, perfect_info=perfect,
                    max_steps=8, autoreset="disabled",
-                   scenario={**(STUDY if method != "none" else {"nodes": 5}), "engine": engine})
+                   scenario={**(STUDY if method != "none" else {"nodes": 5}), "engine": engine},
+                   **kw)
     obs, infos = env.reset(seed=seed)
     out: list[Any] = [obs, infos]
     rng = np.random.default_rng(seed)

@@ -128,3 +128,17 @@ def test_controllers_hand_computed() -> None:
     np.testing.assert_allclose(extrapolating(o, task)[0, 0], [17.5 / 20, 0.0, 0.1], atol=1e-6)
     o[0, 0, [5, 8]] = 0.0  # ages 0: the two controllers agree
     np.testing.assert_array_equal(naive(o, task), extrapolating(o, task))
+
+
+@pytest.mark.parametrize("task", [FormationTask(), TightTask()])
+def test_leader_heading_from_kept_turns_equals_fresh_draws(task: FormationTask) -> None:
+    """The route's turn rates are drawn once per episode and kept (a longer prefix when
+    the episode outgrows them): every heading has the bits of drawing them afresh."""
+    stream = Stream(11, "env.route")
+    ep = task.episode(stream, np.array([[10.0, 0, 0, 0, 0, 0.3, 0, 0, 0, 0, 0, 100.0]]))
+    for t in [0.0, 0.05, 1.7, 0.4, 33.05, 2.0, 99.99, 150.0, 7.3]:
+        m = int(t // task.segment)
+        w = task.turn_max * (2.0 * stream.uniform(np.arange(m + 1)) - 1.0)
+        want = float(0.3 + task.segment * w[:m].sum() + (t - m * task.segment) * w[m])
+        assert task._heading(ep, t) == want
+    assert ep["turns"].size >= 151 / task.segment  # grew past its first 32 segments

@@ -30,5 +30,6 @@ def test_study_mode_measures_the_delay_study_configuration(tmp_path: Path) -> No
     cases = {(r["condition"], r["scenes"]) for r in data["rows"]}
     assert cases == {(c, s) for c in ("bides@200ms", "perfect") for s in (1, 2)}
     assert all(r["agent_steps_per_s"] > 0 for r in data["rows"])
+    assert all(r["metrics"] is False for r in data["rows"])  # the study's env arguments
     assert data["fit_scenes"] == 4 and data["rss_bytes_per_scene"] == (
         data["rss_grown_bytes"] / 4)

@@ -165,6 +165,12 @@ class RingBuffers:
         return int(self.frame.nbytes + self.gen_time.nbytes + self.obs.nbytes + self.latest.nbytes)
 
 
+#: the rows :func:`align` starts from, ``(frame -1, gen NaN, obs NaN, flag MISSING)`` by
+#: ``(n, width)``: copied (one call each) instead of filled afresh at every tick
+_BLANK: dict[tuple[int, int], tuple[NDArray[np.int64], NDArray[np.float64],
+                                    NDArray[np.float64], NDArray[np.uint8]]] = {}
+
+
 @dataclass
 class AlignResult:
     """A swarm snapshot produced by :func:`align`.
@@ -209,10 +215,13 @@ def align(
     # the rows are allocated here: a compiled call that returned fresh arrays would box
     # them through Python code at every tick (numba's _numba_unpickle), where a Ctrl-C
     # can land and come out as a SystemError
-    frame = np.full(n, -1, dtype=np.int64)
-    gen = np.full(n, np.nan)
-    obs = np.full((n, buf.obs.shape[2]), np.nan)
-    flag = np.full(n, MISSING, dtype=np.uint8)
+    blank = _BLANK.get((n, buf.obs.shape[2]))
+    if blank is None:
+        blank = _BLANK[(n, buf.obs.shape[2])] = (
+            np.full(n, -1, dtype=np.int64), np.full(n, np.nan),
+            np.full((n, buf.obs.shape[2]), np.nan), np.full(n, MISSING, dtype=np.uint8))
+    # fresh rows (the snapshot keeps them)
+    frame, gen, obs, flag = blank[0].copy(), blank[1].copy(), blank[2].copy(), blank[3].copy()
     F = _align_all(  # noqa: N806 - paper's name
         buf.frame, buf.gen_time, buf.obs, buf.latest, -1 if theta_lag is None else theta_lag,
         hole_fill, int(prev_frame), frame, gen, obs, flag)

@@ -397,3 +397,22 @@ def test_align_boxes_no_fresh_array_in_its_compiled_call() -> None:
         ser._numba_unpickle = orig
     assert calls == []
     assert res.aligned_frame == 5
+
+
+def test_every_snapshot_owns_fresh_rows() -> None:
+    """The rows start from shared blanks, copied: writing into one snapshot (the aligners
+    keep and patch theirs) changes neither a later one nor an earlier one."""
+    buf = RingBuffers(3, 4, 12)
+    first = align(buf, theta_lag=None, hole_fill=True)  # no state yet: all blank
+    first.frame[:] = 7
+    first.gen_time[:] = 1.5
+    first.obs[:] = 2.5
+    first.flag[:] = EXACT
+    buf.insert(np.array([0]), np.array([0]), np.array([0.01]), np.ones((1, 12)))
+    second = align(buf, theta_lag=None, hole_fill=True)
+    assert second.frame.tolist() == [0, -1, -1] and second.flag[1] == MISSING
+    assert np.isnan(second.gen_time[1:]).all() and np.isnan(second.obs[1:]).all()
+    third = align(RingBuffers(3, 4, 12), theta_lag=None, hole_fill=True)
+    assert (third.frame == -1).all() and np.isnan(third.obs).all()
+    assert (third.flag == MISSING).all() and first.frame.tolist() == [7, 7, 7]
+    assert not np.shares_memory(second.obs, third.obs)

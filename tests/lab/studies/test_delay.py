@@ -18,6 +18,7 @@ def test_cells_and_their_env_arguments() -> None:
                                                        "std": 0.2 / 5}
     assert kw["scenario"]["net.host_link.loss"] == {"p": 0.1}
     assert env_kwargs("perfect", 5, 30, 0.1)["perfect_info"] is True
+    assert kw["metrics"] is False and env_kwargs("perfect", 5, 30, 0.1)["metrics"] is False
 
 
 def test_paired_statistics_hand_computed() -> None:
