@@ -48,6 +48,7 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EV_BROKER,
     EV_CHAN,
+    EV_FLOAT,
     EV_INT,
     I_EID,
     I_NEV,
@@ -62,6 +63,7 @@ from sigma_des.events.fast.layout import (
     SLOT_MASK,
     WIRE_BYTES,
 )
+from sigma_des.events.fast.prefetch import prefetch
 from sigma_des.events.fast.primitives import (
     alloc,
     count,
@@ -158,6 +160,33 @@ def take(S, tok):  # type: ignore[no-untyped-def]
 
 
 @jit
+def _warm(S, ch, h, u):  # type: ignore[no-untyped-def]
+    """Start loading what channel ``ch``'s head (ring row ``h`` of ``u`` used) will read
+    when taken, and its next element's slot rows: the head's slot rows were asked for one
+    re-queue ago, so its payload row and, for a state reaching the server, the aligner's
+    ring rows it is stored in can be found now (as the loop's ``_ahead`` does for a run)."""
+    ck = S[CH_K][ch]
+    s = ck[h] & SLOT_MASK
+    evi = S[EV_INT]
+    prefetch(evi, s)
+    prefetch(S[EV_FLOAT], s)
+    r = evi[s, E_PAY] - 1
+    if r >= 0:
+        prefetch(S[L.POOL], r)
+    ip = S[IPARAMS]
+    if ch == 0 and evi[s, E_WHO] == ip[L.Q_N] and ip[L.Q_RING]:
+        subj = evi[s, L.E_SUBJ]
+        slot = evi[s, L.E_FRAME] % S[L.RING_FRAME].shape[1]
+        prefetch(S[L.RING_FRAME][subj], slot)
+        prefetch(S[L.RING_GEN][subj], slot)
+        prefetch(S[L.RING_OBS][subj], slot)
+    if u > 1:
+        n = h + 1 if h + 1 < ck.shape[0] else 0
+        prefetch(evi, ck[n] & SLOT_MASK)
+        prefetch(S[EV_FLOAT], ck[n] & SLOT_MASK)
+
+
+@jit
 def requeue(S, tok, c, p):  # type: ignore[no-untyped-def]
     """After its head's event ran: token ``tok``, taken at arena row ``p`` of run ``c``,
     goes back under its channel's next element's key; False if the channel is empty
@@ -172,6 +201,7 @@ def requeue(S, tok, c, p):  # type: ignore[no-untyped-def]
         ci[CH_TOKEN] = -1
         return False
     h = ci[CH_HEAD]
+    _warm(S, ch, h, ci[CH_USED])
     t = S[CH_T][ch, h]
     k = (S[CH_K][ch, h] & ~SLOT_MASK) | tok
     at = S[RUN_T]
