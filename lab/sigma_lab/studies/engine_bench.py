@@ -165,7 +165,9 @@ class Sim(NamedTuple):
         fallback: why the cohort engine was not used ("" if it was or not asked for).
         cpu_s: CPU seconds of this process over the same span (``time.process_time``;
             on a shared machine the figure that descheduling does not inflate).
-        batched: events the compiled core ran from fan-out batches (``fanout.counts``).
+        batched: events the compiled core ran from batches (fan-out batches and channels).
+        classes: the compiled core's events by class, batched or not, and why some were
+            not (``sigma_des.events.fast.tally.breakdown``; empty without the core).
     """
 
     wall_s: float
@@ -175,6 +177,7 @@ class Sim(NamedTuple):
     fallback: str
     cpu_s: float = math.nan
     batched: int = 0
+    classes: dict[str, int] = {}  # noqa: RUF012 (a NamedTuple default, never mutated)
 
 
 def simulate(impl: str, method: str, sc: Any) -> Sim:
@@ -190,7 +193,7 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
 
     if impl in ENGINES:
         from sigma_des.events.cohort import execute
-        from sigma_des.events.fast.fanout import counts
+        from sigma_des.events.fast.tally import breakdown
         from sigma_des.factory import make_behaviour, make_dynamics
 
         if sc.engine != impl:
@@ -200,9 +203,9 @@ def simulate(impl: str, method: str, sc: Any) -> Sim:
                                 lambda: make_behaviour(sc))
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         core = getattr(run.core, "S", None)  # the compiled core's state, if it ran
-        batched = counts(core)["batched"] if core is not None else 0
+        classes = breakdown(core) if core is not None else {}
         return Sim(wall, int(run.kernel.events), dict(out["metrics"]), eng["used"],
-                   eng["fallback"], cpu, batched)
+                   eng["fallback"], cpu, classes.get("batched", 0), classes)
     if impl == "baseline":
         from sigma_lab.reference.process_model import ProcessModel, check_supported
 
@@ -259,6 +262,7 @@ def run_case(
         "cpu_s": sim.cpu_s,
         "events": sim.events,
         "batched": sim.batched,
+        "classes": sim.classes,
         "peak_rss_mb": rss_mb,
         "engine_used": sim.engine_used,
         "fallback": sim.fallback,
@@ -415,6 +419,7 @@ def make_row(case: Case, n: int, res: dict[str, Any]) -> dict[str, Any]:
         "max_rel_diff": "",
         "max_rel_diff_metric": "",
         "_metrics": res["metrics"],
+        "_classes": res.get("classes", {}),
     }
     for name, unit in COMPARED:
         row[col(name, unit)] = res["metrics"].get(name, math.nan)

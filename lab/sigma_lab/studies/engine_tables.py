@@ -6,6 +6,7 @@ from typing import Any
 
 from sigma_des.tables import cell, text_table
 from sigma_lab.studies.engine_bench import BASELINE_RTOL, COMPARED, Check, col
+from sigma_lab.studies.engine_events import class_table
 
 __all__ = ["check_table", "metric_table", "report_text", "speed_table", "speedup_table"]
 
@@ -224,5 +225,9 @@ def report_text(rows: list[dict[str, Any]], checks: list[Check], notes: list[str
             " ms, Hz, Mbps)",
             metric_table(rows),
         ]
+    if any(r.get("_classes") for r in rows):
+        out += ["", "Compiled core's events by class (batched = run from fan-out batches or "
+                    "channels), and per case the events queued one by one where batching was on",
+                class_table(rows)]
     out += [f"note: {note}" for note in notes]
     return "\n".join(out)

@@ -39,6 +39,8 @@ from sigma_des.events.fast.layout import (
     FPARAMS,
     G_END,
     G_WARMUP,
+    I_BNOFIT,
+    INTS,
     IPARAMS,
     K_REPUB,
     K_STATE,
@@ -139,6 +141,8 @@ def broker(S, s, now):  # type: ignore[no-untyped-def]
     if subject == n and q[Q_FAN] and fits(S, s, nsub):  # in batches (fanout.py)
         d = fan_out(S, s, kind, index, att, scaled, sc, d)
     elif subject == n:  # a broadcast: one delivery per subscriber, keyed by the subscriber
+        if q[Q_FAN]:
+            S[INTS][I_BNOFIT] += nsub  # for tally.breakdown
         bc = S[BCAST]
         for j in range(nsub):
             sub = bc[j]

@@ -31,7 +31,7 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import OBS_WIDTH, Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
-from sigma_des.events.fast import fanout, loop
+from sigma_des.events.fast import channel, loop
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
@@ -118,7 +118,7 @@ class CompiledCore:
                                       host.n + 1, self._lockstep)
         self.S = L.allocate(self._dims(), self._given(p_loss))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
-        self.S[L.IPARAMS][L.Q_FAN] = int(fanout.applies(self.S))
+        channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
         self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False

@@ -18,16 +18,16 @@ into the compiled code as constants.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.events.fast.declare import Field, build, shape_of, swap
 from sigma_des.net.cpu import RESERVATIONS
 from sigma_des.net.kinds import Kind
 
-__all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced"]
+__all__ = ["FIELDS", "INDEX", "Field", "allocate", "replaced", "shape_of"]
 
 # event types
 EV_BROKER, EV_CLIENT, EV_DONE = 0, 1, 2
@@ -66,7 +66,10 @@ I_LATEST, I_DEFN = 20, 21
 # fan-out batches (fanout.py): the element ring's head, tail and used rows; deliveries
 # run from batches, batches queued, batches queued again (pending), single deliveries
 I_BHEAD, I_BTAIL, I_BUSED, I_BELEM, I_BPUSH, I_BREIN, I_BSING = range(22, 29)
-I_LEN = 29
+# deliveries of broadcasts the broker fanned out one by one although batching was on (a
+# payload, or no room in the element ring: fanout.fits)
+I_BNOFIT = 29
+I_LEN = 30
 # run-merge queue int scalars (S.q_int): pending count, pending minimum's key, arena top,
 # runs sealed since the last compaction, heap size, current run and whether there is one
 QI_PN, QI_PMINK, QI_ATOP, QI_NRUN, QI_HEAP, QI_CUR, QI_HAS = range(7)
@@ -85,7 +88,8 @@ Q_BATCH = 10  # the truth re-simulates deferred rollbacks in a batch (else: Pyth
 # on_states without a ring, or a recording tap)
 Q_RING, Q_OUT = 11, 12
 Q_FAN = 13  # a broadcast fans out in batches (fanout.py)
-Q_LEN = 14
+Q_CHAN = 14  # a hop's arrival is queued through its channel (channel.py)
+Q_LEN = 15
 # float parameters (S.fparams)
 G_WARMUP, G_END = 0, 1
 G_LEN = 2
@@ -143,6 +147,18 @@ EV_LEAVE = 6
 EV_LOOP, EV_NSEND = 7, 8
 #: a fan-out batch: a broadcast's deliveries whose arrivals do not decrease (fanout.py)
 EV_BATCH = 9
+#: a channel's token: a FIFO of events of one kind of hop whose arrivals do not decrease
+#: (channel.py)
+EV_CHAN = 10
+#: event types (rows of S.tally)
+EV_TYPES = 11
+#: channels (channel.py): deliveries leaving the broker (a hop down), publishes reaching it
+#: (a hop up); a channel's scalars (S.ch_int): its ring's head and used rows, its token's
+#: slot (-1: none), events run from it, events queued one by one (arrival out of order,
+#: ring full), the token's moves into a run of its own after another event fell between
+N_CHAN = 2
+CH_HEAD, CH_USED, CH_TOKEN, CH_RUN, CH_OOO, CH_FULL, CH_MOVE = range(7)
+CH_LEN = 7
 #: most publishes of one process waiting in its outbox (beyond: ``ERR_OUTBOX``)
 OB_CAP = 4096
 # CP_MAXMEM: the most nodes one client hands a message to (room a delivery event
@@ -157,27 +173,6 @@ CA_BUSY, CA_WAIT, CA_QUEUED = range(3)
 #: CPU second it gives (``net.cpu.Machine.load_wait``)
 ML_GROW, ML_BG, ML_END, ML_BUSY, ML_Q = range(5)
 ML_LEN = 5
-
-
-@dataclass(frozen=True)
-class Field:
-    """One array of the core's state.
-
-    Attributes:
-        name: the field's name (its constant is the name in capitals).
-        dtype: numpy dtype of the array.
-        shape: its dimensions, each a dimension name (resolved by :func:`allocate`)
-            or a fixed size.
-        fill: initial value of every element, or None: the driver supplies the
-            array (parameters, tables it fills, or arrays shared with the engine).
-        doc: what the array holds.
-    """
-
-    name: str
-    dtype: type[np.generic]
-    shape: tuple[str | int, ...]
-    fill: float | None
-    doc: str
 
 
 _f, _i = np.float64, np.int64
@@ -329,6 +324,12 @@ FIELDS: tuple[Field, ...] = (
     Field("bat_t", _f, ("bat",), 0.0, "fan-out elements: arrival times"),
     Field("bat_k", _i, ("bat",), 0.0, "fan-out elements: sequence << SLOT_BITS (-1: delivered)"),
     Field("bat_w", _i, ("bat",), 0.0, "fan-out elements: subscriber"),
+    # channels (channel.py): a ring of ``bat`` elements each
+    Field("ch_t", _f, (N_CHAN, "bat"), 0.0, "channel elements: arrival times"),
+    Field("ch_k", _i, (N_CHAN, "bat"), 0.0, "channel elements: keys (sequence, slot)"),
+    Field("ch_int", _i, (N_CHAN, CH_LEN), 0.0, "channel scalars CH_*"),
+    Field("tally", _i, (2, EV_TYPES, N_KINDS), 0.0,
+          "events run (one by one, from batches) by type and kind (tally.py)"),
 )
 
 #: Position of each field in the state tuple, generated from :data:`FIELDS`.
@@ -445,55 +446,20 @@ RING_GEN = INDEX["ring_gen"]
 RING_OBS = INDEX["ring_obs"]
 RING_LATEST = INDEX["ring_latest"]
 BAT_T, BAT_K, BAT_W = INDEX["bat_t"], INDEX["bat_k"], INDEX["bat_w"]
-
-
-def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:
-    """The shape of ``field`` with its dimension names resolved from ``dims``."""
-    return tuple(d if isinstance(d, int) else dims[d] for d in field.shape)
+CH_T, CH_K, CH_INT = INDEX["ch_t"], INDEX["ch_k"], INDEX["ch_int"]
+TALLY = INDEX["tally"]
 
 
 def allocate(
     dims: Mapping[str, int], given: Mapping[str, NDArray[Any]]
 ) -> tuple[NDArray[Any], ...]:
-    """Build the state tuple: ``given`` arrays checked, the others made from their fill.
-
-    Args:
-        dims: the size of every dimension name the declaration uses.
-        given: the arrays of the fields whose ``fill`` is None (and no others).
-
-    Returns:
-        The state tuple.
-
-    Raises:
-        ValueError: a given array is missing, unexpected, or of the wrong dtype or
-            shape, or not C-contiguous (numba would copy or reject it).
-    """
-    extra = set(given) - {f.name for f in FIELDS if f.fill is None}
-    if extra:
-        raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
-    arrays: list[NDArray[Any]] = []
-    for f in FIELDS:
-        shape = shape_of(f, dims)
-        if f.fill is not None:
-            arrays.append(np.full(shape, f.fill, dtype=f.dtype))
-            continue
-        if f.name not in given:
-            raise ValueError(f"state field {f.name!r}: no array given")
-        a = given[f.name]
-        if a.dtype != f.dtype or a.shape != shape or not a.flags.c_contiguous:
-            raise ValueError(
-                f"state field {f.name!r}: {a.dtype}{a.shape} given, "
-                f"{np.dtype(f.dtype)}{shape} C-contiguous declared"
-            )
-        arrays.append(a)
-    return tuple(arrays)
+    """The core's state tuple (:func:`~sigma_des.events.fast.declare.build` of
+    :data:`FIELDS`): ``given`` arrays checked, the others made from their fill."""
+    return build(FIELDS, dims, given)
 
 
 def replaced(
     S: tuple[NDArray[Any], ...], new: Mapping[str, NDArray[Any]]
 ) -> tuple[NDArray[Any], ...]:
     """The state ``S`` with the arrays of the fields named in ``new`` replaced."""
-    out = list(S)
-    for name, a in new.items():
-        out[INDEX[name]] = a
-    return tuple(out)
+    return swap(S, INDEX, new)

@@ -26,6 +26,8 @@ specification uses, and the loop reads them.
 from __future__ import annotations
 
 from sigma_des.events.fast.broker import broker
+from sigma_des.events.fast.channel import requeue as chan_requeue
+from sigma_des.events.fast.channel import take as chan_take
 from sigma_des.events.fast.clients import hand_over, loop_receive, receive
 from sigma_des.events.fast.cpu import tick
 from sigma_des.events.fast.fanout import head, requeue
@@ -39,6 +41,7 @@ from sigma_des.events.fast.layout import (
     E_AUX,
     E_FRAME,
     E_INDEX,
+    E_KIND,
     E_PAY,
     E_SUBJ,
     E_TYPE,
@@ -48,6 +51,7 @@ from sigma_des.events.fast.layout import (
     EF_TRECV,
     EV_BATCH,
     EV_BROKER,
+    EV_CHAN,
     EV_CLIENT,
     EV_DONE,
     EV_FLOAT,
@@ -106,6 +110,7 @@ from sigma_des.events.fast.layout import (
     T_DRAIN,
     T_QOS1D,
     T_STREAM,
+    TALLY,
     TR_FLOATS,
     TR_INTS,
     TR_PARAMS,
@@ -328,15 +333,29 @@ def _handle(S, s, t):  # type: ignore[no-untyped-def]
 
 @jit
 def _run(S, s, t, c, p):  # type: ignore[no-untyped-def]
-    """Run event ``s`` at ``t`` and free its slot; a fan-out batch (taken at arena row
-    ``p`` of run ``c``) runs its head delivery and goes back to the queue with the rest
-    (:mod:`~sigma_des.events.fast.fanout`)."""
-    if S[EV_INT][s, E_TYPE] == EV_BATCH:
+    """Run event ``s`` at ``t`` and free its slot; a fan-out batch or a channel's token
+    (taken at arena row ``p`` of run ``c``) runs its head delivery or event and goes back
+    to the queue with the rest (:mod:`~sigma_des.events.fast.fanout`,
+    :mod:`~sigma_des.events.fast.channel`). Every event is tallied (``S.tally``: one by
+    one or from a batch, its type and kind)."""
+    evi = S[EV_INT]
+    typ = evi[s, E_TYPE]
+    tally = S[TALLY]
+    if typ == EV_CHAN:
+        e = chan_take(S, s)
+        tally[1, evi[e, E_TYPE], evi[e, E_KIND]] += 1
+        _handle(S, e, t)
+        release(S, e)
+        if chan_requeue(S, s, c, p):
+            return
+    elif typ == EV_BATCH:
+        tally[1, EV_CLIENT, evi[s, E_KIND]] += 1
         head(S, s)
         _client(S, s, t)
         if requeue(S, s, c, p):
             return
     else:
+        tally[0, typ, evi[s, E_KIND]] += 1
         _handle(S, s, t)
     release(S, s)
 

@@ -4,8 +4,9 @@ The handlers (:mod:`~sigma_des.events.fast.broker`,
 :mod:`~sigma_des.events.fast.node`, :mod:`~sigma_des.events.fast.server`) build on
 these: queueing an event (keyed ``(time, sequence)``, taken in that order by
 :mod:`~sigma_des.events.fast.queue`), the event-slot free list, the
-draw-table lookup and one hop over an access link (FIFO serialization, latency,
-loss) — each the same floating point operations, in the same order, as
+draw-table lookup and a packet's serialization, latency and loss on an access link
+(the hop that queues its arrival is :func:`~sigma_des.events.fast.channel.hop`) — each
+the same floating point operations, in the same order, as
 :mod:`sigma_des.net.network`. The state ``S`` is a
 state tuple (:data:`~sigma_des.events.fast.layout.FIELDS`).
 """
@@ -29,7 +30,6 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     E_WHO,
     ERR_RANGE,
-    EV_BROKER,
     EV_FLOAT,
     EV_INT,
     EV_INT_MAX,
@@ -64,7 +64,6 @@ from sigma_des.events.fast.layout import (
     T_XROWS,
     TR_PARAMS,
     U_OFFSET,
-    WIRE_BYTES,
     X_CONST,
     X_MAP,
     X_TAG,
@@ -353,27 +352,3 @@ def fly(S, client, up, kind, subj, index, attempt, ack, done, t):  # type: ignor
     if attempt == 0 and not ack and forced_drop(S, up, kind, subj, index):
         lost = True
     return done + lat + extra, lost
-
-
-@jit
-def hop(S, slot, t):  # type: ignore[no-untyped-def]
-    """Network._hop for the message in ``slot`` (addressed): queue it at its arrival.
-
-    FIFO serialization on the receiver's (down) or sender's (up) link, latency and
-    loss (time-dependent: Gilbert–Elliott state, degrade windows and drop faults,
-    :mod:`~sigma_des.events.fast.loss`); a lost message frees its slot.
-
-    Returns:
-        (arrival time, lost?) of this transmission.
-    """
-    evi = S[EV_INT]
-    client = evi[slot, E_WHO]
-    kind, subj, index = key_of(S, slot)
-    up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
-    done = count(S, client, up, S[WIRE_BYTES][kind], t)
-    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, E_ATT], False, done, t)
-    if lost:
-        release(S, slot)
-    else:
-        push(S, arr, slot)
-    return arr, lost

@@ -48,9 +48,9 @@ from sigma_des.events.fast.layout import (
     RUN_T,
     SLOT_MASK,
 )
-from sigma_des.events.fast.primitives import precedes
+from sigma_des.events.fast.primitives import precedes, push_key
 
-__all__ = ["ARENA", "first", "peek", "replace_top", "take", "view"]
+__all__ = ["ARENA", "first", "own_run", "peek", "replace_top", "take", "view"]
 
 #: Size of the run arena in event-table rows (a compaction moves at most ``cap`` live
 #: events, at most once per ``(ARENA - 1) x cap`` sealed ones). 1.25, not 2 or 4: the
@@ -241,6 +241,37 @@ def _seal(Q):  # type: ignore[no-untyped-def]
     qi[QI_ATOP] = a + m
     qi[QI_PN] = 0
     return r
+
+
+@jit
+def own_run(S, t, k):  # type: ignore[no-untyped-def]
+    """Queue ``(t, k)`` as a run of its own, its head straight into the heap.
+
+    For a batch's token (:mod:`~sigma_des.events.fast.channel`): a one-row run goes back
+    in place whenever its token is taken and re-queued under its next element's key,
+    whatever falls between, so the batch never passes through the pending buffer again.
+    Never compacts (a handler may call it while the loop holds a run position): without
+    room at the arena's top or in the run table the event joins the pending buffer.
+
+    Returns:
+        Whether it got a run of its own.
+    """
+    qi = S[Q_INT]
+    a = qi[QI_ATOP]
+    r = qi[QI_NRUN]
+    if a >= S[RUN_T].shape[0] or r >= S[RUN_POS].shape[0]:
+        push_key(S, t, k)
+        return False
+    S[RUN_T][a] = t
+    S[RUN_K][a] = k
+    S[RUN_POS][r] = a
+    S[RUN_END][r] = a + 1
+    qi[QI_ATOP] = a + 1
+    qi[QI_NRUN] = r + 1
+    n = qi[QI_HEAP]
+    qi[QI_HEAP] = n + 1
+    _sift_up(S[HEAP_T], S[HEAP_K], S[HEAP_R], n, t, k, r)
+    return True
 
 
 # ---------------------------------------------------------------- taking events

@@ -16,6 +16,7 @@ Without QoS 1 over datagram :func:`send` is one hop
 
 from __future__ import annotations
 
+from sigma_des.events.fast.channel import hop
 from sigma_des.events.fast.cpu import net_span, span, threaded
 from sigma_des.events.fast.layout import (
     CPU_DEM,
@@ -53,7 +54,6 @@ from sigma_des.events.fast.primitives import (
     copy_payload,
     count,
     fly,
-    hop,
     jit,
     key_of,
     push,

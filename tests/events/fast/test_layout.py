@@ -37,10 +37,11 @@ def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
     # 39 + 11 queue + 8 link + 1 resim + 13 transport + 25 deployment + 2 payload pool
     # + 4 rollbacks in the loop + 4 the aligner's ring + 3 fan-out elements
-    assert len(set(names)) == len(names) == 110
+    # + 3 channels + 1 tally
+    assert len(set(names)) == len(names) == 114
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(110))
+    assert [getattr(L, name.upper()) for name in names] == list(range(114))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
@@ -113,6 +114,7 @@ def test_a_run_state_follows_the_declaration() -> None:
     q = S[L.IPARAMS]
     assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
     assert q[L.Q_FAN] == 1  # the tiny scenario's broadcasts fan out in batches
+    assert q[L.Q_CHAN] == 1  # and its hops go through channels
     assert S[L.BAT_T].shape == (2 * S[L.HEAP_T].size,)
     assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
 
