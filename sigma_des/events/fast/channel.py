@@ -86,11 +86,9 @@ ENABLED = True
 
 
 def applies(S: tuple[NDArray[Any], ...]) -> bool:
-    """Whether the run's hops go through channels: :data:`ENABLED`, and no CPU stage at the
-    clients, no QoS 1 over datagram, no stream with hold-back (a hop is one event)."""
-    tp, cp = S[L.TR_PARAMS], S[L.CPU_IP]
-    return ENABLED and not (cp[L.CP_APP] or tp[L.T_QOS1D] or tp[L.T_STREAM]
-                            or tp[L.T_STREAM + 1])
+    """Whether the run's hops go through channels: :data:`ENABLED` and
+    :func:`~sigma_des.events.fast.fanout.one_event_hops` (a hop is one event)."""
+    return ENABLED and fanout.one_event_hops(S)
 
 
 def batching(S: tuple[NDArray[Any], ...]) -> None:

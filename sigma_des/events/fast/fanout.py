@@ -84,7 +84,8 @@ from sigma_des.events.fast.primitives import (
     push_key,
 )
 
-__all__ = ["ENABLED", "applies", "counts", "fan_out", "fits", "head", "requeue"]
+__all__ = ["ENABLED", "applies", "counts", "fan_out", "fits", "head", "one_event_hops",
+           "requeue"]
 
 #: Broadcasts fan out in batches where they can (results are bit-identical either way;
 #: False: one queue entry per delivery, as in the specification). Read when a run's
@@ -92,13 +93,17 @@ __all__ = ["ENABLED", "applies", "counts", "fan_out", "fits", "head", "requeue"]
 ENABLED = True
 
 
-def applies(S: tuple[NDArray[Any], ...]) -> bool:
-    """Whether the run's broadcasts fan out in batches: :data:`ENABLED`, and no CPU stage
-    at the clients, no QoS 1 over datagram, no stream with hold-back (a delivery is one
-    hop)."""
+def one_event_hops(S: tuple[NDArray[Any], ...]) -> bool:
+    """Whether a hop of the run is one event: no CPU stage at the clients, no QoS 1 over
+    datagram, no stream with hold-back (what batching, here and in channels, needs)."""
     tp, cp = S[L.TR_PARAMS], S[L.CPU_IP]
-    return ENABLED and not (cp[L.CP_APP] or tp[L.T_QOS1D] or tp[L.T_STREAM]
-                            or tp[L.T_STREAM + 1])
+    return not (cp[L.CP_APP] or tp[L.T_QOS1D] or tp[L.T_STREAM] or tp[L.T_STREAM + 1])
+
+
+def applies(S: tuple[NDArray[Any], ...]) -> bool:
+    """Whether the run's broadcasts fan out in batches: :data:`ENABLED` and
+    :func:`one_event_hops`."""
+    return ENABLED and one_event_hops(S)
 
 
 def counts(S: tuple[NDArray[Any], ...]) -> dict[str, int]:
