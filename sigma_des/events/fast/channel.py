@@ -55,10 +55,6 @@ from sigma_des.events.fast.layout import (
     INTS,
     IPARAMS,
     Q_CHAN,
-    RUN_END,
-    RUN_K,
-    RUN_POS,
-    RUN_T,
     SLOT_BITS,
     SLOT_MASK,
     WIRE_BYTES,
@@ -70,12 +66,11 @@ from sigma_des.events.fast.primitives import (
     fly,
     jit,
     key_of,
-    precedes,
     push,
     push_key,
     release,
 )
-from sigma_des.events.fast.queue import own_run
+from sigma_des.events.fast.queue import back_in_place, own_run
 
 __all__ = ["ENABLED", "applies", "arrive", "batching", "hop", "requeue", "take"]
 
@@ -202,14 +197,7 @@ def requeue(S, tok, c, p):  # type: ignore[no-untyped-def]
     _warm(S, ch, h, ci[CH_USED])
     t = S[CH_T][ch, h]
     k = (S[CH_K][ch, h] & ~SLOT_MASK) | tok
-    at = S[RUN_T]
-    ak = S[RUN_K]
-    if p + 1 == S[RUN_END][c] or precedes(t, k, at[p + 1], ak[p + 1]):
-        at[p] = t
-        ak[p] = k
-        S[RUN_POS][c] = p
-        S[L.Q_INT][L.QI_HAS] = 1
-    else:
+    if not back_in_place(S, c, p, t, k):
         ci[CH_MOVE] += 1
         own_run(S, t, k)
     return True

@@ -63,12 +63,6 @@ from sigma_des.events.fast.layout import (
     I_EID,
     I_NEV,
     INTS,
-    Q_INT,
-    QI_HAS,
-    RUN_END,
-    RUN_K,
-    RUN_POS,
-    RUN_T,
     SLOT_BITS,
     SVC_DEL,
     WIRE_BYTES,
@@ -80,9 +74,9 @@ from sigma_des.events.fast.primitives import (
     draw_at,
     fly,
     jit,
-    precedes,
     push_key,
 )
+from sigma_des.events.fast.queue import back_in_place
 
 __all__ = ["ENABLED", "applies", "counts", "fan_out", "fits", "head", "one_event_hops",
            "requeue"]
@@ -270,14 +264,7 @@ def requeue(S, s, c, p):  # type: ignore[no-untyped-def]
     evi[s, E_NEXT] = m
     t = S[BAT_T][i]
     k = S[BAT_K][i] | s
-    at = S[RUN_T]
-    ak = S[RUN_K]
-    if p + 1 == S[RUN_END][c] or precedes(t, k, at[p + 1], ak[p + 1]):
-        at[p] = t
-        ak[p] = k
-        S[RUN_POS][c] = p
-        S[Q_INT][QI_HAS] = 1
-    else:
+    if not back_in_place(S, c, p, t, k):
         push_key(S, t, k)
         S[INTS][I_BREIN] += 1
     return True

@@ -50,7 +50,7 @@ from sigma_des.events.fast.layout import (
 )
 from sigma_des.events.fast.primitives import precedes, push_key
 
-__all__ = ["ARENA", "first", "own_run", "peek", "replace_top", "take", "view"]
+__all__ = ["ARENA", "back_in_place", "first", "own_run", "peek", "replace_top", "take", "view"]
 
 #: Size of the run arena in event-table rows (a compaction moves at most ``cap`` live
 #: events, at most once per ``(ARENA - 1) x cap`` sealed ones). 1.25, not 2 or 4: the
@@ -241,6 +241,22 @@ def _seal(Q):  # type: ignore[no-untyped-def]
     qi[QI_ATOP] = a + m
     qi[QI_PN] = 0
     return r
+
+
+@jit
+def back_in_place(S, c, p, t, k):  # type: ignore[no-untyped-def]
+    """Put ``(t, k)`` back at arena row ``p``, the head of run ``c`` just taken, when the
+    run has no next entry or ``(t, k)`` precedes it (the run stays sorted); whether it
+    did. A batch's next element (fan-out, channel) goes back so without a queue push."""
+    at = S[RUN_T]
+    ak = S[RUN_K]
+    if p + 1 == S[RUN_END][c] or precedes(t, k, at[p + 1], ak[p + 1]):
+        at[p] = t
+        ak[p] = k
+        S[RUN_POS][c] = p
+        S[Q_INT][QI_HAS] = 1
+        return True
+    return False
 
 
 @jit
