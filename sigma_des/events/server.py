@@ -39,7 +39,8 @@ from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.trigger import BARRIER_METHODS, TriggerSource
-from sigma_des.metrics.collector import Collector, NullCollector
+from sigma_des.metrics.collector import Collector
+from sigma_des.metrics.null import NullCollector
 from sigma_des.metrics.reports import NetCounters, NetReport, RunReport
 from sigma_des.net.cpu import CpuReport
 
@@ -56,7 +57,7 @@ class AlignmentServer:
         dynamics: the dynamics model (the behaviour's commands are its).
         behaviour: behaviour producing commands (None: no commands).
         metrics: collect the run's measurements; False: a
-            :class:`~sigma_des.metrics.collector.NullCollector` and no render ticks
+            :class:`~sigma_des.metrics.null.NullCollector` and no render ticks
             (they only sample for the metrics), for runs nobody measures (a learning
             env's scenes): every other event happens as with metrics.
 

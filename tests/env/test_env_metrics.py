@@ -15,7 +15,7 @@ from sigma_des.env import SwarmEnv, SwarmVec
 from sigma_des.errors import ConfigError
 from sigma_des.events.server import AlignmentServer
 from sigma_des.events.truth import NO_LOG
-from sigma_des.metrics.collector import NullCollector
+from sigma_des.metrics.null import NullCollector
 from tests.env.test_env_engines import _play, _same
 
 
