@@ -88,14 +88,16 @@ STUDIES = (
           "CPU time per agent-step of the PettingZoo environment for 1 to 500 scenes and "
           "each alignment method, and memory per scene."),
     Study("delay", "Training under delay (PPO)", "learning", "train_under_delay.py",
-          ("--full", "--jobs", "2", "--out", "{out}", "--checkpoints", "{out}/checkpoints"),
-          ("--quick", "--out", "{out}"),
+          ("--full", "--jobs", "2", "--ages-control", "--out", "{out}", "--checkpoints",
+           "{out}/checkpoints"),
+          ("--quick", "--ages-control", "--out", "{out}"),
           "Does a policy trained on the aligned, delayed view beat one trained with perfect "
           "information, under delay? PPO (Stable-Baselines3) at 2 x 10^6 agent-steps per "
           "policy, 5 seeds per condition (perfect information; BiDES and none at 50 and "
           "200 ms with 10 % loss), every policy and the hand-written controllers scored on "
-          "the same held-out episodes, paired tests over seeds. Resumable: rerun with the "
-          "same `--work` folder to go on."),
+          "the same held-out episodes, paired tests over seeds; then the ages-hidden "
+          "control (the perfect-trained policies with their age inputs set to 0). "
+          "Resumable: rerun with the same `--work` folder to go on."),
     Study("sequence", "Cost per run in a sequence", "performance", "bench_sequence.py",
           (), ("--quick",),
           "Many short runs in one process (as a sweep runs them): CPU seconds, page faults "

@@ -39,7 +39,8 @@ rollouts (agent-steps, reward, rate, ETA) and one per finished training.
 none; 2 x 10^6 agent-steps per policy on 16 scenes; ``--policy`` kept), outputs in
 ``out/env/delay_ppo_<policy>``; ``python experiments/make_docs_results.py --only delay
 --work DIR`` runs it with ``--jobs 2`` and files it on the documentation's Learning page.
-``--delays none``: ``perfect`` only.
+``--delays none``: ``perfect`` only. ``--ages-control``: then the ages-hidden control
+(``train_ages_control.py``) on the finished study, its table appended to ``summary.md``.
 
 Usage: ``python experiments/train_under_delay.py [--quick | --full] [--learner cem|ppo]
 [--policy mlp|stack|lstm] [--seeds 5] [--out out/env/delay_study]``
@@ -51,6 +52,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from sigma_lab.studies.ages_control import add_to_study
 from sigma_lab.studies.delay import cells
 from sigma_lab.studies.delay_jobs import run_jobs
 from sigma_lab.studies.delay_study import merge, run
@@ -96,6 +98,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                     help="merge the outputs of shards (same settings) into --out; no training")
     ap.add_argument("--jobs", type=int, default=1,
                     help="train the seeds in this many processes, then merge (resumable)")
+    ap.add_argument("--ages-control", action="store_true",
+                    help="then run the ages-hidden control on the finished study "
+                         "(train_ages_control.py): ages_control.csv/.json, summary.md")
     ap.add_argument("--out", default=OUT)
     a = ap.parse_args(argv)
     if a.full:
@@ -134,10 +139,14 @@ def main(argv: list[str] | None = None) -> int:
     """Parse the command line, then train, evaluate and write (or merge shards)."""
     a = _parse(argv)
     if a.merge:
-        return merge(a)
-    if a.jobs > 1:
-        return run_jobs(a, sys.argv[1:] if argv is None else list(argv), Path(__file__))
-    return run(a)
+        rc = merge(a)
+    elif a.jobs > 1:
+        rc = run_jobs(a, sys.argv[1:] if argv is None else list(argv), Path(__file__))
+    else:
+        rc = run(a)
+    if rc == 0 and a.ages_control:
+        add_to_study(Path(a.out), log=lambda s: print(s, flush=True))
+    return rc
 
 
 if __name__ == "__main__":

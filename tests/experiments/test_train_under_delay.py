@@ -119,7 +119,8 @@ def test_jobs_train_the_seeds_in_processes_and_merge_to_the_same_study(
 def test_shard_command_lines_replace_the_parents_own_options() -> None:
     from sigma_lab.studies.delay_jobs import shard_argv
 
-    argv = ["--full", "--jobs", "2", "--out=x", "--seeds", "5", "--policy", "lstm"]
+    argv = ["--full", "--jobs", "2", "--out=x", "--seeds", "5", "--policy", "lstm",
+            "--ages-control"]  # the parent runs the control once, after the merge
     got = shard_argv(argv, 1, [1, 3], Path("o/1"), "ck")
     assert got == ["--full", "--policy", "lstm", "--seed-list", "1,3", "--out", "o/1",
                    "--checkpoints", "ck", "--skip-baselines"]

@@ -22,7 +22,7 @@ __all__ = ["run_jobs", "shard_argv"]
 
 #: Options of the parent's command line a child gets in its own form.
 _OWN = {"--jobs": 1, "--out": 1, "--seed-list": 1, "--checkpoints": 1, "--seeds": 1,
-        "--skip-baselines": 0}
+        "--skip-baselines": 0, "--ages-control": 0}
 
 
 def shard_argv(argv: list[str], k: int, seeds: list[int], out: Path, checkpoints: str
