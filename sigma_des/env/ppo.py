@@ -1,7 +1,7 @@
 """PPO recipes for the swarm envs (the ``learn`` extra): MLP, frame-stacked MLP, LSTM.
 
 :func:`train` runs Stable-Baselines3 PPO (``policy="mlp"`` or ``"stack"``) or
-sb3-contrib's RecurrentPPO (``policy="lstm"``) over a same-step
+sb3-contrib's RecurrentPPO (``policy="lstm"``, :data:`LSTM_HIDDEN` units) over a same-step
 :class:`~sigma_des.env.sb3.SwarmSB3VecEnv` (parameter sharing: one sub-env per scene
 and agent), with observation (and reward) normalisation (``VecNormalize``); the
 ``stack`` policy sees the last ``n_stack`` normalised observations (``VecFrameStack``).
@@ -32,7 +32,7 @@ import numpy as np
 from sigma_des.env.sb3 import SwarmSB3VecEnv
 from sigma_des.env.tasks import ACTION_DIM
 
-__all__ = ["POLICIES", "PPO_DEFAULTS", "Acting", "train"]
+__all__ = ["LSTM_HIDDEN", "POLICIES", "PPO_DEFAULTS", "Acting", "train"]
 
 POLICIES = ("mlp", "stack", "lstm")
 
@@ -40,6 +40,9 @@ POLICIES = ("mlp", "stack", "lstm")
 PPO_DEFAULTS: dict[str, Any] = {"n_steps": 64, "batch_size": 1024, "n_epochs": 10,
                                 "learning_rate": 3e-4, "gamma": 0.95, "gae_lambda": 0.9,
                                 "clip_range": 0.2, "ent_coef": 0.0}
+#: hidden units of the ``lstm`` policy's recurrent layer (sb3-contrib's default, 256,
+#: trains ~3x slower per agent-step on these small observations)
+LSTM_HIDDEN = 64
 
 
 class _Stop(Exception):
@@ -204,6 +207,8 @@ def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: st
     torch.set_num_threads(1)  # a shared machine: one core per training
     kw = {**PPO_DEFAULTS, **ppo_kwargs}
     kw.setdefault("policy_kwargs", {"log_std_init": -1.0, "net_arch": [64, 64]})
+    if policy == "lstm":  # the caller's policy_kwargs win
+        kw["policy_kwargs"] = {"lstm_hidden_size": LSTM_HIDDEN, **kw["policy_kwargs"]}
     saves = _Saves(checkpoint)
     env = _wrap(env_kwargs, n_scenes, seed, policy, n_stack, saves.norm, kw["gamma"])
     Algo: type[OnPolicyAlgorithm] = PPO

@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from sigma_des.env.learn import score  # noqa: E402
-from sigma_des.env.ppo import Acting, train  # noqa: E402
+from sigma_des.env.ppo import LSTM_HIDDEN, Acting, train  # noqa: E402
 
 KW: dict[str, Any] = {"task": "tight", "scenario": {"nodes": 3}, "max_steps": 5,
                       "perfect_info": True, "method": "none"}
@@ -82,6 +82,7 @@ def test_recurrent_policy_trains_and_keeps_its_state_per_episode() -> None:
     pytest.importorskip("sb3_contrib")
     policy, h = train(KW, 32, 0, policy="lstm", n_scenes=2, **TINY)
     assert [r["agent_steps"] for r in h] == [32.0]
+    assert policy.model.policy.lstm_actor.hidden_size == LSTM_HIDDEN == 64
     obs = np.zeros((2, 2, policy.model.observation_space.shape[0]), dtype=np.float32)
     first = policy(obs)
     second = policy(obs)  # same input, carried state: generally a different action
