@@ -36,7 +36,8 @@ rollouts (agent-steps, reward, rate, ETA) and one per finished training.
 ``<out>/shards``, one checkpoint folder), merged into ``--out`` at the end.
 
 ``--full``: the full PPO study in one command (5 seeds; 50 and 200 ms; BiDES and
-none; 2 x 10^6 agent-steps per policy on 16 scenes; ``--policy`` kept), outputs in
+none; 2 x 10^6 agent-steps per policy on 16 scenes; ``--policy``, ``--delays`` and
+``--methods`` kept, e.g. the recurrent policies at 200 ms only), outputs in
 ``out/env/delay_ppo_<policy>``; ``python experiments/make_docs_results.py --only delay
 --work DIR`` runs it with ``--jobs 2`` and files it on the documentation's Learning page.
 ``--delays none``: ``perfect`` only. ``--ages-control``: then the ages-hidden control
@@ -76,8 +77,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--checkpoints", default=None,
                     help="resume folder (default <out>/checkpoints; '' = none)")
     ap.add_argument("--seeds", type=int, default=5)
-    ap.add_argument("--delays", default="0.05,0.2", help="mean host-link latencies (s)")
-    ap.add_argument("--methods", default="bides,none")
+    ap.add_argument("--delays", default=None,
+                    help="mean host-link latencies (s; default 0.05,0.2; kept by --full)")
+    ap.add_argument("--methods", default=None, help="default bides,none; kept by --full")
     ap.add_argument("--loss", type=float, default=0.1)
     ap.add_argument("--nodes", type=int, default=5)
     ap.add_argument("--max-steps", type=int, default=50)
@@ -103,8 +105,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                          "(train_ages_control.py): ages_control.csv/.json, summary.md")
     ap.add_argument("--out", default=OUT)
     a = ap.parse_args(argv)
-    if a.full:
-        a.learner, a.seeds, a.delays, a.methods, a.nodes = "ppo", 5, "0.05,0.2", "bides,none", 5
+    a.delays, a.methods = a.delays or "0.05,0.2", a.methods or "bides,none"
+    if a.full:  # a given --delays / --methods stays: a part of the full study
+        a.learner, a.seeds, a.nodes = "ppo", 5, 5
         a.max_steps, a.ppo_steps, a.ppo_scenes, a.ppo_n_steps, a.ppo_batch = (
             50, 2_000_000, 16, 64, 1024)
         if a.out == OUT:

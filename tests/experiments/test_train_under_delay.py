@@ -124,3 +124,11 @@ def test_shard_command_lines_replace_the_parents_own_options() -> None:
     got = shard_argv(argv, 1, [1, 3], Path("o/1"), "ck")
     assert got == ["--full", "--policy", "lstm", "--seed-list", "1,3", "--out", "o/1",
                    "--checkpoints", "ck", "--skip-baselines"]
+
+
+def test_full_keeps_a_given_part_of_the_study() -> None:
+    part = train_under_delay._parse(["--full", "--policy", "lstm", "--delays", "0.2"])
+    assert (part.delay_list, part.method_list, part.policy) == ([0.2], ["bides", "none"], "lstm")
+    assert (part.ppo_steps, part.seeds, part.out) == (2_000_000, 5, "out/env/delay_ppo_lstm")
+    whole = train_under_delay._parse(["--full"])
+    assert whole.delay_list == [0.05, 0.2] and whole.method_list == ["bides", "none"]
