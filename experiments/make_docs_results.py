@@ -98,6 +98,19 @@ STUDIES = (
           "the same held-out episodes, paired tests over seeds; then the ages-hidden "
           "control (the perfect-trained policies with their age inputs set to 0). "
           "Resumable: rerun with the same `--work` folder to go on."),
+    Study("delay_lstm", "Training under delay (recurrent PPO)", "learning",
+          "train_under_delay.py",
+          ("--full", "--policy", "lstm", "--delays", "0.2", "--jobs", "2", "--ages-control",
+           "--out", "{out}", "--checkpoints", "{out}/checkpoints"),
+          ("--learner", "ppo", "--policy", "lstm", "--seeds", "2", "--delays", "0.2",
+           "--methods", "bides", "--nodes", "3", "--max-steps", "10", "--eval-episodes", "2",
+           "--ppo-steps", "32", "--ppo-scenes", "2", "--ppo-n-steps", "8", "--ppo-batch", "16",
+           "--ages-control", "--out", "{out}"),
+          "The same question with recurrent policies (sb3-contrib RecurrentPPO, an LSTM of "
+          "64 units), which can carry what they saw across decisions: 2 x 10^6 agent-steps "
+          "per policy, 5 seeds per condition (perfect information; BiDES and none at 200 ms "
+          "with 10 % loss), the same held-out episodes, paired tests and ages-hidden "
+          "control."),
     Study("sequence", "Cost per run in a sequence", "performance", "bench_sequence.py",
           (), ("--quick",),
           "Many short runs in one process (as a sweep runs them): CPU seconds, page faults "

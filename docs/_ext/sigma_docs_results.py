@@ -28,8 +28,8 @@ PAGES = {
                     "and its load (both shown with each study); the tables are the "
                     "benchmark scripts' own output files."),
     "learning": ("Learning", "What a policy learns on the aligned, delayed view the "
-                 "environment gives: the training-under-delay study's tables, learning "
-                 "curves and held-out evaluations, from its own output files."),
+                 "environment gives: the training-under-delay studies' tables, learning "
+                 "curves and held-out evaluations, from their own output files."),
 }
 #: CSV files longer than this are shown in part (the whole file is a download).
 MAX_ROWS = 40

@@ -45,3 +45,15 @@ def test_a_delay_trained_policy_alone_has_no_paired_row() -> None:
     evals = [{"trained": "bides@200ms", "seed": 0, "evaluated": "bides@200ms", "fitness": -1.8},
              {"trained": "bides@200ms", "seed": 0, "evaluated": "perfect", "fitness": -0.1}]
     assert paired_cells(evals, ["perfect", "bides@200ms"], [0]) == []
+
+
+def test_control_reading_says_what_the_table_supports() -> None:
+    from sigma_lab.studies.env_report import _control_reading
+
+    table = [{"cell": "bides@200ms", "t_p_delay_beats_hidden": 0.01},
+             {"cell": "none@200ms", "t_p_delay_beats_hidden": 0.2}]
+    won = _control_reading(table, 5)
+    assert "in bides@200ms of 2:" in won and "a learned, delay-specific advantage." in won
+    lost = _control_reading([table[1]], 5)
+    assert "in no cell of 1:" in lost and "**not shown**" in lost
+    assert "no conclusion is drawn" in _control_reading(table, 4)  # below the protocol's 5
