@@ -44,6 +44,14 @@ def test_quick_study_writes_consistent_outputs(tmp_path: Path) -> None:
     assert len(curve) == 2 and all(r["agent_steps"] == 2 * 4 * 1 * 10 * 2 for r in curve)
     for png in ("learning_curves.png", "eval.png"):
         assert (tmp_path / png).stat().st_size > 0
+    # the page's text: each seed under perfect information against the better controller
+    pp = [fit[("perfect", s, "perfect")] for s in (0, 1)]
+    best = max(fit[("naive", -1, "perfect")], fit[("extrapolating", -1, "perfect")])
+    md = (tmp_path / "summary.md").read_text()
+    assert (f"per seed {pp[0]:.3f}, {pp[1]:.3f}: {sum(x >= best for x in pp)} of 2 at or "
+            "above the better hand-written controller") in md
+    walls = sorted(c["train_wall_s"] for c in data["cost"])
+    assert f"per policy median {walls[2]:.0f} s, {walls[0]:.0f}–{walls[-1]:.0f} s" in md
 
 
 @pytest.mark.parametrize(("args", "msg"), [(["--seeds", "0"], "--seeds: must be >= 1"),

@@ -221,17 +221,24 @@ def delay_study(path: Path, img_dir: Path, level: int = 3) -> str:
           in ev]
     base = {n: ev[(n, -1, "perfect")]["fitness"] for n in ("untrained", "naive",
                                                           "extrapolating")}
+    best = max(base["naive"], base["extrapolating"])
     lines += ["", "Under perfect information: trained-perfect "
-              f"{sum(pp) / max(len(pp), 1):.3f} (mean over seeds), untrained "
+              f"{sum(pp) / max(len(pp), 1):.3f} (mean over seeds; per seed "
+              f"{', '.join(f'{x:.3f}' for x in pp)}: {sum(x >= best for x in pp)} of {len(pp)} "
+              f"at or above the better hand-written controller), untrained "
               f"{base['untrained']:.3f}, naive {base['naive']:.3f}, extrapolating "
               f"{base['extrapolating']:.3f}."]
     cost = d["cost"]
     if cost:
         wall = sum(c["train_wall_s"] for c in cost)
         steps = sum(c["agent_steps"] for c in cost)
+        each = sorted(c["train_wall_s"] for c in cost)
+        mid = each[len(each) // 2]
         lines += ["", f"Cost: {len(cost)} trainings, {wall:.0f} s of training wall time "
-                  f"({steps / wall:,.0f} agent-steps/s), {d['wall_s']:.0f} s in all (wall "
-                  "times: they depend on the machine's load)."]
+                  f"({steps / wall:,.0f} agent-steps/s; per policy median {mid:.0f} "
+                  f"s, {each[0]:.0f}–{each[-1]:.0f} s), {d['wall_s']:.0f} s in all (wall "
+                  "times: they depend on the machine's load and on how many trainings shared "
+                  "it)."]
     shown = [r["cell"] for r in d["stats"]
              if r["diff_mean"] > 0 and r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
     name = path.parent.name
