@@ -360,9 +360,9 @@ class Network(Links):
     def _client_receive(self, m: Msg) -> None:
         """The subscriber receives ``m``: PUBACK (QoS 1), then hand it to the application
         (after its process's burst, if any). The latency ends when the process takes
-        the message, the burst's start: live stamps a receipt in paho's network thread,
-        which needs the interpreter lock the loop thread holds while it serves its
-        backlog, so the receipt waits for the process; with ``lock_switch`` a copy
+        the message, the burst's start: a live receipt waits for the process (paho's
+        thread needs the interpreter lock the loop thread holds while it serves its
+        backlog); with ``lock_switch`` a copy
         reaching a busy process is read with its batch (:meth:`_read_batch`)."""
         now = self.k.env.now
         m.t_recv = now
@@ -374,7 +374,7 @@ class Network(Links):
         proc = self._proc[m.client]
         if proc is None:
             self._hand_over(m)
-        elif proc.threaded:  # paho's thread reads it; its callback stamps it at the end
+        elif proc.threaded:  # paho's thread reads it; the latency ends at its burst's end
             self.k.at(proc.net_span(now, True)[1], self._loop_receive, m)
         else:  # the latency ends when the process gets to it (live's stamp), not later
             busy = proc.free > now
@@ -385,14 +385,13 @@ class Network(Links):
 
     def _loop_receive(self, m: Msg) -> None:
         """(A process with a network thread) ``m`` is stamped at the end of that
-        thread's burst (paho's callback): a loop-thread burst of its cost is charged,
-        and the application gets it at once. Live's loop runs a state 1-3 µs after
-        paho stamps it, at every load (docs/concepts/decisions.md): its waits are before the
-        stamp, not after it."""
+        thread's burst: a loop-thread burst of its cost is charged, and the application
+        gets it at once (of the orders scored against live runs, the one that predicts
+        them best: docs/concepts/decisions.md)."""
         proc = self._proc[m.client]
         assert proc is not None
         now = self.k.env.now
-        m.t_recv = now  # paho's callback stamps it; the loop runs it at once (live: 1-3 µs)
+        m.t_recv = now  # the network thread's burst ends: the latency ends here
         proc.burst(now, self._cost(m))
         self._hand_over(m)
 

@@ -116,7 +116,7 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
 def loop_receive(S, s, now):  # type: ignore[no-untyped-def]
     """Network._loop_receive: the copy in ``s``, read and stamped by its process's
     network thread at ``now`` (that burst's end): a loop-thread burst of the client's
-    demand, and the hand-over at once (live's loop runs it 1-3 µs after the stamp)."""
+    demand, and the hand-over at once."""
     c = S[EV_INT][s, E_WHO]
     burst(S, S[CPU_PROC][c], S[CPU_DEM][c], now)
     hand_over(S, s, now, now)
