@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from sigma_des.agents.rule_kernels import (
     any_active,
+    close_pairs,
     known_positions,
     priority_take,
     separation_push,
@@ -269,10 +270,13 @@ def separation_rule(radius: float = 10.0, gain: float = 2.0, weight: float = 5.0
         # Only nodes with a known position: unknown ones (NaN) are nobody's neighbour,
         # and mapping them all to one far point made every pair of them "intrude".
         known, pts = known_positions(obs)
-        # scipy's tree stays: the sums below follow the order of its pairs (rule_kernels)
-        pairs = cKDTree(pts).query_pairs(radius, output_type="ndarray")
-        return separation_push(pts, known, pairs.astype(np.int64, copy=False).reshape(-1, 2),
-                               float(radius), obs.shape[0])
+        # the sums below follow the order of the pairs: the grid's pairs where that order
+        # changes no bit, else scipy's tree and its order (rule_kernels)
+        pairs, exact = close_pairs(pts, float(radius))
+        if not exact:
+            pairs = cKDTree(pts).query_pairs(radius, output_type="ndarray")
+            pairs = pairs.astype(np.int64, copy=False).reshape(-1, 2)
+        return separation_push(pts, known, pairs, float(radius), obs.shape[0])
 
     def logic(info: tuple[Array, Array], view: SwarmView) -> Array:
         rep, _ = info

@@ -8,9 +8,13 @@ bit against those expressions on random cases). What they leave out on purpose:
   calls made by the callers: numpy's float64 ``arctan2`` uses SIMD (SVML) code where
   the CPU has AVX-512 and differs from the C library's ``atan2``, which compiled code
   calls, in the last bit of ≈ 7 % of values on the machine this was written on;
-* **the k-d tree of separation** stays scipy's: the repulsion of a node is a sum over
-  its pairs in the order ``query_pairs`` visits them, which depends on how the tree's
-  build orders the points inside a leaf; only the work around the tree is compiled.
+* **the k-d tree of separation** stays scipy's where the order of the pairs matters:
+  the repulsion of a node is a sum over its pairs in the order ``query_pairs`` visits
+  them, which depends on how the tree's build orders the points inside a leaf. Where
+  no node is in more than two pairs that order changes no bit (a sum ``(0 + x) + y``
+  of two terms is the same either way), and a compiled grid search
+  (:func:`close_pairs`) finds the pairs instead, unless a pair's distance is too close
+  to the radius to be sure the tree would count it alike.
 
 A kernel's cost is one call (a few µs) instead of tens of numpy calls on ``n``-long
 arrays per command tick.
@@ -23,8 +27,12 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["known_positions", "separation_push", "priority_take", "any_active",
-           "slots_kernel", "velocity_field"]
+__all__ = ["known_positions", "close_pairs", "separation_push", "priority_take",
+           "any_active", "slots_kernel", "velocity_field"]
+
+#: :func:`close_pairs`: the relative margin around the radius (squared) inside which a
+#: pair is too close to call; a grid cell is the radius times ``1 + 100 * CLOSE_BAND``.
+CLOSE_BAND = 1e-6
 
 
 @njit(cache=True)
@@ -45,6 +53,84 @@ def known_positions(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         for c in range(3):
             pts[a, c] = obs[rows[a], 9 + c]
     return rows[:k], pts
+
+
+@njit(cache=True)
+def close_pairs(pts: np.ndarray, radius: float) -> tuple[np.ndarray, bool]:
+    """The pairs ``(a, b)``, ``a < b``, of rows of ``pts`` (``(k, 3)``, finite) within
+    ``radius`` of each other, as ``query_pairs(radius)`` of a k-d tree finds them, but in
+    an order of their own; and whether they may stand for the tree's (True), else
+    ``(empty, False)``: the caller asks the tree.
+
+    A grid of square cells (north, east) a little wider than the radius; each point
+    meets the points of its own and the eight cells around. The distance is the tree's
+    ``(d0² + d1²) + d2²``; False when one is within ``CLOSE_BAND`` (relative, plus
+    a margin for the tree's rounding of distances far from the origin) of the squared
+    radius (the tree's rounding could then count the pair otherwise), when a point is
+    in three pairs or more (its repulsion would depend on the order of its pairs), or
+    when the grid would be too large (points far apart) or the radius not > 0.
+    """
+    k = pts.shape[0]
+    none = np.empty((0, 2), dtype=np.int64)
+    if not radius > 0:
+        return none, False
+    if k < 2:
+        return none, True
+    r2 = radius * radius
+    lo0, lo1, hi0, hi1, big = pts[0, 0], pts[0, 1], pts[0, 0], pts[0, 1], 0.0
+    for a in range(k):
+        lo0, hi0 = min(lo0, pts[a, 0]), max(hi0, pts[a, 0])
+        lo1, hi1 = min(lo1, pts[a, 1]), max(hi1, pts[a, 1])
+        big = max(big, abs(pts[a, 0]) + abs(pts[a, 1]) + abs(pts[a, 2]))
+    band = CLOSE_BAND * r2 + 1e-12 * big * big
+    cell = radius * (1.0 + 100.0 * CLOSE_BAND)
+    nx = (hi0 - lo0) / cell + 1.0
+    ny = (hi1 - lo1) / cell + 1.0
+    if not (band < 10.0 * CLOSE_BAND * r2 and nx * ny < 4.0 * k + 65536.0):
+        return none, False
+    nyi = int(ny)
+    cells = int(nx) * nyi
+    of = np.empty(k, dtype=np.int64)
+    start = np.zeros(cells + 1, dtype=np.int64)
+    for a in range(k):
+        c = int((pts[a, 0] - lo0) / cell) * nyi + int((pts[a, 1] - lo1) / cell)
+        of[a] = c
+        start[c + 1] += 1
+    for c in range(cells):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    member = np.empty(k, dtype=np.int64)
+    for a in range(k):
+        member[fill[of[a]]] = a
+        fill[of[a]] += 1
+    pairs = np.empty((k, 2), dtype=np.int64)  # more than k pairs: a point is in three
+    count = np.zeros(k, dtype=np.int64)
+    m = 0
+    for a in range(k):
+        ix, iy = of[a] // nyi, of[a] % nyi
+        for jx in range(max(ix - 1, 0), min(ix + 2, cells // nyi)):
+            for jy in range(max(iy - 1, 0), min(iy + 2, nyi)):
+                c = jx * nyi + jy
+                for q in range(start[c], start[c + 1]):
+                    b = member[q]
+                    if b <= a:
+                        continue
+                    d0 = pts[a, 0] - pts[b, 0]
+                    d1 = pts[a, 1] - pts[b, 1]
+                    d2 = pts[a, 2] - pts[b, 2]
+                    dd = (d0 * d0 + d1 * d1) + d2 * d2
+                    if dd > r2 + band:
+                        continue
+                    if dd >= r2 - band or m == k:
+                        return none, False
+                    count[a] += 1
+                    count[b] += 1
+                    if count[a] > 2 or count[b] > 2:
+                        return none, False
+                    pairs[m, 0] = a
+                    pairs[m, 1] = b
+                    m += 1
+    return pairs[:m].copy(), True
 
 
 @njit(cache=True)

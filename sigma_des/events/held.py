@@ -21,6 +21,7 @@ steps: every frame (:meth:`HeldCommands.stepped`) and every re-simulation
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 __all__ = ["NEVER", "HeldCommands"]
@@ -54,10 +55,10 @@ class HeldCommands:
     def stepped(self, k: int, cmd: NDArray[np.float64]) -> None:
         """Frame ``k`` was stepped with the command rows ``cmd`` (``(n, width)``)."""
         cmd = np.ascontiguousarray(cmd, dtype=np.float64)
-        changed = (_bits(cmd) != _bits(self.row)).any(axis=1) | (self.since == NEVER)
-        if changed.any():
-            self.row[changed] = cmd[changed]
-            self.since[changed] = k
+        if cmd.shape != self.row.shape:
+            raise ValueError(f"stepped: command rows of shape {self.row.shape} expected, "
+                             f"got {cmd.shape}")
+        _stepped_rows(int(k), _bits(cmd), self.row.view(np.int64), self.since)
 
     def redundant(
         self, nodes: NDArray[np.int64], first: NDArray[np.int64], rows: NDArray[np.float64]
@@ -75,3 +76,21 @@ class HeldCommands:
         ``rows[j]`` (one rollback per node)."""
         self.row[nodes] = rows
         self.since[nodes] = first
+
+
+@njit(cache=True)
+def _stepped_rows(k: int, cmd: np.ndarray, row: np.ndarray, since: np.ndarray) -> None:
+    """:meth:`HeldCommands.stepped` over the rows' bit patterns (compiled): a row whose
+    bits differ from the held ones, or a node never stepped, takes the new row and
+    ``since = k``; the others are left as they are."""
+    for i in range(cmd.shape[0]):
+        changed = since[i] == NEVER
+        if not changed:
+            for c in range(cmd.shape[1]):
+                if cmd[i, c] != row[i, c]:
+                    changed = True
+                    break
+        if changed:
+            for c in range(cmd.shape[1]):
+                row[i, c] = cmd[i, c]
+            since[i] = k

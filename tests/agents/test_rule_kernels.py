@@ -17,6 +17,7 @@ from sigma_des.agents.behaviours import BehaviourSet, Rule, separation_rule
 from sigma_des.agents.formation import formation_behaviour, formation_rule, formation_slots
 from sigma_des.agents.registry import make_dynamics
 from sigma_des.agents.rule_kernels import (
+    close_pairs,
     known_positions,
     priority_take,
     separation_push,
@@ -138,6 +139,74 @@ def test_separation_hand_computed() -> None:
     rep, depth = separation_push(pts, known, pairs, 10.0, 3)
     assert depth.tolist() == [7.0, 6.0, 7.0]
     assert rep.tolist() == [[-0.7, -0.6, 0.0], [-0.3, 0.4 + 0.6, 0.0], [0.7 + 0.3, -0.4, 0.0]]
+
+
+def _sparse(rng: np.random.Generator, n: int, radius: float) -> Array:
+    """``(n, 3)`` points on a jittered grid ``2.2 radius`` apart (no pair closer than
+    ``radius`` but by the jitter), and a few points moved next to others (pairs)."""
+    side = math.ceil(math.sqrt(n))
+    i = np.arange(n)
+    pts = np.stack([(i // side) * 2.2 * radius, (i % side) * 2.2 * radius,
+                    np.full(n, 100.0)], axis=1) + rng.uniform(-0.1, 0.1, (n, 3)) * radius
+    for a in rng.choice(n, size=min(n // 2, 1 + n // 8), replace=False):
+        b = int(rng.integers(0, n))
+        pts[a] = pts[b] + rng.uniform(-0.7, 0.7, 3) * radius
+    return pts
+
+
+def _tree_pairs(pts: Array, radius: float) -> set[tuple[int, int]]:
+    return {(int(a), int(b)) for a, b in cKDTree(pts).query_pairs(radius, output_type="ndarray")}
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_close_pairs_are_the_trees_pairs(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    radius = float(rng.uniform(0.5, 25.0))
+    pts = _sparse(rng, int(rng.integers(2, 600)), radius)
+    pairs, exact = close_pairs(pts, radius)
+    if exact:
+        got = {(int(a), int(b)) for a, b in pairs}
+        assert len(got) == len(pairs) and got == _tree_pairs(pts, radius)
+        counts = np.bincount(pairs.ravel(), minlength=len(pts))
+        assert counts.max(initial=0) <= 2
+    else:  # a point in three pairs (the grid's answer would depend on the order)
+        assert pairs.shape == (0, 2)
+        counts = np.bincount(np.array(sorted(_tree_pairs(pts, radius))).ravel(),
+                             minlength=len(pts))
+        assert counts.max() >= 3
+
+
+def test_close_pairs_hand_computed() -> None:
+    pts = np.array([[0.0, 0.0, 100.0], [0.0, 4.0, 100.0], [30.0, 0.0, 100.0],
+                    [30.0, 3.0, 104.0], [60.0, 60.0, 100.0]])
+    pairs, exact = close_pairs(pts, 8.0)  # |(0, 3, 4)| = 5 < 8; the rest > 8 apart
+    assert exact and sorted(map(tuple, pairs.tolist())) == [(0, 1), (2, 3)]
+    assert close_pairs(pts, 0.5)[1] and close_pairs(pts, 0.5)[0].shape == (0, 2)
+    assert close_pairs(pts[:1], 8.0)[1] and close_pairs(pts[:0], 8.0)[1]
+    # exactly at the radius: too close to call (the tree's rounding decides)
+    assert not close_pairs(pts, 5.0)[1]
+    assert close_pairs(pts, 4.0)[0].shape == (0, 2) and not close_pairs(pts, 4.0)[1]
+    # node 0 near three others: its repulsion would depend on the pairs' order
+    crowd = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    assert not close_pairs(crowd, 1.2)[1] and close_pairs(crowd[:3], 1.2)[1]
+    # a grid far larger than the swarm (two points 1e7 m apart), a radius not > 0
+    assert not close_pairs(np.array([[0.0, 0, 0], [1e7, 1e7, 0]]), 8.0)[1]
+    assert not close_pairs(pts, 0.0)[1] and not close_pairs(pts, float("nan"))[1]
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_separation_by_the_grid_matches_numpy_bit_for_bit(seed: int) -> None:
+    rng = np.random.default_rng(200 + seed)
+    n = int(rng.integers(2, 500))
+    radius = float(rng.uniform(1.0, 20.0))
+    obs = _swarm(rng, n, 1.0)
+    obs[:, 9:12] = _sparse(rng, n, radius)
+    obs[rng.random(n) < 0.1, 9:12] = np.nan
+    view = SwarmView(obs=obs, frame=np.zeros(n, np.int64), valid=np.ones(n, bool),
+                     aligned_frame=0)
+    rep, depth = separation_rule(radius).extract(view)
+    ref_rep, ref_depth = _ref_separation(obs, radius)
+    assert _same(rep, ref_rep) and _same(depth, ref_depth)
 
 
 def test_known_positions_skips_rows_with_any_unknown_coordinate() -> None:
