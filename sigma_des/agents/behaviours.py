@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from sigma_des.agents.rule_kernels import (
     any_active,
+    carrot_kernel,
     close_pairs,
     known_positions,
     priority_take,
@@ -211,15 +212,10 @@ def rectangle_carrot(pos: Array, size: tuple[float, float], origin: tuple[float,
     position, the route needs no waypoint index (safe under rollback).
     """
     corners, seg_len, starts, ends, d, perim = _rectangle(tuple(size), tuple(origin))
-    rel = pos[:, None, :] - corners[None, :, :]
-    t = np.clip((rel * d[None]).sum(-1) / seg_len[None] ** 2, 0, 1)
-    proj = corners[None] + t[..., None] * d[None]
-    dist = np.linalg.norm(pos[:, None, :] - proj, axis=-1)
-    k = np.argmin(dist, axis=1)
-    s = (starts[k] + t[np.arange(len(k)), k] * seg_len[k] + lookahead) % perim
-    seg = np.searchsorted(ends, s, side="right").clip(0, 3)
-    frac = (s - starts[seg]) / seg_len[seg]
-    return corners[seg] + frac[:, None] * d[seg]
+    # the projections, nearest side and carrot, compiled (the numpy expressions' very
+    # operations: rule_kernels.carrot_kernel)
+    return carrot_kernel(np.ascontiguousarray(pos, dtype=np.float64), corners, seg_len,
+                         starts, ends, d, float(perim), float(lookahead))
 
 
 def route_rule(leaders: Sequence[int] = (0,), size: tuple[float, float] = (1000.0, 750.0),

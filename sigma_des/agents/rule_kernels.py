@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["known_positions", "close_pairs", "separation_push", "priority_take",
-           "any_active", "slots_kernel", "velocity_field"]
+           "any_active", "slots_kernel", "velocity_field", "carrot_kernel"]
 
 #: :func:`close_pairs`: the relative margin around the radius (squared) inside which a
 #: pair is too close to call; a grid cell is the radius times ``1 + 100 * CLOSE_BAND``.
@@ -235,3 +235,48 @@ def velocity_field(obs: np.ndarray, slots: np.ndarray, vn0: float, ve0: float,
         vn[r] = vn0 + k_pos * (slots[r, 0] - obs[r, 9])
         ve[r] = ve0 + k_pos * (slots[r, 1] - obs[r, 10])
     return vn, ve
+
+
+@njit(cache=True)
+def carrot_kernel(pos: np.ndarray, corners: np.ndarray, seg_len: np.ndarray,
+                  starts: np.ndarray, ends: np.ndarray, d: np.ndarray, perim: float,
+                  lookahead: float) -> np.ndarray:
+    """``rectangle_carrot``'s arithmetic for the rows of ``pos`` (``(m, 2)``), the
+    rectangle's arrays given: per side ``c`` the projection parameter ``t = clip((r0 d0 +
+    r1 d1) / len², 0, 1)`` of ``r = pos - corner`` (numpy's clip: ``-0.0`` becomes
+    ``0.0``), the distance ``sqrt(e0² + e1²)`` to
+    the projection, the nearest side (the first of equal distances), the perimeter
+    position ``((start + t len) + lookahead) mod perim`` (numpy's floating remainder),
+    its side (``searchsorted(ends, s, 'right')`` clipped to 3) and the carrot."""
+    m = pos.shape[0]
+    out = np.empty((m, 2))
+    nseg = corners.shape[0]
+    for r in range(m):
+        best, kbest, tbest = np.inf, -1, 0.0
+        for c in range(nseg):
+            r0 = pos[r, 0] - corners[c, 0]
+            r1 = pos[r, 1] - corners[c, 1]
+            t = (r0 * d[c, 0] + r1 * d[c, 1]) / (seg_len[c] * seg_len[c])
+            if t == t:  # np.clip: min(max(t, 0), 1), NaN stays NaN, -0.0 becomes 0.0
+                t = t if t > 0.0 else 0.0
+                t = t if t < 1.0 else 1.0
+            e0 = pos[r, 0] - (corners[c, 0] + t * d[c, 0])
+            e1 = pos[r, 1] - (corners[c, 1] + t * d[c, 1])
+            dist = math.sqrt(e0 * e0 + e1 * e1)
+            if kbest < 0 or dist < best or (dist != dist and best == best):  # argmin
+                best, kbest, tbest = dist, c, t
+        a = (starts[kbest] + tbest * seg_len[kbest]) + lookahead
+        s = np.fmod(a, perim)  # np.remainder: fmod (exact), then the sign of perim
+        if s != 0.0:
+            if (perim < 0.0) != (s < 0.0):
+                s += perim
+        else:
+            s = math.copysign(0.0, perim)
+        seg = 0
+        while seg < ends.shape[0] and not s < ends[seg]:  # searchsorted, side='right'
+            seg += 1
+        seg = min(seg, nseg - 1)
+        frac = (s - starts[seg]) / seg_len[seg]
+        out[r, 0] = corners[seg, 0] + frac * d[seg, 0]
+        out[r, 1] = corners[seg, 1] + frac * d[seg, 1]
+    return out

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from sigma_des.agents.behaviours import BehaviourSet, Rule, separation_rule
+from sigma_des.agents.behaviours import BehaviourSet, Rule, rectangle_carrot, separation_rule
 from sigma_des.agents.formation import formation_behaviour, formation_rule, formation_slots
 from sigma_des.agents.registry import make_dynamics
 from sigma_des.agents.rule_kernels import (
@@ -304,3 +304,47 @@ def test_formation_behaviour_matches_the_numpy_rules(seed: int, dynamics: str) -
 
 def _velocity_logic(leader: int, k_pos: float) -> Callable[[Array, SwarmView], Array]:
     return lambda slots, view: _ref_velocity_law(slots, view.obs, leader, k_pos)
+
+
+def _ref_carrot(pos: Array, size: tuple[float, float], origin: tuple[float, float],
+                lookahead: float) -> Array:
+    a, b = size
+    corners = np.array([[0, 0], [a, 0], [a, b], [0, b]], dtype=float) + np.asarray(origin)
+    seg_len = np.array([a, b, a, b])
+    ends = np.cumsum(seg_len)
+    starts = np.concatenate([[0.0], ends[:-1]])
+    d = np.roll(corners, -1, axis=0) - corners
+    perim = 2 * (a + b)
+    rel = pos[:, None, :] - corners[None, :, :]
+    t = np.clip((rel * d[None]).sum(-1) / seg_len[None] ** 2, 0, 1)
+    proj = corners[None] + t[..., None] * d[None]
+    dist = np.linalg.norm(pos[:, None, :] - proj, axis=-1)
+    k = np.argmin(dist, axis=1)
+    s = (starts[k] + t[np.arange(len(k)), k] * seg_len[k] + lookahead) % perim
+    seg = np.searchsorted(ends, s, side="right").clip(0, 3)
+    frac = (s - starts[seg]) / seg_len[seg]
+    return corners[seg] + frac[:, None] * d[seg]
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_carrot_matches_numpy_bit_for_bit(seed: int) -> None:
+    rng = np.random.default_rng(300 + seed)
+    size = (float(rng.uniform(1.0, 2000.0)), float(rng.uniform(1.0, 2000.0)))
+    origin = (float(rng.uniform(-500.0, 500.0)), float(rng.uniform(-500.0, 500.0)))
+    lookahead = float(rng.choice([rng.uniform(-100.0, 300.0), 80.0, 2 * sum(size) + 5.0]))
+    pos = np.asarray(origin) + rng.uniform(-0.5, 1.5, (200, 2)) * np.asarray(size)
+    corners = np.array([[0, 0], [size[0], 0], size, [0, size[1]]]) + np.asarray(origin)
+    pos[:4] = corners  # on the corners (ties between two sides)
+    pos[4] = corners.mean(axis=0)  # the centre
+    pos[5, 1] = np.nan
+    got = rectangle_carrot(pos, size, origin, lookahead)
+    assert _same(got, _ref_carrot(pos, size, origin, lookahead))
+
+
+def test_carrot_hand_computed() -> None:
+    # a 100 x 50 rectangle: (10, -5) projects to (10, 0) on the first side, 20 m on: (30, 0);
+    # (120, 40) to (100, 40): 140 m along, 20 m on: 160 m, (100 - 10, 50) on the third side;
+    # (-3, 1) to (0, 1) on the fourth: 299 m along, 20 m on wraps to 19 m: (19, 0)
+    pos = np.array([[10.0, -5.0], [120.0, 40.0], [-3.0, 1.0]])
+    got = rectangle_carrot(pos, (100.0, 50.0), (0.0, 0.0), 20.0)
+    assert got.tolist() == [[30.0, 0.0], [90.0, 50.0], [19.0, 0.0]]

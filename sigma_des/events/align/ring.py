@@ -266,7 +266,9 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
                 gen: np.ndarray, obs: np.ndarray, flag: np.ndarray) -> None:
     """Per node: the exact, filled, held or extrapolated row at ``F`` (module docstring).
 
-    Ties go to the first slot, as ``argmax``/``argmin`` do; weights are
+    A node holding frame ``F`` holds it in slot ``F % k`` (:meth:`RingBuffers.insert`
+    puts frame ``f`` nowhere else), read first. Ties go to the first slot, as
+    ``argmax``/``argmin`` do; weights are
     ``float(a) / float(b)`` of integer frame differences, then ``o + w * (p - o)``
     per column — the arithmetic of the rules, row by row.
     """
@@ -296,6 +298,14 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
             gen[i] = gt[i, s_new]
             frame[i] = F
             flag[i] = EXTRAPOLATED
+            continue
+        s_exact = F % k  # the one slot that can hold frame F (a frame f goes to f % k)
+        if F >= 0 and fr[i, s_exact] == F:  # the common case: no scan of the ring
+            frame[i] = F
+            gen[i] = gt[i, s_exact]
+            for c in range(width):
+                obs[i, c] = ob[i, s_exact, c]
+            flag[i] = EXACT
             continue
         s_exact = -1
         s_lo = -1
