@@ -301,10 +301,7 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
             continue
         s_exact = F % k  # the one slot that can hold frame F (a frame f goes to f % k)
         if F >= 0 and fr[i, s_exact] == F:  # the common case: no scan of the ring
-            frame[i] = F
-            gen[i] = gt[i, s_exact]
-            for c in range(width):
-                obs[i, c] = ob[i, s_exact, c]
+            _show_slot(fr, gt, ob, i, s_exact, frame, gen, obs)
             flag[i] = EXACT
             continue
         s_exact = -1
@@ -339,7 +336,14 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
             sel = s_hi
             flag[i] = FILLED
         if sel >= 0:
-            frame[i] = fr[i, sel]
-            gen[i] = gt[i, sel]
-            for c in range(width):
-                obs[i, c] = ob[i, sel, c]
+            _show_slot(fr, gt, ob, i, sel, frame, gen, obs)
+
+
+@njit(cache=True, inline="always")
+def _show_slot(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, i: int, s: int,
+               frame: np.ndarray, gen: np.ndarray, obs: np.ndarray) -> None:
+    """Node ``i`` shows the state of its slot ``s`` as it is (frame, gen time, obs)."""
+    frame[i] = fr[i, s]
+    gen[i] = gt[i, s]
+    for c in range(ob.shape[2]):
+        obs[i, c] = ob[i, s, c]
