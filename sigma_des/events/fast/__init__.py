@@ -7,6 +7,6 @@ many of its entries, ``tally`` the events run by class;
 ``broker``, ``node`` and ``server`` the handlers (``job`` a node's job and its cost,
 ``warp`` time-warp rollbacks); ``loop`` the entry points and the event loop; ``tables``
 the draw tables Python fills (``rollbacks`` the rollback draws and the batched
-re-simulation); ``driver`` the Python side the engine composes; ``support`` what the
-core reproduces.
+re-simulation); ``driver`` the Python side the engine composes (``setup`` its state
+arrays of one run); ``support`` what the core reproduces.
 """
