@@ -31,13 +31,14 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
-from sigma_des.events.fast import channel, loop, setup
+from sigma_des.events.fast import channel, entries, loop, setup
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
 from sigma_des.events.fast.frame_draws import FrameDraws
 from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
+from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.rollbacks import Rollbacks
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
@@ -112,12 +113,14 @@ class CompiledCore:
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = L.allocate(setup.dims(self, SLACK), setup.given(self, p_loss, SLACK))
+        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
         self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
+        self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
+        self._bound = entries.DISPATCHED
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -146,6 +149,14 @@ class CompiledCore:
         for kernel, sig in todo:
             kernel.compile(sig)  # type: ignore[attr-defined]
         return len(todo)
+
+    def _entries(self) -> entries.Entries:
+        """The loop's entry points for the current state (bound again when the state
+        tuple was replaced: :func:`~sigma_des.events.fast.entries.bound`)."""
+        if self.S is not self._typed:
+            self._bound = entries.bound(self.S)
+            self._typed = self.S
+        return self._bound
 
     def _check_open(self) -> None:
         if self._closed:
@@ -176,10 +187,10 @@ class CompiledCore:
             self.attempts.fill_ack(TRIGGER, k)
             self.attempts.fill_ack(STATE, k)
         self.ensure_space(2)
-        hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
+        hl, hc = (float(stamp.l), stamp.c) if stamp is not None else (math.nan, 0)
         now = self.host.kernel.now
-        loop.publish_trigger(self.S, checked_int(k, "trigger index"), now, hl,
-                             checked_int(hc, "trigger HLC counter"))
+        self._entries().publish_trigger(self.S, checked_int(k, "trigger index"), now, hl,
+                                        checked_int(hc, "trigger HLC counter"))
         # the core keeps no per-node trigger deliveries: the tap records the issue
         self.host.tap.issue(k, now)
         self.host.tap.trigger(-1, k, now, math.nan)
@@ -195,10 +206,12 @@ class CompiledCore:
             self.attempts.fill_ack(COMMAND, tick)
         self.ensure_space(nodes.size + 2)
         rows = np.ascontiguousarray(cmds, dtype=np.float64)
+        if rows.ndim != 2:
+            raise ValueError(f"cmds: one row per node, got shape {rows.shape}")
         now = self.host.kernel.now
-        loop.publish_commands(self.S, checked_int(tick, "command tick"),
-                              checked_int(stamp, "command stamp"), nodes.astype(np.int64),
-                              rows, now)
+        self._entries().publish_commands(self.S, checked_int(tick, "command tick"),
+                                         checked_int(stamp, "command stamp"),
+                                         np.ascontiguousarray(nodes, dtype=np.int64), rows, now)
         # the core keeps no per-node command deliveries: the tap records the sends
         self.host.tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
 
@@ -246,10 +259,10 @@ class CompiledCore:
             self.flush_rollbacks()
         self.ensure_space(2)
         if truth.batched and truth.first_resim(c) <= truth.latest:
-            loop.roll_back(self.S, i, c, current, now)
+            self._entries().roll_back(self.S, i, c, current, now)
         else:
             steps = truth.rollback(i, c, current, self.host.nodes.cmd[i])
-            loop.owe_steps(self.S, i, steps, now)
+            self._entries().owe_steps(self.S, i, steps, now)
         iv = self.S[L.INTS]
         if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
             iv[L.I_PEND] = 0
@@ -265,7 +278,7 @@ class CompiledCore:
         nd = self.S[L.NODE]
         self.S = self.rollbacks.fill(self.S, int(nd[L.N_REQ, i]), int(nd[L.N_RB, i]))
         self.ensure_space(2)
-        loop.start(self.S, i, now)
+        self._entries().start(self.S, i, now)
 
     # ------------------------------------------------------------ running
 
@@ -304,11 +317,14 @@ class CompiledCore:
             if self._lockstep:
                 self.drain()
                 self._sync_barrier()
-            code = loop.advance(self.S, float(bound), strict)
+            code = self._entries().advance(self.S, float(bound), bool(strict))
             self.exits[code] += 1
-            if code == L.OK:
-                self.flush_rollbacks()
-                self.drain()
+            if code == L.OK:  # (neither call has anything to do when its count is 0)
+                iv = self.S[L.INTS]
+                if iv[L.I_DEFN]:
+                    self.flush_rollbacks()
+                if iv[L.I_OUT]:
+                    self.drain()
                 return False
             S = self.S
             if code == L.BARRIER:

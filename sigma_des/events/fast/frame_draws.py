@@ -5,7 +5,7 @@ the states it causes and of the compute stream (:class:`~.tables.DrawTables`). F
 them table by table costs a Python loop per trigger; :class:`FrameDraws` keeps the draws
 of a block of consecutive frames for all those tables at once (one sampler call per
 table every ``rows`` frames, as :class:`~sigma_des.core.draws.DrawBlock` does) and copies
-frame ``k``'s values into the tables' rows with one array assignment per row width.
+frame ``k``'s values into the tables' rows in one compiled call.
 
 The rows hold what :meth:`~.tables.DrawTables.fill` writes: draws are a pure function of
 their key and a block's row is the bits of :meth:`~sigma_des.core.draws.DrawCache.vector`
@@ -17,12 +17,23 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
-from sigma_des.core.draws import BLOCK, BLOCK_VALUES, DrawCache
+from sigma_des.core.draws import BLOCK, BLOCK_VALUES
+from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.tables import DrawTables
 
 __all__ = ["FrameDraws"]
+
+
+@jit
+def _copy_rows(values, tags, tables, widths, block, j, row, index):  # type: ignore[no-untyped-def]
+    """Row ``row`` of each table ``tables[t]``: the head ``widths[t]`` of ``block[t, j]``,
+    tagged ``index``."""
+    for t in range(tables.shape[0]):
+        c = tables[t]
+        for x in range(widths[t]):
+            values[c, row, x] = block[t, j, x]
+        tags[c, row] = index
 
 
 class FrameDraws:
@@ -38,20 +49,16 @@ class FrameDraws:
         self._values = tables.values
         self._tags = tables.tags
         self._history = tables.tags.shape[1]
-        self._all = np.array([c for c, _, _ in fills], dtype=np.intp)
-        self._blockable = all(cache.blockable for _, cache, _ in fills)
-        #: per row width: the tables, their (cache, sampling kind), the block's values
-        by_width: dict[int, list[tuple[int, DrawCache, int]]] = {}
-        for f in fills:
-            by_width.setdefault(f[1].n_subjects, []).append(f)
-        self._groups = [(np.array([c for c, _, _ in g], dtype=np.intp),
-                         [(cache, kind) for _, cache, kind in g], w)
-                        for w, g in sorted(by_width.items())]
-        widest = max(by_width, default=1)
+        self._tables = np.array([c for c, _, _ in fills], dtype=np.int64)
+        self._widths = np.array([cache.n_subjects for _, cache, _ in fills], dtype=np.int64)
+        self._sources = [(cache, kind) for _, cache, kind in fills]
+        self._blockable = all(cache.blockable for cache, _ in self._sources)
+        widest = int(self._widths.max(initial=1))
         self.rows = max(1, min(BLOCK, BLOCK_VALUES // max(1, widest))) if self._blockable else 1
         self._first = 0
         self._count = 0
-        self._blocks: list[NDArray[np.float64]] = []
+        #: the block's values ``[table, frame - first, subject]`` (each table's head width)
+        self._block = np.zeros((len(fills), self.rows, widest))
 
     def fill(self, index: int) -> None:
         """Make the rows of ``index`` of every table present (``index % history``)."""
@@ -59,21 +66,19 @@ class FrameDraws:
         if not 0 <= j < self._count:
             self._draw(index)
             j = 0
-        row = index % self._history
-        values = self._values
-        for (cs, _, w), block in zip(self._groups, self._blocks, strict=True):
-            values[cs, row, :w] = block[:, j]
-        self._tags[self._all, row] = index
+        _copy_rows(self._values, self._tags, self._tables, self._widths, self._block, j,
+                   index % self._history, index)
 
     def _draw(self, index: int) -> None:
         """Draw the block of ``rows`` frames from ``index`` on (one frame unless every
         cache is blockable: the others draw one index per call)."""
+        block = self._block
         if self._blockable:
             keys = np.arange(index, index + self.rows, dtype=np.int64)
-            self._blocks = [np.stack([cache.block(kind, keys, 0) for cache, kind in g])
-                            for _, g, _ in self._groups]
+            for t, (cache, kind) in enumerate(self._sources):
+                block[t, :, : self._widths[t]] = cache.block(kind, keys, 0)
         else:
-            self._blocks = [np.stack([cache.vector(kind, index, 0) for cache, kind in g])[:, None]
-                            for _, g, _ in self._groups]
+            for t, (cache, kind) in enumerate(self._sources):
+                block[t, 0, : self._widths[t]] = cache.vector(kind, index, 0)
         self._first = index
         self._count = self.rows

@@ -16,7 +16,6 @@ from numpy.typing import NDArray
 
 from sigma_des.events.align.base import OBS_WIDTH
 from sigma_des.events.fast import layout as L
-from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.support import ge_slots, ntp_syncs
 from sigma_des.events.fast.tables import clock_tables, deployment_tables, link_tables
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
@@ -27,16 +26,23 @@ if TYPE_CHECKING:
 __all__ = ["dims", "given"]
 
 
-def dims(core: CompiledCore, slack: int) -> dict[str, int]:
+def dims(core: CompiledCore, slack: int, arena: float) -> dict[str, int]:
+    """The size of every dimension of the core's state.
+
+    Args:
+        core: the core being built (its host, draw, attempt, rollback and delivery tables).
+        slack: spare event slots beyond what one frame needs.
+        arena: the queue's arena rows per event slot.
+    """
     h = core.host
     n, spec = h.n, h.spec
     M = int(h.nodes.cmd.shape[1])
     dup_all = core.attempts.qos1d
-    seen = core._lockstep or dup_all
+    seen = h.method == "lockstep" or dup_all
     cpu = h.net.cpu
     cap = 4 * (n + 1) + slack
     return {
-        "cap": cap, "arena": int(ARENA * cap), "pool": cap, "n": n, "clients": n + 1,
+        "cap": cap, "arena": int(arena * cap), "pool": cap, "n": n, "clients": n + 1,
         "bat": 2 * cap,  # fan-out elements: a few broadcasts in flight (else per message)
         "links": spec.hosts + 1,
         "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": core.tables.tables,
@@ -60,6 +66,7 @@ def dims(core: CompiledCore, slack: int) -> dict[str, int]:
 
 
 def params(core: CompiledCore) -> NDArray[np.int64]:
+    """The loop's integer parameters (``layout.Q_*``)."""
     h = core.host
     spec, net = h.spec, h.net
     q = np.zeros(L.Q_LEN, dtype=np.int64)
@@ -72,7 +79,7 @@ def params(core: CompiledCore) -> NDArray[np.int64]:
     q[L.Q_ACK] = net.ack_bytes
     q[L.Q_W] = OBS_WIDTH
     q[L.Q_M] = int(h.nodes.cmd.shape[1])
-    q[L.Q_LOCK] = int(core._lockstep)
+    q[L.Q_LOCK] = int(h.method == "lockstep")
     q[L.Q_BATCH] = int(h.truth.batched)
     core.deliveries.params(q)
     return q
@@ -119,7 +126,15 @@ def nodes(core: CompiledCore) -> dict[str, NDArray[Any]]:
     }
 
 
-def given(core: CompiledCore, p_loss: tuple[float, float], slack: int) -> dict[str, NDArray[Any]]:
+def given(core: CompiledCore, p_loss: tuple[float, float], slack: int
+          ) -> dict[str, NDArray[Any]]:
+    """The arrays of the fields without a fill: parameters, tables, shared arrays.
+
+    Args:
+        core: the core being built.
+        p_loss: the Bernoulli loss of the host links and of the server's link.
+        slack: spare event slots beyond what one frame needs (as :func:`dims`).
+    """
     h = core.host
     spec = h.spec
     cap = 4 * (h.n + 1) + slack
