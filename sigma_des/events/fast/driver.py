@@ -121,6 +121,7 @@ class CompiledCore:
         self._closed = False
         self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
         self._bound = entries.DISPATCHED
+        self._arg: Any = self.S  # what the bound entry points take for it (a handle)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -130,6 +131,7 @@ class CompiledCore:
         iv = self.S[L.INTS]
         if iv[L.I_FREE] < need or iv[L.I_PFREE] < need:
             self.S = grow(self.S, need)
+            self._typed = ()  # arrays resized in place: the state is held again (handle.py)
 
     def load_kernels(self) -> int:
         """Load, for this state's types, the loop's entry points Python calls; return how
@@ -148,13 +150,16 @@ class CompiledCore:
                 if sig not in k.signatures]  # type: ignore[attr-defined]
         for kernel, sig in todo:
             kernel.compile(sig)  # type: ignore[attr-defined]
+        self._entries()  # and the entry points by handle (fast/entries.py)
         return len(todo)
 
     def _entries(self) -> entries.Entries:
-        """The loop's entry points for the current state (bound again when the state
-        tuple was replaced: :func:`~sigma_des.events.fast.entries.bound`)."""
+        """The loop's entry points for the current state, and :attr:`_arg` what they take
+        for it (both bound again when the state tuple was replaced:
+        :func:`~sigma_des.events.fast.entries.bound`, a new handle)."""
         if self.S is not self._typed:
             self._bound = entries.bound(self.S)
+            self._arg = self._bound.arg(self.S)
             self._typed = self.S
         return self._bound
 
@@ -189,7 +194,7 @@ class CompiledCore:
         self.ensure_space(2)
         hl, hc = (float(stamp.l), stamp.c) if stamp is not None else (math.nan, 0)
         now = self.host.kernel.now
-        self._entries().publish_trigger(self.S, checked_int(k, "trigger index"), now, hl,
+        self._entries().publish_trigger(self._arg, checked_int(k, "trigger index"), now, hl,
                                         checked_int(hc, "trigger HLC counter"))
         # the core keeps no per-node trigger deliveries: the tap records the issue
         self.host.tap.issue(k, now)
@@ -209,7 +214,7 @@ class CompiledCore:
         if rows.ndim != 2:
             raise ValueError(f"cmds: one row per node, got shape {rows.shape}")
         now = self.host.kernel.now
-        self._entries().publish_commands(self.S, checked_int(tick, "command tick"),
+        self._entries().publish_commands(self._arg, checked_int(tick, "command tick"),
                                          checked_int(stamp, "command stamp"),
                                          np.ascontiguousarray(nodes, dtype=np.int64), rows, now)
         # the core keeps no per-node command deliveries: the tap records the sends
@@ -259,10 +264,10 @@ class CompiledCore:
             self.flush_rollbacks()
         self.ensure_space(2)
         if truth.batched and truth.first_resim(c) <= truth.latest:
-            self._entries().roll_back(self.S, i, c, current, now)
+            self._entries().roll_back(self._arg, i, c, current, now)
         else:
             steps = truth.rollback(i, c, current, self.host.nodes.cmd[i])
-            self._entries().owe_steps(self.S, i, steps, now)
+            self._entries().owe_steps(self._arg, i, steps, now)
         iv = self.S[L.INTS]
         if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
             iv[L.I_PEND] = 0
@@ -278,7 +283,7 @@ class CompiledCore:
         nd = self.S[L.NODE]
         self.S = self.rollbacks.fill(self.S, int(nd[L.N_REQ, i]), int(nd[L.N_RB, i]))
         self.ensure_space(2)
-        self._entries().start(self.S, i, now)
+        self._entries().start(self._arg, i, now)
 
     # ------------------------------------------------------------ running
 
@@ -317,7 +322,7 @@ class CompiledCore:
             if self._lockstep:
                 self.drain()
                 self._sync_barrier()
-            code = self._entries().advance(self.S, float(bound), bool(strict))
+            code = self._entries().advance(self._arg, float(bound), bool(strict))
             self.exits[code] += 1
             if code == L.OK:  # (neither call has anything to do when its count is 0)
                 iv = self.S[L.INTS]

@@ -1,7 +1,8 @@
-"""The loop's entry points called without numba's dispatch (fast/entries.py): one set per
-state type, shared by every core and kept through a growth of the state; a kernel
-replaced on the module is called as it is; a run through them gives the dispatched run's
-results."""
+"""The loop's entry points called without numba's dispatch, on a handle of the state
+(fast/entries.py, fast/handle.py): one set per state type, shared by every core and kept
+through a growth of the state; a new handle after a growth (arrays resized in place); a
+kernel replaced on the module is called as it is; a run through them gives the
+dispatched run's results."""
 
 from __future__ import annotations
 
@@ -61,3 +62,17 @@ def test_a_run_through_the_entry_points_gives_the_dispatched_results(
     assert fast["metrics"]["rollbacks"] > 0  # rollbacks: start and owe_steps were called
     assert fast["metrics"]["latency_command_mean"] > 0  # commands were published
     assert fast["metrics"] == slow["metrics"]
+
+
+def test_a_growth_holds_the_state_again() -> None:
+    """A growth resizes arrays in place (the payload pool keeps its tuple): the entry
+    points then take a new handle of the state, with the grown arrays."""
+    core = _run().core
+    core.load_kernels()  # binds the entry points and a handle of the state
+    held = core._arg
+    assert entries.bound(core.S).by_handle and held.S is core.S
+    pool = core.array("pool").shape[0]
+    core.ensure_space(4 * pool)
+    assert core.array("pool").shape[0] > pool
+    core._entries()
+    assert core._arg is not held and core._arg.S is core.S
