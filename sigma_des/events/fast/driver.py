@@ -178,6 +178,7 @@ class CompiledCore:
                                                dtype=S[L.INDEX[name]].dtype)
                                 for name in (*TABLE, "obs_hist")})
         self._closed = True
+        self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
