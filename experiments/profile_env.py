@@ -10,7 +10,8 @@ then profiles the same number of steps with ``time.process_time`` as the profile
 clock and prints the own time per source file (a module's share of the profiled
 time), then the top functions by own time. Profiling inflates Python-heavy code, so
 the shares rank the costs; the unprofiled figure is the speed. Compiled (numba)
-kernels appear as single entries (``loop.py:advance`` = the message core).
+kernels appear as single entries (``loop.py:advance`` = the message core, its entry
+points called by handle counted as ``loop.py``'s).
 
 Usage::
 
@@ -25,6 +26,7 @@ import argparse
 import cProfile
 import os
 import pstats
+import re
 import time
 from collections import Counter
 from typing import Any
@@ -36,9 +38,16 @@ from sigma_lab.studies.delay import env_kwargs  # noqa: E402
 
 from sigma_des.env import SwarmVec  # noqa: E402
 
+#: the message core's entry points the engine calls by handle, without numba's dispatch,
+#: as the profiler names them (built-ins of ``fast/handle.py``): the loop's own code
+BY_HANDLE = re.compile(r"<built-in method sigma_des\.events\.fast\.handle\.\w+>")
 
-def _short(path: str) -> str:
-    """A source path from its package folder on (``sigma_des/...``, ``numpy/...``)."""
+
+def _short(path: str, fn: str = "") -> str:
+    """A source path from its package folder on (``sigma_des/...``, ``numpy/...``); the
+    loop's entry points called by handle, ``loop.py``'s."""
+    if path == "~" and BY_HANDLE.fullmatch(fn):
+        return "sigma_des/events/fast/loop.py"
     for mark in ("sigma_des/", "site-packages/"):
         if mark in path:
             return path[path.index(mark) + (0 if mark == "sigma_des/" else len(mark)):]
@@ -64,8 +73,8 @@ def profile(cond: str, scenes: int, steps: int, warm: int, metrics: bool,
     prof.disable()
     stats = pstats.Stats(prof)
     own: Counter[str] = Counter()
-    for (path, _line, _fn), row in stats.stats.items():  # type: ignore[attr-defined]
-        own[_short(path)] += row[2]
+    for (path, _line, fn), row in stats.stats.items():  # type: ignore[attr-defined]
+        own[_short(path, fn)] += row[2]
     total = sum(own.values()) or 1.0
     scene_steps = scenes * steps
     print(f"{cond}, {scenes} scenes, metrics {metrics}: "

@@ -8,7 +8,8 @@ profiles one run of ``--method`` with ``time.process_time`` as the profiler cloc
 (so time the process spends descheduled on a shared machine is not counted) and
 prints the CPU seconds per simulated second and the top functions by own time with
 their share. Compiled (numba) kernels appear as single entries (``advance`` = the
-cohort core's event loop, ``step_kernel`` = the aircraft step).
+cohort core's event loop, ``loop.py:by handle`` where the engine calls it by handle,
+without numba's dispatch; ``step_kernel`` = the aircraft step).
 
 ``--phases`` first times, unprofiled, the whole path of ``sigma_des.api.compare`` for
 that method, split into set-up (scenario, ``make_run``: truth rings, network, draw
@@ -29,6 +30,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import pstats
+import re
 import resource
 import sys
 import time
@@ -36,6 +38,10 @@ from collections.abc import Callable
 from typing import Any
 
 from sigma_des.jitcache import loaded_specialisations
+
+#: the message core's entry points the engine calls by handle, without numba's dispatch,
+#: as the profiler names them (built-ins of ``fast/handle.py``): shown as the loop's
+BY_HANDLE = re.compile(r"<built-in method sigma_des\.events\.fast\.handle\.(\w+)>")
 
 
 def _usage() -> tuple[float, float, float, int, int]:
@@ -187,6 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'own s':>8s} {'share':>6s} {'calls':>8s}  function")
     for (file, line, fn), (_cc, nc, tt, _ct, _callers) in rows[: a.top]:
         where = file.rsplit("/", 2)[-1] if "/" in file else file
+        entry = BY_HANDLE.fullmatch(fn)
+        if entry is not None:  # the loop's entry point, called by handle
+            fn, where, line = entry[1], "loop.py", "by handle"
         print(f"{tt:8.3f} {100 * tt / total:5.1f}% {nc:8d}  {fn} ({where}:{line})")
     return 0
 

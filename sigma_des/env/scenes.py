@@ -35,6 +35,7 @@ from sigma_des.core.rng import RandomStreams, mix
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.events.fast.growth import trims_batched
 from sigma_des.events.spec import RunSpec
 
 __all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
@@ -211,19 +212,20 @@ class SceneBatch:
                 self.episode[s] = 0
             elif self.scenes:
                 self.episode[s] += 1
-        if not self.scenes:
-            self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
-        elif len(ids) < self.n_scenes:
-            for s in ids:
-                _retire(self.scenes[s])
-                self.scenes[s] = self._fresh(s)
-        else:
-            for old in self.scenes:
-                _retire(old)
-            del old  # the loop's name would keep the last scene's run alive
-            self.scenes = []
-            gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
-            self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+        with trims_batched():  # the C heap trimmed once for all the fresh scenes
+            if not self.scenes:
+                self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+            elif len(ids) < self.n_scenes:
+                for s in ids:
+                    _retire(self.scenes[s])
+                    self.scenes[s] = self._fresh(s)
+            else:
+                for old in self.scenes:
+                    _retire(old)
+                del old  # the loop's name would keep the last scene's run alive
+                self.scenes = []
+                gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
+                self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
         self.advance([self.scenes[s] for s in ids])
 
     def restart(self, ids: list[int], advance: bool = True) -> None:
@@ -232,10 +234,11 @@ class SceneBatch:
         Without ``advance`` the fresh scenes wait for the next :meth:`advance` of the
         whole batch (a scene's episode does not depend on which call runs it).
         """
-        for s in ids:
-            self.episode[s] += 1
-            _retire(self.scenes[s])
-            self.scenes[s] = self._fresh(s)
+        with trims_batched():  # the C heap trimmed once for all the fresh scenes
+            for s in ids:
+                self.episode[s] += 1
+                _retire(self.scenes[s])
+                self.scenes[s] = self._fresh(s)
         if advance and ids:
             self.advance([self.scenes[s] for s in ids])
 

@@ -108,6 +108,8 @@ class AttemptTables:
             elif self.active:
                 self._register_stream(net, lossy, k)
         n_ack = sum(len(v) for v in self._ack.values())
+        #: whether any PUBACK of attempt 0 is drawn (else :meth:`fill_ack` fills nothing)
+        self.acks = n_ack > 0
         n_x = sum(len(v) for v in self._x.values())
         self.ack_val = np.zeros((max(n_ack, 1), history, subjects))
         self.ack_tag = np.full((max(n_ack, 1), history), -1, dtype=np.int64)

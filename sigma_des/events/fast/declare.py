@@ -47,15 +47,17 @@ def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:
 
 
 def build(
-    fields: Sequence[Field], dims: Mapping[str, int], given: Mapping[str, NDArray[Any]]
+    fields: Sequence[Field], dims: Mapping[str, int], given: Mapping[str, NDArray[Any]],
+    shapes: Sequence[tuple[int, ...]] | None = None,
 ) -> tuple[NDArray[Any], ...]:
     """Build the state tuple of ``fields``: ``given`` arrays checked, the others made
-    from their fill.
+    from their fill (``np.zeros`` for a fill of 0: the same contents).
 
     Args:
         fields: the declaration, in order.
         dims: the size of every dimension name the declaration uses.
         given: the arrays of the fields whose ``fill`` is None (and no others).
+        shapes: each field's :func:`shape_of` under ``dims``, if the caller has them.
 
     Returns:
         The state tuple.
@@ -68,10 +70,12 @@ def build(
     if extra:
         raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
     arrays: list[NDArray[Any]] = []
-    for f in fields:
-        shape = shape_of(f, dims)
+    if shapes is None:
+        shapes = [shape_of(f, dims) for f in fields]
+    for f, shape in zip(fields, shapes, strict=True):
         if f.fill is not None:
-            arrays.append(np.full(shape, f.fill, dtype=f.dtype))
+            arrays.append(np.zeros(shape, dtype=f.dtype) if f.fill == 0
+                          else np.full(shape, f.fill, dtype=f.dtype))
             continue
         if f.name not in given:
             raise ValueError(f"state field {f.name!r}: no array given")

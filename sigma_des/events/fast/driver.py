@@ -28,13 +28,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.sim import Kernel
-from sigma_des.events.align.base import OBS_WIDTH, Aligner
+from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
-from sigma_des.events.fast import channel, loop
+from sigma_des.events.fast import channel, entries, loop, setup
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
+from sigma_des.events.fast.frame_draws import FrameDraws
 from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
@@ -43,15 +44,10 @@ from sigma_des.events.fast.support import (
     TABLE_MARGIN,
     CohortFallback,
     checked_int,
-    ge_slots,
-    ntp_syncs,
     unsupported,
 )
 from sigma_des.events.fast.tables import (
     DrawTables,
-    clock_tables,
-    deployment_tables,
-    link_tables,
     lossy_classes,
     network_sources,
 )
@@ -109,6 +105,7 @@ class CompiledCore:
         sources = network_sources(host.net, lossy_classes(spec))
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
+        self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
         self.rollbacks = Rollbacks(host.truth, host.nodes.step_time, host.n,
                                    host.method == "bides" and spec.time_warp, spec.theta_warp)
         self.deliveries = Deliveries(host, host.n)
@@ -116,120 +113,15 @@ class CompiledCore:
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = L.allocate(self._dims(), self._given(p_loss))
+        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK))
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
         self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
-
-    # ------------------------------------------------------------ layout
-
-    def _dims(self) -> dict[str, int]:
-        h = self.host
-        n, spec = h.n, h.spec
-        M = int(h.nodes.cmd.shape[1])
-        dup_all = self.attempts.qos1d
-        seen = self._lockstep or dup_all
-        cpu = h.net.cpu
-        cap = 4 * (n + 1) + SLACK
-        return {
-            "cap": cap, "arena": int(ARENA * cap), "pool": cap, "n": n, "clients": n + 1,
-            "bat": 2 * cap,  # fan-out elements: a few broadcasts in flight (else per message)
-            "links": spec.hosts + 1,
-            "hosts": spec.hosts, "cores": spec.cores_per_host, "tables": self.tables.tables,
-            "H": h.truth.H, "W": OBS_WIDTH, "M": M, "pay_w": max(OBS_WIDTH, M),
-            "out": 2 * (n + 1) + SLACK, "out_w": 3 + OBS_WIDTH,
-            "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
-            # duplicate check of re-requests and republished states (Lock-Step), or of
-            # every kind (QoS 1 over datagram: row = kind)
-            "seen_k": L.N_KINDS if dup_all else 2, "seen_n": n + 1 if seen else 1,
-            "seen_h": spec.history_frames if seen else 1, **self.attempts.dims(),
-            # link and clock tables (Gilbert–Elliott, degrade, drop, NTP)
-            "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
-            "deg": max(1, len(spec.net.degrades)), "drops": max(1, len(spec.net.drops)),
-            "ntp_j": ntp_syncs(spec),
-            # deployment: processes (broker, server, hosts), machines, their cores
-            "procs": spec.hosts + 2, "clients_1": n + 2,
-            "machines": len(cpu.machines) if cpu is not None else 1,
-            "cpu_cores": cpu.cores if cpu is not None else 1, **self.rollbacks.dims(),
-            **self.deliveries.dims(),
-        }
-
-    def _params(self) -> NDArray[np.int64]:
-        h = self.host
-        spec, net = h.spec, h.net
-        q = np.zeros(L.Q_LEN, dtype=np.int64)
-        q[L.Q_N] = h.n
-        q[L.Q_H] = h.truth.H
-        q[L.Q_HLC] = int(h.method == "hlc")
-        q[L.Q_WARP] = int(h.method == "bides" and spec.time_warp)
-        q[L.Q_THETA] = spec.theta_warp
-        q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
-        q[L.Q_ACK] = net.ack_bytes
-        q[L.Q_W] = OBS_WIDTH
-        q[L.Q_M] = int(h.nodes.cmd.shape[1])
-        q[L.Q_LOCK] = int(self._lockstep)
-        q[L.Q_BATCH] = int(h.truth.batched)
-        self.deliveries.params(q)
-        return q
-
-    def _links(self) -> dict[str, NDArray[Any]]:
-        """Access links and message sizes (what Network holds per link and kind)."""
-        h = self.host
-        spec, net = h.spec, h.net
-        spb = np.zeros((2, spec.hosts + 1))
-        for k in range(spec.hosts + 1):
-            spb[1, k] = net.up[k].sec_per_byte
-            spb[0, k] = net.down[k].sec_per_byte
-        wb = np.zeros(L.N_KINDS, dtype=np.int64)
-        bits = {TRIGGER: spec.trigger_payload_bits, STATE: spec.payload_bits,
-                COMMAND: spec.commands.payload_bits, REREQUEST: spec.trigger_payload_bits,
-                REPUBLISH: spec.payload_bits}
-        for kind, b in bits.items():
-            wb[kind] = net.wire_bytes(b)
-        return {"link_spb": spb, "link_of": np.array(net.link_of, dtype=np.int64),
-                "wire_bytes": wb}
-
-    def _nodes(self) -> dict[str, NDArray[Any]]:
-        """Node rows, hosts, faults and clocks."""
-        h = self.host.nodes
-        n = self.host.n
-        nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
-        nd[[L.N_FRAME, L.N_REQ, L.N_TARGET, L.N_CSTAMP]] = -1
-        ptr = np.zeros(n + 1, dtype=np.int64)
-        rows: list[tuple[float, float, float]] = []
-        for i in range(n):
-            rows.extend(h.slow.get(i, ()))
-            ptr[i + 1] = len(rows)
-        last_i = np.zeros((n, 2), dtype=np.int64)
-        last_i[:, 0] = -1
-        drift = (h.clocks.drift_ppm * 1e-6).tolist()  # the engine's arithmetic, exactly
-        return {
-            "node": nd, "host_of": np.array(h.host_of, dtype=np.int64),
-            "crash": np.array(h.crash_at, dtype=np.float64), "slow_ptr": ptr,
-            "slow": np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64),
-            "clock_off": np.array(h.clocks.offset.tolist(), dtype=np.float64),
-            "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
-        }
-
-    def _given(self, p_loss: tuple[float, float]) -> dict[str, NDArray[Any]]:
-        h = self.host
-        spec = h.spec
-        cap = 4 * (h.n + 1) + SLACK
-        tb = self.tables
-        return {
-            "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
-            "pool_free": np.arange(cap, dtype=np.int32)[::-1].copy(),
-            "iparams": self._params(), "fparams": np.array([spec.warmup, spec.duration]),
-            "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
-            "draw_tag": tb.tags, "p_loss": np.array(p_loss),
-            "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
-            **self._links(), **self._nodes(), **self.attempts.given(),
-            **deployment_tables(h.net, spec), **link_tables(h.net, spec),
-            **clock_tables(h.nodes.clocks, spec), **self.rollbacks.given(),
-            **self.deliveries.given(),
-        }
+        self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
+        self._bound = entries.DISPATCHED
+        self._arg: Any = self.S  # what the bound entry points take for it (a handle)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -239,6 +131,7 @@ class CompiledCore:
         iv = self.S[L.INTS]
         if iv[L.I_FREE] < need or iv[L.I_PFREE] < need:
             self.S = grow(self.S, need)
+            self._typed = ()  # arrays resized in place: the state is held again (handle.py)
 
     def load_kernels(self) -> int:
         """Load, for this state's types, the loop's entry points Python calls; return how
@@ -257,7 +150,18 @@ class CompiledCore:
                 if sig not in k.signatures]  # type: ignore[attr-defined]
         for kernel, sig in todo:
             kernel.compile(sig)  # type: ignore[attr-defined]
+        self._entries()  # and the entry points by handle (fast/entries.py)
         return len(todo)
+
+    def _entries(self) -> entries.Entries:
+        """The loop's entry points for the current state, and :attr:`_arg` what they take
+        for it (both bound again when the state tuple was replaced:
+        :func:`~sigma_des.events.fast.entries.bound`, a new handle)."""
+        if self.S is not self._typed:
+            self._bound = entries.bound(self.S)
+            self._arg = self._bound.arg(self.S)
+            self._typed = self.S
+        return self._bound
 
     def _check_open(self) -> None:
         if self._closed:
@@ -274,6 +178,7 @@ class CompiledCore:
                                                dtype=S[L.INDEX[name]].dtype)
                                 for name in (*TABLE, "obs_hist")})
         self._closed = True
+        self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
@@ -283,17 +188,15 @@ class CompiledCore:
 
     def publish_trigger(self, k: int, stamp: Stamp | None) -> None:
         """The server publishes trigger ``k`` to every node, now."""
-        tb = self.tables
-        tb.fill(TRIGGER, k)
-        tb.fill(STATE, k)
-        tb.fill(0, k)  # compute
-        self.attempts.fill_ack(TRIGGER, k)
-        self.attempts.fill_ack(STATE, k)
+        self.frame_draws.fill(k)  # the trigger's, its states' and the compute draws
+        if self.attempts.acks:
+            self.attempts.fill_ack(TRIGGER, k)
+            self.attempts.fill_ack(STATE, k)
         self.ensure_space(2)
-        hl, hc = (stamp.l, stamp.c) if stamp is not None else (math.nan, 0)
+        hl, hc = (float(stamp.l), stamp.c) if stamp is not None else (math.nan, 0)
         now = self.host.kernel.now
-        loop.publish_trigger(self.S, checked_int(k, "trigger index"), now, hl,
-                             checked_int(hc, "trigger HLC counter"))
+        self._entries().publish_trigger(self._arg, checked_int(k, "trigger index"), now, hl,
+                                        checked_int(hc, "trigger HLC counter"))
         # the core keeps no per-node trigger deliveries: the tap records the issue
         self.host.tap.issue(k, now)
         self.host.tap.trigger(-1, k, now, math.nan)
@@ -305,13 +208,16 @@ class CompiledCore:
         if nodes.size == 0:
             return
         self.tables.fill(COMMAND, tick)
-        self.attempts.fill_ack(COMMAND, tick)
+        if self.attempts.acks:
+            self.attempts.fill_ack(COMMAND, tick)
         self.ensure_space(nodes.size + 2)
         rows = np.ascontiguousarray(cmds, dtype=np.float64)
+        if rows.ndim != 2:
+            raise ValueError(f"cmds: one row per node, got shape {rows.shape}")
         now = self.host.kernel.now
-        loop.publish_commands(self.S, checked_int(tick, "command tick"),
-                              checked_int(stamp, "command stamp"), nodes.astype(np.int64),
-                              rows, now)
+        self._entries().publish_commands(self._arg, checked_int(tick, "command tick"),
+                                         checked_int(stamp, "command stamp"),
+                                         np.ascontiguousarray(nodes, dtype=np.int64), rows, now)
         # the core keeps no per-node command deliveries: the tap records the sends
         self.host.tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
 
@@ -359,10 +265,10 @@ class CompiledCore:
             self.flush_rollbacks()
         self.ensure_space(2)
         if truth.batched and truth.first_resim(c) <= truth.latest:
-            loop.roll_back(self.S, i, c, current, now)
+            self._entries().roll_back(self._arg, i, c, current, now)
         else:
             steps = truth.rollback(i, c, current, self.host.nodes.cmd[i])
-            loop.owe_steps(self.S, i, steps, now)
+            self._entries().owe_steps(self._arg, i, steps, now)
         iv = self.S[L.INTS]
         if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
             iv[L.I_PEND] = 0
@@ -378,7 +284,7 @@ class CompiledCore:
         nd = self.S[L.NODE]
         self.S = self.rollbacks.fill(self.S, int(nd[L.N_REQ, i]), int(nd[L.N_RB, i]))
         self.ensure_space(2)
-        loop.start(self.S, i, now)
+        self._entries().start(self._arg, i, now)
 
     # ------------------------------------------------------------ running
 
@@ -417,11 +323,14 @@ class CompiledCore:
             if self._lockstep:
                 self.drain()
                 self._sync_barrier()
-            code = loop.advance(self.S, float(bound), strict)
+            code = self._entries().advance(self._arg, float(bound), bool(strict))
             self.exits[code] += 1
-            if code == L.OK:
-                self.flush_rollbacks()
-                self.drain()
+            if code == L.OK:  # (neither call has anything to do when its count is 0)
+                iv = self.S[L.INTS]
+                if iv[L.I_DEFN]:
+                    self.flush_rollbacks()
+                if iv[L.I_OUT]:
+                    self.drain()
                 return False
             S = self.S
             if code == L.BARRIER:

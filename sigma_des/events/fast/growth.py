@@ -33,6 +33,8 @@ from __future__ import annotations
 import ctypes
 import gc
 import mmap
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 from typing import Any
 
@@ -43,7 +45,7 @@ from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
 __all__ = ["GROWTH", "IN_PLACE", "POOL", "PREFIX", "SCRATCH", "TABLE", "fresh", "grow",
-           "before_run", "grown_capacity", "run_finished", "trim_heap"]
+           "before_run", "grown_capacity", "run_finished", "trim_heap", "trims_batched"]
 
 #: The table grows by at least ``1 / GROWTH`` of its slots (a growth copies nothing
 #: whole, so small steps cost little and leave less unused room).
@@ -137,8 +139,28 @@ def before_run() -> None:
     if _owed[0]:
         _owed[0] = False
         gc.collect()
-    trim_heap()
+    if _batched[0]:
+        _batched[1] = True  # the batch's end trims
+    else:
+        trim_heap()
     _fix_mmap_threshold()
+
+
+_batched = [0, False]  # open trims_batched blocks, a trim owed at their end
+
+
+@contextmanager
+def trims_batched() -> Iterator[None]:
+    """The runs set up inside share one heap trim (:func:`before_run`), at the block's end:
+    a learning env starting many small scenes at once trims once, not once a scene."""
+    _batched[0] += 1
+    try:
+        yield
+    finally:
+        _batched[0] -= 1
+        if _batched[0] == 0 and _batched[1]:
+            _batched[1] = False
+            trim_heap()
 
 
 @lru_cache(maxsize=1)

@@ -454,8 +454,18 @@ def allocate(
     dims: Mapping[str, int], given: Mapping[str, NDArray[Any]]
 ) -> tuple[NDArray[Any], ...]:
     """The core's state tuple (:func:`~sigma_des.events.fast.declare.build` of
-    :data:`FIELDS`): ``given`` arrays checked, the others made from their fill."""
-    return build(FIELDS, dims, given)
+    :data:`FIELDS`): ``given`` arrays checked, the others made from their fill (the
+    fields' shapes kept per set of dimensions: the scenes of a learning env share them)."""
+    key = tuple(dims.items())
+    shapes = _SHAPES.get(key)
+    if shapes is None:
+        if len(_SHAPES) >= 64:
+            _SHAPES.clear()
+        shapes = _SHAPES[key] = [shape_of(f, dims) for f in FIELDS]
+    return build(FIELDS, dims, given, shapes)
+
+
+_SHAPES: dict[tuple[tuple[str, int], ...], list[tuple[int, ...]]] = {}
 
 
 def replaced(

@@ -125,6 +125,10 @@ class DrawTables:
         self.values = np.zeros((self.tables, history, subjects))
         self.tags = np.full((self.tables, history), -1, dtype=np.int64)
 
+    def fills_of(self, kind: int) -> list[Fill]:
+        """The tables of ``kind``, each with its cache and sampling kind."""
+        return list(self._fills[kind])
+
     def fill(self, kind: int, index: int) -> None:
         """Make the rows of ``(kind, index)`` present (a pure function of the key).
 

@@ -1,0 +1,84 @@
+"""The draw rows a trigger issue needs, filled in one pass per frame.
+
+A trigger ``k`` needs the rows of index ``k`` of every draw table of its own kind, of
+the states it causes and of the compute stream (:class:`~.tables.DrawTables`). Filling
+them table by table costs a Python loop per trigger; :class:`FrameDraws` keeps the draws
+of a block of consecutive frames for all those tables at once (one sampler call per
+table every ``rows`` frames, as :class:`~sigma_des.core.draws.DrawBlock` does) and copies
+frame ``k``'s values into the tables' rows in one compiled call.
+
+The rows hold what :meth:`~.tables.DrawTables.fill` writes: draws are a pure function of
+their key and a block's row is the bits of :meth:`~sigma_des.core.draws.DrawCache.vector`
+of its index, so a row is (re)written with the values it would hold anyway.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from sigma_des.core.draws import BLOCK, BLOCK_VALUES
+from sigma_des.events.fast.compiler import jit
+from sigma_des.events.fast.tables import DrawTables
+
+__all__ = ["FrameDraws"]
+
+
+@jit
+def _copy_rows(values, tags, tables, widths, block, j, row, index):  # type: ignore[no-untyped-def]
+    """Row ``row`` of each table ``tables[t]``: the head ``widths[t]`` of ``block[t, j]``,
+    tagged ``index``."""
+    for t in range(tables.shape[0]):
+        c = tables[t]
+        for x in range(widths[t]):
+            values[c, row, x] = block[t, j, x]
+        tags[c, row] = index
+
+
+class FrameDraws:
+    """Rows of index ``k`` of the tables of ``kinds``, filled by :meth:`fill`.
+
+    Args:
+        tables: the run's draw tables (their ``values`` and ``tags`` are written in place).
+        kinds: the message kinds (0: the compute stream) whose tables a frame needs.
+    """
+
+    def __init__(self, tables: DrawTables, kinds: Sequence[int]) -> None:
+        fills = [f for k in kinds for f in tables.fills_of(k)]
+        self._values = tables.values
+        self._tags = tables.tags
+        self._history = tables.tags.shape[1]
+        self._tables = np.array([c for c, _, _ in fills], dtype=np.int64)
+        self._widths = np.array([cache.n_subjects for _, cache, _ in fills], dtype=np.int64)
+        self._sources = [(cache, kind) for _, cache, kind in fills]
+        self._blockable = all(cache.blockable for cache, _ in self._sources)
+        widest = int(self._widths.max(initial=1))
+        self.rows = max(1, min(BLOCK, BLOCK_VALUES // max(1, widest))) if self._blockable else 1
+        self._first = 0
+        self._count = 0
+        #: the block's values ``[table, frame - first, subject]`` (each table's head width)
+        self._block = np.zeros((len(fills), self.rows, widest))
+
+    def fill(self, index: int) -> None:
+        """Make the rows of ``index`` of every table present (``index % history``)."""
+        j = index - self._first
+        if not 0 <= j < self._count:
+            self._draw(index)
+            j = 0
+        _copy_rows(self._values, self._tags, self._tables, self._widths, self._block, j,
+                   index % self._history, index)
+
+    def _draw(self, index: int) -> None:
+        """Draw the block of ``rows`` frames from ``index`` on (one frame unless every
+        cache is blockable: the others draw one index per call)."""
+        block = self._block
+        if self._blockable:
+            keys = np.arange(index, index + self.rows, dtype=np.int64)
+            for t, (cache, kind) in enumerate(self._sources):
+                block[t, :, : self._widths[t]] = cache.block(kind, keys, 0)
+        else:
+            for t, (cache, kind) in enumerate(self._sources):
+                block[t, 0, : self._widths[t]] = cache.vector(kind, index, 0)
+        self._first = index
+        self._count = self.rows

@@ -1,0 +1,62 @@
+"""A trigger's draw rows in one pass (FrameDraws) hold what DrawTables.fill writes kind by
+kind: the same values and tags, over block boundaries, jumps back, row widths that differ,
+and caches that draw one index per call."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sigma_des.core.draws import DrawCache
+from sigma_des.events.fast.frame_draws import FrameDraws
+from sigma_des.events.fast.layout import K_COMMAND, K_STATE, K_TRIGGER, STEP, SVC_DEL, SVC_PUB
+from sigma_des.events.fast.tables import DrawTables
+from sigma_des.events.jobs import STEP_DRAW
+from tests.events.fast.test_draw_tables import Counting
+
+KINDS = (K_TRIGGER, K_STATE, 0)
+
+
+def _tables(blockable: bool) -> tuple[DrawTables, Counting]:
+    sampler = Counting()  # its values broadcast: a block is one call
+    wide = DrawCache(3, sampler, blockable=blockable)
+    narrow = DrawCache(2, sampler, blockable=blockable)
+    const = DrawCache(3, sampler, constant=0.5)
+    return DrawTables([(SVC_PUB, K_TRIGGER, wide), (SVC_DEL, K_TRIGGER, narrow),
+                       (SVC_PUB, K_STATE, narrow), (SVC_DEL, K_STATE, const),
+                       (SVC_PUB, K_COMMAND, wide), (STEP, 0, narrow)],
+                      history=5, subjects=3), sampler
+
+
+@pytest.mark.parametrize("blockable", [True, False])
+def test_frame_draws_write_the_rows_of_drawtables_fill(blockable: bool) -> None:
+    fast, sampler = _tables(blockable)
+    ref, _ = _tables(blockable)
+    frames = FrameDraws(fast, KINDS)
+    assert frames.rows == (64 if blockable else 1)
+    for k in (0, 1, 2, 3, 4, 63, 64, 65, 200, 199, 7):
+        frames.fill(k)
+        for kind in KINDS:
+            ref.fill(kind, k)
+        np.testing.assert_array_equal(fast.values, ref.values)
+        np.testing.assert_array_equal(fast.tags, ref.tags)
+    # by hand: frame 7 in row 2 of the trigger's wide and narrow tables and the compute
+    # table (sampled with STEP_DRAW); the command's table untouched
+    assert fast.values[0, 2].tolist() == [K_TRIGGER * 1e4 + 70.0, K_TRIGGER * 1e4 + 70.1,
+                                          K_TRIGGER * 1e4 + 70.2]
+    assert fast.values[1, 2, :2].tolist() == [K_TRIGGER * 1e4 + 70.0, K_TRIGGER * 1e4 + 70.1]
+    assert fast.values[4, 2, :2].tolist() == [STEP_DRAW * 1e4 + 70.0, STEP_DRAW * 1e4 + 70.1]
+    assert fast.tags[:, 2].tolist() == [7, 7, 7, -1, 7]
+    assert fast.tags[3].tolist() == [-1] * 5  # K_COMMAND: not a frame's kind
+    if blockable:  # one call per table and block: 0..63, 64..127, 200..263, 199.., 7..
+        assert len(sampler.calls) == 4 * 5
+    else:  # one vector per table and frame
+        assert len(sampler.calls) == 4 * 11
+
+
+def test_frame_draws_of_constant_sources_only_fill_nothing() -> None:
+    sampler = Counting()
+    const = DrawCache(2, sampler, constant=0.25)
+    tables = DrawTables([(SVC_PUB, K_TRIGGER, const)], history=3, subjects=2)
+    FrameDraws(tables, KINDS).fill(4)
+    assert sampler.calls == [] and tables.tags.tolist() == [[-1, -1, -1]]
