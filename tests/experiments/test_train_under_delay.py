@@ -122,6 +122,7 @@ def test_jobs_train_the_seeds_in_processes_and_merge_to_the_same_study(
     assert printed.count("done before") == 4 and " trained (" not in printed
     assert "[shard 0] seed 0 perfect" in printed and "[shard 1] seed 1 perfect" in printed
     assert json.loads((two / "summary.json").read_text())["stats"] == want["stats"]
+    assert "resumed: this run took" in (two / "summary.md").read_text()  # not "N s in all"
 
 
 def test_shard_command_lines_replace_the_parents_own_options() -> None:

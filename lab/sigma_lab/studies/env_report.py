@@ -236,9 +236,11 @@ def delay_study(path: Path, img_dir: Path, level: int = 3) -> str:
         mid = each[len(each) // 2]
         lines += ["", f"Cost: {len(cost)} trainings, {wall:.0f} s of training wall time "
                   f"({steps / wall:,.0f} agent-steps/s; per policy median {mid:.0f} "
-                  f"s, {each[0]:.0f}–{each[-1]:.0f} s), {d['wall_s']:.0f} s in all (wall "
-                  "times: they depend on the machine's load and on how many trainings shared "
-                  "it)."]
+                  f"s, {each[0]:.0f}–{each[-1]:.0f} s), " + (
+                      f"{d['wall_s']:.0f} s in all" if d["wall_s"] >= wall else
+                      f"resumed: this run took {d['wall_s']:.0f} s, the trainings were done "
+                      "before") + " (wall times: they depend on the machine's load and on how "
+                  "many trainings shared it)."]
     shown = [r["cell"] for r in d["stats"]
              if r["diff_mean"] > 0 and r["t_p_greater"] < 0.05 and r["wilcoxon_p_greater"] < 0.05]
     name = path.parent.name
