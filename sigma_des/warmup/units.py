@@ -8,7 +8,8 @@ two independent groups of similar size, each compiled in its own process —
 
 * ``core``: the compiled message core (``advance``, the ``publish_*`` entry points),
   the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths: every method of a
-  tiny point-mass scenario with commands, and a BiDES run with rollbacks;
+  tiny point-mass scenario with commands, a BiDES run with rollbacks and an aircraft
+  truth's held command rows;
 * ``physics``: the 6-DoF aircraft step and observation (quadrotor and fixed wing, one
   specialisation), the sensors, wind and atmosphere kernels, the DTW of the fidelity
   metrics and the streamed summaries of spilled samples: a tiny ideal flight of each
@@ -41,9 +42,12 @@ class UnitTime(NamedTuple):
 
 
 def _core() -> None:
+    import numpy as np
+
     from sigma_des.api import compare
     from sigma_des.config import METHODS, load
     from sigma_des.events.cohort import make_run
+    from sigma_des.events.held import HeldCommands
     from sigma_des.factory import make_behaviour, make_dynamics
 
     sc = load(None, ["nodes=4", "hosts=2", "duration=0.3", "warmup=0.1", "dynamics=\"pointmass\"",
@@ -56,6 +60,8 @@ def _core() -> None:
                      "broker.delivery_service=0.00008", "bides.theta_warp=1", "bides.hold_down=1"])
     compare(rb, ["bides"], progress=False)
     make_run(rb.run_spec(), "bides", make_dynamics(rb), make_behaviour(rb))[0].load_kernels()
+    # the command rows an aircraft's truth holds (a point mass's truth keeps none)
+    HeldCommands(2, 4).stepped(0, np.zeros((2, 4)))
 
 
 def _physics() -> None:

@@ -19,21 +19,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from sigma_des.core.draws import BLOCK, BLOCK_VALUES
-from sigma_des.events.fast.compiler import jit
+from sigma_des.events.fast.primitives import copy_rows
 from sigma_des.events.fast.tables import DrawTables
 
 __all__ = ["FrameDraws"]
-
-
-@jit
-def _copy_rows(values, tags, tables, widths, block, j, row, index):  # type: ignore[no-untyped-def]
-    """Row ``row`` of each table ``tables[t]``: the head ``widths[t]`` of ``block[t, j]``,
-    tagged ``index``."""
-    for t in range(tables.shape[0]):
-        c = tables[t]
-        for x in range(widths[t]):
-            values[c, row, x] = block[t, j, x]
-        tags[c, row] = index
 
 
 class FrameDraws:
@@ -66,7 +55,7 @@ class FrameDraws:
         if not 0 <= j < self._count:
             self._draw(index)
             j = 0
-        _copy_rows(self._values, self._tags, self._tables, self._widths, self._block, j,
+        copy_rows(self._values, self._tags, self._tables, self._widths, self._block, j,
                    index % self._history, index)
 
     def _draw(self, index: int) -> None:

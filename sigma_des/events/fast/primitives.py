@@ -352,3 +352,14 @@ def fly(S, client, up, kind, subj, index, attempt, ack, done, t):  # type: ignor
     if attempt == 0 and not ack and forced_drop(S, up, kind, subj, index):
         lost = True
     return done + lat + extra, lost
+
+
+@jit
+def copy_rows(values, tags, tables, widths, block, j, row, index):  # type: ignore[no-untyped-def]
+    """Row ``row`` of each table ``tables[t]``: the head ``widths[t]`` of ``block[t, j]``,
+    tagged ``index``."""
+    for t in range(tables.shape[0]):
+        c = tables[t]
+        for x in range(widths[t]):
+            values[c, row, x] = block[t, j, x]
+        tags[c, row] = index
