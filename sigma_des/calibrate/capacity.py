@@ -12,8 +12,8 @@ they are within ``tol`` of each other (relative, at least one node). Each method
 three searches sharing one cache of predictions: on the predicted means, and on each
 end of their intervals (the pessimistic end: the interval's high missed fraction and
 latency, its low rate; the optimistic end the other way), which gives the capacity's
-interval. :func:`plot` draws missed frames and mean latency against N per method,
-the capacity marked.
+interval. :func:`plot` draws the achieved rate, missed frames and mean latency
+against N per method, the capacity marked.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from sigma_des.calibrate.intervals import Interval
 from sigma_des.errors import ConfigError
 
 __all__ = ["MAX_EVALS", "RATE_HELD", "Capacity", "HostsRule", "find_capacity", "holds",
-           "holds_at", "plot", "search"]
+           "figure", "holds_at", "plot", "search"]
 
 #: Live holds its rate at or above this share of the nominal trigger rate.
 RATE_HELD = 0.95
@@ -184,36 +184,74 @@ def find_capacity(method: str, predict_at: Callable[[int], dict[str, Interval]],
     return Capacity(method, cap, bad, lo, hi, seen, dict(sorted(cache.items())))
 
 
-def plot(caps: list[Capacity], path: Path, max_missed: float,
-         max_latency_ms: float | None) -> None:
-    """Missed frames and mean state latency against N per method, the capacity marked."""
+def figure(caps: list[Capacity], max_missed: float, max_latency_ms: float | None,
+           f_trig: float) -> Any:
+    """The capacity figure (matplotlib ``Figure``): per method against N, the achieved
+    trigger rate (% of nominal, the 95 % line), the missed frames and the mean state
+    latency, each with its interval band, the capacity dotted, the budgets in black.
+
+    The rate panel shows why a method whose missed frames and latency stay low still
+    stops holding (Lock-Step's barrier lowers its rate instead of missing frames).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-    from sigma_des.plotstyle import MIN_DPI, line_kw
+    from sigma_des.plotstyle import line_kw
 
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2), layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2), layout="constrained")
+    panels = (("trigger_rate_hz", 100.0 / f_trig, "trigger rate (% of nominal)", False),
+              ("missed_frac", 100.0, "missed frames (%)", False),
+              ("latency_state_mean", 1.0, "mean state latency (ms)", True))
     for c in caps:
         ns = sorted(c.points)
         kw = line_kw(c.method, n_points=len(ns))
-        for ax, k, scale in ((a1, "missed_frac", 100.0), (a2, "latency_state_mean", 1.0)):
+        for ax, (k, scale, _label, _log) in zip(axes, panels, strict=True):
             ivs = [c.points[n][k] for n in ns]
             ax.plot(ns, [scale * iv.mean for iv in ivs], label=c.method, **kw)
             ax.fill_between(ns, [scale * iv.lo for iv in ivs], [scale * iv.hi for iv in ivs],
                             color=kw["color"], alpha=0.12, lw=0)
             if c.capacity is not None:
                 ax.axvline(c.capacity, color=kw["color"], ls=":", lw=1)
-    a1.axhline(100 * max_missed, color="k", lw=0.8, ls="--")
+    # the budgets: thin black lines (the methods' own styles use dashes)
+    axes[0].axhline(100 * RATE_HELD, color="k", lw=0.8)
+    axes[1].axhline(100 * max_missed, color="k", lw=0.8)
     if max_latency_ms is not None:
-        a2.axhline(max_latency_ms, color="k", lw=0.8, ls="--")
-    a1.set_ylabel("missed frames (%)")
-    a2.set_ylabel("mean state latency (ms)")
-    a2.set_yscale("log")
-    for ax in (a1, a2):
+        axes[2].axhline(max_latency_ms, color="k", lw=0.8)
+    for ax, (_k, _s, label, log) in zip(axes, panels, strict=True):
+        ax.set_ylabel(label)
         ax.set_xlabel("nodes N")
         ax.set_xscale("log")
-    a1.legend(title="dotted: capacity; dashed: budget", fontsize=8)
+        # plain node counts on the log axis (10, 20, 50, not 2 x 10^1)
+        ax.xaxis.set_major_formatter(ScalarFormatter())
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.set_xticks(_ticks(caps))
+        if log:
+            ax.set_yscale("log")
+    axes[0].legend(title="dotted: capacity; black: budget", fontsize=8)
+    return fig
+
+
+def _ticks(caps: list[Capacity]) -> list[int]:
+    """Round node counts within the evaluated range, for the log N axis."""
+    ns = [n for c in caps for n in c.points]
+    if not ns:
+        return []
+    lo, hi = min(ns), max(ns)
+    marks = [m * 10**e for e in range(0, 6) for m in (1, 2, 3, 5)]
+    inside = [m for m in marks if lo <= m <= hi]
+    return sorted({lo, hi, *inside}) if len(inside) < 2 else inside
+
+
+def plot(caps: list[Capacity], path: Path, max_missed: float,
+         max_latency_ms: float | None, f_trig: float) -> None:
+    """:func:`figure` written to ``path`` (PNG)."""
+    import matplotlib.pyplot as plt
+
+    from sigma_des.plotstyle import MIN_DPI
+
+    fig = figure(caps, max_missed, max_latency_ms, f_trig)
     fig.savefig(path, dpi=max(MIN_DPI, 110))
     plt.close(fig)

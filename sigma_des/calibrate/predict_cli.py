@@ -113,6 +113,7 @@ def run_capacity(args: argparse.Namespace) -> int:
     """Run ``capacity``; ConfigError propagates (exit 2)."""
     from sigma_des.calibrate.capacity import HostsRule, find_capacity
     from sigma_des.calibrate.predict import predict
+    from sigma_des.calibrate.target import prepare
 
     if not (math.isfinite(args.max_missed) and 0.0 <= args.max_missed < 1.0):
         raise ConfigError("--max-missed", f"must be in 0..1 (a share), got {args.max_missed}")
@@ -131,6 +132,11 @@ def run_capacity(args: argparse.Namespace) -> int:
     say = _say(args.no_progress)
     caps = []
     with tempfile.TemporaryDirectory(prefix="sigma-des-capacity-") as tmp:
+        # the rate a method must hold is the target's (a --set f_trig=... changes it)
+        f_trig = prepare(cal, report, [*args.sets, f"nodes={args.n_min}",
+                                       f"hosts={rule.hosts(args.n_min)}"],
+                         bundle=args.bundle, add_latency_s=args.add_latency / 1e3,
+                         samples_dir=Path(tmp)).f_trig
         for m in methods:
             def at(n: int, m: str = m) -> Any:
                 p = predict(cal, report, [*args.sets, f"nodes={n}", f"hosts={rule.hosts(n)}"],
@@ -144,11 +150,11 @@ def run_capacity(args: argparse.Namespace) -> int:
                         f"{iv['latency_state_mean'].mean:.3g} ms, rate "
                         f"{iv['trigger_rate_hz'].mean:.4g} Hz ({p.regimes[m]})")
                 return iv
-            caps.append(find_capacity(m, at, args.n_min, args.n_max, cal.f_trig,
+            caps.append(find_capacity(m, at, args.n_min, args.n_max, f_trig,
                                       args.max_missed, args.max_latency))
     _print(caps, args)
     if args.out:
-        _write(caps, Path(args.out), args)
+        _write(caps, Path(args.out), args, f_trig)
     return 0
 
 
@@ -172,7 +178,7 @@ def _print(caps: list[Any], args: argparse.Namespace) -> None:
     print(text_table(rows))
 
 
-def _write(caps: list[Any], out: Path, args: argparse.Namespace) -> None:
+def _write(caps: list[Any], out: Path, args: argparse.Namespace, f_trig: float) -> None:
     from sigma_des.calibrate.capacity import plot
     from sigma_des.calibrate.target import FIGURES
     from sigma_des.outputs import write_files
@@ -195,6 +201,7 @@ def _write(caps: list[Any], out: Path, args: argparse.Namespace) -> None:
 
     def summ(fh: IO[str]) -> None:
         fh.write(json.dumps({"max_missed": args.max_missed, "max_latency_ms": args.max_latency,
+                             "f_trig_hz": f_trig,
                              "hosts_rule": args.hosts_rule, "bundle": args.bundle,
                              "methods": {c.method: {"capacity": c.capacity, "lo": c.lo,
                                                     "hi": c.hi, "first_failing": c.first_failing}
@@ -202,5 +209,5 @@ def _write(caps: list[Any], out: Path, args: argparse.Namespace) -> None:
 
     paths = write_files(out, {"capacity.csv": cap_csv, "points.csv": points_csv,
                               "summary.json": summ})
-    plot(caps, out / "capacity.png", args.max_missed, args.max_latency)
+    plot(caps, out / "capacity.png", args.max_missed, args.max_latency, f_trig)
     print(f"wrote {', '.join(str(p) for p in paths)} and {out / 'capacity.png'}")

@@ -85,3 +85,41 @@ def test_search_brackets_every_threshold() -> None:
         cap, bad, seen = search(lambda n, t=t: n <= t, 10, 400)
         assert cap is not None and bad is not None and len(seen) <= 16
         assert cap <= t < bad and bad - cap <= max(1.0, 0.05 * cap)
+
+
+def test_figure_draws_rate_missed_and_latency_with_the_budgets() -> None:
+    """Three panels against N: rate as % of nominal (95 % line), missed frames (the
+    budget), latency (its budget), the budgets in black; the capacity dotted; plain
+    node-count ticks."""
+    import matplotlib.pyplot as plt
+
+    from sigma_des.calibrate.capacity import Capacity, figure
+
+    pts = {n: {"trigger_rate_hz": _iv(50.0 - n / 10, 49.0 - n / 10, 51.0),
+               "missed_frac": _iv(n / 1000, n / 2000, n / 500),
+               "latency_state_mean": _iv(1.0 + n, 0.5 + n, 2.0 + n)} for n in (10, 20, 40)}
+    fig = figure([Capacity("lockstep", 20, 40, 10, 40, [10, 20, 40], pts)], 0.05, 30.0, 50.0)
+    try:
+        rate, missed, lat = fig.axes
+        assert [a.get_ylabel() for a in fig.axes] == [
+            "trigger rate (% of nominal)", "missed frames (%)", "mean state latency (ms)"]
+        curve = rate.lines[0]
+        assert list(curve.get_xdata()) == [10, 20, 40]
+        assert list(curve.get_ydata()) == pytest.approx([98.0, 96.0, 92.0])  # 100 x rate / 50
+        assert list(missed.lines[0].get_ydata()) == pytest.approx([1.0, 2.0, 4.0])
+
+        def hlines(ax: object) -> list[float]:
+            return [ln.get_ydata()[0] for ln in ax.lines  # type: ignore[attr-defined]
+                    if ln.get_color() == "k"]
+
+        def vlines(ax: object) -> list[float]:
+            return [ln.get_xdata()[0] for ln in ax.lines  # type: ignore[attr-defined]
+                    if ln.get_linestyle() == ":"]
+
+        assert hlines(rate) == [95.0] and hlines(missed) == [5.0] and hlines(lat) == [30.0]
+        assert vlines(rate) == vlines(missed) == vlines(lat) == [20]
+        fig.canvas.draw()
+        assert [t.get_text() for t in rate.get_xticklabels()] == ["10", "20", "30"]
+        assert lat.get_yscale() == "log" and rate.get_xscale() == "log"
+    finally:
+        plt.close(fig)

@@ -112,12 +112,18 @@ def test_predict_writes_results_and_intervals(cal: Path, tmp_path: Path,
         assert m[k]["residual"]["source"]
 
 
-def test_capacity_small_search(cal: Path, tmp_path: Path,
+@pytest.mark.parametrize("f_trig", [None, 50.0])
+def test_capacity_small_search(cal: Path, tmp_path: Path, f_trig: float | None,
                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The capacity is the largest evaluated N that holds; a target's own trigger rate
+    (``--set f_trig=50``) is the rate it must hold, not the calibration's."""
     out = tmp_path / "c"
+    extra = [] if f_trig is None else ["--set", f"f_trig={f_trig}"]
     assert main(["capacity", str(cal), "--methods", "none", "--n-min", "2", "--n-max", "8",
                  "--hosts-rule", "per=2", "--max-latency", "50", "--out", str(out),
-                 *SHORT]) == 0
+                 *SHORT, *extra]) == 0
+    nominal = load_calibration(cal)[0].f_trig if f_trig is None else f_trig
+    assert json.loads((out / "summary.json").read_text())["f_trig_hz"] == nominal
     assert "capacity" in capsys.readouterr().out
     caps = list(csv.DictReader((out / "capacity.csv").open()))
     assert caps[0]["method"] == "none"
@@ -126,6 +132,8 @@ def test_capacity_small_search(cal: Path, tmp_path: Path,
     cap = int(caps[0]["capacity"]) if caps[0]["capacity"] else 0
     for n in {n for n, _ in means}:  # the capacity is the largest evaluated N that holds
         ok = holds(means[(n, "trigger_rate_hz")], means[(n, "missed_frac")],
-                   means[(n, "latency_state_mean")], 100.0, 0.05, 50.0)
+                   means[(n, "latency_state_mean")], nominal, 0.05, 50.0)
         assert ok == (n <= cap), n
+    if f_trig is not None:  # the runs held the target's rate, so it is not "never held"
+        assert cap >= 2 and means[(2, "trigger_rate_hz")] == pytest.approx(f_trig, rel=0.05)
     assert (out / "capacity.png").stat().st_size > 0
