@@ -75,37 +75,6 @@ def mix_outer(h: np.uint64, a: np.ndarray, mid: np.ndarray, b: np.ndarray, tail:
 
 
 @njit(cache=True)
-def mix_grid(h: np.uint64, vals: np.ndarray, starts: np.ndarray, axes: np.ndarray,
-             shape: np.ndarray) -> np.ndarray:
-    """``rng.mix(key, *ids)`` for ids that are scalars or 1-d along one axis each of the
-    output (an outer product over distinct axes), flattened in C order.
-
-    ``h`` is the key's hash; id ``j``'s values are ``vals[starts[j]:starts[j + 1]]``, laid
-    along output axis ``axes[j]`` (-1: a scalar); ``shape`` the output's shape. The same
-    SplitMix64 steps per element as the array path."""
-    nd = shape.shape[0]
-    total = 1
-    for d in range(nd):
-        total *= shape[d]
-    out = np.empty(total, dtype=np.uint64)
-    at = np.zeros(nd, dtype=np.int64)
-    for e in range(total):
-        z = h
-        for j in range(axes.shape[0]):
-            ax = axes[j]
-            z = absorb(z, vals[starts[j]] if ax < 0 else vals[starts[j] + at[ax]])
-        out[e] = _fin(z)
-        d = nd - 1
-        while d >= 0:  # the next element's index, C order
-            at[d] += 1
-            if at[d] < shape[d]:
-                break
-            at[d] = 0
-            d -= 1
-    return out
-
-
-@njit(cache=True)
 def uniform_rows(key: np.uint64, kind: np.int64, subjects: np.ndarray, index: np.ndarray,
                  attempt: np.ndarray) -> np.ndarray:
     """``Stream.uniform(kind, subjects[None, :], index[:, None], attempt[:, None])``: row

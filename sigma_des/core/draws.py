@@ -11,8 +11,7 @@ A *blockable* cache's sampler also takes a column of indices or attempts (``(m, 
 against a row of subjects (``(1, n)``) and broadcasts: :meth:`DrawCache.block` then
 draws ``m`` keys in one call (:class:`DrawBlock` keeps consecutive indices for the
 compiled core's per-frame table fills), each row the bits of :meth:`DrawCache.vector`
-of its key (the counter hash is exact; the quantiles are elementwise ufuncs);
-:meth:`DrawCache.grid` draws indices by attempts likewise (the rollback draws).
+of its key (the counter hash is exact; the quantiles are elementwise ufuncs).
 """
 
 from __future__ import annotations
@@ -127,21 +126,6 @@ class DrawCache:
         out = self._sampler(self._subjects[None, :], kind,  # type: ignore[arg-type]
                             idx[:, None] if idx.ndim else int(idx),  # type: ignore[arg-type]
                             att[:, None] if att.ndim else int(att))  # type: ignore[arg-type]
-        return np.ascontiguousarray(out, dtype=np.float64)
-
-    def grid(self, kind: int, index: NDArray[np.int64], attempt: NDArray[np.int64]
-             ) -> NDArray[np.float64]:
-        """``(m, p, n_subjects)`` values in one sampler call (only for a blockable cache):
-        ``[r, j]`` is :meth:`vector` of ``(index[r], attempt[j])`` (1-d ``index`` and
-        ``attempt``, an outer product of the two)."""
-        idx = np.asarray(index, dtype=np.int64).reshape(-1)
-        att = np.asarray(attempt, dtype=np.int64).reshape(-1)
-        if self.constant is not None:
-            return np.full((idx.size, att.size, len(self._subjects)), self.constant)
-        if not self.blockable:
-            raise ValueError("grid: this cache's sampler takes one index at a time")
-        out = self._sampler(self._subjects[None, None, :], kind,  # type: ignore[arg-type]
-                            idx[:, None, None], att[None, :, None])  # type: ignore[arg-type]
         return np.ascontiguousarray(out, dtype=np.float64)
 
 

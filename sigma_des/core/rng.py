@@ -107,52 +107,13 @@ def _mix_outer(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.u
                      np.ascontiguousarray(y.ravel(), dtype=np.int64), tail, row_first)
 
 
-def _mix_grid(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.uint64] | None:
-    """:func:`mix` compiled when ``ids`` are int64-range scalars and integer arrays each
-    long along at most one axis, the axes distinct (an outer product: the rollback draws'
-    ``(kind, subjects, targets, steps)`` grid); None otherwise."""
-    arrays = [i for i in ids if isinstance(i, np.ndarray)]
-    if not arrays or any(a.dtype.kind != "i" for a in arrays):
-        return None
-    nd = max(a.ndim for a in arrays)
-    if nd == 0:
-        return None
-    shape = [1] * nd
-    vals: list[NDArray[np.int64]] = []
-    axes: list[int] = []
-    for i in ids:
-        if isinstance(i, np.ndarray):
-            long = [d for d, size in enumerate(i.shape) if size != 1]
-            if len(long) > 1:
-                return None
-            if long:
-                ax = nd - i.ndim + long[0]
-                if shape[ax] != 1:
-                    return None
-                shape[ax] = i.shape[long[0]]
-            axes.append(nd - i.ndim + long[0] if long else -1)
-            vals.append(np.asarray(i, dtype=np.int64).reshape(-1))
-        elif isinstance(i, int | np.integer) and _I64[0] <= int(i) < _I64[1]:
-            axes.append(-1)
-            vals.append(np.array([int(i)], dtype=np.int64))
-        else:
-            return None
-    from sigma_des.core.counter_rng import mix_grid  # numba: imported on first use
-
-    starts = np.cumsum([0] + [v.size for v in vals]).astype(np.int64)
-    flat = mix_grid(np.uint64(key), np.concatenate(vals), starts, np.array(axes, dtype=np.int64),
-                    np.array(shape, dtype=np.int64))
-    return flat.reshape(shape)  # type: ignore[no-any-return]
-
-
 def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     """Hash a 64-bit key and any number of integer id arrays (broadcast together).
 
-    Scalars around one 1-d array (the per-frame draw fills), around a row and a column
-    (a block of them), or around arrays each long along its own axis (a grid of them) are
-    hashed in compiled code (:func:`sigma_des.core.counter_rng.mix_column`, ``mix_outer``,
-    ``mix_grid``), the same SplitMix64 steps modulo 2**64, so the bits are those of the
-    numpy path.
+    Scalars around one 1-d array (the per-frame draw fills), or around a row and a column
+    (a block of them), are hashed in compiled code
+    (:func:`sigma_des.core.counter_rng.mix_column`, ``mix_outer``), the same SplitMix64
+    steps modulo 2**64, so the bits are those of the numpy path.
 
     Args:
         key: the stream key.
@@ -164,8 +125,6 @@ def mix(key: int | np.uint64, *ids: ArrayLike) -> NDArray[np.uint64]:
     fast = _mix_column(key, ids)
     if fast is None:
         fast = _mix_outer(key, ids)
-    if fast is None:
-        fast = _mix_grid(key, ids)
     if fast is not None:
         return fast
     arrays = [np.atleast_1d(np.asarray(i)).astype(np.int64).view(np.uint64) for i in ids]

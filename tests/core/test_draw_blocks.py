@@ -81,21 +81,6 @@ def test_large_swarms_draw_fewer_indices_per_block() -> None:
     assert b.row(7)[:2].tolist() == [7.0, 8.0] and b.values.shape == (3, 1000)
 
 
-@pytest.mark.parametrize("dist", DISTS, ids=[d.dist for d in DISTS])
-def test_grid_of_indices_by_attempts_is_the_vectors_bits(dist: Dist) -> None:
-    cache = dist_cache(5, dist, RandomStreams(11), "compute")
-    grid = cache.grid(1, np.arange(40, 46), np.arange(7))
-    assert grid.shape == (6, 7, 5)
-    for r in range(6):
-        for j in range(7):
-            np.testing.assert_array_equal(grid[r, j], cache.vector(1, 40 + r, j))
-    assert len(np.unique(grid)) == grid.size
-    assert DrawCache(2, lambda s, k, i, a: s * 1.0, constant=0.5).grid(
-        0, np.arange(3), np.arange(2)).tolist() == [[[0.5] * 2] * 2] * 3
-    with pytest.raises(ValueError, match="one index at a time"):
-        DrawCache(2, lambda s, k, i, a: s * 1.0).grid(0, np.arange(3), np.arange(2))
-
-
 def test_compiled_uniform_rows_are_the_streams_bits() -> None:
     from sigma_des.core.counter_rng import uniform_rows
 

@@ -95,38 +95,3 @@ def test_mix_of_a_row_and_a_column_among_scalars_is_splitmix64(order: str,
         want = [[_ref(key, a, int(col[i]), int(row[j]), c) for j in range(n)] for i in range(m)]
     assert got.dtype == np.uint64 and got.shape == (m, n)
     assert [[int(x) for x in r] for r in got] == want
-
-
-@pytest.mark.parametrize("dims", [(2, 3, 4), (1, 5, 1), (0, 2, 3), (3, 1, 6)])
-def test_mix_of_a_grid_of_axes_among_scalars_is_splitmix64(dims: tuple[int, int, int]) -> None:
-    # the rollback draws' grid: (kind, subjects (1, 1, n), targets (m, 1, 1), steps (1, p, 1));
-    # the compiled grid path (also a 1-d array broadcast to the last axis)
-    m, p, n = dims
-    rng = np.random.default_rng(m * 100 + p * 10 + n)
-    key = int(rng.integers(0, 1 << 63)) * 2 + 1
-    subj = rng.integers(*I64, size=n, endpoint=True)
-    targ = rng.integers(*I64, size=m, endpoint=True)
-    steps = np.arange(p, dtype=np.int32) - 1  # -1 wraps to 0 when absorbed
-    if n:
-        subj[0] = I64[0]
-    a, b = (int(x) for x in rng.integers(*I64, size=2, endpoint=True))
-    for s_ids in (subj[None, None, :], subj):
-        got = mix(np.uint64(key), a, s_ids, targ[:, None, None], b, steps[None, :, None])
-        assert got.dtype == np.uint64 and got.shape == (m, p, n)
-        assert [[[int(x) for x in r] for r in blk] for blk in got] == [
-            [[_ref(key, a, int(subj[k]), int(targ[i]), b, int(steps[j])) for k in range(n)]
-             for j in range(p)] for i in range(m)]
-
-
-def test_grid_shapes_the_compiled_path_declines_hash_the_same_way() -> None:
-    key = 0x7777
-    sq = np.arange(6).reshape(2, 3)  # long along two axes: the numpy path
-    got = mix(key, sq, np.arange(4)[:, None, None])
-    assert got.shape == (4, 2, 3)
-    assert all(int(got[i, r, c]) == _ref(key, 3 * r + c, i)
-               for i in range(4) for r in range(2) for c in range(3))
-    one = mix(key, np.array([[[9]]]), np.arange(2)[:, None], 1)  # a (1, 1, 1) id is a scalar
-    assert one.shape == (1, 2, 1) and [int(x) for x in one.ravel()] == [
-        _ref(key, 9, 0, 1), _ref(key, 9, 1, 1)]
-    clash = mix(key, np.arange(2)[:, None, None], np.arange(2)[:, None, None], 0)  # same axis
-    assert [int(x) for x in clash.ravel()] == [_ref(key, 0, 0, 0), _ref(key, 1, 1, 0)]

@@ -12,9 +12,7 @@ what needs it:
   ``host_share`` copula included), so the loop's sum is :func:`~sigma_des.events.jobs.job_cost`'s
   float. A row is filled on the loop's first ``NEED_START`` for its target (to twice the
   draws it held, at least what the job needs: few returns per target), and the table
-  grows when a job owes more draws than its rows hold. The usual draws (the first
-  ``2 (Θ_warp + 2)`` of a target) are drawn ahead for a block of consecutive targets
-  in one sampler call;
+  grows when a job owes more draws than its rows hold;
 * **the re-simulation** of the deferred rollbacks: :meth:`Rollbacks.flush` hands the
   loop's pending rows (``def_int``, ``def_row``, arrival order) to
   :meth:`~sigma_des.events.truth.SwarmTruth.flush_rollbacks` and unmarks their nodes.
@@ -37,9 +35,6 @@ __all__ = ["TARGETS", "Rollbacks"]
 #: Target rows of the rollback-draw table (targets whose rollback jobs may be in
 #: flight at once: consecutive trigger frames).
 TARGETS = 8
-#: Consecutive targets whose first draws one sampler call draws ahead (a blockable
-#: compute stream: :meth:`~sigma_des.core.draws.DrawCache.grid`).
-AHEAD = 32
 
 State = tuple[NDArray[Any], ...]
 
@@ -63,9 +58,6 @@ class Rollbacks:
         self.n = n
         self._rows = max(1, theta + 2) if warp else 1
         self._targets = TARGETS if warp else 1
-        #: draws ahead ``[target - ahead_first, j, node]``, ``j < 2 * rows`` (see _ahead)
-        self._ahead = np.zeros((0, 0, n))
-        self._ahead_first = 0
 
     def dims(self) -> dict[str, int]:
         """The table's dimensions (``rb_t`` targets of ``rb_j`` draws)."""
@@ -97,10 +89,7 @@ class Rollbacks:
             big[:, : val.shape[1]] = val
             S = L.replaced(S, {"rb_val": big})
             val = big
-        ahead = self._drawn_ahead(target, want)
-        if ahead is not None:
-            val[row, have:want] = ahead[have:want]
-        elif self.step_time.blockable:  # every missing draw in one sampler call
+        if self.step_time.blockable:  # every missing draw in one sampler call
             val[row, have:want] = self.step_time.block(ROLLBACK_DRAW, target,
                                                        np.arange(have, want))
         else:
@@ -108,23 +97,6 @@ class Rollbacks:
                 val[row, j] = self.step_time.vector(ROLLBACK_DRAW, target, j)
         tag[row, L.RB_ROWS] = want
         return S
-
-    def _drawn_ahead(self, target: int, want: int) -> NDArray[np.float64] | None:
-        """The first draws ``(want, n)`` of ``target`` from the draws ahead, drawing the
-        next :data:`AHEAD` targets' first ``2 * rows`` draws in one call when ``target``
-        is not among them; None if ``want`` is more than that or the cache cannot
-        (a draw is a pure function of its key: the same values as drawn alone)."""
-        cols = 2 * self._rows
-        if want > cols or not self.step_time.blockable or self.step_time.constant is not None:
-            return None
-        j = target - self._ahead_first
-        if not 0 <= j < self._ahead.shape[0]:
-            self._ahead = self.step_time.grid(ROLLBACK_DRAW,
-                                              np.arange(target, target + AHEAD),
-                                              np.arange(cols))
-            self._ahead_first = target
-            j = 0
-        return self._ahead[j, :want]
 
     def flush(self, S: State) -> None:
         """Re-simulate every deferred rollback (one batched call) and unmark their nodes."""

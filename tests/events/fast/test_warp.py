@@ -157,28 +157,3 @@ def test_runs_with_rollbacks_equal_the_specification(dynamics: str) -> None:
     ev, co = run_both(sc, "bides")
     assert co["engine"]["used"] == "cohort"
     assert ev["metrics"]["rollbacks"] > 10 and ev["metrics"]["resim_steps"] > 0
-
-
-@pytest.mark.parametrize("step", [{"dist": "lognormal", "mean": 0.003, "std": 0.002},
-                                  {"dist": "normal", "mean": 0.003, "std": 0.001}])
-def test_rows_filled_from_the_draws_ahead_are_the_vectors_bits(step: Any) -> None:
-    # Θ_warp = 2: rows of 4 draws, the first 8 of AHEAD consecutive targets drawn at once
-    from sigma_des.events.fast.rollbacks import AHEAD
-
-    core = _core(**{"compute.step_time": step})
-    rb = core.rollbacks
-    step_time = core.host.nodes.step_time
-    S = core.S
-    # forward, back, within a row's refill (4 -> 8), past the block, more than drawn ahead
-    for target, need, ahead_first in [(12, 4, 12), (13, 3, 12), (11, 2, 11), (12, 5, 11),
-                                      (11 + AHEAD, 8, 11 + AHEAD), (14 + AHEAD, 9, 11 + AHEAD)]:
-        S = rb.fill(S, target, need)
-        assert rb._ahead_first == ahead_first
-        row = target % 8
-        have = int(S[L.RB_TAG][row, L.RB_ROWS])
-        assert S[L.RB_TAG][row, L.RB_TARGET] == target and have >= need
-        for j in range(have):
-            np.testing.assert_array_equal(S[L.RB_VAL][row, j],
-                                          step_time.vector(ROLLBACK_DRAW, target, j))
-    assert rb._ahead.shape == (AHEAD, 8, 3)
-    assert len(np.unique(rb._ahead)) == rb._ahead.size  # real draws, none repeated
