@@ -54,7 +54,7 @@ class DrawCache:
         sampler: ``f(subjects, kind, index, attempt) -> array`` (same length as subjects).
         limit: number of cached vectors kept (least recently created evicted).
         constant: every value (no draws), or None.
-        blockable: the sampler broadcasts array keys (:meth:`block`, :meth:`grid`).
+        blockable: the sampler broadcasts array keys (:meth:`block`).
         uniforms: ``(key, quantile)`` when the sampler is ``quantile(stream.uniform(kind,
             subjects, index, attempt))`` of the stream whose key is ``key`` (``quantile``
             None: the uniforms themselves): :meth:`block` then draws the uniforms in one
