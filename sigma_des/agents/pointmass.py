@@ -35,6 +35,18 @@ def _step_frames(s0: np.ndarray, cmd: np.ndarray, dts: np.ndarray, gains: np.nda
 
 
 @njit(cache=True)
+def _step_rows(state: np.ndarray, cmd: np.ndarray, dt: float, a: float,
+               out: np.ndarray) -> None:
+    """:meth:`PointMass.step`'s array operations row by row, in its order (gain ``a``)."""
+    for r in range(state.shape[0]):
+        for c in range(3):
+            v0 = state[r, 3 + c]
+            v1 = v0 + a * (cmd[r, c] - v0)
+            out[r, c] = state[r, c] + 0.5 * (v0 + v1) * dt
+            out[r, 3 + c] = v1
+
+
+@njit(cache=True)
 def _observe_rows(state: np.ndarray, out: np.ndarray) -> None:
     """:meth:`PointMass.observe` of each row of ``state`` written into ``out``'s rows: the
     same libm ``hypot`` and ``atan2`` the numpy ufuncs call, the other columns zero."""
@@ -111,6 +123,11 @@ class PointMass:
     def step(self, state: NDArray[np.float64], command: NDArray[np.float64], dt: float,
              frame: int, nodes: NDArray[np.int64]) -> NDArray[np.float64]:
         a = (1.0 - math.exp(-dt / self.tau))
+        if (state.dtype == np.float64 and command.dtype == np.float64 and state.ndim == 2
+                and state.shape[1] == 6 and command.shape == (state.shape[0], 3)):
+            out = np.empty(state.shape)
+            _step_rows(state, command, float(dt), a, out)  # compiled: the same operations
+            return out
         v0 = state[:, 3:6]
         v1 = v0 + a * (command - v0)
         out = np.empty_like(state)

@@ -1,6 +1,9 @@
-"""PointMass.step_frames: the compiled multi-frame re-simulation of one point mass."""
+"""PointMass's compiled paths (step, step_frames, observe_into, the rollback re-simulation
+into the truth's ring) give the bits of its array formulas."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -134,3 +137,25 @@ def test_rollbacks_through_resimulate_into_equal_the_step_frames_path() -> None:
                      (fast.state, ref.state)):
             assert a.tobytes() == b.tobytes()
     assert fast.rollbacks == ref.rollbacks > 10
+
+
+def test_compiled_step_is_the_array_formula_bitwise() -> None:
+    """PointMass.step (compiled for one command row per state row) gives the bits of its
+    array formula; a broadcast command row takes the array path, the same values."""
+    rng = np.random.default_rng(21)
+    for tau in (0.5, 0.37):
+        pm = PointMass(tau=tau)
+        for _ in range(50):
+            n = int(rng.integers(1, 40))
+            state = rng.normal(0.0, 50.0, (n, 6))
+            cmd = rng.normal(0.0, 12.0, (n, 3))
+            dt = float(rng.choice([0.02, 1.0 / 48.0, 0.1, float(rng.uniform(0.001, 0.2))]))
+            a = 1.0 - math.exp(-dt / tau)  # the model's gain (Python's libm exp)
+            v0 = state[:, 3:6]
+            v1 = v0 + a * (cmd - v0)
+            want = np.concatenate([state[:, 0:3] + 0.5 * (v0 + v1) * dt, v1], axis=1)
+            got = pm.step(state, cmd, dt, 3, np.arange(n))
+            assert got.tobytes() == want.tobytes()
+            row = pm.step(state, cmd[:1], dt, 3, np.arange(n))  # (1, 3): broadcast
+            assert row.tobytes() == pm.step(state, np.repeat(cmd[:1], n, 0), dt, 3,
+                                            np.arange(n)).tobytes()
