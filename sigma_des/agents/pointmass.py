@@ -34,6 +34,57 @@ def _step_frames(s0: np.ndarray, cmd: np.ndarray, dts: np.ndarray, gains: np.nda
         out[j] = s
 
 
+@njit(cache=True)
+def _step_rows(state: np.ndarray, cmd: np.ndarray, dt: float, a: float,
+               out: np.ndarray) -> None:
+    """:meth:`PointMass.step`'s array operations row by row, in its order (gain ``a``)."""
+    for r in range(state.shape[0]):
+        for c in range(3):
+            v0 = state[r, 3 + c]
+            v1 = v0 + a * (cmd[r, c] - v0)
+            out[r, c] = state[r, c] + 0.5 * (v0 + v1) * dt
+            out[r, 3 + c] = v1
+
+
+@njit(cache=True)
+def _observe_rows(state: np.ndarray, out: np.ndarray) -> None:
+    """:meth:`PointMass.observe` of each row of ``state`` written into ``out``'s rows: the
+    same libm ``hypot`` and ``atan2`` the numpy ufuncs call, the other columns zero."""
+    for r in range(state.shape[0]):
+        vn, ve, vh = state[r, 3], state[r, 4], state[r, 5]
+        out[r, :] = 0.0
+        out[r, 0] = math.hypot(vn, ve)
+        out[r, 2] = -vh
+        out[r, 5] = math.atan2(ve, vn)
+        out[r, 9] = state[r, 0]
+        out[r, 10] = state[r, 1]
+        out[r, 11] = state[r, 2]
+
+
+@njit(cache=True)
+def _resimulate(prev: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: int,
+                latest: int, tau: float, i: int, ckpt: np.ndarray, obs_hist: np.ndarray,
+                state: np.ndarray) -> None:
+    """Row ``i`` re-simulated from ``prev`` through frames ``first..latest`` with ``cmd``
+    into its ring slots (``f % H``; ``frame_dt`` the ring's steps) and ``state``:
+    :meth:`PointMass.step_frames` (its gain, :meth:`PointMass.step`'s operations) and
+    :func:`_observe_rows`, in one call."""
+    H = frame_dt.shape[0]
+    s = prev.copy()
+    for f in range(first, latest + 1):
+        slot = f % H
+        dt = frame_dt[slot]
+        a = 1.0 - math.exp(-dt / tau)
+        for c in range(3):
+            v0 = s[3 + c]
+            v1 = v0 + a * (cmd[c] - v0)
+            s[c] = s[c] + 0.5 * (v0 + v1) * dt
+            s[3 + c] = v1
+        ckpt[slot, i] = s
+        _observe_rows(s.reshape(1, 6), obs_hist[slot, i : i + 1])
+    state[i] = s
+
+
 class PointMass:
     """Point mass with velocity-command tracking (see module docstring)."""
 
@@ -72,6 +123,11 @@ class PointMass:
     def step(self, state: NDArray[np.float64], command: NDArray[np.float64], dt: float,
              frame: int, nodes: NDArray[np.int64]) -> NDArray[np.float64]:
         a = (1.0 - math.exp(-dt / self.tau))
+        if (state.dtype == np.float64 and command.dtype == np.float64 and state.ndim == 2
+                and state.shape[1] == 6 and command.shape == (state.shape[0], 3)):
+            out = np.empty(state.shape)
+            _step_rows(state, command, float(dt), a, out)  # compiled: the same operations
+            return out
         v0 = state[:, 3:6]
         v1 = v0 + a * (command - v0)
         out = np.empty_like(state)
@@ -106,6 +162,25 @@ class PointMass:
                      np.ascontiguousarray(command, dtype=np.float64).reshape(3),
                      d, gains, out)
         return out
+
+    def resimulate_into(self, prev: NDArray[np.float64], row: NDArray[np.float64],
+                        frame_dt: NDArray[np.float64], first: int, latest: int, i: int,
+                        ckpt: NDArray[np.float64], obs_hist: NDArray[np.float64],
+                        state: NDArray[np.float64]) -> None:
+        """A time-warp re-simulation of row ``i`` written into a physics ring in one call.
+
+        Frames ``first..latest`` (at least one) from ``prev`` with ``row`` held, each
+        ``f`` by ``frame_dt[f % H]``: its state into ``ckpt[f % H, i]``, its
+        :meth:`observe` row into ``obs_hist[f % H, i]``, the last state into
+        ``state[i]`` -- :meth:`step_frames` then :meth:`observe`, the same floats.
+        """
+        _resimulate(np.ascontiguousarray(prev, dtype=np.float64).reshape(6),
+                    np.ascontiguousarray(row, dtype=np.float64).reshape(3), frame_dt,
+                    int(first), int(latest), float(self.tau), int(i), ckpt, obs_hist, state)
+
+    def observe_into(self, state: NDArray[np.float64], out: NDArray[np.float64]) -> None:
+        """:meth:`observe` written into ``out`` (``(n, 12)`` float64), compiled."""
+        _observe_rows(state, out)
 
     def observe(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
         n = state.shape[0]

@@ -75,6 +75,26 @@ def mix_outer(h: np.uint64, a: np.ndarray, mid: np.ndarray, b: np.ndarray, tail:
 
 
 @njit(cache=True)
+def uniform_rows(key: np.uint64, kind: np.int64, subjects: np.ndarray, index: np.ndarray,
+                 attempt: np.ndarray) -> np.ndarray:
+    """``Stream.uniform(kind, subjects[None, :], index[:, None], attempt[:, None])``: row
+    ``r`` keyed ``(kind, subject, index[r], attempt[r])``, an ``index`` or ``attempt`` of
+    one element held for every row (a draw block's keys, uniforms of the same bits)."""
+    m = max(index.shape[0], attempt.shape[0])
+    n = subjects.shape[0]
+    one_i = index.shape[0] == 1
+    one_a = attempt.shape[0] == 1
+    out = np.empty((m, n))
+    h0 = absorb(key, kind)
+    for c in range(n):
+        h1 = absorb(h0, subjects[c])
+        for r in range(m):
+            h2 = absorb(h1, index[0] if one_i else index[r])
+            out[r, c] = to_uniform(absorb(h2, attempt[0] if one_a else attempt[r]))
+    return out
+
+
+@njit(cache=True)
 def uniform3(key: np.uint64, a: np.int64, b: np.int64, c: np.int64) -> float:
     """``Stream.uniform(a, b, c)`` for the stream whose key is ``key``."""
     return to_uniform(absorb(absorb(absorb(key, a), b), c))

@@ -31,6 +31,19 @@ BLOCK = 64
 BLOCK_VALUES = 4096
 
 Sampler = Callable[[NDArray[np.int64], int, int, int], NDArray[np.float64]]
+#: The inverse CDF a sampler maps its stream's uniforms through (elementwise).
+Quantile = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+_ROWS: list[Callable[..., NDArray[np.float64]]] = []
+
+
+def _uniform_rows() -> Callable[..., NDArray[np.float64]]:
+    """The compiled block of a stream's uniforms (numba: imported on first use)."""
+    if not _ROWS:
+        from sigma_des.core.counter_rng import uniform_rows
+
+        _ROWS.append(uniform_rows)
+    return _ROWS[0]
 
 
 class DrawCache:
@@ -40,13 +53,20 @@ class DrawCache:
         n_subjects: subjects are ``0 .. n_subjects-1``.
         sampler: ``f(subjects, kind, index, attempt) -> array`` (same length as subjects).
         limit: number of cached vectors kept (least recently created evicted).
+        constant: every value (no draws), or None.
+        blockable: the sampler broadcasts array keys (:meth:`block`).
+        uniforms: ``(key, quantile)`` when the sampler is ``quantile(stream.uniform(kind,
+            subjects, index, attempt))`` of the stream whose key is ``key`` (``quantile``
+            None: the uniforms themselves): :meth:`block` then draws the uniforms in one
+            compiled call (:func:`~sigma_des.core.counter_rng.uniform_rows`, the same bits).
     """
 
-    __slots__ = ("_subjects", "_sampler", "_cache", "_limit", "constant", "blockable")
+    __slots__ = ("_subjects", "_sampler", "_cache", "_limit", "constant", "blockable",
+                 "uniforms")
 
     def __init__(
         self, n_subjects: int, sampler: Sampler, limit: int = 512, constant: float | None = None,
-        blockable: bool = False,
+        blockable: bool = False, uniforms: tuple[np.uint64, Quantile | None] | None = None,
     ) -> None:
         self._subjects = np.arange(n_subjects, dtype=np.int64)
         self._sampler = sampler
@@ -54,6 +74,7 @@ class DrawCache:
         self._limit = limit
         self.constant = constant
         self.blockable = blockable
+        self.uniforms = uniforms
 
     @property
     def n_subjects(self) -> int:
@@ -95,6 +116,11 @@ class DrawCache:
             return np.full((m, len(self._subjects)), self.constant)
         if not self.blockable:
             raise ValueError("block: this cache's sampler takes one index at a time")
+        if self.uniforms is not None:
+            key, quantile = self.uniforms
+            u = _uniform_rows()(key, np.int64(kind), self._subjects, idx.reshape(-1),
+                                att.reshape(-1))
+            return u if quantile is None else np.ascontiguousarray(quantile(u), dtype=np.float64)
         # a blockable sampler broadcasts array keys (the Sampler type says int: the
         # per-index call every sampler supports)
         out = self._sampler(self._subjects[None, :], kind,  # type: ignore[arg-type]

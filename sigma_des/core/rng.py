@@ -21,7 +21,7 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["RandomStreams", "Stream", "mix"]
+__all__ = ["RandomStreams", "Stream", "mix", "mix_int"]
 
 #: An array of hashes or one hash (compiled kernels).
 _U = TypeVar("_U", np.uint64, NDArray[np.uint64])
@@ -47,12 +47,28 @@ _MASK = (1 << 64) - 1
 _I64 = (-(1 << 63), 1 << 63)
 
 
-def _absorb_int(h: int, i: int) -> int:
-    """One step of :func:`mix` in Python integers modulo 2**64 (the same bits)."""
-    z = h ^ (((i + 1) * 0x9E3779B97F4A7C15) & _MASK)
+def _fin_int(z: int) -> int:
+    """:func:`finalise` in Python integers modulo 2**64 (the same bits)."""
     z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
     z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
     return z ^ (z >> 31)
+
+
+def _absorb_int(h: int, i: int) -> int:
+    """One step of :func:`mix` in Python integers modulo 2**64 (the same bits)."""
+    return _fin_int(h ^ (((i + 1) * 0x9E3779B97F4A7C15) & _MASK))
+
+
+def mix_int(key: int | np.uint64, *ids: int) -> int:
+    """``int(mix(key, *ids)[0])`` for scalar ids: in Python integers modulo 2**64, the
+    same SplitMix64 steps without an array (a seed's derivation, microseconds); an id
+    outside the int64 range goes through :func:`mix` itself."""
+    h = int(key)
+    for i in ids:
+        if not _I64[0] <= int(i) < _I64[1]:
+            return int(mix(key, *ids)[0])
+        h = _absorb_int(h, int(i))
+    return _fin_int(h)
 
 
 def _mix_column(key: int | np.uint64, ids: tuple[ArrayLike, ...]) -> NDArray[np.uint64] | None:

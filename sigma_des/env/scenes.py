@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
 from sigma_des.core.models import DynamicsModel, SwarmView
-from sigma_des.core.rng import RandomStreams, mix
+from sigma_des.core.rng import RandomStreams, mix_int
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
@@ -61,8 +61,7 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
 
     ``root`` is any non-negative int; every bit of it counts.
     """
-    key = mix(_SEED_KEY, *_root_ids(int(root)), scene, episode)
-    return int(key[0] >> np.uint64(1))
+    return mix_int(_SEED_KEY, *_root_ids(int(root)), scene, episode) >> 1
 
 
 def with_seed(spec: RunSpec, seed: int) -> RunSpec:

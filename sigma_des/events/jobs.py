@@ -63,7 +63,7 @@ def step_draws(compute: ComputeSpec, streams: RandomStreams,
     rho = compute.host_share
     if rho == 0.0:  # today's draws, bit for bit
         return DrawCache(n, lambda s, k, i, a: step.sample(stream, k, s, i, a), constant=constant,
-                         blockable=True)
+                         blockable=True, uniforms=(stream.key, step.quantile))
     from scipy.special import ndtr
 
     hosts_of = np.asarray(host_of, dtype=np.int64)

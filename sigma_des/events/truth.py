@@ -163,6 +163,8 @@ class SwarmTruth:
         # the frame is stepped into its ring slots, no per-frame temporaries
         self._step_into = getattr(dynamics, "step_into", None)
         self._observe_into = getattr(dynamics, "observe_into", None)
+        # a model that re-simulates a rollback straight into the ring (one call)
+        self._resimulate_into = getattr(dynamics, "resimulate_into", None)
         self.released = False
 
     def step_frame(
@@ -258,6 +260,10 @@ class SwarmTruth:
         H = self.H
         latest = self.latest
         prev = self._checkpoint(i, c)
+        if self._resimulate_into is not None and c <= latest:
+            self._resimulate_into(prev, row, self.frame_dt, c, latest, i, self.ckpt,
+                                  self.obs_hist, self.state)
+            return
         step_frames = getattr(self.dyn, "step_frames", None)
         if step_frames is not None and c <= latest:
             # the same row steps, compiled in one call (identical to the loop below);

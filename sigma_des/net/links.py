@@ -124,7 +124,8 @@ class Links:
                 self._lat[is_server, up] = dist_cache(nsub, spec.latency_of(up), streams,
                                                       f"lat.{tag}")
                 ust = streams.stream(f"lossu.{tag}")
-                self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust), blockable=True)
+                self._u[is_server, up] = DrawCache(nsub, _uniform_sampler(ust), blockable=True,
+                                                    uniforms=(ust.key, None))
                 for h in range(hosts + 1):
                     if (h == hosts) == is_server:
                         self._loss[is_server, up, h] = LossProcess(
@@ -339,7 +340,7 @@ def dist_cache(n: int, dist: Dist, streams: RandomStreams, name: str) -> DrawCac
     st = streams.stream(name)
     const = dist.value if dist.dist == "constant" else None
     return DrawCache(n, lambda s, k, i, a: dist.sample(st, k, s, i, a), constant=const,
-                     blockable=True)
+                     blockable=True, uniforms=(st.key, dist.quantile))
 
 
 def _uniform_sampler(st: Stream) -> Sampler:

@@ -1,6 +1,9 @@
-"""PointMass.step_frames: the compiled multi-frame re-simulation of one point mass."""
+"""PointMass's compiled paths (step, step_frames, observe_into, the rollback re-simulation
+into the truth's ring) give the bits of its array formulas."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -76,3 +79,83 @@ def test_point_mass_rollbacks_stay_immediate_and_match_the_frame_loop() -> None:
         np.testing.assert_array_equal(truth.ckpt[f % H, 1], want)
         np.testing.assert_array_equal(truth.obs_hist[f % H, 1], truth.dyn.observe(want[None])[0])
     np.testing.assert_array_equal(truth.state[1], ref[-1])
+
+
+def test_observe_into_is_observe_bitwise() -> None:
+    """The compiled observation (libm hypot, atan2) gives the numpy ufuncs' bits."""
+    pm = PointMass()
+    rng = np.random.default_rng(8)
+    for scale in (1e-3, 1.0, 30.0, 1e6):
+        state = rng.normal(0.0, scale, (4000, 6))
+        state[:6, 3:6] = [[0.0, 0.0, 0.0], [-0.0, 0.0, -0.0], [0.0, -0.0, 1.0],
+                          [-1.0, 0.0, 0.0], [1e-310, 1e-310, 2.0], [5.0, 5.0, -5.0]]
+        out = np.full((4000, 12), np.nan)
+        pm.observe_into(state, out)
+        want = pm.observe(state)
+        assert out.tobytes() == want.tobytes()  # -0.0 and 0.0 told apart too
+    assert want[3, 5] == np.pi and want[5, 0] == np.hypot(5.0, 5.0) and want[5, 2] == 5.0
+
+
+def _no_ring_call(pm: PointMass) -> object:
+    """``pm`` seen without its one-call re-simulation (the truth's step_frames path)."""
+
+    class Plain:
+        name, state_dim, command_dim = pm.name, pm.state_dim, pm.command_dim
+        defer_rollbacks = False
+
+        def __getattr__(self, item: str) -> object:
+            if item in ("resimulate_into", "observe_into"):
+                raise AttributeError(item)
+            return getattr(pm, item)
+
+    return Plain()
+
+
+def test_rollbacks_through_resimulate_into_equal_the_step_frames_path() -> None:
+    """Rollbacks of drawn nodes, frames and rows over a wrapping ring at varying steps:
+    the one-call re-simulation writes the ring, checkpoints and state of step_frames and
+    observe, bit for bit."""
+    n, H = 6, 16
+    pm = PointMass(tau=0.43)
+    fast = SwarmTruth(pm, n, H, 10.0, True)
+    ref = SwarmTruth(_no_ring_call(pm), n, H, 10.0, True)  # type: ignore[arg-type]
+    assert fast._resimulate_into is not None and ref._resimulate_into is None
+    rng = np.random.default_rng(12)
+    cmd = pm.default_command(fast.state)
+    for k in range(60):
+        cmd = cmd + rng.normal(0.0, 0.8, cmd.shape)
+        dt = [0.02, 0.025, 1.0 / 48.0][int(rng.integers(3))]
+        for t in (fast, ref):
+            t.step_frame(k, dt, cmd, None)
+        if k > 3 and rng.random() < 0.6:
+            i = int(rng.integers(n))
+            c = int(rng.integers(max(1, k - H + 2), k + 1))
+            row = rng.normal(0.0, 5.0, 3)
+            assert fast.rollback(i, c, k, row) == ref.rollback(i, c, k, row)
+        held = np.arange(max(0, k - H + 1), k + 1) % H  # slots written so far (np.empty)
+        for a, b in ((fast.ckpt[held], ref.ckpt[held]), (fast.obs_hist[held], ref.obs_hist[held]),
+                     (fast.state, ref.state)):
+            assert a.tobytes() == b.tobytes()
+    assert fast.rollbacks == ref.rollbacks > 10
+
+
+def test_compiled_step_is_the_array_formula_bitwise() -> None:
+    """PointMass.step (compiled for one command row per state row) gives the bits of its
+    array formula; a broadcast command row takes the array path, the same values."""
+    rng = np.random.default_rng(21)
+    for tau in (0.5, 0.37):
+        pm = PointMass(tau=tau)
+        for _ in range(50):
+            n = int(rng.integers(1, 40))
+            state = rng.normal(0.0, 50.0, (n, 6))
+            cmd = rng.normal(0.0, 12.0, (n, 3))
+            dt = float(rng.choice([0.02, 1.0 / 48.0, 0.1, float(rng.uniform(0.001, 0.2))]))
+            a = 1.0 - math.exp(-dt / tau)  # the model's gain (Python's libm exp)
+            v0 = state[:, 3:6]
+            v1 = v0 + a * (cmd - v0)
+            want = np.concatenate([state[:, 0:3] + 0.5 * (v0 + v1) * dt, v1], axis=1)
+            got = pm.step(state, cmd, dt, 3, np.arange(n))
+            assert got.tobytes() == want.tobytes()
+            row = pm.step(state, cmd[:1], dt, 3, np.arange(n))  # (1, 3): broadcast
+            assert row.tobytes() == pm.step(state, np.repeat(cmd[:1], n, 0), dt, 3,
+                                            np.arange(n)).tobytes()

@@ -79,3 +79,45 @@ def test_large_swarms_draw_fewer_indices_per_block() -> None:
     assert DrawBlock(DrawCache(10**5, lambda s, k, i, a: s * 1.0), 0).rows == 1
     b = DrawBlock(cache, 0, rows=3)
     assert b.row(7)[:2].tolist() == [7.0, 8.0] and b.values.shape == (3, 1000)
+
+
+def test_compiled_uniform_rows_are_the_streams_bits() -> None:
+    from sigma_des.core.counter_rng import uniform_rows
+
+    st = RandomStreams(2**62 + 9).stream("lossu.host.up")
+    subj = np.array([0, 3, -1, 2**62, -(2**63)], dtype=np.int64)
+    idx = np.array([7, -5, 2**63 - 1], dtype=np.int64)
+    got = uniform_rows(st.key, np.int64(4), subj, idx, np.array([2], dtype=np.int64))
+    assert got.tobytes() == st.uniform(4, subj[None, :], idx[:, None], 2).tobytes()
+    att = np.arange(-2, 4, dtype=np.int64)
+    got = uniform_rows(st.key, np.int64(-3), subj, np.array([11], dtype=np.int64), att)
+    assert got.tobytes() == st.uniform(-3, subj[None, :], 11, att[:, None]).tobytes()
+
+
+@pytest.mark.parametrize("empirical", [False, True])
+def test_blocks_of_the_links_loss_and_compute_caches_take_the_compiled_uniforms(
+        tmp_path: object, empirical: bool) -> None:
+    from pathlib import Path
+
+    from sigma_des.net.links import _uniform_sampler
+
+    streams = RandomStreams(21)
+    dist = Dist(dist="exponential", mean=0.01)
+    if empirical:
+        f = Path(str(tmp_path)) / "d.txt"
+        f.write_text("0.1\n0.25\n0.05\n0.3\n")
+        dist = Dist(dist="empirical", file=str(f))
+    caches = [dist_cache(6, dist, streams, "lat.host.down"),
+              step_draws(ComputeSpec(step_time=Dist(dist="lognormal", mean=1e-3, std=4e-4)),
+                         streams, [0, 0, 1, 1, 2, 2]),
+              DrawCache(6, _uniform_sampler(streams.stream("lossu.host.up")), blockable=True,
+                        uniforms=(streams.stream("lossu.host.up").key, None))]
+    for cache in caches:
+        assert cache.uniforms is not None
+        by_index = cache.block(2, np.arange(300, 340), 1)
+        for j in range(40):
+            assert by_index[j].tobytes() == cache.vector(2, 300 + j, 1).tobytes()
+        by_attempt = cache.block(1, 77, np.arange(0, 9))
+        for j in range(9):
+            assert by_attempt[j].tobytes() == cache.vector(1, 77, j).tobytes()
+        assert len(np.unique(by_index)) > (3 if empirical and cache is caches[0] else 200)

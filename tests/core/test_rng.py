@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sigma_des.core.rng import Stream, mix
+from sigma_des.core.rng import Stream, mix, mix_int
 
 MASK = (1 << 64) - 1
 
@@ -95,3 +95,14 @@ def test_mix_of_a_row_and_a_column_among_scalars_is_splitmix64(order: str,
         want = [[_ref(key, a, int(col[i]), int(row[j]), c) for j in range(n)] for i in range(m)]
     assert got.dtype == np.uint64 and got.shape == (m, n)
     assert [[int(x) for x in r] for r in got] == want
+
+
+def test_mix_int_is_mix_of_scalars() -> None:
+    rng = np.random.default_rng(5)
+    for n_ids in range(6):
+        for _ in range(50):
+            key = int(rng.integers(0, 1 << 63)) * 2 + 1
+            ids = [int(x) for x in rng.integers(*I64, size=n_ids, endpoint=True)]
+            assert mix_int(key, *ids) == int(mix(np.uint64(key), *ids)[0]) == _ref(key, *ids)
+    for ids in ([I64[0], -1, I64[1]], [2**63 + 5, 3], [2**64 - 1]):  # uint64-range ids wrap
+        assert mix_int(99, *ids) == int(mix(99, *ids)[0])

@@ -122,7 +122,7 @@ def run(a: argparse.Namespace) -> int:
             if rec is not None and rec.exists():  # resume: this training is finished
                 done = json.loads(rec.read_text())
                 history += done["history"]
-                cost.append(done["cost"])
+                cost.append({**done["cost"], "resumed": True})  # trained by an earlier run
                 evals += done["eval"]
                 print(f"seed {seed} {cond:14s} done before ({rec.name})", flush=True)
                 continue

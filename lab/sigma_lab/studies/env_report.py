@@ -234,10 +234,12 @@ def delay_study(path: Path, img_dir: Path, level: int = 3) -> str:
         steps = sum(c["agent_steps"] for c in cost)
         each = sorted(c["train_wall_s"] for c in cost)
         mid = each[len(each) // 2]
+        # a resumed run's trainings are marked (older outputs: its wall is below theirs)
+        resumed = any(c.get("resumed") for c in cost) or d["wall_s"] < wall
         lines += ["", f"Cost: {len(cost)} trainings, {wall:.0f} s of training wall time "
                   f"({steps / wall:,.0f} agent-steps/s; per policy median {mid:.0f} "
                   f"s, {each[0]:.0f}–{each[-1]:.0f} s), " + (
-                      f"{d['wall_s']:.0f} s in all" if d["wall_s"] >= wall else
+                      f"{d['wall_s']:.0f} s in all" if not resumed else
                       f"resumed: this run took {d['wall_s']:.0f} s, the trainings were done "
                       "before") + " (wall times: they depend on the machine's load and on how "
                   "many trainings shared it)."]

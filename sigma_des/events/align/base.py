@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from sigma_des.core.flags import MISSING
 from sigma_des.events.align.hlc_clock import Released, Stamp
+from sigma_des.events.align.newest import take_rows
 from sigma_des.events.align.ring import RingBuffers
 from sigma_des.metrics.reports import AlignerReport
 
@@ -71,10 +72,11 @@ def take_newest(
     """Per node, take the rows' newest state into ``frame``/``gen``/``obs`` if it is newer.
 
     The rule of :func:`newest_rows` (the first row of a node's highest frame, if that
-    beats ``frame[node]``), applied in place.
+    beats ``frame[node]``), applied in place: its defining loop over the rows, compiled
+    (:func:`~sigma_des.events.align.newest.take_rows`).
 
     Returns:
-        The nodes whose entry changed.
+        The nodes whose entry changed (ascending).
     """
     if rows.nodes.size == 1:  # a single state: the same rule without sorting
         node = int(rows.nodes[0])
@@ -85,13 +87,9 @@ def take_newest(
         gen[node] = rows.gens[0]
         obs[node] = rows.obs[0]
         return rows.nodes
-    win = newest_rows(rows.nodes, rows.frames, frame)
-    nd = rows.nodes[win]
-    if win.size:
-        frame[nd] = rows.frames[win]
-        gen[nd] = rows.gens[win]
-        obs[nd] = rows.obs[win]
-    return nd
+    changed = np.zeros(frame.shape[0], dtype=np.bool_)
+    take_rows(frame, gen, obs, rows.nodes, rows.frames, rows.gens, rows.obs, changed)
+    return np.flatnonzero(changed)
 
 
 class StateBatch(NamedTuple):

@@ -105,3 +105,29 @@ def test_reusable_batch_of_one_equals_one_state_and_is_overwritten() -> None:
     assert b is a  # the same arrays, overwritten: no allocation per state
     assert a.nodes.tolist() == [3] and a.frames.tolist() == [13] and a.t.tolist() == [0.75]
     assert np.isnan(a.hlc_l[0]) and a.hlc_c[0] == 0 and a.obs.tolist() == [[4.0, 5.0, 6.0]]
+
+
+def test_take_newest_equals_the_sorted_rule_on_drawn_batches() -> None:
+    """The compiled pass gives :func:`newest_rows`' entries and changed nodes (the former
+    sorted implementation), on drawn batches with repeated frames, obs given as a
+    strided view (a compiled core's delivery buffer)."""
+    from sigma_des.events.align.base import newest_rows
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        n, m = int(rng.integers(1, 7)), int(rng.integers(2, 12))
+        nodes = rng.integers(0, n, m)
+        frames = rng.integers(-1, 6, m)
+        buf = rng.normal(size=(m, 16))
+        batch = StateBatch(np.zeros(m), nodes, frames, rng.normal(size=m), buf[:, 3:15],
+                           np.zeros(m), np.zeros(m, dtype=np.int64))
+        f0 = rng.integers(-1, 5, n)
+        g0, o0 = rng.normal(size=n), rng.normal(size=(n, 12))
+        f, g, o = f0.copy(), g0.copy(), o0.copy()
+        got = take_newest(f, g, o, batch)
+        win = newest_rows(nodes, frames, f0)  # the reference
+        nd = nodes[win]
+        f0[nd], g0[nd], o0[nd] = frames[win], batch.gens[win], batch.obs[win]
+        assert got.tolist() == sorted(nd.tolist())
+        assert f.tolist() == f0.tolist() and g.tobytes() == g0.tobytes()
+        assert o.tobytes() == o0.tobytes()
