@@ -87,6 +87,14 @@ STUDIES = (
           ("--out", "{out}"), ("--quick", "--out", "{out}"),
           "CPU time per agent-step of the PettingZoo environment for 1 to 500 scenes and "
           "each alignment method, and memory per scene."),
+    Study("env_study", "Learning environment speed: the delay study's configuration",
+          "performance", "bench_env.py", ("--study", "--out", "{out}"),
+          ("--study", "--quick", "--out", "{out}"),
+          "Agent-steps per CPU-second of `SwarmVec` on the training-under-delay study's "
+          "configuration (tight task, 4 agents a scene, BiDES at 200 ms with 10 % loss, and "
+          "perfect information) at 4 and 64 scenes, against the targets (20 000 and "
+          "50 000), the resident memory 512 scenes take, and the SimPy baseline's CPU per "
+          "simulated second in the same run (divide by it to compare machines)."),
     Study("delay", "Training under delay (PPO)", "learning", "train_under_delay.py",
           ("--full", "--jobs", "2", "--ages-control", "--out", "{out}", "--checkpoints",
            "{out}/checkpoints"),
