@@ -21,9 +21,9 @@ next command tick or reached the end of its scenario.
 
 from __future__ import annotations
 
+import copy
 import gc
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -67,8 +67,19 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
 def with_seed(spec: RunSpec, seed: int) -> RunSpec:
     """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
     seed (the seed is in the spec and its aligner's parameters, nowhere else), without
-    validating and converting the whole scenario again for every episode."""
-    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
+    validating and converting the whole scenario again for every episode.
+
+    The two frozen specs are shallow copies with the seed set: their ``__post_init__``
+    only validates fields (none of them the seed), so ``dataclasses.replace``'s second
+    validation of ``spec`` at every episode would find what the first found.
+    """
+    seed = int(seed)
+    align = copy.copy(spec.align)
+    object.__setattr__(align, "seed", seed)
+    out = copy.copy(spec)
+    object.__setattr__(out, "seed", seed)
+    object.__setattr__(out, "align", align)
+    return out
 
 
 class _Capture:
@@ -104,6 +115,22 @@ class _Placed:
         return getattr(self._dyn, item)
 
 
+def placed(dyn: DynamicsModel, task: Task, nodes: int) -> tuple[_Placed, Array]:
+    """The shared model with the task's initial state, and that state's observation.
+
+    Neither depends on the episode's seed (a task's initial state is fixed, a model is
+    pure), so a :class:`SceneBatch` makes them once for all its scenes and episodes.
+    Both arrays are made read-only: a run gets a copy of the initial state
+    (``initial_state``), a task's ``episode`` reads the observation, and any write to
+    either would raise instead of leaking into the next episode.
+    """
+    initial = task.initial_state(dyn, nodes)
+    obs = dyn.observe(initial)
+    initial.setflags(write=False)
+    obs.setflags(write=False)
+    return _Placed(dyn, initial), obs
+
+
 class Scene:
     """One isolated episode of the distributed loop (see module docstring).
 
@@ -113,17 +140,17 @@ class Scene:
         dyn: the dynamics model (shared by all scenes: models are pure).
         task: the task.
         metrics: collect the run's measurements (False: none, see ``MethodRun``).
+        start: :func:`placed` of ``(dyn, task, spec.nodes)`` if the caller keeps it
+            (None: made here).
     """
 
     def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
-                 metrics: bool = True) -> None:
+                 metrics: bool = True, start: tuple[_Placed, Array] | None = None) -> None:
         self.capture = _Capture()
-        initial = task.initial_state(dyn, spec.nodes)
-        placed = _Placed(dyn, initial)
-        self.run: MethodRun = make_run(spec, method, placed, self.capture,  # type: ignore[arg-type]
+        model, obs0 = placed(dyn, task, spec.nodes) if start is None else start
+        self.run: MethodRun = make_run(spec, method, model, self.capture,  # type: ignore[arg-type]
                                        metrics)[0]
-        self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"),
-                               dyn.observe(initial))
+        self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"), obs0)
         self.done = False
         self.ended = False
         self.tick = -1
@@ -194,6 +221,8 @@ class SceneBatch:
         self.roots = [sc.seed] * n_scenes
         self.episode = [0] * n_scenes
         self.scenes: list[Scene] = []
+        #: the placed model and its initial observation, shared by every episode
+        self.start = placed(dyn, task, sc.nodes)
 
     def reset(self, roots: Sequence[int | None], ids: Sequence[int] | None = None) -> None:
         """Restart scenes ``ids`` (default: all) and run them to their first tick.
@@ -243,7 +272,8 @@ class SceneBatch:
 
     def _fresh(self, s: int) -> Scene:
         seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
-        return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics)
+        return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics,
+                     self.start)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""

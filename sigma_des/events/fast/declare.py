@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Field", "build", "shape_of", "swap"]
+__all__ = ["Field", "Plan", "build", "plan", "shape_of", "swap"]
 
 
 @dataclass(frozen=True)
@@ -46,18 +46,28 @@ def shape_of(field: Field, dims: Mapping[str, int]) -> tuple[int, ...]:
     return tuple(d if isinstance(d, int) else dims[d] for d in field.shape)
 
 
+#: A declaration resolved under one set of dimensions (:func:`plan`): per field its
+#: name, dtype, shape and fill.
+Plan = tuple[tuple[str, np.dtype[Any], tuple[int, ...], float | None], ...]
+
+
+def plan(fields: Sequence[Field], dims: Mapping[str, int]) -> Plan:
+    """``fields`` resolved under ``dims`` (what :func:`build` reads of them; a caller
+    building many tuples of the same dimensions keeps it)."""
+    return tuple((f.name, np.dtype(f.dtype), shape_of(f, dims), f.fill) for f in fields)
+
+
 def build(
-    fields: Sequence[Field], dims: Mapping[str, int], given: Mapping[str, NDArray[Any]],
-    shapes: Sequence[tuple[int, ...]] | None = None,
+    fields: Sequence[Field] | Plan, dims: Mapping[str, int],
+    given: Mapping[str, NDArray[Any]],
 ) -> tuple[NDArray[Any], ...]:
     """Build the state tuple of ``fields``: ``given`` arrays checked, the others made
     from their fill (``np.zeros`` for a fill of 0: the same contents).
 
     Args:
-        fields: the declaration, in order.
-        dims: the size of every dimension name the declaration uses.
+        fields: the declaration, in order, or its :func:`plan` under ``dims``.
+        dims: the size of every dimension name the declaration uses (unread for a plan).
         given: the arrays of the fields whose ``fill`` is None (and no others).
-        shapes: each field's :func:`shape_of` under ``dims``, if the caller has them.
 
     Returns:
         The state tuple.
@@ -66,24 +76,23 @@ def build(
         ValueError: a given array is missing, unexpected, or of the wrong dtype or
             shape, or not C-contiguous (numba would copy or reject it).
     """
-    extra = set(given) - {f.name for f in fields if f.fill is None}
+    p = plan(fields, dims) if fields and isinstance(fields[0], Field) else fields
+    extra = set(given) - {name for name, _, _, fill in p if fill is None}  # type: ignore[misc]
     if extra:
         raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
     arrays: list[NDArray[Any]] = []
-    if shapes is None:
-        shapes = [shape_of(f, dims) for f in fields]
-    for f, shape in zip(fields, shapes, strict=True):
-        if f.fill is not None:
-            arrays.append(np.zeros(shape, dtype=f.dtype) if f.fill == 0
-                          else np.full(shape, f.fill, dtype=f.dtype))
+    for name, dtype, shape, fill in p:  # type: ignore[misc]
+        if fill is not None:
+            arrays.append(np.zeros(shape, dtype=dtype) if fill == 0
+                          else np.full(shape, fill, dtype=dtype))
             continue
-        if f.name not in given:
-            raise ValueError(f"state field {f.name!r}: no array given")
-        a = given[f.name]
-        if a.dtype != f.dtype or a.shape != shape or not a.flags.c_contiguous:
+        a = given.get(name)
+        if a is None:
+            raise ValueError(f"state field {name!r}: no array given")
+        if a.dtype != dtype or a.shape != shape or not a.flags.c_contiguous:
             raise ValueError(
-                f"state field {f.name!r}: {a.dtype}{a.shape} given, "
-                f"{np.dtype(f.dtype)}{shape} C-contiguous declared"
+                f"state field {name!r}: {a.dtype}{a.shape} given, "
+                f"{dtype}{shape} C-contiguous declared"
             )
         arrays.append(a)
     return tuple(arrays)

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.events.fast.declare import Field, build, shape_of, swap
+from sigma_des.events.fast.declare import Field, Plan, build, plan, shape_of, swap
 from sigma_des.net.cpu import RESERVATIONS
 from sigma_des.net.kinds import Kind
 
@@ -455,17 +455,18 @@ def allocate(
 ) -> tuple[NDArray[Any], ...]:
     """The core's state tuple (:func:`~sigma_des.events.fast.declare.build` of
     :data:`FIELDS`): ``given`` arrays checked, the others made from their fill (the
-    fields' shapes kept per set of dimensions: the scenes of a learning env share them)."""
+    declaration's :func:`~sigma_des.events.fast.declare.plan` kept per set of dimensions:
+    the scenes of a learning env and their episodes share it)."""
     key = tuple(dims.items())
-    shapes = _SHAPES.get(key)
-    if shapes is None:
-        if len(_SHAPES) >= 64:
-            _SHAPES.clear()
-        shapes = _SHAPES[key] = [shape_of(f, dims) for f in FIELDS]
-    return build(FIELDS, dims, given, shapes)
+    p = _PLANS.get(key)
+    if p is None:
+        if len(_PLANS) >= 64:
+            _PLANS.clear()
+        p = _PLANS[key] = plan(FIELDS, dims)
+    return build(p, dims, given)
 
 
-_SHAPES: dict[tuple[tuple[str, int], ...], list[tuple[int, ...]]] = {}
+_PLANS: dict[tuple[tuple[str, int], ...], Plan] = {}
 
 
 def replaced(
