@@ -13,10 +13,11 @@ from __future__ import annotations
 import math
 
 from sigma_des.events.fast.layout import EV_INT_MAX
+from sigma_des.events.fast.memo import IdentityMemo
 from sigma_des.events.spec import RunSpec
 
 __all__ = ["MAX_TABLE_BYTES", "TABLE_MARGIN", "CohortFallback", "checked_int", "ge_slots",
-           "ntp_syncs", "unsupported"]
+           "check_support", "ntp_syncs", "unsupported"]
 
 #: Seconds past the run's end covered by the Gilbert–Elliott and NTP tables (a send
 #: later than that, behind a broker backlog this long, stops the compiled run and
@@ -65,6 +66,17 @@ def ntp_syncs(sc: RunSpec) -> int:
 
 
 def unsupported(sc: RunSpec, method: str) -> str | None:
+    """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can):
+    :func:`check_support`'s answer, kept per run spec's parts (they are what it reads;
+    an env's episodes share them, :mod:`~sigma_des.events.fast.memo`)."""
+    return _SUPPORT.get((sc.net, sc.faults, sc.clocks), (sc.nodes, sc.hosts, sc.duration, method),
+                        lambda: check_support(sc, method))
+
+
+_SUPPORT: IdentityMemo[str | None] = IdentityMemo()
+
+
+def check_support(sc: RunSpec, method: str) -> str | None:
     """Why ``method`` on the run ``sc`` cannot run on the cohort core (None: it can).
 
     These features fall back to the per-message engine for the whole run: the DDS

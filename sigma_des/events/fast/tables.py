@@ -37,6 +37,7 @@ from sigma_des.events.fast.layout import (
     SVC_PUB,
     U_OFFSET,
 )
+from sigma_des.events.fast.memo import IdentityMemo
 from sigma_des.events.fast.primitives import lat_source
 from sigma_des.events.fast.support import CohortFallback, ge_slots, ntp_syncs
 from sigma_des.events.jobs import STEP_DRAW
@@ -254,7 +255,21 @@ def clock_tables(clocks: NodeClocks, spec: RunSpec) -> dict[str, NDArray[Any]]:
 
 
 def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
-    """Processes, machines and MQTT clients (what Network and Cpu hold)."""
+    """Processes, machines and MQTT clients (what Network and Cpu hold), fresh arrays.
+
+    A function of ``spec.net`` alone (the network ``net`` and its CPU stage are built
+    from it and read before the run): the tables are kept per network setup
+    (:mod:`~sigma_des.events.fast.memo`) and each run gets its own copies.
+    """
+    kept = _DEPLOYMENT.get((spec.net,), (), lambda: _deployment_tables(net, spec))
+    return {k: v.copy() for k, v in kept.items()}
+
+
+_DEPLOYMENT: IdentityMemo[dict[str, NDArray[Any]]] = IdentityMemo()
+
+
+def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
+    """:func:`deployment_tables`, computed."""
     dep = spec.net.deployment
     topo = spec.net.topology
     n = topo.nodes
