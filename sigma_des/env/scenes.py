@@ -21,9 +21,9 @@ next command tick or reached the end of its scenario.
 
 from __future__ import annotations
 
-import copy
 import gc
 from collections.abc import Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -67,19 +67,8 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
 def with_seed(spec: RunSpec, seed: int) -> RunSpec:
     """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
     seed (the seed is in the spec and its aligner's parameters, nowhere else), without
-    validating and converting the whole scenario again for every episode.
-
-    The two frozen specs are shallow copies with the seed set: their ``__post_init__``
-    only validates fields (none of them the seed), so ``dataclasses.replace``'s second
-    validation of ``spec`` at every episode would find what the first found.
-    """
-    seed = int(seed)
-    align = copy.copy(spec.align)
-    object.__setattr__(align, "seed", seed)
-    out = copy.copy(spec)
-    object.__setattr__(out, "seed", seed)
-    object.__setattr__(out, "align", align)
-    return out
+    validating and converting the whole scenario again for every episode."""
+    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
 
 
 class _Capture:

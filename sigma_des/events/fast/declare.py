@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,6 +57,13 @@ def plan(fields: Sequence[Field], dims: Mapping[str, int]) -> Plan:
     return tuple((f.name, np.dtype(f.dtype), shape_of(f, dims), f.fill) for f in fields)
 
 
+def _as_plan(fields: Sequence[Field] | Plan, dims: Mapping[str, int]) -> Plan:
+    """A declaration resolved under ``dims``, or ``fields`` if it is a plan already."""
+    if fields and isinstance(fields[0], Field):
+        return plan(cast(Sequence[Field], fields), dims)
+    return cast(Plan, fields)
+
+
 def build(
     fields: Sequence[Field] | Plan, dims: Mapping[str, int],
     given: Mapping[str, NDArray[Any]],
@@ -76,12 +83,12 @@ def build(
         ValueError: a given array is missing, unexpected, or of the wrong dtype or
             shape, or not C-contiguous (numba would copy or reject it).
     """
-    p = plan(fields, dims) if fields and isinstance(fields[0], Field) else fields
-    extra = set(given) - {name for name, _, _, fill in p if fill is None}  # type: ignore[misc]
+    p = _as_plan(fields, dims)
+    extra = set(given) - {name for name, _, _, fill in p if fill is None}
     if extra:
         raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
     arrays: list[NDArray[Any]] = []
-    for name, dtype, shape, fill in p:  # type: ignore[misc]
+    for name, dtype, shape, fill in p:
         if fill is not None:
             arrays.append(np.zeros(shape, dtype=dtype) if fill == 0
                           else np.full(shape, fill, dtype=dtype))
