@@ -9,6 +9,7 @@ the reference dynamics for hand-computed engine tests.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -44,6 +45,24 @@ def _step_rows(state: np.ndarray, cmd: np.ndarray, dt: float, a: float,
             v1 = v0 + a * (cmd[r, c] - v0)
             out[r, c] = state[r, c] + 0.5 * (v0 + v1) * dt
             out[r, 3 + c] = v1
+
+
+@njit(cache=True)
+def _step_gain(state: np.ndarray, cmd: np.ndarray, dt: float, p: np.ndarray,
+               out: np.ndarray) -> None:
+    """:meth:`PointMass.step` into ``out`` with ``p[0]`` its ``tau``: the gain
+    ``1 - exp(-dt / tau)`` (the same libm ``exp`` as Python's ``math.exp``), then
+    :func:`_step_rows`."""
+    a = 1.0 - math.exp(-dt / p[0])
+    _step_rows(state, cmd, dt, a, out)
+
+
+@njit(cache=True)
+def _resim_gain(prev: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: int,
+                latest: int, p: np.ndarray, i: int, ckpt: np.ndarray, obs_hist: np.ndarray,
+                state: np.ndarray) -> None:
+    """:meth:`PointMass.resimulate_into` with ``p[0]`` its ``tau``."""
+    _resimulate(prev, cmd, frame_dt, first, latest, p[0], i, ckpt, obs_hist, state)
 
 
 @njit(cache=True)
@@ -177,6 +196,14 @@ class PointMass:
         _resimulate(np.ascontiguousarray(prev, dtype=np.float64).reshape(6),
                     np.ascontiguousarray(row, dtype=np.float64).reshape(3), frame_dt,
                     int(first), int(latest), float(self.tau), int(i), ckpt, obs_hist, state)
+
+    def compiled_physics(self) -> tuple[Any, Any, Any, NDArray[np.float64]]:
+        """The compiled kernels a compiled control loop steps, observes and re-simulates
+        the swarm with (:mod:`sigma_des.events.fast.control`): ``step(state, cmd, dt,
+        params, out)``, ``observe(state, out)``, ``resimulate(prev, row, frame_dt, first,
+        latest, params, i, ckpt, obs_hist, state)`` and ``params``: the same bits as
+        :meth:`step`, :meth:`observe` and :meth:`resimulate_into`."""
+        return _step_gain, _observe_rows, _resim_gain, np.array([float(self.tau)])
 
     def observe_into(self, state: NDArray[np.float64], out: NDArray[np.float64]) -> None:
         """:meth:`observe` written into ``out`` (``(n, 12)`` float64), compiled."""
