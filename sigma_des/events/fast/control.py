@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from sigma_des.core.flags import MISSING
+from sigma_des.core.flags import EXACT, MISSING
 from sigma_des.events.align.ring import _align_all
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.compiler import jit
@@ -56,6 +56,8 @@ CI_FIELDS = (
     "rollbacks", "resim_steps",  # the truth's counts of rollbacks and re-simulated steps
     "rolled",  # rollbacks served here (the core's NEED_ROLLBACK exits)
     "need_node",  # the node whose job start Python must serve (START)
+    "method",  # BIDES or NONE
+    "dirty",  # none: states newer than the shown ones arrived since the last tick
 )
 #: float scalars of the control state (``C[1]``), by name
 CF_FIELDS = (
@@ -73,10 +75,13 @@ CI_CPU, CI_ADAPT, CI_THETA_LAG, CI_HOLE_FILL, CI_LAG_HIGH, CI_LAG_LOW = 12, 13, 
 CI_HOLD_DOWN, CI_HOLD_UP, CI_TRUTH_LATEST, CI_FD_FIRST, CI_FD_COUNT, CI_NEED_K = (
     18, 19, 20, 21, 22, 23)
 CI_SPACE, CI_ROLLBACKS, CI_RESIM_STEPS, CI_ROLLED, CI_NEED_NODE = 24, 25, 26, 27, 28
+CI_METHOD, CI_DIRTY = 29, 30
+#: the methods the loop runs (``CI_METHOD``)
+BIDES, NONE = 0, 1
 CF_NOW, CF_TRIG_T, CF_ALIGN_T, CF_F_TRIG, CF_T0, CF_BASE_F, CF_END = 0, 1, 2, 3, 4, 5, 6
 CF_PHYS_T, CF_ALIGN_PHASE, CF_F_ALIGN, CF_F_NOMINAL, CF_F_MIN, CF_RATE_DOWN = 7, 8, 9, 10, 11, 12
 CF_RATE_UP, CF_TICK_COST, CF_PT = 13, 14, 15
-assert CI_NEED_NODE == len(CI_FIELDS) - 1 and CF_PT == len(CF_FIELDS) - 1
+assert CI_DIRTY == len(CI_FIELDS) - 1 and CF_PT == len(CF_FIELDS) - 1
 
 # why run() returned (beyond the core loop's own exit codes, layout.EXIT_CODES)
 COMMAND_TICK = 100  # a command tick: the shown snapshot waits for the caller's commands
@@ -95,12 +100,15 @@ C_INT, C_FLT, C_TRIG_TIME, C_CKPT, C_OBS_HIST, C_SLOT_FRAME, C_FRAME_DT, C_PHYS_
 C_STATE, C_CMD, C_SHOWN_FRAME, C_SHOWN_GEN, C_SHOWN_OBS, C_SHOWN_FLAG = range(8, 14)
 C_FD_VALUES, C_FD_TAGS, C_FD_TABLES, C_FD_WIDTHS, C_FD_BLOCK, C_PHYS = range(14, 20)
 C_INITIAL, C_ZERO = 20, 21  # the truth's initial state; a zero row (a slot never written)
+C_SCRATCH = 22  # a step's result without checkpoints
+C_NEW_FRAME, C_NEW_GEN, C_NEW_OBS = 23, 24, 25  # none: the newest state per node
 
 
 @jit
 def _step_truth(C, k, dt, step, observe):  # type: ignore[no-untyped-def]
     """:meth:`SwarmTruth.step_frame` of frame ``k`` (no trajectory log, no held rows):
-    the state stepped into its checkpoint slot, observed into the published ring."""
+    the state stepped into its checkpoint slot (or a scratch array without checkpoints),
+    observed into the published ring."""
     ci, cf = C[C_INT], C[C_FLT]
     H = C[C_SLOT_FRAME].shape[0]
     slot = k % H
@@ -108,7 +116,7 @@ def _step_truth(C, k, dt, step, observe):  # type: ignore[no-untyped-def]
     cf[CF_PHYS_T] = cf[CF_PHYS_T] + dt
     C[C_PHYS_HIST][slot] = cf[CF_PHYS_T]
     state = C[C_STATE]
-    out = C[C_CKPT][slot]
+    out = C[C_CKPT][slot] if C[C_CKPT].shape[0] > 0 else C[C_SCRATCH]
     step(state, C[C_CMD], dt, C[C_PHYS], out)
     for r in range(state.shape[0]):
         for c in range(state.shape[1]):
@@ -175,14 +183,9 @@ def _adapt(C, lag):  # type: ignore[no-untyped-def]
 
 
 @jit
-def _align(S, C):  # type: ignore[no-untyped-def]
-    """BiDES's alignment tick at ``now`` (AlignmentServer._align + BidesAligner.align):
-    the server's tick burst, Algorithm 1 into the shown rows, the adaptation, the command
-    tick, the next tick. Returns COMMAND_TICK when the caller's commands are due, else 0."""
-    ci, cf = C[C_INT], C[C_FLT]
-    t = cf[CF_NOW]
-    if cf[CF_TICK_COST] > 0.0 and ci[CI_CPU]:
-        tick(S, L.P_SERVER, cf[CF_TICK_COST], t)  # before the tick's commands
+def _bides(S, C):  # type: ignore[no-untyped-def]
+    """BidesAligner.align: Algorithm 1 into fresh shown rows, then the adaptation."""
+    ci = C[C_INT]
     frame, gen, obs, flag = C[C_SHOWN_FRAME], C[C_SHOWN_GEN], C[C_SHOWN_OBS], C[C_SHOWN_FLAG]
     for i in range(frame.shape[0]):  # the rows align() starts from
         frame[i] = -1
@@ -197,6 +200,62 @@ def _align(S, C):  # type: ignore[no-untyped-def]
     ci[CI_ALIGNED] = F
     if ci[CI_ADAPT] and F >= 0:
         _adapt(C, ci[CI_LATEST] - F)
+
+
+@jit
+def _none(C):  # type: ignore[no-untyped-def]
+    """NoneAligner.align: the newest states shown, if any arrived since the last tick."""
+    ci = C[C_INT]
+    ci[CI_NEW_SNAPSHOT] = ci[CI_DIRTY]
+    if not ci[CI_DIRTY]:
+        return
+    nf, ng, no = C[C_NEW_FRAME], C[C_NEW_GEN], C[C_NEW_OBS]
+    frame, gen, obs, flag = C[C_SHOWN_FRAME], C[C_SHOWN_GEN], C[C_SHOWN_OBS], C[C_SHOWN_FLAG]
+    top = nf[0]
+    for i in range(nf.shape[0]):
+        frame[i] = nf[i]
+        gen[i] = ng[i]
+        for c in range(obs.shape[1]):
+            obs[i, c] = no[i, c]
+        flag[i] = EXACT if nf[i] >= 0 else MISSING
+        top = max(top, nf[i])
+    ci[CI_ALIGNED] = top
+    ci[CI_DIRTY] = 0
+
+
+@jit
+def _take_out(S, C):  # type: ignore[no-untyped-def]
+    """none: the deliveries the core buffered (``S.out_*``), taken by NoneAligner.on_states's
+    rule (:func:`~sigma_des.events.align.newest.take_rows`: a row replaces its node's
+    entry when its frame is greater), in arrival order."""
+    iv = S[L.INTS]
+    oi, of = S[L.OUT_INT], S[L.OUT_FLOAT]
+    nf, ng, no = C[C_NEW_FRAME], C[C_NEW_GEN], C[C_NEW_OBS]
+    for j in range(iv[L.I_OUT]):
+        node = oi[j, 0]
+        if oi[j, 1] > nf[node]:
+            nf[node] = oi[j, 1]
+            ng[node] = of[j, 1]
+            for c in range(no.shape[1]):
+                no[node, c] = of[j, 3 + c]
+            C[C_INT][CI_DIRTY] = 1
+    iv[L.I_OUT] = 0
+
+
+@jit
+def _align(S, C):  # type: ignore[no-untyped-def]
+    """The alignment tick at ``now`` (AlignmentServer._align with the method's ``align``):
+    the server's tick burst, the snapshot (and BiDES's adaptation), the command tick, the
+    next tick. Returns COMMAND_TICK when the caller's commands are due, else 0."""
+    ci, cf = C[C_INT], C[C_FLT]
+    t = cf[CF_NOW]
+    if cf[CF_TICK_COST] > 0.0 and ci[CI_CPU]:
+        tick(S, L.P_SERVER, cf[CF_TICK_COST], t)  # before the tick's commands
+    if ci[CI_METHOD] == BIDES:
+        _bides(S, C)
+    else:
+        _none(C)
+    gen = C[C_SHOWN_GEN]
     due = False
     if ci[CI_EVERY] > 0 and ci[CI_ALIGN_TICK] % ci[CI_EVERY] == 0:
         for i in range(gen.shape[0]):  # commands only on a view with a valid row
@@ -306,7 +365,9 @@ def run(S, C, step, observe, resim):  # type: ignore[no-untyped-def]
         if iv[L.I_DEFN]:
             return DEFERRED
         if iv[L.I_OUT]:
-            return OUT
+            if ci[CI_METHOD] != NONE:
+                return OUT
+            _take_out(S, C)
         if last:
             return END
         cf[CF_NOW] = tc

@@ -26,6 +26,7 @@ from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.bides import BidesAligner
+from sigma_des.events.align.none import NoneAligner
 from sigma_des.events.fast import control as C
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
@@ -75,20 +76,45 @@ def unsupported(run: _Run) -> str | None:
     """Why ``run``'s control events cannot run compiled (None: they can)."""
     if not isinstance(run.core, CompiledCore):
         return "the run is not on the compiled core"
-    if run.method != "bides" or not isinstance(run.aligner, BidesAligner):
-        return f"method {run.method!r} (only bides)"
+    if run.method not in ("bides", "none") or not isinstance(run.aligner,
+                                                             (BidesAligner, NoneAligner)):
+        return f"method {run.method!r} (only bides and none)"
     if not isinstance(run.collector, NullCollector):
         return "the run collects metrics"
     if type(run.tap) is not Tap:
         return "the run is recorded"
     truth = run.truth
-    if truth.traj is not NO_LOG or truth.stepped_rows is not None or truth.ckpt.shape[0] == 0:
-        return "the truth keeps a trajectory log, held rows or no checkpoints"
+    if truth.traj is not NO_LOG or truth.stepped_rows is not None:
+        return "the truth keeps a trajectory log or held rows"
     if getattr(run.dyn, "compiled_physics", None) is None:
         return f"dynamics {run.dyn.name!r} has no compiled kernels"
     if run.core.attempts.acks:
         return "acknowledged messages"
     return None
+
+
+def _method(al: Aligner, ci: NDArray[np.int64], cf: NDArray[np.float64]
+            ) -> tuple[NDArray[Any], ...]:
+    """The aligner's method and parameters into the control state; the newest-state
+    arrays the loop writes for ``none`` (the aligner's own; placeholders for BiDES)."""
+    if isinstance(al, NoneAligner):
+        ci[C.CI_METHOD] = C.NONE
+        ci[C.CI_DIRTY] = int(al._dirty)
+        al._dirty = False  # the loop's flag from now on
+        return al._frame, al._gen, al._obs
+    assert isinstance(al, BidesAligner)
+    b = al.spec
+    ci[C.CI_METHOD] = C.BIDES
+    ci[C.CI_HI], ci[C.CI_LO], ci[C.CI_RATE_CHANGES] = al._hi, al._lo, al.rate_changes
+    ci[C.CI_ADAPT] = int(b.adaptation)
+    ci[C.CI_THETA_LAG] = b.theta_lag if b.lag_exclusion else -1
+    ci[C.CI_HOLE_FILL] = int(b.hole_fill)
+    ci[C.CI_LAG_HIGH], ci[C.CI_LAG_LOW] = b.lag_high, b.lag_low
+    ci[C.CI_HOLD_DOWN], ci[C.CI_HOLD_UP] = b.hold_down, b.hold_up
+    cf[C.CF_F_NOMINAL], cf[C.CF_F_MIN] = al.f_nominal, b.f_trig_min
+    cf[C.CF_RATE_DOWN], cf[C.CF_RATE_UP] = b.rate_down, b.rate_up
+    return (np.full(1, -1, dtype=np.int64), np.full(1, np.nan),
+            np.full((1, al.shown_obs.shape[1]), np.nan))
 
 
 class CompiledControl:
@@ -111,8 +137,6 @@ class CompiledControl:
         core: CompiledCore = run.core
         spec = run.spec
         al = run.aligner
-        assert isinstance(al, BidesAligner)
-        b = al.spec
         truth = run.truth
         trig = run.trigger
         fd = core.frame_draws
@@ -121,15 +145,9 @@ class CompiledControl:
         ci[C.CI_LATEST], ci[C.CI_K0] = trig.latest, trig.base[1]
         cf[C.CF_T0], cf[C.CF_BASE_F], cf[C.CF_F_TRIG] = trig.base[0], trig.base[2], trig.f_trig
         ci[C.CI_ALIGN_TICK] = run.align_tick
-        ci[C.CI_HI], ci[C.CI_LO], ci[C.CI_RATE_CHANGES] = al._hi, al._lo, al.rate_changes
         ci[C.CI_ALIGNED] = al.aligned_frame
         ci[C.CI_EVERY] = spec.commands.every if run.behaviour is not None else 0
         ci[C.CI_CPU] = int(run.core.host.net.cpu is not None)
-        ci[C.CI_ADAPT] = int(b.adaptation)
-        ci[C.CI_THETA_LAG] = b.theta_lag if b.lag_exclusion else -1
-        ci[C.CI_HOLE_FILL] = int(b.hole_fill)
-        ci[C.CI_LAG_HIGH], ci[C.CI_LAG_LOW] = b.lag_high, b.lag_low
-        ci[C.CI_HOLD_DOWN], ci[C.CI_HOLD_UP] = b.hold_down, b.hold_up
         ci[C.CI_TRUTH_LATEST] = truth.latest
         ci[C.CI_SPACE] = 2 + run.n + 4  # CompiledCore.ensure_space(2)'s need
         ci[C.CI_ROLLBACKS], ci[C.CI_RESIM_STEPS] = truth.rollbacks, truth.resim_steps
@@ -137,25 +155,25 @@ class CompiledControl:
         cf[C.CF_END] = spec.duration
         cf[C.CF_PHYS_T] = truth.phys_t
         cf[C.CF_ALIGN_PHASE], cf[C.CF_F_ALIGN] = spec.align_phase, spec.f_align
-        cf[C.CF_F_NOMINAL], cf[C.CF_F_MIN] = al.f_nominal, b.f_trig_min
-        cf[C.CF_RATE_DOWN], cf[C.CF_RATE_UP] = b.rate_down, b.rate_up
         cf[C.CF_TICK_COST] = spec.net.deployment.server_tick
+        newest = _method(al, ci, cf)
         self._take_events(run, ci, cf)
         # the truth's state: an array of its own from now on (rollbacks write its rows)
         truth.state = np.array(truth.state, dtype=np.float64, order="C")
         step, observe, resim, params = run.dyn.compiled_physics()  # type: ignore[attr-defined]
         self._kernels = (step, observe, resim)
-        self._shown = (np.full(run.n, -1, dtype=np.int64), np.full(run.n, np.nan),
-                       np.full_like(al.shown_obs, np.nan), np.full(run.n, 3, dtype=np.uint8))
+        # the shown rows the loop writes (the aligner gets copies at each return)
+        self._shown = (al.shown_frame.copy(), al.shown_gen.copy(), al.shown_obs.copy(),
+                       al.flag.copy())
         self.ci, self.cf = ci, cf
         self._rest = (trig.trig_time, truth.ckpt, truth.obs_hist, truth.slot_frame,
                       truth.frame_dt, truth.phys_hist, truth.state, run.nodes.cmd,
                       *self._shown, fd._values, fd._tags, fd._tables, fd._widths, fd._block,
                       np.ascontiguousarray(params, dtype=np.float64),
                       np.array(truth.initial, dtype=np.float64, order="C"),
-                      np.zeros(truth.state.shape[1]))
+                      np.zeros(truth.state.shape[1]), np.empty_like(truth.state), *newest)
         self._sync_draws()
-        core.deliveries.watch(core.S)  # no tap: the loop stores every state in the ring
+        core.deliveries.watch(core.S)  # no tap: states to the ring, or to the loop (none)
         #: how often the loop returned, by code (the core's exits and :data:`control.CODES`)
         self.returns: dict[int, int] = {}
         self._entry: Any = None  # the loop's entry point for the core's current state
@@ -190,12 +208,14 @@ class CompiledControl:
         trig.f_trig = float(cf[C.CF_F_TRIG])
         trig.base = (float(cf[C.CF_T0]), int(ci[C.CI_K0]), float(cf[C.CF_BASE_F]))
         al = run.aligner
-        assert isinstance(al, BidesAligner)
         al.aligned_frame = int(ci[C.CI_ALIGNED])
         al.new_snapshot = bool(ci[C.CI_NEW_SNAPSHOT])
-        al._hi, al._lo = int(ci[C.CI_HI]), int(ci[C.CI_LO])
-        al.rate_changes = int(ci[C.CI_RATE_CHANGES])
-        if ci[C.CI_ALIGN_TICK] > 0:  # the ring's size is fixed: the peak of every tick
+        if isinstance(al, BidesAligner):
+            al._hi, al._lo = int(ci[C.CI_HI]), int(ci[C.CI_LO])
+            al.rate_changes = int(ci[C.CI_RATE_CHANGES])
+        else:
+            al._dirty = bool(ci[C.CI_DIRTY])
+        if ci[C.CI_ALIGN_TICK] > 0:  # the buffers' size is fixed: the peak of every tick
             al.note_memory()
         al.shown_frame, al.shown_gen, al.shown_obs, al.flag = (a.copy() for a in self._shown)
         run.align_tick = int(ci[C.CI_ALIGN_TICK])
@@ -237,6 +257,10 @@ class CompiledControl:
                 core.exits[code] += 1
                 self._sync_truth()
                 core.serve(code)
+                al = self.run.aligner
+                if isinstance(al, NoneAligner) and al._dirty:  # a flush took states
+                    self.ci[C.CI_DIRTY] = 1
+                    al._dirty = False
             elif code == C.START:
                 self._sync_truth()
                 core._start_job(int(self.ci[C.CI_NEED_NODE]), float(self.cf[C.CF_PT]))
@@ -253,7 +277,7 @@ class CompiledControl:
             elif code == C.DEFERRED:
                 self._sync_truth()
                 core.flush_rollbacks()
-            elif code == C.OUT:
+            elif code == C.OUT:  # pragma: no cover - none takes them in the loop, BiDES has a ring
                 core.drain()
             elif code == C.END:
                 self._sync()
