@@ -213,11 +213,13 @@ class CompiledControl:
         if isinstance(al, BidesAligner):
             al._hi, al._lo = int(ci[C.CI_HI]), int(ci[C.CI_LO])
             al.rate_changes = int(ci[C.CI_RATE_CHANGES])
-        else:
+        elif isinstance(al, NoneAligner):
             al._dirty = bool(ci[C.CI_DIRTY])
-        if ci[C.CI_ALIGN_TICK] > 0:  # the buffers' size is fixed: the peak of every tick
-            al.note_memory()
-        al.shown_frame, al.shown_gen, al.shown_obs, al.flag = (a.copy() for a in self._shown)
+        if ci[C.CI_ALIGN_TICK] > 0 and al.peak_bytes == 0:  # the buffers' size is fixed:
+            al.note_memory()  # every tick notes the same
+        frame, gen, obs, flag = self._shown
+        al.shown_frame, al.shown_gen, al.shown_obs, al.flag = (frame.copy(), gen.copy(),
+                                                               obs.copy(), flag.copy())
         run.align_tick = int(ci[C.CI_ALIGN_TICK])
         self._sync_truth()
 
@@ -299,7 +301,8 @@ class CompiledControl:
                          aligned_frame=al.aligned_frame)
         cmds = run.behaviour.commands(view, run.dyn)
         ok = ~np.isnan(cmds).all(axis=1)
-        run.publish_commands(run.align_tick - 1, al.aligned_frame, np.flatnonzero(ok), cmds)
+        if ok.any():  # (no rows: the run's publish_commands would do nothing)
+            run.publish_commands(run.align_tick - 1, al.aligned_frame, np.flatnonzero(ok), cmds)
 
 
 #: the loop's entry points, by the types of what they take (see ``entries.bound``)
@@ -321,5 +324,5 @@ def _entry_for(S: tuple[Any, ...], by_handle: bool, arg: Any, ctl: tuple[Any, ..
         kernel = C.run_held if by_handle else C.run
         first = HandleType(typeof(S)) if by_handle else typeof(S)
         sig = (first, typeof(ctl), *(typeof(k) for k in kernels))
-        got = _ENTRIES[key] = kernel.compile(sig)
+        got = _ENTRIES[key] = kernel.compile(sig)  # type: ignore[attr-defined]
     return got
