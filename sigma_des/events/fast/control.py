@@ -2,23 +2,24 @@
 
 With the compiled core (:mod:`~sigma_des.events.fast.loop`) the messages of a run never
 reach Python, but its control events — the trigger issue (the swarm's physics step, the
-trigger's publication) and the alignment tick (the server's tick burst, BiDES's Algorithm 1
-and rate adaptation, the command tick) — are SimPy events whose Python handlers cost
-several times the messages they cause on a small swarm (a learning env's scenes). Here the
-same rules run in one compiled loop (:func:`run`) that brings the core up to each control
-event, as :meth:`~sigma_des.events.engine.MethodRun.advance` does, and handles it: the
-same floating point operations in the same order as :mod:`~sigma_des.events.trigger`,
-:mod:`~sigma_des.events.server`, :mod:`~sigma_des.events.align.bides` and
+trigger's publication) and the alignment tick (the server's tick burst, BiDES's
+Algorithm 1 and rate adaptation or ``none``'s newest states, the command tick) — are
+SimPy events whose Python handlers cost several times the messages they cause on a small
+swarm (a learning env's scenes). Here the same rules run in one compiled loop
+(:func:`run`) that brings the core up to each control event, as
+:meth:`~sigma_des.events.engine.MethodRun.advance` does, and handles it: the same
+floating point operations in the same order as :mod:`~sigma_des.events.trigger`,
+:mod:`~sigma_des.events.server`, the aligners (``bides``, ``none``) and
 :meth:`~sigma_des.events.truth.SwarmTruth.step_frame`, so a run is bit-identical to the
 SimPy path (tests/events/fast/test_control.py).
 
 A run has at most two control events pending, the next trigger (priority ``TRIGGER``) and
 the next alignment tick (``ALIGN``); at equal times the trigger goes first, as the kernel's
 priorities order them. :func:`run` returns to Python (:mod:`~.control_run`) for what needs
-it: an exit of the core's loop (rollbacks, buffer flushes, growth), deferred rollbacks to
-re-simulate, a block of frame draws to sample, room for a trigger's fan-out, a command tick
-(the caller decides), the end. The state Python reads (:data:`CI_*`, :data:`CF_*`) is in
-two small arrays; every other array is the run's own, shared in place.
+it: an exit of the core's loop (flushes, growth, a job's rollback draws), deferred
+rollbacks to re-simulate, a block of frame draws to sample, room for a trigger's fan-out,
+a command tick (the caller decides), the end. The state Python reads (``CI_*``, ``CF_*``)
+is in two small arrays; every other array is the run's own, shared in place.
 """
 
 from __future__ import annotations

@@ -10,8 +10,9 @@ aligner, truth, kernel clock — up to date at each return, so the run reads as 
 events had run on the kernel.
 
 :func:`unsupported` says why a run cannot be taken over (then it keeps its own path):
-the loop covers BiDES without metrics, recording or trajectory log, on a dynamics model
-with compiled kernels (``compiled_physics``) whose rollbacks are not deferred.
+the loop covers BiDES and ``none`` without metrics, recording or trajectory log, on a
+dynamics model with compiled kernels (``compiled_physics``) whose rollbacks are not
+deferred.
 """
 
 from __future__ import annotations
