@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 
 from sigma_des.core.flags import EXACT, MISSING
-from sigma_des.events.align.ring import _align_all
+from sigma_des.events.align.ring import align_in
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.handle import deref
@@ -103,6 +103,7 @@ C_FD_VALUES, C_FD_TAGS, C_FD_TABLES, C_FD_WIDTHS, C_FD_BLOCK, C_PHYS = range(14,
 C_INITIAL, C_ZERO = 20, 21  # the truth's initial state; a zero row (a slot never written)
 C_SCRATCH = 22  # a step's result without checkpoints
 C_NEW_FRAME, C_NEW_GEN, C_NEW_OBS = 23, 24, 25  # none: the newest state per node
+C_HAS, C_CONSIDERED = 26, 27  # Algorithm 1's per-node scratch rows (bool)
 
 
 @jit
@@ -195,8 +196,9 @@ def _bides(S, C):  # type: ignore[no-untyped-def]
         for c in range(obs.shape[1]):
             obs[i, c] = math.nan
     prev = ci[CI_ALIGNED]
-    F = _align_all(S[L.RING_FRAME], S[L.RING_GEN], S[L.RING_OBS], S[L.RING_LATEST],  # noqa: N806
-                   ci[CI_THETA_LAG], ci[CI_HOLE_FILL] != 0, prev, frame, gen, obs, flag)
+    F = align_in(S[L.RING_FRAME], S[L.RING_GEN], S[L.RING_OBS], S[L.RING_LATEST],  # noqa: N806
+                 ci[CI_THETA_LAG], ci[CI_HOLE_FILL] != 0, prev, frame, gen, obs, flag,
+                 C[C_HAS], C[C_CONSIDERED])
     ci[CI_NEW_SNAPSHOT] = 1 if F > prev else 0
     ci[CI_ALIGNED] = F
     if ci[CI_ADAPT] and F >= 0:

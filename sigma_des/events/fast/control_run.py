@@ -172,7 +172,8 @@ class CompiledControl:
                       *self._shown, fd._values, fd._tags, fd._tables, fd._widths, fd._block,
                       np.ascontiguousarray(params, dtype=np.float64),
                       np.array(truth.initial, dtype=np.float64, order="C"),
-                      np.zeros(truth.state.shape[1]), np.empty_like(truth.state), *newest)
+                      np.zeros(truth.state.shape[1]), np.empty_like(truth.state), *newest,
+                      np.zeros(run.n, dtype=np.bool_), np.zeros(run.n, dtype=np.bool_))
         self._sync_draws()
         core.deliveries.watch(core.S)  # no tap: states to the ring, or to the loop (none)
         #: how often the loop returned, by code (the core's exits and :data:`control.CODES`)
