@@ -9,6 +9,7 @@ the reference dynamics for hand-computed engine tests.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -47,18 +48,47 @@ def _step_rows(state: np.ndarray, cmd: np.ndarray, dt: float, a: float,
 
 
 @njit(cache=True)
+def _step_gain(state: np.ndarray, cmd: np.ndarray, dt: float, p: np.ndarray,
+               out: np.ndarray) -> None:
+    """:meth:`PointMass.step` into ``out`` with ``p[0]`` its ``tau``: the gain
+    ``1 - exp(-dt / tau)`` (the same libm ``exp`` as Python's ``math.exp``), then
+    :func:`_step_rows`."""
+    a = 1.0 - math.exp(-dt / p[0])
+    _step_rows(state, cmd, dt, a, out)
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+def _resim_gain(prev: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: int,
+                latest: int, p: np.ndarray, i: int, ckpt: np.ndarray, obs_hist: np.ndarray,
+                state: np.ndarray) -> None:
+    """:meth:`PointMass.resimulate_into` with ``p[0]`` its ``tau``."""
+    s = state[i]  # the working row: rows are independent, prev is another slot's
+    for c in range(s.shape[0]):
+        s[c] = prev[c]
+    _resimulate_in(s, cmd, frame_dt, first, latest, p[0], i, ckpt, obs_hist)
+
+
+@njit(cache=True)
 def _observe_rows(state: np.ndarray, out: np.ndarray) -> None:
-    """:meth:`PointMass.observe` of each row of ``state`` written into ``out``'s rows: the
-    same libm ``hypot`` and ``atan2`` the numpy ufuncs call, the other columns zero."""
+    """:meth:`PointMass.observe` of each row of ``state`` written into ``out``'s rows
+    (:func:`_observe_row`)."""
     for r in range(state.shape[0]):
-        vn, ve, vh = state[r, 3], state[r, 4], state[r, 5]
-        out[r, :] = 0.0
-        out[r, 0] = math.hypot(vn, ve)
-        out[r, 2] = -vh
-        out[r, 5] = math.atan2(ve, vn)
-        out[r, 9] = state[r, 0]
-        out[r, 10] = state[r, 1]
-        out[r, 11] = state[r, 2]
+        _observe_row(state[r], out[r])
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+def _observe_row(s: np.ndarray, o: np.ndarray) -> None:
+    """:meth:`PointMass.observe` of state row ``s`` written into ``o``: the same libm
+    ``hypot`` and ``atan2`` the numpy ufuncs call, the other columns zero."""
+    vn, ve, vh = s[3], s[4], s[5]
+    for c in range(o.shape[0]):
+        o[c] = 0.0
+    o[0] = math.hypot(vn, ve)
+    o[2] = -vh
+    o[5] = math.atan2(ve, vn)
+    o[9] = s[0]
+    o[10] = s[1]
+    o[11] = s[2]
 
 
 @njit(cache=True)
@@ -69,8 +99,19 @@ def _resimulate(prev: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: 
     into its ring slots (``f % H``; ``frame_dt`` the ring's steps) and ``state``:
     :meth:`PointMass.step_frames` (its gain, :meth:`PointMass.step`'s operations) and
     :func:`_observe_rows`, in one call."""
-    H = frame_dt.shape[0]
     s = prev.copy()
+    _resimulate_in(s, cmd, frame_dt, first, latest, tau, i, ckpt, obs_hist)
+    state[i] = s
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+def _resimulate_in(s: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: int,
+                   latest: int, tau: float, i: int, ckpt: np.ndarray,
+                   obs_hist: np.ndarray) -> None:
+    """:func:`_resimulate`'s frames, stepping row ``s`` in place (it ends as the newest
+    state; nothing is allocated, so a loop compiled without reference counting may call
+    it)."""
+    H = frame_dt.shape[0]
     for f in range(first, latest + 1):
         slot = f % H
         dt = frame_dt[slot]
@@ -80,9 +121,9 @@ def _resimulate(prev: np.ndarray, cmd: np.ndarray, frame_dt: np.ndarray, first: 
             v1 = v0 + a * (cmd[c] - v0)
             s[c] = s[c] + 0.5 * (v0 + v1) * dt
             s[3 + c] = v1
-        ckpt[slot, i] = s
-        _observe_rows(s.reshape(1, 6), obs_hist[slot, i : i + 1])
-    state[i] = s
+        for c in range(6):
+            ckpt[slot, i, c] = s[c]
+        _observe_row(s, obs_hist[slot, i])
 
 
 class PointMass:
@@ -177,6 +218,14 @@ class PointMass:
         _resimulate(np.ascontiguousarray(prev, dtype=np.float64).reshape(6),
                     np.ascontiguousarray(row, dtype=np.float64).reshape(3), frame_dt,
                     int(first), int(latest), float(self.tau), int(i), ckpt, obs_hist, state)
+
+    def compiled_physics(self) -> tuple[Any, Any, Any, NDArray[np.float64]]:
+        """The compiled kernels a compiled control loop steps, observes and re-simulates
+        the swarm with (:mod:`sigma_des.events.fast.control`): ``step(state, cmd, dt,
+        params, out)``, ``observe(state, out)``, ``resimulate(prev, row, frame_dt, first,
+        latest, params, i, ckpt, obs_hist, state)`` and ``params``: the same bits as
+        :meth:`step`, :meth:`observe` and :meth:`resimulate_into`."""
+        return _step_gain, _observe_rows, _resim_gain, np.array([float(self.tau)])
 
     def observe_into(self, state: NDArray[np.float64], out: NDArray[np.float64]) -> None:
         """:meth:`observe` written into ``out`` (``(n, 12)`` float64), compiled."""

@@ -35,6 +35,7 @@ from sigma_des.core.rng import RandomStreams, mix_int
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
+from sigma_des.events.fast.control_run import CompiledControl, unsupported
 from sigma_des.events.fast.growth import trims_batched
 from sigma_des.events.spec import RunSpec
 
@@ -134,7 +135,8 @@ class Scene:
     """
 
     def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
-                 metrics: bool = True, start: tuple[_Placed, Array] | None = None) -> None:
+                 metrics: bool = True, start: tuple[_Placed, Array] | None = None,
+                 control: bool = True) -> None:
         self.capture = _Capture()
         model, obs0 = placed(dyn, task, spec.nodes) if start is None else start
         self.run: MethodRun = make_run(spec, method, model, self.capture,  # type: ignore[arg-type]
@@ -144,6 +146,9 @@ class Scene:
         self.ended = False
         self.tick = -1
         self.run.start()
+        #: the run's control events in the compiled loop, where it covers them
+        self.control = (CompiledControl(self.run)
+                        if control and unsupported(self.run) is None else None)
 
     @property
     def view(self) -> SwarmView:
@@ -196,10 +201,11 @@ class SceneBatch:
 
     def __init__(self, sc: Scenario, method: str, dyn: DynamicsModel, task: Task,
                  n_scenes: int, scene_ids: list[int] | None = None,
-                 metrics: bool = True) -> None:
+                 metrics: bool = True, control: bool = True) -> None:
         self.sc = sc
         self.spec = sc.run_spec()
         self.metrics = metrics
+        self.control = control
         self.method = method
         self.dyn = dyn
         self.task = task
@@ -262,7 +268,7 @@ class SceneBatch:
     def _fresh(self, s: int) -> Scene:
         seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
         return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics,
-                     self.start)
+                     self.start, self.control)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""
@@ -270,6 +276,13 @@ class SceneBatch:
         while todo:
             due: list[Scene] = []
             for s in todo:
+                if s.control is not None:  # physics in the compiled loop: no batching
+                    code = s.control.advance_until(s.captured)
+                    if code == PAUSED:
+                        s.tick = s.run.align_tick - 1
+                    else:
+                        s.ended = True
+                    continue
                 code = s.run.advance_until(s.captured)
                 if code == TRIGGER_DUE:
                     due.append(s)

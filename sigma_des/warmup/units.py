@@ -7,9 +7,9 @@ installing) pays that cost up front and splits it over the CPUs: the kernels fal
 two independent groups of similar size, each compiled in its own process —
 
 * ``core``: the compiled message core (``advance``, the ``publish_*`` entry points),
-  the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths: every method of a
-  tiny point-mass scenario with commands, a BiDES run with rollbacks and an aircraft
-  truth's held command rows;
+  the BiDES ring insert and Algorithm 1, the Lock-Step and HLC paths, the learning env's
+  compiled control loop: every method of a tiny point-mass scenario with commands, a
+  BiDES run with rollbacks, an aircraft truth's held command rows and a few env steps;
 * ``physics``: the 6-DoF aircraft step and observation (quadrotor and fixed wing, one
   specialisation), the sensors, wind and atmosphere kernels, the DTW of the fidelity
   metrics and the streamed summaries of spilled samples: a tiny ideal flight of each
@@ -62,6 +62,23 @@ def _core() -> None:
     make_run(rb.run_spec(), "bides", make_dynamics(rb), make_behaviour(rb))[0].load_kernels()
     # the command rows an aircraft's truth holds (a point mass's truth keeps none)
     HeldCommands(2, 4).stepped(0, np.zeros((2, 4)))
+    _env()
+
+
+def _env() -> None:
+    """A learning env's scenes: the compiled control loop (BiDES with rollbacks, none)."""
+    import numpy as np
+
+    from sigma_des.env import SwarmVec
+
+    lossy = {"nodes": 3, "net.host_link.latency": {"dist": "normal", "mean": 0.1, "std": 0.02},
+             "net.host_link.loss": {"p": 0.1}}
+    for method in ("bides", "none"):
+        env = SwarmVec(task="tight", method=method, n_scenes=1, max_steps=4, metrics=False,
+                       scenario=lossy)
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(np.zeros((1, env.n_agents, 3)))
 
 
 def _physics() -> None:

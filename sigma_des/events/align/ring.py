@@ -39,7 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
 
-__all__ = ["AlignResult", "RingBuffers", "align", "insert_row"]
+__all__ = ["AlignResult", "RingBuffers", "align", "align_in", "insert_row"]
 
 _BIG = np.iinfo(np.int64).max
 
@@ -237,13 +237,27 @@ def _align_all(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarra
     written into ``frame``, ``gen``, ``obs``, ``flag`` (which come in as -1, NaN, NaN,
     MISSING); every row left so and ``F = prev_frame`` while no node has a state."""
     n = latest.shape[0]
+    return align_in(fr, gt, ob, latest, theta_lag, hole_fill, prev_frame, frame, gen, obs,
+                    flag, np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_))
+
+
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
+def align_in(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarray,
+             theta_lag: int, hole_fill: bool, prev_frame: int, frame: np.ndarray,
+             gen: np.ndarray, obs: np.ndarray, flag: np.ndarray, has: np.ndarray,
+             considered: np.ndarray) -> int:
+    """:func:`_align_all` with its two per-node scratch rows given (``(n,)`` bool each,
+    any contents): nothing is allocated, so a loop compiled without reference counting
+    (the compiled control loop, :mod:`sigma_des.events.fast.control`) may call it."""
+    n = latest.shape[0]
     newest = -1
     for i in range(n):
         newest = max(newest, latest[i])
     if newest < 0:
         return prev_frame
-    has = latest >= 0
-    considered = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        has[i] = latest[i] >= 0
+        considered[i] = False
     low = _BIG
     for i in range(n):
         # plain branches: ``considered[i] = has[i] and ...`` in this loop, next to the
@@ -260,7 +274,7 @@ def _align_all(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, latest: np.ndarra
     return F
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
                 considered: np.ndarray, F: int, hole_fill: bool, frame: np.ndarray,  # noqa: N803
                 gen: np.ndarray, obs: np.ndarray, flag: np.ndarray) -> None:
@@ -339,7 +353,7 @@ def _align_rows(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, has: np.ndarray,
             _show_slot(fr, gt, ob, i, sel, frame, gen, obs)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", _nrt=False)  # type: ignore[call-overload]
 def _show_slot(fr: np.ndarray, gt: np.ndarray, ob: np.ndarray, i: int, s: int,
                frame: np.ndarray, gen: np.ndarray, obs: np.ndarray) -> None:
     """Node ``i`` shows the state of its slot ``s`` as it is (frame, gen time, obs)."""

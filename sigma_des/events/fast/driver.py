@@ -332,32 +332,41 @@ class CompiledCore:
                 if iv[L.I_OUT]:
                     self.drain()
                 return False
-            S = self.S
             if code == L.BARRIER:
                 # the aligner sees the completing state at its own arrival time
                 self.flush_rollbacks()
-                self.host.kernel.jump_to(float(S[L.FLOATS][L.F_PT]))
+                self.host.kernel.jump_to(float(self.S[L.FLOATS][L.F_PT]))
                 self.drain()
                 return True
-            if code == L.NEED_SPACE:
-                self.ensure_space(self.host.n + 8 + self._outbox_room)
-            elif code == L.NEED_FLUSH:
-                self.drain()
-                self.deliveries.latencies(S)
-            elif code == L.NEED_RESIM:
-                self.flush_rollbacks()
-            elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
-                tr = S[L.TR_INTS]
-                self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
-            elif code in (L.NEED_START, L.NEED_ROLLBACK):
-                now = float(S[L.FLOATS][L.F_PT])
-                i = int(S[L.INTS][L.I_PNODE])
-                if code == L.NEED_START:
-                    self._start_job(i, now)
-                else:
-                    self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]), now)
+            self.serve(code)
+
+    def serve(self, code: int) -> None:
+        """Serve the loop's request for Python ``code`` (an exit of :func:`loop.advance`
+        other than ``OK`` and ``BARRIER``); the loop then goes on where it stopped.
+
+        Raises:
+            CohortFallback: a message needed a draw older than ``history_frames``.
+        """
+        S = self.S
+        if code == L.NEED_SPACE:
+            self.ensure_space(self.host.n + 8 + self._outbox_room)
+        elif code == L.NEED_FLUSH:
+            self.drain()
+            self.deliveries.latencies(S)
+        elif code == L.NEED_RESIM:
+            self.flush_rollbacks()
+        elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
+            tr = S[L.TR_INTS]
+            self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
+        elif code in (L.NEED_START, L.NEED_ROLLBACK):
+            now = float(S[L.FLOATS][L.F_PT])
+            i = int(S[L.INTS][L.I_PNODE])
+            if code == L.NEED_START:
+                self._start_job(i, now)
             else:
-                raise CohortFallback(self._error(int(S[L.INTS][L.I_ERR])))
+                self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]), now)
+        else:
+            raise CohortFallback(self._error(int(S[L.INTS][L.I_ERR])))
 
     def _error(self, code: int) -> str:
         """Why the loop stopped with error ``code`` (the run falls back)."""
