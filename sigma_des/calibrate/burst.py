@@ -15,7 +15,9 @@ first-out queue a burst of ``m`` messages arriving together, each served in turn
 keeps on average ``(m - 1) / 2`` messages ahead of a message, so the ratio is
 ``(m_target - 1) / (m_cal - 1)``. :func:`scale_state_hops` multiplies every state-hop
 sample by it (the trigger and command hops, which carry no host burst, are kept). A
-calibration whose runs had one node per host (no burst seen) is never rescaled.
+calibration whose runs had one node per host (no burst seen) is never rescaled, nor is a
+bundled target (:func:`~sigma_des.calibrate.target.prepare`): its host's turn leaves
+in one PUBLISH or a few, not in a burst of ``m``.
 Rules and measurements: docs/concepts/decisions.md ("State hops scaled with the
 host's burst").
 """

@@ -12,8 +12,9 @@ makes is the one the validation scored:
 * the broker's per-delivery service for the target
   (:func:`~sigma_des.calibrate.fit.for_target`: rescaled to ``hosts / nodes`` unless the
   DES has one client per host);
-* the state hops' samples scaled to the target's nodes per host
-  (:mod:`sigma_des.calibrate.burst`: they hold the wait behind the host's burst);
+* with one PUBLISH per state, the state hops' samples scaled to the target's nodes
+  per host (:mod:`sigma_des.calibrate.burst`: they hold the wait behind the host's
+  burst; bundled messages keep them as calibrated);
 * an added latency (``--add-latency``) shifts every calibrated host-link sample by that
   much in both directions (:func:`shift_host_link`), as the live shim adds it to each
   host-link crossing.
@@ -105,7 +106,7 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
     ratio = burst_ratio(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts)
-    if ratio != 1.0:
+    if ratio != 1.0 and not sc.deployment.bundle:  # a bundled turn is no burst of m
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())
     if add_latency_s > 0.0:
         sc = shift_host_link(sc, add_latency_s, samples_dir or _own_dir())

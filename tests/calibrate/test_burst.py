@@ -100,3 +100,14 @@ def test_prepare_scales_for_the_target_and_then_adds_the_latency(tmp_path: Path)
     big = prepare(cal, rep, ["nodes=30", "hosts=2"])  # no directory given: its own
     assert _samples(big.net.server_link.latency_down) == pytest.approx(
         [x * 14.0 / 9.0 for x in UP], rel=1e-8, abs=1e-15)
+
+
+def test_a_bundled_target_keeps_the_calibrated_state_hops(tmp_path: Path) -> None:
+    """With bundled messages a host's turn leaves in one PUBLISH or a few, not a burst
+    of ``m``: the same 10-node target that scales per node keeps the samples."""
+    cal = _cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5}
+    out = prepare(cal, rep, ["nodes=10", "hosts=2"], bundle=True, samples_dir=tmp_path / "a")
+    assert out.deployment.bundle
+    assert out.net.host_link.latency == cal.net.host_link.latency
+    assert out.net.server_link.latency_down == cal.net.server_link.latency_down
