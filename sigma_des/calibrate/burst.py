@@ -1,23 +1,22 @@
 """The host's burst in the calibrated state hops, rescaled to a target's nodes per host.
 
 A calibrated state hop (``net.host_link.latency`` up to the broker and
-``net.server_link.latency_down`` on to the server, both read from the calibration
-run's state samples, then matched by re-running the simulation) is what is left of a
-state's live latency once the simulation's own services and waits are taken out. On
-the loopback of a live run the wire itself is a few tens of µs; most of what is left
-is the wait of a state behind the other states its host published in the same turn
-(each host's ``m = nodes / hosts`` states leave within about a millisecond and queue
-on the host's sending path and the broker's). Drawn as a fixed delay at every size,
-that wait came out too long at fewer nodes per host and too short at more.
+``net.server_link.latency_down`` on to the server, from the calibration run's states,
+then matched by re-running the simulation) is what is left of a state's live latency
+once the simulation's own services and waits are taken out. Part of it a state pays
+with nothing ahead of it; the rest is its wait behind the other states its host
+published in the same turn (a host's ``m = nodes / hosts`` states leave within about a
+millisecond). Drawn as a fixed delay at every size, that wait came out too long at
+fewer nodes per host and too short at more.
 
-:func:`burst_ratio` is how much longer that wait is at the target: in a first-in,
-first-out queue a burst of ``m`` messages arriving together, each served in turn,
-keeps on average ``(m - 1) / 2`` messages ahead of a message, so the ratio is
-``(m_target - 1) / (m_cal - 1)``. :func:`scale_state_hops` multiplies every state-hop
-sample by it (the trigger and command hops, which carry no host burst, are kept). A
-calibration whose runs had one node per host (no burst seen) is never rescaled, nor is a
-bundled target (:func:`~sigma_des.calibrate.target.prepare`): its host's turn leaves
-in one PUBLISH or a few, not in a burst of ``m``.
+:func:`floor_share` measures the first part on the calibration run (the report's
+``hop_floor_share``); :func:`burst_ratio` is how much longer the wait is at the
+target: a first-in, first-out burst of ``m`` keeps on average ``(m - 1) / 2``
+messages ahead of a message, so ``(m_target - 1) / (m_cal - 1)``.
+:func:`scale_state_hops` multiplies every state-hop sample by
+``floor + (1 - floor) · ratio`` (:func:`state_hop_factor`); the trigger and command
+hops carry no host burst and are kept. Never rescaled: a calibration at one node per
+host (no burst seen) and a bundled target (its turn leaves in one PUBLISH or a few).
 Rules and measurements: docs/concepts/decisions.md ("State hops scaled with the
 host's burst").
 """
@@ -30,11 +29,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from sigma_des.config import Scenario
 from sigma_des.net.latency import Dist, load_samples
 
-__all__ = ["burst_ratio", "calibration_nodes_per_host", "scale_state_hops"]
+__all__ = ["burst_ratio", "calibration_nodes_per_host", "floor_share", "scale_state_hops",
+           "state_hop_factor"]
 
 
 def calibration_nodes_per_host(cal: Scenario, report: dict[str, Any]) -> float:
@@ -54,6 +55,35 @@ def burst_ratio(m_cal: float, m_target: float) -> float:
     if not m_cal > 1.0:
         return 1.0
     return max(m_target - 1.0, 0.0) / (m_cal - 1.0)
+
+
+def floor_share(states: pd.DataFrame) -> float:
+    """The share of the calibration run's state latency a state pays with nothing of its
+    host's turn ahead of it: the mean latency of the first state each host published in
+    a turn, over the mean of all states (each a mean of the methods' means), from
+    Lock-Step's turns when the run has them (Lock-Step issues a trigger only once every
+    state is in, so no earlier turn is still draining), else every method's. NaN
+    without states.
+
+    Args:
+        states: the window's states: ``method``, ``frame``, ``host``, ``t_send``,
+            ``t_recv``.
+    """
+    if states.empty:
+        return math.nan
+    s = states.assign(lat=states["t_recv"] - states["t_send"])
+    rank = s.groupby(["method", "frame", "host"])["t_send"].rank(method="first")
+    first = s[rank == 1.0].groupby("method")["lat"].mean()
+    pooled = float(s.groupby("method")["lat"].mean().mean())
+    ahead = float(first["lockstep"]) if "lockstep" in first.index else float(first.mean())
+    return min(max(ahead / pooled, 0.0), 1.0) if pooled > 0 else math.nan
+
+
+def state_hop_factor(m_cal: float, m_target: float, floor: float) -> float:
+    """What the state-hop samples are multiplied by: ``floor`` of them kept, the rest
+    scaled by :func:`burst_ratio` (``floor`` outside ``[0, 1]`` or NaN: 0)."""
+    f = floor if math.isfinite(floor) and 0.0 <= floor <= 1.0 else 0.0
+    return f + (1.0 - f) * burst_ratio(m_cal, m_target)
 
 
 def scale_state_hops(sc: Scenario, ratio: float, d: Path) -> Scenario:

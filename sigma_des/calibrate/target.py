@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.calibrate.burst import burst_ratio, calibration_nodes_per_host, scale_state_hops
+from sigma_des.calibrate.burst import calibration_nodes_per_host, scale_state_hops, state_hop_factor
 from sigma_des.calibrate.fit import for_target
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
@@ -105,7 +105,8 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
-    ratio = burst_ratio(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts)
+    ratio = state_hop_factor(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts,
+                             float(report.get("hop_floor_share", 0.0)))
     if ratio != 1.0 and not sc.deployment.bundle:  # a bundled turn is no burst of m
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())
     if add_latency_s > 0.0:

@@ -7,9 +7,16 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
-from sigma_des.calibrate.burst import burst_ratio, calibration_nodes_per_host, scale_state_hops
+from sigma_des.calibrate.burst import (
+    burst_ratio,
+    calibration_nodes_per_host,
+    floor_share,
+    scale_state_hops,
+    state_hop_factor,
+)
 from sigma_des.calibrate.target import prepare
 from sigma_des.config import Scenario, load
 from sigma_des.net.latency import Dist, load_samples
@@ -111,3 +118,47 @@ def test_a_bundled_target_keeps_the_calibrated_state_hops(tmp_path: Path) -> Non
     assert out.deployment.bundle
     assert out.net.host_link.latency == cal.net.host_link.latency
     assert out.net.server_link.latency_down == cal.net.server_link.latency_down
+
+
+def _states(method: str, lats: dict[tuple[int, int], list[float]]) -> pd.DataFrame:
+    """States of ``method``: per (frame, host), latencies (ms) in publish order."""
+    rows = []
+    for (frame, host), ls in lats.items():
+        for i, lat in enumerate(ls):
+            t = frame * 0.01 + i * 1e-4
+            rows.append({"method": method, "frame": frame, "host": host, "t_send": t,
+                         "t_recv": t + lat * 1e-3})
+    return pd.DataFrame(rows)
+
+
+def test_floor_share_by_hand() -> None:
+    """Lock-Step: host-first latencies 2 and 2 ms, all states mean (2+4+2+6)/4 = 3.5;
+    none: all states mean (4+8)/2 = 6. Pooled = (3.5 + 6) / 2 = 4.75, so the share is
+    2 / 4.75; without Lock-Step the host-first mean of every method: ((2+2)/2 + 4) / 2
+    = 3 over (3.5 + 6) / 2."""
+    ls = _states("lockstep", {(0, 0): [2.0, 4.0], (0, 1): [2.0, 6.0]})
+    no = _states("none", {(0, 0): [4.0, 8.0]})
+    both = pd.concat([ls, no.iloc[::-1]])  # row order does not matter, publish order does
+    assert floor_share(both) == pytest.approx(2.0 / 4.75)
+    hl = ls.assign(method="hlc")
+    assert floor_share(pd.concat([hl, no])) == pytest.approx(3.0 / 4.75)
+    assert np.isnan(floor_share(ls.iloc[:0]))
+
+
+def test_state_hop_factor_keeps_the_floor() -> None:
+    """Floor 0.4 kept, the rest scaled: 10 a host -> 5 a host gives 0.4 + 0.6 x 4/9;
+    a floor outside [0, 1] or NaN counts as none."""
+    assert state_hop_factor(10.0, 5.0, 0.4) == pytest.approx(0.4 + 0.6 * 4.0 / 9.0)
+    assert state_hop_factor(10.0, 10.0, 0.4) == pytest.approx(1.0)
+    assert state_hop_factor(10.0, 1.0, 0.4) == pytest.approx(0.4)
+    assert state_hop_factor(10.0, 5.0, float("nan")) == 4.0 / 9.0
+    assert state_hop_factor(10.0, 5.0, 1.5) == 4.0 / 9.0
+
+
+def test_prepare_keeps_the_reported_floor(tmp_path: Path) -> None:
+    cal = _cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5, "hop_floor_share": 0.25}
+    out = prepare(cal, rep, ["nodes=10", "hosts=2"], samples_dir=tmp_path / "a")
+    k = 0.25 + 0.75 * 4.0 / 9.0
+    assert _samples(out.net.host_link.latency) == pytest.approx([x * k for x in UP],
+                                                                rel=1e-8, abs=1e-15)
