@@ -413,8 +413,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         deployment=dep,
     )
     report = {
-        "states": int(len(states)),
-        "hop_floor_share": floor_share(states),
+        "states": int(len(states)), "hop_floor_share": floor_share(states),
         "delivery_service_per_client_s": per_client,
         **lat_report,
         "delivery_service_s": per_client,
