@@ -5,7 +5,9 @@
 combines them (:func:`combine`), each parameter from the runs that show it:
 
 * the hop latencies (every empirical link latency): the samples of the per-node runs
-  pooled (of every run when none is per node);
+  pooled (of every run when none is per node), with their nodes per host
+  (``hop_nodes_per_host``, weighted by states: the burst :mod:`~sigma_des.calibrate.burst`
+  rescales to a target's);
 * the per-message CPU of each process kind (``*_demand``, ``*_wake``, the network
   thread's ``*_net_*``, the parts beside the thread ``*_wake_side``, the run-queue
   waits ``*_runq``) and the broker's services: the mean over the per-node runs with a
@@ -237,8 +239,12 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
                                 for i in (msg_runs or lat_runs)]))
     sc = replace(sc, net=net, deployment=dep, broker=broker)
     out = {k: v for k, v in rep.items() if not isinstance(v, dict | list)}
+    w = [float(fits[i][1].get("states", 0)) or 1.0 for i in lat_runs]
+    m = [fits[i][0].nodes / fits[i][0].hosts for i in lat_runs]
     out.update({
         "delivery_service_per_client_s": per_client,
+        # the host burst the pooled state-hop samples hold (sigma_des.calibrate.burst)
+        "hop_nodes_per_host": float(np.average(m, weights=w)),
         "primary_run": names[primary],
         "parameter_sources": {
             "hop latencies (pooled samples)": [names[i] for i in lat_runs],

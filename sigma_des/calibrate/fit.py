@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
+from sigma_des.calibrate.burst import floor_share
 from sigma_des.calibrate.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
 from sigma_des.calibrate.fit_cpu import fit_deployment, path_services
 from sigma_des.calibrate.fit_step import MIN_SAMPLES, fit_compute
@@ -412,7 +413,7 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
         deployment=dep,
     )
     report = {
-        "states": int(len(states)),
+        "states": int(len(states)), "hop_floor_share": floor_share(states),
         "delivery_service_per_client_s": per_client,
         **lat_report,
         "delivery_service_s": per_client,

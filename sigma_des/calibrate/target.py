@@ -12,6 +12,9 @@ makes is the one the validation scored:
 * the broker's per-delivery service for the target
   (:func:`~sigma_des.calibrate.fit.for_target`: rescaled to ``hosts / nodes`` unless the
   DES has one client per host);
+* with one PUBLISH per state, the state hops' samples scaled to the target's nodes
+  per host (:mod:`sigma_des.calibrate.burst`: they hold the wait behind the host's
+  burst; bundled messages keep them as calibrated);
 * an added latency (``--add-latency``) shifts every calibrated host-link sample by that
   much in both directions (:func:`shift_host_link`), as the live shim adds it to each
   host-link crossing.
@@ -25,6 +28,7 @@ machine's CPU utilisation that decides the regime of an interval.
 from __future__ import annotations
 
 import math
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -32,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.calibrate.burst import calibration_nodes_per_host, scale_state_hops, state_hop_factor
 from sigma_des.calibrate.fit import for_target
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
@@ -86,7 +91,8 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         sets: the target's keys, ``key=value``.
         bundle: bundled messages, as live ``--bundle``.
         add_latency_s: seconds added to each host-link crossing (0..1).
-        samples_dir: where shifted sample files go (needed when ``add_latency_s`` > 0).
+        samples_dir: where scaled and shifted sample files go (None: a directory
+            of this process's, removed when it exits).
 
     Raises:
         ConfigError: a bad key (named), ``--add-latency`` out of range, or a report
@@ -99,11 +105,23 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
+    ratio = state_hop_factor(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts,
+                             float(report.get("hop_floor_share", 0.0)))
+    if ratio != 1.0 and not sc.deployment.bundle:  # a bundled turn is no burst of m
+        sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())
     if add_latency_s > 0.0:
-        if samples_dir is None:
-            raise ConfigError("--add-latency", "needs a directory for the shifted samples")
-        sc = shift_host_link(sc, add_latency_s, samples_dir)
+        sc = shift_host_link(sc, add_latency_s, samples_dir or _own_dir())
     return sc
+
+
+_DIR: list[tempfile.TemporaryDirectory[str]] = []
+
+
+def _own_dir() -> Path:
+    """A directory for this process's sample files, removed when it exits."""
+    if not _DIR:
+        _DIR.append(tempfile.TemporaryDirectory(prefix="sigma-des-samples-"))
+    return Path(_DIR[0].name)
 
 
 class MissedTap(Tap):

@@ -44,10 +44,11 @@ def test_under_load_warning() -> None:
     assert under_load_warning(_info("q", False)) is None  # 0.1 cores
 
 
-def _fit(tmp: Path, name: str, up: list[float], bundle: bool, **dep: float) -> tuple:  # type: ignore[type-arg]
+def _fit(tmp: Path, name: str, up: list[float], bundle: bool, nodes: int = 4,
+         **dep: float) -> tuple:  # type: ignore[type-arg]
     f = tmp / f"{name}_up.txt"
     np.savetxt(f, up)
-    sc = load(None, ["nodes=4", "hosts=2"])
+    sc = load(None, [f"nodes={nodes}", "hosts=2"])
     d = replace(sc.deployment, preset="colocated", clients="host", bundle=bundle, **dep)
     link = replace(sc.net.host_link, latency=Dist(dist="empirical", file=str(f)))
     sc = replace(sc, deployment=d, net=replace(sc.net, host_link=link),
@@ -109,3 +110,17 @@ def test_cli_two_runs_in_sample_on_each_background_kept_apart(
     assert main(["calibrate", str(a), str(b), "--no-check"]) == 2
     assert capsys.readouterr().err.startswith("sigma-des: error: f_trig: differs")
     assert math.isfinite(rep["background_cores_of_runs"][str(a)])
+
+
+def test_combine_records_the_burst_of_the_pooled_hops(tmp_path: Path) -> None:
+    """``hop_nodes_per_host``: the nodes per host of the runs whose hop samples were
+    pooled, weighted by their states: 4 nodes on 2 hosts with 100 states and 12 on 2
+    with 300 give (2 x 100 + 6 x 300) / 400 = 5; the bundled run (30 a host) is not
+    one of them."""
+    fits = [_fit(tmp_path, "a", [1e-3], False, host_demand=1e-4, host_record=1e-5),
+            _fit(tmp_path, "b", [9e-3], True, nodes=60, host_demand=3e-4, host_record=4e-5),
+            _fit(tmp_path, "c", [3e-3], False, nodes=12, host_demand=2e-4, host_record=2e-5)]
+    for (_sc, rep, _inf), states in zip(fits, (100, 50, 300), strict=True):
+        rep["states"] = states
+    _sc, rep, _p = combine(fits, tmp_path)
+    assert rep["hop_nodes_per_host"] == 5.0

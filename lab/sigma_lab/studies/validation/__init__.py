@@ -10,7 +10,9 @@
 * :mod:`~sigma_lab.studies.validation.report` — ``cells.csv``, ``summary.md``, the plot;
 * :mod:`~sigma_lab.studies.validation.coverage` — the intervals' coverage on the
   held-out cells and the ``residuals.toml`` ``sigma-des predict`` reads;
-  :mod:`~sigma_lab.studies.validation.kneeplot` — ``knee.png``.
+  :mod:`~sigma_lab.studies.validation.kneeplot` — ``knee.png``;
+* :mod:`~sigma_lab.studies.validation.stages` — the state latency split by stage and
+  publish order, live against the DES, per cell (``python -m``; not part of the suite).
 
 ``experiments/live_vs_des.py`` is the command line; lab/record/LIVE.md (*Validation*) says
 how to read the outputs.

@@ -1,0 +1,164 @@
+"""The state hops scaled with the host's burst (``sigma_des.calibrate.burst``): the ratio
+by hand, exactly which samples are scaled, and ``prepare`` applying it for a target."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sigma_des.calibrate.burst import (
+    burst_ratio,
+    calibration_nodes_per_host,
+    floor_share,
+    scale_state_hops,
+    state_hop_factor,
+)
+from sigma_des.calibrate.target import prepare
+from sigma_des.config import Scenario, load
+from sigma_des.net.latency import Dist, load_samples
+
+UP = [0.0, 0.001, 0.0025]  # the states' hop samples (s)
+DOWN = [0.0002, 0.0004]  # the triggers' and commands' hop samples (s)
+
+
+def _cal(tmp: Path, nodes: int = 20, hosts: int = 2) -> Scenario:
+    """A calibrated scenario as ``calibrate`` writes its links: the state hop file on
+    the host link up and the server link down, the trigger hop file on the other two."""
+    up, down = tmp / "hop_up.txt", tmp / "hop_down.txt"
+    np.savetxt(up, UP)
+    np.savetxt(down, DOWN)
+    sc = load(None, [f"nodes={nodes}", f"hosts={hosts}"])
+    u, d = Dist(dist="empirical", file=str(up)), Dist(dist="empirical", file=str(down))
+    net = sc.net
+    return replace(sc, net=replace(
+        net, host_link=replace(net.host_link, latency=u, latency_down=d),
+        server_link=replace(net.server_link, latency=d, latency_down=u)))
+
+
+def _samples(dist: Dist | None) -> list[float]:
+    assert dist is not None and dist.dist == "empirical"
+    return list(load_samples(dist.file))
+
+
+def test_the_ratio_is_the_mean_queue_ahead_in_a_burst_by_hand() -> None:
+    """A burst of m arriving together keeps (m - 1) / 2 ahead on average: 10 nodes a
+    host calibrated, 5 a host targeted -> 4/9; 15 -> 14/9; the same -> 1; one node a
+    host targeted -> 0 (no other state ahead); calibrated at one a host -> never scaled."""
+    assert burst_ratio(10.0, 5.0) == 4.0 / 9.0
+    assert burst_ratio(10.0, 15.0) == 14.0 / 9.0
+    assert burst_ratio(10.0, 10.0) == 1.0
+    assert burst_ratio(10.0, 1.0) == 0.0
+    assert burst_ratio(1.0, 30.0) == 1.0
+    assert burst_ratio(0.5, 30.0) == 1.0
+
+
+def test_the_calibration_burst_from_the_report_else_the_scenario(tmp_path: Path) -> None:
+    cal = _cal(tmp_path, nodes=30, hosts=3)
+    assert calibration_nodes_per_host(cal, {}) == 10.0
+    assert calibration_nodes_per_host(cal, {"hop_nodes_per_host": 12.5}) == 12.5
+    assert calibration_nodes_per_host(cal, {"hop_nodes_per_host": float("nan")}) == 10.0
+
+
+def test_only_the_state_hops_are_scaled(tmp_path: Path) -> None:
+    cal = _cal(tmp_path)
+    out = scale_state_hops(cal, 0.5, tmp_path / "s")
+    assert _samples(out.net.host_link.latency) == pytest.approx([0.0, 0.0005, 0.00125],
+                                                                rel=1e-9, abs=0.0)
+    assert _samples(out.net.server_link.latency_down) == _samples(out.net.host_link.latency)
+    assert out.net.host_link.latency_down == cal.net.host_link.latency_down
+    assert out.net.server_link.latency == cal.net.server_link.latency
+    assert scale_state_hops(cal, 1.0, tmp_path / "s") is cal
+    const = replace(cal, net=replace(cal.net, server_link=replace(
+        cal.net.server_link, latency_down=Dist(dist="constant", value=0.001))))
+    assert scale_state_hops(const, 0.5, tmp_path / "s") is const  # a user's latency
+
+
+def test_an_unset_trigger_hop_keeps_the_unscaled_samples(tmp_path: Path) -> None:
+    """Without its own ``latency_down`` the host link's down hop is its ``latency``:
+    scaling the up hop must not scale the triggers' hop with it."""
+    cal = _cal(tmp_path)
+    cal = replace(cal, net=replace(cal.net, host_link=replace(cal.net.host_link,
+                                                              latency_down=None)))
+    out = scale_state_hops(cal, 2.0, tmp_path / "s")
+    assert _samples(out.net.host_link.latency_down) == pytest.approx(UP)
+    assert _samples(out.net.host_link.latency) == pytest.approx([0.0, 0.002, 0.005])
+
+
+def test_prepare_scales_for_the_target_and_then_adds_the_latency(tmp_path: Path) -> None:
+    """Calibrated at 20 nodes on 2 hosts (10 a host): 10 nodes on 2 hosts scale the state
+    hops by 4/9; a +5 ms target adds 5 ms to the scaled samples, not scaled itself;
+    the calibration's own size is left as calibrated."""
+    cal = _cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5}
+    small = prepare(cal, rep, ["nodes=10", "hosts=2"], samples_dir=tmp_path / "a")
+    assert _samples(small.net.host_link.latency) == pytest.approx(
+        [x * 4.0 / 9.0 for x in UP], rel=1e-8, abs=1e-15)
+    assert _samples(small.net.host_link.latency_down) == pytest.approx(DOWN)
+    shifted = prepare(cal, rep, ["nodes=10", "hosts=2"], add_latency_s=0.005,
+                      samples_dir=tmp_path / "b")
+    assert _samples(shifted.net.host_link.latency) == pytest.approx(
+        [x * 4.0 / 9.0 + 0.005 for x in UP], rel=1e-8)
+    same = prepare(cal, rep, ["nodes=40", "hosts=4"])
+    assert same.net.host_link.latency == cal.net.host_link.latency
+    big = prepare(cal, rep, ["nodes=30", "hosts=2"])  # no directory given: its own
+    assert _samples(big.net.server_link.latency_down) == pytest.approx(
+        [x * 14.0 / 9.0 for x in UP], rel=1e-8, abs=1e-15)
+
+
+def test_a_bundled_target_keeps_the_calibrated_state_hops(tmp_path: Path) -> None:
+    """With bundled messages a host's turn leaves in one PUBLISH or a few, not a burst
+    of ``m``: the same 10-node target that scales per node keeps the samples."""
+    cal = _cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5}
+    out = prepare(cal, rep, ["nodes=10", "hosts=2"], bundle=True, samples_dir=tmp_path / "a")
+    assert out.deployment.bundle
+    assert out.net.host_link.latency == cal.net.host_link.latency
+    assert out.net.server_link.latency_down == cal.net.server_link.latency_down
+
+
+def _states(method: str, lats: dict[tuple[int, int], list[float]]) -> pd.DataFrame:
+    """States of ``method``: per (frame, host), latencies (ms) in publish order."""
+    rows = []
+    for (frame, host), ls in lats.items():
+        for i, lat in enumerate(ls):
+            t = frame * 0.01 + i * 1e-4
+            rows.append({"method": method, "frame": frame, "host": host, "t_send": t,
+                         "t_recv": t + lat * 1e-3})
+    return pd.DataFrame(rows)
+
+
+def test_floor_share_by_hand() -> None:
+    """Lock-Step: host-first latencies 2 and 2 ms, all states mean (2+4+2+6)/4 = 3.5;
+    none: all states mean (4+8)/2 = 6. Pooled = (3.5 + 6) / 2 = 4.75, so the share is
+    2 / 4.75; without Lock-Step the host-first mean of every method: ((2+2)/2 + 4) / 2
+    = 3 over (3.5 + 6) / 2."""
+    ls = _states("lockstep", {(0, 0): [2.0, 4.0], (0, 1): [2.0, 6.0]})
+    no = _states("none", {(0, 0): [4.0, 8.0]})
+    both = pd.concat([ls, no.iloc[::-1]])  # row order does not matter, publish order does
+    assert floor_share(both) == pytest.approx(2.0 / 4.75)
+    hl = ls.assign(method="hlc")
+    assert floor_share(pd.concat([hl, no])) == pytest.approx(3.0 / 4.75)
+    assert np.isnan(floor_share(ls.iloc[:0]))
+
+
+def test_state_hop_factor_keeps_the_floor() -> None:
+    """Floor 0.4 kept, the rest scaled: 10 a host -> 5 a host gives 0.4 + 0.6 x 4/9;
+    a floor outside [0, 1] or NaN counts as none."""
+    assert state_hop_factor(10.0, 5.0, 0.4) == pytest.approx(0.4 + 0.6 * 4.0 / 9.0)
+    assert state_hop_factor(10.0, 10.0, 0.4) == pytest.approx(1.0)
+    assert state_hop_factor(10.0, 1.0, 0.4) == pytest.approx(0.4)
+    assert state_hop_factor(10.0, 5.0, float("nan")) == 4.0 / 9.0
+    assert state_hop_factor(10.0, 5.0, 1.5) == 4.0 / 9.0
+
+
+def test_prepare_keeps_the_reported_floor(tmp_path: Path) -> None:
+    cal = _cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5, "hop_floor_share": 0.25}
+    out = prepare(cal, rep, ["nodes=10", "hosts=2"], samples_dir=tmp_path / "a")
+    k = 0.25 + 0.75 * 4.0 / 9.0
+    assert _samples(out.net.host_link.latency) == pytest.approx([x * k for x in UP],
+                                                                rel=1e-8, abs=1e-15)
