@@ -4,10 +4,9 @@
 (:func:`~sigma_des.calibrate.fit.calibrate`, its sample files in ``run<i>/``) and
 combines them (:func:`combine`), each parameter from the runs that show it:
 
-* the hop latencies (every empirical link latency): the samples of the per-node runs
-  pooled (of every run when none is per node), with their nodes per host
-  (``hop_nodes_per_host``, weighted by states: the burst :mod:`~sigma_des.calibrate.burst`
-  rescales to a target's);
+* the hop latencies (every empirical link latency): the per-node runs' samples pooled
+  (every run's when none is per node), with their states-weighted nodes per host
+  (``hop_nodes_per_host``, which :mod:`~sigma_des.calibrate.burst` rescales from);
 * the per-message CPU of each process kind (``*_demand``, ``*_wake``, the network
   thread's ``*_net_*``, the parts beside the thread ``*_wake_side``, the run-queue
   waits ``*_runq``) and the broker's services: the mean over the per-node runs with a
