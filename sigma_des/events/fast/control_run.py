@@ -91,6 +91,11 @@ def unsupported(run: _Run) -> str | None:
         return f"dynamics {run.dyn.name!r} has no compiled kernels"
     if run.core.attempts.acks:
         return "acknowledged messages"
+    own = (run.trigger.issue, run.align, run._align)
+    other = [ev for *_, ev in run.kernel.env._queue  # type: ignore[attr-defined]
+             if getattr(ev, "fn", None) not in own]
+    if other:  # e.g. a fault's timer: only the trigger and the tick run in the loop
+        return f"the kernel holds other events ({getattr(other[0], 'fn', other[0])!r})"
     return None
 
 

@@ -149,6 +149,12 @@ def test_what_the_loop_does_not_cover_is_said() -> None:
         assert reason is not None and why in reason
         with pytest.raises(ValueError, match="compiled control"):
             CompiledControl(run)
+    run = make_run(sc.run_spec(), "bides", make_dynamics(sc), None, False)[0]
+    run.start()
+    assert unsupported(run) is None
+    run.kernel.at(0.5, print)  # an event the loop does not run: the kernel's path
+    reason = unsupported(run)
+    assert reason is not None and "other events" in reason
     events = load(**{**STUDY, "duration": 1.0, "engine": "events"})
     run = make_run(events.run_spec(), "bides", make_dynamics(events), None, False)[0]
     assert unsupported(run) == "the run is not on the compiled core"
