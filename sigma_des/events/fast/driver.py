@@ -107,7 +107,8 @@ class CompiledCore:
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
         self.rollbacks = Rollbacks(host.truth, host.nodes.step_time, host.n,
-                                   host.method == "bides" and spec.time_warp, spec.theta_warp)
+                                   host.method == "bides" and spec.time_warp, spec.theta_warp,
+                                   self.frame_draws)
         self.deliveries = Deliveries(host, host.n)
         #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
         self.exits = [0] * len(L.EXIT_CODES)
