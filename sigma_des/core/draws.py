@@ -128,6 +128,28 @@ class DrawCache:
                             att[:, None] if att.ndim else int(att))  # type: ignore[arg-type]
         return np.ascontiguousarray(out, dtype=np.float64)
 
+    def grid(self, kind: int, indices: NDArray[np.int64],
+             attempts: NDArray[np.int64]) -> NDArray[np.float64]:
+        """``(len(indices), len(attempts), n_subjects)`` values (a blockable cache): entry
+        ``[r, j]`` is :meth:`vector` of ``(kind, indices[r], attempts[j])``, the keys of a
+        cache with ``uniforms`` in one compiled call (else one :meth:`block` per index)."""
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        att = np.asarray(attempts, dtype=np.int64).reshape(-1)
+        n = len(self._subjects)
+        if self.constant is not None:
+            return np.full((idx.size, att.size, n), self.constant)
+        if self.uniforms is None:
+            out = np.empty((idx.size, att.size, n))
+            for r in range(idx.size):
+                out[r] = self.block(kind, int(idx[r]), att)
+            return out
+        key, quantile = self.uniforms
+        u = _uniform_rows()(key, np.int64(kind), self._subjects, np.repeat(idx, att.size),
+                            np.tile(att, idx.size))  # row r * len(att) + j: (idx[r], att[j])
+        if quantile is not None:
+            u = np.ascontiguousarray(quantile(u), dtype=np.float64)
+        return u.reshape(idx.size, att.size, n)
+
 
 class DrawBlock:
     """The draws of one ``(cache, kind)`` for a block of consecutive indices, attempt 0.

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Tap"]
+__all__ = ["Tap", "records"]
 
 _F = NDArray[np.float64]
 
@@ -48,3 +48,9 @@ class Tap:
 
     def close(self) -> None:
         """The run ended."""
+
+
+def records(tap: Tap, hook: str) -> bool:
+    """Whether ``tap`` overrides ``hook`` (e.g. ``"commands"``): a caller may skip building
+    the arguments of a hook the base :class:`Tap` would ignore."""
+    return getattr(type(tap), hook, None) is not getattr(Tap, hook)

@@ -167,6 +167,8 @@ class CompiledControl:
         # the truth's state: an array of its own from now on (rollbacks write its rows)
         truth.state = np.array(truth.state, dtype=np.float64, order="C")
         step, observe, resim, params = run.dyn.compiled_physics()  # type: ignore[attr-defined]
+        for kernel in (step, observe, resim):
+            _stable_uuid(kernel)  # before anything pickles them (the loop's cache keys)
         self._kernels = (step, observe, resim)
         # the shown rows the loop writes (the aligner gets copies at each return)
         self._shown = (al.shown_frame.copy(), al.shown_gen.copy(), al.shown_obs.copy(),
@@ -333,3 +335,24 @@ def _entry_for(S: tuple[Any, ...], by_handle: bool, arg: Any, ctl: tuple[Any, ..
         sig = (first, typeof(ctl), *(typeof(k) for k in kernels))
         got = _ENTRIES[key] = kernel.compile(sig)  # type: ignore[attr-defined]
     return got
+
+
+def _stable_uuid(kernel: Any) -> None:
+    """Give a physics kernel (a numba dispatcher) the same identity in every process.
+
+    The loop's cached overloads are keyed by the kernels' dispatcher types, which numba
+    pickles by the dispatcher's uuid (random, drawn when first pickled). In another
+    process that uuid names no live dispatcher: loading the cache index rebuilds a
+    stand-in that dies once numba's memo of recent dispatchers drops it, after which the
+    next overload saved to that index fails (``ReferenceError: underlying object has
+    vanished``) and the entries never match the live kernel's type. A uuid derived from
+    the kernel's module and name (set before anything pickles it) makes a loaded key
+    resolve to the live kernel itself.
+    """
+    if getattr(kernel, "_MemoMixin__uuid", "") is not None or not hasattr(kernel, "_set_uuid"):
+        return  # not a dispatcher, or its identity is set already
+    import uuid
+
+    fn = kernel.py_func
+    name = f"sigma_des.kernel:{fn.__module__}.{fn.__qualname__}"
+    kernel._set_uuid(str(uuid.uuid5(uuid.NAMESPACE_URL, name)))

@@ -53,7 +53,7 @@ from sigma_des.events.fast.tables import (
 )
 from sigma_des.events.node import PhysicsNodes
 from sigma_des.events.spec import RunSpec
-from sigma_des.events.tap import Tap
+from sigma_des.events.tap import Tap, records
 from sigma_des.events.truth import SwarmTruth
 from sigma_des.metrics.collector import Collector
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
@@ -106,8 +106,10 @@ class CompiledCore:
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
+        self.command_draws = FrameDraws(self.tables, (COMMAND,))  # a tick's, the same way
         self.rollbacks = Rollbacks(host.truth, host.nodes.step_time, host.n,
-                                   host.method == "bides" and spec.time_warp, spec.theta_warp)
+                                   host.method == "bides" and spec.time_warp, spec.theta_warp,
+                                   self.frame_draws)
         self.deliveries = Deliveries(host, host.n)
         #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
         self.exits = [0] * len(L.EXIT_CODES)
@@ -207,7 +209,7 @@ class CompiledCore:
         """The server publishes ``cmds[i]`` (stamped ``stamp``) to each node ``i``, now."""
         if nodes.size == 0:
             return
-        self.tables.fill(COMMAND, tick)
+        self.command_draws.fill(tick)
         if self.attempts.acks:
             self.attempts.fill_ack(COMMAND, tick)
         self.ensure_space(nodes.size + 2)
@@ -219,7 +221,9 @@ class CompiledCore:
                                          checked_int(stamp, "command stamp"),
                                          np.ascontiguousarray(nodes, dtype=np.int64), rows, now)
         # the core keeps no per-node command deliveries: the tap records the sends
-        self.host.tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
+        tap = self.host.tap
+        if records(tap, "commands"):
+            tap.commands(nodes, tick, now, np.full(nodes.size, math.nan), rows[nodes])
 
     def publish_rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: the server re-requests ``node``'s state of ``frame``, now."""

@@ -49,6 +49,11 @@ class FrameDraws:
         #: the block's values ``[table, frame - first, subject]`` (each table's head width)
         self._block = np.zeros((len(fills), self.rows, widest))
 
+    @property
+    def end(self) -> int:
+        """The first frame past the block of draws held."""
+        return self._first + self._count
+
     def fill(self, index: int) -> None:
         """Make the rows of ``index`` of every table present (``index % history``)."""
         j = index - self._first

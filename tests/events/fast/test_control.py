@@ -158,3 +158,22 @@ def test_what_the_loop_does_not_cover_is_said() -> None:
     events = load(**{**STUDY, "duration": 1.0, "engine": "events"})
     run = make_run(events.run_spec(), "bides", make_dynamics(events), None, False)[0]
     assert unsupported(run) == "the run is not on the compiled core"
+
+
+def test_the_physics_kernels_keep_one_identity_across_processes() -> None:
+    """The loop's cached overloads are keyed by the kernels' dispatcher types, pickled by
+    the dispatcher's uuid: a uuid fixed by the kernel's name (not drawn per process)
+    makes a key loaded from the cache name the live kernel (a hit, and no stand-in
+    dispatcher that dies before the cache index is written again)."""
+    import pickle
+    import uuid
+
+    from numba.core.serialize import dumps
+
+    run, _ = _run(1, 0.5)
+    CompiledControl(run)
+    for kernel in run.dyn.compiled_physics()[:3]:
+        fn = kernel.py_func
+        name = f"sigma_des.kernel:{fn.__module__}.{fn.__qualname__}"
+        assert kernel._uuid == str(uuid.uuid5(uuid.NAMESPACE_URL, name))
+        assert pickle.loads(dumps(kernel)) is kernel  # numba's own pickling: the live one

@@ -60,3 +60,19 @@ def test_frame_draws_of_constant_sources_only_fill_nothing() -> None:
     tables = DrawTables([(SVC_PUB, K_TRIGGER, const)], history=3, subjects=2)
     FrameDraws(tables, KINDS).fill(4)
     assert sampler.calls == [] and tables.tags.tolist() == [[-1, -1, -1]]
+
+
+@pytest.mark.parametrize("blockable", [True, False])
+def test_command_draws_write_the_rows_of_drawtables_fill(blockable: bool) -> None:
+    """The core's command draws (a FrameDraws of the command kind): every other tick, as
+    an env's command ticks come, the rows DrawTables.fill writes."""
+    fast, _ = _tables(blockable)
+    ref, _ = _tables(blockable)
+    ticks = FrameDraws(fast, (K_COMMAND,))
+    for k in (0, 2, 4, 62, 64, 66, 130, 128, 3):
+        ticks.fill(k)
+        ref.fill(K_COMMAND, k)
+        np.testing.assert_array_equal(fast.values, ref.values)
+        np.testing.assert_array_equal(fast.tags, ref.tags)
+    assert fast.tags[3].tolist() == [130, 66, 62, 3, 64]  # the command table, row k % 5
+    assert fast.tags[0].tolist() == [-1] * 5  # the trigger's: untouched

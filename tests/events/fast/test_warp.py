@@ -113,18 +113,75 @@ def test_dynamics_without_batched_steps_roll_back_in_python() -> None:
     assert S[L.INTS][L.I_PEND] == L.NEED_ROLLBACK and S[L.INTS][L.I_DEFN] == 0
 
 
-def test_the_table_refills_a_row_for_a_new_target_and_grows() -> None:
-    core = _core()
+LOGNORMAL = {"dist": "lognormal", "mean": 0.003, "std": 0.002}
+
+
+def _held(S: Any) -> dict[int, list[int]]:
+    """The table's rows that hold a target: ``{row: [target, draws]}``."""
+    tag = S[L.RB_TAG]
+    return {r: tag[r].tolist() for r in range(tag.shape[0]) if tag[r, L.RB_TARGET] != -1}
+
+
+def _assert_keyed(core: CompiledCore, S: Any) -> None:
+    """Every draw a row holds is the rollback draw of its key (``job_cost``'s value)."""
     step_time = core.host.nodes.step_time
+    for r, (target, count) in _held(S).items():
+        for j in range(count):
+            want = step_time.vector(ROLLBACK_DRAW, target, j)
+            assert S[L.RB_VAL][r, j].tolist() == want.tolist()
+
+
+def test_the_table_refills_a_row_for_a_new_target_and_grows() -> None:
+    core = _core(**{"compute.step_time": LOGNORMAL})
+    rows = core.frame_draws.rows  # blockable draws: a target row per frame of a block
+    assert rows == 64
+    # no frame block drawn yet: the new target alone, with the table's 4 draws
     S = core.rollbacks.fill(core.S, 12, 3)
-    assert S[L.RB_TAG][4].tolist() == [12, 3] and S[L.RB_VAL].shape == (8, 4, 3)
-    assert core.rollbacks.fill(S, 12, 2) is S  # held already
-    S = core.rollbacks.fill(S, 12, 4)  # more: twice what the row held, 6, past its 4 rows
-    assert S[L.RB_TAG][4].tolist() == [12, 6] and S[L.RB_VAL].shape == (8, 8, 3)
-    S = core.rollbacks.fill(S, 20, 2)  # the same row, another target
-    assert S[L.RB_TAG][4].tolist() == [20, 2]
-    for j in range(2):
-        assert S[L.RB_VAL][4, j].tolist() == step_time.vector(ROLLBACK_DRAW, 20, j).tolist()
+    assert _held(S) == {12: [12, 4]} and S[L.RB_VAL].shape == (64, 4, 3)
+    assert core.rollbacks.fill(S, 12, 4) is S  # held already
+    S = core.rollbacks.fill(S, 12, 5)  # more: twice what the row held, 8, past its 4 rows
+    assert _held(S) == {12: [12, 8]} and S[L.RB_VAL].shape == (64, 8, 3)
+    S = core.rollbacks.fill(S, 12 + 64, 2)  # the same row, another target: 8 draws
+    assert _held(S) == {12: [76, 8]}
+    _assert_keyed(core, S)
+
+
+def test_a_new_target_draws_the_targets_of_the_frame_block_ahead() -> None:
+    """A new target's fill also fills the rows of the targets after it up to the end of
+    the frame draws' block, with the draws a fill on demand writes."""
+    core = _core(**{"compute.step_time": LOGNORMAL})
+    core.frame_draws.fill(10)  # the block of frames 10..73
+    assert core.frame_draws.end == 74
+    S = core.rollbacks.fill(core.S, 12, 3)
+    assert _held(S) == {k % 64: [k, 4] for k in range(12, 74)}
+    _assert_keyed(core, S)
+    assert core.rollbacks.fill(S, 40, 4) is S  # drawn ahead: no return for its job
+    # an older target: 64 targets from it (one per row: 73's row now holds 9)
+    S = core.rollbacks.fill(S, 9, 2)
+    assert _held(S) == {k % 64: [k, 4] for k in range(9, 73)}
+    _assert_keyed(core, S)
+    # on demand only (no block ahead): every row it fills holds the same draws
+    alone = _core(**{"compute.step_time": LOGNORMAL})
+    T = alone.rollbacks.fill(alone.S, 40, 4)
+    assert _held(T) == {40: [40, 4]}
+    np.testing.assert_array_equal(T[L.RB_VAL][40], S[L.RB_VAL][40])
+    # a deep need: the table grows, and the draws ahead stop at BLOCK_VALUES values
+    deep = _core(**{"compute.step_time": LOGNORMAL})
+    deep.frame_draws.fill(10)
+    S = deep.rollbacks.fill(deep.S, 12, 30)  # 30 draws x 3 nodes: 4096 // 90 = 45 targets
+    assert _held(S) == {k % 64: [k, 30] for k in range(12, 12 + 45)}
+    _assert_keyed(deep, S)
+
+
+def test_a_grid_of_draws_is_the_vectors_of_its_keys() -> None:
+    core = _core(**{"compute.step_time": LOGNORMAL})
+    step_time = core.host.nodes.step_time
+    assert step_time.uniforms is not None  # the one-call path
+    got = step_time.grid(ROLLBACK_DRAW, np.array([5, 7, 1000]), np.arange(3))
+    assert got.shape == (3, 3, 3)
+    for r, k in enumerate((5, 7, 1000)):
+        for j in range(3):
+            assert got[r, j].tolist() == step_time.vector(ROLLBACK_DRAW, k, j).tolist()
 
 
 def test_rollbacks_return_to_python_rarely() -> None:
@@ -144,15 +201,17 @@ def test_rollbacks_return_to_python_rarely() -> None:
     assert exits["NEED_RESIM"] + exits["OK"] > 0
 
 
+@pytest.mark.parametrize("share", [0.5, 0.0])  # 0: blockable draws, filled ahead
 @pytest.mark.parametrize("dynamics", ["pointmass", "quadrotor"])
-def test_runs_with_rollbacks_equal_the_specification(dynamics: str) -> None:
-    """Both engines, late commands under a tight warp threshold, drawn step times tied
-    within a host, a slow fault: every metric identical (point mass: each rollback
+def test_runs_with_rollbacks_equal_the_specification(dynamics: str, share: float) -> None:
+    """Both engines, late commands under a tight warp threshold, drawn step times (tied
+    within a host, or independent: blockable, the rollback draws filled ahead), a slow
+    fault: every metric identical (point mass: each rollback
     handed to Python, which re-simulates at once; quadrotor: deferred in the loop)."""
     sc = tiny(**{"nodes": 12, "hosts": 2, "dynamics": dynamics, "duration": 1.0,
                  "commands.enabled": True, "commands.behaviour": "follow",
                  "commands.every": 1, "net.host_link.latency": 0.03, "bides.theta_warp": 1,
-                 "bides.hold_down": 1, "faults": SLOW, "compute.host_share": 0.5,
+                 "bides.hold_down": 1, "faults": SLOW, "compute.host_share": share,
                  "compute.step_time": {"dist": "lognormal", "mean": 0.003, "std": 0.002}})
     ev, co = run_both(sc, "bides")
     assert co["engine"]["used"] == "cohort"
