@@ -15,7 +15,7 @@ from numba import njit
 __all__ = ["take_rows"]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def take_rows(frame: np.ndarray, gen: np.ndarray, obs: np.ndarray, nodes: np.ndarray,
               frames: np.ndarray, gens: np.ndarray, rows: np.ndarray,
               changed: np.ndarray) -> None:

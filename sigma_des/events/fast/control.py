@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 
 from sigma_des.core.flags import EXACT, MISSING
+from sigma_des.events.align.newest import take_rows
 from sigma_des.events.align.ring import align_in
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.compiler import jit
@@ -229,18 +230,19 @@ def _none(C):  # type: ignore[no-untyped-def]
 @jit
 def _take_out(S, C):  # type: ignore[no-untyped-def]
     """none: the deliveries the core buffered (``S.out_*``), taken by NoneAligner.on_states's
-    rule (:func:`~sigma_des.events.align.newest.take_rows`: a row replaces its node's
-    entry when its frame is greater), in arrival order."""
+    rule, :func:`~sigma_des.events.align.newest.take_rows` itself (a row replaces its
+    node's entry when its frame is greater), in arrival order."""
     iv = S[L.INTS]
+    o = iv[L.I_OUT]
     oi, of = S[L.OUT_INT], S[L.OUT_FLOAT]
-    nf, ng, no = C[C_NEW_FRAME], C[C_NEW_GEN], C[C_NEW_OBS]
-    for j in range(iv[L.I_OUT]):
-        node = oi[j, 0]
-        if oi[j, 1] > nf[node]:
-            nf[node] = oi[j, 1]
-            ng[node] = of[j, 1]
-            for c in range(no.shape[1]):
-                no[node, c] = of[j, 3 + c]
+    no = C[C_NEW_OBS]
+    changed = C[C_HAS]  # a per-node scratch row (Algorithm 1's, unused by none)
+    for i in range(changed.shape[0]):
+        changed[i] = False
+    take_rows(C[C_NEW_FRAME], C[C_NEW_GEN], no, oi[:o, 0], oi[:o, 1], of[:o, 1],
+              of[:o, 3:3 + no.shape[1]], changed)
+    for i in range(changed.shape[0]):
+        if changed[i]:
             C[C_INT][CI_DIRTY] = 1
     iv[L.I_OUT] = 0
 
