@@ -18,7 +18,7 @@ Array = NDArray[np.float64]
 
 
 def nearest_many(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
-    """``tasks._nearest`` of every scene of ``(S, n, k)`` positions (the same operations)."""
+    """``tasks.base._nearest`` of every scene of ``(S, n, k)`` positions (the same operations)."""
     diff = pos[:, None, :, :] - pos[:, :, None, :]
     dist = np.sqrt((diff**2).sum(-1))
     n = pos.shape[1]
@@ -30,7 +30,7 @@ def nearest_many(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
 
 
 def velocity_many(obs: Array) -> Array:
-    """``tasks._velocity`` of ``(S, n, 12)`` states: ``(S, n, 2)``."""
+    """``tasks.base._velocity`` of ``(S, n, 12)`` states: ``(S, n, 2)``."""
     return np.stack([obs[..., 0] * np.cos(obs[..., 5]), obs[..., 0] * np.sin(obs[..., 5])],
                     axis=-1)
 
