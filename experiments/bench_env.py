@@ -16,7 +16,11 @@ built-in ``follow`` behaviour sends the commands): CPU ms per decision period.
 agents, BiDES at 200 ms with 10 % loss, and ``perfect``; the study's env arguments, so
 without simulator metrics, ``metrics=False``; ``--with-metrics``: the env's default,
 with them), 4 and 64 scenes, random actions, against the targets (>= 50 000
-agent-steps per CPU-s at 64 scenes, >= 20 000 at 4); memory: the process's resident
+agent-steps per CPU-s at 64 scenes, >= 20 000 at 4). The headline is the steady state
+of the study's training episodes (at most 50 steps; random actions end most earlier):
+``--steady`` steps (default 100) timed after 60, episode restarts included at their
+real rate; beside it the best of ``--reps`` batches of ``--steps`` within episodes
+(restarts excluded). Memory: the process's resident
 set (``VmRSS``) grown by building and resetting ``--fit`` scenes (default 512), per
 scene and in all (target: 512 scenes in 2 GB). For normalisation across machines it
 also prints the CPU seconds per simulated second of the in-repo process-per-message
@@ -63,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variant", choices=["default", "const", "both"], default="both")
     ap.add_argument("--study", action="store_true",
                     help="the delay study's configuration (see the module docstring)")
+    ap.add_argument("--steady", type=int, default=100,
+                    help="--study: steps of the steady-state window")
     ap.add_argument("--fit", type=int, default=512, help="--study: scenes of the memory check")
     ap.add_argument("--with-metrics", action="store_true",
                     help="--study: the scenes' runs collect the simulator's metrics")
@@ -71,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.study:
         res = study((1, 2) if args.quick else (4, 64), 2 if args.quick else args.steps,
                     1 if args.quick else args.reps, 4 if args.quick else args.fit,
-                    args.with_metrics)
+                    args.with_metrics, steady=2 if args.quick else args.steady)
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "bench_study.json").write_text(json.dumps(

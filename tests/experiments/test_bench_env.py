@@ -31,5 +31,9 @@ def test_study_mode_measures_the_delay_study_configuration(tmp_path: Path) -> No
     assert cases == {(c, s) for c in ("bides@200ms", "perfect") for s in (1, 2)}
     assert all(r["agent_steps_per_s"] > 0 for r in data["rows"])
     assert all(r["metrics"] is False for r in data["rows"])  # the study's env arguments
+    # the steady figure counts the episodes' restarts: at most one per scene-step
+    assert all(0 <= r["restarts_per_scene_step"] <= 1 for r in data["rows"])
+    assert all(r["within_episode_agent_steps_per_s"] > 0 for r in data["rows"])
+    assert data["episode_steps"] == 50 and data["warm_steps"] == 60
     assert data["fit_scenes"] == 4 and data["rss_bytes_per_scene"] == (
         data["rss_grown_bytes"] / 4)

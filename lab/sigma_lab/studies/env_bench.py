@@ -108,10 +108,22 @@ def baseline_cpu_per_sim_s(duration: float = 2.0) -> float:
     return (time.thread_time() - t) / duration
 
 
+#: The study's training episodes: at most this many env steps (``train_under_delay --full``).
+STUDY_EPISODE = 50
+
+
 def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int,
-          metrics: bool = False) -> dict[str, Any]:
+          metrics: bool = False, warm: int = 60, steady: int = 100) -> dict[str, Any]:
     """Agent-steps per CPU-s on the delay study's configuration, and memory per scene
-    (``metrics``: the scenes' runs collect the simulator's metrics, the env's default)."""
+    (``metrics``: the scenes' runs collect the simulator's metrics, the env's default).
+
+    Two figures per case. The headline, *steady*: the study's training episodes (at most
+    :data:`STUDY_EPISODE` steps, random actions, so most end earlier by a failure), timed
+    over ``steady`` steps after ``warm`` steps, so the episodes' restarts are in it
+    at their real rate. *Within episodes*: the best of ``reps`` batches of ``steps`` steps
+    right after a reset with episodes too long to end, restarts excluded (the
+    measurement of earlier versions).
+    """
     import gc
 
     from sigma_lab.studies.delay import env_kwargs
@@ -121,28 +133,20 @@ def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int,
           f"load {os.getloadavg()[0]:.1f}", flush=True)
     rows = []
     for cond in ("bides@200ms", "perfect"):
-        kw = {**env_kwargs(cond, 5, 10_000, 0.1), "metrics": metrics}
         for scenes in sizes:
-            env = SwarmVec(n_scenes=scenes, **kw)
-            env.reset(seed=1)
-            acts = np.random.default_rng(0).uniform(-1, 1, (steps, scenes, env.n_agents, 3))
-            best = float("inf")
-            for _ in range(reps):
-                t = time.thread_time()
-                for k in range(steps):
-                    env.step(acts[k])
-                best = min(best, time.thread_time() - t)
-            rate = scenes * env.n_agents * steps / best
-            r = {"condition": cond, "scenes": scenes, "steps": steps, "metrics": metrics,
-                 "agent_steps_per_s": rate}
+            rate, restarts = _steady(cond, scenes, warm, steady, metrics)
+            inner = _within(cond, scenes, steps, reps, metrics)
+            r = {"condition": cond, "scenes": scenes, "steps": steady, "metrics": metrics,
+                 "agent_steps_per_s": rate, "restarts_per_scene_step": restarts,
+                 "within_episode_agent_steps_per_s": inner}
             rows.append(r)
             goal = STUDY_TARGETS.get(scenes)
             met = "" if goal is None else (
                 f"  target >= {goal:,}: {'met' if rate >= goal else 'not met'}")
             print(f"study {cond:12s} {scenes:4d} scenes{' (metrics)' if metrics else ''}: "
-                  f"{rate:9.0f} "
-                  f"agent-steps per CPU-s{met}; load {os.getloadavg()[0]:.1f}", flush=True)
-            del env
+                  f"{rate:9.0f} agent-steps per CPU-s, steady ({restarts:.3f} restarts a "
+                  f"scene-step); {inner:9.0f} within episodes{met}; "
+                  f"load {os.getloadavg()[0]:.1f}", flush=True)
             gc.collect()
     gc.collect()
     before = _rss()
@@ -155,5 +159,44 @@ def study(sizes: tuple[int, ...], steps: int, reps: int, fit: int,
           f"= {grown / fit / 1024:.1f} KiB per scene; in 2 GiB: "
           f"{'yes' if grown < 2 * 2**30 else 'no'}", flush=True)
     return {"rows": rows, "baseline_cpu_per_sim_s": base, "fit_scenes": fit,
+            "episode_steps": STUDY_EPISODE, "warm_steps": warm,
             "rss_grown_bytes": grown,
             "rss_bytes_per_scene": grown / fit, "fits_2gib": grown < 2 * 2**30}
+
+
+def _steady(cond: str, scenes: int, warm: int, steps: int, metrics: bool
+            ) -> tuple[float, float]:
+    """Agent-steps per CPU-s over ``steps`` steps after ``warm`` of the study's training
+    episodes, and the episode restarts per scene-step in that window."""
+    from sigma_lab.studies.delay import env_kwargs
+
+    env = SwarmVec(n_scenes=scenes, **{**env_kwargs(cond, 5, STUDY_EPISODE, 0.1),
+                                       "metrics": metrics})
+    env.reset(seed=1)
+    acts = np.random.default_rng(0).uniform(-1, 1, (warm + steps, scenes, env.n_agents, 3))
+    for k in range(warm):
+        env.step(acts[k])
+    episodes = sum(env.batch.episode)
+    t = time.thread_time()
+    for k in range(warm, warm + steps):
+        env.step(acts[k])
+    dt = time.thread_time() - t
+    return scenes * env.n_agents * steps / dt, (sum(env.batch.episode) - episodes) / (
+        scenes * steps)
+
+
+def _within(cond: str, scenes: int, steps: int, reps: int, metrics: bool) -> float:
+    """The best of ``reps`` batches of ``steps`` steps after a reset, episodes too long to
+    end (restarts excluded)."""
+    from sigma_lab.studies.delay import env_kwargs
+
+    env = SwarmVec(n_scenes=scenes, **{**env_kwargs(cond, 5, 10_000, 0.1), "metrics": metrics})
+    env.reset(seed=1)
+    acts = np.random.default_rng(0).uniform(-1, 1, (steps, scenes, env.n_agents, 3))
+    best = float("inf")
+    for _ in range(reps):
+        t = time.thread_time()
+        for k in range(steps):
+            env.step(acts[k])
+        best = min(best, time.thread_time() - t)
+    return scenes * env.n_agents * steps / best
