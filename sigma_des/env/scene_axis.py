@@ -8,11 +8,12 @@ Each is the one-scene helper of :mod:`sigma_des.env.tasks` (or
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["formation_targets_many", "nearest_many", "velocity_many"]
+__all__ = ["formation_targets_many", "nearest_many", "slot_offsets", "velocity_many"]
 
 Array = NDArray[np.float64]
 
@@ -35,15 +36,25 @@ def velocity_many(obs: Array) -> Array:
                     axis=-1)
 
 
-def formation_targets_many(obs: Array, d: float, theta: float) -> Array:
-    """``(S, n, 3)`` V-slots behind leader 0 and its altitude, per scene (``formation_slots``'
-    arithmetic, the cos/sin of each leader heading with ``math`` as there)."""
-    S, n = obs.shape[:2]
+@lru_cache(maxsize=64)
+def slot_offsets(n: int, d: float, theta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The V-slot offsets ``(dx, dy)`` of ranks ``0..n-1`` behind the leader (the
+    arithmetic of :func:`~sigma_des.agents.formation.formation_slots`), read-only."""
     rank = np.arange(n)  # followers 1, 2, ... in node order (leader 0)
     row = np.ceil(rank / 2.0)
     side = np.where(rank % 2 == 1, 1.0, -1.0)
     dx = -row * d * math.cos(theta)
     dy = side * row * d * math.sin(theta)
+    dx.setflags(write=False)
+    dy.setflags(write=False)
+    return dx, dy
+
+
+def formation_targets_many(obs: Array, d: float, theta: float) -> Array:
+    """``(S, n, 3)`` V-slots behind leader 0 and its altitude, per scene (``formation_slots``'
+    arithmetic, the cos/sin of each leader heading with ``math`` as there)."""
+    S, n = obs.shape[:2]
+    dx, dy = slot_offsets(n, d, theta)
     psi = obs[:, 0, 5]
     c = np.array([math.cos(p) for p in psi])[:, None]
     sn = np.array([math.sin(p) for p in psi])[:, None]

@@ -66,15 +66,16 @@ def _core() -> None:
 
 
 def _env() -> None:
-    """A learning env's scenes: the compiled control loop (BiDES with rollbacks, none)."""
+    """A learning env's scenes: the compiled control loop (BiDES with rollbacks, none) and
+    the formation tasks' compiled observation and reward (tight, formation)."""
     import numpy as np
 
     from sigma_des.env import SwarmVec
 
     lossy = {"nodes": 3, "net.host_link.latency": {"dist": "normal", "mean": 0.1, "std": 0.02},
              "net.host_link.loss": {"p": 0.1}}
-    for method in ("bides", "none"):
-        env = SwarmVec(task="tight", method=method, n_scenes=1, max_steps=4, metrics=False,
+    for task, method in (("tight", "bides"), ("tight", "none"), ("formation", "none")):
+        env = SwarmVec(task=task, method=method, n_scenes=1, max_steps=4, metrics=False,
                        scenario=lossy)
         env.reset(seed=0)
         for _ in range(3):

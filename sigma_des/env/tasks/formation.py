@@ -12,12 +12,19 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from sigma_des.agents.formation import formation_slots
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
-from sigma_des.env.scene_axis import formation_targets_many, nearest_many, velocity_many
-from sigma_des.env.tasks.base import AGE_REF, Array, Task, _nearest, _velocity
+from sigma_des.env.scene_axis import (
+    formation_targets_many,
+    nearest_many,
+    slot_offsets,
+    velocity_many,
+)
+from sigma_des.env.task_kernels import formation_observe, formation_reward, tight_observe
+from sigma_des.env.tasks.base import AGE_REF, OBS_CLIP, Array, Task, _nearest, _velocity
 from sigma_des.errors import ConfigError
 
 __all__ = ["FormationTask", "TightTask"]
@@ -100,6 +107,36 @@ class FormationTask(Task):
     def _extra_obs_many(self, obs: Array) -> list[Array]:
         return [np.broadcast_to(velocity_many(obs[:, :1]) / self.v_ref, obs.shape[:2] + (2,))]
 
+    # The scene-axis observation and reward compiled (task_kernels: the same operations
+    # as the numpy path of Task, which GoalTask and the tests keep using).
+    def _leaders(self, obs: Array) -> tuple[Array, Array, Array, Array]:
+        """Slot offsets and the cos/sin of each scene's leader heading (``math``, as
+        ``formation_targets_many``)."""
+        dx, dy = slot_offsets(obs.shape[1], self.d, math.radians(self.theta_deg))
+        psi = obs[:, 0, 5].tolist()
+        return (dx, dy, np.array([math.cos(p) for p in psi]),
+                np.array([math.sin(p) for p in psi]))
+
+    def observe_many(self, obs: Array, valid: NDArray[np.bool_], eps: list[Any], t: Array,
+                     agents: list[int], age: Array | None = None) -> NDArray[np.float32]:
+        dx, dy, lc, ls = self._leaders(obs)
+        lead = (velocity_many(obs[:, :1]) / self.v_ref).reshape(-1, 2)
+        return formation_observe(np.ascontiguousarray(obs, dtype=np.float64), valid,
+                                 np.cos(obs[..., 5]), np.sin(obs[..., 5]), lead, lc, ls, dx, dy,
+                                 np.asarray(agents, dtype=np.int64), self.d, self.v_ref,
+                                 OBS_CLIP)
+
+    def reward_many(
+        self, truth: Array, eps: list[Any], t: Array, agents: list[int], actions: Array
+    ) -> tuple[Array, NDArray[np.bool_], Array]:
+        dx, dy, lc, ls = self._leaders(truth)
+        L = self.scale()
+        return formation_reward(np.ascontiguousarray(truth, dtype=np.float64), lc, ls, dx, dy,
+                                np.asarray(agents, dtype=np.int64),
+                                np.ascontiguousarray(actions, dtype=np.float64), L,
+                                self.div * L, self.w_sep, self.r_safe, self.w_u, self.r_col,
+                                self.penalty)
+
     def scripted_many(self, obs: Array, eps: list[Any], t: Array) -> Array:
         g = np.full(obs.shape[:2] + (4,), np.nan)
         g[:, 0, 0] = self.leader_speed
@@ -145,6 +182,16 @@ class TightTask(FormationTask):
         return [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
                 vel, a, np.broadcast_to(vel[:1], (n, 2)), np.broadcast_to(a[:1], (n, 1)),
                 rel / self.d, vel[j], a[j]]
+
+    def observe_many(self, obs: Array, valid: NDArray[np.bool_], eps: list[Any], t: Array,
+                     agents: list[int], age: Array | None = None) -> NDArray[np.float32]:
+        dx, dy, lc, ls = self._leaders(obs)
+        return tight_observe(np.ascontiguousarray(obs, dtype=np.float64), valid,
+                             np.zeros(obs.shape[:2]) if age is None
+                             else np.ascontiguousarray(age, dtype=np.float64),
+                             np.cos(obs[..., 5]), np.sin(obs[..., 5]), lc, ls, dx, dy,
+                             np.asarray(agents, dtype=np.int64), self.d, self.v_ref, AGE_REF,
+                             OBS_CLIP)
 
     def columns_many(self, obs: Array, eps: list[Any], t: Array, age: Array) -> list[Array]:
         S, n = obs.shape[:2]
