@@ -19,7 +19,7 @@ Array = NDArray[np.float64]
 
 
 def nearest_many(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
-    """``tasks.base._nearest`` of every scene of ``(S, n, k)`` positions (the same operations)."""
+    """``tasks.base.nearest`` of every scene of ``(S, n, k)`` positions (the same operations)."""
     diff = pos[:, None, :, :] - pos[:, :, None, :]
     dist = np.sqrt((diff**2).sum(-1))
     n = pos.shape[1]
@@ -31,7 +31,7 @@ def nearest_many(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
 
 
 def velocity_many(obs: Array) -> Array:
-    """``tasks.base._velocity`` of ``(S, n, 12)`` states: ``(S, n, 2)``."""
+    """``tasks.base.velocity`` of ``(S, n, 12)`` states: ``(S, n, 2)``."""
     return np.stack([obs[..., 0] * np.cos(obs[..., 5]), obs[..., 0] * np.sin(obs[..., 5])],
                     axis=-1)
 

@@ -11,7 +11,7 @@ Action (every task): ``a in [-1, 1]^3`` per agent = desired north and east veloc
 agent's shown altitude, sent as the guidance row ``[v, chi, h, nan]`` (the autopilot's
 guidance interface, one level above the paper's attitude and throttle).
 
-Tasks:
+Tasks (the shared pipeline in :mod:`~sigma_des.env.tasks.base`):
 
 * :class:`FormationTask` (the paper's demonstration): node 0, the leader, flies a
   random route per episode (stream ``env.route``; its commands travel over the
@@ -27,9 +27,6 @@ Tasks:
   and 6 m slots; the observation adds the *age* of every shown state it uses (14).
 
 An agent whose own state has not been shown yet observes zeros and sends nothing.
-
-The shared pipeline is in :mod:`~sigma_des.env.tasks.base`, the tasks in
-:mod:`~sigma_des.env.tasks.formation` and :mod:`~sigma_des.env.tasks.goal`.
 """
 
 from __future__ import annotations

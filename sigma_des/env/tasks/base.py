@@ -24,7 +24,7 @@ from sigma_des.core.rng import Stream
 from sigma_des.env.scene_axis import nearest_many, velocity_many
 from sigma_des.errors import ConfigError
 
-__all__ = ["Task", "ACTION_DIM", "OBS_CLIP", "AGE_REF"]
+__all__ = ["Task", "ACTION_DIM", "OBS_CLIP", "AGE_REF", "nearest", "velocity"]
 
 Array = NDArray[np.float64]
 
@@ -35,7 +35,7 @@ OBS_CLIP = 10.0
 AGE_REF = 0.1
 
 
-def _nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
+def nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
     """Offset to the nearest other node, its distance and index, per node (O(n^2))."""
     diff = pos[None, :, :] - pos[:, None, :]
     dist = np.sqrt((diff**2).sum(-1))
@@ -45,7 +45,7 @@ def _nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
     return diff[i, j], dist[i, j], j
 
 
-def _velocity(obs: Array) -> Array:
+def velocity(obs: Array) -> Array:
     """North/east velocity from the published body speed and heading."""
     return np.stack([obs[:, 0] * np.cos(obs[:, 5]), obs[:, 0] * np.sin(obs[:, 5])], axis=1)
 
@@ -132,14 +132,14 @@ class Task:
         """Observation column blocks ``(n, k)`` of every node from shown states ``obs``."""
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
         tgt = self.targets(obs, ep, t)
-        rel, _, _ = _nearest(pos[:, :2])
+        rel, _, _ = nearest(pos[:, :2])
         L = self.scale()
         cols = [
             (tgt[:, 0:2] - obs[:, 9:11]) / L,
             ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
         ]
         cols += self._extra_obs(obs)
-        return cols + [_velocity(obs) / self.v_ref, rel / L]
+        return cols + [velocity(obs) / self.v_ref, rel / L]
 
     def _extra_obs(self, obs: Array) -> list[Array]:
         return []
@@ -169,7 +169,7 @@ class Task:
         """Rewards, per-agent failure (collision or divergence), true errors (m)."""
         tgt = self.targets(truth, ep, t)
         e = np.linalg.norm(tgt - truth[:, 9:12], axis=1)[agents]
-        _, dmin, _ = _nearest(truth[:, 9:12])
+        _, dmin, _ = nearest(truth[:, 9:12])
         return self._scored(e, dmin[agents], actions)
 
     def _scored(self, e: Array, dmin: Array, actions: Array

@@ -24,7 +24,7 @@ from sigma_des.env.scene_axis import (
     velocity_many,
 )
 from sigma_des.env.task_kernels import formation_observe, formation_reward, tight_observe
-from sigma_des.env.tasks.base import AGE_REF, OBS_CLIP, Array, Task, _nearest, _velocity
+from sigma_des.env.tasks.base import AGE_REF, OBS_CLIP, Array, Task, nearest, velocity
 from sigma_des.errors import ConfigError
 
 __all__ = ["FormationTask", "TightTask"]
@@ -94,7 +94,7 @@ class FormationTask(Task):
         return np.concatenate([slots, np.full((obs.shape[0], 1), obs[0, 11])], axis=1)
 
     def _extra_obs(self, obs: Array) -> list[Array]:
-        return [np.broadcast_to(_velocity(obs[:1]) / self.v_ref, (obs.shape[0], 2))]
+        return [np.broadcast_to(velocity(obs[:1]) / self.v_ref, (obs.shape[0], 2))]
 
     def scripted(self, view: SwarmView, ep: Any, t: float) -> Array:
         g = np.full((view.obs.shape[0], 4), np.nan)
@@ -176,9 +176,9 @@ class TightTask(FormationTask):
         n = obs.shape[0]
         pos = np.nan_to_num(obs[:, 9:12], nan=1e9)
         tgt = self.targets(obs, ep, t)
-        vel = _velocity(obs) / self.v_ref
+        vel = velocity(obs) / self.v_ref
         a = (age / AGE_REF)[:, None]
-        rel, _, j = _nearest(pos[:, :2])
+        rel, _, j = nearest(pos[:, :2])
         return [(tgt[:, 0:2] - obs[:, 9:11]) / self.d, ((tgt[:, 2] - obs[:, 11]) / 10.0)[:, None],
                 vel, a, np.broadcast_to(vel[:1], (n, 2)), np.broadcast_to(a[:1], (n, 1)),
                 rel / self.d, vel[j], a[j]]
