@@ -93,7 +93,10 @@ STUDIES = (
           "Agent-steps per CPU-second of `SwarmVec` on the training-under-delay study's "
           "configuration (tight task, 4 agents a scene, BiDES at 200 ms with 10 % loss, and "
           "perfect information) at 4 and 64 scenes, against the targets (20 000 and "
-          "50 000), the resident memory 512 scenes take, and the SimPy baseline's CPU per "
+          "50 000): the headline is the steady state of the study's training episodes "
+          "(at most 50 steps, random actions, so the episodes' restarts are in it at their "
+          "real rate), and beside it the best batch within episodes (restarts excluded). "
+          "Then the resident memory 512 scenes take, and the SimPy baseline's CPU per "
           "simulated second in the same run (divide by it to compare machines)."),
     Study("delay", "Training under delay (PPO)", "learning", "train_under_delay.py",
           ("--full", "--jobs", "2", "--ages-control", "--out", "{out}", "--checkpoints",
