@@ -20,7 +20,8 @@
 * ``processes.csv`` — per live cell, method and process kind: CPU, loop-busy and
   run-queue cores (:mod:`sigma_lab.studies.validation.processes`);
 * ``coverage.csv`` and ``residuals.toml`` — the intervals' coverage on the held-out
-  cells and their residuals (:mod:`sigma_lab.studies.validation.coverage`).
+  cells and their residuals (:mod:`sigma_lab.studies.validation.coverage`);
+  ``misses.csv`` — every held-out miss and its reading (:mod:`~.misses`).
 
 A run is **under load** when the background CPU during its metrics window (other
 processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
@@ -42,6 +43,7 @@ from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
 from sigma_lab.studies.validation.grid import Plan
 from sigma_lab.studies.validation.kneeplot import knee_plot
+from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
 from sigma_lab.studies.validation.scoring import (
     BAND,
@@ -471,7 +473,10 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     procs = process_rows(out / "live", [c.name for c in plan.cells])
     if procs:
         _write_csv(out / "processes.csv", procs, PROCESS_COLUMNS)
+    misses = miss_rows(rows, procs, plan.cal_nodes)
+    _write_csv(out / "misses.csv", misses, MISS_COLUMNS)
     text = summary_md(plan, rows, knees, noise, outcome[2], command, cov)
+    text += "\n".join(miss_md(misses)) + "\n"
     if procs:
         text += ("\n## Live processes (cores per second of the window, means over the "
                  "methods; a host is the mean of the run's hosts)\n\n"
