@@ -32,9 +32,13 @@ def test_each_rule_in_order() -> None:
         _row("g", 5.0, [8.0, 8.4], within=True),  # in band: no miss
         _row("h", 5.0, [8.0, 8.4], held_out=False),  # calibration run: not scored here
     ]
-    got = {m["cell"]: m["reading"] for m in miss_rows(rows, [], cal_nodes=20)}
+    rows += [_row("q", 5.0, [8.0, 8.4]), _row("r", 9.0, [8.0, 8.4])]  # below / above live
+    busy = [{"cell": c, "method": "hlc", "kind": "host", "processes": 2, "loop_busy": 0.5,
+             "runq_cores": 0.5} for c in ("q", "r")]  # 2 x 0.5 = 1 run-queue core
+    got = {m["cell"]: m["reading"] for m in miss_rows(rows, busy, cal_nodes=20)}
     assert got == {"a": "live spread", "b": "near capacity", "c": "loss",
-                   "d": "added latency", "e": "small bundles", "f": "below capacity"}
+                   "d": "added latency", "e": "small bundles", "f": "below capacity",
+                   "q": "live run queue", "r": "below capacity"}
 
 
 def test_spread_direction_and_the_live_load_of_the_cells_runs() -> None:

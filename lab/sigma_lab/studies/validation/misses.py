@@ -11,6 +11,9 @@ the first that applies:
   lies within their range: the miss is live's run-to-run variation;
 * ``near capacity`` — the DES puts the cell near capacity (its regime:
   ``sigma_des.calibrate.intervals.regime``);
+* ``live run queue`` — the DES is below live where live's processes waited on the
+  run queue for at least :data:`RUNQ_BUSY` cores (runnable, no core free: processes
+  outnumber cores), which the DES calls below capacity;
 * ``loss`` / ``added latency`` — a cell with that impairment;
 * ``small bundles`` — a bundled cell smaller than the calibration's, DES above live;
 * ``below capacity`` — none of these.
@@ -26,13 +29,16 @@ from typing import Any
 
 from sigma_lab.studies.validation.scoring import BAND, PP_BAND
 
-__all__ = ["MISS_COLUMNS", "miss_md", "miss_rows"]
+__all__ = ["MISS_COLUMNS", "RUNQ_BUSY", "miss_md", "miss_rows"]
 
 #: Columns of ``misses.csv``.
 MISS_COLUMNS = ("cell", "method", "metric", "des", "live", "error", "error_unit", "runs",
                 "spread", "des_in_runs", "regime", "server_loop_busy", "runq_cores",
                 "direction", "reading")
 
+#: Run-queue cores (summed over a run's processes) from which a miss is read as the
+#: live machine's scheduler holding the processes: on average one runnable process waits.
+RUNQ_BUSY = 1.0
 #: Metrics whose misses are read (the trigger rate's are where live held it: few).
 _READ = ("aoi_mean", "aoi_p99", "latency_state_mean", "missed_frac", "trigger_rate_hz")
 
@@ -71,12 +77,15 @@ def _load(procs: list[dict[str, Any]], cell: str, method: str) -> tuple[float, f
     return mean_busy, mean_runq
 
 
-def _reading(r: dict[str, Any], spread: float, inside: bool, cal_nodes: int) -> str:
+def _reading(r: dict[str, Any], spread: float, inside: bool, cal_nodes: int,
+             runq: float) -> str:
     band = PP_BAND if r["error_unit"] == "pp" else BAND
     if math.isfinite(spread) and spread > band and inside:
         return "live spread"
     if str(r["regime"]).endswith("near"):
         return "near capacity"
+    if math.isfinite(runq) and runq >= RUNQ_BUSY and r["des"] < r["live"]:
+        return "live run queue"
     if r["impairment"] == "loss5":
         return "loss"
     if r["impairment"] == "lat5":
@@ -109,7 +118,7 @@ def miss_rows(rows: list[dict[str, Any]], procs: list[dict[str, Any]], cal_nodes
                     "des_in_runs": inside, "regime": r["regime"], "server_loop_busy": busy,
                     "runq_cores": runq,
                     "direction": "below" if r["des"] < r["live"] else "above",
-                    "reading": _reading(r, spread, inside, cal_nodes)})
+                    "reading": _reading(r, spread, inside, cal_nodes, runq)})
     return out
 
 
@@ -125,8 +134,9 @@ def miss_md(misses: list[dict[str, Any]]) -> list[str]:
     count = Counter((m["reading"], m["metric"], m["direction"]) for m in misses)
     lines += [f"{len(misses)} held-out cell x method x metric values outside the band. "
               "By reading (rules in order: live's runs disagree by more than the band "
-              "with the DES inside their range; the DES near capacity; an impairment; "
-              "small bundles; else below capacity), metric and direction of the DES:", "",
+              "with the DES inside their range; the DES near capacity; live's run-queue "
+              f"wait ≥ {RUNQ_BUSY:g} core with the DES below; an impairment; small bundles; "
+              "else below capacity), metric and direction of the DES:", "",
               "| reading | metric | DES below live | DES above live |", "|---|---|---|---|"]
     for reading, metric in dict.fromkeys((k[0], k[1]) for k in sorted(count)):
         lines.append(f"| {reading} | {metric} | {count[(reading, metric, 'below')]} | "
