@@ -36,6 +36,7 @@ from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.fast.control_run import CompiledControl, unsupported
+from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import trims_batched
 from sigma_des.events.spec import RunSpec
 
@@ -43,6 +44,8 @@ __all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
 
 Array = NDArray[np.float64]
 _SEED_KEY = np.uint64(0x5CE7E5EED0000001)
+#: a retired compiled core's own arrays, by field name (:func:`_retire`)
+Spare = dict[str, NDArray[Any]]
 
 
 _MASK63 = 2**63 - 1
@@ -132,15 +135,18 @@ class Scene:
         metrics: collect the run's measurements (False: none, see ``MethodRun``).
         start: :func:`placed` of ``(dyn, task, spec.nodes)`` if the caller keeps it
             (None: made here).
+        control: run the control events in the compiled loop where it covers them.
+        spare: a retired scene's core arrays (:func:`_retire`), refilled by this
+            scene's compiled core instead of new ones (the same episode).
     """
 
     def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
                  metrics: bool = True, start: tuple[_Placed, Array] | None = None,
-                 control: bool = True) -> None:
+                 control: bool = True, spare: Spare | None = None) -> None:
         self.capture = _Capture()
         model, obs0 = placed(dyn, task, spec.nodes) if start is None else start
         self.run: MethodRun = make_run(spec, method, model, self.capture,  # type: ignore[arg-type]
-                                       metrics)[0]
+                                       metrics, spare)[0]
         self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"), obs0)
         self.done = False
         self.ended = False
@@ -176,12 +182,33 @@ class Scene:
         return self.run.kernel.now
 
 
-def _retire(scene: Scene) -> None:
+def _retire(scene: Scene) -> Spare | None:
     """A scene being replaced frees its message core's event table and its physics rings
     now: its run is cyclic garbage that Python's collector keeps for many episodes (100
-    scenes at N = 11 held 100 more runs, +47 MB, after each reset)."""
-    scene.run.core.close()
-    scene.run.truth.release()
+    scenes at N = 11 held 100 more runs, +47 MB, after each reset).
+
+    Returns:
+        The compiled core's own arrays for the next scene's core to refill
+        (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`; None: the run is not
+        on the compiled core).
+    """
+    run = scene.run
+    core = run.core
+    spare = core.retire() if isinstance(core, CompiledCore) else None
+    if spare is None:
+        core.close()
+    truth = run.truth
+    truth.release()
+    # the run's parts refer to it (hooks, the core's host): without its attributes (its
+    # truth kept, released) nothing refers back, and reference counting frees the parts
+    # with the scene instead of the cyclic collector, episodes later
+    env = run.kernel.env
+    for *_, ev in env._queue:  # type: ignore[attr-defined]  # never to be processed
+        ev.callbacks = None  # (a Call's callback is bound to itself)
+    vars(env).clear()  # SimPy's environment holds methods bound to itself
+    vars(run).clear()
+    run.truth = truth
+    return spare
 
 
 class SceneBatch:
@@ -240,15 +267,12 @@ class SceneBatch:
                 self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
             elif len(ids) < self.n_scenes:
                 for s in ids:
-                    _retire(self.scenes[s])
-                    self.scenes[s] = self._fresh(s)
+                    self.scenes[s] = self._fresh(s, _retire(self.scenes[s]))
             else:
-                for old in self.scenes:
-                    _retire(old)
-                del old  # the loop's name would keep the last scene's run alive
+                spares = [_retire(old) for old in self.scenes]
                 self.scenes = []
                 gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
-                self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+                self.scenes = [self._fresh(s, spares[s]) for s in range(self.n_scenes)]
         self.advance([self.scenes[s] for s in ids])
 
     def restart(self, ids: list[int], advance: bool = True) -> None:
@@ -260,15 +284,16 @@ class SceneBatch:
         with trims_batched():  # the C heap trimmed once for all the fresh scenes
             for s in ids:
                 self.episode[s] += 1
-                _retire(self.scenes[s])
-                self.scenes[s] = self._fresh(s)
+                self.scenes[s] = self._fresh(s, _retire(self.scenes[s]))
         if advance and ids:
             self.advance([self.scenes[s] for s in ids])
 
-    def _fresh(self, s: int) -> Scene:
+    def _fresh(self, s: int, spare: Spare | None = None) -> Scene:
+        """Scene ``s``'s current episode, its core refilling ``spare`` (the arrays of the
+        scene it replaces, :func:`_retire`)."""
         seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
         return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics,
-                     self.start, self.control)
+                     self.start, self.control, spare)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""

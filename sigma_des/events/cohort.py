@@ -11,8 +11,10 @@ falls back to the per-message engine for the whole run and says why
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
+
+from numpy.typing import NDArray
 
 from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
@@ -25,15 +27,16 @@ __all__ = ["execute", "make_run"]
 
 def make_run(
     sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None,
-    metrics: bool = True,
+    metrics: bool = True, spare: Mapping[str, NDArray[Any]] | None = None,
 ) -> tuple[MethodRun, str]:
     """The run object for ``sc.engine`` and the fallback reason ("" if none);
-    ``metrics=False``: a run that collects no measurements (``MethodRun``'s)."""
+    ``metrics=False``: a run that collects no measurements; ``spare``: a retired compiled
+    core's arrays for the compiled core to refill (both ``MethodRun``'s)."""
     if sc.engine == "cohort":
         why = unsupported(sc, method)
         if why is None:
             return MethodRun(sc, method, dynamics, behaviour, compiled=True,
-                             metrics=metrics), ""
+                             metrics=metrics, spare=spare), ""
         return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), why
     return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), ""
 

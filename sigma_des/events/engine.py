@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -79,6 +79,9 @@ class MethodRun(AlignmentServer):
         metrics: collect the run's measurements (False: no collector, no render ticks
             and no fidelity log, see :class:`~sigma_des.events.server.AlignmentServer`;
             :meth:`run` then cannot return results, :meth:`trajectory` has no log).
+        spare: a retired compiled core's arrays
+            (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`), refilled by the
+            compiled core instead of new ones (the same contents; unread otherwise).
 
     Attributes:
         trigger: the trigger source.
@@ -103,6 +106,7 @@ class MethodRun(AlignmentServer):
         behaviour: Behaviour | None,
         compiled: bool = False,
         metrics: bool = True,
+        spare: Mapping[str, NDArray[Any]] | None = None,
     ) -> None:
         n = spec.nodes
         self.kernel = Kernel()
@@ -124,7 +128,7 @@ class MethodRun(AlignmentServer):
         self.core: MessageCore
         if compiled:  # the core reads and writes the command rows in place
             self.nodes.cmd = np.ascontiguousarray(self.nodes.cmd, dtype=np.float64)
-            self.core = CompiledCore(self)
+            self.core = CompiledCore(self, spare)
         else:
             self.core = EventCore(self.net, self.server, n, spec.trigger_payload_bits,
                                   spec.commands.payload_bits)

@@ -22,6 +22,7 @@ result tables are identical on the same seed.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, Protocol
 
 import numpy as np
@@ -87,12 +88,14 @@ class CompiledCore:
     Args:
         host: the engine composing this core (its physics ring and command array
             are shared with the core, read and written in place).
+        spare: the arrays a retired core handed back (:meth:`retire`), refilled here
+            instead of new ones where their dtype and shape fit (the same contents).
 
     Raises:
         CohortFallback: the scenario uses a feature the core does not reproduce.
     """
 
-    def __init__(self, host: Host) -> None:
+    def __init__(self, host: Host, spare: Mapping[str, NDArray[Any]] | None = None) -> None:
         spec = host.spec
         why = unsupported(spec, host.method)
         if why is not None:
@@ -115,7 +118,8 @@ class CompiledCore:
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK))
+        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK),
+                            spare)
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
@@ -181,6 +185,16 @@ class CompiledCore:
                                 for name in (*TABLE, "obs_hist")})
         self._closed = True
         self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
+
+    def retire(self) -> dict[str, NDArray[Any]]:
+        """Close the core (:meth:`close`) and hand back the arrays of its own that a new
+        core may refill (the fields with a fill: no other object holds them), by name.
+
+        The caller must hold no view of them, and nothing may run this core again.
+        """
+        S = self.S
+        self.close()
+        return {f.name: a for f, a in zip(L.FIELDS, S, strict=True) if f.fill is not None}
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
