@@ -23,8 +23,7 @@ from __future__ import annotations
 
 import gc
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,8 +70,26 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
 def with_seed(spec: RunSpec, seed: int) -> RunSpec:
     """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
     seed (the seed is in the spec and its aligner's parameters, nowhere else), without
-    validating and converting the whole scenario again for every episode."""
-    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
+    validating and converting the whole scenario again for every episode.
+
+    ``dataclasses.replace`` of both, without running their validation again (neither
+    checks the seed, and every other field is the valid ``spec``'s own object).
+    """
+    return _reseeded(spec, seed, align=_reseeded(spec.align, seed))
+
+
+_T = TypeVar("_T")
+
+
+def _reseeded(obj: _T, seed: int, **more: Any) -> _T:
+    """A copy of the frozen dataclass ``obj`` with field ``seed`` (and ``more``) replaced:
+    its fields' objects shared, as ``replace`` shares them, ``__init__`` not run."""
+    new = object.__new__(type(obj))
+    fields = new.__dict__
+    fields.update(obj.__dict__)
+    fields["seed"] = seed
+    fields.update(more)
+    return new
 
 
 class _Capture:
