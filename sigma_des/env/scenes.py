@@ -37,14 +37,13 @@ from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.fast.control_run import CompiledControl, unsupported
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import trims_batched
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.spec import RunSpec
 
 __all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
 
 Array = NDArray[np.float64]
 _SEED_KEY = np.uint64(0x5CE7E5EED0000001)
-#: a retired compiled core's own arrays, by field name (:func:`_retire`)
-Spare = dict[str, NDArray[Any]]
 
 
 _MASK63 = 2**63 - 1
@@ -153,8 +152,8 @@ class Scene:
         start: :func:`placed` of ``(dyn, task, spec.nodes)`` if the caller keeps it
             (None: made here).
         control: run the control events in the compiled loop where it covers them.
-        spare: a retired scene's core arrays (:func:`_retire`), refilled by this
-            scene's compiled core instead of new ones (the same episode).
+        spare: what a retired scene's compiled core handed back (:func:`_retire`), for
+            this scene's core to refill instead of making new arrays (the same episode).
     """
 
     def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,

@@ -11,13 +11,12 @@ falls back to the per-message engine for the whole run and says why
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
-
-from numpy.typing import NDArray
 
 from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
@@ -27,7 +26,7 @@ __all__ = ["execute", "make_run"]
 
 def make_run(
     sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None,
-    metrics: bool = True, spare: Mapping[str, NDArray[Any]] | None = None,
+    metrics: bool = True, spare: Spare | None = None,
 ) -> tuple[MethodRun, str]:
     """The run object for ``sc.engine`` and the fallback reason ("" if none);
     ``metrics=False``: a run that collects no measurements; ``spare``: a retired compiled

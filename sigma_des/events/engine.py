@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -37,6 +37,7 @@ from sigma_des.events.align.base import OneState
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import run_finished
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.jobs import step_draws
 from sigma_des.events.message_core import EventCore, MessageCore
 from sigma_des.events.node import PhysicsNodes
@@ -106,7 +107,7 @@ class MethodRun(AlignmentServer):
         behaviour: Behaviour | None,
         compiled: bool = False,
         metrics: bool = True,
-        spare: Mapping[str, NDArray[Any]] | None = None,
+        spare: Spare | None = None,
     ) -> None:
         n = spec.nodes
         self.kernel = Kernel()

@@ -22,7 +22,6 @@ result tables are identical on the same seed.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any, Protocol
 
 import numpy as np
@@ -41,6 +40,7 @@ from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.rollbacks import Rollbacks
+from sigma_des.events.fast.spare import Kept, Spare, refilled, same_but_seed
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
     CohortFallback,
@@ -88,14 +88,16 @@ class CompiledCore:
     Args:
         host: the engine composing this core (its physics ring and command array
             are shared with the core, read and written in place).
-        spare: the arrays a retired core handed back (:meth:`retire`), refilled here
-            instead of new ones where their dtype and shape fit (the same contents).
+        spare: what a retired core handed back (:meth:`retire`): its arrays, refilled
+            here instead of new ones where their dtype and shape fit, and its seed-free
+            values, copied here if this run's spec differs from its run's in the seed at
+            most (:mod:`~sigma_des.events.fast.spare`: the same contents either way).
 
     Raises:
         CohortFallback: the scenario uses a feature the core does not reproduce.
     """
 
-    def __init__(self, host: Host, spare: Mapping[str, NDArray[Any]] | None = None) -> None:
+    def __init__(self, host: Host, spare: Spare | None = None) -> None:
         spec = host.spec
         why = unsupported(spec, host.method)
         if why is not None:
@@ -118,8 +120,7 @@ class CompiledCore:
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK),
-                            spare)
+        self.S = self._allocate(p_loss, spare)
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
@@ -128,6 +129,25 @@ class CompiledCore:
         self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
         self._bound = entries.DISPATCHED
         self._arg: Any = self.S  # what the bound entry points take for it (a handle)
+
+    def _allocate(self, p_loss: tuple[float, float], spare: Spare | None
+                  ) -> tuple[NDArray[Any], ...]:
+        """The state tuple, from ``spare`` where it serves (see the class)."""
+        h = self.host
+        kept = spare.kept if spare is not None else None
+        if kept is not None and not (kept.method == h.method and kept.dyn is h.dyn
+                                     and same_but_seed(kept.spec, h.spec)):
+            kept = None
+        given = setup.given(self, p_loss, SLACK, kept.arrays if kept is not None else None)
+        if kept is not None:
+            given.update(refilled(kept.arrays, spare.arrays))  # type: ignore[union-attr]
+        elif spare is not None:  # the values to hand on (not kept by a one-off run)
+            kept = Kept(h.spec, h.method, h.dyn,
+                        {name: given[name].copy() for name in setup.seed_free(given)})
+        #: the seed-free values handed on by :meth:`retire` (None: none)
+        self._kept = kept
+        return L.allocate(setup.dims(self, SLACK, ARENA), given,
+                          spare.arrays if spare is not None else None)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -186,15 +206,19 @@ class CompiledCore:
         self._closed = True
         self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
 
-    def retire(self) -> dict[str, NDArray[Any]]:
-        """Close the core (:meth:`close`) and hand back the arrays of its own that a new
-        core may refill (the fields with a fill: no other object holds them), by name.
+    def retire(self) -> Spare:
+        """Close the core (:meth:`close`) and hand back, for a new core
+        (:mod:`~sigma_des.events.fast.spare`), the arrays of its own (the fields with a
+        fill and the seed-free ones it was given: no other object holds them) and its
+        kept seed-free values (if it was made from a spare).
 
-        The caller must hold no view of them, and nothing may run this core again.
+        The caller must hold no view of the arrays, and nothing may run this core again.
         """
         S = self.S
         self.close()
-        return {f.name: a for f, a in zip(L.FIELDS, S, strict=True) if f.fill is not None}
+        own = set(self._kept.arrays) if self._kept is not None else set()
+        return Spare({f.name: a for f, a in zip(L.FIELDS, S, strict=True)
+                      if f.fill is not None or f.name in own}, self._kept)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
