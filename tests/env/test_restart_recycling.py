@@ -157,3 +157,74 @@ def test_with_seed_copies_every_field_but_the_seed() -> None:
         if name != "seed":
             assert getattr(got.align, name) is value
     assert got.seed == got.align.seed == 77 and got != base
+
+
+_DYN: dict[int, Any] = {}
+
+
+def _given(over: dict[str, Any], seed: int, spare: Any = None) -> tuple[Any, dict[str, Any]]:
+    """A compiled BiDES run of the tight task's scenario under ``over`` with ``seed`` (one
+    dynamics model per scenario): its core and the given arrays made from nothing."""
+    from sigma_des.env.options import EnvOptions, build_scenario
+    from sigma_des.events.cohort import make_run
+    from sigma_des.events.fast import setup
+    from sigma_des.events.fast.driver import SLACK
+    from sigma_des.factory import make_dynamics
+
+    sc = build_scenario(EnvOptions(task="tight"), over)
+    dyn = _DYN.setdefault(id(over), make_dynamics(sc))
+    run = make_run(S.with_seed(sc.run_spec(), seed), "bides", dyn, None, False, spare)[0]
+    core = run.core
+    assert isinstance(core, CompiledCore)
+    links = sc.run_spec().net.net
+    return core, setup.given(core, (links.host_link.loss.p, links.server_link.loss.p), SLACK)
+
+
+GE_NTP = {**LOSSY, "net.host_link.loss": {"model": "gilbert_elliott", "p_gb": 0.05,
+                                          "p_bg": 0.3, "loss_bad": 0.5, "slot": 0.01},
+          "clocks.offset_std": 0.002, "clocks.ntp_period": 0.5, "clocks.ntp_residual_std": 1e-4}
+FOUR = {**LOSSY, "nodes": 4}
+
+
+@pytest.mark.parametrize("over", [LOSSY, GE_NTP])
+def test_the_seed_free_arrays_hold_no_draw(over: dict[str, Any]) -> None:
+    from sigma_des.events.fast import setup
+
+    _, first = _given(over, 1)
+    names = setup.seed_free(first)
+    for seed in (2, 99, 2**62):
+        _, other = _given(over, seed)
+        assert setup.seed_free(other) == names
+        for name in names:
+            assert first[name].tobytes() == other[name].tobytes(), name
+    drawn = {"ge_bad", "ntp_res", "clock_off"} - set(names)
+    if over is GE_NTP:  # these hold draws here: left out, and they do differ by seed
+        assert drawn == {"ge_bad", "ntp_res", "clock_off"}
+        assert all(first[n].tobytes() != other[n].tobytes() for n in drawn)
+    else:
+        assert drawn == {"clock_off"}
+
+
+def _same_state(core: CompiledCore, over: dict[str, Any], seed: int) -> None:
+    """``core``'s state is that of a core made from nothing for ``seed`` (but the truth's
+    ring of published rows, an unwritten ``np.empty``)."""
+    fresh, _ = _given(over, seed)
+    for f, a, b in zip(L.FIELDS, core.S, fresh.S, strict=True):
+        if f.name != "obs_hist":
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), f.name
+
+
+@pytest.mark.parametrize("over", [LOSSY, GE_NTP])
+def test_kept_values_serve_only_a_run_of_the_same_spec(over: dict[str, Any]) -> None:
+    a, _ = _given(over, 1)
+    b, _ = _given(over, 2, a.retire())  # makes the kept values
+    spare = b.retire()
+    assert spare.kept is not None and "iparams" in spare.kept.arrays
+    assert ("ntp_res" in spare.kept.arrays) == (over is LOSSY)
+    d, _ = _given(over, 4, spare)  # takes them
+    assert d._kept is spare.kept
+    _same_state(d, over, 4)
+    other = d.retire()
+    c, _ = _given(FOUR, 3, other)  # another spec: its own values
+    assert c._kept is not None and c._kept is not other.kept
+    _same_state(c, FOUR, 3)
