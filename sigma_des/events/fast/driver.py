@@ -67,6 +67,19 @@ __all__ = ["SLACK", "CompiledCore", "Host"]
 SLACK = 256
 
 
+def _empty(a: NDArray[Any]) -> NDArray[Any]:
+    """An array of no rows, of ``a``'s dtype and row shape (one per kind, shared: it holds
+    nothing to write, and a closed core never grows it)."""
+    key = (a.dtype, a.shape[1:])
+    e = _EMPTIES.get(key)
+    if e is None:
+        e = _EMPTIES[key] = np.zeros((0, *a.shape[1:]), dtype=a.dtype)
+    return e
+
+
+_EMPTIES: dict[tuple[np.dtype[Any], tuple[int, ...]], NDArray[Any]] = {}
+
+
 class Host(Protocol):
     """What the compiled core reads and calls of the engine that composes it."""
 
@@ -200,9 +213,7 @@ class CompiledCore:
         rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
         messages after it."""
         S = self.S
-        self.S = L.replaced(S, {name: np.zeros((0, *S[L.INDEX[name]].shape[1:]),
-                                               dtype=S[L.INDEX[name]].dtype)
-                                for name in (*TABLE, "obs_hist")})
+        self.S = L.replaced(S, {name: _empty(S[L.INDEX[name]]) for name in (*TABLE, "obs_hist")})
         self._closed = True
         self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
 

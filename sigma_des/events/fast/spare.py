@@ -19,7 +19,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.events.fast.declare import reusable
@@ -73,7 +72,7 @@ def refilled(kept: Mapping[str, NDArray[Any]], spare: Mapping[str, NDArray[Any]]
     for name, v in kept.items():
         a = spare.get(name)
         if a is not None and reusable(a, v.dtype, v.shape):
-            np.copyto(a, v)
+            a[...] = v
             out[name] = a
         else:
             out[name] = v.copy()
