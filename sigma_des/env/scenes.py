@@ -220,7 +220,7 @@ def _retire(scene: Scene) -> Spare | None:
     # with the scene instead of the cyclic collector, episodes later
     env = run.kernel.env
     for *_, ev in env._queue:  # type: ignore[attr-defined]  # never to be processed
-        ev.callbacks = None  # (a Call's callback is bound to itself)
+        ev.callbacks = None  # type: ignore[assignment]  # (a Call's is bound to itself)
     vars(env).clear()  # SimPy's environment holds methods bound to itself
     vars(run).clear()
     run.truth = truth

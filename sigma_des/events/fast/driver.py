@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.core.models import DynamicsModel
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
@@ -93,6 +94,7 @@ class Host(Protocol):
     nodes: PhysicsNodes
     truth: SwarmTruth
     tap: Tap
+    dyn: DynamicsModel
 
 
 class CompiledCore:

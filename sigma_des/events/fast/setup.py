@@ -190,7 +190,7 @@ def seed_free(given: Mapping[str, NDArray[Any]]) -> tuple[str, ...]:
     :data:`SEED_FREE`, the link tables unless a link is Gilbert–Elliott (its chain
     states are drawn), and the NTP table unless the clocks synchronise (its residuals
     are drawn)."""
-    names = SEED_FREE
+    names: tuple[str, ...] = SEED_FREE
     if not given["link_dyn"][:2].any():
         names += LINK_FIELDS
     if given["ntp_period"][0] <= 0.0:
