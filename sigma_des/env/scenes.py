@@ -16,7 +16,8 @@ then the physics of every waiting scene is stepped in one call of the dynamics
 model per distinct ``(frame, dt)`` (per ``dt`` for a model whose step reads neither
 frame nor node ids, ``frame_free``; rows are independent, so this is bit-identical
 to each scene stepping alone), and the scenes go on, until each has paused at its
-next command tick or reached the end of its scenario.
+next command tick or reached the end of its scenario. A restarted scene's compiled core
+refills the arrays of the scene it replaces (the same state as new arrays).
 """
 
 from __future__ import annotations
@@ -200,13 +201,16 @@ class Scene:
 
 def _retire(scene: Scene) -> Spare | None:
     """A scene being replaced frees its message core's event table and its physics rings
-    now: its run is cyclic garbage that Python's collector keeps for many episodes (100
-    scenes at N = 11 held 100 more runs, +47 MB, after each reset).
+    now, and its run is taken apart: a run is a web of reference cycles (its parts call
+    back into it) that Python's cyclic collector would keep for many episodes (100 scenes
+    at N = 11 held 100 more runs, +47 MB, after each reset) and walk at every full
+    collection; without them reference counting frees it with the scene. The scene's
+    ``run`` keeps only its (released) ``truth``.
 
     Returns:
-        The compiled core's own arrays for the next scene's core to refill
-        (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`; None: the run is not
-        on the compiled core).
+        What the compiled core hands to the next scene's core (its own arrays and kept
+        seed-free values: :meth:`~sigma_des.events.fast.driver.CompiledCore.retire`);
+        None: the run is not on the compiled core.
     """
     run = scene.run
     core = run.core
@@ -215,9 +219,8 @@ def _retire(scene: Scene) -> Spare | None:
         core.close()
     truth = run.truth
     truth.release()
-    # the run's parts refer to it (hooks, the core's host): without its attributes (its
-    # truth kept, released) nothing refers back, and reference counting frees the parts
-    # with the scene instead of the cyclic collector, episodes later
+    # the run's parts refer to it (hooks, the core's host): without its attributes
+    # nothing refers back to it
     env = run.kernel.env
     for *_, ev in env._queue:  # type: ignore[attr-defined]  # never to be processed
         ev.callbacks = None  # type: ignore[assignment]  # (a Call's is bound to itself)
@@ -287,7 +290,7 @@ class SceneBatch:
             else:
                 spares = [_retire(old) for old in self.scenes]
                 self.scenes = []
-                gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
+                gc.collect()  # any cycle left of the old episodes: one a reset (~0.08 s)
                 self.scenes = [self._fresh(s, spares[s]) for s in range(self.n_scenes)]
         self.advance([self.scenes[s] for s in ids])
 

@@ -29,8 +29,8 @@ def make_run(
     metrics: bool = True, spare: Spare | None = None,
 ) -> tuple[MethodRun, str]:
     """The run object for ``sc.engine`` and the fallback reason ("" if none);
-    ``metrics=False``: a run that collects no measurements; ``spare``: a retired compiled
-    core's arrays for the compiled core to refill (both ``MethodRun``'s)."""
+    ``metrics=False``: a run that collects no measurements; ``spare``: what a retired compiled
+    core handed back, for the compiled core to refill (both ``MethodRun``'s)."""
     if sc.engine == "cohort":
         why = unsupported(sc, method)
         if why is None:

@@ -80,9 +80,10 @@ class MethodRun(AlignmentServer):
         metrics: collect the run's measurements (False: no collector, no render ticks
             and no fidelity log, see :class:`~sigma_des.events.server.AlignmentServer`;
             :meth:`run` then cannot return results, :meth:`trajectory` has no log).
-        spare: a retired compiled core's arrays
-            (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`), refilled by the
-            compiled core instead of new ones (the same contents; unread otherwise).
+        spare: what a retired compiled core handed back
+            (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`), for the compiled
+            core to refill instead of making new arrays (the same state; unread without
+            ``compiled``).
 
     Attributes:
         trigger: the trigger source.
