@@ -122,7 +122,8 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
-        sources = network_sources(host.net, lossy_classes(spec))
+        lossy = lossy_classes(spec)
+        sources = network_sources(host.net, lossy)
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
@@ -133,7 +134,7 @@ class CompiledCore:
         self.deliveries = Deliveries(host, host.n)
         #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
         self.exits = [0] * len(L.EXIT_CODES)
-        self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
+        self.attempts = AttemptTables(host.net, lossy, spec.history_frames,
                                       host.n + 1, self._lockstep)
         self.S = self._allocate(p_loss, spare)
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
