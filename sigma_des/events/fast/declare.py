@@ -87,7 +87,7 @@ def build(
             shape, or not C-contiguous (numba would copy or reject it).
     """
     p = _as_plan(fields, dims)
-    extra = set(given) - {name for name, _, _, fill in p if fill is None}
+    extra = given.keys() - _given_names(p)
     if extra:
         raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
     arrays: list[NDArray[Any]] = []
@@ -112,6 +112,19 @@ def build(
             )
         arrays.append(a)
     return tuple(arrays)
+
+
+def _given_names(p: Plan) -> frozenset[str]:
+    """The fields of plan ``p`` without a fill (kept for the last plans asked about)."""
+    hit = _GIVEN.get(id(p))
+    if hit is None or hit[0] is not p:
+        if len(_GIVEN) >= 64:
+            _GIVEN.clear()
+        hit = _GIVEN[id(p)] = (p, frozenset(name for name, _, _, fill in p if fill is None))
+    return hit[1]
+
+
+_GIVEN: dict[int, tuple[Plan, frozenset[str]]] = {}
 
 
 def reusable(a: NDArray[Any], dtype: np.dtype[Any], shape: tuple[int, ...]) -> bool:

@@ -79,6 +79,8 @@ def _empty(a: NDArray[Any]) -> NDArray[Any]:
 
 
 _EMPTIES: dict[tuple[np.dtype[Any], tuple[int, ...]], NDArray[Any]] = {}
+#: the state's fields with a fill (position, name): the arrays a core makes for itself
+_FILLED = [(i, f.name) for i, f in enumerate(L.FIELDS) if f.fill is not None]
 
 
 class Host(Protocol):
@@ -230,9 +232,10 @@ class CompiledCore:
         """
         S = self.S
         self.close()
-        own = set(self._kept.arrays) if self._kept is not None else set()
-        return Spare({f.name: a for f, a in zip(L.FIELDS, S, strict=True)
-                      if f.fill is not None or f.name in own}, self._kept)
+        arrays = {name: S[i] for i, name in _FILLED}
+        if self._kept is not None:
+            arrays.update((name, S[L.INDEX[name]]) for name in self._kept.arrays)
+        return Spare(arrays, self._kept)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""
