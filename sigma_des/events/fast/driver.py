@@ -159,13 +159,15 @@ class CompiledCore:
         given = setup.given(self, p_loss, SLACK, kept.arrays if kept is not None else None)
         if kept is not None:
             given.update(refilled(kept.arrays, spare.arrays))  # type: ignore[union-attr]
-        elif spare is not None:  # the values to hand on (not kept by a one-off run)
-            kept = Kept(h.spec, h.method, h.dyn,
-                        {name: given[name].copy() for name in setup.seed_free(given)})
+            dims = kept.dims
+        else:
+            dims = setup.dims(self, SLACK, ARENA)
+            if spare is not None:  # the values to hand on (not kept by a one-off run)
+                kept = Kept(h.spec, h.method, h.dyn, dims,
+                            {name: given[name].copy() for name in setup.seed_free(given)})
         #: the seed-free values handed on by :meth:`retire` (None: none)
         self._kept = kept
-        return L.allocate(setup.dims(self, SLACK, ARENA), given,
-                          spare.arrays if spare is not None else None)
+        return L.allocate(dims, given, spare.arrays if spare is not None else None)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are

@@ -4,12 +4,12 @@ A learning env restarts its scenes' runs many times from copies of one run spec 
 differ in the seed only (``sigma_des.env.scenes.with_seed``). When a scene's episode
 ends, its core (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`) hands back a
 :class:`Spare`: the arrays it alone held, which the next core refills in place instead
-of allocating new ones, and the first values of the arrays that hold no random draw
-(:func:`~sigma_des.events.fast.setup.seed_free`), which the next core copies instead of
-deriving them again from the spec, the network and the nodes. Those values are used
-only by a run of the same spec but for the seed, the same method and the very same
-dynamics model (:func:`same_but_seed`); the arrays, whatever the run, only where their
-dtype and shape fit. Either way a core's state is bit for bit the one it would have
+of allocating new ones, and the state's dimensions and the first values of the arrays
+that hold no random draw (:func:`~sigma_des.events.fast.setup.seed_free`), which the next
+core takes instead of deriving them again from the spec, the network and the nodes. Those
+values are used only by a run of the same spec but for the seed, the same method and the
+very same dynamics model (:func:`same_but_seed`); the arrays, whatever the run, only
+where their dtype and shape fit. Either way a core's state is bit for bit the one it would have
 built from nothing.
 """
 
@@ -34,12 +34,15 @@ class Kept:
         spec: the run spec they were made from (any seed).
         method: the run's alignment method.
         dyn: the run's dynamics model (the very object).
+        dims: the state's dimensions (:func:`~sigma_des.events.fast.setup.dims`: a
+            function of the same).
         arrays: the values, by field name (copies nothing writes).
     """
 
     spec: Any
     method: str
     dyn: object
+    dims: Mapping[str, int]
     arrays: Mapping[str, NDArray[Any]]
 
 
