@@ -16,15 +16,15 @@ then the physics of every waiting scene is stepped in one call of the dynamics
 model per distinct ``(frame, dt)`` (per ``dt`` for a model whose step reads neither
 frame nor node ids, ``frame_free``; rows are independent, so this is bit-identical
 to each scene stepping alone), and the scenes go on, until each has paused at its
-next command tick or reached the end of its scenario.
+next command tick or reached the end of its scenario. A restarted scene's compiled core
+refills the arrays of the scene it replaces (the same state as new arrays).
 """
 
 from __future__ import annotations
 
 import gc
 from collections.abc import Sequence
-from dataclasses import replace
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +36,9 @@ from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
 from sigma_des.events.fast.control_run import CompiledControl, unsupported
+from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import trims_batched
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.spec import RunSpec
 
 __all__ = ["Scene", "SceneBatch", "scene_seed", "with_seed"]
@@ -68,8 +70,26 @@ def scene_seed(root: int, scene: int, episode: int) -> int:
 def with_seed(spec: RunSpec, seed: int) -> RunSpec:
     """``spec`` with root seed ``seed``: ``Scenario.run_spec`` of the scenario with that
     seed (the seed is in the spec and its aligner's parameters, nowhere else), without
-    validating and converting the whole scenario again for every episode."""
-    return replace(spec, seed=seed, align=replace(spec.align, seed=seed))
+    validating and converting the whole scenario again for every episode.
+
+    ``dataclasses.replace`` of both, without running their validation again (neither
+    checks the seed, and every other field is the valid ``spec``'s own object).
+    """
+    return _reseeded(spec, seed, align=_reseeded(spec.align, seed))
+
+
+_T = TypeVar("_T")
+
+
+def _reseeded(obj: _T, seed: int, **more: Any) -> _T:
+    """A copy of the frozen dataclass ``obj`` with field ``seed`` (and ``more``) replaced:
+    its fields' objects shared, as ``replace`` shares them, ``__init__`` not run."""
+    new = object.__new__(type(obj))
+    fields = new.__dict__
+    fields.update(obj.__dict__)
+    fields["seed"] = seed
+    fields.update(more)
+    return new
 
 
 class _Capture:
@@ -132,15 +152,18 @@ class Scene:
         metrics: collect the run's measurements (False: none, see ``MethodRun``).
         start: :func:`placed` of ``(dyn, task, spec.nodes)`` if the caller keeps it
             (None: made here).
+        control: run the control events in the compiled loop where it covers them.
+        spare: what a retired scene's compiled core handed back (:func:`_retire`), for
+            this scene's core to refill instead of making new arrays (the same episode).
     """
 
     def __init__(self, spec: RunSpec, method: str, dyn: DynamicsModel, task: Task,
                  metrics: bool = True, start: tuple[_Placed, Array] | None = None,
-                 control: bool = True) -> None:
+                 control: bool = True, spare: Spare | None = None) -> None:
         self.capture = _Capture()
         model, obs0 = placed(dyn, task, spec.nodes) if start is None else start
         self.run: MethodRun = make_run(spec, method, model, self.capture,  # type: ignore[arg-type]
-                                       metrics)[0]
+                                       metrics, spare)[0]
         self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"), obs0)
         self.done = False
         self.ended = False
@@ -176,12 +199,35 @@ class Scene:
         return self.run.kernel.now
 
 
-def _retire(scene: Scene) -> None:
+def _retire(scene: Scene) -> Spare | None:
     """A scene being replaced frees its message core's event table and its physics rings
-    now: its run is cyclic garbage that Python's collector keeps for many episodes (100
-    scenes at N = 11 held 100 more runs, +47 MB, after each reset)."""
-    scene.run.core.close()
-    scene.run.truth.release()
+    now, and its run is taken apart: a run is a web of reference cycles (its parts call
+    back into it) that Python's cyclic collector would keep for many episodes (100 scenes
+    at N = 11 held 100 more runs, +47 MB, after each reset) and walk at every full
+    collection; without them reference counting frees it with the scene. The scene's
+    ``run`` keeps only its (released) ``truth``.
+
+    Returns:
+        What the compiled core hands to the next scene's core (its own arrays and kept
+        seed-free values: :meth:`~sigma_des.events.fast.driver.CompiledCore.retire`);
+        None: the run is not on the compiled core.
+    """
+    run = scene.run
+    core = run.core
+    spare = core.retire() if isinstance(core, CompiledCore) else None
+    if spare is None:
+        core.close()
+    truth = run.truth
+    truth.release()
+    # the run's parts refer to it (hooks, the core's host): without its attributes
+    # nothing refers back to it
+    env = run.kernel.env
+    for *_, ev in env._queue:  # type: ignore[attr-defined]  # never to be processed
+        ev.callbacks = None  # type: ignore[assignment]  # (a Call's is bound to itself)
+    vars(env).clear()  # SimPy's environment holds methods bound to itself
+    vars(run).clear()
+    run.truth = truth
+    return spare
 
 
 class SceneBatch:
@@ -240,15 +286,12 @@ class SceneBatch:
                 self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
             elif len(ids) < self.n_scenes:
                 for s in ids:
-                    _retire(self.scenes[s])
-                    self.scenes[s] = self._fresh(s)
+                    self.scenes[s] = self._fresh(s, _retire(self.scenes[s]))
             else:
-                for old in self.scenes:
-                    _retire(old)
-                del old  # the loop's name would keep the last scene's run alive
+                spares = [_retire(old) for old in self.scenes]
                 self.scenes = []
-                gc.collect()  # the old runs are cycles: one full collection a reset (~0.08 s)
-                self.scenes = [self._fresh(s) for s in range(self.n_scenes)]
+                gc.collect()  # any cycle left of the old episodes: one a reset (~0.08 s)
+                self.scenes = [self._fresh(s, spares[s]) for s in range(self.n_scenes)]
         self.advance([self.scenes[s] for s in ids])
 
     def restart(self, ids: list[int], advance: bool = True) -> None:
@@ -260,15 +303,16 @@ class SceneBatch:
         with trims_batched():  # the C heap trimmed once for all the fresh scenes
             for s in ids:
                 self.episode[s] += 1
-                _retire(self.scenes[s])
-                self.scenes[s] = self._fresh(s)
+                self.scenes[s] = self._fresh(s, _retire(self.scenes[s]))
         if advance and ids:
             self.advance([self.scenes[s] for s in ids])
 
-    def _fresh(self, s: int) -> Scene:
+    def _fresh(self, s: int, spare: Spare | None = None) -> Scene:
+        """Scene ``s``'s current episode, its core refilling ``spare`` (the arrays of the
+        scene it replaces, :func:`_retire`)."""
         seed = scene_seed(self.roots[s], self.ids[s], self.episode[s])
         return Scene(with_seed(self.spec, seed), self.method, self.dyn, self.task, self.metrics,
-                     self.start, self.control)
+                     self.start, self.control, spare)
 
     def advance(self, scenes: list[Scene]) -> None:
         """Run ``scenes`` to their next command tick (or end), physics batched."""

@@ -16,6 +16,7 @@ from typing import Any
 
 from sigma_des.core.models import Behaviour, DynamicsModel
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.fast.support import CohortFallback, unsupported
 from sigma_des.events.spec import RunSpec
 from sigma_des.events.tap import Tap
@@ -25,15 +26,16 @@ __all__ = ["execute", "make_run"]
 
 def make_run(
     sc: RunSpec, method: str, dynamics: DynamicsModel, behaviour: Behaviour | None,
-    metrics: bool = True,
+    metrics: bool = True, spare: Spare | None = None,
 ) -> tuple[MethodRun, str]:
     """The run object for ``sc.engine`` and the fallback reason ("" if none);
-    ``metrics=False``: a run that collects no measurements (``MethodRun``'s)."""
+    ``metrics=False``: a run that collects no measurements; ``spare``: what a retired compiled
+    core handed back, for the compiled core to refill (both ``MethodRun``'s)."""
     if sc.engine == "cohort":
         why = unsupported(sc, method)
         if why is None:
             return MethodRun(sc, method, dynamics, behaviour, compiled=True,
-                             metrics=metrics), ""
+                             metrics=metrics, spare=spare), ""
         return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), why
     return MethodRun(sc, method, dynamics, behaviour, metrics=metrics), ""
 

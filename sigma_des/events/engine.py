@@ -37,6 +37,7 @@ from sigma_des.events.align.base import OneState
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import run_finished
+from sigma_des.events.fast.spare import Spare
 from sigma_des.events.jobs import step_draws
 from sigma_des.events.message_core import EventCore, MessageCore
 from sigma_des.events.node import PhysicsNodes
@@ -79,6 +80,10 @@ class MethodRun(AlignmentServer):
         metrics: collect the run's measurements (False: no collector, no render ticks
             and no fidelity log, see :class:`~sigma_des.events.server.AlignmentServer`;
             :meth:`run` then cannot return results, :meth:`trajectory` has no log).
+        spare: what a retired compiled core handed back
+            (:meth:`~sigma_des.events.fast.driver.CompiledCore.retire`), for the compiled
+            core to refill instead of making new arrays (the same state; unread without
+            ``compiled``).
 
     Attributes:
         trigger: the trigger source.
@@ -103,6 +108,7 @@ class MethodRun(AlignmentServer):
         behaviour: Behaviour | None,
         compiled: bool = False,
         metrics: bool = True,
+        spare: Spare | None = None,
     ) -> None:
         n = spec.nodes
         self.kernel = Kernel()
@@ -124,7 +130,7 @@ class MethodRun(AlignmentServer):
         self.core: MessageCore
         if compiled:  # the core reads and writes the command rows in place
             self.nodes.cmd = np.ascontiguousarray(self.nodes.cmd, dtype=np.float64)
-            self.core = CompiledCore(self)
+            self.core = CompiledCore(self, spare)
         else:
             self.core = EventCore(self.net, self.server, n, spec.trigger_payload_bits,
                                   spec.commands.payload_bits)

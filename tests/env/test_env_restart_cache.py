@@ -39,9 +39,10 @@ def _play(scene_ids: list[int], method: str = "bides") -> tuple[SwarmVec, list[b
 
 
 def _long_way(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every episode built from scratch: the spec replaced (validated again) and the
-    placed model and its observation made for the scene."""
-    def fresh(self: S.SceneBatch, s: int) -> S.Scene:
+    """Every episode built from scratch: the spec replaced (validated again), the
+    placed model and its observation made for the scene, and new core arrays (the
+    retired scene's are not refilled)."""
+    def fresh(self: S.SceneBatch, s: int, spare: Any = None) -> S.Scene:
         seed = S.scene_seed(self.roots[s], self.ids[s], self.episode[s])
         spec = replace(self.spec, seed=seed, align=replace(self.spec.align, seed=seed))
         return S.Scene(spec, self.method, self.dyn, self.task, self.metrics)

@@ -201,6 +201,10 @@ class CompiledControl:
                 ci[C.CI_ALIGN_DIRECT] = int(fn == run._align)
             else:
                 raise ValueError(f"compiled control: the kernel holds another event ({fn!r})")
+        # dropped unprocessed: no cycle through their callbacks (as SimPy leaves a
+        # processed event), so reference counting frees them
+        for *_, ev in q:
+            ev.callbacks = None  # type: ignore[assignment]
         q.clear()
 
     def _sync_draws(self) -> None:

@@ -17,7 +17,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["Field", "Plan", "build", "plan", "shape_of", "swap"]
+__all__ = ["Field", "Plan", "build", "plan", "reusable", "shape_of", "swap"]
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ def _as_plan(fields: Sequence[Field] | Plan, dims: Mapping[str, int]) -> Plan:
 
 def build(
     fields: Sequence[Field] | Plan, dims: Mapping[str, int],
-    given: Mapping[str, NDArray[Any]],
+    given: Mapping[str, NDArray[Any]], spare: Mapping[str, NDArray[Any]] | None = None,
 ) -> tuple[NDArray[Any], ...]:
     """Build the state tuple of ``fields``: ``given`` arrays checked, the others made
     from their fill (``np.zeros`` for a fill of 0: the same contents).
@@ -75,6 +75,9 @@ def build(
         fields: the declaration, in order, or its :func:`plan` under ``dims``.
         dims: the size of every dimension name the declaration uses (unread for a plan).
         given: the arrays of the fields whose ``fill`` is None (and no others).
+        spare: arrays of a state nothing reads any more, by field name: a field with a
+            fill takes its spare array, filled again in place, when that has the field's
+            dtype and shape and owns its memory (:func:`reusable`); else a new one.
 
     Returns:
         The state tuple.
@@ -84,14 +87,20 @@ def build(
             shape, or not C-contiguous (numba would copy or reject it).
     """
     p = _as_plan(fields, dims)
-    extra = set(given) - {name for name, _, _, fill in p if fill is None}
+    extra = given.keys() - _given_names(p)
     if extra:
         raise ValueError(f"arrays given for fields with a fill: {sorted(extra)}")
     arrays: list[NDArray[Any]] = []
+    old = spare if spare is not None else {}
     for name, dtype, shape, fill in p:
         if fill is not None:
-            arrays.append(np.zeros(shape, dtype=dtype) if fill == 0
-                          else np.full(shape, fill, dtype=dtype))
+            a = old.get(name)
+            if a is not None and reusable(a, dtype, shape):
+                a.fill(fill)  # the cast np.full makes, into the same bytes
+                arrays.append(a)
+            else:
+                arrays.append(np.zeros(shape, dtype=dtype) if fill == 0
+                              else np.full(shape, fill, dtype=dtype))
             continue
         a = given.get(name)
         if a is None:
@@ -103,6 +112,28 @@ def build(
             )
         arrays.append(a)
     return tuple(arrays)
+
+
+def _given_names(p: Plan) -> frozenset[str]:
+    """The fields of plan ``p`` without a fill (kept for the last plans asked about)."""
+    hit = _GIVEN.get(id(p))
+    if hit is None or hit[0] is not p:
+        if len(_GIVEN) >= 64:
+            _GIVEN.clear()
+        hit = _GIVEN[id(p)] = (p, frozenset(name for name, _, _, fill in p if fill is None))
+    return hit[1]
+
+
+_GIVEN: dict[int, tuple[Plan, frozenset[str]]] = {}
+
+
+def reusable(a: NDArray[Any], dtype: np.dtype[Any], shape: tuple[int, ...]) -> bool:
+    """Whether ``a`` can serve as a new array of ``dtype`` and ``shape``: the same type
+    and shape, C-contiguous, writeable, and owning its memory (the core resizes some
+    arrays in place, which only an owner can)."""
+    f = a.flags
+    return (a.dtype == dtype and a.shape == shape and f.c_contiguous and f.writeable
+            and f.owndata)
 
 
 def swap(

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.core.models import DynamicsModel
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
@@ -40,6 +41,7 @@ from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.rollbacks import Rollbacks
+from sigma_des.events.fast.spare import Kept, Spare, refilled, same_but_seed
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
     CohortFallback,
@@ -66,6 +68,21 @@ __all__ = ["SLACK", "CompiledCore", "Host"]
 SLACK = 256
 
 
+def _empty(a: NDArray[Any]) -> NDArray[Any]:
+    """An array of no rows, of ``a``'s dtype and row shape (one per kind, shared: it holds
+    nothing to write, and a closed core never grows it)."""
+    key = (a.dtype, a.shape[1:])
+    e = _EMPTIES.get(key)
+    if e is None:
+        e = _EMPTIES[key] = np.zeros((0, *a.shape[1:]), dtype=a.dtype)
+    return e
+
+
+_EMPTIES: dict[tuple[np.dtype[Any], tuple[int, ...]], NDArray[Any]] = {}
+#: the state's fields with a fill (position, name): the arrays a core makes for itself
+_FILLED = [(i, f.name) for i, f in enumerate(L.FIELDS) if f.fill is not None]
+
+
 class Host(Protocol):
     """What the compiled core reads and calls of the engine that composes it."""
 
@@ -79,6 +96,7 @@ class Host(Protocol):
     nodes: PhysicsNodes
     truth: SwarmTruth
     tap: Tap
+    dyn: DynamicsModel
 
 
 class CompiledCore:
@@ -87,12 +105,16 @@ class CompiledCore:
     Args:
         host: the engine composing this core (its physics ring and command array
             are shared with the core, read and written in place).
+        spare: what a retired core handed back (:meth:`retire`): its arrays, refilled
+            here instead of new ones where their dtype and shape fit, and its seed-free
+            values, copied here if this run's spec differs from its run's in the seed at
+            most (:mod:`~sigma_des.events.fast.spare`: the same contents either way).
 
     Raises:
         CohortFallback: the scenario uses a feature the core does not reproduce.
     """
 
-    def __init__(self, host: Host) -> None:
+    def __init__(self, host: Host, spare: Spare | None = None) -> None:
         spec = host.spec
         why = unsupported(spec, host.method)
         if why is not None:
@@ -102,7 +124,8 @@ class CompiledCore:
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
-        sources = network_sources(host.net, lossy_classes(spec))
+        lossy = lossy_classes(spec)
+        sources = network_sources(host.net, lossy)
         sources.append((L.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
@@ -113,9 +136,9 @@ class CompiledCore:
         self.deliveries = Deliveries(host, host.n)
         #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
         self.exits = [0] * len(L.EXIT_CODES)
-        self.attempts = AttemptTables(host.net, lossy_classes(spec), spec.history_frames,
+        self.attempts = AttemptTables(host.net, lossy, spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = L.allocate(setup.dims(self, SLACK, ARENA), setup.given(self, p_loss, SLACK))
+        self.S = self._allocate(p_loss, spare)
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
@@ -124,6 +147,27 @@ class CompiledCore:
         self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
         self._bound = entries.DISPATCHED
         self._arg: Any = self.S  # what the bound entry points take for it (a handle)
+
+    def _allocate(self, p_loss: tuple[float, float], spare: Spare | None
+                  ) -> tuple[NDArray[Any], ...]:
+        """The state tuple, from ``spare`` where it serves (see the class)."""
+        h = self.host
+        kept = spare.kept if spare is not None else None
+        if kept is not None and not (kept.method == h.method and kept.dyn is h.dyn
+                                     and same_but_seed(kept.spec, h.spec)):
+            kept = None
+        given = setup.given(self, p_loss, SLACK, kept.arrays if kept is not None else None)
+        if kept is not None:
+            given.update(refilled(kept.arrays, spare.arrays))  # type: ignore[union-attr]
+            dims = kept.dims
+        else:
+            dims = setup.dims(self, SLACK, ARENA)
+            if spare is not None:  # the values to hand on (not kept by a one-off run)
+                kept = Kept(h.spec, h.method, h.dyn, dims,
+                            {name: given[name].copy() for name in setup.seed_free(given)})
+        #: the seed-free values handed on by :meth:`retire` (None: none)
+        self._kept = kept
+        return L.allocate(dims, given, spare.arrays if spare is not None else None)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -176,11 +220,24 @@ class CompiledCore:
         rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
         messages after it."""
         S = self.S
-        self.S = L.replaced(S, {name: np.zeros((0, *S[L.INDEX[name]].shape[1:]),
-                                               dtype=S[L.INDEX[name]].dtype)
-                                for name in (*TABLE, "obs_hist")})
+        self.S = L.replaced(S, {name: _empty(S[L.INDEX[name]]) for name in (*TABLE, "obs_hist")})
         self._closed = True
         self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
+
+    def retire(self) -> Spare:
+        """Close the core (:meth:`close`) and hand back, for a new core
+        (:mod:`~sigma_des.events.fast.spare`), the arrays of its own (the fields with a
+        fill and the seed-free ones it was given: no other object holds them) and its
+        kept seed-free values (if it was made from a spare).
+
+        The caller must hold no view of the arrays, and nothing may run this core again.
+        """
+        S = self.S
+        self.close()
+        arrays = {name: S[i] for i, name in _FILLED}
+        if self._kept is not None:
+            arrays.update((name, S[L.INDEX[name]]) for name in self._kept.arrays)
+        return Spare(arrays, self._kept)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""

@@ -451,19 +451,21 @@ TALLY = INDEX["tally"]
 
 
 def allocate(
-    dims: Mapping[str, int], given: Mapping[str, NDArray[Any]]
+    dims: Mapping[str, int], given: Mapping[str, NDArray[Any]],
+    spare: Mapping[str, NDArray[Any]] | None = None,
 ) -> tuple[NDArray[Any], ...]:
     """The core's state tuple (:func:`~sigma_des.events.fast.declare.build` of
-    :data:`FIELDS`): ``given`` arrays checked, the others made from their fill (the
-    declaration's :func:`~sigma_des.events.fast.declare.plan` kept per set of dimensions:
-    the scenes of a learning env and their episodes share it)."""
+    :data:`FIELDS`): ``given`` arrays checked, the others made from their fill, or
+    refilled from ``spare`` (a retired state's arrays; the declaration's
+    :func:`~sigma_des.events.fast.declare.plan` kept per set of dimensions: the scenes
+    of a learning env and their episodes share it)."""
     key = tuple(dims.items())
     p = _PLANS.get(key)
     if p is None:
         if len(_PLANS) >= 64:
             _PLANS.clear()
         p = _PLANS[key] = plan(FIELDS, dims)
-    return build(p, dims, given)
+    return build(p, dims, given, spare)
 
 
 _PLANS: dict[tuple[tuple[str, int], ...], Plan] = {}

@@ -9,6 +9,7 @@ link and kind, in the core's arrays.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -17,13 +18,18 @@ from numpy.typing import NDArray
 from sigma_des.events.align.base import OBS_WIDTH
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import ge_slots, ntp_syncs
-from sigma_des.events.fast.tables import clock_tables, deployment_tables, link_tables
+from sigma_des.events.fast.tables import (
+    DEPLOYMENT_FIELDS,
+    clock_tables,
+    deployment_tables,
+    link_tables,
+)
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
 
 if TYPE_CHECKING:
     from sigma_des.events.fast.driver import CompiledCore
 
-__all__ = ["dims", "given"]
+__all__ = ["SEED_FREE", "dims", "given", "seed_free"]
 
 
 def dims(core: CompiledCore, slack: int, arena: float) -> dict[str, int]:
@@ -104,7 +110,7 @@ def links(core: CompiledCore) -> dict[str, NDArray[Any]]:
 
 
 def nodes(core: CompiledCore) -> dict[str, NDArray[Any]]:
-    """Node rows, hosts, faults and clocks."""
+    """Node rows, hosts and faults (:func:`clocks`: the nodes' clocks)."""
     h = core.host.nodes
     n = core.host.n
     nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
@@ -116,38 +122,77 @@ def nodes(core: CompiledCore) -> dict[str, NDArray[Any]]:
         ptr[i + 1] = len(rows)
     last_i = np.zeros((n, 2), dtype=np.int64)
     last_i[:, 0] = -1
-    drift = (h.clocks.drift_ppm * 1e-6).tolist()  # the engine's arithmetic, exactly
     return {
         "node": nd, "host_of": np.array(h.host_of, dtype=np.int64),
         "crash": np.array(h.crash_at, dtype=np.float64), "slow_ptr": ptr,
         "slow": np.array(rows if rows else [(0.0, 0.0, 1.0)], dtype=np.float64),
-        "clock_off": np.array(h.clocks.offset.tolist(), dtype=np.float64),
-        "clock_drift": np.array(drift, dtype=np.float64), "last_int": last_i,
+        "last_int": last_i,
     }
 
 
-def given(core: CompiledCore, p_loss: tuple[float, float], slack: int
-          ) -> dict[str, NDArray[Any]]:
+def clocks(core: CompiledCore) -> dict[str, NDArray[Any]]:
+    """The nodes' clock offsets and drifts (drawn from the run's seed)."""
+    c = core.host.nodes.clocks
+    drift = (c.drift_ppm * 1e-6).tolist()  # the engine's arithmetic, exactly
+    return {"clock_off": np.array(c.offset.tolist(), dtype=np.float64),
+            "clock_drift": np.array(drift, dtype=np.float64)}
+
+
+def given(core: CompiledCore, p_loss: tuple[float, float], slack: int,
+          kept: Mapping[str, NDArray[Any]] | None = None) -> dict[str, NDArray[Any]]:
     """The arrays of the fields without a fill: parameters, tables, shared arrays.
 
     Args:
         core: the core being built.
         p_loss: the Bernoulli loss of the host links and of the server's link.
         slack: spare event slots beyond what one frame needs (as :func:`dims`).
+        kept: the arrays of the fields :func:`seed_free` named for a run whose spec
+            differs from this one's in the seed at most (same method and dynamics):
+            not made again (the caller supplies copies of them).
     """
     h = core.host
     spec = h.spec
-    cap = 4 * (h.n + 1) + slack
     tb = core.tables
-    return {
-        "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
-        "pool_free": np.arange(cap, dtype=np.int32)[::-1].copy(),
-        "iparams": params(core), "fparams": np.array([spec.warmup, spec.duration]),
+    out = {
         "draw_map": tb.draw_map, "draw_const": tb.draw_const, "draw_val": tb.values,
-        "draw_tag": tb.tags, "p_loss": np.array(p_loss),
+        "draw_tag": tb.tags,
         "slot_frame": h.truth.slot_frame, "obs_hist": h.truth.obs_hist, "cmd": h.nodes.cmd,
-        **links(core), **nodes(core), **core.attempts.given(),
-        **deployment_tables(h.net, spec), **link_tables(h.net, spec),
-        **clock_tables(h.nodes.clocks, spec), **core.rollbacks.given(),
-        **core.deliveries.given(),
+        **clocks(core), **core.attempts.given(), **core.deliveries.given(),
     }
+    if kept is None:
+        cap = 4 * (h.n + 1) + slack
+        out.update({
+            "free": np.arange(cap, dtype=np.int64)[::-1].copy(),
+            "pool_free": np.arange(cap, dtype=np.int32)[::-1].copy(),
+            "iparams": params(core), "fparams": np.array([spec.warmup, spec.duration]),
+            "p_loss": np.array(p_loss), **links(core), **nodes(core),
+            **deployment_tables(h.net, spec), **core.rollbacks.given(),
+        })
+    if kept is None or "link_dyn" not in kept:
+        out.update(link_tables(h.net, spec))
+    if kept is None or "ntp_res" not in kept:
+        out.update(clock_tables(h.nodes.clocks, spec))
+    return out
+
+
+#: The fields of :func:`given` whose arrays are a function of the spec without its seed,
+#: the method and the dynamics model, and which the core alone holds: the same for every
+#: episode of a learning env's scenes (:func:`seed_free` adds the link and clock tables
+#: where they hold no draw).
+SEED_FREE = ("free", "pool_free", "iparams", "fparams", "p_loss", "link_spb", "link_of",
+             "wire_bytes", "node", "host_of", "crash", "slow_ptr", "slow", "last_int",
+             *DEPLOYMENT_FIELDS, "rb_val", "rb_tag")
+LINK_FIELDS = ("link_dyn", "ge_par", "ge_bad", "deg_ptr", "deg", "drops")
+
+
+def seed_free(given: Mapping[str, NDArray[Any]]) -> tuple[str, ...]:
+    """The fields of ``given`` (:func:`given`'s full answer) that hold no random draw:
+    :data:`SEED_FREE`, the link tables unless a link is Gilbert–Elliott (its chain
+    states are drawn), and the NTP table unless the clocks synchronise (its residuals
+    are drawn)."""
+    names: tuple[str, ...] = SEED_FREE
+    if not given["link_dyn"][:2].any():
+        names += LINK_FIELDS
+    if given["ntp_period"][0] <= 0.0:
+        names += ("ntp_period", "ntp_res")
+    return names

@@ -46,6 +46,7 @@ from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.network import Network
 
 __all__ = [
+    "DEPLOYMENT_FIELDS",
     "DrawTables",
     "Fill",
     "clock_tables",
@@ -266,6 +267,10 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
 
 
 _DEPLOYMENT: IdentityMemo[dict[str, NDArray[Any]]] = IdentityMemo()
+#: the fields :func:`deployment_tables` supplies
+DEPLOYMENT_FIELDS = ("cpu_ip", "cpu_proc", "cpu_dem", "cpu_mach", "cpu_scale", "cpu_wake",
+                     "cpu_side", "cpu_switch", "cpu_net", "cl_of", "cpu_runq", "cpu_load",
+                     "bcast", "mem_ptr", "mem")
 
 
 def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
