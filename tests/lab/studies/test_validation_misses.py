@@ -11,13 +11,15 @@ from sigma_lab.studies.validation.misses import miss_md, miss_rows
 
 def _row(cell: str, des: float, runs: list[float], *, within: bool = False,
          metric: str = "latency_state_mean", regime: str = "node-below", mode: str = "node",
-         nodes: int = 30, impairment: str = "", held_out: bool = True) -> dict[str, Any]:
+         nodes: int = 30, impairment: str = "", held_out: bool = True,
+         scored: bool = True) -> dict[str, Any]:
     live = sum(runs) / len(runs)
     pp = metric == "missed_frac"
     return {"cell": cell, "method": "hlc", "metric": metric, "des": des, "live": live,
             "rel_error": 100 * (des - live) if pp else (des - live) / live,
             "error_unit": "pp" if pp else "rel", "live_runs": " ".join(map(str, runs)),
-            "within_band": within, "held_out": held_out, "regime": regime, "mode": mode,
+            "within_band": within, "passed": within if scored else "", "held_out": held_out,
+            "regime": regime, "mode": mode,
             "nodes": nodes, "impairment": impairment}
 
 
@@ -31,6 +33,7 @@ def test_each_rule_in_order() -> None:
         _row("f", 1.0, [2.0, 2.1], mode="bundle", nodes=10),  # below live: not bundles
         _row("g", 5.0, [8.0, 8.4], within=True),  # in band: no miss
         _row("h", 5.0, [8.0, 8.4], held_out=False),  # calibration run: not scored here
+        _row("i", 50.0, [80.0, 84.0], metric="trigger_rate_hz", scored=False),  # live slowed
     ]
     rows += [_row("q", 5.0, [8.0, 8.4]), _row("r", 9.0, [8.0, 8.4])]  # below / above live
     busy = [{"cell": c, "method": "hlc", "kind": "host", "processes": 2, "loop_busy": 0.5,

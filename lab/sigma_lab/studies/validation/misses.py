@@ -1,11 +1,11 @@
 """The held-out misses of a validation, each with what its data point at: ``misses.csv``.
 
-One row per held-out cell x method x metric outside its band (the headline's strict
-rule; trigger rates where live held its rate): the DES and live values, the live runs'
-spread and whether the DES lies inside their range, the DES's regime, the live
-server's busy loop and the live processes' run-queue wait (cores, from
-``processes.csv``, means over the cell's runs), and a reading chosen by fixed rules,
-the first that applies:
+One row per scored held-out cell x method x metric outside its band (the headline's
+strict rule; trigger rates only where live held its rate, as scored): the DES and live
+values, the live runs' spread and whether the DES lies inside their range, the DES's
+regime, the live server's busy loop and the live processes' run-queue wait (cores,
+from ``processes.csv``, means over the cell's runs), and a reading chosen by fixed
+rules, the first that applies:
 
 * ``live spread`` — the cell's live runs disagree by more than the band and the DES
   lies within their range: the miss is live's run-to-run variation;
@@ -106,7 +106,8 @@ def miss_rows(rows: list[dict[str, Any]], procs: list[dict[str, Any]], cal_nodes
     """
     out = []
     for r in rows:
-        if not r["held_out"] or r["within_band"] is not False or r["metric"] not in _READ:
+        if not r["held_out"] or r["within_band"] is not False or r["metric"] not in _READ \
+                or r["passed"] == "":  # not scored (a trigger rate live did not hold)
             continue
         runs = _runs(r)
         spread = _spread(r, runs)
