@@ -37,32 +37,9 @@ def _finite(x: float, nan: float) -> float:
 
 
 @njit(cache=True)
-def _nearest(pos: np.ndarray, i: int) -> int:
-    """``np.argmin`` over ``j`` of the distance from row ``i`` of ``pos`` to row ``j``
-    (``inf`` to itself; a NaN distance is the minimum, as numpy's)."""
-    n, k = pos.shape
-    best, best_d = 0, math.inf
-    for j in range(n):
-        if j == i:
-            dist = math.inf
-        else:
-            acc = 0.0
-            for c in range(k):  # ((d0^2 + d1^2) + d2^2): numpy's order on this layout
-                dd = pos[j, c] - pos[i, c]
-                acc = dd * dd if c == 0 else acc + dd * dd
-            dist = math.sqrt(acc)
-        if j == 0:
-            best_d = dist
-        elif math.isnan(best_d):
-            break
-        elif math.isnan(dist) or dist < best_d:
-            best, best_d = j, dist
-    return best
-
-
-@njit(cache=True)
 def _dist(pos: np.ndarray, i: int, j: int) -> float:
-    """The distance :func:`_nearest` compares, from row ``i`` to row ``j``."""
+    """The distance from row ``i`` of ``pos`` to row ``j`` (``inf`` to itself), as
+    ``nearest_many``: ``sqrt((d0^2 + d1^2) + d2^2)``, numpy's order on that layout."""
     if i == j:
         return math.inf
     acc = 0.0
@@ -70,6 +47,20 @@ def _dist(pos: np.ndarray, i: int, j: int) -> float:
         dd = pos[j, c] - pos[i, c]
         acc = dd * dd if c == 0 else acc + dd * dd
     return math.sqrt(acc)
+
+
+@njit(cache=True)
+def _nearest(pos: np.ndarray, i: int) -> int:
+    """``np.argmin`` over ``j`` of :func:`_dist` from row ``i`` (the first minimum; a NaN
+    distance is the minimum, as numpy's)."""
+    best, best_d = 0, _dist(pos, i, 0)
+    for j in range(1, pos.shape[0]):
+        if math.isnan(best_d):
+            break
+        dist = _dist(pos, i, j)
+        if math.isnan(dist) or dist < best_d:
+            best, best_d = j, dist
+    return best
 
 
 @njit(cache=True)
@@ -92,6 +83,16 @@ def _put(out: np.ndarray, s: int, k: int, c: int, x: float, lim: float) -> None:
     elif x > lim:
         x = lim
     out[s, k, c] = np.float32(x)
+
+
+@njit(cache=True)
+def _slot_error(out: np.ndarray, s: int, k: int, g: int, obs: np.ndarray, tgt: np.ndarray,
+                d: float, lim: float) -> None:
+    """Columns 0-2 of agent ``k`` (node ``g``): its slot error north and east ``/ d`` and
+    its altitude error ``/ 10 m``."""
+    _put(out, s, k, 0, (tgt[g, 0] - obs[s, g, 9]) / d, lim)
+    _put(out, s, k, 1, (tgt[g, 1] - obs[s, g, 10]) / d, lim)
+    _put(out, s, k, 2, (tgt[g, 2] - obs[s, g, 11]) / 10.0, lim)
 
 
 @njit(cache=True)
@@ -125,9 +126,7 @@ def formation_observe(obs: np.ndarray, valid: np.ndarray, cos5: np.ndarray,
             if not valid[s, g]:
                 continue
             j = _nearest(pos, g)
-            _put(out, s, k, 0, (tgt[g, 0] - obs[s, g, 9]) / d, lim)
-            _put(out, s, k, 1, (tgt[g, 1] - obs[s, g, 10]) / d, lim)
-            _put(out, s, k, 2, (tgt[g, 2] - obs[s, g, 11]) / 10.0, lim)
+            _slot_error(out, s, k, g, obs, tgt, d, lim)
             _put(out, s, k, 3, lead_vel[s, 0], lim)
             _put(out, s, k, 4, lead_vel[s, 1], lim)
             _put(out, s, k, 5, vel[g, 0], lim)
@@ -159,9 +158,7 @@ def tight_observe(obs: np.ndarray, valid: np.ndarray, age: np.ndarray, cos5: np.
             if not valid[s, g]:
                 continue
             j = _nearest(pos, g)
-            _put(out, s, k, 0, (tgt[g, 0] - obs[s, g, 9]) / d, lim)
-            _put(out, s, k, 1, (tgt[g, 1] - obs[s, g, 10]) / d, lim)
-            _put(out, s, k, 2, (tgt[g, 2] - obs[s, g, 11]) / 10.0, lim)
+            _slot_error(out, s, k, g, obs, tgt, d, lim)
             _put(out, s, k, 3, vel[g, 0], lim)
             _put(out, s, k, 4, vel[g, 1], lim)
             _put(out, s, k, 5, a[g], lim)
