@@ -54,7 +54,7 @@ class Rollbacks:
         n: number of nodes.
         warp: BiDES time warp is on (else the table is one empty row).
         theta: the warp threshold Θ_warp (a rollback owes at least Θ_warp + 2 steps
-            unless clamped to the ring: the table's first size).
+            unless clamped to the ring: the table's first size is twice that).
         frames: the run's frame draws: a new target's fill draws ahead the targets up to
             the end of their block (the table then has a row for each of the block's
             frames, when the draws are blockable).
@@ -65,7 +65,10 @@ class Rollbacks:
         self.truth = truth
         self.step_time = step_time
         self.n = n
-        self._rows = max(1, theta + 2) if warp else 1
+        # room for twice the least a rollback owes: a late state owes more (Θ_warp = 10
+        # and 200 ms links: 12-19 steps), and a table that grows mid-run costs the run a
+        # return per target and a new state tuple
+        self._rows = max(1, 2 * (theta + 2)) if warp else 1
         self.frames = frames
         ahead = frames.rows if frames is not None and step_time.blockable else 1
         self._targets = max(TARGETS, ahead) if warp else 1

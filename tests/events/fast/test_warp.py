@@ -135,14 +135,15 @@ def test_the_table_refills_a_row_for_a_new_target_and_grows() -> None:
     core = _core(**{"compute.step_time": LOGNORMAL})
     rows = core.frame_draws.rows  # blockable draws: a target row per frame of a block
     assert rows == 64
-    # no frame block drawn yet: the new target alone, with the table's 4 draws
+    # no frame block drawn yet: the new target alone, with the table's 8 draws (twice
+    # the Θ_warp + 2 = 4 a rollback owes at least)
     S = core.rollbacks.fill(core.S, 12, 3)
-    assert _held(S) == {12: [12, 4]} and S[L.RB_VAL].shape == (64, 4, 3)
-    assert core.rollbacks.fill(S, 12, 4) is S  # held already
-    S = core.rollbacks.fill(S, 12, 5)  # more: twice what the row held, 8, past its 4 rows
     assert _held(S) == {12: [12, 8]} and S[L.RB_VAL].shape == (64, 8, 3)
-    S = core.rollbacks.fill(S, 12 + 64, 2)  # the same row, another target: 8 draws
-    assert _held(S) == {12: [76, 8]}
+    assert core.rollbacks.fill(S, 12, 8) is S  # held already
+    S = core.rollbacks.fill(S, 12, 9)  # more: twice what the row held, 16, past its 8 rows
+    assert _held(S) == {12: [12, 16]} and S[L.RB_VAL].shape == (64, 16, 3)
+    S = core.rollbacks.fill(S, 12 + 64, 2)  # the same row, another target: 16 draws
+    assert _held(S) == {12: [76, 16]}
     _assert_keyed(core, S)
 
 
@@ -153,17 +154,17 @@ def test_a_new_target_draws_the_targets_of_the_frame_block_ahead() -> None:
     core.frame_draws.fill(10)  # the block of frames 10..73
     assert core.frame_draws.end == 74
     S = core.rollbacks.fill(core.S, 12, 3)
-    assert _held(S) == {k % 64: [k, 4] for k in range(12, 74)}
+    assert _held(S) == {k % 64: [k, 8] for k in range(12, 74)}
     _assert_keyed(core, S)
     assert core.rollbacks.fill(S, 40, 4) is S  # drawn ahead: no return for its job
     # an older target: 64 targets from it (one per row: 73's row now holds 9)
     S = core.rollbacks.fill(S, 9, 2)
-    assert _held(S) == {k % 64: [k, 4] for k in range(9, 73)}
+    assert _held(S) == {k % 64: [k, 8] for k in range(9, 73)}
     _assert_keyed(core, S)
     # on demand only (no block ahead): every row it fills holds the same draws
     alone = _core(**{"compute.step_time": LOGNORMAL})
     T = alone.rollbacks.fill(alone.S, 40, 4)
-    assert _held(T) == {40: [40, 4]}
+    assert _held(T) == {40: [40, 8]}
     np.testing.assert_array_equal(T[L.RB_VAL][40], S[L.RB_VAL][40])
     # a deep need: the table grows, and the draws ahead stop at BLOCK_VALUES values
     deep = _core(**{"compute.step_time": LOGNORMAL})
