@@ -32,7 +32,7 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
-from sigma_des.events.fast import channel, entries, loop, setup
+from sigma_des.events.fast import channel, entries, loop
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
@@ -41,7 +41,7 @@ from sigma_des.events.fast.growth import TABLE, before_run, grow
 from sigma_des.events.fast.outbox import outbox_room
 from sigma_des.events.fast.queue import ARENA
 from sigma_des.events.fast.rollbacks import Rollbacks
-from sigma_des.events.fast.spare import Kept, Spare, refilled, same_but_seed
+from sigma_des.events.fast.spare import Spare, handed_back, state_for
 from sigma_des.events.fast.support import (
     TABLE_MARGIN,
     CohortFallback,
@@ -79,8 +79,6 @@ def _empty(a: NDArray[Any]) -> NDArray[Any]:
 
 
 _EMPTIES: dict[tuple[np.dtype[Any], tuple[int, ...]], NDArray[Any]] = {}
-#: the state's fields with a fill (position, name): the arrays a core makes for itself
-_FILLED = [(i, f.name) for i, f in enumerate(L.FIELDS) if f.fill is not None]
 
 
 class Host(Protocol):
@@ -138,7 +136,8 @@ class CompiledCore:
         self.exits = [0] * len(L.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy, spec.history_frames,
                                       host.n + 1, self._lockstep)
-        self.S = self._allocate(p_loss, spare)
+        #: the seed-free values handed on by :meth:`retire` (None: none)
+        self.S, self._kept = state_for(self, p_loss, SLACK, ARENA, spare)
         self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
@@ -147,27 +146,6 @@ class CompiledCore:
         self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
         self._bound = entries.DISPATCHED
         self._arg: Any = self.S  # what the bound entry points take for it (a handle)
-
-    def _allocate(self, p_loss: tuple[float, float], spare: Spare | None
-                  ) -> tuple[NDArray[Any], ...]:
-        """The state tuple, from ``spare`` where it serves (see the class)."""
-        h = self.host
-        kept = spare.kept if spare is not None else None
-        if kept is not None and not (kept.method == h.method and kept.dyn is h.dyn
-                                     and same_but_seed(kept.spec, h.spec)):
-            kept = None
-        given = setup.given(self, p_loss, SLACK, kept.arrays if kept is not None else None)
-        if kept is not None:
-            given.update(refilled(kept.arrays, spare.arrays))  # type: ignore[union-attr]
-            dims = kept.dims
-        else:
-            dims = setup.dims(self, SLACK, ARENA)
-            if spare is not None:  # the values to hand on (not kept by a one-off run)
-                kept = Kept(h.spec, h.method, h.dyn, dims,
-                            {name: given[name].copy() for name in setup.seed_free(given)})
-        #: the seed-free values handed on by :meth:`retire` (None: none)
-        self._kept = kept
-        return L.allocate(dims, given, spare.arrays if spare is not None else None)
 
     def ensure_space(self, k: int) -> None:
         """Grow the event table unless ``k`` slots and payload rows (plus a fan-out) are
@@ -234,10 +212,7 @@ class CompiledCore:
         """
         S = self.S
         self.close()
-        arrays = {name: S[i] for i, name in _FILLED}
-        if self._kept is not None:
-            arrays.update((name, S[L.INDEX[name]]) for name in self._kept.arrays)
-        return Spare(arrays, self._kept)
+        return handed_back(S, self._kept)
 
     def array(self, name: str) -> NDArray[Any]:
         """The state array of field ``name`` (see :data:`~sigma_des.events.fast.layout.FIELDS`)."""

@@ -9,21 +9,31 @@ that hold no random draw (:func:`~sigma_des.events.fast.setup.seed_free`), which
 core takes instead of deriving them again from the spec, the network and the nodes. Those
 values are used only by a run of the same spec but for the seed, the same method and the
 very same dynamics model (:func:`same_but_seed`); the arrays, whatever the run, only
-where their dtype and shape fit. Either way a core's state is bit for bit the one it would have
-built from nothing.
+where their dtype and shape fit. :func:`state_for` builds a core's state from a spare,
+:func:`handed_back` is what a retiring core hands on. Either way a core's state is bit
+for bit the one it would have built from nothing.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from numpy.typing import NDArray
 
+from sigma_des.events.fast import layout as L
+from sigma_des.events.fast import setup
 from sigma_des.events.fast.declare import reusable
 
-__all__ = ["Kept", "Spare", "refilled", "same_but_seed"]
+if TYPE_CHECKING:
+    from sigma_des.events.fast.driver import CompiledCore
+
+__all__ = ["Kept", "Spare", "handed_back", "refilled", "same_but_seed", "state_for"]
+
+State = tuple[NDArray[Any], ...]
+#: the state's fields with a fill (position, name): the arrays a core makes for itself
+_FILLED = [(i, f.name) for i, f in enumerate(L.FIELDS) if f.fill is not None]
 
 
 @dataclass(frozen=True)
@@ -80,3 +90,43 @@ def refilled(kept: Mapping[str, NDArray[Any]], spare: Mapping[str, NDArray[Any]]
         else:
             out[name] = v.copy()
     return out
+
+
+def state_for(core: CompiledCore, p_loss: tuple[float, float], slack: int, arena: float,
+              spare: Spare | None) -> tuple[State, Kept | None]:
+    """The state tuple of a new ``core`` (its tables built, its state not yet), from
+    ``spare`` where it serves, and the seed-free values the core hands on at retirement
+    (None: a one-off run, made without a spare, keeps none).
+
+    Args:
+        core: the core being built.
+        p_loss: the Bernoulli loss of the host links and of the server's link.
+        slack: spare event slots beyond what one frame needs.
+        arena: the queue's arena rows per event slot.
+        spare: what a retired core handed back (None: every array made new).
+    """
+    h = core.host
+    kept = spare.kept if spare is not None else None
+    if kept is not None and not (kept.method == h.method and kept.dyn is h.dyn
+                                 and same_but_seed(kept.spec, h.spec)):
+        kept = None
+    given = setup.given(core, p_loss, slack, kept.arrays if kept is not None else None)
+    if kept is not None:
+        given.update(refilled(kept.arrays, spare.arrays))  # type: ignore[union-attr]
+        dims = kept.dims
+    else:
+        dims = setup.dims(core, slack, arena)
+        if spare is not None:  # the values to hand on (not kept by a one-off run)
+            kept = Kept(h.spec, h.method, h.dyn, dims,
+                        {name: given[name].copy() for name in setup.seed_free(given)})
+    return L.allocate(dims, given, spare.arrays if spare is not None else None), kept
+
+
+def handed_back(S: State, kept: Kept | None) -> Spare:
+    """What a retiring core with state ``S`` hands to the next one: the arrays of its own
+    (the fields with a fill and the seed-free ones it was given: no other object holds
+    them) and its kept values."""
+    arrays = {name: S[i] for i, name in _FILLED}
+    if kept is not None:
+        arrays.update((name, S[L.INDEX[name]]) for name in kept.arrays)
+    return Spare(arrays, kept)
