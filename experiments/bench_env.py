@@ -74,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="--study: the scenes' runs collect the simulator's metrics")
     ap.add_argument("--out", default="out/env")
     args = ap.parse_args(argv)
+    for key in ("steps", "reps", "steady", "fit", "mem_scenes"):
+        if getattr(args, key) < 1:
+            ap.error(f"--{key.replace('_', '-')}: must be >= 1, got {getattr(args, key)}")
     if args.study:
         res = study((1, 2) if args.quick else (4, 64), 2 if args.quick else args.steps,
                     1 if args.quick else args.reps, 4 if args.quick else args.fit,

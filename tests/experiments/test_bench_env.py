@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "experiments"))
 
@@ -37,3 +39,12 @@ def test_study_mode_measures_the_delay_study_configuration(tmp_path: Path) -> No
     assert data["episode_steps"] == 50 and data["warm_steps"] == 60
     assert data["fit_scenes"] == 4 and data["rss_bytes_per_scene"] == (
         data["rss_grown_bytes"] / 4)
+
+
+@pytest.mark.parametrize("option", ["--steady", "--steps", "--reps", "--fit"])
+def test_a_count_below_one_is_refused_naming_the_option(
+        option: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        bench_env.main(["--study", option, "0"])
+    assert exc.value.code == 2
+    assert f"{option}: must be >= 1, got 0" in capsys.readouterr().err
