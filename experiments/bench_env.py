@@ -26,7 +26,10 @@ scene and in all (target: 512 scenes in 2 GB). For normalisation across machines
 also prints the CPU seconds per simulated second of the in-repo process-per-message
 SimPy baseline (``sigma_lab.reference.process_model``) on a fixed scenario (50 nodes,
 stream transport, method ``none``, 2 s), run in the same
-process: divide an env figure by it to compare machines.
+process: divide an env figure by it to compare machines. Then ``--ppo`` agent-steps
+(default 204 800; 0: skip) of one PPO training with the study's settings on its BiDES
+cell, wall and CPU, projected to the study's 2 x 10^6 agent-steps per policy (target:
+<= 15 minutes wall, one training per core).
 
 The measuring code is ``sigma_lab.studies.env_bench``.
 
@@ -39,6 +42,7 @@ import argparse
 import csv
 import json
 import os
+from importlib.util import find_spec
 from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -49,6 +53,7 @@ from sigma_lab.studies.env_bench import (  # noqa: E402
     make,
     memory,
     plain,
+    ppo,
     speed,
     study,
 )
@@ -70,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steady", type=int, default=100,
                     help="--study: steps of the steady-state window")
     ap.add_argument("--fit", type=int, default=512, help="--study: scenes of the memory check")
+    ap.add_argument("--ppo", type=int, default=204_800,
+                    help="--study: agent-steps of the timed PPO training (0: none)")
     ap.add_argument("--with-metrics", action="store_true",
                     help="--study: the scenes' runs collect the simulator's metrics")
     ap.add_argument("--out", default="out/env")
@@ -77,10 +84,18 @@ def main(argv: list[str] | None = None) -> int:
     for key in ("steps", "reps", "steady", "fit", "mem_scenes"):
         if getattr(args, key) < 1:
             ap.error(f"--{key.replace('_', '-')}: must be >= 1, got {getattr(args, key)}")
+    if args.ppo < 0:
+        ap.error(f"--ppo: must be >= 0 (0: no PPO timing), got {args.ppo}")
     if args.study:
         res = study((1, 2) if args.quick else (4, 64), 2 if args.quick else args.steps,
                     1 if args.quick else args.reps, 4 if args.quick else args.fit,
                     args.with_metrics, steady=2 if args.quick else args.steady)
+        if args.ppo and find_spec("stable_baselines3") is None:
+            print("PPO timing skipped: stable-baselines3 is not installed (the `learn` "
+                  "extra: pip install 'sigma-des[learn]')", flush=True)
+        elif args.ppo:  # --quick: two rollouts of 8 steps on one scene
+            res["ppo"] = (ppo(64, scenes=1, n_steps=8, batch=32) if args.quick
+                          else ppo(args.ppo))
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         (out / "bench_study.json").write_text(json.dumps(

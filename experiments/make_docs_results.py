@@ -96,8 +96,10 @@ STUDIES = (
           "50 000): the headline is the steady state of the study's training episodes "
           "(at most 50 steps, random actions, so the episodes' restarts are in it at their "
           "real rate), and beside it the best batch within episodes (restarts excluded). "
-          "Then the resident memory 512 scenes take, and the SimPy baseline's CPU per "
-          "simulated second in the same run (divide by it to compare machines)."),
+          "Then the resident memory 512 scenes take, the SimPy baseline's CPU per "
+          "simulated second in the same run (divide by it to compare machines), and one "
+          "PPO training with the study's settings timed (wall and CPU, one core), "
+          "projected to the study's 2 x 10^6 agent-steps per policy (target: 15 minutes)."),
     Study("delay", "Training under delay (PPO)", "learning", "train_under_delay.py",
           ("--full", "--jobs", "2", "--ages-control", "--out", "{out}", "--checkpoints",
            "{out}/checkpoints"),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+from importlib.util import find_spec
 from pathlib import Path
 
 import pytest
@@ -39,6 +40,20 @@ def test_study_mode_measures_the_delay_study_configuration(tmp_path: Path) -> No
     assert data["episode_steps"] == 50 and data["warm_steps"] == 60
     assert data["fit_scenes"] == 4 and data["rss_bytes_per_scene"] == (
         data["rss_grown_bytes"] / 4)
+    if find_spec("stable_baselines3") is None:  # the `learn` extra: no PPO timing
+        assert "ppo" not in data
+    else:  # one scene x 4 agents x rollouts of 8 steps: 64 agent-steps are 2 rollouts
+        p = data["ppo"]
+        assert p["agent_steps"] == 64 and p["scenes"] == 1
+        assert p["minutes_per_policy"] == pytest.approx(2e6 / 64 * p["wall_s"] / 60)
+        assert p["wall_s"] > 0 and p["env_cpu_s"] > 0
+
+
+def test_a_negative_ppo_budget_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        bench_env.main(["--study", "--ppo", "-1"])
+    assert exc.value.code == 2
+    assert "--ppo: must be >= 0 (0: no PPO timing), got -1" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("option", ["--steady", "--steps", "--reps", "--fit"])

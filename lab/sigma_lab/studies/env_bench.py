@@ -20,8 +20,8 @@ import numpy as np
 
 from sigma_des.env import SwarmVec
 
-__all__ = ["AGENTS", "STUDY_TARGETS", "TARGET_500", "VARIANTS", "baseline_cpu_per_sim_s",
-           "make", "memory", "plain", "speed", "study"]
+__all__ = ["AGENTS", "PPO_TARGET_MIN", "STUDY_TARGETS", "TARGET_500", "VARIANTS",
+           "baseline_cpu_per_sim_s", "make", "memory", "plain", "ppo", "speed", "study"]
 
 AGENTS = 10
 #: Issue 27's target: agent-steps per second at 500 scenes x 10 agents on one core.
@@ -107,6 +107,9 @@ def baseline_cpu_per_sim_s(duration: float = 2.0) -> float:
     ProcessModel(scenario(duration)).run()
     return (time.thread_time() - t) / duration
 
+
+#: The study's PPO budget per policy and its wall-time target (minutes, 2 cores).
+PPO_POLICY_STEPS, PPO_TARGET_MIN = 2_000_000, 15.0
 
 #: The study's training episodes: at most this many env steps (``train_under_delay --full``).
 STUDY_EPISODE = 50
@@ -200,3 +203,34 @@ def _within(cond: str, scenes: int, steps: int, reps: int, metrics: bool) -> flo
             env.step(acts[k])
         best = min(best, time.thread_time() - t)
     return scenes * env.n_agents * steps / best
+
+
+def ppo(steps: int, scenes: int = 16, n_steps: int = 64, batch: int = 1024) -> dict[str, Any]:
+    """Wall and CPU time of one PPO training (MLP policy) on the study's BiDES cell, with
+    the study's settings (``train_under_delay --full``: 16 scenes, rollouts of 64 steps,
+    minibatches of 1 024), ``steps`` agent-steps from scratch; projected to the study's
+    2 x 10^6 agent-steps per policy. One training uses one core (PyTorch on one thread),
+    as each of the study's ``--jobs 2`` does. Beside it, the env's own share: the same
+    ``scenes`` stepped with random actions for as many steps (steady state), CPU."""
+    from sigma_des.env.ppo import train
+    from sigma_lab.studies.delay import env_kwargs
+
+    kw = env_kwargs("bides@200ms", 5, STUDY_EPISODE, 0.1)
+    wall, cpu = time.perf_counter(), time.process_time()
+    _, curve = train(kw, steps, 0, policy="mlp", n_scenes=scenes, n_steps=n_steps,
+                     batch_size=min(batch, scenes * 4 * n_steps))
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    done = int(curve[-1]["agent_steps"]) if curve else steps
+    env_rate, _ = _steady("bides@200ms", scenes, 10, max(1, done // (scenes * 4)), False)
+    minutes = PPO_POLICY_STEPS / done * wall / 60
+    row = {"policy": "mlp", "scenes": scenes, "agent_steps": done, "wall_s": wall,
+           "cpu_s": cpu, "agent_steps_per_wall_s": done / wall,
+           "env_cpu_s": done / env_rate, "minutes_per_policy": minutes,
+           "target_minutes": PPO_TARGET_MIN}
+    print(f"PPO (mlp, {scenes} scenes, bides@200ms): {done:,} agent-steps in {wall:.1f} s wall, "
+          f"{cpu:.1f} CPU-s ({done / wall:,.0f} agent-steps/s; the env's share "
+          f"{row['env_cpu_s']:.1f} CPU-s); {PPO_POLICY_STEPS:,} agent-steps: "
+          f"{minutes:.1f} min a policy, one core each  target <= {PPO_TARGET_MIN:.0f} min: "
+          f"{'met' if minutes <= PPO_TARGET_MIN else 'not met'}; load {os.getloadavg()[0]:.1f}",
+          flush=True)
+    return row
