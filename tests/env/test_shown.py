@@ -56,14 +56,20 @@ def test_truths_are_each_scenes_truth_in_one_call_only_for_row_wise_models(
     want = np.stack([sc.truth() for sc in scenes])
     per_scene: list[Scene] = []
     real = Scene.truth
-    monkeypatch.setattr(Scene, "truth", lambda sc: per_scene.append(sc) or real(sc))
+
+    def counted(sc: Scene) -> np.ndarray:
+        per_scene.append(sc)
+        return real(sc)
+
+    monkeypatch.setattr(Scene, "truth", counted)
     dyn = _Counted(env.dyn, rows)
     got = truths(scenes, dyn)  # type: ignore[arg-type]
     assert (dyn.calls, len(per_scene)) == ((1, 0) if rows else (0, 4))
     assert got.shape == (4, 5, 12) and got.dtype == want.dtype
     np.testing.assert_array_equal(got, want)
     assert np.unique(got[:, :, 9]).size > 10  # the scenes' positions differ
-    assert truths(scenes[:1], dyn).shape == (1, 5, 12)  # one scene: its own call
+    one = truths(scenes[:1], dyn)  # type: ignore[arg-type]  # one scene: its own call
+    assert one.shape == (1, 5, 12) and len(per_scene) == (0 if rows else 4) + 1
 
 
 def test_point_mass_observe_is_row_wise_bit_for_bit() -> None:
