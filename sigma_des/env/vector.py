@@ -243,6 +243,8 @@ class SwarmVec:
 
     def _restart(self, ended: list[int], advance: bool) -> None:
         """Start the next episode of scenes ``ended`` (run to their first tick if ``advance``)."""
+        if not ended:
+            return
         self.batch.restart(ended, advance)
         self.steps[ended] = 0
         self.done[ended] = False
@@ -258,14 +260,16 @@ class SwarmVec:
         scenes = self.batch.scenes
         if self.batched and live:
             picked = [scenes[s] for s in live]
+            idx = np.array(live, dtype=np.intp)  # (one conversion for every index below)
             r, fail, e = self.task.reward_many(
                 truths(picked, self.dyn), [sc.ep for sc in picked],
-                np.array([sc.run.kernel.now for sc in picked]), self.agent_nodes, a[live])
-            rew[live], err[live] = r, e
-            term[live] = np.any(fail, axis=1, keepdims=True)
+                np.array([sc.run.kernel.now for sc in picked]), self.agent_nodes, a[idx])
+            rew[idx], err[idx] = r, e
+            failed = np.any(fail, axis=1)
+            term[idx] = failed[:, None]
             ended = np.array([sc.ended for sc in picked], dtype=bool)
-            trunc[live] = (~term[live, 0] & ((self.steps[live] + 1 >= self.opts.max_steps)
-                                             | ended))[:, None]
+            trunc[idx] = (~failed & ((self.steps[idx] + 1 >= self.opts.max_steps)
+                                     | ended))[:, None]
             return rew, term, trunc, err
         for s in live:
             sc = scenes[s]
@@ -290,8 +294,13 @@ class SwarmVec:
         sh = self._views(ids)
         send, cmds = self.task.commands_many(a[ids], sh.obs, sh.valid, sh.eps, sh.t,
                                              self.agent_nodes, self.dyn)
+        # every scene's sent nodes from one nonzero (row-major: scene by scene, in order)
+        nodes = np.nonzero(send)[1].astype(np.int64, copy=False)
+        ends = np.cumsum(send.sum(axis=1)).tolist()
+        start = 0
         for k, s in enumerate(ids):
-            scenes[s].publish(np.flatnonzero(send[k]).astype(np.int64), cmds[k])
+            scenes[s].publish(nodes[start:ends[k]], cmds[k])
+            start = ends[k]
 
     def _observe_all(self) -> NDArray[np.float32]:
         """``(S, A, obs_dim)`` observations of every scene (zeros for an ended one)."""
@@ -305,8 +314,10 @@ class SwarmVec:
         sh = self._views(ids)
         age = (np.zeros((len(ids), self.sc.nodes)) if self.opts.perfect_info
                else sh.t[:, None] - sh.gen)
-        out[ids] = self.task.observe_many(sh.obs, sh.valid, sh.eps, sh.t, self.agent_nodes,
-                                          age)
+        got = self.task.observe_many(sh.obs, sh.valid, sh.eps, sh.t, self.agent_nodes, age)
+        if len(ids) == self.n_scenes:  # every scene: the new array itself
+            return np.ascontiguousarray(got, dtype=np.float32)
+        out[ids] = got
         return out
 
     # ------------------------------------------------------------ helpers
