@@ -234,10 +234,10 @@ def agent_guidance(g: np.ndarray, speed: np.ndarray, course: np.ndarray, actions
 
 @njit(cache=True)
 def velocity_commands(rows: np.ndarray, cos1: np.ndarray, sin1: np.ndarray,
-                      obs11: np.ndarray, send: np.ndarray, cmds: np.ndarray) -> None:
+                      obs: np.ndarray, send: np.ndarray, cmds: np.ndarray) -> None:
     """``to_command`` of guidance ``rows`` (``(m, 4)``, the sent rows of ``send`` in
-    order; ``cos1``/``sin1`` the cos/sin of their course, ``obs11`` their shown
-    altitude) as ``vn, ve, vh`` into the sent rows of ``cmds`` (``(S, n, 3)``):
+    order; ``cos1``/``sin1`` the cos/sin of their course; ``obs`` the ``(S, n, 12)``
+    shown states) as ``vn, ve, vh`` into the sent rows of ``cmds`` (``(S, n, 3)``):
     ``v cos chi``, ``v sin chi`` and ``np.clip(0.5 (h - h_shown), -3, 3)``."""
     r = 0
     for s in range(send.shape[0]):
@@ -247,7 +247,7 @@ def velocity_commands(rows: np.ndarray, cos1: np.ndarray, sin1: np.ndarray,
             v = rows[r, 0]
             cmds[s, i, 0] = v * cos1[r]
             cmds[s, i, 1] = v * sin1[r]
-            x = 0.5 * (rows[r, 2] - obs11[r])
+            x = 0.5 * (rows[r, 2] - obs[s, i, 11])
             if not math.isnan(x):  # np.clip: NaN passes; else max(x, -3), then min(., 3)
                 x = x if x > -3.0 else -3.0
                 x = x if x < 3.0 else 3.0

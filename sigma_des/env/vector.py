@@ -350,12 +350,16 @@ class SwarmVec:
         S, A = self.n_scenes, self.n_agents
         if err is not None:
             self._last_error = err.copy()  # the last call of a step is what it returns
-        aoi = np.full((S, A), np.nan)
-        frame = np.full((S, A), -1, dtype=np.int64)
         scenes = self.batch.scenes
         t = np.array([sc.run.kernel.now for sc in scenes], dtype=np.float64)
         ids = [s for s, sc in enumerate(scenes) if sc.capture.view is not None]
         sh = None if self._shown is None or not ids else self._shown.of(scenes, ids)
+        if sh is not None and len(ids) == S:  # the views just observed, of every scene
+            aoi = sh.t[:, None] - sh.gen[:, self._agents]
+            frame = sh.frame[:, self._agents].astype(np.int64, copy=False)
+            return self._info_dict(aoi, frame, t, err)
+        aoi = np.full((S, A), np.nan)
+        frame = np.full((S, A), -1, dtype=np.int64)
         if sh is not None:  # the views just observed: the same reads, gathered
             aoi[ids] = sh.t[:, None] - sh.gen[:, self._agents]
             frame[ids] = sh.frame[:, self._agents]
@@ -364,8 +368,13 @@ class SwarmVec:
                 sc = scenes[s]
                 aoi[s] = t[s] - sc.run.aligner.shown_gen[self.agent_nodes]
                 frame[s] = sc.view.frame[self.agent_nodes]
+        return self._info_dict(aoi, frame, t, err)
+
+    def _info_dict(self, aoi: Array, frame: NDArray[np.int64], t: Array,
+                   err: Array | None) -> dict[str, Any]:
         return {"aoi": aoi, "frame": frame, "t": t,
-                "error": err if err is not None else np.full((S, A), np.nan),
+                "error": err if err is not None else np.full((self.n_scenes, self.n_agents),
+                                                             np.nan),
                 "episode_index": np.array(self.batch.episode, dtype=np.int64)}
 
 

@@ -58,14 +58,15 @@ def _velocity_commands_many(g: Array, speed: Array, course: Array, a: Array, obs
     arithmetic compiled (:mod:`~sigma_des.env.task_kernels`), the cos and sin numpy's on
     the sent rows as ``to_command`` takes them; the same bits."""
     send = np.empty(g.shape[:2], dtype=np.bool_)
-    agent_guidance(g, speed, course, np.ascontiguousarray(a), np.ascontiguousarray(obs),
+    obs = np.ascontiguousarray(obs)
+    agent_guidance(g, speed, course, np.ascontiguousarray(a), obs,
                    np.ascontiguousarray(valid), np.asarray(agents, dtype=np.int64), dh_max,
                    send)
     cmds = np.zeros(g.shape[:2] + (3,))
     rows = g[send]
     if rows.shape[0]:
         chi = rows[:, 1]
-        velocity_commands(rows, np.cos(chi), np.sin(chi), obs[send][:, 11], send, cmds)
+        velocity_commands(rows, np.cos(chi), np.sin(chi), obs, send, cmds)
     return send, cmds
 
 
