@@ -265,7 +265,7 @@ class SwarmVec:
                 truths(picked, self.dyn), [sc.ep for sc in picked],
                 np.array([sc.run.kernel.now for sc in picked]), self.agent_nodes, a[idx])
             rew[idx], err[idx] = r, e
-            failed = fail.any(axis=1)
+            failed: NDArray[np.bool_] = fail.any(axis=1)  # type: ignore[assignment]
             term[idx] = failed[:, None]
             ended = np.array([sc.ended for sc in picked], dtype=bool)
             trunc[idx] = (~failed & ((self.steps[idx] + 1 >= self.opts.max_steps)

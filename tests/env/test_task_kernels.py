@@ -97,7 +97,7 @@ def test_the_compiled_commands_are_each_scenes_numpy_commands_bit_for_bit(task: 
     rng = np.random.default_rng(seed + 20)
     actions = rng.uniform(-1.0, 1.0, (S, len(agents), 3))
     actions[2, 0] = (-1.0, -0.0, 1.0)  # a full action, a negative zero
-    t = rng.uniform(0.0, 30.0, S)
+    t = np.asarray(rng.uniform(0.0, 30.0, S))
     eps = [task.episode(RandomStreams(seed + s).stream("env.route"), obs[0]) for s in range(S)]
     send, cmds = task.commands_many(actions, obs, valid, eps, t, agents, dyn)
     assert send.shape == (S, n) and cmds.shape == (S, n, 3) and cmds.dtype == np.float64
