@@ -138,6 +138,10 @@ class PointMass:
     #: :meth:`step` reads neither the frame index nor the node ids: rows of different
     #: frames (scenes of a learning env) may share one call
     frame_free = True
+    #: :meth:`observe` maps each row alone, by elementwise numpy calls on its columns
+    #: (the same operations whichever rows share the call): the states of many swarms
+    #: may be observed in one call (a learning env's scenes)
+    observe_rows = True
 
     def __init__(self, spacing: float = 10.0, cruise: float = 10.0, altitude: float = 100.0,
                  tau: float = 0.5) -> None:

@@ -100,6 +100,11 @@ class _Capture:
     def __init__(self) -> None:
         self.view: SwarmView | None = None
 
+    def capture(self, view: SwarmView) -> None:
+        """Record ``view`` (what the compiled control loop calls instead of
+        :meth:`commands`: no rows to send)."""
+        self.view = view
+
     def commands(self, view: SwarmView, dynamics: DynamicsModel) -> Array:
         self.view = view
         return np.full((view.obs.shape[0], dynamics.command_dim), np.nan)

@@ -5,7 +5,8 @@ swarm the numpy expressions of :mod:`sigma_des.env.tasks` cost tens of calls on 
 arrays each, which at a few scenes is most of a step. These kernels do the very
 floating-point operations of those expressions (``FormationTask.columns_many`` and
 ``TightTask.columns_many`` with ``Task.observe_many``'s masking and clipping;
-``Task.reward_many`` on the formation targets), in the same order, element by element
+``Task.reward_many`` on the formation targets; ``Task.commands_many``'s guidance and
+velocity commands around its numpy trigonometry), in the same order, element by element
 (``tests/env/test_task_kernels.py`` checks them bit for bit against the numpy path).
 As in :mod:`sigma_des.agents.rule_kernels`, the transcendental functions stay numpy or
 ``math`` calls made by the callers (numpy's SIMD ``cos`` may differ from the C
@@ -20,7 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["formation_observe", "formation_reward", "tight_observe"]
+__all__ = ["agent_guidance", "formation_observe", "formation_reward", "tight_observe",
+           "velocity_commands"]
 
 #: ``np.nan_to_num``'s stand-in for an infinity
 _BIG = float(np.finfo(np.float64).max)
@@ -208,3 +210,46 @@ def formation_reward(truth: np.ndarray, lc: np.ndarray, ls: np.ndarray, dx: np.n
             fail[s, k] = f
             e[s, k] = err
     return r, fail, e
+
+
+@njit(cache=True)
+def agent_guidance(g: np.ndarray, speed: np.ndarray, course: np.ndarray, actions: np.ndarray,
+                   obs: np.ndarray, valid: np.ndarray, agents: np.ndarray, dh_max: float,
+                   send: np.ndarray) -> None:
+    """``Task.commands_many``'s guidance of the agents into ``g`` (``(S, n, 4)``, the
+    scripted rows there already): speed, course and the altitude
+    ``obs[..., 11] + actions[..., 2] * dh_max``; ``send`` (``(S, n)``) the rows whose
+    speed and altitude are known, of nodes with a shown state."""
+    S, n = g.shape[0], g.shape[1]
+    for s in range(S):
+        for k in range(agents.shape[0]):
+            i = agents[k]
+            g[s, i, 0] = speed[s, k]
+            g[s, i, 1] = course[s, k]
+            g[s, i, 2] = obs[s, i, 11] + actions[s, k, 2] * dh_max
+        for i in range(n):
+            send[s, i] = (not math.isnan(g[s, i, 0])) and (not math.isnan(g[s, i, 2])) \
+                and valid[s, i]
+
+
+@njit(cache=True)
+def velocity_commands(rows: np.ndarray, cos1: np.ndarray, sin1: np.ndarray,
+                      obs: np.ndarray, send: np.ndarray, cmds: np.ndarray) -> None:
+    """``to_command`` of guidance ``rows`` (``(m, 4)``, the sent rows of ``send`` in
+    order; ``cos1``/``sin1`` the cos/sin of their course; ``obs`` the ``(S, n, 12)``
+    shown states) as ``vn, ve, vh`` into the sent rows of ``cmds`` (``(S, n, 3)``):
+    ``v cos chi``, ``v sin chi`` and ``np.clip(0.5 (h - h_shown), -3, 3)``."""
+    r = 0
+    for s in range(send.shape[0]):
+        for i in range(send.shape[1]):
+            if not send[s, i]:
+                continue
+            v = rows[r, 0]
+            cmds[s, i, 0] = v * cos1[r]
+            cmds[s, i, 1] = v * sin1[r]
+            x = 0.5 * (rows[r, 2] - obs[s, i, 11])
+            if not math.isnan(x):  # np.clip: NaN passes; else max(x, -3), then min(., 3)
+                x = x if x > -3.0 else -3.0
+                x = x if x < 3.0 else 3.0
+            cmds[s, i, 2] = x
+            r += 1

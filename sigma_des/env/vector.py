@@ -49,6 +49,7 @@ from sigma_des.env.resets import (
     render_ansi,
 )
 from sigma_des.env.scenes import Scene, SceneBatch
+from sigma_des.env.shown import Shown, truths
 from sigma_des.env.tasks import ACTION_DIM, OBS_CLIP, make_task
 from sigma_des.errors import ConfigError
 from sigma_des.factory import make_dynamics
@@ -82,6 +83,8 @@ def check_actions(actions: Any, shape: tuple[int, ...], names: list[str]) -> Arr
     if not np.issubdtype(a.dtype, np.floating):
         raise ValueError(f"actions: dtype must be floating point, got {a.dtype}")
     flat = a.reshape(-1, ACTION_DIM).astype(np.float64)
+    if (np.abs(flat) <= 1.0).all():  # (False for a NaN): the valid batch in one test
+        return flat.reshape(shape)
     bad = ~np.isfinite(flat)
     if bad.any():
         r, c = np.argwhere(bad)[0]
@@ -153,6 +156,9 @@ class SwarmVec:
         self.batched = bool(batched)
         self._last_error = np.full((n_scenes, self.n_agents), np.nan)
         self._names = [f"scene {s} node_{i}" for s in range(n_scenes) for i in self.agent_nodes]
+        self._agents = np.array(self.agent_nodes, dtype=np.intp)
+        #: the views the last step gathered (reused while their scenes wait at that tick)
+        self._shown: Shown | None = None
 
     # ------------------------------------------------------------ API
     def reset(self, seed: Any = None, options: Mapping[str, Any] | None = None
@@ -237,6 +243,8 @@ class SwarmVec:
 
     def _restart(self, ended: list[int], advance: bool) -> None:
         """Start the next episode of scenes ``ended`` (run to their first tick if ``advance``)."""
+        if not ended:
+            return
         self.batch.restart(ended, advance)
         self.steps[ended] = 0
         self.done[ended] = False
@@ -251,17 +259,23 @@ class SwarmVec:
         err = np.full((S, A), np.nan)
         scenes = self.batch.scenes
         if self.batched and live:
+            picked = [scenes[s] for s in live]
+            idx = np.array(live, dtype=np.intp)  # (one conversion for every index below)
             r, fail, e = self.task.reward_many(
-                np.stack([scenes[s].truth() for s in live]), [scenes[s].ep for s in live],
-                np.array([scenes[s].now() for s in live]), self.agent_nodes, a[live])
-            rew[live], err[live] = r, e
-            term[live] = np.any(fail, axis=1, keepdims=True)
+                truths(picked, self.dyn), [sc.ep for sc in picked],
+                np.array([sc.run.kernel.now for sc in picked]), self.agent_nodes, a[idx])
+            rew[idx], err[idx] = r, e
+            failed: NDArray[np.bool_] = fail.any(axis=1)  # type: ignore[assignment]
+            term[idx] = failed[:, None]
+            ended = np.array([sc.ended for sc in picked], dtype=bool)
+            trunc[idx] = (~failed & ((self.steps[idx] + 1 >= self.opts.max_steps)
+                                     | ended))[:, None]
+            return rew, term, trunc, err
         for s in live:
             sc = scenes[s]
-            if not self.batched:
-                r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
-                rew[s], err[s] = r, e
-                term[s] = bool(fail.any())
+            r, fail, e = self.task.reward(sc.truth(), sc.ep, sc.now(), self.agent_nodes, a[s])
+            rew[s], err[s] = r, e
+            term[s] = bool(fail.any())
             trunc[s] = not term[s, 0] and (self.steps[s] + 1 >= self.opts.max_steps or sc.ended)
         return rew, term, trunc, err
 
@@ -277,13 +291,16 @@ class SwarmVec:
             return
         if not ids:
             return
-        views = [self._view(scenes[s]) for s in ids]
-        send, cmds = self.task.commands_many(
-            a[ids], np.stack([v.obs for v in views]), np.stack([v.valid for v in views]),
-            [scenes[s].ep for s in ids], np.array([scenes[s].now() for s in ids]),
-            self.agent_nodes, self.dyn)
+        sh = self._views(ids)
+        send, cmds = self.task.commands_many(a[ids], sh.obs, sh.valid, sh.eps, sh.t,
+                                             self.agent_nodes, self.dyn)
+        # every scene's sent nodes from one nonzero (row-major: scene by scene, in order)
+        nodes = np.nonzero(send)[1].astype(np.int64, copy=False)
+        ends = np.cumsum(send.sum(axis=1)).tolist()
+        start = 0
         for k, s in enumerate(ids):
-            scenes[s].publish(np.flatnonzero(send[k]).astype(np.int64), cmds[k])
+            scenes[s].publish(nodes[start:ends[k]], cmds[k])
+            start = ends[k]
 
     def _observe_all(self) -> NDArray[np.float32]:
         """``(S, A, obs_dim)`` observations of every scene (zeros for an ended one)."""
@@ -294,18 +311,25 @@ class SwarmVec:
         ids = [s for s, sc in enumerate(scenes) if not sc.ended]
         if not ids:
             return out
-        views = [self._view(scenes[s]) for s in ids]
-        t = np.array([scenes[s].now() for s in ids])
-        if self.opts.perfect_info:
-            age = np.zeros((len(ids), self.sc.nodes))
-        else:
-            age = t[:, None] - np.stack([scenes[s].run.aligner.shown_gen for s in ids])
-        out[ids] = self.task.observe_many(
-            np.stack([v.obs for v in views]), np.stack([v.valid for v in views]),
-            [scenes[s].ep for s in ids], t, self.agent_nodes, age)
+        sh = self._views(ids)
+        age = (np.zeros((len(ids), self.sc.nodes)) if self.opts.perfect_info
+               else sh.t[:, None] - sh.gen)
+        got = self.task.observe_many(sh.obs, sh.valid, sh.eps, sh.t, self.agent_nodes, age)
+        if len(ids) == self.n_scenes:  # every scene: the new array itself
+            return np.ascontiguousarray(got, dtype=np.float32)
+        out[ids] = got
         return out
 
     # ------------------------------------------------------------ helpers
+    def _views(self, ids: list[int]) -> Shown:
+        """The views of scenes ``ids`` (each waiting at a command tick): those gathered
+        last if every one is still at the tick gathered, else gathered now."""
+        scenes = self.batch.scenes
+        got = None if self._shown is None else self._shown.of(scenes, ids)
+        if got is None:
+            got = self._shown = Shown.gather(scenes, ids, self.dyn, self.opts.perfect_info)
+        return got
+
     def _view(self, sc: Scene) -> SwarmView:
         if not self.opts.perfect_info:
             return sc.view
@@ -326,17 +350,31 @@ class SwarmVec:
         S, A = self.n_scenes, self.n_agents
         if err is not None:
             self._last_error = err.copy()  # the last call of a step is what it returns
+        scenes = self.batch.scenes
+        t = np.array([sc.run.kernel.now for sc in scenes], dtype=np.float64)
+        ids = [s for s, sc in enumerate(scenes) if sc.capture.view is not None]
+        sh = None if self._shown is None or not ids else self._shown.of(scenes, ids)
+        if sh is not None and len(ids) == S:  # the views just observed, of every scene
+            aoi = sh.t[:, None] - sh.gen[:, self._agents]
+            frame = sh.frame[:, self._agents].astype(np.int64, copy=False)
+            return self._info_dict(aoi, frame, t, err)
         aoi = np.full((S, A), np.nan)
         frame = np.full((S, A), -1, dtype=np.int64)
-        t = np.zeros(S)
-        for s, sc in enumerate(self.batch.scenes):
-            t[s] = sc.now()
-            if sc.captured():
-                gen = sc.run.aligner.shown_gen[self.agent_nodes]
-                aoi[s] = t[s] - gen
+        if sh is not None:  # the views just observed: the same reads, gathered
+            aoi[ids] = sh.t[:, None] - sh.gen[:, self._agents]
+            frame[ids] = sh.frame[:, self._agents]
+        else:
+            for s in ids:
+                sc = scenes[s]
+                aoi[s] = t[s] - sc.run.aligner.shown_gen[self.agent_nodes]
                 frame[s] = sc.view.frame[self.agent_nodes]
+        return self._info_dict(aoi, frame, t, err)
+
+    def _info_dict(self, aoi: Array, frame: NDArray[np.int64], t: Array,
+                   err: Array | None) -> dict[str, Any]:
         return {"aoi": aoi, "frame": frame, "t": t,
-                "error": err if err is not None else np.full((S, A), np.nan),
+                "error": err if err is not None else np.full((self.n_scenes, self.n_agents),
+                                                             np.nan),
                 "episode_index": np.array(self.batch.episode, dtype=np.int64)}
 
 

@@ -2,7 +2,9 @@
 
 ``FormationTask`` and ``TightTask`` compute ``observe_many`` and ``reward_many`` in
 ``sigma_des.env.task_kernels``; ``Task``'s own methods (the numpy expressions GoalTask
-uses) are the reference. Cases are random swarms with the awkward values in them: rows
+uses) are the reference. ``commands_many`` of a velocity-commanded model is compiled
+around numpy's trigonometry; each scene's ``commands`` (through ``to_command``) is the
+reference. Cases are random swarms with the awkward values in them: rows
 with no shown state (NaN) and invalid rows, infinite positions, NaN ages, coincident
 nodes, collisions and divergences. Bits are compared, not values (-0.0 is not 0.0),
 except that a NaN is any NaN (which operand's NaN an operation passes on, and so its
@@ -14,7 +16,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sigma_des.env.tasks import FormationTask, Task, TightTask
+from sigma_des.agents.pointmass import PointMass
+from sigma_des.core.models import SwarmView
+from sigma_des.core.rng import RandomStreams
+from sigma_des.env.tasks import FormationTask, GoalTask, Task, TightTask
 
 
 def _swarms(seed: int, S: int = 12, n: int = 5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -78,3 +83,31 @@ def test_the_compiled_reward_is_the_numpy_one_bit_for_bit(task: Task, seed: int)
     r, fail, e = want
     assert fail.any() and not fail.all() and np.isnan(e).any()
     assert fail[7].any() and fail[8].any()
+
+
+@pytest.mark.parametrize("task", [FormationTask(), TightTask(), GoalTask()])
+@pytest.mark.parametrize("seed", [0, 4])
+def test_the_compiled_commands_are_each_scenes_numpy_commands_bit_for_bit(task: Task,
+                                                                          seed: int) -> None:
+    obs, valid, _ = _swarms(seed)
+    obs[7, :, 11] = np.random.default_rng(seed).normal(0.0, 30.0, obs.shape[1])
+    S, n = obs.shape[:2]
+    dyn = PointMass()
+    agents = task.agents(n)
+    rng = np.random.default_rng(seed + 20)
+    actions = rng.uniform(-1.0, 1.0, (S, len(agents), 3))
+    actions[2, 0] = (-1.0, -0.0, 1.0)  # a full action, a negative zero
+    t = np.asarray(rng.uniform(0.0, 30.0, S))
+    eps = [task.episode(RandomStreams(seed + s).stream("env.route"), obs[0]) for s in range(S)]
+    send, cmds = task.commands_many(actions, obs, valid, eps, t, agents, dyn)
+    assert send.shape == (S, n) and cmds.shape == (S, n, 3) and cmds.dtype == np.float64
+    for s in range(S):
+        view = SwarmView(obs=obs[s], frame=np.zeros(n, dtype=np.int64), valid=valid[s],
+                         aligned_frame=0)
+        nodes, want = task.commands(actions[s], view, eps[s], float(t[s]), agents, dyn)
+        assert np.array_equal(np.flatnonzero(send[s]), nodes)
+        assert _same(cmds[s], want)
+    # the cases reach unsent rows, both altitude limits and the free range between them
+    assert send.any() and not send.all()
+    vh = cmds[..., 2][send]
+    assert (vh == 3.0).any() and (vh == -3.0).any() and (np.abs(vh) < 3.0).any()

@@ -22,6 +22,7 @@ from sigma_des.agents.behaviours import to_command
 from sigma_des.core.models import DynamicsModel, SwarmView
 from sigma_des.core.rng import Stream
 from sigma_des.env.scene_axis import nearest_many, velocity_many
+from sigma_des.env.task_kernels import agent_guidance, velocity_commands
 from sigma_des.errors import ConfigError
 
 __all__ = ["Task", "ACTION_DIM", "OBS_CLIP", "AGE_REF", "nearest", "velocity"]
@@ -43,6 +44,30 @@ def nearest(pos: Array) -> tuple[Array, Array, NDArray[np.intp]]:
     j = np.argmin(dist, axis=1)
     i = np.arange(len(pos))
     return diff[i, j], dist[i, j], j
+
+
+#: the command columns of a velocity-commanded model (the point mass)
+_VELOCITY = ("vn", "ve", "vh")
+
+
+def _velocity_commands_many(g: Array, speed: Array, course: Array, a: Array, obs: Array,
+                            valid: NDArray[np.bool_], agents: list[int], dh_max: float
+                            ) -> tuple[NDArray[np.bool_], Array]:
+    """:meth:`Task.commands_many` after its speed and course, for a model commanded in
+    ``vn, ve, vh`` (:func:`~sigma_des.agents.behaviours.to_command`'s columns): the
+    arithmetic compiled (:mod:`~sigma_des.env.task_kernels`), the cos and sin numpy's on
+    the sent rows as ``to_command`` takes them; the same bits."""
+    send = np.empty(g.shape[:2], dtype=np.bool_)
+    obs = np.ascontiguousarray(obs)
+    agent_guidance(g, speed, course, np.ascontiguousarray(a), obs,
+                   np.ascontiguousarray(valid), np.asarray(agents, dtype=np.int64), dh_max,
+                   send)
+    cmds = np.zeros(g.shape[:2] + (3,))
+    rows = g[send]
+    if rows.shape[0]:
+        chi = rows[:, 1]
+        velocity_commands(rows, np.cos(chi), np.sin(chi), obs, send, cmds)
+    return send, cmds
 
 
 def velocity(obs: Array) -> Array:
@@ -230,6 +255,10 @@ class Task:
         g = self.scripted_many(obs, eps, t)
         a = np.asarray(actions, dtype=np.float64)
         vn, ve = a[..., 0] * self.v_max, a[..., 1] * self.v_max
+        if (dyn.command_dim == 3
+                and tuple(getattr(dyn, "command_names", _VELOCITY)) == _VELOCITY):
+            return _velocity_commands_many(g, np.hypot(vn, ve), np.arctan2(ve, vn), a, obs,
+                                           valid, agents, self.dh_max)
         g[:, agents, 0] = np.hypot(vn, ve)
         g[:, agents, 1] = np.arctan2(ve, vn)
         g[:, agents, 2] = obs[:, agents, 11] + a[..., 2] * self.dh_max

@@ -87,7 +87,10 @@ class FormationTask(Task):
         if w is None or w.size <= m:  # the draws are per segment id: a longer prefix
             u = ep["stream"].uniform(np.arange(max(m + 1, 32, 0 if w is None else 2 * w.size)))
             w = ep["turns"] = self.turn_max * (2.0 * u - 1.0)
-        return float(ep["psi0"] + self.segment * w[:m].sum() + (t - m * self.segment) * w[m])
+        done = ep.get("turned")  # the turns of the segments before m, summed once a segment
+        if done is None or done[0] != m:
+            done = ep["turned"] = (m, w[:m].sum())
+        return float(ep["psi0"] + self.segment * done[1] + (t - m * self.segment) * w[m])
 
     def targets(self, obs: Array, ep: Any, t: float) -> Array:
         slots = formation_slots(obs, 0, self.d, math.radians(self.theta_deg))

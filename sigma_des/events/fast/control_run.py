@@ -187,6 +187,9 @@ class CompiledControl:
         self.returns: dict[int, int] = {}
         self._entry: Any = None  # the loop's entry point for the core's current state
         self._bound: tuple[Any, ...] = ()  # the state it was bound for
+        #: the behaviour's ``capture`` (record the view, send nothing), if it has one
+        self._capture: Callable[[SwarmView], None] | None = getattr(run.behaviour, "capture",
+                                                                     None)
 
     @staticmethod
     def _take_events(run: _Run, ci: NDArray[np.int64], cf: NDArray[np.float64]) -> None:
@@ -214,18 +217,19 @@ class CompiledControl:
     def _sync(self) -> None:
         """The run's objects as the loop left them (the kernel's clock, the trigger
         source, the aligner, the truth, the tick count)."""
-        run, ci, cf = self.run, self.ci, self.cf
-        run.kernel.jump_to(float(cf[C.CF_NOW]))
+        run = self.run
+        ci, cf = self.ci.tolist(), self.cf.tolist()  # Python numbers, read once
+        run.kernel.jump_to(cf[C.CF_NOW])
         trig = run.trigger
-        trig.latest = int(ci[C.CI_LATEST])
-        trig.f_trig = float(cf[C.CF_F_TRIG])
-        trig.base = (float(cf[C.CF_T0]), int(ci[C.CI_K0]), float(cf[C.CF_BASE_F]))
+        trig.latest = ci[C.CI_LATEST]
+        trig.f_trig = cf[C.CF_F_TRIG]
+        trig.base = (cf[C.CF_T0], ci[C.CI_K0], cf[C.CF_BASE_F])
         al = run.aligner
-        al.aligned_frame = int(ci[C.CI_ALIGNED])
+        al.aligned_frame = ci[C.CI_ALIGNED]
         al.new_snapshot = bool(ci[C.CI_NEW_SNAPSHOT])
         if isinstance(al, BidesAligner):
-            al._hi, al._lo = int(ci[C.CI_HI]), int(ci[C.CI_LO])
-            al.rate_changes = int(ci[C.CI_RATE_CHANGES])
+            al._hi, al._lo = ci[C.CI_HI], ci[C.CI_LO]
+            al.rate_changes = ci[C.CI_RATE_CHANGES]
         elif isinstance(al, NoneAligner):
             al._dirty = bool(ci[C.CI_DIRTY])
         if ci[C.CI_ALIGN_TICK] > 0 and al.peak_bytes == 0:  # the buffers' size is fixed:
@@ -233,18 +237,21 @@ class CompiledControl:
         frame, gen, obs, flag = self._shown
         al.shown_frame, al.shown_gen, al.shown_obs, al.flag = (frame.copy(), gen.copy(),
                                                                obs.copy(), flag.copy())
-        run.align_tick = int(ci[C.CI_ALIGN_TICK])
-        self._sync_truth()
+        run.align_tick = ci[C.CI_ALIGN_TICK]
+        self._sync_truth(ci, cf)
 
-    def _sync_truth(self) -> None:
-        """The clock and the truth as the loop left them (what serving the core reads)."""
-        run, ci, cf = self.run, self.ci, self.cf
-        run.kernel.jump_to(float(cf[C.CF_NOW]))
+    def _sync_truth(self, ci: list[int] | None = None, cf: list[float] | None = None) -> None:
+        """The clock and the truth as the loop left them (what serving the core reads;
+        ``ci``, ``cf``: the control arrays as lists, if read already)."""
+        run = self.run
+        if ci is None or cf is None:
+            ci, cf = self.ci.tolist(), self.cf.tolist()
+        run.kernel.jump_to(cf[C.CF_NOW])
         truth = run.truth
-        truth.latest = int(ci[C.CI_TRUTH_LATEST])
-        truth.phys_t = float(cf[C.CF_PHYS_T])
-        truth.rollbacks = int(ci[C.CI_ROLLBACKS])
-        truth.resim_steps = int(ci[C.CI_RESIM_STEPS])
+        truth.latest = ci[C.CI_TRUTH_LATEST]
+        truth.phys_t = cf[C.CF_PHYS_T]
+        truth.rollbacks = ci[C.CI_ROLLBACKS]
+        truth.resim_steps = ci[C.CI_RESIM_STEPS]
 
     def _bind(self) -> Any:
         """The loop's entry point and its first argument for the core's current state
@@ -306,12 +313,19 @@ class CompiledControl:
 
     def _send_commands(self) -> None:
         """The command tick's behaviour call (AlignmentServer.send_commands) on the tick
-        the loop just ran (its index is one below the run's tick count now)."""
+        the loop just ran (its index is one below the run's tick count now).
+
+        A behaviour with a ``capture`` method (one that records the view and sends
+        nothing, e.g. a learning env's) has it called instead of ``commands``.
+        """
         run = self.run
         al = run.aligner
         assert run.behaviour is not None
         view = SwarmView(obs=al.shown_obs, frame=al.shown_frame, valid=~np.isnan(al.shown_gen),
                          aligned_frame=al.aligned_frame)
+        if self._capture is not None:
+            self._capture(view)
+            return
         cmds = run.behaviour.commands(view, run.dyn)
         ok = ~np.isnan(cmds).all(axis=1)
         if ok.any():  # (no rows: the run's publish_commands would do nothing)
