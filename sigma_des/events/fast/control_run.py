@@ -21,6 +21,7 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
+from numba._dispatcher import compute_fingerprint
 from numpy.typing import NDArray
 
 from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
@@ -328,12 +329,11 @@ def _entry_for(S: tuple[Any, ...], by_handle: bool, arg: Any, ctl: tuple[Any, ..
     handle, or ``S`` itself), control arrays ``ctl`` and the physics ``kernels``: resolved
     once per set of types, then called without numba's dispatch (whose typing of the
     kernels' dispatcher arguments cost more than the loop's work on a small swarm)."""
-    from numba import typeof
-    from numba._dispatcher import compute_fingerprint
-
     key = (compute_fingerprint(S), by_handle, compute_fingerprint(ctl), *map(id, kernels))
     got = _ENTRIES.get(key)
     if got is None:
+        from numba import typeof
+
         kernel = C.run_held if by_handle else C.run
         first = HandleType(typeof(S)) if by_handle else typeof(S)
         sig = (first, typeof(ctl), *(typeof(k) for k in kernels))
