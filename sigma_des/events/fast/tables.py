@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawBlock, DrawCache
+from sigma_des.core.filled import filled
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.layout import (
     K_COMMAND,
@@ -108,7 +109,7 @@ class DrawTables:
     """
 
     def __init__(self, sources: list[Source], history: int, subjects: int) -> None:
-        self.draw_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
+        self.draw_map = filled((N_SOURCES, N_KINDS), -1, np.int64)
         self.draw_const = np.zeros(N_SOURCES)
         self._fills: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
         #: per kind: (table, the block of draws it is filled from), made at its first
@@ -126,7 +127,7 @@ class DrawTables:
             tables += 1
         self.tables = max(tables, 1)
         self.values = np.zeros((self.tables, history, subjects))
-        self.tags = np.full((self.tables, history), -1, dtype=np.int64)
+        self.tags = filled((self.tables, history), -1, np.int64)
 
     def fills_of(self, kind: int) -> list[Fill]:
         """The tables of ``kind``, each with its cache and sampling kind."""
