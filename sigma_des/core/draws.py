@@ -46,6 +46,19 @@ def _uniform_rows() -> Callable[..., NDArray[np.float64]]:
     return _ROWS[0]
 
 
+def _subjects(n: int) -> NDArray[np.int64]:
+    """``0 .. n-1``, one array per ``n`` shared by every cache (read, never written)."""
+    a = _SUBJECTS.get(n)
+    if a is None:
+        if len(_SUBJECTS) >= 64:
+            _SUBJECTS.clear()
+        a = _SUBJECTS[n] = np.arange(n, dtype=np.int64)
+    return a
+
+
+_SUBJECTS: dict[int, NDArray[np.int64]] = {}
+
+
 class DrawCache:
     """Values of ``sampler(subjects, kind, index, attempt)`` for all subjects, cached.
 
@@ -68,7 +81,7 @@ class DrawCache:
         self, n_subjects: int, sampler: Sampler, limit: int = 512, constant: float | None = None,
         blockable: bool = False, uniforms: tuple[np.uint64, Quantile | None] | None = None,
     ) -> None:
-        self._subjects = np.arange(n_subjects, dtype=np.int64)
+        self._subjects = _subjects(n_subjects)
         self._sampler = sampler
         self._cache: OrderedDict[tuple[int, int, int], NDArray[np.float64]] = OrderedDict()
         self._limit = limit

@@ -203,10 +203,21 @@ class RandomStreams:
     def __init__(self, seed: int) -> None:
         self.seed = int(seed)
         self._cache: dict[str, Stream] = {}
+        #: the key hash with the seed's part absorbed (a stream's key hashes its name on)
+        self._prefix = hashlib.blake2b(f"{self.seed}\x00".encode(), digest_size=8)
 
     def stream(self, name: str) -> Stream:
         """The stream called ``name`` (created on first use, then cached)."""
         s = self._cache.get(name)
         if s is None:
-            s = self._cache[name] = Stream(self.seed, name)
+            s = self._cache[name] = Stream.__new__(Stream)
+            s.name = name
+            h = self._prefix.copy()  # the hash of f"{seed}\x00{name}", as _key_of's
+            h.update(name.encode())
+            s.key = np.uint64(int.from_bytes(h.digest(), "little"))
         return s
+
+    def __reduce__(self) -> tuple[type[RandomStreams], tuple[int]]:
+        # a copy under the same seed (the hash object does not pickle; streams are
+        # pure functions of the seed and their name)
+        return RandomStreams, (self.seed,)

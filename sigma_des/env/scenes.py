@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from sigma_des.config import Scenario
 from sigma_des.core.models import DynamicsModel, SwarmView
-from sigma_des.core.rng import RandomStreams, mix_int
+from sigma_des.core.rng import mix_int
 from sigma_des.env.tasks import Task
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import END, PAUSED, TRIGGER_DUE, MethodRun
@@ -119,7 +119,8 @@ class _Placed:
         self.name = dyn.name
         self.state_dim = dyn.state_dim
         self.command_dim = dyn.command_dim
-        for hot in ("step", "observe", "step_frames", "default_command"):  # no lookup each
+        for hot in ("step", "observe", "step_frames", "default_command", "observe_into",
+                    "step_into", "resimulate_into", "compiled_physics"):  # no lookup each
             if hasattr(dyn, hot):
                 setattr(self, hot, getattr(dyn, hot))
 
@@ -169,7 +170,8 @@ class Scene:
         model, obs0 = placed(dyn, task, spec.nodes) if start is None else start
         self.run: MethodRun = make_run(spec, method, model, self.capture,  # type: ignore[arg-type]
                                        metrics, spare)[0]
-        self.ep = task.episode(RandomStreams(spec.seed).stream(f"env.{task.name}"), obs0)
+        # the run's streams are those of the episode's seed (RandomStreams(spec.seed))
+        self.ep = task.episode(self.run.streams.stream(f"env.{task.name}"), obs0)
         self.done = False
         self.ended = False
         self.tick = -1

@@ -24,6 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from sigma_des.core.clock import TRIGGER, Clock
+from sigma_des.core.filled import filled
 from sigma_des.events.align.hlc_clock import HLC, Stamp
 
 __all__ = ["BARRIER_METHODS", "TriggerSource"]
@@ -69,7 +70,7 @@ class TriggerSource:
         self.f_trig = f_trig
         self.latest = -1
         self.H = history_frames
-        self.trig_time = np.full(history_frames, np.nan)
+        self.trig_time = filled(history_frames, np.nan)
         self.barrier = barrier
         self.on_frame = on_frame
         self.publish = publish

@@ -71,6 +71,10 @@ class ClockSpec:
         )
 
 
+#: the ids of the offset and drift draws, as a column
+_OFFSET_DRIFT = np.array([[0], [1]], dtype=np.int64)
+
+
 class NodeClocks:
     """The local clocks of ``n`` nodes.
 
@@ -90,9 +94,10 @@ class NodeClocks:
         self.spec = spec
         self.stream = stream
         self.n = int(n)
-        ids = np.arange(self.n, dtype=np.int64)
-        self.offset: NDArray[np.float64] = spec.offset_std * stream.normal(ids, 0)
-        self.drift_ppm: NDArray[np.float64] = spec.drift_ppm_std * stream.normal(ids, 1)
+        # both draws in one call: row j is stream.normal(ids, j), the same bits
+        z = stream.normal(np.arange(self.n, dtype=np.int64)[None, :], _OFFSET_DRIFT)
+        self.offset: NDArray[np.float64] = spec.offset_std * z[0]
+        self.drift_ppm: NDArray[np.float64] = spec.drift_ppm_std * z[1]
 
     def sync_index(self, t: ArrayLike) -> NDArray[np.int64]:
         """Index ``j`` of the last NTP sync at or before ``t`` (0 = none yet)."""

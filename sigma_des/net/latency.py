@@ -256,14 +256,41 @@ class Dist:
             return samples[idx]
         if self.std == 0.0:  # a degenerate normal (mean >= 0) or lognormal
             return np.full(uv.shape, self.mean)
-        from scipy.special import ndtr, ndtri  # here: SciPy is slow to import (the CLI's start)
-
+        ndtri = _special().ndtri
+        # in place: each step the one rounding of ``a + u (1 - a)``, ``mean + std z``,
+        # ``mu + sigma z`` (addition and multiplication commute exactly)
         if d == "normal":  # conditioned on x >= 0: exact inverse-CDF truncation
-            a = float(ndtr((0.0 - self.mean) / self.std))
-            x = self.mean + self.std * ndtri(a + uv * (1.0 - a))
-            return np.maximum(np.asarray(x, dtype=np.float64), 0.0)
+            a = _mass_below_zero(self.mean, self.std)
+            x = uv * (1.0 - a)
+            x += a
+            ndtri(x, out=x)
+            x *= self.std
+            x += self.mean
+            return np.maximum(x, 0.0, out=x)
         mu, sigma = self._lognormal_params()
-        return np.exp(mu + sigma * np.asarray(ndtri(uv), dtype=np.float64))
+        z = np.asarray(ndtri(uv), dtype=np.float64)
+        z *= sigma
+        z += mu
+        return np.exp(z, out=z)
+
+
+def _special() -> Any:
+    """``scipy.special``, imported on first use (SciPy is slow to import: the CLI's start)."""
+    if not _SPECIAL:
+        import scipy.special
+
+        _SPECIAL.append(scipy.special)
+    return _SPECIAL[0]
+
+
+_SPECIAL: list[Any] = []
+
+
+@lru_cache(maxsize=256)
+def _mass_below_zero(mean: float, std: float) -> float:
+    """``P(X < 0)`` of Normal(``mean``, ``std``): the truncated normal's ``a`` (kept per
+    distribution: the same float every time)."""
+    return float(_special().ndtr((0.0 - mean) / std))
 
 
 _DIST_FIELDS = frozenset(f.name for f in fields(Dist))

@@ -7,10 +7,12 @@ more ``fin``), independent of numpy and numba.
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 
-from sigma_des.core.rng import Stream, mix, mix_int
+from sigma_des.core.rng import RandomStreams, Stream, _key_of, mix, mix_int
 
 MASK = (1 << 64) - 1
 
@@ -106,3 +108,26 @@ def test_mix_int_is_mix_of_scalars() -> None:
             assert mix_int(key, *ids) == int(mix(np.uint64(key), *ids)[0]) == _ref(key, *ids)
     for ids in ([I64[0], -1, I64[1]], [2**63 + 5, 3], [2**64 - 1]):  # uint64-range ids wrap
         assert mix_int(99, *ids) == int(mix(99, *ids)[0])
+
+
+def test_a_streams_key_is_the_blake2b_of_its_seed_and_name() -> None:
+    """RandomStreams hashes a name on from the seed's part of the hash: the key of
+    ``Stream(seed, name)``, which hashes ``f"{seed}\\x00{name}"`` whole."""
+    import hashlib
+
+    for seed in (0, 1, 77, 2**62, 2**63 - 1):
+        streams = RandomStreams(seed)
+        for name in ("clocks", "lat.host.up", "env.tight", "", "né"):
+            got = streams.stream(name)
+            want = hashlib.blake2b(f"{seed}\x00{name}".encode(), digest_size=8).digest()
+            assert got.key == _key_of(seed, name) == Stream(seed, name).key
+            assert int(got.key) == int.from_bytes(want, "little")
+            assert type(got.key) is np.uint64 and got.name == name
+            assert streams.stream(name) is got  # cached
+    assert RandomStreams(1).stream("a").key != RandomStreams(2).stream("a").key
+
+
+def test_random_streams_pickle_as_their_seed() -> None:
+    streams = RandomStreams(9)
+    back = pickle.loads(pickle.dumps(streams))
+    assert back.seed == 9 and back.stream("x").key == streams.stream("x").key

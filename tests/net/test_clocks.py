@@ -68,6 +68,21 @@ def test_draws_keyed_by_node_id() -> None:
     assert big.drift_ppm.std() == pytest.approx(30.0, rel=0.03)
 
 
+def test_offsets_and_drifts_are_the_streams_normals_at_ids_0_and_1() -> None:
+    """Both are drawn in one call (a row of nodes by a column of ids): each value is the
+    stream's own normal at ``(node, 0)`` and ``(node, 1)`` times its std, bit for bit."""
+    spec = ClockSpec(offset_std=0.003, drift_ppm_std=30.0)
+    for n in (0, 1, 7):
+        c = NodeClocks(spec, S, n)
+        ids = np.arange(n, dtype=np.int64)
+        assert c.offset.shape == c.drift_ppm.shape == (n,)
+        assert c.offset.tobytes() == (0.003 * S.normal(ids, 0)).tobytes()
+        assert c.drift_ppm.tobytes() == (30.0 * S.normal(ids, 1)).tobytes()
+        for i in range(n):  # and one at a time
+            assert c.offset[i] == 0.003 * S.normal(i, 0)[0]
+    assert not np.array_equal(c.offset / 0.003, c.drift_ppm / 30.0)
+
+
 def test_perfect_clocks() -> None:
     clocks = NodeClocks(ClockSpec(), S, 2)
     assert clocks.local_time(1, 12.5) == 12.5

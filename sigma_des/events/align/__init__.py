@@ -53,8 +53,15 @@ def aligner_class(method: str) -> AlignerClass:
     Raises:
         KeyError: unknown method (the scenario validates method names first).
     """
-    module, cls = _CLASSES[method]
-    return getattr(importlib.import_module(f"{__name__}.{module}"), cls)  # type: ignore[no-any-return]
+    got = _LOADED.get(method)
+    if got is None:
+        module, cls = _CLASSES[method]
+        got = _LOADED[method] = getattr(importlib.import_module(f"{__name__}.{module}"), cls)
+    return got
+
+
+#: the classes imported so far, by method
+_LOADED: dict[str, AlignerClass] = {}
 
 
 def make_aligner(method: str, n: int, ctx: ServerContext, params: AlignParams) -> Aligner:

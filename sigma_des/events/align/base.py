@@ -20,6 +20,7 @@ from typing import Any, NamedTuple, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.core.filled import filled
 from sigma_des.core.flags import MISSING
 from sigma_des.events.align.hlc_clock import Released, Stamp
 from sigma_des.events.align.newest import take_rows
@@ -232,10 +233,10 @@ class Aligner:
     def __init__(self, n: int, ctx: ServerContext) -> None:
         self.n = n
         self.ctx = ctx
-        self.shown_frame = np.full(n, -1, dtype=np.int64)
-        self.shown_gen = np.full(n, np.nan)
-        self.shown_obs = np.full((n, OBS_WIDTH), np.nan)
-        self.flag = np.full(n, MISSING, dtype=np.uint8)
+        self.shown_frame = filled(n, -1, np.int64)
+        self.shown_gen = filled(n, np.nan)
+        self.shown_obs = filled((n, OBS_WIDTH), np.nan)
+        self.flag = filled(n, MISSING, np.uint8)
         self.aligned_frame = -1
         self.new_snapshot = False
         self.peak_bytes = 0

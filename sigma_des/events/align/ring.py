@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from sigma_des.core.filled import filled
 from sigma_des.core.flags import EXACT, EXTRAPOLATED, FILLED, MISSING
 
 __all__ = ["AlignResult", "RingBuffers", "align", "align_in", "insert_row"]
@@ -105,10 +106,10 @@ class RingBuffers:
         if n < 0 or k < 1 or width < 0:
             raise ValueError(f"need n >= 0, k >= 1, width >= 0; got {n}, {k}, {width}")
         self.n, self.k, self.width = int(n), int(k), int(width)
-        self.frame: NDArray[np.int64] = np.full((n, k), -1, dtype=np.int64)
-        self.gen_time: NDArray[np.float64] = np.full((n, k), np.nan)
+        self.frame: NDArray[np.int64] = filled((n, k), -1, np.int64)
+        self.gen_time: NDArray[np.float64] = filled((n, k), np.nan)
         self.obs: NDArray[np.float64] = np.zeros((n, k, width))
-        self.latest: NDArray[np.int64] = np.full(n, -1, dtype=np.int64)
+        self.latest: NDArray[np.int64] = filled(n, -1, np.int64)
 
     def insert(
         self,

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
+from sigma_des.core.filled import filled
 from sigma_des.events.fast.layout import (
     K_COMMAND,
     K_REPUB,
@@ -95,26 +96,26 @@ class AttemptTables:
         self.conn[2:] = -1  # pending lists: no head, no tail
         self.rows = X_ROWS if self.active else 1
         # -1: a constant source, -2: none registered (reading it stops the compiled run)
-        self.ack_map = np.full((N_SOURCES, N_KINDS), -2, dtype=np.int64)
-        self.x_map = np.full((N_SOURCES, 2 * N_KINDS), -2, dtype=np.int64)
+        self.ack_map = filled((N_SOURCES, N_KINDS), -2, np.int64)
+        self.x_map = filled((N_SOURCES, 2 * N_KINDS), -2, np.int64)
         self.x_const = np.zeros(N_SOURCES)
-        self.x_first = np.full(N_KINDS, -1, dtype=np.int64)
+        self.x_first = filled(N_KINDS, -1, np.int64)
         self._ack: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
         self._x: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
+        self._n_ack = self._n_x = 0  # the PUBACK and resend tables registered
         kinds = [K_TRIGGER, K_STATE, K_COMMAND] + ([K_REREQ, K_REPUB] if lockstep else [])
         for k in kinds:
             if self.qos1d:
                 self._register(net, lossy, k)
             elif self.active:
                 self._register_stream(net, lossy, k)
-        n_ack = sum(len(v) for v in self._ack.values())
+        n_ack, n_x = self._n_ack, self._n_x
         #: whether any PUBACK of attempt 0 is drawn (else :meth:`fill_ack` fills nothing)
         self.acks = n_ack > 0
-        n_x = sum(len(v) for v in self._x.values())
         self.ack_val = np.zeros((max(n_ack, 1), history, subjects))
-        self.ack_tag = np.full((max(n_ack, 1), history), -1, dtype=np.int64)
+        self.ack_tag = filled((max(n_ack, 1), history), -1, np.int64)
         self.x_val = np.zeros((max(n_x, 1), self.rows, subjects))
-        self.x_tag = np.full((max(n_x, 1), self.rows), -1, dtype=np.int64)
+        self.x_tag = filled((max(n_x, 1), self.rows), -1, np.int64)
 
     def _register(self, net: Network, lossy: tuple[bool, bool], k: int) -> None:
         """The sources of kind ``k``: its PUBLISH legs, their PUBACKs, broker service."""
@@ -148,13 +149,15 @@ class AttemptTables:
             if ack:
                 self.ack_map[src, k] = -1
             return
-        c = sum(len(v) for v in self._x.values())
+        c = self._n_x  # the tables registered so far
+        self._n_x += 1
         self.x_map[src, k + N_KINDS if ack else k] = c
         if self.x_first[k] < 0:
             self.x_first[k] = c
         self._x[k].append((c, cache, k + ACK if ack else k))
         if ack:
-            a = sum(len(v) for v in self._ack.values())
+            a = self._n_ack
+            self._n_ack += 1
             self.ack_map[src, k] = a
             self._ack[k].append((a, cache, k + ACK))
 

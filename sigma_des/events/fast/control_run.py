@@ -21,8 +21,10 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
+from numba._dispatcher import compute_fingerprint
 from numpy.typing import NDArray
 
+from sigma_des.core.filled import filled
 from sigma_des.core.models import Behaviour, DynamicsModel, SwarmView
 from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
@@ -119,8 +121,8 @@ def _method(al: Aligner, ci: NDArray[np.int64], cf: NDArray[np.float64]
     ci[C.CI_HOLD_DOWN], ci[C.CI_HOLD_UP] = b.hold_down, b.hold_up
     cf[C.CF_F_NOMINAL], cf[C.CF_F_MIN] = al.f_nominal, b.f_trig_min
     cf[C.CF_RATE_DOWN], cf[C.CF_RATE_UP] = b.rate_down, b.rate_up
-    return (np.full(1, -1, dtype=np.int64), np.full(1, np.nan),
-            np.full((1, al.shown_obs.shape[1]), np.nan))
+    return (filled(1, -1, np.int64), filled(1, np.nan),
+            filled((1, al.shown_obs.shape[1]), np.nan))
 
 
 class CompiledControl:
@@ -342,12 +344,11 @@ def _entry_for(S: tuple[Any, ...], by_handle: bool, arg: Any, ctl: tuple[Any, ..
     handle, or ``S`` itself), control arrays ``ctl`` and the physics ``kernels``: resolved
     once per set of types, then called without numba's dispatch (whose typing of the
     kernels' dispatcher arguments cost more than the loop's work on a small swarm)."""
-    from numba import typeof
-    from numba._dispatcher import compute_fingerprint
-
     key = (compute_fingerprint(S), by_handle, compute_fingerprint(ctl), *map(id, kernels))
     got = _ENTRIES.get(key)
     if got is None:
+        from numba import typeof
+
         kernel = C.run_held if by_handle else C.run
         first = HandleType(typeof(S)) if by_handle else typeof(S)
         sig = (first, typeof(ctl), *(typeof(k) for k in kernels))

@@ -79,6 +79,8 @@ def _empty(a: NDArray[Any]) -> NDArray[Any]:
 
 
 _EMPTIES: dict[tuple[np.dtype[Any], tuple[int, ...]], NDArray[Any]] = {}
+#: the positions of the arrays a closed core drops (the event table, the truth's ring)
+_DROPPED = tuple(L.INDEX[name] for name in (*TABLE, "obs_hist"))
 
 
 class Host(Protocol):
@@ -117,7 +119,8 @@ class CompiledCore:
         why = unsupported(spec, host.method)
         if why is not None:
             raise CohortFallback(why)
-        before_run()  # earlier runs' memory back first (growth)
+        before_run(trim=spare is None)  # earlier runs' memory back first (growth): not
+        # for a core refilling a retired one's arrays (a learning env's next episode)
         self.host = host
         self._lockstep = host.method == "lockstep"
         links = spec.net.net
@@ -198,7 +201,10 @@ class CompiledCore:
         rows, so that :meth:`SwarmTruth.release` frees it. The core carries no more
         messages after it."""
         S = self.S
-        self.S = L.replaced(S, {name: _empty(S[L.INDEX[name]]) for name in (*TABLE, "obs_hist")})
+        closed = list(S)
+        for i in _DROPPED:
+            closed[i] = _empty(S[i])
+        self.S = tuple(closed)
         self._closed = True
         self._typed, self._arg = (), None  # the handle held the old tuple (handle.py)
 

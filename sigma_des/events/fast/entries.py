@@ -19,8 +19,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from sigma_des.events.fast import loop
+from numba.core.dispatcher import Dispatcher
+
+from sigma_des.events.fast import handle, loop
 from sigma_des.events.fast.handle import ENTRIES, Handle, HandleType
+
+try:
+    from numba._dispatcher import compute_fingerprint
+except ImportError:  # pragma: no cover - a numba without it: dispatch every call
+    compute_fingerprint = None  # type: ignore[assignment]
 
 __all__ = ["Entries", "bound"]
 
@@ -38,11 +45,14 @@ class Entries:
             (else the state tuple: :meth:`arg` gives what to pass).
     """
 
-    __slots__ = ("advance", "by_handle", "owe_steps", "publish_commands", "publish_trigger",
-                 "roll_back", "start")
+    __slots__ = ("_held", "advance", "by_handle", "owe_steps", "publish_commands",
+                 "publish_trigger", "roll_back", "start")
 
-    def __init__(self, kernels: dict[str, Kernel], by_handle: bool = False) -> None:
+    def __init__(self, kernels: dict[str, Kernel], by_handle: bool = False,
+                 held: tuple[int, Kernel] | None = None) -> None:
         self.by_handle = by_handle
+        #: a handle's buffer size and the compiled store of this state type (by handle)
+        self._held = held
         self.advance = kernels["advance"]
         self.publish_trigger = kernels["publish_trigger"]
         self.publish_commands = kernels["publish_commands"]
@@ -52,7 +62,9 @@ class Entries:
 
     def arg(self, S: tuple[Any, ...]) -> Any:
         """What these entry points take for state ``S`` (its handle, or ``S`` itself)."""
-        return Handle(S) if self.by_handle else S
+        if not self.by_handle:
+            return S
+        return Handle(S) if self._held is None else Handle(S, *self._held)
 
 
 #: the dispatchers themselves (what a core calls before its state is bound)
@@ -74,21 +86,26 @@ def _signatures(state: Any) -> dict[str, tuple[Any, ...]]:
 def bound(S: tuple[Any, ...]) -> Entries:
     """The entry points for the type of state ``S`` (compiled or loaded on first use):
     by handle, or the loop's own functions if one was replaced (a test counting calls)."""
-    from numba.core.dispatcher import Dispatcher
-
-    kernels = {name: getattr(loop, name) for name in NAMES}
-    if not all(isinstance(k, Dispatcher) for k in kernels.values()):
-        return Entries(kernels)  # one was replaced (a test counting calls): call what is there
-    try:
-        from numba._dispatcher import compute_fingerprint
-    except ImportError:  # pragma: no cover - a numba without it: dispatch every call
-        return Entries(kernels)
+    now = [getattr(loop, name) for name in NAMES]
+    if now != _LOOP:  # the first call, or a kernel replaced or put back
+        _LOOP[:] = now
+        _PLAIN[:] = [] if all(isinstance(k, Dispatcher) for k in now) else [True]
+    if _PLAIN or compute_fingerprint is None:
+        return Entries(dict(zip(NAMES, now, strict=True)))  # one was replaced (a test
+        # counting calls): call what is there
     key = compute_fingerprint(S)
     got = _BY_TYPE.get(key)
     if got is None:
-        from numba import typeof
+        from numba import typeof, types
 
-        sigs = _signatures(HandleType(typeof(S)))
+        state = typeof(S)
+        sigs = _signatures(HandleType(state))
+        held = (int(handle._size(S)), handle._store.compile((state, types.int64)))  # type: ignore[attr-defined]
         got = _BY_TYPE[key] = Entries({name: ENTRIES[name].compile(sig)  # type: ignore[attr-defined]
-                                       for name, sig in sigs.items()}, by_handle=True)
+                                       for name, sig in sigs.items()}, True, held)
     return got
+
+
+#: the loop's entry points as last seen, and whether one of them is not a dispatcher
+_LOOP: list[Kernel] = []
+_PLAIN: list[bool] = []

@@ -123,9 +123,11 @@ def run_finished(node_seconds: float) -> None:
         _owed[0] = True
 
 
-def before_run() -> None:
+def before_run(trim: bool = True) -> None:
     """Give the memory the runs before this one left back to the system (a ``compare
-    --jobs`` worker runs several).
+    --jobs`` worker runs several); ``trim=False``: no heap trim (a run refilling a retired
+    run's arrays, which the retired run freed nothing large of: a trim, ~30 µs, would
+    hand back nothing worth it and the episode's allocations would take it again).
 
     A finished run is cyclic garbage (its kernel's queue, handlers and engine refer to
     each other), with its physics ring (47 MB at N = 1 000) and draw tables: freed at
@@ -139,10 +141,11 @@ def before_run() -> None:
     if _owed[0]:
         _owed[0] = False
         gc.collect()
-    if _batched[0]:
-        _batched[1] = True  # the batch's end trims
-    else:
-        trim_heap()
+    if trim:
+        if _batched[0]:
+            _batched[1] = True  # the batch's end trims
+        else:
+            trim_heap()
     _fix_mmap_threshold()
 
 

@@ -18,6 +18,7 @@ after :func:`_store`, are never read.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -115,15 +116,22 @@ def _store(S, addr):  # type: ignore[no-untyped-def]
 
 
 class Handle:
-    """State tuple ``S`` unboxed once into a buffer of its own (``addr``); keeps ``S``."""
+    """State tuple ``S`` unboxed once into a buffer of its own (``addr``); keeps ``S``.
+
+    Args:
+        S: the state tuple.
+        size: the bytes of its unboxed type (None: asked of ``_size``).
+        store: ``_store`` compiled for its type (None: the dispatcher picks it).
+    """
 
     __slots__ = ("S", "addr", "_buf")
 
-    def __init__(self, S: tuple[Any, ...]) -> None:
+    def __init__(self, S: tuple[Any, ...], size: int | None = None,
+                 store: Callable[[tuple[Any, ...], int], None] | None = None) -> None:
         self.S = S
-        self._buf = np.zeros(int(_size(S)), dtype=np.uint8)
+        self._buf = np.zeros(int(_size(S)) if size is None else size, dtype=np.uint8)
         self.addr = int(self._buf.ctypes.data)
-        _store(S, self.addr)
+        (_store if store is None else store)(S, self.addr)
 
 
 # ---------------------------------------------------------------- entry points by handle

@@ -16,8 +16,9 @@ for bit the one it would have built from nothing.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from operator import itemgetter
 from typing import TYPE_CHECKING, Any
 
 from numpy.typing import NDArray
@@ -32,8 +33,10 @@ if TYPE_CHECKING:
 __all__ = ["Kept", "Spare", "handed_back", "refilled", "same_but_seed", "state_for"]
 
 State = tuple[NDArray[Any], ...]
-#: the state's fields with a fill (position, name): the arrays a core makes for itself
-_FILLED = [(i, f.name) for i, f in enumerate(L.FIELDS) if f.fill is not None]
+#: the state's fields with a fill (names; their arrays taken out of a state by
+#: ``_FILLED_OF``): the arrays a core makes for itself
+_FILLED = tuple(f.name for f in L.FIELDS if f.fill is not None)
+_FILLED_OF = itemgetter(*(L.INDEX[name] for name in _FILLED))
 
 
 @dataclass(frozen=True)
@@ -82,8 +85,9 @@ def refilled(kept: Mapping[str, NDArray[Any]], spare: Mapping[str, NDArray[Any]]
     """Arrays holding the values of ``kept``: ``spare``'s of the same name refilled in
     place where they fit (:func:`~sigma_des.events.fast.declare.reusable`), else copies."""
     out: dict[str, NDArray[Any]] = {}
+    get = spare.get
     for name, v in kept.items():
-        a = spare.get(name)
+        a = get(name)
         if a is not None and reusable(a, v.dtype, v.shape):
             a[...] = v
             out[name] = a
@@ -126,7 +130,25 @@ def handed_back(S: State, kept: Kept | None) -> Spare:
     """What a retiring core with state ``S`` hands to the next one: the arrays of its own
     (the fields with a fill and the seed-free ones it was given: no other object holds
     them) and its kept values."""
-    arrays = {name: S[i] for i, name in _FILLED}
+    arrays = dict(zip(_FILLED, _FILLED_OF(S), strict=True))
     if kept is not None:
-        arrays.update((name, S[L.INDEX[name]]) for name in kept.arrays)
+        names = tuple(kept.arrays)
+        of = _KEPT_OF.get(names)
+        if of is None:
+            if len(_KEPT_OF) >= 64:
+                _KEPT_OF.clear()
+            of = _KEPT_OF[names] = _getter([L.INDEX[name] for name in names])
+        arrays.update(zip(names, of(S), strict=True))
     return Spare(arrays, kept)
+
+
+def _getter(positions: list[int]) -> Callable[[State], tuple[NDArray[Any], ...]]:
+    """The arrays at ``positions`` of a state, as a tuple (also of one or none)."""
+    if len(positions) == 1:
+        one = positions[0]
+        return lambda S: (S[one],)
+    return itemgetter(*positions) if positions else (lambda S: ())
+
+
+#: per tuple of kept names, what takes their arrays out of a state
+_KEPT_OF: dict[tuple[str, ...], Callable[[State], tuple[NDArray[Any], ...]]] = {}

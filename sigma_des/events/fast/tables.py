@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawBlock, DrawCache
+from sigma_des.core.filled import filled
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.layout import (
     K_COMMAND,
@@ -108,11 +109,13 @@ class DrawTables:
     """
 
     def __init__(self, sources: list[Source], history: int, subjects: int) -> None:
-        self.draw_map = np.full((N_SOURCES, N_KINDS), -1, dtype=np.int64)
+        self.draw_map = filled((N_SOURCES, N_KINDS), -1, np.int64)
         self.draw_const = np.zeros(N_SOURCES)
         self._fills: dict[int, list[Fill]] = {k: [] for k in range(N_KINDS)}
-        #: per kind: (table, the block of draws it is filled from)
-        self._blocks: dict[int, list[tuple[int, DrawBlock]]] = {k: [] for k in range(N_KINDS)}
+        #: per kind: (table, the block of draws it is filled from), made at its first
+        #: :meth:`fill` (the trigger, state, command and compute rows of a compiled run
+        #: are filled a frame at a time by ``FrameDraws``, never here)
+        self._blocks: dict[int, list[tuple[int, DrawBlock]]] = {}
         tables = 0
         for src, k, cache in sources:
             if cache.constant is not None:
@@ -121,11 +124,10 @@ class DrawTables:
             self.draw_map[src, k] = tables
             sampler_kind = STEP_DRAW if src == STEP else k
             self._fills[k].append((tables, cache, sampler_kind))
-            self._blocks[k].append((tables, DrawBlock(cache, sampler_kind)))
             tables += 1
         self.tables = max(tables, 1)
         self.values = np.zeros((self.tables, history, subjects))
-        self.tags = np.full((self.tables, history), -1, dtype=np.int64)
+        self.tags = filled((self.tables, history), -1, np.int64)
 
     def fills_of(self, kind: int) -> list[Fill]:
         """The tables of ``kind``, each with its cache and sampling kind."""
@@ -139,7 +141,11 @@ class DrawTables:
         """
         row = index % self.tags.shape[1]
         values, tags = self.values, self.tags
-        for c, block in self._blocks[kind]:
+        blocks = self._blocks.get(kind)
+        if blocks is None:  # (a block starts empty: made now or earlier, the same rows)
+            blocks = self._blocks[kind] = [(c, DrawBlock(cache, sampler_kind))
+                                           for c, cache, sampler_kind in self._fills[kind]]
+        for c, block in blocks:
             if tags[c, row] != index:
                 v = block.row(index)
                 values[c, row, : v.size] = v

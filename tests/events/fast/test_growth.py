@@ -204,3 +204,23 @@ def test_after_before_run_a_freed_large_array_leaves_no_resident_pages() -> None
     held = _rss_mb()
     del mid
     assert held - _rss_mb() > 6  # unmapped at once, not kept in the heap
+
+
+def test_a_run_refilling_a_retired_ones_arrays_does_not_trim_the_heap(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from sigma_des.events.fast import growth
+
+    trims: list[int] = []
+    monkeypatch.setattr(growth, "trim_heap", lambda: trims.append(1) or True)
+    before_run(trim=False)
+    assert trims == []
+    before_run()
+    assert trims == [1]
+    with growth.trims_batched():
+        before_run(trim=False)
+        before_run(trim=False)
+    assert trims == [1]  # nothing owed at the block's end
+    with growth.trims_batched():
+        before_run(trim=False)
+        before_run()
+    assert trims == [1, 1]  # one trim, at the block's end
