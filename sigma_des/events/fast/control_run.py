@@ -21,7 +21,6 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
-from numba._dispatcher import compute_fingerprint
 from numpy.typing import NDArray
 
 from sigma_des.core.filled import filled
@@ -32,6 +31,7 @@ from sigma_des.events.align.bides import BidesAligner
 from sigma_des.events.align.none import NoneAligner
 from sigma_des.events.fast import control as C
 from sigma_des.events.fast import layout as L
+from sigma_des.events.fast.dispatch import compute_fingerprint
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.handle import HandleType
 from sigma_des.events.spec import RunSpec
@@ -344,6 +344,7 @@ def _entry_for(S: tuple[Any, ...], by_handle: bool, arg: Any, ctl: tuple[Any, ..
     handle, or ``S`` itself), control arrays ``ctl`` and the physics ``kernels``: resolved
     once per set of types, then called without numba's dispatch (whose typing of the
     kernels' dispatcher arguments cost more than the loop's work on a small swarm)."""
+    assert compute_fingerprint is not None  # the pinned numba has it
     key = (compute_fingerprint(S), by_handle, compute_fingerprint(ctl), *map(id, kernels))
     got = _ENTRIES.get(key)
     if got is None:

@@ -19,15 +19,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from numba.core.dispatcher import Dispatcher
-
 from sigma_des.events.fast import handle, loop
+from sigma_des.events.fast.dispatch import Dispatcher, compute_fingerprint
 from sigma_des.events.fast.handle import ENTRIES, Handle, HandleType
-
-try:
-    from numba._dispatcher import compute_fingerprint
-except ImportError:  # pragma: no cover - a numba without it: dispatch every call
-    compute_fingerprint = None  # type: ignore[assignment]
 
 __all__ = ["Entries", "bound"]
 
