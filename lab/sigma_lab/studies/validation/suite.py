@@ -8,7 +8,8 @@ with the same ``--out`` (an interrupted run picks up where it stopped):
 * ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
   included), the latency sample files, ``calibrate.log`` and ``source.json`` (which
   repeat of the calibration setting it was fitted to: the most typical one,
-  :func:`~sigma_lab.studies.validation.scoring.central`);
+  :func:`~sigma_lab.studies.validation.scoring.central`; and a fingerprint of each run
+  it read: a calibration run made again makes the calibration stale);
 * ``cells/des-<key>.json`` — one DES prediction (every method), stamped with the
   calibration it used (a new calibration makes it stale: it is run again).
 
@@ -39,7 +40,7 @@ from sigma_lab.studies.validation.runs import (
 )
 from sigma_lab.studies.validation.scoring import central
 
-__all__ = ["Outcome", "calibration_cell", "des_key", "run_suite"]
+__all__ = ["Outcome", "calibration_cell", "calibration_kept", "des_key", "run_suite", "runs_stamp"]
 
 Say = Callable[[str], None]
 #: What the report needs: live figures per cell, DES figures per key, the calibration.
@@ -96,12 +97,10 @@ def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
 
 def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say,
                  args: Sequence[str]) -> None:
-    kept = read_json(out / "cal" / "source.json")
     name = calibration_cell(plan, live)
     cells = [name] + [c.name for c in plan.cells if c.cal_extra and c.name in live]
-    if (read_json(out / "cal" / "calibrated.json") is not None and kept is not None
-            and kept.get("args", []) == list(args)
-            and kept.get("cells", [kept.get("cell")]) == cells):
+    source = {"cell": name, "cells": cells, "args": list(args), "runs": runs_stamp(out, cells)}
+    if calibration_kept(out, source):
         say(f"calibration: kept from an earlier run (on {', '.join(cells)})")
         return
     say(f"calibrating on {', '.join(cells)} ({name}: the most typical of the calibration "
@@ -109,9 +108,29 @@ def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Sa
         "`sigma-des calibrate`, with its in-sample check on each) ...")
     t = time.perf_counter()
     calibrate_run([out / "live" / c for c in cells], out / "cal", extra=args)
-    write_json(out / "cal" / "source.json", {"cell": name, "cells": cells,
-                                             "args": list(args)})
+    write_json(out / "cal" / "source.json", source)
     say(f"    calibrated in {time.perf_counter() - t:.0f} s")
+
+
+def runs_stamp(out: Path, cells: Sequence[str]) -> dict[str, str]:
+    """A fingerprint of each live run a calibration reads (its ``summary.json``): a run
+    made again since (e.g. one deleted because it ran under load) changes it."""
+    stamps = {}
+    for c in cells:
+        path = out / "live" / c / "summary.json"
+        stamps[c] = hashlib.sha256(path.read_bytes()).hexdigest()[:16] if path.exists() else ""
+    return stamps
+
+
+def calibration_kept(out: Path, source: dict[str, Any]) -> bool:
+    """Whether ``out/cal`` holds a calibration made from exactly ``source`` (the cells,
+    ``calibrate`` options and run fingerprints :func:`_calibration` would use now); a
+    calibration of an older copy of a run, or one recorded without fingerprints, is
+    not kept."""
+    kept = read_json(out / "cal" / "source.json")
+    if read_json(out / "cal" / "calibrated.json") is None or not isinstance(kept, dict):
+        return False
+    return all(kept.get(k) == source[k] for k in ("cells", "args", "runs"))
 
 
 def _cal_stamp(out: Path) -> str:
