@@ -14,10 +14,11 @@
    more than 5 % of frames, against live's.
 
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
-with the project's own Mosquitto; its load average and background CPU are kept.
-Rerunning with the same ``--out`` keeps every finished cell (a results file per
-cell). The rules and outputs: ``sigma_lab.studies.validation`` and lab/record/LIVE.md
-(*Validation*).
+with the project's own Mosquitto; its load average and background CPU are kept, and
+a cell that ran under load runs again (``--retry-loaded``). Rerunning with the same
+``--out`` keeps every finished cell (a results file per cell) and recalibrates when a
+calibration run was made again. The rules and outputs:
+``sigma_lab.studies.validation`` and lab/record/LIVE.md (*Validation*).
 
     python experiments/live_vs_des.py --out out/validation        # ~15 min on 2 idle cores
     python experiments/live_vs_des.py --grid 'n30-*,lat5-node' --out out/v   # a subset
@@ -61,6 +62,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="also run the calibration setting with bundled messages (cal-bundle) "
                         "and calibrate on it with the most typical repeat (a campaign of "
                         "two runs: `sigma-des calibrate RUN RUN`)")
+    p.add_argument("--retry-loaded", type=int, default=None, metavar="K",
+                   help="run a live cell again when it ran under load (background CPU > "
+                        "25%% of the cores), at most K times (default 1; --quick 0); the "
+                        "loaded runs are kept in OUT/loaded/")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -71,7 +76,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ConfigError("--methods", f"unknown {unknown}; allowed: {', '.join(METHODS)}")
         make = quick_plan if a.quick else full_plan
         kw: dict[str, object] = {k: v for k, v in (("duration", a.duration),
-                                                   ("cell_repeats", a.cell_repeats))
+                                                   ("cell_repeats", a.cell_repeats),
+                                                   ("retry_loaded", a.retry_loaded))
                                  if v is not None}
         if a.calibrate_bundled:
             kw["cal_bundle"] = True

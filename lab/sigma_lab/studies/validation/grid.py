@@ -124,6 +124,9 @@ class Plan:
             in size (the calibration setting's N is not in the held-out grid).
         knee_nodes: the DES's finer N grid for its knee prediction.
         cells: the cells (built from the fields above).
+        retry_loaded: times a live cell that ran under load runs again (0..3): its
+            loaded run is set aside and the cell run anew, at once or, for a cell kept
+            from an earlier invocation, when the suite resumes.
     """
 
     methods: tuple[str, ...]
@@ -137,6 +140,7 @@ class Plan:
     cells: tuple[Cell, ...] = field(default=())
     cell_repeats: int = 1
     cal_bundle: bool = False
+    retry_loaded: int = 1
 
     def __post_init__(self) -> None:
         if not 0 <= self.warmup < self.duration:
@@ -146,6 +150,8 @@ class Plan:
             raise ConfigError("--repeats", f"must be >= 1, got {self.repeats}")
         if not 1 <= self.cell_repeats <= 5:
             raise ConfigError("--cell-repeats", f"must be in 1..5, got {self.cell_repeats}")
+        if not 0 <= self.retry_loaded <= 3:
+            raise ConfigError("--retry-loaded", f"must be in 0..3, got {self.retry_loaded}")
         if not self.cells:
             object.__setattr__(self, "cells", self._build())
 
@@ -213,20 +219,21 @@ class Plan:
 
 
 def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1.0,
-              cell_repeats: int = 2, cal_bundle: bool = False) -> Plan:
+              cell_repeats: int = 2, cal_bundle: bool = False, retry_loaded: int = 1) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
     N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
                 knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150),
-                cell_repeats=cell_repeats, cal_bundle=cal_bundle)
+                cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded)
 
 
 def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5,
-               cell_repeats: int = 1, cal_bundle: bool = False) -> Plan:
-    """A smoke run: calibration at N = 4 twice, N = 6 both modes, no impairments."""
+               cell_repeats: int = 1, cal_bundle: bool = False, retry_loaded: int = 0) -> Plan:
+    """A smoke run: calibration at N = 4 twice, N = 6 both modes, no impairments, no
+    retries of loaded runs."""
     plan = Plan(methods, duration, warmup, cal_nodes=4, nodes=(6,), extra_nodes=6,
                 repeats=2, knee_nodes=(4, 6, 8), cell_repeats=cell_repeats,
-                cal_bundle=cal_bundle)
+                cal_bundle=cal_bundle, retry_loaded=retry_loaded)
     return plan.select("cal-r*,n6-*")

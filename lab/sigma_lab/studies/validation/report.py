@@ -45,6 +45,7 @@ from sigma_lab.studies.validation.grid import Plan
 from sigma_lab.studies.validation.kneeplot import knee_plot
 from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
+from sigma_lab.studies.validation.runs import UNDER_LOAD, under_load
 from sigma_lab.studies.validation.scoring import (
     BAND,
     KNEE_MISSED,
@@ -64,21 +65,11 @@ from sigma_lab.studies.validation.suite import Outcome, des_key
 
 __all__ = ["UNDER_LOAD", "cell_rows", "knee_rows", "noise_rows", "under_load", "write_outputs"]
 
-#: Background CPU above this share of the cores marks a live run as under load.
-UNDER_LOAD = 0.25
 COLUMNS = ("cell", "mode", "nodes", "hosts", "impairment", "held_out", "method", "metric",
            "regime",
            "live", "des", "rel_error", "error_unit", "live_runs", "noise_floor", "floor_source",
            "passed", "within_band", "rule", "load", "background_cores", "under_load", "seed",
            "config_hash", "live_config_hash", "version")
-
-
-def under_load(live: dict[str, Any], cores: int) -> bool:
-    """See the module doc."""
-    bg = live.get("background_cores", math.nan)
-    if isinstance(bg, float) and math.isfinite(bg):
-        return bg > UNDER_LOAD * cores
-    return float(live.get("load_before", 0.0)) > cores
 
 
 def _repeats(plan: Plan, live: dict[str, dict[str, Any]], method: str, metric: str

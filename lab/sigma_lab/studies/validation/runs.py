@@ -36,9 +36,10 @@ from sigma_des.version import __version__
 from sigma_lab.studies.validation.grid import EXTRA_LATENCY_S, Cell, Plan
 from sigma_lab.studies.validation.scoring import METRICS
 
-__all__ = ["MissedTap", "background_cores", "bounded_run", "calibrate_run", "des_cell",
-           "des_figures", "des_scenario", "live_cell", "live_timeout", "load_calibration",
-           "read_json", "shift_host_link", "warm_up", "write_json"]
+__all__ = ["UNDER_LOAD", "MissedTap", "background_cores", "bounded_run", "calibrate_run",
+           "des_cell", "des_figures", "des_scenario", "live_cell", "live_timeout",
+           "load_calibration", "read_json", "shift_host_link", "under_load", "warm_up",
+           "write_json"]
 
 #: Keys every live run gets besides the cell's own (no fidelity: not compared).
 LIVE_BASE = ("fidelity.enabled=false",)
@@ -102,6 +103,10 @@ def _stop(p: subprocess.Popen[bytes]) -> int:
         return p.wait(timeout=GRACE_S)
 
 
+#: Background CPU above this share of the cores marks a live run as under load.
+UNDER_LOAD = 0.25
+
+
 def live_timeout(plan: Plan) -> float:
     """A live cell's time limit: 60 s of start-up plus, per method, its run and 30 s
     (ready, idle window, stop and the hosts' reports, all bounded by the runner)."""
@@ -117,6 +122,17 @@ def background_cores(summary: dict[str, Any]) -> float:
             if r.get("process") == "background" and r.get("window_s", 0) > 0:
                 vals.append(float(r["cpu_s"]) / float(r["window_s"]))
     return float(np.mean(vals)) if vals else math.nan
+
+
+def under_load(live: dict[str, Any], cores: int) -> bool:
+    """Whether a live run ran under load: the background CPU during its metrics window
+    (other processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the
+    machine's ``cores``, or, without that table, the 1-min load average before it
+    exceeds the core count."""
+    bg = live.get("background_cores", math.nan)
+    if isinstance(bg, float) and math.isfinite(bg):
+        return bg > UNDER_LOAD * cores
+    return float(live.get("load_before", 0.0)) > cores
 
 
 def live_cell(cell: Cell, plan: Plan, out: Path) -> dict[str, Any]:

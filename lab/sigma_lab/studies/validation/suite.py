@@ -21,6 +21,8 @@ Progress goes to stderr, one line per piece.
 from __future__ import annotations
 
 import hashlib
+import os
+import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -35,12 +37,14 @@ from sigma_lab.studies.validation.runs import (
     live_cell,
     load_calibration,
     read_json,
+    under_load,
     warm_up,
     write_json,
 )
 from sigma_lab.studies.validation.scoring import central
 
-__all__ = ["Outcome", "calibration_cell", "calibration_kept", "des_key", "run_suite", "runs_stamp"]
+__all__ = ["Outcome", "calibration_cell", "calibration_kept", "des_key", "run_again", "run_suite",
+           "runs_stamp", "set_aside"]
 
 Say = Callable[[str], None]
 #: What the report needs: live figures per cell, DES figures per key, the calibration.
@@ -60,29 +64,69 @@ def _clock(s: float) -> str:
     return f"{int(s // 60)}:{int(s % 60):02d}"
 
 
+def run_again(res: dict[str, Any] | None, plan: Plan, cores: int) -> bool:
+    """Whether a live cell runs (again): it has no finished run, or its run was under
+    load (:func:`~sigma_lab.studies.validation.runs.under_load`) and it has been tried
+    at most :attr:`Plan.retry_loaded` times (``tries`` in its figures; 1 if absent)."""
+    if res is None or not res.get("methods"):
+        return True
+    return under_load(res, cores) and int(res.get("tries", 1)) <= plan.retry_loaded
+
+
+def set_aside(out: Path, cell: str, tries: int) -> Path:
+    """Move a loaded live run of ``cell`` (``live/<cell>/``) to ``loaded/<cell>-<tries>/``,
+    outside ``live/`` (whose copies of a cell the reports read); the destination."""
+    dest = out / "loaded" / f"{cell}-{tries}"
+    src = out / "live" / cell
+    if src.exists():
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(dest, ignore_errors=True)
+        src.rename(dest)
+    return dest
+
+
 def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
     live: dict[str, dict[str, Any]] = {}
     per = plan.estimate() / max(1, len(plan.cells))
+    cores = os.cpu_count() or 1
     for i, cell in enumerate(plan.cells, 1):
         path = out / "cells" / f"{cell.name}.live.json"
-        kept = read_json(path)
-        if kept is not None and kept.get("methods"):
-            live[cell.name] = kept
-            say(f"[{i}/{len(plan.cells)}] live {cell.name}: kept from an earlier run")
-        else:
-            say(f"[{i}/{len(plan.cells)}] live {cell.name}: N = {cell.nodes} on {cell.hosts} "
-                f"hosts, {cell.mode} messages{', ' + cell.impairment if cell.impairment else ''}"
-                f", {len(plan.methods)} methods x {plan.duration:g} s ...")
-            res = live_cell(cell, plan, out / "live" / cell.name)
-            write_json(path, res)
+        res = read_json(path)
+        res = res if isinstance(res, dict) and res.get("methods") else None
+        if not run_again(res, plan, cores):
+            assert res is not None
             live[cell.name] = res
-            note = " TIMED OUT" if res["timed_out"] else ""
-            note += f" exit {res['exit']}" if res["exit"] else ""
-            say(f"    done in {res['wall_s']:.0f} s{note}; load {res['load_before']:.1f} -> "
-                f"{res['load_after']:.1f}, background {res['background_cores']:.2f} cores; "
-                f"elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
+            say(f"[{i}/{len(plan.cells)}] live {cell.name}: kept from an earlier run")
+            continue
+        while run_again(res, plan, cores):
+            tries = 1
+            if res is not None:
+                tries = int(res.get("tries", 1)) + 1
+                aside = set_aside(out, cell.name, tries - 1)
+                say(f"[{i}/{len(plan.cells)}] live {cell.name}: ran under load (background "
+                    f"{res['background_cores']:.2f} cores): again, try {tries} of "
+                    f"{plan.retry_loaded + 1} (the loaded run in {aside.relative_to(out)})")
+            res = _live_one(plan, cell, out, say, f"[{i}/{len(plan.cells)}]")
+            res["tries"] = tries
+            write_json(path, res)
+            say(f"    elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
                 f"{_clock(per * (len(plan.cells) - i))}")
+        assert res is not None
+        live[cell.name] = res
     return live
+
+
+def _live_one(plan: Plan, cell: Cell, out: Path, say: Say, tag: str) -> dict[str, Any]:
+    """Run one live cell, saying what and how it went."""
+    say(f"{tag} live {cell.name}: N = {cell.nodes} on {cell.hosts} hosts, {cell.mode} "
+        f"messages{', ' + cell.impairment if cell.impairment else ''}, "
+        f"{len(plan.methods)} methods x {plan.duration:g} s ...")
+    res = live_cell(cell, plan, out / "live" / cell.name)
+    note = " TIMED OUT" if res["timed_out"] else ""
+    note += f" exit {res['exit']}" if res["exit"] else ""
+    say(f"    done in {res['wall_s']:.0f} s{note}; load {res['load_before']:.1f} -> "
+        f"{res['load_after']:.1f}, background {res['background_cores']:.2f} cores")
+    return res
 
 
 def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
