@@ -95,6 +95,45 @@ def uniform_rows(key: np.uint64, kind: np.int64, subjects: np.ndarray, index: np
 
 
 @njit(cache=True)
+def uniform_grid(key: np.uint64, kind: np.int64, subjects: np.ndarray, index: np.ndarray,
+                 attempt: np.ndarray) -> np.ndarray:
+    """``Stream.uniform(kind, subjects, index[r], attempt[j])`` at ``[r, j]``: a grid of
+    keys, ``(len(index), len(attempt), len(subjects))``, each row the bits of
+    :func:`uniform_rows` of its key."""
+    n = subjects.shape[0]
+    out = np.empty((index.shape[0], attempt.shape[0], n))
+    h0 = absorb(key, kind)
+    for c in range(n):
+        h1 = absorb(h0, subjects[c])
+        for r in range(index.shape[0]):
+            h2 = absorb(h1, index[r])
+            for j in range(attempt.shape[0]):
+                out[r, j, c] = to_uniform(absorb(h2, attempt[j]))
+    return out
+
+
+@njit(cache=True)
+def uniform_tables(keys: np.ndarray, kinds: np.ndarray, widths: np.ndarray, first: np.int64,
+                   rows: np.int64) -> np.ndarray:
+    """The uniforms of several streams' draw blocks in one call: table ``t`` (stream key
+    ``keys[t]``, kind ``kinds[t]``, subjects ``0 .. widths[t]-1``) holds ``rows`` indices
+    from ``first`` on, attempt 0, as :func:`uniform_rows` draws them (the same bits),
+    row-major at offset ``rows * sum(widths[:t])`` of the flat result."""
+    out = np.empty(rows * widths.sum())
+    off = 0
+    for t in range(keys.shape[0]):
+        w = widths[t]
+        h0 = absorb(keys[t], kinds[t])
+        for c in range(w):
+            h1 = absorb(h0, np.int64(c))
+            for r in range(rows):
+                h2 = absorb(h1, first + r)
+                out[off + r * w + c] = to_uniform(absorb(h2, np.int64(0)))
+        off += rows * w
+    return out
+
+
+@njit(cache=True)
 def uniform3(key: np.uint64, a: np.int64, b: np.int64, c: np.int64) -> float:
     """``Stream.uniform(a, b, c)`` for the stream whose key is ``key``."""
     return to_uniform(absorb(absorb(absorb(key, a), b), c))

@@ -35,6 +35,7 @@ Sampler = Callable[[NDArray[np.int64], int, int, int], NDArray[np.float64]]
 Quantile = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
 _ROWS: list[Callable[..., NDArray[np.float64]]] = []
+_GRID: list[Callable[..., NDArray[np.float64]]] = []
 
 
 def _uniform_rows() -> Callable[..., NDArray[np.float64]]:
@@ -44,6 +45,15 @@ def _uniform_rows() -> Callable[..., NDArray[np.float64]]:
 
         _ROWS.append(uniform_rows)
     return _ROWS[0]
+
+
+def _uniform_grid() -> Callable[..., NDArray[np.float64]]:
+    """The compiled grid of a stream's uniforms (numba: imported on first use)."""
+    if not _GRID:
+        from sigma_des.core.counter_rng import uniform_grid
+
+        _GRID.append(uniform_grid)
+    return _GRID[0]
 
 
 def _subjects(n: int) -> NDArray[np.int64]:
@@ -157,11 +167,8 @@ class DrawCache:
                 out[r] = self.block(kind, int(idx[r]), att)
             return out
         key, quantile = self.uniforms
-        u = _uniform_rows()(key, np.int64(kind), self._subjects, np.repeat(idx, att.size),
-                            np.tile(att, idx.size))  # row r * len(att) + j: (idx[r], att[j])
-        if quantile is not None:
-            u = np.ascontiguousarray(quantile(u), dtype=np.float64)
-        return u.reshape(idx.size, att.size, n)
+        u = _uniform_grid()(key, np.int64(kind), self._subjects, idx, att)
+        return u if quantile is None else np.ascontiguousarray(quantile(u), dtype=np.float64)
 
 
 class DrawBlock:

@@ -76,3 +76,41 @@ def test_command_draws_write_the_rows_of_drawtables_fill(blockable: bool) -> Non
         np.testing.assert_array_equal(fast.tags, ref.tags)
     assert fast.tags[3].tolist() == [130, 66, 62, 3, 64]  # the command table, row k % 5
     assert fast.tags[0].tolist() == [-1] * 5  # the trigger's: untouched
+
+
+def _stream_tables(seed: int) -> DrawTables:
+    """Tables of real streams (each cache ``quantile(uniform)`` of its stream, widths 6
+    and 5): normal and lognormal latencies, uniform loss draws, the compute stream."""
+    from sigma_des.core.rng import RandomStreams
+    from sigma_des.net.latency import Dist
+    from sigma_des.net.links import dist_cache
+
+    streams = RandomStreams(seed)
+    lat = dist_cache(6, Dist("normal", mean=0.2, std=0.04), streams, "lat.a")
+    step = dist_cache(5, Dist("lognormal", mean=0.002, std=0.001), streams, "compute")
+    u = streams.stream("lossu.a")
+    loss = DrawCache(6, lambda s, k, i, a: u.uniform(k, s, i, a), blockable=True,
+                     uniforms=(u.key, None))
+    expo = dist_cache(6, Dist("exponential", mean=0.01), streams, "lat.b")
+    return DrawTables([(SVC_PUB, K_TRIGGER, lat), (SVC_DEL, K_TRIGGER, loss),
+                       (SVC_PUB, K_STATE, expo), (SVC_PUB, K_COMMAND, lat), (STEP, 0, step)],
+                      history=7, subjects=6)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_frame_draws_of_streams_in_one_call_hold_each_keys_vector(seed: int) -> None:
+    """The tables' uniforms drawn in one call: every row holds the bits of its cache's
+    vector of the row's key (the per-message engine's draw), block after block."""
+    tables = _stream_tables(seed)
+    frames = FrameDraws(tables, KINDS)
+    ticks = FrameDraws(tables, (K_COMMAND,))
+    assert frames._merged is not None and ticks._merged is not None
+    fills = [(c, cache, kind) for k in (*KINDS, K_COMMAND) for c, cache, kind in tables.fills_of(k)]
+    for k in (0, 1, 5, 63, 64, 65, 130, 129, 6):
+        frames.fill(k)
+        ticks.fill(k)
+        row = k % 7
+        for c, cache, kind in fills:
+            want = cache.vector(kind, k, 0)
+            assert tables.tags[c, row] == k
+            assert tables.values[c, row, : want.size].tobytes() == want.tobytes(), (c, k)
