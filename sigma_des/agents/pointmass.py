@@ -78,8 +78,10 @@ def _observe_rows(state: np.ndarray, out: np.ndarray) -> None:
 
 @njit(cache=True, _nrt=False)  # type: ignore[call-overload]
 def _observe_row(s: np.ndarray, o: np.ndarray) -> None:
-    """:meth:`PointMass.observe` of state row ``s`` written into ``o``: the same libm
-    ``hypot`` and ``atan2`` the numpy ufuncs call, the other columns zero."""
+    """:meth:`PointMass.observe` of state row ``s`` written into ``o``: the C library's
+    ``hypot`` and ``atan2`` (Python's ``math``), the other columns zero. Every path
+    observes through this kernel: numpy's float64 ufuncs are SIMD code on AVX-512
+    machines and differ from the C library's in the last bit there."""
     vn, ve, vh = s[3], s[4], s[5]
     for c in range(o.shape[0]):
         o[c] = 0.0
@@ -236,14 +238,9 @@ class PointMass:
         _observe_rows(state, out)
 
     def observe(self, state: NDArray[np.float64]) -> NDArray[np.float64]:
-        n = state.shape[0]
-        obs = np.zeros((n, 12))
-        vn, ve, vh = state[:, 3], state[:, 4], state[:, 5]
-        psi = np.arctan2(ve, vn)
-        obs[:, 0] = np.hypot(vn, ve)
-        obs[:, 2] = -vh
-        obs[:, 5] = psi
-        obs[:, 9] = state[:, 0]
-        obs[:, 10] = state[:, 1]
-        obs[:, 11] = state[:, 2]
+        """``[speed, 0, -vh, 0, 0, psi, 0, 0, 0, x, y, h]`` of each row: ``speed =
+        hypot(vn, ve)``, ``psi = atan2(ve, vn)`` (the compiled kernel every path uses,
+        :func:`_observe_row`)."""
+        obs = np.empty((state.shape[0], 12))
+        _observe_rows(np.ascontiguousarray(state, dtype=np.float64), obs)
         return obs
