@@ -16,9 +16,17 @@ messages ahead of a message, so ``(m_target - 1) / (m_cal - 1)``.
 :func:`scale_state_hops` multiplies every state-hop sample by
 ``floor + (1 - floor) · ratio`` (:func:`state_hop_factor`); the trigger and command
 hops carry no host burst and are kept. Never rescaled: a calibration at one node per
-host (no burst seen) and a bundled target (its turn leaves in one PUBLISH or a few).
-Rules and measurements: docs/concepts/decisions.md ("State hops scaled with the
-host's burst").
+host (no burst seen).
+
+A bundled target's turn leaves in a few PUBLISHes, not a burst of ``m``, yet live's
+bundled states take longer from stamp to server than the simulation of its bundles
+says, by more the more nodes a host has. A campaign with a bundled run measures that
+excess: :func:`~sigma_des.calibrate.match.match_bundled` scales the state hops until
+the simulation re-predicts the bundled run (``bundle_hop_scale`` ``f`` at its
+``bundle_hop_nodes_per_host`` ``m_b``), and a bundled target's state hops are
+multiplied by ``1 + (f - 1) · (m - 1) / (m_b - 1)`` (:func:`bundle_hop_factor`). Rules
+and measurements: docs/concepts/decisions.md ("State hops scaled with the host's
+burst", "Bundled state hops matched on a bundled run").
 """
 
 from __future__ import annotations
@@ -34,8 +42,8 @@ import pandas as pd
 from sigma_des.config import Scenario
 from sigma_des.net.latency import Dist, load_samples
 
-__all__ = ["burst_ratio", "calibration_nodes_per_host", "floor_share", "scale_state_hops",
-           "state_hop_factor"]
+__all__ = ["bundle_hop_factor", "burst_ratio", "calibration_nodes_per_host", "floor_share",
+           "scale_state_hops", "state_hop_factor"]
 
 
 def calibration_nodes_per_host(cal: Scenario, report: dict[str, Any]) -> float:
@@ -84,6 +92,20 @@ def state_hop_factor(m_cal: float, m_target: float, floor: float) -> float:
     scaled by :func:`burst_ratio` (``floor`` outside ``[0, 1]`` or NaN: 0)."""
     f = floor if math.isfinite(floor) and 0.0 <= floor <= 1.0 else 0.0
     return f + (1.0 - f) * burst_ratio(m_cal, m_target)
+
+
+def bundle_hop_factor(report: dict[str, Any], m_target: float) -> float:
+    """What a bundled target's state-hop samples are multiplied by:
+    ``1 + (f - 1) · burst_ratio(m_b, m_target)`` with ``f`` the report's
+    ``bundle_hop_scale`` and ``m_b`` its ``bundle_hop_nodes_per_host``; 1 when the
+    calibration matched no bundled run (either missing or not a finite positive
+    number). Never below 0."""
+    f = report.get("bundle_hop_scale")
+    m_b = report.get("bundle_hop_nodes_per_host")
+    if not (isinstance(f, int | float) and isinstance(m_b, int | float)
+            and math.isfinite(f) and math.isfinite(m_b) and f > 0 and m_b > 0):
+        return 1.0
+    return max(1.0 + (float(f) - 1.0) * burst_ratio(float(m_b), m_target), 0.0)
 
 
 def scale_state_hops(sc: Scenario, ratio: float, d: Path) -> Scenario:

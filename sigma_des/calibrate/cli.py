@@ -104,6 +104,11 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
         sc, matched = match_hops(sc, sources[primary], out_dir)
         report.update(matched)
+        bundled = _match_bundled(sc, report, fits, sources, primary)
+        report.update(bundled)
+        if "bundle_hop_run" in bundled:
+            report.setdefault("parameter_sources", {})[
+                "bundled targets' state-hop factor"] = [bundled["bundle_hop_run"]]
     if not args.no_check:
         rows, warn = _in_sample(sc, report, fits, sources, primary)
         report["in_sample"] = rows
@@ -156,6 +161,21 @@ def _combined(fits: list[Any], out_dir: Path) -> tuple[Any, dict[str, Any], int]
     from sigma_des.calibrate.campaign import combine
 
     return combine(fits, out_dir)
+
+
+def _match_bundled(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],
+                   primary: int) -> dict[str, Any]:
+    """A campaign whose hops were matched on a per-node run and that has a bundled run:
+    the bundled targets' state-hop factor matched on its first bundled run
+    (:func:`~sigma_des.calibrate.match.match_bundled`); nothing otherwise (the hops
+    already are a bundled run's, or no bundled run shows the excess)."""
+    from sigma_des.calibrate.match import match_bundled
+
+    bundled = [i for i, (_s, _r, info) in enumerate(fits) if info["bundle"]]
+    if not bundled or fits[primary][2]["bundle"]:
+        return {}
+    i = bundled[0]
+    return match_bundled(sc, report, fits[i][0], sources[i], fits[i][2]["name"])
 
 
 def _in_sample(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],

@@ -44,7 +44,8 @@ from sigma_des.guard import atomic_write, output_file
 from sigma_des.net.latency import Dist, load_samples
 from sigma_des.net.spec import LinkSpec
 
-__all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_hops"]
+__all__ = ["K_MAX", "K_MIN", "MATCH_ROUNDS", "MATCH_TOL", "SIDE_MAX", "match_bundled",
+           "match_hops"]
 
 #: Rounds of DES runs at most.
 MATCH_ROUNDS = 16
@@ -239,3 +240,55 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
               **{f"{n}_live_{unit[n]}": live[n] for n in names},
               **{f"{n}_des_{unit[n]}": des[n] for n in names}}
     return out, report
+
+
+def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: Path,
+                  name: str) -> dict[str, Any]:
+    """Scale the state hops of ``sc`` (matched on a per-node run) prepared for a bundled
+    run of the campaign until the DES re-predicts that run's mean state latency
+    (pooled over its methods, the run's own background): the factor a bundled target
+    gets at that run's nodes per host (:func:`~sigma_des.calibrate.burst.bundle_hop_factor`).
+
+    Args:
+        sc: the calibrated scenario after :func:`match_hops`.
+        report: its report (any earlier ``bundle_hop_*`` keys are ignored).
+        own: the bundled run's own fit (its size, hosts, window, seed, background).
+        source: the bundled live run.
+        name: the run's name, for the report.
+
+    Returns:
+        ``bundle_hop_scale`` (the factor), ``bundle_hop_nodes_per_host``,
+        ``bundle_hop_run``, the rounds and the live and DES pooled means (ms); or
+        ``bundle_hop_match`` saying why it was skipped.
+    """
+    import tempfile
+
+    from sigma_des.calibrate.burst import scale_state_hops
+    from sigma_des.calibrate.target import prepare
+
+    live, _ = _live_means(source, own)
+    rep = {k: v for k, v in report.items() if not k.startswith("bundle_hop_")}
+    base = prepare(sc, rep, [f"nodes={own.nodes}", f"hosts={own.hosts}",
+                             f"duration={own.duration}", f"warmup={own.warmup}",
+                             f"seed={own.seed}"], bundle=True)
+    base = replace(base, deployment=replace(base.deployment,
+                                            background=own.deployment.background))
+    up, down = base.net.host_link.latency, base.net.server_link.latency_down
+    if (up.dist != "empirical" or down is None or down.dist != "empirical"
+            or not math.isfinite(live)):
+        return {"bundle_hop_match": "skipped (no empirical state hops or no live latency)"}
+    hop = float(np.mean(load_samples(up.file))) + float(np.mean(load_samples(down.file)))
+    methods = list(base.methods)
+    k, des, rounds = 1.0, math.nan, 0
+    tried: list[tuple[float, float]] = []
+    with tempfile.TemporaryDirectory(prefix="sigma_des_bundled_") as tmp:
+        for rounds in range(1, MATCH_ROUNDS + 1):
+            des = _des_means(scale_state_hops(base, k, Path(tmp)), methods)["hop_up"]
+            if abs(des - live) <= MATCH_TOL * live or rounds == MATCH_ROUNDS:
+                break
+            tried.append((k, des))
+            first = k + (live - des) / 1000.0 / hop if hop > 0 else k
+            k = _next_scale(tried, live, first)
+    return {"bundle_hop_scale": k, "bundle_hop_nodes_per_host": own.nodes / own.hosts,
+            "bundle_hop_run": name, "bundle_hop_rounds": rounds, "bundle_hop_live_ms": live,
+            "bundle_hop_des_ms": des}

@@ -12,9 +12,10 @@ makes is the one the validation scored:
 * the broker's per-delivery service for the target
   (:func:`~sigma_des.calibrate.fit.for_target`: rescaled to ``hosts / nodes`` unless the
   DES has one client per host);
-* with one PUBLISH per state, the state hops' samples scaled to the target's nodes
-  per host (:mod:`sigma_des.calibrate.burst`: they hold the wait behind the host's
-  burst; bundled messages keep them as calibrated);
+* the state hops' samples scaled to the target's nodes per host
+  (:mod:`sigma_des.calibrate.burst`): with one PUBLISH per state, by the wait behind
+  the host's burst they hold; bundled, by the excess the calibration's bundled run
+  showed (none without one);
 * an added latency (``--add-latency``) shifts every calibrated host-link sample by that
   much in both directions (:func:`shift_host_link`), as the live shim adds it to each
   host-link crossing.
@@ -36,7 +37,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.calibrate.burst import calibration_nodes_per_host, scale_state_hops, state_hop_factor
+from sigma_des.calibrate.burst import (
+    bundle_hop_factor,
+    calibration_nodes_per_host,
+    scale_state_hops,
+    state_hop_factor,
+)
 from sigma_des.calibrate.fit import for_target
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
@@ -105,9 +111,13 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
-    ratio = state_hop_factor(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts,
-                             float(report.get("hop_floor_share", 0.0)))
-    if ratio != 1.0 and not sc.deployment.bundle:  # a bundled turn is no burst of m
+    m = sc.nodes / sc.hosts
+    if sc.deployment.bundle:  # a bundled turn is no burst of m: its own excess
+        ratio = bundle_hop_factor(report, m)
+    else:
+        ratio = state_hop_factor(calibration_nodes_per_host(cal, report), m,
+                                 float(report.get("hop_floor_share", 0.0)))
+    if ratio != 1.0:
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())
     if add_latency_s > 0.0:
         sc = shift_host_link(sc, add_latency_s, samples_dir or _own_dir())

@@ -1,20 +1,31 @@
-"""The hop-latency and CPU match's steps (sigma_des/live/match.py), by hand."""
+"""The hop-latency and CPU match's steps (sigma_des/calibrate/match.py), by hand, and
+the bundled run's match on a small DES."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from sigma_des import load
+from sigma_des.api import run_method
 from sigma_des.calibrate.match import (
     K_MAX,
     K_MIN,
+    MATCH_TOL,
     SIDE_MAX,
     _first,
     _live_cpu,
     _next_scale,
     _pairs,
+    match_bundled,
 )
+from sigma_des.calibrate.target import prepare
+from sigma_des.config import Scenario
+from sigma_des.net.latency import Dist
 
 MEAN = {"hop_up": 1e-3}
 
@@ -87,3 +98,41 @@ def test_a_pair_counts_only_while_the_other_scales_stay_where_they_are() -> None
     now = {"hop_up": 0.6, "server": 1.52}
     assert _pairs(tried, now, "hop_up") == [(0.5, 2.9), (0.6, 3.5)]
     assert _pairs(tried, now, "server") == [(1.51, 0.43)]
+
+
+def _bundled_cal(tmp: Path) -> Scenario:
+    """A calibrated scenario (N = 4 on 2 hosts, one method, 1 s) whose state hops are
+    empirical samples: 1 ms and 3 ms up to the broker and on to the server."""
+    hop, trig = tmp / "hop_up.txt", tmp / "hop_down.txt"
+    np.savetxt(hop, [0.001, 0.003])
+    np.savetxt(trig, [0.0002])
+    sc = load(None, ["nodes=4", "hosts=2", "duration=1.0", "warmup=0.5",
+                     'methods=["none"]'])
+    up, down = Dist(dist="empirical", file=str(hop)), Dist(dist="empirical", file=str(trig))
+    net = sc.net
+    return replace(sc, net=replace(
+        net, host_link=replace(net.host_link, latency=up, latency_down=down),
+        server_link=replace(net.server_link, latency=down, latency_down=up)))
+
+
+def test_the_bundled_run_is_matched_by_scaling_the_state_hops(tmp_path: Path) -> None:
+    """The live run's pooled state latency is the DES's own at 1.5 times the state hops:
+    the match finds the factor within its tolerance (the hops are pure delays, so the
+    latency is linear in it), at that run's nodes per host; a run without a live
+    latency is skipped, saying so."""
+    cal = _bundled_cal(tmp_path)
+    rep = {"delivery_service_per_client_s": 2e-5}
+    want = prepare(cal, {**rep, "bundle_hop_scale": 1.5, "bundle_hop_nodes_per_host": 2.0},
+                   [], bundle=True, samples_dir=tmp_path / "w")
+    live = float(run_method(want, "none")["metrics"]["latency_state_mean"])
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "summary.json").write_text(json.dumps(
+        {"methods": {"none": {"latency_state_mean": live}}}))
+    got = match_bundled(cal, {**rep, "bundle_hop_scale": 9.0}, cal, run, "run")
+    assert got["bundle_hop_nodes_per_host"] == 2.0 and got["bundle_hop_run"] == "run"
+    assert abs(got["bundle_hop_des_ms"] - live) <= MATCH_TOL * live
+    assert got["bundle_hop_scale"] == pytest.approx(1.5, abs=0.1)
+    assert 2 <= got["bundle_hop_rounds"] <= 4
+    (run / "summary.json").write_text(json.dumps({"methods": {"none": {}}}))
+    assert "skipped" in match_bundled(cal, rep, cal, run, "run")["bundle_hop_match"]
