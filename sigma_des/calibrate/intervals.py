@@ -39,8 +39,10 @@ __all__ = ["COVERAGE", "NEAR_MISSED", "NEAR_UTIL", "PP_METRICS", "Interval", "Re
            "interval", "load_residuals", "lookup", "regime", "residual_bounds",
            "residuals_toml"]
 
-#: The coverage the intervals are built for.
-COVERAGE = 0.80
+#: The coverage the intervals are built for: above the 80 % a validation checks they
+#: reach, because a regime has only 13-26 validated residuals and the measured share of
+#: intervals built for exactly 80 % falls below 80 % about as often as above it.
+COVERAGE = 0.85
 #: A DES machine CPU utilisation at or above this puts a prediction near capacity.
 NEAR_UTIL = 0.70
 #: So does a predicted missed-frame fraction at or above this.

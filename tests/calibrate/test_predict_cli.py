@@ -103,11 +103,12 @@ def test_predict_writes_results_and_intervals(cal: Path, tmp_path: Path,
     assert [(r["seed"], r["metric"]) for r in rows][:2] == [("3", "aoi_mean"), ("3", "aoi_p99")]
     assert len(rows) == 2 * 5
     summ = json.loads((out / "summary.json").read_text())
-    table, _ = load_residuals()
+    table, meta = load_residuals()
     m = summ["methods"]["none"]
     for k in ("aoi_mean", "latency_state_mean", "missed_frac"):
         vals = [float(r["value"]) for r in rows if r["metric"] == k]
-        iv = interval(k, vals, lookup(table, k, m["regime"]))
+        # at the coverage the residuals file was written for, as predict builds them
+        iv = interval(k, vals, lookup(table, k, m["regime"]), float(meta["coverage"]))
         assert (m[k]["mean"], m[k]["lo"], m[k]["hi"]) == pytest.approx((iv.mean, iv.lo, iv.hi))
         assert m[k]["residual"]["source"]
 

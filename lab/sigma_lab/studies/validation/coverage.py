@@ -28,10 +28,13 @@ from typing import Any
 
 from sigma_des.calibrate.intervals import COVERAGE, PP_METRICS, Residual, interval, residual_bounds
 
-__all__ = ["MIN_OTHERS", "coverage_rows", "residual_values"]
+__all__ = ["MIN_OTHERS", "TARGET", "coverage_rows", "residual_values"]
 
 #: Fewest other rows of a regime whose residuals make an interval (else every regime's).
 MIN_OTHERS = 4
+#: The share of held-out live values the intervals must hold (they are built for
+#: :data:`~sigma_des.calibrate.intervals.COVERAGE`).
+TARGET = 0.80
 
 
 def _scored(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -77,5 +80,6 @@ def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
         out.append({"metric": k, "cells": n, "covered": hits,
                     "share": hits / n if n else math.nan,
                     "median_width": statistics.median(ok) if ok else math.nan,
-                    "width_unit": "pp" if k in PP_METRICS else "rel", "target": coverage})
+                    "width_unit": "pp" if k in PP_METRICS else "rel", "built_for": coverage,
+                    "target": TARGET})
     return out
