@@ -20,11 +20,11 @@ host (no burst seen).
 
 A bundled target's turn leaves in a few PUBLISHes, not a burst of ``m``, yet live's
 bundled states take longer from stamp to server than the simulation of its bundles
-says, by more the more nodes a host has. A campaign with a bundled run measures that
-excess: :func:`~sigma_des.calibrate.match.match_bundled` scales the state hops until
-the simulation re-predicts the bundled run (``bundle_hop_scale`` ``f`` at its
-``bundle_hop_nodes_per_host`` ``m_b``), and a bundled target's state hops are
-multiplied by ``1 + (f - 1) · (m - 1) / (m_b - 1)`` (:func:`bundle_hop_factor`). Rules
+says, by more the more states the server takes a frame. A campaign with a bundled run
+measures that excess: :func:`~sigma_des.calibrate.match.match_bundled` scales the state
+hops until the simulation re-predicts the bundled run (``bundle_hop_scale`` ``f`` at its
+``bundle_hop_nodes`` ``N_b``), and a bundled target of ``N`` nodes has its state hops
+multiplied by ``1 + (f - 1) · (N - 1) / (N_b - 1)`` (:func:`bundle_hop_factor`). Rules
 and measurements: docs/concepts/decisions.md ("State hops scaled with the host's
 burst", "Bundled state hops matched on a bundled run").
 """
@@ -94,18 +94,19 @@ def state_hop_factor(m_cal: float, m_target: float, floor: float) -> float:
     return f + (1.0 - f) * burst_ratio(m_cal, m_target)
 
 
-def bundle_hop_factor(report: dict[str, Any], m_target: float) -> float:
-    """What a bundled target's state-hop samples are multiplied by:
-    ``1 + (f - 1) · burst_ratio(m_b, m_target)`` with ``f`` the report's
-    ``bundle_hop_scale`` and ``m_b`` its ``bundle_hop_nodes_per_host``; 1 when the
+def bundle_hop_factor(report: dict[str, Any], n_target: float) -> float:
+    """What the state-hop samples of a bundled target of ``n_target`` nodes are
+    multiplied by: ``1 + (f - 1) · burst_ratio(N_b, n_target)`` with ``f`` the report's
+    ``bundle_hop_scale`` and ``N_b`` its ``bundle_hop_nodes`` (the states ahead of one
+    in the server's frame, as :func:`burst_ratio` counts a host's); 1 when the
     calibration matched no bundled run (either missing or not a finite positive
     number). Never below 0."""
     f = report.get("bundle_hop_scale")
-    m_b = report.get("bundle_hop_nodes_per_host")
-    if not (isinstance(f, int | float) and isinstance(m_b, int | float)
-            and math.isfinite(f) and math.isfinite(m_b) and f > 0 and m_b > 0):
+    n_b = report.get("bundle_hop_nodes")
+    if not (isinstance(f, int | float) and isinstance(n_b, int | float)
+            and math.isfinite(f) and math.isfinite(n_b) and f > 0 and n_b > 0):
         return 1.0
-    return max(1.0 + (float(f) - 1.0) * burst_ratio(float(m_b), m_target), 0.0)
+    return max(1.0 + (float(f) - 1.0) * burst_ratio(float(n_b), n_target), 0.0)
 
 
 def scale_state_hops(sc: Scenario, ratio: float, d: Path) -> Scenario:

@@ -247,7 +247,7 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
     """Scale the state hops of ``sc`` (matched on a per-node run) prepared for a bundled
     run of the campaign until the DES re-predicts that run's mean state latency
     (pooled over its methods, the run's own background): the factor a bundled target
-    gets at that run's nodes per host (:func:`~sigma_des.calibrate.burst.bundle_hop_factor`).
+    gets at that run's nodes (:func:`~sigma_des.calibrate.burst.bundle_hop_factor`).
 
     Args:
         sc: the calibrated scenario after :func:`match_hops`.
@@ -257,7 +257,7 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
         name: the run's name, for the report.
 
     Returns:
-        ``bundle_hop_scale`` (the factor), ``bundle_hop_nodes_per_host``,
+        ``bundle_hop_scale`` (the factor), ``bundle_hop_nodes`` (the run's),
         ``bundle_hop_run``, the rounds and the live and DES pooled means (ms); or
         ``bundle_hop_match`` saying why it was skipped.
     """
@@ -289,6 +289,6 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
             tried.append((k, des))
             first = k + (live - des) / 1000.0 / hop if hop > 0 else k
             k = _next_scale(tried, live, first)
-    return {"bundle_hop_scale": k, "bundle_hop_nodes_per_host": own.nodes / own.hosts,
+    return {"bundle_hop_scale": k, "bundle_hop_nodes": float(own.nodes),
             "bundle_hop_run": name, "bundle_hop_rounds": rounds, "bundle_hop_live_ms": live,
             "bundle_hop_des_ms": des}

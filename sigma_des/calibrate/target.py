@@ -15,7 +15,7 @@ makes is the one the validation scored:
 * the state hops' samples scaled to the target's nodes per host
   (:mod:`sigma_des.calibrate.burst`): with one PUBLISH per state, by the wait behind
   the host's burst they hold; bundled, by the excess the calibration's bundled run
-  showed (none without one);
+  showed, grown with the target's nodes (none without one);
 * an added latency (``--add-latency``) shifts every calibrated host-link sample by that
   much in both directions (:func:`shift_host_link`), as the live shim adds it to each
   host-link crossing.
@@ -111,11 +111,10 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
-    m = sc.nodes / sc.hosts
     if sc.deployment.bundle:  # a bundled turn is no burst of m: its own excess
-        ratio = bundle_hop_factor(report, m)
+        ratio = bundle_hop_factor(report, sc.nodes)
     else:
-        ratio = state_hop_factor(calibration_nodes_per_host(cal, report), m,
+        ratio = state_hop_factor(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts,
                                  float(report.get("hop_floor_share", 0.0)))
     if ratio != 1.0:
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())

@@ -121,35 +121,40 @@ def test_a_bundled_target_keeps_the_calibrated_state_hops(tmp_path: Path) -> Non
     assert out.net.server_link.latency_down == cal.net.server_link.latency_down
 
 
-def test_the_bundled_factor_grows_with_the_turn_by_hand() -> None:
-    """``1 + (f - 1)(m - 1)/(m_b - 1)``: matched 1.9 at 10 a host gives 1.9 there, 1.4 at
-    5 (1 + 0.9 x 4/9), 2.4 at 15 (1 + 0.9 x 14/9), 1 at one a host; a match below 1
-    shrinks, never below 0; no match (or a broken one) leaves the hops alone."""
-    rep = {"bundle_hop_scale": 1.9, "bundle_hop_nodes_per_host": 10.0}
+def test_the_bundled_factor_grows_with_the_servers_frame_by_hand() -> None:
+    """``1 + (f - 1)(N - 1)/(N_b - 1)``: matched 1.9 on a bundled run of 10 nodes gives
+    1.9 there, 1.4 at 5 (1 + 0.9 x 4/9), 2.8 at 19 (1 + 0.9 x 18/9), 1 at one node;
+    a match below 1 shrinks, never below 0; no match (or a broken one) leaves the hops
+    alone."""
+    rep = {"bundle_hop_scale": 1.9, "bundle_hop_nodes": 10.0}
     assert bundle_hop_factor(rep, 10.0) == pytest.approx(1.9)
     assert bundle_hop_factor(rep, 5.0) == pytest.approx(1.4)
-    assert bundle_hop_factor(rep, 15.0) == pytest.approx(2.4)
+    assert bundle_hop_factor(rep, 19.0) == pytest.approx(2.8)
     assert bundle_hop_factor(rep, 1.0) == 1.0
-    low = {"bundle_hop_scale": 0.5, "bundle_hop_nodes_per_host": 10.0}
+    low = {"bundle_hop_scale": 0.5, "bundle_hop_nodes": 10.0}
     assert bundle_hop_factor(low, 5.5) == pytest.approx(0.75)
     assert bundle_hop_factor(low, 30.0) == 0.0
     assert bundle_hop_factor({}, 15.0) == 1.0
     assert bundle_hop_factor({"bundle_hop_scale": 1.9}, 15.0) == 1.0
     assert bundle_hop_factor({"bundle_hop_scale": float("nan"),
-                              "bundle_hop_nodes_per_host": 10.0}, 15.0) == 1.0
+                              "bundle_hop_nodes": 20.0}, 15.0) == 1.0
 
 
 def test_a_bundled_target_gets_the_matched_bundled_factor(tmp_path: Path) -> None:
-    """A calibration that matched a bundled run (1.9 at 10 a host): a bundled target
-    at 5 a host has both state hops' samples times 1.4, the triggers' kept; the same
-    target per node keeps the per-node rule (no floor reported: 4/9)."""
+    """A calibration that matched a bundled run of 10 nodes (1.9): a bundled target of 5
+    nodes on 1 host has both state hops' samples times 1.4, the triggers' kept; on 5
+    hosts (another nodes per host) the same; a per-node target keeps the per-node rule
+    (10 nodes on 2 hosts: 5 a host against 10 calibrated, no floor reported: 4/9)."""
     cal = _cal(tmp_path)
     rep = {"delivery_service_per_client_s": 2e-5, "bundle_hop_scale": 1.9,
-           "bundle_hop_nodes_per_host": 10.0}
-    out = prepare(cal, rep, ["nodes=10", "hosts=2"], bundle=True, samples_dir=tmp_path / "a")
-    assert _samples(out.net.host_link.latency) == pytest.approx([x * 1.4 for x in UP])
-    assert _samples(out.net.server_link.latency_down) == pytest.approx([x * 1.4 for x in UP])
-    assert _samples(out.net.host_link.latency_down) == DOWN
+           "bundle_hop_nodes": 10.0}
+    for hosts in (1, 5):
+        out = prepare(cal, rep, ["nodes=5", f"hosts={hosts}"], bundle=True,
+                      samples_dir=tmp_path / f"a{hosts}")
+        assert _samples(out.net.host_link.latency) == pytest.approx([x * 1.4 for x in UP])
+        assert _samples(out.net.server_link.latency_down) == pytest.approx(
+            [x * 1.4 for x in UP])
+        assert _samples(out.net.host_link.latency_down) == DOWN
     node = prepare(cal, rep, ["nodes=10", "hosts=2"], samples_dir=tmp_path / "b")
     assert _samples(node.net.host_link.latency) == pytest.approx([x * 4 / 9 for x in UP])
 

@@ -118,11 +118,11 @@ def _bundled_cal(tmp: Path) -> Scenario:
 def test_the_bundled_run_is_matched_by_scaling_the_state_hops(tmp_path: Path) -> None:
     """The live run's pooled state latency is the DES's own at 1.5 times the state hops:
     the match finds the factor within its tolerance (the hops are pure delays, so the
-    latency is linear in it), at that run's nodes per host; a run without a live
+    latency is linear in it), at that run's nodes; a run without a live
     latency is skipped, saying so."""
     cal = _bundled_cal(tmp_path)
     rep = {"delivery_service_per_client_s": 2e-5}
-    want = prepare(cal, {**rep, "bundle_hop_scale": 1.5, "bundle_hop_nodes_per_host": 2.0},
+    want = prepare(cal, {**rep, "bundle_hop_scale": 1.5, "bundle_hop_nodes": 4.0},
                    [], bundle=True, samples_dir=tmp_path / "w")
     live = float(run_method(want, "none")["metrics"]["latency_state_mean"])
     run = tmp_path / "run"
@@ -130,7 +130,7 @@ def test_the_bundled_run_is_matched_by_scaling_the_state_hops(tmp_path: Path) ->
     (run / "summary.json").write_text(json.dumps(
         {"methods": {"none": {"latency_state_mean": live}}}))
     got = match_bundled(cal, {**rep, "bundle_hop_scale": 9.0}, cal, run, "run")
-    assert got["bundle_hop_nodes_per_host"] == 2.0 and got["bundle_hop_run"] == "run"
+    assert got["bundle_hop_nodes"] == 4.0 and got["bundle_hop_run"] == "run"
     assert abs(got["bundle_hop_des_ms"] - live) <= MATCH_TOL * live
     assert got["bundle_hop_scale"] == pytest.approx(1.5, abs=0.1)
     assert 2 <= got["bundle_hop_rounds"] <= 4
