@@ -123,6 +123,10 @@ class Plan:
             two runs (``sigma-des calibrate RUN RUN``). Every scored cell differs from it
             in size (the calibration setting's N is not in the held-out grid).
         knee_nodes: the DES's finer N grid for its knee prediction.
+        knee_live: sizes above the held-out grid (increasing) at which live runs once
+            more per mode, in order, while some method still holds at the largest size
+            live ran: live's own knee, where the held-out grid ends before it. These
+            runs enter the knee table only, not the held-out shares.
         cells: the cells (built from the fields above).
         retry_loaded: times a live cell that ran under load runs again (0..3): its
             loaded run is set aside and the cell run anew, at once or, for a cell kept
@@ -137,6 +141,7 @@ class Plan:
     extra_nodes: int
     repeats: int = 3
     knee_nodes: tuple[int, ...] = ()
+    knee_live: tuple[int, ...] = ()
     cells: tuple[Cell, ...] = field(default=())
     cell_repeats: int = 1
     cal_bundle: bool = False
@@ -152,6 +157,11 @@ class Plan:
             raise ConfigError("--cell-repeats", f"must be in 1..5, got {self.cell_repeats}")
         if not 0 <= self.retry_loaded <= 3:
             raise ConfigError("--retry-loaded", f"must be in 0..3, got {self.retry_loaded}")
+        top = max(self.nodes, default=0)
+        if list(self.knee_live) != sorted(set(self.knee_live)) or any(
+                n <= top for n in self.knee_live):
+            raise ConfigError("knee_live", f"must increase and exceed the held-out grid's "
+                              f"largest N ({top}), got {list(self.knee_live)}")
         if not self.cells:
             object.__setattr__(self, "cells", self._build())
 
@@ -193,6 +203,11 @@ class Plan:
                      or any(fnmatch.fnmatch(c.name, p) for p in pats))
         return replace(self, cells=keep)
 
+    def knee_live_cells(self, mode: str) -> tuple[Cell, ...]:
+        """The live runs of :attr:`knee_live` in ``mode`` (the suite runs them in order
+        while some method still holds; named like the DES's knee cells)."""
+        return tuple(Cell(f"knee-n{n}-{mode}", n, mode) for n in self.knee_live)
+
     def knee_cells(self) -> tuple[Cell, ...]:
         """DES-only cells of the knee grid (both modes)."""
         return tuple(Cell(f"knee-n{n}-{m}", n, m) for m in MODES for n in self.knee_nodes)
@@ -208,10 +223,11 @@ class Plan:
         ``des_base + des_per_node * N`` seconds per 4 simulated seconds (the
         per-message engine, which runs every CPU-stage scenario until the compiled
         core has it: 3.9 s at N = 60, 8.9 s at N = 150, measured); the calibration
-        with its in-sample check ``cal_s``.
+        with its in-sample check ``cal_s``. Every live knee run counted (at most).
         """
         m = len(self.methods)
-        live = len(self.cells) * (live_overhead + m * (self.duration + method_overhead))
+        runs = len(self.cells) + len(MODES) * len(self.knee_live)
+        live = runs * (live_overhead + m * (self.duration + method_overhead))
         keys = {(c.nodes, c.mode, c.impairment) for c in self.cells}
         keys |= {(c.nodes, c.mode, "") for c in self.knee_cells()}
         des = sum(des_base + des_per_node * n for n, _, _ in keys) * m * self.duration / 4.0
@@ -222,10 +238,11 @@ def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1
               cell_repeats: int = 2, cal_bundle: bool = False, retry_loaded: int = 1) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
-    N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150."""
+    N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150; live's knee runs at
+    120 and 150 where a method still holds at 100."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
-                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150),
+                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150), knee_live=(120, 150),
                 cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded)
 
 

@@ -41,7 +41,7 @@ from sigma_des.calibrate.intervals import COVERAGE, regime, residuals_toml
 from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
-from sigma_lab.studies.validation.grid import Plan
+from sigma_lab.studies.validation.grid import Cell, Plan
 from sigma_lab.studies.validation.kneeplot import knee_plot
 from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
@@ -91,9 +91,11 @@ def noise_rows(plan: Plan, live: dict[str, dict[str, Any]]) -> list[dict[str, An
 
 
 def _copies(plan: Plan, live: dict[str, dict[str, Any]], base: str) -> list[dict[str, Any]]:
-    """The finished live runs of held-out cell ``base`` (its copies, in running order)."""
-    return [live[c.name] for c in plan.cells if c.base == base and not c.repeat
+    """The finished live runs of held-out cell ``base`` (its copies, in running order;
+    a live knee run, outside the plan's cells, its one run)."""
+    runs = [live[c.name] for c in plan.cells if c.base == base and not c.repeat
             and c.name in live]
+    return runs or ([live[base]] if base in live else [])
 
 
 def _value(run: dict[str, Any], method: str, metric: str) -> float:
@@ -161,6 +163,14 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
     return rows
 
 
+def _knee_points(plan: Plan, live: dict[str, dict[str, Any]], mode: str) -> list[Cell]:
+    """Live's knee grid in ``mode``: the unimpaired held-out cells and the calibration
+    setting that ran (one per size), then live's knee runs that ran."""
+    pts = [c for c in plan.cells if c.mode == mode and not c.impairment
+           and c.repeat <= 1 and c.copy == 1 and c.name in live]
+    return pts + [c for c in plan.knee_live_cells(mode) if c.name in live]
+
+
 def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[str, Any]]:
     """Per mode and method: live's capacity and knee on its grid, the DES's on its finer
     grid (and on live's), by ``sigma-des capacity``'s search (:func:`knee_of`), and the
@@ -168,8 +178,7 @@ def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[
     live, des, _ = outcome
     rows = []
     for mode in ("node", "bundle"):
-        pts = [c for c in plan.cells if c.mode == mode and not c.impairment
-               and c.repeat <= 1 and c.copy == 1 and c.name in live]
+        pts = _knee_points(plan, live, mode)
         if not pts:
             continue
         ns = [c.nodes for c in pts]
@@ -195,8 +204,7 @@ def knee_points(plan: Plan, outcome: Outcome) -> dict[str, dict[str, dict[str, l
     live, des, _ = outcome
     out: dict[str, dict[str, dict[str, list[Any]]]] = {}
     for mode in ("node", "bundle"):
-        pts = [c for c in plan.cells if c.mode == mode and not c.impairment
-               and c.repeat <= 1 and c.copy == 1 and c.name in live]
+        pts = _knee_points(plan, live, mode)
         if not pts:
             continue
         fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode}

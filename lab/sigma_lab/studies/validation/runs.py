@@ -36,8 +36,8 @@ from sigma_des.version import __version__
 from sigma_lab.studies.validation.grid import EXTRA_LATENCY_S, Cell, Plan
 from sigma_lab.studies.validation.scoring import METRICS
 
-__all__ = ["UNDER_LOAD", "MissedTap", "background_cores", "bounded_run", "calibrate_run",
-           "des_cell", "des_figures", "des_scenario", "live_cell", "live_timeout",
+__all__ = ["LIVE_BASE", "UNDER_LOAD", "MissedTap", "background_cores", "bounded_run",
+           "calibrate_run", "des_cell", "des_figures", "des_scenario", "live_cell", "live_timeout",
            "load_calibration", "read_json", "shift_host_link", "under_load", "warm_up",
            "write_json"]
 

@@ -4,7 +4,9 @@ Every finished piece is a file in ``--out`` and is kept when the suite is run ag
 with the same ``--out`` (an interrupted run picks up where it stopped):
 
 * ``live/<cell>/`` — the live run's ``sigma-des live --out`` files, and
-  ``cells/<cell>.live.json`` — its figures, load and background CPU;
+  ``cells/<cell>.live.json`` — its figures, load and background CPU; after the plan's
+  cells, live's knee runs (``knee-n<N>-<mode>``, :attr:`Plan.knee_live`) while some
+  method still holds at the largest size live ran in that mode;
 * ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
   included), the latency sample files, ``calibrate.log`` and ``source.json`` (which
   repeat of the calibration setting it was fitted to: the most typical one,
@@ -21,6 +23,7 @@ Progress goes to stderr, one line per piece.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shutil
 import sys
@@ -30,8 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from sigma_des.errors import ConfigError
-from sigma_lab.studies.validation.grid import Cell, Plan
+from sigma_lab.studies.validation.grid import MODES, Cell, Plan
 from sigma_lab.studies.validation.runs import (
+    LIVE_BASE,
     calibrate_run,
     des_cell,
     live_cell,
@@ -43,8 +47,8 @@ from sigma_lab.studies.validation.runs import (
 )
 from sigma_lab.studies.validation.scoring import central
 
-__all__ = ["Outcome", "calibration_cell", "calibration_kept", "des_key", "run_again", "run_suite",
-           "runs_stamp", "set_aside"]
+__all__ = ["Outcome", "calibration_cell", "calibration_kept", "des_key", "holding", "run_again",
+           "run_suite", "runs_stamp", "set_aside"]
 
 Say = Callable[[str], None]
 #: What the report needs: live figures per cell, DES figures per key, the calibration.
@@ -88,32 +92,80 @@ def set_aside(out: Path, cell: str, tries: int) -> Path:
 def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str, Any]]:
     live: dict[str, dict[str, Any]] = {}
     per = plan.estimate() / max(1, len(plan.cells))
-    cores = os.cpu_count() or 1
     for i, cell in enumerate(plan.cells, 1):
-        path = out / "cells" / f"{cell.name}.live.json"
-        res = read_json(path)
-        res = res if isinstance(res, dict) and res.get("methods") else None
-        if not run_again(res, plan, cores):
-            assert res is not None
-            live[cell.name] = res
-            say(f"[{i}/{len(plan.cells)}] live {cell.name}: kept from an earlier run")
-            continue
-        while run_again(res, plan, cores):
-            tries = 1
-            if res is not None:
-                tries = int(res.get("tries", 1)) + 1
-                aside = set_aside(out, cell.name, tries - 1)
-                say(f"[{i}/{len(plan.cells)}] live {cell.name}: ran under load (background "
-                    f"{res['background_cores']:.2f} cores): again, try {tries} of "
-                    f"{plan.retry_loaded + 1} (the loaded run in {aside.relative_to(out)})")
-            res = _live_one(plan, cell, out, say, f"[{i}/{len(plan.cells)}]")
-            res["tries"] = tries
-            write_json(path, res)
+        live[cell.name], ran = _live_kept_or_run(plan, cell, out, say, f"[{i}/{len(plan.cells)}]")
+        if ran:
             say(f"    elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
                 f"{_clock(per * (len(plan.cells) - i))}")
-        assert res is not None
-        live[cell.name] = res
+    _knee_live(plan, live, out, say)
     return live
+
+
+def _live_kept_or_run(plan: Plan, cell: Cell, out: Path, say: Say, tag: str
+                      ) -> tuple[dict[str, Any], bool]:
+    """``cell``'s live figures, and whether it ran now: kept from an earlier run, else
+    run (again while it ran under load and tries are left; a loaded run is set aside)."""
+    cores = os.cpu_count() or 1
+    path = out / "cells" / f"{cell.name}.live.json"
+    res = read_json(path)
+    res = res if isinstance(res, dict) and res.get("methods") else None
+    if not run_again(res, plan, cores):
+        assert res is not None
+        say(f"{tag} live {cell.name}: kept from an earlier run")
+        return res, False
+    while run_again(res, plan, cores):
+        tries = 1
+        if res is not None:
+            tries = int(res.get("tries", 1)) + 1
+            aside = set_aside(out, cell.name, tries - 1)
+            say(f"{tag} live {cell.name}: ran under load (background "
+                f"{res['background_cores']:.2f} cores): again, try {tries} of "
+                f"{plan.retry_loaded + 1} (the loaded run in {aside.relative_to(out)})")
+        res = _live_one(plan, cell, out, say, tag)
+        res["tries"] = tries
+        write_json(path, res)
+    assert res is not None
+    return res, True
+
+
+def holding(plan: Plan, live: dict[str, dict[str, Any]], mode: str, f_trig: float
+            ) -> list[str]:
+    """The methods whose live figures hold (``sigma-des capacity``'s predicate) at the
+    largest size live ran in ``mode`` without an impairment (the mean of that size's
+    runs; a method without figures there does not hold)."""
+    from sigma_des.calibrate.capacity import holds
+    from sigma_lab.studies.validation.scoring import KNEE_MISSED
+
+    ran = [c for c in (*plan.cells, *plan.knee_live_cells(mode))
+           if c.mode == mode and not c.impairment and c.name in live]
+    if not ran:
+        return []
+    top = max(c.nodes for c in ran)
+    runs = [live[c.name]["methods"] for c in ran if c.nodes == top]
+
+    def mean(m: str, k: str) -> float:
+        xs = [float(r[m].get(k, math.nan)) for r in runs if m in r]
+        ok = [x for x in xs if math.isfinite(x)]
+        return sum(ok) / len(ok) if ok else math.nan
+
+    return [m for m in plan.methods if holds(mean(m, "trigger_rate_hz"),
+                                             mean(m, "missed_frac"), math.nan, f_trig,
+                                             KNEE_MISSED, None)]
+
+
+def _knee_live(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say) -> None:
+    """Live's knee runs: per mode, the next :attr:`Plan.knee_live` size while a method
+    still holds at the largest size live ran (added to ``live``)."""
+    from sigma_des.config import load
+
+    f_trig = load(None, list(LIVE_BASE)).f_trig  # what the live runs ran
+    for mode in MODES:
+        for cell in plan.knee_live_cells(mode):
+            still = holding(plan, live, mode, f_trig)
+            if not still:
+                break
+            say(f"[knee] {', '.join(still)} still hold(s) {mode}: live at N = {cell.nodes}")
+            live[cell.name] = _live_kept_or_run(plan, cell, out, say, "[knee]")[0]
 
 
 def _live_one(plan: Plan, cell: Cell, out: Path, say: Say, tag: str) -> dict[str, Any]:

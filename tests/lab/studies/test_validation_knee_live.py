@@ -1,0 +1,103 @@
+"""Live's knee runs: above the held-out grid, per mode, while a method still holds at
+the largest size live ran; they enter the knee table, not the held-out shares."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+from sigma_lab.studies.validation import suite
+from sigma_lab.studies.validation.grid import Cell, Plan, full_plan, quick_plan
+from sigma_lab.studies.validation.report import knee_rows
+from sigma_lab.studies.validation.suite import holding
+
+from sigma_des.errors import ConfigError
+
+METHODS = ("none", "bides")
+
+
+def _plan(knee_live: tuple[int, ...] = (120, 150)) -> Plan:
+    return Plan(METHODS, 4.0, 1.0, cal_nodes=20, nodes=(60, 100), extra_nodes=30, repeats=1,
+                knee_nodes=(60, 100, 120, 150), knee_live=knee_live)
+
+
+def _run(rates: dict[str, float], missed: dict[str, float]) -> dict[str, Any]:
+    return {"methods": {m: {"trigger_rate_hz": rates[m], "missed_frac": missed[m]}
+                        for m in METHODS},
+            "background_cores": 0.0, "load_before": 0.0, "load_after": 0.0,
+            "timed_out": False, "exit": 0, "wall_s": 1.0}
+
+
+HOLD = {"none": 100.0, "bides": 100.0}
+
+
+def test_knee_live_sizes_must_increase_above_the_held_out_grid() -> None:
+    for bad in ((100,), (150, 120), (120, 120)):
+        with pytest.raises(ConfigError, match="knee_live"):
+            _plan(bad)
+    assert full_plan(("none",)).knee_live == (120, 150)
+    assert quick_plan(("none",)).knee_live == ()
+    assert [c.name for c in _plan().knee_live_cells("node")] == ["knee-n120-node",
+                                                                "knee-n150-node"]
+
+
+def test_holding_at_the_largest_size_live_ran() -> None:
+    """Two runs at N = 100: bides holds in both (rate 100 %, missed 3 %); none's mean
+    missed is 6 % (4 and 8): over the 5 % budget. With a knee run at 120 where bides
+    drops to 76 Hz, nothing holds at the top any more."""
+    live = {"n100-node": _run(HOLD, {"none": 0.04, "bides": 0.03}),
+            "n100-node-c2": _run(HOLD, {"none": 0.08, "bides": 0.03}),
+            "n60-node": _run(HOLD, {"none": 0.0, "bides": 0.0})}
+    plan = Plan(METHODS, 4.0, 1.0, cal_nodes=20, nodes=(60, 100), extra_nodes=30,
+                repeats=1, knee_nodes=(120,), knee_live=(120, 150), cell_repeats=2)
+    assert holding(plan, live, "node", 100.0) == ["bides"]
+    live["knee-n120-node"] = _run({"none": 100.0, "bides": 76.3},
+                                  {"none": 0.25, "bides": 0.051})
+    assert holding(plan, live, "node", 100.0) == []
+    assert holding(plan, live, "bundle", 100.0) == []  # nothing ran bundled
+
+
+def test_knee_runs_stop_when_nothing_holds(tmp_path: Path,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Per node bides holds at 100 -> live runs 120, where it fails -> no 150. Bundled
+    both hold at 100 and at 120 -> 150 runs too, and the list ends there."""
+    ran: list[str] = []
+    figures = {"knee-n120-node": _run({"none": 60.0, "bides": 70.0}, {"none": 0.3, "bides": 0.1}),
+               "knee-n120-bundle": _run(HOLD, {"none": 0.0, "bides": 0.0}),
+               "knee-n150-bundle": _run({"none": 100.0, "bides": 90.0},
+                                        {"none": 0.0, "bides": 0.2})}
+
+    def fake_live_cell(cell: Cell, plan: Plan, out: Path) -> dict[str, Any]:
+        ran.append(cell.name)
+        out.mkdir(parents=True)
+        (out / "summary.json").write_text("{}")
+        return figures[cell.name]
+
+    monkeypatch.setattr(suite, "live_cell", fake_live_cell)
+    (tmp_path / "cells").mkdir()
+    plan = _plan()
+    live = {"n60-node": _run(HOLD, {"none": 0.0, "bides": 0.0}),
+            "n100-node": _run({"none": 80.0, "bides": 100.0}, {"none": 0.2, "bides": 0.0}),
+            "n60-bundle": _run(HOLD, {"none": 0.0, "bides": 0.0}),
+            "n100-bundle": _run(HOLD, {"none": 0.0, "bides": 0.0})}
+    said: list[str] = []
+    suite._knee_live(plan, live, tmp_path, said.append)
+    assert ran == ["knee-n120-node", "knee-n120-bundle", "knee-n150-bundle"]
+    assert json.loads((tmp_path / "cells" / "knee-n120-node.live.json").read_text())[
+        "methods"]["bides"]["trigger_rate_hz"] == 70.0
+    # resumed: every run kept, nothing runs again
+    suite._knee_live(plan, live, tmp_path, said.append)
+    assert len(ran) == 3
+    # the knee table reads them: per node bides' knee is 120 on live's grid
+    des = {f"n{n}-{m}": {"methods": {k: {"trigger_rate_hz": 100.0, "missed_frac": 0.0}
+                                     for k in METHODS}} for n in (60, 100, 120, 150)
+           for m in ("node", "bundle")}
+    rows = {(r["mode"], r["method"]): r for r in knee_rows(plan, (live, des, {}))}
+    assert rows[("node", "bides")]["live_grid"] == "60 100 120"
+    assert rows[("node", "bides")]["live_knee"] == 120
+    assert rows[("node", "none")]["live_knee"] == 100
+    assert rows[("bundle", "bides")]["live_grid"] == "60 100 120 150"
+    assert rows[("bundle", "bides")]["live_knee"] == 150
+    assert rows[("bundle", "none")]["live_knee"] is None
