@@ -165,8 +165,10 @@ def _instrumented(host: str, lo: float, hi: float) -> Iterator[
     try:
         yield flushes, bw
     finally:
-        (proc_cls.acquire, proc_cls.net_span, net_cls._flush,  # type: ignore[method-assign]
-         net_cls._client_publish) = saved
+        for cls, name, fn in zip((proc_cls, proc_cls, net_cls, net_cls),
+                                 ("acquire", "net_span", "_flush", "_client_publish"), saved,
+                                 strict=True):
+            setattr(cls, name, fn)
 
 
 def des_turns(sc: Scenario, method: str, host: str = "host0"
