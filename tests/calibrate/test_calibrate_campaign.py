@@ -124,3 +124,29 @@ def test_combine_records_the_burst_of_the_pooled_hops(tmp_path: Path) -> None:
         rep["states"] = states
     _sc, rep, _p = combine(fits, tmp_path)
     assert rep["hop_nodes_per_host"] == 5.0
+
+
+def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Hops matched on a per-node primary and a bundled run in the campaign: the bundled
+    match runs on the first bundled run (its own fit and source); a campaign whose
+    primary is bundled, or without a bundled run, gets none."""
+    from sigma_des.calibrate import cli, match
+
+    seen: list[tuple[int, str]] = []
+
+    def fake(sc, report, own, source, name):  # type: ignore[no-untyped-def]
+        seen.append((own.nodes, name))
+        return {"bundle_hop_scale": 1.5, "bundle_hop_nodes": float(own.nodes),
+                "bundle_hop_run": name}
+
+    monkeypatch.setattr(match, "match_bundled", fake)
+    node = _fit(tmp_path, "n20", [1e-3], False, host_demand=1e-4)
+    b1 = _fit(tmp_path, "b30", [1e-3], True, nodes=30, host_demand=1e-4)
+    b2 = _fit(tmp_path, "b40", [1e-3], True, nodes=40, host_demand=1e-4)
+    srcs = [tmp_path / "n20", tmp_path / "b30", tmp_path / "b40"]
+    got = cli._match_bundled(node[0], {}, [node, b1, b2], srcs, 0)
+    assert seen == [(30, "b30")] and got["bundle_hop_nodes"] == 30.0
+    assert cli._match_bundled(b1[0], {}, [b1, node], srcs[1::-1], 0) == {}
+    assert cli._match_bundled(node[0], {}, [node], srcs[:1], 0) == {}
+    assert len(seen) == 1
