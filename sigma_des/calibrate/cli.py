@@ -109,6 +109,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
         if "bundle_hop_run" in bundled:
             report.setdefault("parameter_sources", {})[
                 "bundled targets' state-hop factor"] = [bundled["bundle_hop_run"]]
+        if "bundle_hop_warning" in bundled:
+            report["warnings"].append(bundled["bundle_hop_warning"])
     if not args.no_check:
         rows, warn = _in_sample(sc, report, fits, sources, primary)
         report["in_sample"] = rows

@@ -25,7 +25,7 @@ idle less often than live's do (on a calibration run: the server 0.21 wake-ups a
 message against live's 0.53), so the fitted demands gave the DES half of live's CPU, and
 its machine's load (which sets the run-queue waits) half of live's. The part beside the
 thread is the one that can take the difference without changing how often the thread
-is idle.
+is idle. :func:`match_bundled` then scales the state hops alone on a bundled run.
 """
 
 from __future__ import annotations
@@ -289,6 +289,11 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
             tried.append((k, des))
             first = k + (live - des) / 1000.0 / hop if hop > 0 else k
             k = _next_scale(tried, live, first)
-    return {"bundle_hop_scale": k, "bundle_hop_nodes": float(own.nodes),
-            "bundle_hop_run": name, "bundle_hop_rounds": rounds, "bundle_hop_live_ms": live,
-            "bundle_hop_des_ms": des}
+    out: dict[str, Any] = {"bundle_hop_scale": k, "bundle_hop_nodes": float(own.nodes),
+                           "bundle_hop_run": name, "bundle_hop_rounds": rounds,
+                           "bundle_hop_live_ms": live, "bundle_hop_des_ms": des}
+    if abs(des - live) > MATCH_TOL * live:  # at a bound of the scale, or out of rounds
+        out["bundle_hop_warning"] = (
+            f"{name}: the bundled state hops matched only to {des:.3g} ms against live's "
+            f"{live:.3g} (scale {k:.3g}, within {K_MIN:g}..{K_MAX:g})")
+    return out

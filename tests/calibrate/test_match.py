@@ -133,6 +133,11 @@ def test_the_bundled_run_is_matched_by_scaling_the_state_hops(tmp_path: Path) ->
     assert got["bundle_hop_nodes"] == 4.0 and got["bundle_hop_run"] == "run"
     assert abs(got["bundle_hop_des_ms"] - live) <= MATCH_TOL * live
     assert got["bundle_hop_scale"] == pytest.approx(1.5, abs=0.1)
-    assert 2 <= got["bundle_hop_rounds"] <= 4
+    assert 2 <= got["bundle_hop_rounds"] <= 4 and "bundle_hop_warning" not in got
+    # a live latency no scale within K_MAX reaches: the match says so
+    (run / "summary.json").write_text(json.dumps(
+        {"methods": {"none": {"latency_state_mean": 100.0 * live}}}))
+    far = match_bundled(cal, rep, cal, run, "run")
+    assert far["bundle_hop_scale"] == K_MAX and "matched only to" in far["bundle_hop_warning"]
     (run / "summary.json").write_text(json.dumps({"methods": {"none": {}}}))
     assert "skipped" in match_bundled(cal, rep, cal, run, "run")["bundle_hop_match"]
