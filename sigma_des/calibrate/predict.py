@@ -33,7 +33,7 @@ from sigma_des.calibrate.intervals import (
     lookup,
     regime,
 )
-from sigma_des.calibrate.target import FIGURES, des_figures, prepare
+from sigma_des.calibrate.target import FIGURES, des_figures, prepare, state_hop_ratio
 from sigma_des.config import ALL_METHODS, METHODS, Scenario, config_hash, load
 from sigma_des.errors import ConfigError
 from sigma_des.outputs import check_out_dir, write_files
@@ -96,6 +96,7 @@ class Prediction:
     regimes: dict[str, str] = field(default_factory=dict)
     coverage: float = COVERAGE
     residual_meta: dict[str, Any] = field(default_factory=dict)
+    state_hops: tuple[float, str] = (1.0, "")
 
     def table(self) -> str:
         """The figures per method: mean [interval], the regime."""
@@ -139,6 +140,7 @@ class Prediction:
                 "nodes": self.scenario.nodes, "hosts": self.scenario.hosts,
                 "bundle": self.bundle, "seeds": self.seeds, "coverage": self.coverage,
                 "residuals": self.residual_meta,
+                "state_hop_factor": self.state_hops[0], "state_hop_rule": self.state_hops[1],
                 "methods": {m: {"regime": self.regimes[m], **{k: {
                     "mean": iv.mean, "sd": iv.sd, "lo": iv.lo, "hi": iv.hi,
                     "unit": UNITS[k], "residual": res(iv.residual)} for k, iv in ivs.items()}}
@@ -196,7 +198,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
     table, meta = load_residuals(residuals)
     cov = float(meta.get("coverage", COVERAGE))
     seed_list = [sc.seed + i for i in range(seeds)]
-    pred = Prediction(sc, bundle, seed_list, coverage=cov, residual_meta=meta)
+    pred = Prediction(sc, bundle, seed_list, coverage=cov, residual_meta=meta,
+                      state_hops=state_hop_ratio(cal, report, sc))
     for m in methods or METHODS:
         runs = []
         for s in seed_list:

@@ -101,7 +101,8 @@ def run_predict(args: argparse.Namespace) -> int:
                        say=_say(args.no_progress))
     print(f"prediction: N = {pred.scenario.nodes} on {pred.scenario.hosts} hosts, "
           f"{'bundled' if args.bundle else 'per-node'} messages"
-          + (f", +{args.add_latency:g} ms per host-link crossing" if args.add_latency else ""))
+          + (f", +{args.add_latency:g} ms per host-link crossing" if args.add_latency else "")
+          + f"; state hops x{pred.state_hops[0]:.3g} ({pred.state_hops[1]})")
     print(pred.table())
     if args.out:
         csv_path, json_path = pred.write(args.out)

@@ -49,7 +49,8 @@ from sigma_des.errors import ConfigError
 from sigma_des.events.tap import Tap
 from sigma_des.net.latency import Dist, load_samples
 
-__all__ = ["BUNDLE_SETS", "FIGURES", "MissedTap", "des_figures", "prepare", "shift_host_link"]
+__all__ = ["BUNDLE_SETS", "FIGURES", "MissedTap", "des_figures", "prepare", "shift_host_link",
+           "state_hop_ratio"]
 
 #: The figures a prediction reports and the validation scores, in table order.
 FIGURES = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac")
@@ -111,16 +112,29 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
     sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
-    if sc.deployment.bundle:  # a bundled turn is no burst of m: its own excess
-        ratio = bundle_hop_factor(report, sc.nodes)
-    else:
-        ratio = state_hop_factor(calibration_nodes_per_host(cal, report), sc.nodes / sc.hosts,
-                                 float(report.get("hop_floor_share", 0.0)))
+    ratio, _rule = state_hop_ratio(cal, report, sc)
     if ratio != 1.0:
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())
     if add_latency_s > 0.0:
         sc = shift_host_link(sc, add_latency_s, samples_dir or _own_dir())
     return sc
+
+
+def state_hop_ratio(cal: Scenario, report: dict[str, Any], sc: Scenario) -> tuple[float, str]:
+    """What :func:`prepare` multiplies target ``sc``'s state-hop samples by, and the rule
+    (see the module doc): bundled, the bundled run's matched factor grown with the
+    nodes (1 without one); per node, the host's burst."""
+    if sc.deployment.bundle:  # a bundled turn is no burst of m: its own excess
+        if "bundle_hop_scale" not in report:
+            return 1.0, "bundled; no bundled calibration run: as calibrated"
+        return (bundle_hop_factor(report, sc.nodes),
+                f"bundled; matched on a run of {report.get('bundle_hop_nodes', '?'):g} nodes"
+                if isinstance(report.get("bundle_hop_nodes"), int | float)
+                else "bundled; matched on the bundled run")
+    m = sc.nodes / sc.hosts
+    return (state_hop_factor(calibration_nodes_per_host(cal, report), m,
+                             float(report.get("hop_floor_share", 0.0))),
+            f"per node; the host's burst at {m:g} nodes a host")
 
 
 _DIR: list[tempfile.TemporaryDirectory[str]] = []

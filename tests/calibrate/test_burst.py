@@ -18,7 +18,7 @@ from sigma_des.calibrate.burst import (
     scale_state_hops,
     state_hop_factor,
 )
-from sigma_des.calibrate.target import prepare
+from sigma_des.calibrate.target import prepare, state_hop_ratio
 from sigma_des.config import Scenario, load
 from sigma_des.net.latency import Dist, load_samples
 
@@ -155,8 +155,16 @@ def test_a_bundled_target_gets_the_matched_bundled_factor(tmp_path: Path) -> Non
         assert _samples(out.net.server_link.latency_down) == pytest.approx(
             [x * 1.4 for x in UP])
         assert _samples(out.net.host_link.latency_down) == DOWN
+        ratio, rule = state_hop_ratio(cal, rep, out)
+        assert ratio == pytest.approx(1.4) and rule == "bundled; matched on a run of 10 nodes"
     node = prepare(cal, rep, ["nodes=10", "hosts=2"], samples_dir=tmp_path / "b")
     assert _samples(node.net.host_link.latency) == pytest.approx([x * 4 / 9 for x in UP])
+    assert state_hop_ratio(cal, rep, node) == (pytest.approx(4 / 9),
+                                               "per node; the host's burst at 5 nodes a host")
+    plain = prepare(cal, {"delivery_service_per_client_s": 2e-5}, ["nodes=10", "hosts=2"],
+                    bundle=True, samples_dir=tmp_path / "c")
+    assert state_hop_ratio(cal, {}, plain) == (1.0, "bundled; no bundled calibration run: "
+                                               "as calibrated")
 
 
 def _states(method: str, lats: dict[tuple[int, int], list[float]]) -> pd.DataFrame:
