@@ -96,7 +96,9 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
         cal: the calibrated scenario (``sigma-des calibrate --out``).
         report: its report (the JSON next to it).
         sets: the target's keys, ``key=value``.
-        bundle: bundled messages, as live ``--bundle``.
+        bundle: bundled messages, as live ``--bundle``; without it one PUBLISH per state
+            (even when the calibration's primary run was bundled), unless ``sets``
+            says otherwise.
         add_latency_s: seconds added to each host-link crossing (0..1).
         samples_dir: where scaled and shifted sample files go (None: a directory
             of this process's, removed when it exits).
@@ -111,7 +113,9 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
     if "delivery_service_per_client_s" not in report:
         raise ConfigError("calibration", "the report has no delivery_service_per_client_s; "
                           "recalibrate with this version of `sigma-des calibrate`")
-    sc = for_target(cal, report, [*sets, *(BUNDLE_SETS if bundle else ())])
+    mode = BUNDLE_SETS if bundle else ()
+    sc = for_target(cal, report, [*(() if bundle else ("deployment.bundle=false",)), *sets,
+                                  *mode])
     ratio, _rule = state_hop_ratio(cal, report, sc)
     if ratio != 1.0:
         sc = scale_state_hops(sc, ratio, samples_dir or _own_dir())

@@ -209,3 +209,18 @@ def test_prepare_keeps_the_reported_floor(tmp_path: Path) -> None:
     k = 0.25 + 0.75 * 4.0 / 9.0
     assert _samples(out.net.host_link.latency) == pytest.approx([x * k for x in UP],
                                                                 rel=1e-8, abs=1e-15)
+
+
+def test_without_bundle_a_bundled_calibration_predicts_one_publish_per_state(
+        tmp_path: Path) -> None:
+    """A calibration whose primary run was bundled: ``prepare`` without ``bundle`` gives
+    per-node messages (what ``predict`` without ``--bundle`` promises); a ``--set`` of
+    its own still wins; with ``bundle`` it is bundled."""
+    cal = _cal(tmp_path)
+    cal = replace(cal, deployment=replace(cal.deployment, clients="host", bundle=True))
+    rep = {"delivery_service_per_client_s": 2e-5}
+    assert not prepare(cal, rep, ["nodes=10"], samples_dir=tmp_path / "a").deployment.bundle
+    assert prepare(cal, rep, ["nodes=10", "deployment.bundle=true"],
+                   samples_dir=tmp_path / "b").deployment.bundle
+    assert prepare(cal, rep, ["nodes=10"], bundle=True, samples_dir=tmp_path / "c"
+                   ).deployment.bundle
