@@ -112,6 +112,7 @@ def detail(a: argparse.Namespace) -> None:
     """One run in this process: the event table as it grows, the largest arrays at the end."""
     from sigma_des.config import load
     from sigma_des.events.cohort import make_run
+    from sigma_des.events.fast import codes as CO
     from sigma_des.events.fast import layout as L
     from sigma_des.events.fast.driver import CompiledCore
     from sigma_des.factory import make_behaviour, make_dynamics
@@ -127,13 +128,13 @@ def detail(a: argparse.Namespace) -> None:
     def table() -> str:
         cap = core.array("ev_int").shape[0]
         iv = core.array("ints")
-        live = cap - int(iv[L.I_FREE])
+        live = cap - int(iv[CO.I_FREE])
         slot = sum(core.array(f.name).nbytes for f in L.FIELDS if f.shape[:1] in (("cap",),
                    ("arena",))) / cap
         rows = core.array("pool_free").size
         row = (core.array("pool").nbytes + core.array("pool_free").nbytes) / max(rows, 1)
         return (f"event table {cap} slots ({slot:.0f} B each), {live} in flight; payload pool "
-                f"{rows} rows ({row:.0f} B each), {rows - int(iv[L.I_PFREE])} in use")
+                f"{rows} rows ({row:.0f} B each), {rows - int(iv[CO.I_PFREE])} in use")
 
     last: list[tuple[float, int, str, tuple[str | int, ...]]] = []
 

@@ -1,7 +1,7 @@
 """Where numba caches the compiled kernels: a directory named by their sources' fingerprint.
 
 numba's ``cache=True`` checks only the defining file of a kernel, so an edit of a
-constant module (``events/fast/layout.py``) or of a callee in another file would load
+constant module (``events/fast/codes.py``, ``layout.py``) or of a callee in another file would load
 stale kernels. :func:`ensure_cache_dir` points numba at::
 
     <root>/numba/<fingerprint>/

@@ -1,7 +1,7 @@
 """The source files numba's compiled kernels depend on, and their fingerprint.
 
 numba's ``cache=True`` invalidates a cached kernel only when the file *defining* it
-changes; the constants it froze (``events/fast/layout.py``) and the jitted callees it
+changes; the constants it froze (``events/fast/codes.py``, ``layout.py``) and the jitted callees it
 inlined from other modules are not checked, so an edit there would load stale code.
 :func:`fingerprint` hashes every file whose content can change compiled code, and
 :mod:`sigma_des.jitcache` names numba's cache directory after it, so such an edit

@@ -17,7 +17,7 @@ import sigma_des.events.fast.driver as driver
 from sigma_des import load
 from sigma_des.agents.aircraft import GeneralAircraft
 from sigma_des.agents.pointmass import PointMass
-from sigma_des.events.fast import layout as L
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.truth import SwarmTruth
 from tests.events.test_cohort import run_both
 
@@ -142,5 +142,5 @@ def test_rolled_back_node_publishes_only_after_its_resimulation(
     assert co["engine"]["used"] == "cohort"
     rollbacks = ev["metrics"]["rollbacks"]
     assert rollbacks > 0
-    assert L.NEED_RESIM in codes
-    assert codes.count(L.NEED_ROLLBACK) + codes.count(L.NEED_START) < rollbacks / 4
+    assert CO.NEED_RESIM in codes
+    assert codes.count(CO.NEED_ROLLBACK) + codes.count(CO.NEED_START) < rollbacks / 4

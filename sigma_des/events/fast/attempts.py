@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
 from sigma_des.core.filled import filled
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     K_COMMAND,
     K_REPUB,
     K_REREQ,

@@ -13,15 +13,9 @@ slow-down, and the core is held until the last delivery leaves.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import acquire, hold, run_wait
-from sigma_des.events.fast.fanout import fan_out, fits
-from sigma_des.events.fast.layout import (
-    BCAST,
-    CL_OF,
+from sigma_des.events.fast.codes import (
     CP_BROKER,
     CP_NSUB,
-    CPU_IP,
-    CPU_SCALE,
     E_ATT,
     E_AUX,
     E_FRAME,
@@ -30,18 +24,12 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EF_TDEP,
     EV_CLIENT,
-    EV_FLOAT,
-    EV_INT,
     F_BUSY,
     F_MAXWAIT,
     F_WORK,
-    FLOATS,
-    FPARAMS,
     G_END,
     G_WARMUP,
     I_BNOFIT,
-    INTS,
-    IPARAMS,
     K_REPUB,
     K_STATE,
     Q_ACK,
@@ -51,6 +39,20 @@ from sigma_des.events.fast.layout import (
     SVC_DEL,
     SVC_PUB,
     T_QOS1D,
+)
+from sigma_des.events.fast.cpu import acquire, hold, run_wait
+from sigma_des.events.fast.fanout import fan_out, fits
+from sigma_des.events.fast.layout import (
+    BCAST,
+    CL_OF,
+    CPU_IP,
+    CPU_SCALE,
+    EV_FLOAT,
+    EV_INT,
+    FLOATS,
+    FPARAMS,
+    INTS,
+    IPARAMS,
     TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import (

@@ -29,17 +29,15 @@ from typing import Any
 
 from numpy.typing import NDArray
 
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import fanout
 from sigma_des.events.fast import layout as L
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     CH_FULL,
     CH_HEAD,
-    CH_INT,
-    CH_K,
     CH_MOVE,
     CH_OOO,
     CH_RUN,
-    CH_T,
     CH_TOKEN,
     CH_USED,
     E_KIND,
@@ -48,15 +46,20 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EV_BROKER,
     EV_CHAN,
-    EV_FLOAT,
-    EV_INT,
     I_EID,
     I_NEV,
-    INTS,
-    IPARAMS,
     Q_CHAN,
     SLOT_BITS,
     SLOT_MASK,
+)
+from sigma_des.events.fast.layout import (
+    CH_INT,
+    CH_K,
+    CH_T,
+    EV_FLOAT,
+    EV_INT,
+    INTS,
+    IPARAMS,
     WIRE_BYTES,
 )
 from sigma_des.events.fast.prefetch import prefetch
@@ -89,7 +92,7 @@ def applies(S: tuple[NDArray[Any], ...]) -> bool:
 def batching(S: tuple[NDArray[Any], ...]) -> None:
     """Set the run's batching switches: broadcasts fan out in batches (``Q_FAN``,
     :func:`sigma_des.events.fast.fanout.applies`), hops go through channels (``Q_CHAN``)."""
-    S[L.IPARAMS][L.Q_FAN] = int(fanout.applies(S))
+    S[L.IPARAMS][CO.Q_FAN] = int(fanout.applies(S))
     S[L.IPARAMS][Q_CHAN] = int(applies(S))
 
 
@@ -167,9 +170,9 @@ def _warm(S, ch, h, u):  # type: ignore[no-untyped-def]
     if r >= 0:
         prefetch(S[L.POOL], r)
     ip = S[IPARAMS]
-    if ch == 0 and evi[s, E_WHO] == ip[L.Q_N] and ip[L.Q_RING]:
-        subj = evi[s, L.E_SUBJ]
-        slot = evi[s, L.E_FRAME] % S[L.RING_FRAME].shape[1]
+    if ch == 0 and evi[s, E_WHO] == ip[CO.Q_N] and ip[CO.Q_RING]:
+        subj = evi[s, CO.E_SUBJ]
+        slot = evi[s, CO.E_FRAME] % S[L.RING_FRAME].shape[1]
         prefetch(S[L.RING_FRAME][subj], slot)
         prefetch(S[L.RING_GEN][subj], slot)
         prefetch(S[L.RING_OBS][subj], slot)
@@ -220,7 +223,7 @@ def hop(S, slot, t):  # type: ignore[no-untyped-def]
     kind, subj, index = key_of(S, slot)
     up = 1 if evi[slot, E_TYPE] == EV_BROKER else 0
     done = count(S, client, up, S[WIRE_BYTES][kind], t)
-    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, L.E_ATT], False, done, t)
+    arr, lost = fly(S, client, up, kind, subj, index, evi[slot, CO.E_ATT], False, done, t)
     if lost:
         release(S, slot)
     elif S[IPARAMS][Q_CHAN]:

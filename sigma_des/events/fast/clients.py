@@ -16,15 +16,8 @@ as a delivery (``Collector.delivered``) to that node.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.cpu import burst, net_span, span, threaded
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     CP_HOSTS,
-    CPU_DEM,
-    CPU_FREE,
-    CPU_INB,
-    CPU_IP,
-    CPU_PROC,
-    CPU_SWITCH,
     E_ATT,
     E_KIND,
     E_SUBJ,
@@ -32,14 +25,23 @@ from sigma_des.events.fast.layout import (
     E_WHO,
     EF_TRECV,
     EV_APP,
+    EV_LOOP,
+    K_TRIGGER,
+    Q_N,
+)
+from sigma_des.events.fast.cpu import burst, net_span, span, threaded
+from sigma_des.events.fast.layout import (
+    CPU_DEM,
+    CPU_FREE,
+    CPU_INB,
+    CPU_IP,
+    CPU_PROC,
+    CPU_SWITCH,
     EV_FLOAT,
     EV_INT,
-    EV_LOOP,
     IPARAMS,
-    K_TRIGGER,
     MEM,
     MEM_PTR,
-    Q_N,
 )
 from sigma_des.events.fast.node import at_node
 from sigma_des.events.fast.primitives import alloc, jit, push

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from sigma_des.events.fast.codes import I_ERR
 from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     CLOCK_DRIFT,
     CLOCK_OFF,
     ERR_HORIZON,
-    I_ERR,
     INTS,
     NTP_PERIOD,
     NTP_RES,

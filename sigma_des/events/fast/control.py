@@ -29,6 +29,7 @@ import math
 from sigma_des.core.flags import EXACT, MISSING
 from sigma_des.events.align.newest import take_rows
 from sigma_des.events.align.ring import align_in
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.handle import deref
@@ -85,7 +86,7 @@ CF_PHYS_T, CF_ALIGN_PHASE, CF_F_ALIGN, CF_F_NOMINAL, CF_F_MIN, CF_RATE_DOWN = 7,
 CF_RATE_UP, CF_TICK_COST, CF_PT = 13, 14, 15
 assert CI_DIRTY == len(CI_FIELDS) - 1 and CF_PT == len(CF_FIELDS) - 1
 
-# why run() returned (beyond the core loop's own exit codes, layout.EXIT_CODES)
+# why run() returned (beyond the core loop's own exit codes, codes.EXIT_CODES)
 COMMAND_TICK = 100  # a command tick: the shown snapshot waits for the caller's commands
 END = 101  # the next control event is at or after the end: every message before it ran
 DEFERRED = 102  # rollbacks deferred by the core: Python re-simulates them
@@ -142,7 +143,7 @@ def _issue(S, C, step, observe):  # type: ignore[no-untyped-def]
         ci[CI_NEED_K] = k
         return DRAWS
     iv = S[L.INTS]
-    if iv[L.I_FREE] < ci[CI_SPACE] or iv[L.I_PFREE] < ci[CI_SPACE]:
+    if iv[CO.I_FREE] < ci[CI_SPACE] or iv[CO.I_PFREE] < ci[CI_SPACE]:
         return SPACE
     ci[CI_TRIG_ON] = 0
     dt = 1.0 / cf[CF_F_TRIG]
@@ -233,7 +234,7 @@ def _take_out(S, C):  # type: ignore[no-untyped-def]
     rule, :func:`~sigma_des.events.align.newest.take_rows` itself (a row replaces its
     node's entry when its frame is greater), in arrival order."""
     iv = S[L.INTS]
-    o = iv[L.I_OUT]
+    o = iv[CO.I_OUT]
     oi, of = S[L.OUT_INT], S[L.OUT_FLOAT]
     no = C[C_NEW_OBS]
     changed = C[C_HAS]  # a per-node scratch row (Algorithm 1's, unused by none)
@@ -244,7 +245,7 @@ def _take_out(S, C):  # type: ignore[no-untyped-def]
     for i in range(changed.shape[0]):
         if changed[i]:
             C[C_INT][CI_DIRTY] = 1
-    iv[L.I_OUT] = 0
+    iv[CO.I_OUT] = 0
 
 
 @jit
@@ -255,7 +256,7 @@ def _align(S, C):  # type: ignore[no-untyped-def]
     ci, cf = C[C_INT], C[C_FLT]
     t = cf[CF_NOW]
     if cf[CF_TICK_COST] > 0.0 and ci[CI_CPU]:
-        tick(S, L.P_SERVER, cf[CF_TICK_COST], t)  # before the tick's commands
+        tick(S, CO.P_SERVER, cf[CF_TICK_COST], t)  # before the tick's commands
     if ci[CI_METHOD] == BIDES:
         _bides(S, C)
     else:
@@ -282,7 +283,7 @@ def _tick(S, C):  # type: ignore[no-untyped-def]
     t = cf[CF_NOW]
     ci[CI_ALIGN_ON] = 0
     if not ci[CI_ALIGN_DIRECT] and ci[CI_CPU]:
-        free = S[L.CPU_FREE][L.P_SERVER]
+        free = S[L.CPU_FREE][CO.P_SERVER]
         if free > t:  # the tick runs once the loop thread is free
             cf[CF_ALIGN_T] = free
             ci[CI_ALIGN_ON] = 1
@@ -303,14 +304,14 @@ def _roll_back(S, C, resim):  # type: ignore[no-untyped-def]
     earlier re-simulation, or the event table is short of room); else 0 or START."""
     ci, cf = C[C_INT], C[C_FLT]
     iv = S[L.INTS]
-    i = iv[L.I_PNODE]
-    if S[L.RESIM_PEND][i] or iv[L.I_FREE] < ci[CI_SPACE] or iv[L.I_PFREE] < ci[CI_SPACE]:
+    i = iv[CO.I_PNODE]
+    if S[L.RESIM_PEND][i] or iv[CO.I_FREE] < ci[CI_SPACE] or iv[CO.I_PFREE] < ci[CI_SPACE]:
         return -1
-    now = S[L.FLOATS][L.F_PT]
+    now = S[L.FLOATS][CO.F_PT]
     latest = ci[CI_TRUTH_LATEST]
     slot_frame = C[C_SLOT_FRAME]
     H = slot_frame.shape[0]
-    c = max(iv[L.I_PA], max(0, latest - H + 2))  # SwarmTruth.first_resim
+    c = max(iv[CO.I_PA], max(0, latest - H + 2))  # SwarmTruth.first_resim
     if c == 0:
         prev = C[C_INITIAL][i]
     elif slot_frame[(c - 1) % H] < 0:
@@ -323,13 +324,13 @@ def _roll_back(S, C, resim):  # type: ignore[no-untyped-def]
     else:  # nothing to re-simulate: the node's state is its checkpoint before c
         for x in range(prev.shape[0]):
             C[C_STATE][i, x] = prev[x]
-    steps = max(0, iv[L.I_PB] - c + 1)
+    steps = max(0, iv[CO.I_PB] - c + 1)
     ci[CI_ROLLBACKS] += 1
     ci[CI_RESIM_STEPS] += steps
     ci[CI_ROLLED] += 1
     owe_steps(S, i, steps, now)
-    if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
-        iv[L.I_PEND] = 0
+    if iv[CO.I_PEND] == CO.NEED_START:  # the job start it made needs rollback draws
+        iv[CO.I_PEND] = 0
         ci[CI_NEED_NODE] = i
         cf[CF_PT] = now
         return START
@@ -356,20 +357,20 @@ def run(S, C, step, observe, resim):  # type: ignore[no-untyped-def]
         else:
             tc = math.inf
         last = tc >= cf[CF_END]
-        iv[L.I_LATEST] = ci[CI_TRUTH_LATEST]  # rollbacks clamp to the ring
+        iv[CO.I_LATEST] = ci[CI_TRUTH_LATEST]  # rollbacks clamp to the ring
         code = advance(S, cf[CF_END] if last else tc, last)
-        if code == L.NEED_ROLLBACK:
+        if code == CO.NEED_ROLLBACK:
             code = _roll_back(S, C, resim)
             if code < 0:
-                return L.NEED_ROLLBACK
+                return CO.NEED_ROLLBACK
             if code != 0:
                 return code
             continue
-        if code != L.OK:
+        if code != CO.OK:
             return code
-        if iv[L.I_DEFN]:
+        if iv[CO.I_DEFN]:
             return DEFERRED
-        if iv[L.I_OUT]:
+        if iv[CO.I_OUT]:
             if ci[CI_METHOD] != NONE:
                 return OUT
             _take_out(S, C)

@@ -29,8 +29,8 @@ from sigma_des.core.sim import Kernel
 from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.bides import BidesAligner
 from sigma_des.events.align.none import NoneAligner
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import control as C
-from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.dispatch import compute_fingerprint
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.handle import HandleType
@@ -277,7 +277,7 @@ class CompiledControl:
             arg = self._bind()
             code = self._entry(arg, ctl, step, observe, resim)
             self.returns[code] = self.returns.get(code, 0) + 1
-            if code < len(L.EXIT_CODES):
+            if code < len(CO.EXIT_CODES):
                 core.exits[code] += 1
                 self._sync_truth()
                 core.serve(code)
@@ -305,8 +305,8 @@ class CompiledControl:
                 core.drain()
             elif code == C.END:
                 self._sync()
-                core.exits[L.OK] += 1
-                core.exits[L.NEED_ROLLBACK] += int(self.ci[C.CI_ROLLED])
+                core.exits[CO.OK] += 1
+                core.exits[CO.NEED_ROLLBACK] += int(self.ci[C.CI_ROLLED])
                 self.ci[C.CI_ROLLED] = 0
                 core.write_back()
                 return END

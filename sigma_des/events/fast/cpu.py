@@ -21,10 +21,19 @@ from __future__ import annotations
 
 import math
 
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     CA_BUSY,
     CA_QUEUED,
     CA_WAIT,
+    G_END,
+    G_WARMUP,
+    ML_BG,
+    ML_BUSY,
+    ML_END,
+    ML_GROW,
+    ML_Q,
+)
+from sigma_des.events.fast.layout import (
     CPU_ACC,
     CPU_BURSTS,
     CPU_FREE,
@@ -40,13 +49,6 @@ from sigma_des.events.fast.layout import (
     CPU_SWITCH,
     CPU_WAKE,
     FPARAMS,
-    G_END,
-    G_WARMUP,
-    ML_BG,
-    ML_BUSY,
-    ML_END,
-    ML_GROW,
-    ML_Q,
 )
 from sigma_des.events.fast.primitives import jit
 from sigma_des.events.fast.stateref import ref

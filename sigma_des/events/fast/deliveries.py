@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.events.align.base import OBS_WIDTH, Aligner, StateBatch
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.tap import Tap
 from sigma_des.metrics.collector import Collector
@@ -87,17 +88,17 @@ class Deliveries:
 
     def params(self, q: NDArray[np.int64]) -> None:
         """Set ``Q_RING`` and ``Q_OUT`` (before any tap is attached: see :meth:`watch`)."""
-        q[L.Q_RING] = int(self.ring is not None)
-        q[L.Q_OUT] = int(self.ring is None)
+        q[CO.Q_RING] = int(self.ring is not None)
+        q[CO.Q_OUT] = int(self.ring is None)
 
     def watch(self, S: State) -> None:
         """Buffer states for Python if the aligner or the run's tap takes them."""
-        S[L.IPARAMS][L.Q_OUT] = int(self.ring is None or records_states(self.host.tap))
+        S[L.IPARAMS][CO.Q_OUT] = int(self.ring is None or records_states(self.host.tap))
 
     def states(self, S: State) -> None:
         """Hand the buffered state deliveries to the aligner (without a ring) and the tap."""
         iv = S[L.INTS]
-        o = int(iv[L.I_OUT])
+        o = int(iv[CO.I_OUT])
         if not o:
             return
         h = self.host
@@ -109,13 +110,13 @@ class Deliveries:
                 StateBatch(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs, of[:, 2], oi[:, 2])
             )
         h.tap.states(of[:, 0], oi[:, 0], oi[:, 1], of[:, 1], obs)
-        iv[L.I_OUT] = 0
+        iv[CO.I_OUT] = 0
 
     def latencies(self, S: State) -> None:
         """Append the buffered latencies to the collector's series, in order."""
         iv = S[L.INTS]
         for k in range(3):
-            m = int(iv[L.I_LAT + k])
+            m = int(iv[CO.I_LAT + k])
             if m:
                 self.host.collector.delivered_batch(k + 1, S[L.LAT_BUF][k, :m].copy(), 0)
-                iv[L.I_LAT + k] = 0
+                iv[CO.I_LAT + k] = 0

@@ -33,6 +33,7 @@ from sigma_des.events.align.base import Aligner
 from sigma_des.events.align.hlc_clock import Stamp
 from sigma_des.events.align.lockstep import LockstepAligner
 from sigma_des.events.fast import channel, entries, loop
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.attempts import AttemptTables
 from sigma_des.events.fast.deliveries import Deliveries
@@ -127,7 +128,7 @@ class CompiledCore:
         p_loss = (links.host_link.loss.p, links.server_link.loss.p)
         lossy = lossy_classes(spec)
         sources = network_sources(host.net, lossy)
-        sources.append((L.STEP, 0, host.nodes.step_time))
+        sources.append((CO.STEP, 0, host.nodes.step_time))
         self.tables = DrawTables(sources, spec.history_frames, host.n + 1)
         self.frame_draws = FrameDraws(self.tables, (TRIGGER, STATE, 0))  # 0: compute
         self.command_draws = FrameDraws(self.tables, (COMMAND,))  # a tick's, the same way
@@ -135,16 +136,16 @@ class CompiledCore:
                                    host.method == "bides" and spec.time_warp, spec.theta_warp,
                                    self.frame_draws)
         self.deliveries = Deliveries(host, host.n)
-        #: how often the loop returned, by exit code (``layout.EXIT_CODES``)
-        self.exits = [0] * len(L.EXIT_CODES)
+        #: how often the loop returned, by exit code (``codes.EXIT_CODES``)
+        self.exits = [0] * len(CO.EXIT_CODES)
         self.attempts = AttemptTables(host.net, lossy, spec.history_frames,
                                       host.n + 1, self._lockstep)
         #: the seed-free values handed on by :meth:`retire` (None: none)
         self.S, self._kept = state_for(self, p_loss, SLACK, ARENA, spare)
-        self.S[L.INTS][L.I_FREE] = self.S[L.FREE].size  # every slot is free
+        self.S[L.INTS][CO.I_FREE] = self.S[L.FREE].size  # every slot is free
         channel.batching(self.S)  # fan-out batches and channels, where they apply
         self._outbox_room = outbox_room(self.S)  # the loop's spare slots for outboxes
-        self.S[L.INTS][L.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
+        self.S[L.INTS][CO.I_PFREE] = self.S[L.POOL_FREE].size  # and every payload row
         self._closed = False
         self._typed: tuple[NDArray[Any], ...] = ()  # the state _entries was bound for
         self._bound = entries.DISPATCHED
@@ -156,7 +157,7 @@ class CompiledCore:
         self._check_open()
         need = k + self.host.n + 4
         iv = self.S[L.INTS]
-        if iv[L.I_FREE] < need or iv[L.I_PFREE] < need:
+        if iv[CO.I_FREE] < need or iv[CO.I_PFREE] < need:
             self.S = grow(self.S, need)
             self._typed = ()  # arrays resized in place: the state is held again (handle.py)
 
@@ -278,7 +279,7 @@ class CompiledCore:
         ``t`` (Network.server_free; every message at or before ``t`` has run)."""
         if self.host.net.cpu is None:
             return t
-        free = float(self.S[L.CPU_FREE][L.P_SERVER])
+        free = float(self.S[L.CPU_FREE][CO.P_SERVER])
         return free if free > t else t
 
     def server_tick(self, t: float) -> None:
@@ -287,13 +288,13 @@ class CompiledCore:
         h = self.host
         tick = h.spec.net.deployment.server_tick
         if h.net.cpu is not None and tick > 0.0:
-            loop.tick(self.S, L.P_SERVER, tick, t)
+            loop.tick(self.S, CO.P_SERVER, tick, t)
 
     # ------------------------------------------------------------ nodes
 
     def exit_counts(self) -> dict[str, int]:
         """How often the loop returned to Python so far, by exit code name."""
-        return {name: self.exits[code] for name, code in L.EXIT_CODES.items()}
+        return {name: self.exits[code] for name, code in CO.EXIT_CODES.items()}
 
     def _rollback(self, i: int, c: int, current: int, now: float) -> None:
         """The rollback of node ``i`` to ``c`` the loop handed over (``NEED_ROLLBACK``).
@@ -312,8 +313,8 @@ class CompiledCore:
             steps = truth.rollback(i, c, current, self.host.nodes.cmd[i])
             self._entries().owe_steps(self._arg, i, steps, now)
         iv = self.S[L.INTS]
-        if iv[L.I_PEND] == L.NEED_START:  # the job start it made needs rollback draws
-            iv[L.I_PEND] = 0
+        if iv[CO.I_PEND] == CO.NEED_START:  # the job start it made needs rollback draws
+            iv[CO.I_PEND] = 0
             self._start_job(i, now)
 
     def flush_rollbacks(self) -> None:
@@ -324,7 +325,7 @@ class CompiledCore:
         """Node ``i``'s job start the loop handed over (``NEED_START``): fill the rollback
         draws it owes into their table, then start it in the loop."""
         nd = self.S[L.NODE]
-        self.S = self.rollbacks.fill(self.S, int(nd[L.N_REQ, i]), int(nd[L.N_RB, i]))
+        self.S = self.rollbacks.fill(self.S, int(nd[CO.N_REQ, i]), int(nd[CO.N_RB, i]))
         self.ensure_space(2)
         self._entries().start(self._arg, i, now)
 
@@ -339,9 +340,9 @@ class CompiledCore:
         S[L.LS_MIRROR][0] = b.got
         S[L.LS_MIRROR][1] = b.live
         iv = S[L.INTS]
-        iv[L.I_LCUR] = b.current
-        iv[L.I_LMISS] = b.missing
-        iv[L.I_LCOMP] = int(b.complete)
+        iv[CO.I_LCUR] = b.current
+        iv[CO.I_LMISS] = b.missing
+        iv[CO.I_LCOMP] = int(b.complete)
 
     def advance_to(self, bound: float, strict: bool) -> bool:
         """Run the messages up to ``bound`` (``< bound`` if ``strict``), then drain them.
@@ -359,7 +360,7 @@ class CompiledCore:
             CohortFallback: a message needed a draw older than ``history_frames``.
         """
         self._check_open()
-        self.S[L.INTS][L.I_LATEST] = self.host.truth.latest  # rollbacks clamp to the ring
+        self.S[L.INTS][CO.I_LATEST] = self.host.truth.latest  # rollbacks clamp to the ring
         self.deliveries.watch(self.S)  # a recording tap takes the states too
         while True:
             if self._lockstep:
@@ -367,17 +368,17 @@ class CompiledCore:
                 self._sync_barrier()
             code = self._entries().advance(self._arg, float(bound), bool(strict))
             self.exits[code] += 1
-            if code == L.OK:  # (neither call has anything to do when its count is 0)
+            if code == CO.OK:  # (neither call has anything to do when its count is 0)
                 iv = self.S[L.INTS]
-                if iv[L.I_DEFN]:
+                if iv[CO.I_DEFN]:
                     self.flush_rollbacks()
-                if iv[L.I_OUT]:
+                if iv[CO.I_OUT]:
                     self.drain()
                 return False
-            if code == L.BARRIER:
+            if code == CO.BARRIER:
                 # the aligner sees the completing state at its own arrival time
                 self.flush_rollbacks()
-                self.host.kernel.jump_to(float(self.S[L.FLOATS][L.F_PT]))
+                self.host.kernel.jump_to(float(self.S[L.FLOATS][CO.F_PT]))
                 self.drain()
                 return True
             self.serve(code)
@@ -390,32 +391,32 @@ class CompiledCore:
             CohortFallback: a message needed a draw older than ``history_frames``.
         """
         S = self.S
-        if code == L.NEED_SPACE:
+        if code == CO.NEED_SPACE:
             self.ensure_space(self.host.n + 8 + self._outbox_room)
-        elif code == L.NEED_FLUSH:
+        elif code == CO.NEED_FLUSH:
             self.drain()
             self.deliveries.latencies(S)
-        elif code == L.NEED_RESIM:
+        elif code == CO.NEED_RESIM:
             self.flush_rollbacks()
-        elif code == L.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
+        elif code == CO.NEED_FILL:  # a resend's draws (QoS 1 over datagram)
             tr = S[L.TR_INTS]
-            self.attempts.fill(int(tr[L.T_FKIND]), int(tr[L.T_FINDEX]), int(tr[L.T_FATT]))
-        elif code in (L.NEED_START, L.NEED_ROLLBACK):
-            now = float(S[L.FLOATS][L.F_PT])
-            i = int(S[L.INTS][L.I_PNODE])
-            if code == L.NEED_START:
+            self.attempts.fill(int(tr[CO.T_FKIND]), int(tr[CO.T_FINDEX]), int(tr[CO.T_FATT]))
+        elif code in (CO.NEED_START, CO.NEED_ROLLBACK):
+            now = float(S[L.FLOATS][CO.F_PT])
+            i = int(S[L.INTS][CO.I_PNODE])
+            if code == CO.NEED_START:
                 self._start_job(i, now)
             else:
-                self._rollback(i, int(S[L.INTS][L.I_PA]), int(S[L.INTS][L.I_PB]), now)
+                self._rollback(i, int(S[L.INTS][CO.I_PA]), int(S[L.INTS][CO.I_PB]), now)
         else:
-            raise CohortFallback(self._error(int(S[L.INTS][L.I_ERR])))
+            raise CohortFallback(self._error(int(S[L.INTS][CO.I_ERR])))
 
     def _error(self, code: int) -> str:
         """Why the loop stopped with error ``code`` (the run falls back)."""
         return {
             L.ERR_HORIZON: "a send or clock reading beyond the link and clock tables "
                            f"(the run's end + {TABLE_MARGIN} s)",
-            L.ERR_OUTBOX: f"more than {L.OB_CAP} publishes of one process waiting for its "
+            L.ERR_OUTBOX: f"more than {CO.OB_CAP} publishes of one process waiting for its "
                           "thread (deployment.lock_switch)",
             L.ERR_RANGE: "an HLC counter or stream sequence number beyond the event table's "
                          f"int32 columns (largest {L.EV_INT_MAX})",
@@ -437,23 +438,23 @@ class CompiledCore:
         fv = S[L.FLOATS]
         iv = S[L.INTS]
         tr = S[L.TR_INTS]
-        h.net.carried(cnt[:, 0], cnt[:, 1], S[L.LINK_BUSY], int(tr[L.T_RETX]),
-                      int(tr[L.T_GAVE]))
+        h.net.carried(cnt[:, 0], cnt[:, 1], S[L.LINK_BUSY], int(tr[CO.T_RETX]),
+                      int(tr[CO.T_GAVE]))
         cnt[:] = 0
-        tr[L.T_RETX] = tr[L.T_GAVE] = 0
-        h.net.broker.carried(float(fv[L.F_BUSY]), float(fv[L.F_WORK]), float(fv[L.F_MAXWAIT]))
-        fv[L.F_WORK] = fv[L.F_MAXWAIT] = 0.0
+        tr[CO.T_RETX] = tr[CO.T_GAVE] = 0
+        h.net.broker.carried(float(fv[CO.F_BUSY]), float(fv[CO.F_WORK]), float(fv[CO.F_MAXWAIT]))
+        fv[CO.F_WORK] = fv[CO.F_MAXWAIT] = 0.0
         cpu = h.net.cpu
         if cpu is not None:  # every burst of the run was served here (server ticks too)
             acc = S[L.CPU_ACC]
             nb = S[L.CPU_BURSTS]
             for p, proc in enumerate(cpu.processes):
-                proc.carried(float(S[L.CPU_FREE][p]), float(acc[p, L.CA_BUSY]),
-                             float(acc[p, L.CA_WAIT]), int(nb[p]), float(acc[p, L.CA_QUEUED]))
+                proc.carried(float(S[L.CPU_FREE][p]), float(acc[p, CO.CA_BUSY]),
+                             float(acc[p, CO.CA_WAIT]), int(nb[p]), float(acc[p, CO.CA_QUEUED]))
             acc[:] = 0.0
             nb[:] = 0
-        h.nodes.count_history_misses(int(iv[L.I_HMISS]))
-        h.collector.delivered_batch(1, np.empty(0), int(iv[L.I_MSGS]), int(iv[L.I_DUPS]))
-        h.kernel.count(int(iv[L.I_NEV]))
-        for slot in (L.I_DUPS, L.I_MSGS, L.I_HMISS, L.I_NEV):
+        h.nodes.count_history_misses(int(iv[CO.I_HMISS]))
+        h.collector.delivered_batch(1, np.empty(0), int(iv[CO.I_MSGS]), int(iv[CO.I_DUPS]))
+        h.kernel.count(int(iv[CO.I_NEV]))
+        for slot in (CO.I_DUPS, CO.I_MSGS, CO.I_HMISS, CO.I_NEV):
             iv[slot] = 0

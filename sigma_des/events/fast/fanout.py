@@ -31,14 +31,10 @@ from typing import Any
 
 from numpy.typing import NDArray
 
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
-from sigma_des.events.fast.layout import (
-    BAT_K,
-    BAT_T,
-    BAT_W,
-    BCAST,
+from sigma_des.events.fast.codes import (
     CP_NSUB,
-    CPU_IP,
     E_AUX,
     E_FRAME,
     E_INDEX,
@@ -51,8 +47,6 @@ from sigma_des.events.fast.layout import (
     EF_TDEP,
     EV_BATCH,
     EV_CLIENT,
-    EV_FLOAT,
-    EV_INT,
     I_BELEM,
     I_BHEAD,
     I_BPUSH,
@@ -62,9 +56,18 @@ from sigma_des.events.fast.layout import (
     I_BUSED,
     I_EID,
     I_NEV,
-    INTS,
     SLOT_BITS,
     SVC_DEL,
+)
+from sigma_des.events.fast.layout import (
+    BAT_K,
+    BAT_T,
+    BAT_W,
+    BCAST,
+    CPU_IP,
+    EV_FLOAT,
+    EV_INT,
+    INTS,
     WIRE_BYTES,
 )
 from sigma_des.events.fast.primitives import (
@@ -91,7 +94,7 @@ def one_event_hops(S: tuple[NDArray[Any], ...]) -> bool:
     """Whether a hop of the run is one event: no CPU stage at the clients, no QoS 1 over
     datagram, no stream with hold-back (what batching, here and in channels, needs)."""
     tp, cp = S[L.TR_PARAMS], S[L.CPU_IP]
-    return not (cp[L.CP_APP] or tp[L.T_QOS1D] or tp[L.T_STREAM] or tp[L.T_STREAM + 1])
+    return not (cp[CO.CP_APP] or tp[CO.T_QOS1D] or tp[CO.T_STREAM] or tp[CO.T_STREAM + 1])
 
 
 def applies(S: tuple[NDArray[Any], ...]) -> bool:
@@ -105,9 +108,9 @@ def counts(S: tuple[NDArray[Any], ...]) -> dict[str, int]:
     batches (``batched``), batches queued (``batches``), batches queued again
     (``requeued``), deliveries queued one by one (``single``: out-of-order broadcasts)."""
     iv = S[L.INTS]
-    return {"on": int(S[L.IPARAMS][L.Q_FAN]), "batched": int(iv[L.I_BELEM]),
-            "batches": int(iv[L.I_BPUSH]), "requeued": int(iv[L.I_BREIN]),
-            "single": int(iv[L.I_BSING])}
+    return {"on": int(S[L.IPARAMS][CO.Q_FAN]), "batched": int(iv[CO.I_BELEM]),
+            "batches": int(iv[CO.I_BPUSH]), "requeued": int(iv[CO.I_BREIN]),
+            "single": int(iv[CO.I_BSING])}
 
 
 @jit

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.support import CohortFallback
 
@@ -53,8 +54,8 @@ GROWTH = 8
 #: Arrays reallocated where they lie (every row may be live).
 IN_PLACE = ("ev_int", "ev_float", "free", "run_t", "run_k")
 #: Arrays whose first ``S[Q_INT][scalar]`` rows are live: their only contents.
-PREFIX = {"heap_t": L.QI_HEAP, "heap_k": L.QI_HEAP, "heap_r": L.QI_HEAP,
-          "pend_t": L.QI_PN, "pend_k": L.QI_PN, "run_pos": L.QI_NRUN, "run_end": L.QI_NRUN}
+PREFIX = {"heap_t": CO.QI_HEAP, "heap_k": CO.QI_HEAP, "heap_r": CO.QI_HEAP,
+          "pend_t": CO.QI_PN, "pend_k": CO.QI_PN, "run_pos": CO.QI_NRUN, "run_end": CO.QI_NRUN}
 #: Scratch arrays of the queue's sealing and compaction (no contents between calls).
 SCRATCH = ("run_fwd", "bounds")
 #: The payload pool and its free list (``pool`` rows), reallocated where they lie.
@@ -185,11 +186,11 @@ def grown_capacity(old: int, need: int) -> int:
 
     Raises:
         CohortFallback: ``need`` more slots are more than a queue key can address
-            (:data:`~sigma_des.events.fast.layout.MAX_SLOTS`).
+            (:data:`~sigma_des.events.fast.codes.MAX_SLOTS`).
     """
-    if old + need > L.MAX_SLOTS:
-        raise CohortFallback(f"more than {L.MAX_SLOTS} messages in flight")
-    return min(old + max(old // GROWTH, need), L.MAX_SLOTS)
+    if old + need > CO.MAX_SLOTS:
+        raise CohortFallback(f"more than {CO.MAX_SLOTS} messages in flight")
+    return min(old + max(old // GROWTH, need), CO.MAX_SLOTS)
 
 
 def _free_on_top(free: NDArray[Any], iv: NDArray[Any], top: int, old: int, new: int) -> None:
@@ -211,9 +212,9 @@ def grow(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
         The state: the in-place arrays are the same objects, the others new ones.
     """
     iv = S[L.INTS]
-    if iv[L.I_PFREE] < need:
+    if iv[CO.I_PFREE] < need:
         _grow_pool(S, need)
-    if iv[L.I_FREE] < need:
+    if iv[CO.I_FREE] < need:
         S = _grow_slots(S, need)
     return S
 
@@ -225,7 +226,7 @@ def _grow_pool(S: tuple[NDArray[Any], ...], need: int) -> None:
     new = grown_capacity(old, need)
     pool.resize((new, pool.shape[1]), refcheck=False)  # no views exist (module docstring)
     free.resize((new,), refcheck=False)
-    _free_on_top(free, S[L.INTS], L.I_PFREE, old, new)
+    _free_on_top(free, S[L.INTS], CO.I_PFREE, old, new)
 
 
 def _grow_slots(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], ...]:
@@ -249,5 +250,5 @@ def _grow_slots(S: tuple[NDArray[Any], ...], need: int) -> tuple[NDArray[Any], .
         elif f.name not in SCRATCH:
             raise AssertionError(f"state field {f.name!r}: no growth rule")
         made[f.name] = b
-    _free_on_top(S[L.FREE], S[L.INTS], L.I_FREE, old, new)
+    _free_on_top(S[L.FREE], S[L.INTS], CO.I_FREE, old, new)
     return L.replaced(S, made)

@@ -14,29 +14,31 @@ stops the loop (``NEED_START``) and Python fills the row and starts the job
 
 from __future__ import annotations
 
-from sigma_des.events.fast.layout import (
-    CORES,
+from sigma_des.events.fast.codes import (
     EV_DONE,
     F_PT,
-    FLOATS,
-    HOST_OF,
     I_PEND,
     I_PNODE,
-    INTS,
     N_BUSY,
     N_FRAME,
     N_RB,
     N_REQ,
     N_TARGET,
     NEED_START,
-    NODE,
     RB_ROWS,
-    RB_TAG,
     RB_TARGET,
+    STEP,
+)
+from sigma_des.events.fast.layout import (
+    CORES,
+    FLOATS,
+    HOST_OF,
+    INTS,
+    NODE,
+    RB_TAG,
     RB_VAL,
     SLOW,
     SLOW_PTR,
-    STEP,
 )
 from sigma_des.events.fast.primitives import address, alloc, draw, jit, push
 from sigma_des.events.fast.stateref import ref

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sigma_des.events.fast.codes import I_ERR
 from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     DEG,
@@ -24,7 +25,6 @@ from sigma_des.events.fast.layout import (
     ERR_HORIZON,
     GE_BAD,
     GE_PAR,
-    I_ERR,
     INTS,
     LINK_DYN,
     LINK_OF,

@@ -10,11 +10,7 @@ node back (:mod:`~sigma_des.events.fast.warp`).
 from __future__ import annotations
 
 from sigma_des.events.fast.clock import local_time
-from sigma_des.events.fast.job import start_job
-from sigma_des.events.fast.layout import (
-    CL_OF,
-    CMD,
-    CRASH,
+from sigma_des.events.fast.codes import (
     E_AUX,
     E_FRAME,
     E_INDEX,
@@ -23,35 +19,41 @@ from sigma_des.events.fast.layout import (
     EF_GEN,
     EF_L,
     EF_TPUB,
-    EV_FLOAT,
-    EV_INT,
-    HLC_C,
-    HLC_L,
     I_HMISS,
-    INTS,
-    IPARAMS,
     K_COMMAND,
     K_REPUB,
     K_REREQ,
     K_STATE,
     K_TRIGGER,
-    LAST_FLOAT,
-    LAST_INT,
     N_BUSY,
     N_CSTAMP,
     N_FRAME,
     N_RB,
     N_REQ,
     N_TARGET,
-    NODE,
-    OBS_HIST,
-    POOL,
     Q_HLC,
     Q_LOCK,
     Q_M,
     Q_THETA,
     Q_W,
     Q_WARP,
+)
+from sigma_des.events.fast.job import start_job
+from sigma_des.events.fast.layout import (
+    CL_OF,
+    CMD,
+    CRASH,
+    EV_FLOAT,
+    EV_INT,
+    HLC_C,
+    HLC_L,
+    INTS,
+    IPARAMS,
+    LAST_FLOAT,
+    LAST_INT,
+    NODE,
+    OBS_HIST,
+    POOL,
     SLOT_FRAME,
 )
 from sigma_des.events.fast.primitives import (

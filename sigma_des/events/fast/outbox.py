@@ -7,7 +7,7 @@ ones of that process wait) joins the process's outbox, a ring of slots; the firs
 schedules a check (an ``EV_LEAVE`` event) when the thread is next free or
 ``lock_switch`` after its burst's end, whichever is first. At the check, if the thread
 is idle or the switch is due, the whole outbox leaves in order; else the check is
-made again then. More than :data:`~sigma_des.events.fast.layout.OB_CAP` waiting
+made again then. More than :data:`~sigma_des.events.fast.codes.OB_CAP` waiting
 publishes of one process is an error (``ERR_OUTBOX``): the run falls back to the
 per-message engine.
 """
@@ -16,8 +16,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     CP_SWITCH,
+    E_ATT,
+    E_TYPE,
+    E_WHO,
+    EV_LEAVE,
+    I_ERR,
+    OB_CAP,
+    T_QOS1D,
+)
+from sigma_des.events.fast.layout import (
     CPU_FREE,
     CPU_IP,
     CPU_OB,
@@ -25,16 +34,9 @@ from sigma_des.events.fast.layout import (
     CPU_OBT,
     CPU_PROC,
     CPU_SWITCH,
-    E_ATT,
-    E_TYPE,
-    E_WHO,
     ERR_OUTBOX,
     EV_INT,
-    EV_LEAVE,
-    I_ERR,
     INTS,
-    OB_CAP,
-    T_QOS1D,
     TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import alloc, jit, push

@@ -23,6 +23,17 @@ each hold an event slot, so after a compaction there is always a free run id.
 
 from __future__ import annotations
 
+from sigma_des.events.fast.codes import (
+    QF_PMIN,
+    QI_ATOP,
+    QI_CUR,
+    QI_HAS,
+    QI_HEAP,
+    QI_NRUN,
+    QI_PMINK,
+    QI_PN,
+    SLOT_MASK,
+)
 from sigma_des.events.fast.compiler import jit
 from sigma_des.events.fast.layout import (
     BOUNDS,
@@ -33,20 +44,11 @@ from sigma_des.events.fast.layout import (
     PEND_T,
     Q_FLOAT,
     Q_INT,
-    QF_PMIN,
-    QI_ATOP,
-    QI_CUR,
-    QI_HAS,
-    QI_HEAP,
-    QI_NRUN,
-    QI_PMINK,
-    QI_PN,
     RUN_END,
     RUN_FWD,
     RUN_K,
     RUN_POS,
     RUN_T,
-    SLOT_MASK,
 )
 from sigma_des.events.fast.primitives import precedes, push_key
 

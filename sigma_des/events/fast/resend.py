@@ -14,7 +14,7 @@ the loop takes that event: draws stay a pure function of their key.
 from __future__ import annotations
 
 from sigma_des.events.fast.broker import serve_delivery
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     E_ATT,
     E_INDEX,
     E_KIND,
@@ -23,8 +23,6 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     EF_TDEP,
     EV_BROKER,
-    EV_FLOAT,
-    EV_INT,
     EV_RESEND,
     T_FATT,
     T_FINDEX,
@@ -32,10 +30,8 @@ from sigma_des.events.fast.layout import (
     TA_ARRIVE,
     TA_RESEND,
     TA_RETRY,
-    TR_INTS,
-    X_FIRST,
-    X_TAG,
 )
+from sigma_des.events.fast.layout import EV_FLOAT, EV_INT, TR_INTS, X_FIRST, X_TAG
 from sigma_des.events.fast.primitives import alloc, attempt_key, jit, key_of
 from sigma_des.events.fast.stream import stream_arrive, stream_try
 from sigma_des.events.fast.transport import copy_slot, send

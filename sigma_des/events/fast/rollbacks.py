@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import BLOCK_VALUES, DrawCache
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.frame_draws import FrameDraws
 from sigma_des.events.jobs import ROLLBACK_DRAW
@@ -80,7 +81,7 @@ class Rollbacks:
     def given(self) -> dict[str, NDArray[Any]]:
         """The table's arrays, empty (``np.zeros``: pages untouched until filled)."""
         tag = np.zeros((self._targets, 2), dtype=np.int64)
-        tag[:, L.RB_TARGET] = -1
+        tag[:, CO.RB_TARGET] = -1
         return {"rb_val": np.zeros((self._targets, self._rows, self.n)), "rb_tag": tag}
 
     def fill(self, S: State, target: int, need: int) -> State:
@@ -91,11 +92,11 @@ class Rollbacks:
         """
         tag = S[L.RB_TAG]
         row = target % tag.shape[0]
-        if tag[row, L.RB_TARGET] != target:
+        if tag[row, CO.RB_TARGET] != target:
             if self.step_time.blockable:
                 return self._fill_ahead(S, target, need)
             tag[row] = (target, 0)
-        have = int(tag[row, L.RB_ROWS])
+        have = int(tag[row, CO.RB_ROWS])
         if have >= need:
             return S
         want = max(need, 2 * have)
@@ -107,7 +108,7 @@ class Rollbacks:
         else:
             for j in range(have, want):
                 val[row, j] = self.step_time.vector(ROLLBACK_DRAW, target, j)
-        tag[row, L.RB_ROWS] = want
+        tag[row, CO.RB_ROWS] = want
         return S
 
     def _fill_ahead(self, S: State, target: int, need: int) -> State:
@@ -124,20 +125,20 @@ class Rollbacks:
         rows = targets % t
         val[rows] = self.step_time.grid(ROLLBACK_DRAW, targets, np.arange(depth))
         tag = S[L.RB_TAG]
-        tag[rows, L.RB_TARGET] = targets
-        tag[rows, L.RB_ROWS] = depth
+        tag[rows, CO.RB_TARGET] = targets
+        tag[rows, CO.RB_ROWS] = depth
         return S
 
     def flush(self, S: State) -> None:
         """Re-simulate every deferred rollback (one batched call) and unmark their nodes."""
         iv = S[L.INTS]
-        m = int(iv[L.I_DEFN])
+        m = int(iv[CO.I_DEFN])
         if m == 0:
             return
         d = S[L.DEF_INT][:m]
-        nodes = self.truth.flush_rollbacks(d[:, L.D_NODE].copy(), d[:, L.D_FIRST].copy(),
-                                           S[L.DEF_ROW][:m].copy(), d[:, L.D_STEPS].copy())
-        iv[L.I_DEFN] = 0
+        nodes = self.truth.flush_rollbacks(d[:, CO.D_NODE].copy(), d[:, CO.D_FIRST].copy(),
+                                           S[L.DEF_ROW][:m].copy(), d[:, CO.D_STEPS].copy())
+        iv[CO.I_DEFN] = 0
         pend = S[L.RESIM_PEND]
         pend[nodes] = 0
         pend[self.n] = 0  # the flush re-simulated every pending node

@@ -12,7 +12,7 @@ barrier's count is mirrored so the loop can stop when the barrier completes
 from __future__ import annotations
 
 from sigma_des.events.align.ring import insert_row
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     BARRIER,
     E_AUX,
     E_FRAME,
@@ -22,11 +22,7 @@ from sigma_des.events.fast.layout import (
     EF_GEN,
     EF_L,
     EF_TPUB,
-    EV_FLOAT,
-    EV_INT,
     F_PT,
-    FLOATS,
-    FPARAMS,
     G_WARMUP,
     I_DUPS,
     I_LAT,
@@ -36,25 +32,31 @@ from sigma_des.events.fast.layout import (
     I_MSGS,
     I_OUT,
     I_PEND,
-    INTS,
-    IPARAMS,
     K_REPUB,
     K_REREQ,
+    Q_LOCK,
+    Q_OUT,
+    Q_RING,
+    Q_W,
+    T_DUPALL,
+)
+from sigma_des.events.fast.layout import (
+    EV_FLOAT,
+    EV_INT,
+    FLOATS,
+    FPARAMS,
+    INTS,
+    IPARAMS,
     LAT_BUF,
     LS_MIRROR,
     OUT_FLOAT,
     OUT_INT,
     POOL,
-    Q_LOCK,
-    Q_OUT,
-    Q_RING,
-    Q_W,
     RING_FRAME,
     RING_GEN,
     RING_LATEST,
     RING_OBS,
     SEEN,
-    T_DUPALL,
     TR_PARAMS,
 )
 from sigma_des.events.fast.primitives import jit, payload, row_of

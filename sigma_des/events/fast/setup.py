@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.events.align.base import OBS_WIDTH
-from sigma_des.events.fast import layout as L
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast.support import ge_slots, ntp_syncs
 from sigma_des.events.fast.tables import (
     DEPLOYMENT_FIELDS,
@@ -57,7 +57,7 @@ def dims(core: CompiledCore, slack: int, arena: float) -> dict[str, int]:
         "last_w": 2 + OBS_WIDTH, "slow": max(1, sum(len(w) for w in h.nodes.slow.values())),
         # duplicate check of re-requests and republished states (Lock-Step), or of
         # every kind (QoS 1 over datagram: row = kind)
-        "seen_k": L.N_KINDS if dup_all else 2, "seen_n": n + 1 if seen else 1,
+        "seen_k": CO.N_KINDS if dup_all else 2, "seen_n": n + 1 if seen else 1,
         "seen_h": spec.history_frames if seen else 1, **core.attempts.dims(),
         # link and clock tables (Gilbert–Elliott, degrade, drop, NTP)
         "links_1": spec.hosts + 2, "ge_slots": ge_slots(spec),
@@ -72,21 +72,21 @@ def dims(core: CompiledCore, slack: int, arena: float) -> dict[str, int]:
 
 
 def params(core: CompiledCore) -> NDArray[np.int64]:
-    """The loop's integer parameters (``layout.Q_*``)."""
+    """The loop's integer parameters (``codes.Q_*``)."""
     h = core.host
     spec, net = h.spec, h.net
-    q = np.zeros(L.Q_LEN, dtype=np.int64)
-    q[L.Q_N] = h.n
-    q[L.Q_H] = h.truth.H
-    q[L.Q_HLC] = int(h.method == "hlc")
-    q[L.Q_WARP] = int(h.method == "bides" and spec.time_warp)
-    q[L.Q_THETA] = spec.theta_warp
-    q[L.Q_QOS1S] = int(net.qos1 and not net.datagram)
-    q[L.Q_ACK] = net.ack_bytes
-    q[L.Q_W] = OBS_WIDTH
-    q[L.Q_M] = int(h.nodes.cmd.shape[1])
-    q[L.Q_LOCK] = int(h.method == "lockstep")
-    q[L.Q_BATCH] = int(h.truth.batched)
+    q = np.zeros(CO.Q_LEN, dtype=np.int64)
+    q[CO.Q_N] = h.n
+    q[CO.Q_H] = h.truth.H
+    q[CO.Q_HLC] = int(h.method == "hlc")
+    q[CO.Q_WARP] = int(h.method == "bides" and spec.time_warp)
+    q[CO.Q_THETA] = spec.theta_warp
+    q[CO.Q_QOS1S] = int(net.qos1 and not net.datagram)
+    q[CO.Q_ACK] = net.ack_bytes
+    q[CO.Q_W] = OBS_WIDTH
+    q[CO.Q_M] = int(h.nodes.cmd.shape[1])
+    q[CO.Q_LOCK] = int(h.method == "lockstep")
+    q[CO.Q_BATCH] = int(h.truth.batched)
     core.deliveries.params(q)
     return q
 
@@ -99,7 +99,7 @@ def links(core: CompiledCore) -> dict[str, NDArray[Any]]:
     for k in range(spec.hosts + 1):
         spb[1, k] = net.up[k].sec_per_byte
         spb[0, k] = net.down[k].sec_per_byte
-    wb = np.zeros(L.N_KINDS, dtype=np.int64)
+    wb = np.zeros(CO.N_KINDS, dtype=np.int64)
     bits = {TRIGGER: spec.trigger_payload_bits, STATE: spec.payload_bits,
             COMMAND: spec.commands.payload_bits, REREQUEST: spec.trigger_payload_bits,
             REPUBLISH: spec.payload_bits}
@@ -113,8 +113,8 @@ def nodes(core: CompiledCore) -> dict[str, NDArray[Any]]:
     """Node rows, hosts and faults (:func:`clocks`: the nodes' clocks)."""
     h = core.host.nodes
     n = core.host.n
-    nd = np.zeros((L.N_ROWS, n), dtype=np.int64)
-    nd[[L.N_FRAME, L.N_REQ, L.N_TARGET, L.N_CSTAMP]] = -1
+    nd = np.zeros((CO.N_ROWS, n), dtype=np.int64)
+    nd[[CO.N_FRAME, CO.N_REQ, CO.N_TARGET, CO.N_CSTAMP]] = -1
     ptr = np.zeros(n + 1, dtype=np.int64)
     rows: list[tuple[float, float, float]] = []
     for i in range(n):

@@ -17,12 +17,11 @@ original type again.
 
 from __future__ import annotations
 
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast.codes import (
     C_DELIVER,
     C_HEAD,
     C_SEQ,
     C_TAIL,
-    CONN,
     E_ATT,
     E_NEXT,
     E_PREV,
@@ -32,7 +31,6 @@ from sigma_des.events.fast.layout import (
     E_TYPE,
     E_WHO,
     EV_BROKER,
-    EV_INT,
     EV_RESEND,
     T_DRAIN,
     T_GAVE,
@@ -42,6 +40,10 @@ from sigma_des.events.fast.layout import (
     TA_GONE,
     TA_RETRY,
     TF_RTO,
+)
+from sigma_des.events.fast.layout import (
+    CONN,
+    EV_INT,
     TR_FLOATS,
     TR_FPARAMS,
     TR_INTS,

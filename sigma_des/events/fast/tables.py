@@ -24,8 +24,8 @@ from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawBlock, DrawCache
 from sigma_des.core.filled import filled
-from sigma_des.events.fast import layout as L
-from sigma_des.events.fast.layout import (
+from sigma_des.events.fast import codes as CO
+from sigma_des.events.fast.codes import (
     K_COMMAND,
     K_REPUB,
     K_REREQ,
@@ -286,7 +286,7 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     n = topo.nodes
     cpu = net.cpu
     H = topo.hosts
-    ip = np.zeros(L.CP_LEN, dtype=np.int64)
+    ip = np.zeros(CO.CP_LEN, dtype=np.int64)
     proc = np.full(n + 1, -1, dtype=np.int64)
     demand = np.zeros(n + 1)
     mach = np.zeros(H + 2, dtype=np.int64)
@@ -296,7 +296,7 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     net_cpu = np.zeros((H + 2, 2))
     switch = np.zeros(H + 2)
     runq = np.zeros(H + 2)
-    load = np.zeros((len(cpu.machines) if cpu is not None else 1, L.ML_LEN))
+    load = np.zeros((len(cpu.machines) if cpu is not None else 1, CO.ML_LEN))
     if cpu is not None:
         for m, x in enumerate(cpu.machines):
             load[m] = (float(x.growth), x.bg, x.w_end, x.w_busy, x.q)
@@ -309,22 +309,22 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
             side[p] = pr.side
             net_cpu[p] = (pr.net_msg, pr.net_wake)
             runq[p] = pr.runq
-            switch[p] = dep.lock_switch if p != L.P_BROKER else 0.0
-        ip[L.CP_BROKER] = L.P_BROKER if net.broker.process is not None else -1
+            switch[p] = dep.lock_switch if p != CO.P_BROKER else 0.0
+        ip[CO.CP_BROKER] = CO.P_BROKER if net.broker.process is not None else -1
         for i in range(n + 1):  # Network._proc: no burst for a zero demand
             d = dep.host_demand if i < n else dep.server_demand
             if d > 0.0:
-                proc[i] = L.P_HOST0 + topo.host_of[i] if i < n else L.P_SERVER
+                proc[i] = CO.P_HOST0 + topo.host_of[i] if i < n else CO.P_SERVER
                 demand[i] = d
     else:
-        ip[L.CP_BROKER] = -1
-    ip[L.CP_HOSTS] = int(net.host_clients)
-    ip[L.CP_APP] = int(net.host_clients or bool((proc >= 0).any()))
+        ip[CO.CP_BROKER] = -1
+    ip[CO.CP_HOSTS] = int(net.host_clients)
+    ip[CO.CP_APP] = int(net.host_clients or bool((proc >= 0).any()))
     cl_of = np.array(net.client_of, dtype=np.int64)
     subs = list(dict.fromkeys(net.client_of[:n]))  # a broadcast's subscribers, in order
-    ip[L.CP_NSUB] = len(subs)
-    ip[L.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
-    ip[L.CP_SWITCH] = int(cpu is not None and dep.lock_switch > 0.0)
+    ip[CO.CP_NSUB] = len(subs)
+    ip[CO.CP_MAXMEM] = max(len(m) for m in net.members.values()) if net.host_clients else 1
+    ip[CO.CP_SWITCH] = int(cpu is not None and dep.lock_switch > 0.0)
     bcast = np.full(n + 1, -1, dtype=np.int64)
     bcast[: len(subs)] = subs
     ptr = np.zeros(n + 2, dtype=np.int64)

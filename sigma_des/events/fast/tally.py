@@ -19,6 +19,7 @@ from typing import Any
 
 from numpy.typing import NDArray
 
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 
 __all__ = ["CLASSES", "breakdown"]
@@ -52,29 +53,29 @@ def breakdown(S: tuple[NDArray[Any], ...]) -> dict[str, int]:
     iv = S[L.INTS]
     out: dict[str, int] = {}
     for via, suffix in ((t.sum(axis=0), ""), (t[1], "_batched")):
-        deliv = via[L.EV_CLIENT]
+        deliv = via[CO.EV_CLIENT]
         cls = {
-            "bcast_deliv": deliv[L.K_TRIGGER],
-            "state_deliv": deliv[L.K_STATE] + deliv[L.K_REPUB],
-            "command_deliv": deliv[L.K_COMMAND],
-            "rereq_deliv": deliv[L.K_REREQ],
-            "broker_arrival": via[L.EV_BROKER].sum(),
-            "job_end": via[L.EV_DONE].sum(),
-            "transport": via[L.EV_RESEND].sum(),
-            "cpu_stage": sum(via[e].sum() for e in (L.EV_SEND, L.EV_APP, L.EV_LEAVE,
-                                                    L.EV_LOOP, L.EV_NSEND)),
+            "bcast_deliv": deliv[CO.K_TRIGGER],
+            "state_deliv": deliv[CO.K_STATE] + deliv[CO.K_REPUB],
+            "command_deliv": deliv[CO.K_COMMAND],
+            "rereq_deliv": deliv[CO.K_REREQ],
+            "broker_arrival": via[CO.EV_BROKER].sum(),
+            "job_end": via[CO.EV_DONE].sum(),
+            "transport": via[CO.EV_RESEND].sum(),
+            "cpu_stage": sum(via[e].sum() for e in (CO.EV_SEND, CO.EV_APP, CO.EV_LEAVE,
+                                                    CO.EV_LOOP, CO.EV_NSEND)),
         }
         out.update({k + suffix: int(v) for k, v in cls.items()})
     out["total"] = int(t.sum())
     out["batched"] = int(t[1].sum())
-    out["bcast_out_of_order"] = int(iv[L.I_BSING])
-    out["bcast_no_room"] = int(iv[L.I_BNOFIT])
+    out["bcast_out_of_order"] = int(iv[CO.I_BSING])
+    out["bcast_no_room"] = int(iv[CO.I_BNOFIT])
     ci = S[L.CH_INT]
     for ch, name in ((0, "down"), (1, "up")):
-        out[f"{name}_out_of_order"] = int(ci[ch, L.CH_OOO])
-        out[f"{name}_full"] = int(ci[ch, L.CH_FULL])
-    out["fanout_requeued"] = int(iv[L.I_BREIN])
-    out["chan_moved"] = int(ci[:, L.CH_MOVE].sum())
-    out["fanout_on"] = int(S[L.IPARAMS][L.Q_FAN])
-    out["chan_on"] = int(S[L.IPARAMS][L.Q_CHAN])
+        out[f"{name}_out_of_order"] = int(ci[ch, CO.CH_OOO])
+        out[f"{name}_full"] = int(ci[ch, CO.CH_FULL])
+    out["fanout_requeued"] = int(iv[CO.I_BREIN])
+    out["chan_moved"] = int(ci[:, CO.CH_MOVE].sum())
+    out["fanout_on"] = int(S[L.IPARAMS][CO.Q_FAN])
+    out["chan_on"] = int(S[L.IPARAMS][CO.Q_CHAN])
     return out

@@ -17,10 +17,7 @@ Without QoS 1 over datagram :func:`send` is one hop
 from __future__ import annotations
 
 from sigma_des.events.fast.channel import hop
-from sigma_des.events.fast.cpu import net_span, span, threaded
-from sigma_des.events.fast.layout import (
-    CPU_DEM,
-    CPU_PROC,
+from sigma_des.events.fast.codes import (
     E_ATT,
     E_RTYPE,
     E_TACT,
@@ -29,12 +26,9 @@ from sigma_des.events.fast.layout import (
     EF_TDEP,
     EF_TPUB,
     EV_BROKER,
-    EV_FLOAT,
-    EV_INT,
     EV_NSEND,
     EV_RESEND,
     EV_SEND,
-    IPARAMS,
     Q_ACK,
     Q_N,
     T_GAVE,
@@ -44,6 +38,14 @@ from sigma_des.events.fast.layout import (
     T_STREAM,
     TA_RESEND,
     TF_TIMEOUT,
+)
+from sigma_des.events.fast.cpu import net_span, span, threaded
+from sigma_des.events.fast.layout import (
+    CPU_DEM,
+    CPU_PROC,
+    EV_FLOAT,
+    EV_INT,
+    IPARAMS,
     TR_FPARAMS,
     TR_INTS,
     TR_PARAMS,

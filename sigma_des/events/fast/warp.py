@@ -20,27 +20,22 @@ a first frame past the truth's newest (nothing to re-simulate: the truth's own p
 
 from __future__ import annotations
 
-from sigma_des.events.fast.job import hand_over, owe
-from sigma_des.events.fast.layout import (
-    CMD,
+from sigma_des.events.fast.codes import (
     D_FIRST,
     D_NODE,
     D_STEPS,
-    DEF_INT,
-    DEF_ROW,
     I_DEFN,
     I_LATEST,
     I_PA,
     I_PB,
-    INTS,
-    IPARAMS,
     NEED_ROLLBACK,
     Q_BATCH,
     Q_H,
     Q_M,
     Q_N,
-    RESIM_PEND,
 )
+from sigma_des.events.fast.job import hand_over, owe
+from sigma_des.events.fast.layout import CMD, DEF_INT, DEF_ROW, INTS, IPARAMS, RESIM_PEND
 from sigma_des.events.fast.primitives import jit
 
 __all__ = ["defer", "first_resim", "rollback"]

@@ -18,6 +18,7 @@ import pytest
 from sigma_des.api import run_method
 from sigma_des.events.engine import MethodRun
 from sigma_des.events.fast import channel
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.channel import arrive, hop, requeue, take
 from sigma_des.events.fast.primitives import address, push, release
@@ -42,27 +43,27 @@ def _state(bat: int = 16, arena: int = 40) -> tuple[Any, ...]:
              for f in L.FIELDS if f.fill is None}
     S = L.allocate(dims, given)
     S[L.FREE][:] = np.arange(CAP)[::-1]
-    S[L.INTS][L.I_FREE] = CAP
+    S[L.INTS][CO.I_FREE] = CAP
     S[L.POOL_FREE][:] = np.arange(4)[::-1]
-    S[L.INTS][L.I_PFREE] = 4
+    S[L.INTS][CO.I_PFREE] = 4
     S[L.FPARAMS][:] = (0.0, 100.0)
-    S[L.IPARAMS][L.Q_N] = 2
-    S[L.IPARAMS][L.Q_CHAN] = 1
+    S[L.IPARAMS][CO.Q_N] = 2
+    S[L.IPARAMS][CO.Q_CHAN] = 1
     S[L.DRAW_MAP][:] = -1  # every draw a constant
-    S[L.DRAW_CONST][L.LAT_HU] = 0.5
+    S[L.DRAW_CONST][CO.LAT_HU] = 0.5
     S[L.LINK_OF][:] = (0, 1, 2)
     S[L.LINK_SPB][1, :] = 0.01
-    S[L.WIRE_BYTES][L.K_STATE] = 10
+    S[L.WIRE_BYTES][CO.K_STATE] = 10
     return S
 
 
 def _alloc(S: tuple[Any, ...], who: int) -> int:
     """A free event slot, taken off the free list, its receiver ``who`` (a label)."""
     iv = S[L.INTS]
-    iv[L.I_FREE] -= 1
-    s = int(S[L.FREE][iv[L.I_FREE]])
-    S[L.EV_INT][s, L.E_TYPE] = L.EV_CLIENT
-    S[L.EV_INT][s, L.E_WHO] = who
+    iv[CO.I_FREE] -= 1
+    s = int(S[L.FREE][iv[CO.I_FREE]])
+    S[L.EV_INT][s, CO.E_TYPE] = CO.EV_CLIENT
+    S[L.EV_INT][s, CO.E_WHO] = who
     return s
 
 
@@ -74,20 +75,20 @@ def _drain(S: tuple[Any, ...]) -> Out:
     evi = S[L.EV_INT]
     while True:
         t = peek(S)
-        if not qi[L.QI_HAS]:
+        if not qi[CO.QI_HAS]:
             return out
-        c = int(qi[L.QI_CUR])
+        c = int(qi[CO.QI_CUR])
         p = int(S[L.RUN_POS][c])
         key = int(S[L.RUN_K][p])
         s = int(take_head(S))
-        if evi[s, L.E_TYPE] == L.EV_CHAN:
+        if evi[s, CO.E_TYPE] == CO.EV_CHAN:
             e = int(take(S, s))
-            out.append((float(t), key >> L.SLOT_BITS, int(evi[e, L.E_WHO])))
+            out.append((float(t), key >> CO.SLOT_BITS, int(evi[e, CO.E_WHO])))
             release(S, e)
             if not requeue(S, s, c, p):
                 release(S, s)
         else:
-            out.append((float(t), key >> L.SLOT_BITS, int(evi[s, L.E_WHO])))
+            out.append((float(t), key >> CO.SLOT_BITS, int(evi[s, CO.E_WHO])))
             release(S, s)
 
 
@@ -101,20 +102,20 @@ def test_hops_over_fifo_links_join_the_up_channel_unless_out_of_order() -> None:
     slots = []
     for client in (0, 0, 1):
         s = _alloc(S, 0)
-        address(S, s, L.EV_BROKER, client, L.K_STATE, client, 7)
+        address(S, s, CO.EV_BROKER, client, CO.K_STATE, client, 7)
         slots.append(s)
         assert hop(S, s, 0.0) == (pytest.approx(0.6 + 0.1 * (len(slots) == 2)), False)
     ci = S[L.CH_INT][1]
-    assert (ci[L.CH_USED], ci[L.CH_OOO], ci[L.CH_FULL]) == (2, 1, 0)
+    assert (ci[CO.CH_USED], ci[CO.CH_OOO], ci[CO.CH_FULL]) == (2, 1, 0)
     assert S[L.CH_T][1, :2].tolist() == [0.1 + 0.5, 0.2 + 0.5]
-    assert (S[L.CH_K][1, :2] & L.SLOT_MASK).tolist() == slots[:2]
-    assert S[L.CH_INT][0, L.CH_USED] == 0  # nothing went down
-    assert S[L.INTS][L.I_EID] == S[L.INTS][L.I_NEV] == 3
+    assert (S[L.CH_K][1, :2] & CO.SLOT_MASK).tolist() == slots[:2]
+    assert S[L.CH_INT][0, CO.CH_USED] == 0  # nothing went down
+    assert S[L.INTS][CO.I_EID] == S[L.INTS][CO.I_NEV] == 3
     order = _drain(S)
     assert [(round(t, 12), e) for t, e, _ in order] == [(0.6, 0), (0.6, 2), (0.7, 1)]
     assert S[L.LINK_BUSY][1, :2].tolist() == [0.2, 0.1]
-    assert ci[L.CH_RUN] == 2 and ci[L.CH_TOKEN] == -1
-    assert S[L.INTS][L.I_FREE] == CAP  # every slot back, the token's too
+    assert ci[CO.CH_RUN] == 2 and ci[CO.CH_TOKEN] == -1
+    assert S[L.INTS][CO.I_FREE] == CAP  # every slot back, the token's too
 
 
 def test_a_token_goes_back_in_place_while_plain_events_fall_between() -> None:
@@ -130,13 +131,13 @@ def test_a_token_goes_back_in_place_while_plain_events_fall_between() -> None:
     arrive(S, 0, 3.0, _alloc(S, 15))
     arrive(S, 0, 1.8, _alloc(S, 16))
     ci = S[L.CH_INT][0]
-    assert (ci[L.CH_USED], ci[L.CH_OOO]) == (4, 1)
+    assert (ci[CO.CH_USED], ci[CO.CH_OOO]) == (4, 1)
     qi = S[L.Q_INT]
-    assert (qi[L.QI_NRUN], qi[L.QI_HEAP], qi[L.QI_PN]) == (1, 1, 3)  # token's run; 3 plain
+    assert (qi[CO.QI_NRUN], qi[CO.QI_HEAP], qi[CO.QI_PN]) == (1, 1, 3)  # token's run; 3 plain
     assert _drain(S) == [(1.0, 0, 10), (1.5, 3, 13), (1.8, 6, 16), (2.0, 1, 11),
                          (2.0, 2, 12), (2.5, 4, 14), (3.0, 5, 15)]
-    assert (ci[L.CH_RUN], ci[L.CH_MOVE], ci[L.CH_USED]) == (4, 0, 0)
-    assert S[L.INTS][L.I_FREE] == CAP
+    assert (ci[CO.CH_RUN], ci[CO.CH_MOVE], ci[CO.CH_USED]) == (4, 0, 0)
+    assert S[L.INTS][CO.I_FREE] == CAP
 
 
 def test_a_full_ring_queues_plain_events() -> None:
@@ -146,10 +147,10 @@ def test_a_full_ring_queues_plain_events() -> None:
     for t in (1.0, 2.0, 3.0, 4.0):
         arrive(S, 0, t, _alloc(S, int(t)))
     ci = S[L.CH_INT][0]
-    assert (ci[L.CH_USED], ci[L.CH_FULL], ci[L.CH_OOO]) == (2, 2, 0)
+    assert (ci[CO.CH_USED], ci[CO.CH_FULL], ci[CO.CH_OOO]) == (2, 2, 0)
     assert _drain(S) == [(1.0, 0, 1), (2.0, 1, 2), (3.0, 2, 3), (4.0, 3, 4)]
     arrive(S, 0, 5.0, _alloc(S, 5))  # the ring wraps: its head is back at row 0
-    assert (ci[L.CH_HEAD], ci[L.CH_USED]) == (0, 1)
+    assert (ci[CO.CH_HEAD], ci[CO.CH_USED]) == (0, 1)
     assert _drain(S) == [(5.0, 4, 5)]
 
 
@@ -159,16 +160,16 @@ def test_a_token_in_the_pending_buffer_moves_into_a_run_of_its_own() -> None:
     2.0, is behind the run's 1.5: it moves into a run of its own (once), then goes back
     in place."""
     S = _state(arena=40)
-    S[L.Q_INT][L.QI_ATOP] = 40
+    S[L.Q_INT][CO.QI_ATOP] = 40
     arrive(S, 0, 1.0, _alloc(S, 10))
-    assert S[L.Q_INT][L.QI_PN] == 1  # the token, pending
+    assert S[L.Q_INT][CO.QI_PN] == 1  # the token, pending
     push(S, 1.5, _alloc(S, 11))
     push(S, 3.0, _alloc(S, 12))
     arrive(S, 0, 2.0, _alloc(S, 13))
     arrive(S, 0, 2.5, _alloc(S, 14))
     assert _drain(S) == [(1.0, 0, 10), (1.5, 1, 11), (2.0, 3, 13), (2.5, 4, 14),
                          (3.0, 2, 12)]
-    assert S[L.CH_INT][0, L.CH_MOVE] == 1
+    assert S[L.CH_INT][0, CO.CH_MOVE] == 1
 
 
 def _tally(sc: Any, method: str) -> tuple[dict[str, int], dict[str, float]]:

@@ -15,6 +15,7 @@ from sigma_des.events.align.bides import BidesAligner
 from sigma_des.events.align.ring import RingBuffers
 from sigma_des.events.cohort import make_run
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import deliveries
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.deliveries import records_states
@@ -79,8 +80,8 @@ def test_bides_states_go_into_the_ring_in_the_loop(monkeypatch: pytest.MonkeyPat
     core = co_run.core
     assert isinstance(core, CompiledCore)
     ip = core.S[L.IPARAMS]
-    assert (ip[L.Q_RING], ip[L.Q_OUT]) == (1, 0)
-    assert core.S[L.INTS][L.I_OUT] == 0  # nothing buffered for Python
+    assert (ip[CO.Q_RING], ip[CO.Q_OUT]) == (1, 0)
+    assert core.S[L.INTS][CO.I_OUT] == 0  # nothing buffered for Python
     ring, ref = _ring(co_run), _ring(ev_run)
     # the core wrote into the aligner's own arrays, shared to the end (growth, close)
     for name, a in (("ring_frame", ring.frame), ("ring_gen", ring.gen_time),
@@ -103,7 +104,7 @@ def test_a_recording_tap_gets_every_state_in_arrival_order(method: str) -> None:
     ev_tap, co_tap = _States(), _States()
     _ev_run, ev = _run("events", method, ev_tap)
     co_run, co = _run("cohort", method, co_tap)
-    assert co_run.core.S[L.IPARAMS][L.Q_OUT] == 1  # type: ignore[attr-defined]
+    assert co_run.core.S[L.IPARAMS][CO.Q_OUT] == 1  # type: ignore[attr-defined]
     assert len(co_tap.rows) == len(ev_tap.rows) > 3 * 90
     assert co_tap.rows == ev_tap.rows
     assert _same(co["metrics"], ev["metrics"])

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sigma_des.core.draws import DrawCache
-from sigma_des.events.fast.layout import K_STATE, K_TRIGGER, STEP, SVC_PUB
+from sigma_des.events.fast.codes import K_STATE, K_TRIGGER, STEP, SVC_PUB
 from sigma_des.events.fast.tables import DrawTables, fill_rows
 from sigma_des.events.jobs import STEP_DRAW
 

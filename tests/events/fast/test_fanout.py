@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import fanout
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.fanout import counts, fan_out, fits, head, requeue
@@ -44,19 +45,19 @@ def _state(bat: int = 16, lat: tuple[float, ...] = IN_ORDER) -> tuple[Any, ...]:
              for f in L.FIELDS if f.fill is None}
     S = L.allocate(dims, given)
     S[L.FREE][:] = np.arange(32)[::-1]
-    S[L.INTS][L.I_FREE] = 32
+    S[L.INTS][CO.I_FREE] = 32
     S[L.POOL_FREE][:] = np.arange(8)[::-1]
-    S[L.INTS][L.I_PFREE] = 8
+    S[L.INTS][CO.I_PFREE] = 8
     S[L.FPARAMS][:] = (0.0, 100.0)
-    S[L.IPARAMS][L.Q_N] = N
+    S[L.IPARAMS][CO.Q_N] = N
     S[L.DRAW_MAP][:] = -1
-    S[L.DRAW_CONST][L.SVC_DEL] = 1.0
-    S[L.DRAW_MAP][L.LAT_HD, L.K_TRIGGER] = 0  # host link, down: table 0
+    S[L.DRAW_CONST][CO.SVC_DEL] = 1.0
+    S[L.DRAW_MAP][CO.LAT_HD, CO.K_TRIGGER] = 0  # host link, down: table 0
     S[L.DRAW_TAG][0, INDEX] = INDEX
     S[L.DRAW_VAL][0, INDEX, :6] = lat
     S[L.LINK_DYN][3] = 1  # drop faults on
-    S[L.DROPS][0] = (L.K_TRIGGER, 1, INDEX)
-    S[L.CPU_IP][L.CP_NSUB] = 6
+    S[L.DROPS][0] = (CO.K_TRIGGER, 1, INDEX)
+    S[L.CPU_IP][CO.CP_NSUB] = 6
     S[L.BCAST][:6] = np.arange(6)
     return S
 
@@ -65,16 +66,16 @@ def _source(S: tuple[Any, ...]) -> int:
     """The broadcast's PUBLISH in a slot of its own (a trigger: no payload)."""
     src = _alloc(S)
     evi = S[L.EV_INT]
-    evi[src, L.E_KIND], evi[src, L.E_SUBJ], evi[src, L.E_INDEX] = L.K_TRIGGER, N, INDEX
-    S[L.EV_FLOAT][src, L.EF_TPUB] = 0.25
+    evi[src, CO.E_KIND], evi[src, CO.E_SUBJ], evi[src, CO.E_INDEX] = CO.K_TRIGGER, N, INDEX
+    S[L.EV_FLOAT][src, CO.EF_TPUB] = 0.25
     return src
 
 
 def _alloc(S: tuple[Any, ...]) -> int:
     """A free event slot, taken off the free list."""
     iv = S[L.INTS]
-    iv[L.I_FREE] -= 1
-    return int(S[L.FREE][iv[L.I_FREE]])
+    iv[CO.I_FREE] -= 1
+    return int(S[L.FREE][iv[CO.I_FREE]])
 
 
 def _drain(S: tuple[Any, ...], after_first: Callable[[], None] | None = None) -> Out:
@@ -84,20 +85,20 @@ def _drain(S: tuple[Any, ...], after_first: Callable[[], None] | None = None) ->
     qi = S[L.Q_INT]
     while True:
         t = peek(S)
-        if not qi[L.QI_HAS]:
+        if not qi[CO.QI_HAS]:
             return out
-        c = int(qi[L.QI_CUR])
+        c = int(qi[CO.QI_CUR])
         p = int(S[L.RUN_POS][c])
         key = int(S[L.RUN_K][p])
         s = int(take(S))
         evi = S[L.EV_INT]
-        if evi[s, L.E_TYPE] == L.EV_BATCH:
+        if evi[s, CO.E_TYPE] == CO.EV_BATCH:
             head(S, s)
-            out.append((float(t), key >> L.SLOT_BITS, int(evi[s, L.E_WHO])))
+            out.append((float(t), key >> CO.SLOT_BITS, int(evi[s, CO.E_WHO])))
             if not requeue(S, s, c, p):
                 release(S, s)
         else:
-            out.append((float(t), key >> L.SLOT_BITS, int(evi[s, L.E_WHO])))
+            out.append((float(t), key >> CO.SLOT_BITS, int(evi[s, CO.E_WHO])))
             release(S, s)
         if after_first is not None:
             after_first()
@@ -115,13 +116,13 @@ def test_fan_out_takes_the_specification_s_keys_and_skips_the_lost(
     S = _state(lat=lat)
     src = _source(S)
     assert fits(S, src, 6)
-    assert fan_out(S, src, L.K_TRIGGER, INDEX, 0, False, 1.0, 0.0) == 6.0
+    assert fan_out(S, src, CO.K_TRIGGER, INDEX, 0, False, 1.0, 0.0) == 6.0
     iv = S[L.INTS]
-    assert (iv[L.I_EID], iv[L.I_NEV]) == (5, 5)
+    assert (iv[CO.I_EID], iv[CO.I_NEV]) == (5, 5)
     assert S[L.LINK_COUNT][0, 1, 0] == 6  # every copy left on the link, the lost one too
     assert counts(S) == {"on": 0, "batched": 0, "batches": batches, "requeued": 0,
                          "single": single}
-    assert (iv[L.I_BHEAD], iv[L.I_BUSED]) == (5, 5 * batches)  # singles: delivered rows
+    assert (iv[CO.I_BHEAD], iv[CO.I_BUSED]) == (5, 5 * batches)  # singles: delivered rows
     out = _drain(S)
     spec = sorted((float(j + 1) + lat[j], e, j) for e, j in enumerate((0, 2, 3, 4, 5)))
     assert out == spec
@@ -131,8 +132,8 @@ def test_fan_out_takes_the_specification_s_keys_and_skips_the_lost(
         assert out == [(1.5, 0, 0), (4.0 + 0.2, 2, 3), (5.5, 1, 2), (6.0 + 0.05, 4, 5),
                        (8.0, 3, 4)]
     assert counts(S)["batched"] == 5 * batches
-    assert (iv[L.I_BTAIL], iv[L.I_BUSED]) == (5, 0)
-    assert iv[L.I_FREE] == 31  # every slot but the source's is free
+    assert (iv[CO.I_BTAIL], iv[CO.I_BUSED]) == (5, 0)
+    assert iv[CO.I_FREE] == 31  # every slot but the source's is free
 
 
 def test_a_batch_goes_back_in_place_or_through_the_pending_buffer() -> None:
@@ -144,37 +145,37 @@ def test_a_batch_goes_back_in_place_or_through_the_pending_buffer() -> None:
     S = _state()
     bt, bk, bw = S[L.BAT_T], S[L.BAT_K], S[L.BAT_W]
     bt[:4] = (1.0, 2.0, 2.0, 3.0)
-    bk[:4] = np.arange(4) << L.SLOT_BITS
+    bk[:4] = np.arange(4) << CO.SLOT_BITS
     bw[:4] = (1, 2, 3, 4)
     iv = S[L.INTS]
-    iv[L.I_BHEAD] = iv[L.I_BUSED] = 4
+    iv[CO.I_BHEAD] = iv[CO.I_BUSED] = 4
     b, s1, s2, s3, s4 = (_alloc(S) for _ in range(5))
-    S[L.EV_INT][b, L.E_TYPE] = L.EV_BATCH
-    S[L.EV_INT][b, L.E_SEQ] = 0
-    S[L.EV_INT][b, L.E_NEXT] = 4
-    push_key(S, 1.0, (0 << L.SLOT_BITS) | b)
-    iv[L.I_EID] = 4
+    S[L.EV_INT][b, CO.E_TYPE] = CO.EV_BATCH
+    S[L.EV_INT][b, CO.E_SEQ] = 0
+    S[L.EV_INT][b, CO.E_NEXT] = 4
+    push_key(S, 1.0, (0 << CO.SLOT_BITS) | b)
+    iv[CO.I_EID] = 4
     for t, s in ((1.5, s1), (2.0, s2), (10.0, s3)):
-        S[L.EV_INT][s, L.E_TYPE] = L.EV_CLIENT
-        S[L.EV_INT][s, L.E_WHO] = 10 + s
+        S[L.EV_INT][s, CO.E_TYPE] = CO.EV_CLIENT
+        S[L.EV_INT][s, CO.E_WHO] = 10 + s
         push(S, t, s)
-    S[L.EV_INT][s4, L.E_WHO] = 10 + s4
+    S[L.EV_INT][s4, CO.E_WHO] = 10 + s4
     out = _drain(S, lambda: push(S, 2.5, s4))
     assert out == [(1.0, 0, 1), (1.5, 4, 10 + s1), (2.0, 1, 2), (2.0, 2, 3), (2.0, 5, 10 + s2),
                    (2.5, 7, 10 + s4), (3.0, 3, 4), (10.0, 6, 10 + s3)]
     assert counts(S)["requeued"] == 2 and counts(S)["batched"] == 4
-    assert (iv[L.I_BTAIL], iv[L.I_BUSED]) == (4, 0)
-    assert iv[L.I_FREE] == 32  # the batch's slot too, after its last element
+    assert (iv[CO.I_BTAIL], iv[CO.I_BUSED]) == (4, 0)
+    assert iv[CO.I_FREE] == 32  # the batch's slot too, after its last element
 
 
 def test_no_room_or_a_payload_means_per_message() -> None:
     S = _state(bat=16)
     src = _source(S)
     assert fits(S, src, 6)
-    S[L.INTS][L.I_BUSED] = 11  # 5 rows free, 6 subscribers
+    S[L.INTS][CO.I_BUSED] = 11  # 5 rows free, 6 subscribers
     assert not fits(S, src, 6)
-    S[L.INTS][L.I_BUSED] = 0
-    S[L.EV_INT][src, L.E_PAY] = 1
+    S[L.INTS][CO.I_BUSED] = 0
+    S[L.EV_INT][src, CO.E_PAY] = 1
     assert not fits(S, src, 6)
 
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from sigma_des.core.draws import DrawCache
+from sigma_des.events.fast.codes import K_COMMAND, K_STATE, K_TRIGGER, STEP, SVC_DEL, SVC_PUB
 from sigma_des.events.fast.frame_draws import FrameDraws
-from sigma_des.events.fast.layout import K_COMMAND, K_STATE, K_TRIGGER, STEP, SVC_DEL, SVC_PUB
 from sigma_des.events.fast.tables import DrawTables
 from sigma_des.events.jobs import STEP_DRAW
 from tests.events.fast.test_draw_tables import Counting

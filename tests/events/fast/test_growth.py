@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.events.fast.growth import (
@@ -42,7 +43,7 @@ def _state() -> tuple[np.ndarray, ...]:
     given["free"] = np.arange(5, dtype=np.int64)[::-1].copy()
     given["pool_free"] = np.arange(4, dtype=np.int32)[::-1].copy()
     S = L.allocate(DIMS, given)
-    S[L.INTS][L.I_FREE], S[L.INTS][L.I_PFREE] = 5, 4
+    S[L.INTS][CO.I_FREE], S[L.INTS][CO.I_PFREE] = 5, 4
     return S
 
 
@@ -50,10 +51,10 @@ def test_capacity_grows_by_an_eighth_or_what_is_needed() -> None:
     assert grown_capacity(1000, 10) == 1125  # 1000 // 8
     assert grown_capacity(1000, 300) == 1300  # the need is larger
     assert grown_capacity(7, 3) == 10  # 7 // 8 = 0
-    assert grown_capacity(L.MAX_SLOTS - 8, 1) == L.MAX_SLOTS  # an eighth would be more
-    assert grown_capacity(L.MAX_SLOTS - 8, 8) == L.MAX_SLOTS
-    with pytest.raises(CohortFallback, match=f"more than {L.MAX_SLOTS} messages in flight"):
-        grown_capacity(L.MAX_SLOTS - 8, 9)
+    assert grown_capacity(CO.MAX_SLOTS - 8, 1) == CO.MAX_SLOTS  # an eighth would be more
+    assert grown_capacity(CO.MAX_SLOTS - 8, 8) == CO.MAX_SLOTS
+    with pytest.raises(CohortFallback, match=f"more than {CO.MAX_SLOTS} messages in flight"):
+        grown_capacity(CO.MAX_SLOTS - 8, 9)
 
 
 def test_every_array_of_table_rows_has_exactly_one_growth_rule() -> None:
@@ -65,7 +66,7 @@ def test_every_array_of_table_rows_has_exactly_one_growth_rule() -> None:
 def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S = _state()
     evi, evf, run_t = S[L.EV_INT], S[L.EV_FLOAT], S[L.RUN_T]
-    evi[:] = np.arange(5 * L.E_COLS).reshape(5, L.E_COLS)
+    evi[:] = np.arange(5 * CO.E_COLS).reshape(5, CO.E_COLS)
     evf[:] = np.arange(5 * 4).reshape(5, 4) / 4
     run_t[:] = np.arange(10) + 0.5
     S[L.HEAP_T][:] = [1.0, 2.0, 9.0, 9.0, 9.0]  # two live heap entries, then stale ones
@@ -73,19 +74,19 @@ def test_growth_keeps_slots_live_prefixes_and_the_free_list() -> None:
     S[L.RUN_POS][:] = [3, 4, 5, 6, 6]
     S[L.BOUNDS][:] = 1
     qi = S[L.Q_INT]
-    qi[L.QI_HEAP], qi[L.QI_PN], qi[L.QI_NRUN] = 2, 1, 3
-    S[L.INTS][L.I_FREE] = 2  # slots 4 and 3 free, 0..2 in flight
+    qi[CO.QI_HEAP], qi[CO.QI_PN], qi[CO.QI_NRUN] = 2, 1, 3
+    S[L.INTS][CO.I_FREE] = 2  # slots 4 and 3 free, 0..2 in flight
     T = grow(S, 3)  # 5 slots + max(5 // 8, 3) = 8
     assert T[L.EV_INT] is evi and T[L.EV_FLOAT] is evf and T[L.RUN_T] is run_t  # in place
-    assert evi.shape == (8, L.E_COLS) and evf.shape == (8, 4) and run_t.shape == (16,)
-    assert evi[:5].ravel().tolist() == list(range(5 * L.E_COLS)) and not evi[5:].any()
+    assert evi.shape == (8, CO.E_COLS) and evf.shape == (8, 4) and run_t.shape == (16,)
+    assert evi[:5].ravel().tolist() == list(range(5 * CO.E_COLS)) and not evi[5:].any()
     assert evf[4, 3] == 19 / 4 and run_t[:10].tolist() == [i + 0.5 for i in range(10)]
     assert T[L.HEAP_T].tolist() == [1.0, 2.0, 0, 0, 0, 0, 0, 0]
     assert T[L.PEND_K].tolist() == [7, 0, 0, 0, 0, 0, 0, 0]
     assert T[L.RUN_POS].tolist() == [3, 4, 5, 0, 0, 0, 0, 0]
     assert T[L.BOUNDS].shape == (16,) and not T[L.BOUNDS].any()
     # the new slots on top of the free list, lowest taken first
-    assert T[L.INTS][L.I_FREE] == 5 and T[L.FREE][:5].tolist() == [4, 3, 7, 6, 5]
+    assert T[L.INTS][CO.I_FREE] == 5 and T[L.FREE][:5].tolist() == [4, 3, 7, 6, 5]
 
 
 def test_a_run_state_grows_and_keeps_its_results() -> None:
@@ -96,17 +97,17 @@ def test_a_run_state_grows_and_keeps_its_results() -> None:
     cap0 = core.array("ev_int").shape[0]
     core.ensure_space(cap0)  # more free slots than the table has: it grows
     assert core.array("ev_int").shape[0] == grown_capacity(cap0, cap0 + 6 + 4)
-    assert int(core.array("ints")[L.I_FREE]) == core.array("ev_int").shape[0]
+    assert int(core.array("ints")[CO.I_FREE]) == core.array("ev_int").shape[0]
 
 
 def test_a_value_beyond_int32_is_an_error_not_a_wrapped_store() -> None:
     S = _state()
-    put_int(S, 2, L.E_AUX, L.EV_INT_MAX)
-    put_int(S, 3, L.E_SEQ, -L.EV_INT_MAX - 1)
-    assert S[L.EV_INT][2, L.E_AUX] == 2**31 - 1 and S[L.EV_INT][3, L.E_SEQ] == -(2**31)
-    assert S[L.INTS][L.I_ERR] == 0
-    put_int(S, 2, L.E_AUX, 2**31)
-    assert S[L.INTS][L.I_ERR] == L.ERR_RANGE and S[L.EV_INT][2, L.E_AUX] == 2**31 - 1
+    put_int(S, 2, CO.E_AUX, L.EV_INT_MAX)
+    put_int(S, 3, CO.E_SEQ, -L.EV_INT_MAX - 1)
+    assert S[L.EV_INT][2, CO.E_AUX] == 2**31 - 1 and S[L.EV_INT][3, CO.E_SEQ] == -(2**31)
+    assert S[L.INTS][CO.I_ERR] == 0
+    put_int(S, 2, CO.E_AUX, 2**31)
+    assert S[L.INTS][CO.I_ERR] == L.ERR_RANGE and S[L.EV_INT][2, CO.E_AUX] == 2**31 - 1
 
 
 def test_a_publish_index_beyond_int32_falls_back_with_its_name() -> None:
@@ -128,9 +129,9 @@ def test_a_finished_run_lets_go_of_its_event_table() -> None:
     assert isinstance(core, CompiledCore)
     in_flight: list[int] = []
     run.run(lambda t: in_flight.append(
-        core.array("ev_int").shape[0] - int(core.array("ints")[L.I_FREE])))
+        core.array("ev_int").shape[0] - int(core.array("ints")[CO.I_FREE])))
     assert in_flight[-1] > 100  # the broker's backlog at the end, not read by any result
-    assert core.array("ev_int").shape == (0, L.E_COLS) and core.array("run_t").size == 0
+    assert core.array("ev_int").shape == (0, CO.E_COLS) and core.array("run_t").size == 0
     # the core let go of the physics ring it shared, and the run released it (its frames
     # are in the fidelity log: SwarmTruth.release)
     assert core.array("obs_hist").size == 0 and run.truth.obs_hist.size == 0

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.driver import CompiledCore
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -105,16 +106,16 @@ def test_a_run_state_follows_the_declaration() -> None:
     core = run.core
     assert isinstance(core, CompiledCore)
     S = core.S
-    assert S[L.NODE].shape == (L.N_ROWS, 3) and S[L.CLOCK_OFF].shape == (3,)
+    assert S[L.NODE].shape == (CO.N_ROWS, 3) and S[L.CLOCK_OFF].shape == (3,)
     assert S[L.LINK_OF].shape == (4,) and S[L.CORES].shape == (2, 4)
     # the engine's physics ring and commands are the core's, in place
     truth = run.truth
     assert S[L.OBS_HIST] is truth.obs_hist and S[L.SLOT_FRAME] is truth.slot_frame
     assert S[L.CMD] is run.nodes.cmd
     q = S[L.IPARAMS]
-    assert q[L.Q_N] == 3 and q[L.Q_WARP] == 1 and q[L.Q_LOCK] == 0
-    assert q[L.Q_FAN] == 1  # the tiny scenario's broadcasts fan out in batches
-    assert q[L.Q_CHAN] == 1  # and its hops go through channels
+    assert q[CO.Q_N] == 3 and q[CO.Q_WARP] == 1 and q[CO.Q_LOCK] == 0
+    assert q[CO.Q_FAN] == 1  # the tiny scenario's broadcasts fan out in batches
+    assert q[CO.Q_CHAN] == 1  # and its hops go through channels
     assert S[L.BAT_T].shape == (2 * S[L.HEAP_T].size,)
     assert S[L.FREE].tolist() == list(range(S[L.HEAP_T].size))[::-1]
 
@@ -122,15 +123,15 @@ def test_a_run_state_follows_the_declaration() -> None:
 def test_exit_codes_are_distinct_and_all_registered() -> None:
     # two parts of the core once both took code 7 (a draw fill was served as a
     # re-simulation, and the loop asked again forever)
-    codes = L.EXIT_CODES
+    codes = CO.EXIT_CODES
     assert len(set(codes.values())) == len(codes)
-    named = {k for k, v in vars(L).items() if k.startswith("NEED_") and isinstance(v, int)}
+    named = {k for k, v in vars(CO).items() if k.startswith("NEED_") and isinstance(v, int)}
     assert named | {"OK", "DRAW_MISS", "BARRIER"} == set(codes)
-    assert all(getattr(L, k) == v for k, v in codes.items())
+    assert all(getattr(CO, k) == v for k, v in codes.items())
 
 
 def test_event_types_are_distinct() -> None:
-    types = (L.EV_BROKER, L.EV_CLIENT, L.EV_DONE, L.EV_RESEND, L.EV_SEND, L.EV_APP)
+    types = (CO.EV_BROKER, CO.EV_CLIENT, CO.EV_DONE, CO.EV_RESEND, CO.EV_SEND, CO.EV_APP)
     assert sorted(types) == list(range(6))
 
 
@@ -147,18 +148,18 @@ def test_a_deployment_follows_the_network() -> None:
     S = core.S
     assert sc.run_spec().net.topology.host_of == (0, 0, 1)
     ip = S[L.CPU_IP]
-    assert ip[L.CP_BROKER] == L.P_BROKER and ip[L.CP_HOSTS] == 1 and ip[L.CP_APP] == 1
+    assert ip[CO.CP_BROKER] == CO.P_BROKER and ip[CO.CP_HOSTS] == 1 and ip[CO.CP_APP] == 1
     # dedicated: broker, server, host 0, host 1 on machines 0..3 of 3 cores; 3 / (3 - 1)
     assert S[L.CPU_MACH].tolist() == [0, 1, 2, 3]
     assert S[L.CPU_IV].shape == (4, 3, RESERVATIONS + 1, 2) and S[L.CPU_NIV].shape == (4, 3)
     assert S[L.CPU_SCALE].tolist() == [1.5] * 4
     # host demand 0: the nodes' clients make no bursts; the server's do
-    assert S[L.CPU_PROC].tolist() == [-1, -1, -1, L.P_SERVER]
+    assert S[L.CPU_PROC].tolist() == [-1, -1, -1, CO.P_SERVER]
     assert S[L.CPU_DEM].tolist() == [0.0, 0.0, 0.0, 0.001]
     # host h's client is its first node; a trigger goes to clients 0 and 2, and client 0
     # hands it to nodes 0 and 1, client 2 to node 2
     assert S[L.CL_OF].tolist() == [0, 0, 2, 3]
-    assert ip[L.CP_NSUB] == 2 and S[L.BCAST][:2].tolist() == [0, 2]
-    assert ip[L.CP_MAXMEM] == 2  # a trigger's hand-over adds up to 2 latencies at once
+    assert ip[CO.CP_NSUB] == 2 and S[L.BCAST][:2].tolist() == [0, 2]
+    assert ip[CO.CP_MAXMEM] == 2  # a trigger's hand-over adds up to 2 latencies at once
     ptr, mem = S[L.MEM_PTR], S[L.MEM]
     assert [mem[ptr[c]:ptr[c + 1]].tolist() for c in range(4)] == [[0, 1], [], [2], []]

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.clock import local_time, sync_index
 from sigma_des.events.fast.driver import CompiledCore
@@ -57,9 +58,9 @@ def test_gilbert_elliott_state_matches_the_loss_process_at_random_times() -> Non
                 p, extra = link_loss(S, client, cls, up, float(t))
                 assert p == (spec["loss_bad"] if b else spec["loss_good"]) and extra == 0.0
     assert 0 < seen_bad < 2 * (n + 1) * times.size  # both states occur
-    assert S[L.INTS][L.I_ERR] == 0
+    assert S[L.INTS][CO.I_ERR] == 0
     link_loss(S, 0, 0, 1, 1.0 + TABLE_MARGIN + 0.01)  # beyond the table
-    assert S[L.INTS][L.I_ERR] == L.ERR_HORIZON
+    assert S[L.INTS][CO.I_ERR] == L.ERR_HORIZON
 
 
 def test_degrade_windows_add_delay_and_combine_loss_in_fault_order() -> None:
@@ -130,9 +131,9 @@ def test_ntp_local_time_matches_the_node_clocks_exactly(period: float) -> None:
         assert np.array_equal(
             [sync_index(float(t), period) for t in times], clocks.sync_index(times)
         )
-    assert S[L.INTS][L.I_ERR] == 0
+    assert S[L.INTS][CO.I_ERR] == 0
     local_time(S, 0, 1.0 + TABLE_MARGIN + 2 * period)
-    assert S[L.INTS][L.I_ERR] == L.ERR_HORIZON
+    assert S[L.INTS][CO.I_ERR] == L.ERR_HORIZON
 
 
 def test_without_ntp_local_time_is_offset_and_drift() -> None:

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 import sigma_des.events.fast.driver as driver
 from sigma_des.events.engine import MethodRun
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast.primitives import push
 from sigma_des.events.fast.queue import peek, take
@@ -34,7 +35,7 @@ def _state(cap: int, arena: int) -> tuple[Any, ...]:
 
 def _pop(S: tuple[Any, ...]) -> tuple[float, int] | None:
     t = peek(S)
-    if not S[L.Q_INT][L.QI_HAS]:
+    if not S[L.Q_INT][CO.QI_HAS]:
         return None
     return float(t), int(take(S))
 
@@ -96,7 +97,7 @@ def test_pending_minimum_is_sealed_before_the_current_run() -> None:
     # the first run (1, 2, 4) is being consumed when an event at 3 is pushed: it must
     # come out between 2 and 4; one at exactly 4 comes after the older event at 4
     assert _run(S, [[1.0, 2.0, 4.0], [3.0, 4.0]], [1, 1]) == [0, 1, 3, 2, 4]
-    assert S[L.Q_INT][L.QI_HEAP] == 0 and S[L.Q_INT][L.QI_PN] == 0
+    assert S[L.Q_INT][CO.QI_HEAP] == 0 and S[L.Q_INT][CO.QI_PN] == 0
 
 
 def test_runs_stay_out_of_the_heap_until_they_interleave() -> None:
@@ -105,11 +106,11 @@ def test_runs_stay_out_of_the_heap_until_they_interleave() -> None:
         push(S, t, i)
     assert _pop(S) == (1.0, 0)
     qi = S[L.Q_INT]
-    assert qi[L.QI_HEAP] == 0 and qi[L.QI_NRUN] == 1  # one run, consumed in place
+    assert qi[CO.QI_HEAP] == 0 and qi[CO.QI_NRUN] == 1  # one run, consumed in place
     push(S, 5.0, 3)  # later than the current run's next: stays pending
-    assert _pop(S) == (2.0, 1) and qi[L.QI_PN] == 1
+    assert _pop(S) == (2.0, 1) and qi[CO.QI_PN] == 1
     push(S, 2.5, 4)  # earliest now: sealed with 5.0 into a second run
-    assert _pop(S) == (2.5, 4) and qi[L.QI_NRUN] == 2 and qi[L.QI_HEAP] == 1
+    assert _pop(S) == (2.5, 4) and qi[CO.QI_NRUN] == 2 and qi[CO.QI_HEAP] == 1
     assert [_pop(S), _pop(S), _pop(S)] == [(3.0, 2), (5.0, 3), None]
 
 
@@ -118,7 +119,7 @@ def test_a_full_arena_is_compacted_in_place() -> None:
     out = _run(S, [[5.0, 1.0, 2.0], [0.5], [3.0, 0.7], [4.0], [0.9, 6.0]], [2, 1, 1, 1, 0])
     assert out == _expected([[5.0, 1.0, 2.0], [0.5], [3.0, 0.7], [4.0], [0.9, 6.0]],
                             [2, 1, 1, 1, 0])
-    assert S[L.Q_INT][L.QI_ATOP] <= 6
+    assert S[L.Q_INT][CO.QI_ATOP] <= 6
 
 
 times = st.sampled_from([0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0])

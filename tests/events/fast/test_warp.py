@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from sigma_des.events.cohort import make_run
+from sigma_des.events.fast import codes as CO
 from sigma_des.events.fast import layout as L
 from sigma_des.events.fast import loop
 from sigma_des.events.fast.driver import CompiledCore
@@ -37,9 +38,9 @@ def _core(dynamics: str = "quadrotor", **over: Any) -> CompiledCore:
     for k in range(LATEST + 1):  # 21 frames issued, under the default command
         truth.step_frame(k, 0.01, core.host.nodes.cmd, None)
     S = core.S
-    S[L.INTS][L.I_LATEST] = truth.latest  # as advance_to hands it over
+    S[L.INTS][CO.I_LATEST] = truth.latest  # as advance_to hands it over
     nd = S[L.NODE]
-    nd[L.N_FRAME, 1], nd[L.N_REQ, 1] = 9, 12  # node 1: computed frame 9, asked for 12
+    nd[CO.N_FRAME, 1], nd[CO.N_REQ, 1] = 9, 12  # node 1: computed frame 9, asked for 12
     S[L.CMD][1] = 0.1 * (1.0 + np.arange(S[L.CMD].shape[1]))  # its newest command row
     for k in range(10, 13):
         core.tables.fill(0, k)  # the step draws of frames 10..12 (compute: kind 0)
@@ -53,22 +54,22 @@ def test_a_rollback_is_deferred_and_its_job_costed_in_the_loop(step: Any) -> Non
     iv, nd = S[L.INTS], S[L.NODE]
     loop.roll_back(S, 1, 4, 9, 0.5)  # a command stamped 4 reached node 1 (at frame 9)
     # deferred: node 1 from frame 4 (the ring holds it), 9 - 4 + 1 = 6 steps owed
-    assert iv[L.I_DEFN] == 1 and S[L.DEF_INT][0].tolist() == [1, 4, 6]
+    assert iv[CO.I_DEFN] == 1 and S[L.DEF_INT][0].tolist() == [1, 4, 6]
     assert S[L.DEF_ROW][0].tolist() == S[L.CMD][1].tolist()  # a copy of the row
     assert S[L.RESIM_PEND].tolist() == [0, 1, 0, 1]
     # the idle node starts its job at once, but target 12's rollback draws are not in
     # the table yet: Python fills them (NEED_START), then the loop starts the job
-    assert (iv[L.I_PEND], iv[L.I_PNODE], S[L.FLOATS][L.F_PT]) == (L.NEED_START, 1, 0.5)
-    assert nd[L.N_RB, 1] == 6 and not nd[L.N_BUSY, 1]
-    iv[L.I_PEND] = 0
+    assert (iv[CO.I_PEND], iv[CO.I_PNODE], S[L.FLOATS][CO.F_PT]) == (CO.NEED_START, 1, 0.5)
+    assert nd[CO.N_RB, 1] == 6 and not nd[CO.N_BUSY, 1]
+    iv[CO.I_PEND] = 0
     S = core.rollbacks.fill(S, 12, 6)
     assert S[L.RB_TAG][12 % 8].tolist() == [12, 6]
     step_time = core.host.nodes.step_time
     for j in range(6):
         assert S[L.RB_VAL][12 % 8, j].tolist() == step_time.vector(ROLLBACK_DRAW, 12, j).tolist()
     loop.start(S, 1, 0.5)
-    assert iv[L.I_PEND] == 0 and nd[L.N_RB, 1] == 0
-    assert (nd[L.N_BUSY, 1], nd[L.N_TARGET, 1]) == (1, 12)
+    assert iv[CO.I_PEND] == 0 and nd[CO.N_RB, 1] == 0
+    assert (nd[CO.N_BUSY, 1], nd[CO.N_TARGET, 1]) == (1, 12)
     cost = job_cost(step_time, [(0.0, 1.0, 3.0)], 1, 10, 12, 6, 0.5)
     if step == 0.002:  # 3 frames + 6 re-simulated steps of 2 ms, slowed 3x
         hand = 0.0
@@ -86,7 +87,7 @@ def test_a_rollback_is_deferred_and_its_job_costed_in_the_loop(step: Any) -> Non
     core.S = S
     core.flush_rollbacks()
     assert (truth.rollbacks, truth.resim_steps) == (ref.rollbacks, ref.resim_steps) == (1, 6)
-    assert iv[L.I_DEFN] == 0 and S[L.RESIM_PEND].tolist() == [0, 0, 0, 0]
+    assert iv[CO.I_DEFN] == 0 and S[L.RESIM_PEND].tolist() == [0, 0, 0, 0]
     np.testing.assert_array_equal(truth.obs_hist[: LATEST + 1], ref.obs_hist[: LATEST + 1])
     np.testing.assert_array_equal(truth.ckpt[: LATEST + 1], ref.ckpt[: LATEST + 1])
     np.testing.assert_array_equal(truth.state, ref.state)
@@ -97,20 +98,20 @@ def test_python_gets_a_second_rollback_and_one_past_the_newest_frame() -> None:
     S = core.S
     iv = S[L.INTS]
     loop.roll_back(S, 1, 4, 9, 0.5)
-    iv[L.I_PEND] = 0
+    iv[CO.I_PEND] = 0
     loop.roll_back(S, 1, 5, 12, 0.6)  # node 1 is still owed its re-simulation
-    assert (iv[L.I_PEND], iv[L.I_PNODE], iv[L.I_PA], iv[L.I_PB]) == (L.NEED_ROLLBACK, 1, 5, 12)
-    iv[L.I_PEND] = 0
+    assert (iv[CO.I_PEND], iv[CO.I_PNODE], iv[CO.I_PA], iv[CO.I_PB]) == (CO.NEED_ROLLBACK, 1, 5, 12)
+    iv[CO.I_PEND] = 0
     loop.roll_back(S, 2, LATEST + 1, LATEST + 4, 0.6)  # nothing to re-simulate yet
-    assert (iv[L.I_PEND], iv[L.I_PNODE]) == (L.NEED_ROLLBACK, 2)
-    assert iv[L.I_DEFN] == 1 and S[L.NODE][L.N_RB].tolist() == [0, 6, 0]  # neither deferred
+    assert (iv[CO.I_PEND], iv[CO.I_PNODE]) == (CO.NEED_ROLLBACK, 2)
+    assert iv[CO.I_DEFN] == 1 and S[L.NODE][CO.N_RB].tolist() == [0, 6, 0]  # neither deferred
 
 
 def test_dynamics_without_batched_steps_roll_back_in_python() -> None:
     core = _core("pointmass")
     S = core.S
     loop.roll_back(S, 1, 4, 9, 0.5)
-    assert S[L.INTS][L.I_PEND] == L.NEED_ROLLBACK and S[L.INTS][L.I_DEFN] == 0
+    assert S[L.INTS][CO.I_PEND] == CO.NEED_ROLLBACK and S[L.INTS][CO.I_DEFN] == 0
 
 
 LOGNORMAL = {"dist": "lognormal", "mean": 0.003, "std": 0.002}
@@ -119,7 +120,7 @@ LOGNORMAL = {"dist": "lognormal", "mean": 0.003, "std": 0.002}
 def _held(S: Any) -> dict[int, list[int]]:
     """The table's rows that hold a target: ``{row: [target, draws]}``."""
     tag = S[L.RB_TAG]
-    return {r: tag[r].tolist() for r in range(tag.shape[0]) if tag[r, L.RB_TARGET] != -1}
+    return {r: tag[r].tolist() for r in range(tag.shape[0]) if tag[r, CO.RB_TARGET] != -1}
 
 
 def _assert_keyed(core: CompiledCore, S: Any) -> None:
