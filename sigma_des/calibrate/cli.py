@@ -184,24 +184,13 @@ def _in_sample(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[P
                primary: int) -> tuple[list[dict[str, Any]], list[str]]:
     """The in-sample check on every run: the calibrated scenario prepared for the run
     (its size, hosts, window, seed, message mode) with the run's own background."""
-    from dataclasses import replace
-
     from sigma_des.calibrate.insample import in_sample
-    from sigma_des.calibrate.target import prepare
+    from sigma_des.calibrate.target import for_run
 
     rows: list[dict[str, Any]] = []
     warn: list[str] = []
     for i, (own, _rep, info) in enumerate(fits):
-        if len(fits) == 1:
-            target = sc
-        else:
-            target = prepare(sc, report, [f"nodes={own.nodes}", f"hosts={own.hosts}",
-                                          f"duration={own.duration}", f"warmup={own.warmup}",
-                                          f"seed={own.seed}"]
-                             + ([] if info["bundle"] else ["deployment.bundle=false"]),
-                             bundle=bool(info["bundle"]))
-            target = replace(target, deployment=replace(
-                target.deployment, background=own.deployment.background))
+        target = sc if len(fits) == 1 else for_run(sc, report, own, bundle=bool(info["bundle"]))
         r, w = in_sample(target, sources[i])
         rows += [{**x, "run": info["name"]} for x in r]
         warn += [f"{info['name']}: {x}" if len(fits) > 1 else x for x in w]

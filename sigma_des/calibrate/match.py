@@ -264,15 +264,11 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
     import tempfile
 
     from sigma_des.calibrate.burst import scale_state_hops
-    from sigma_des.calibrate.target import prepare
+    from sigma_des.calibrate.target import for_run
 
     live, _ = _live_means(source, own)
     rep = {k: v for k, v in report.items() if not k.startswith("bundle_hop_")}
-    base = prepare(sc, rep, [f"nodes={own.nodes}", f"hosts={own.hosts}",
-                             f"duration={own.duration}", f"warmup={own.warmup}",
-                             f"seed={own.seed}"], bundle=True)
-    base = replace(base, deployment=replace(base.deployment,
-                                            background=own.deployment.background))
+    base = for_run(sc, rep, own, bundle=True)
     up, down = base.net.host_link.latency, base.net.server_link.latency_down
     if (up.dist != "empirical" or down is None or down.dist != "empirical"
             or not math.isfinite(live)):

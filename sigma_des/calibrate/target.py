@@ -49,8 +49,8 @@ from sigma_des.errors import ConfigError
 from sigma_des.events.tap import Tap
 from sigma_des.net.latency import Dist, load_samples
 
-__all__ = ["BUNDLE_SETS", "FIGURES", "MissedTap", "des_figures", "prepare", "shift_host_link",
-           "state_hop_ratio"]
+__all__ = ["BUNDLE_SETS", "FIGURES", "MissedTap", "des_figures", "for_run", "prepare",
+           "shift_host_link", "state_hop_ratio"]
 
 #: The figures a prediction reports and the validation scores, in table order.
 FIGURES = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac")
@@ -122,6 +122,18 @@ def prepare(cal: Scenario, report: dict[str, Any], sets: list[str], *, bundle: b
     if add_latency_s > 0.0:
         sc = shift_host_link(sc, add_latency_s, samples_dir or _own_dir())
     return sc
+
+
+def for_run(cal: Scenario, report: dict[str, Any], run: Scenario, *, bundle: bool
+            ) -> Scenario:
+    """The calibration prepared for one of its own live runs (``run``: that run's fit):
+    its size, hosts, window and seed, its message mode, and its measured background
+    (what re-predicting that run needs: the in-sample check, the bundled match)."""
+    sc = prepare(cal, report, [f"nodes={run.nodes}", f"hosts={run.hosts}",
+                               f"duration={run.duration}", f"warmup={run.warmup}",
+                               f"seed={run.seed}"], bundle=bundle)
+    return replace(sc, deployment=replace(sc.deployment,
+                                          background=run.deployment.background))
 
 
 def state_hop_ratio(cal: Scenario, report: dict[str, Any], sc: Scenario) -> tuple[float, str]:
