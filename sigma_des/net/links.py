@@ -271,16 +271,24 @@ class Links:
                              t)
         self._stream_try(seg, attempt, t, arr, lost)
 
-    @staticmethod
-    def _stream_arrive(seg: _Segment, arrived: bool) -> None:
-        """Segment ``seg`` arrived (or was given up): deliver what is now in order."""
+    def _stream_arrive(self, seg: _Segment, arrived: bool) -> None:
+        """Segment ``seg`` arrived (or was given up): deliver what is now in order; a
+        downlink segment that arrives behind a gap is held, and its receiver is told
+        (:meth:`read_held`)."""
         conn = seg.conn
         conn.pending[seg.seq] = seg if arrived else None
+        if arrived and not seg.up and seg.seq != conn.next_deliver:
+            self.read_held(seg.m)
         while conn.next_deliver in conn.pending:
             item = conn.pending.pop(conn.next_deliver)
             conn.next_deliver += 1
             if item is not None:
                 item.on_arrive(item.m)
+
+    def read_held(self, m: Msg) -> None:
+        """Hook: the copy ``m`` reached its receiver now but is held behind an earlier
+        segment of its connection (the transport gives it to the receiver when the gap
+        is filled). Nothing here; the network's CPU stage overrides it."""
 
     def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""

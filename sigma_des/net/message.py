@@ -38,6 +38,9 @@ class Msg:
         t_recv: when it reached the receiving MQTT client, before that client's CPU
             burst: the instant live stamps a receipt, to which its latency is measured
             (NaN until then, and for middlewares that deliver at receipt).
+        t_read: when the receiving process's network thread finished reading a copy
+            the stream held behind an earlier segment (read at its own arrival, handed
+            to the loop when the gap is filled); NaN for every other copy.
     """
 
     client: int
@@ -51,6 +54,7 @@ class Msg:
     t_pub: float
     t_sent: float
     t_recv: float = math.nan
+    t_read: float = math.nan
 
     def resent(self) -> Msg:
         """The next try of this hop (``t_sent``: set when it leaves)."""

@@ -375,13 +375,28 @@ class Network(Links):
         if proc is None:
             self._hand_over(m)
         elif proc.threaded:  # paho's thread reads it; the latency ends at its burst's end
-            self.k.at(proc.net_span(now, True)[1], self._loop_receive, m)
+            read = m.t_read  # already read, if the stream held it (read_held)
+            if read != read:
+                read = proc.net_span(now, True)[1]
+            self.k.at(read if read > now else now, self._loop_receive, m)
         else:  # the latency ends when the process gets to it (live's stamp), not later
             busy = proc.free > now
             m.t_recv, end = proc.span(now, self._cost(m))
             if busy and self._lock_switch > 0.0:
                 m.t_recv = self._read_batch(proc.name, now, m.t_recv)
             self.k.at(end, self._hand_over, m)
+
+    def read_held(self, m: Msg) -> None:
+        """A copy the stream holds behind an earlier segment reached its client now: a
+        process with a network thread reads it now (its burst; the loop thread gets it
+        when the gap is filled, :meth:`_client_receive`). Live's shim holds a copy after
+        paho's thread has read it, so a batch released after a loss costs the receiving
+        loop one call each, not a network wake-up each behind the lock."""
+        if not self._app_stage:
+            return
+        proc = self._proc[m.client]
+        if proc is not None and proc.threaded:
+            m.t_read = proc.net_span(self.k.env.now, True)[1]
 
     def _loop_receive(self, m: Msg) -> None:
         """(A process with a network thread) ``m`` is stamped at the end of that

@@ -16,11 +16,14 @@ as a delivery (``Collector.delivered``) to that node.
 
 from __future__ import annotations
 
+import math
+
 from sigma_des.events.fast.codes import (
     CP_HOSTS,
     E_ATT,
     E_KIND,
     E_SUBJ,
+    E_TACT,
     E_TYPE,
     E_WHO,
     EF_TRECV,
@@ -28,6 +31,8 @@ from sigma_des.events.fast.codes import (
     EV_LOOP,
     K_TRIGGER,
     Q_N,
+    TA_ARRIVE,
+    TA_READ,
 )
 from sigma_des.events.fast.cpu import burst, net_span, span, threaded
 from sigma_des.events.fast.layout import (
@@ -92,14 +97,20 @@ def receive(S, s, now):  # type: ignore[no-untyped-def]
     if p < 0:
         hand_over(S, s, now, now)
         return
+    evi = S[EV_INT]
+    read = math.nan
+    if evi[s, E_TACT] == TA_READ:  # held by the stream, read at its own arrival
+        read = S[EV_FLOAT][s, EF_TRECV]
+        evi[s, E_TACT] = TA_ARRIVE
     ns = alloc(S)  # the event's slot is freed after it: a copy waits for the burst
     copy_slot(S, s, ns)
-    evi = S[EV_INT]
     evi[ns, E_TYPE] = EV_APP
     evi[ns, E_ATT] = 0  # the application ignores the attempt (no draws to fill for it)
     if threaded(S, p):  # Network._client_receive: the network thread reads and stamps it
         evi[ns, E_TYPE] = EV_LOOP  # stamped at that burst's end: the event's time
-        push(S, net_span(S, p, now, True)[1], ns)
+        if read != read:
+            read = net_span(S, p, now, True)[1]
+        push(S, read if read > now else now, ns)
         return
     busy = S[CPU_FREE][p] > now
     start, end = span(S, p, S[CPU_DEM][c], now)

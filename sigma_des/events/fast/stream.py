@@ -22,6 +22,7 @@ from sigma_des.events.fast.codes import (
     C_HEAD,
     C_SEQ,
     C_TAIL,
+    CP_APP,
     E_ATT,
     E_NEXT,
     E_PREV,
@@ -30,6 +31,7 @@ from sigma_des.events.fast.codes import (
     E_TACT,
     E_TYPE,
     E_WHO,
+    EF_TRECV,
     EV_BROKER,
     EV_RESEND,
     T_DRAIN,
@@ -38,11 +40,15 @@ from sigma_des.events.fast.codes import (
     T_RETX,
     TA_ARRIVE,
     TA_GONE,
+    TA_READ,
     TA_RETRY,
     TF_RTO,
 )
 from sigma_des.events.fast.layout import (
     CONN,
+    CPU_IP,
+    CPU_PROC,
+    EV_FLOAT,
     EV_INT,
     TR_FLOATS,
     TR_FPARAMS,
@@ -50,10 +56,11 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
     WIRE_BYTES,
 )
+from sigma_des.events.fast.cpu import net_span, threaded
 from sigma_des.events.fast.primitives import count, fly, jit, key_of, push, put_int, release
 from sigma_des.net.resend import stream_backoff
 
-__all__ = ["next_ready", "stream_arrive", "stream_send", "stream_try"]
+__all__ = ["next_ready", "read_held", "stream_arrive", "stream_send", "stream_try"]
 
 #: The stream's resend wait ``rto · 2^attempt``, compiled from the net's one definition.
 _backoff = jit(stream_backoff)
@@ -132,6 +139,22 @@ def stream_arrive(S, ns, now):  # type: ignore[no-untyped-def]
     if seq == cn[C_DELIVER, up, client]:
         S[TR_INTS][T_DRAIN] = 1 + up * cn.shape[2] + client
         S[TR_FLOATS][0] = now
+    elif up == 0 and evi[ns, E_TACT] == TA_ARRIVE:
+        read_held(S, ns, now)
+
+
+@jit
+def read_held(S, ns, now):  # type: ignore[no-untyped-def]
+    """Network.read_held: the downlink segment ``ns`` is held behind a gap; a receiving
+    process with a network thread reads it now (the burst's end kept in ``EF_TRECV``,
+    marked ``TA_READ``; :func:`~sigma_des.events.fast.clients.receive` hands it to the
+    loop thread when the gap is filled)."""
+    if not S[CPU_IP][CP_APP]:
+        return
+    p = S[CPU_PROC][S[EV_INT][ns, E_WHO]]
+    if p >= 0 and threaded(S, p):
+        S[EV_FLOAT][ns, EF_TRECV] = net_span(S, p, now, True)[1]
+        S[EV_INT][ns, E_TACT] = TA_READ
 
 
 @jit
