@@ -255,11 +255,11 @@ class Links:
         """Try ``attempt`` of stream segment ``seg`` sent at ``t``: in order on arrival,
         or resent after the (doubling) RTO, or given up after ``max_retries``."""
         if not lost:
-            self.k.at(arr, self._stream_arrive, seg, True)
+            self.k.at(arr, self._stream_arrive, seg, True, attempt)
             return
         if attempt >= self.max_retries:
             self.gave_up += 1
-            self.k.at(t, self._stream_arrive, seg, False)
+            self.k.at(t, self._stream_arrive, seg, False, attempt)
             return
         self.retransmissions += 1
         self.k.at(t + stream_backoff(self.rto, attempt), self._stream_retry, seg, attempt + 1)
@@ -271,24 +271,25 @@ class Links:
                              t)
         self._stream_try(seg, attempt, t, arr, lost)
 
-    def _stream_arrive(self, seg: _Segment, arrived: bool) -> None:
-        """Segment ``seg`` arrived (or was given up): deliver what is now in order; a
-        downlink segment that arrives behind a gap is held, and its receiver is told
-        (:meth:`read_held`)."""
+    def _stream_arrive(self, seg: _Segment, arrived: bool, attempt: int) -> None:
+        """Segment ``seg`` arrived on try ``attempt`` (or was given up): deliver what is
+        now in order. A downlink segment held behind a gap, or arriving on a resend, is
+        announced to its receiver first (:meth:`read_held`)."""
         conn = seg.conn
         conn.pending[seg.seq] = seg if arrived else None
-        if arrived and not seg.up and seg.seq != conn.next_deliver:
-            self.read_held(seg.m)
+        if arrived and not seg.up and (attempt > 0 or seg.seq != conn.next_deliver):
+            self.read_held(seg.m, attempt > 0)
         while conn.next_deliver in conn.pending:
             item = conn.pending.pop(conn.next_deliver)
             conn.next_deliver += 1
             if item is not None:
                 item.on_arrive(item.m)
 
-    def read_held(self, m: Msg) -> None:
-        """Hook: the copy ``m`` reached its receiver now but is held behind an earlier
-        segment of its connection (the transport gives it to the receiver when the gap
-        is filled). Nothing here; the network's CPU stage overrides it."""
+    def read_held(self, m: Msg, resent: bool) -> None:
+        """Hook: the copy ``m`` reaches its receiver now, held behind an earlier segment
+        of its connection (the transport gives it to the receiver when the gap is
+        filled) or arriving on a resend (``resent``). Nothing here; the network's CPU
+        stage overrides it."""
 
     def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""

@@ -386,17 +386,21 @@ class Network(Links):
                 m.t_recv = self._read_batch(proc.name, now, m.t_recv)
             self.k.at(end, self._hand_over, m)
 
-    def read_held(self, m: Msg) -> None:
-        """A copy the stream holds behind an earlier segment reached its client now: a
-        process with a network thread reads it now (its burst; the loop thread gets it
-        when the gap is filled, :meth:`_client_receive`). Live's shim holds a copy after
-        paho's thread has read it, so a batch released after a loss costs the receiving
-        loop one call each, not a network wake-up each behind the lock."""
+    def read_held(self, m: Msg, resent: bool) -> None:
+        """A copy the stream holds behind a gap, or one arriving on a resend, reaches a
+        process with a network thread: the thread reads it now, and the loop thread gets
+        it when it is handed on (:meth:`_client_receive`) — a held copy no earlier than
+        that read's end, a resent one at once. Live's shim delays and resends a copy
+        after paho's thread has read it (a resent one at its first arrival), so a batch
+        released after a loss costs the receiving loop one call each, in order, not a
+        network wake-up each behind the interpreter lock."""
         if not self._app_stage:
             return
         proc = self._proc[m.client]
         if proc is not None and proc.threaded:
-            m.t_read = proc.net_span(self.k.env.now, True)[1]
+            now = self.k.env.now
+            end = proc.net_span(now, True)[1]
+            m.t_read = now if resent else end
 
     def _loop_receive(self, m: Msg) -> None:
         """(A process with a network thread) ``m`` is stamped at the end of that

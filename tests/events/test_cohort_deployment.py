@@ -253,6 +253,19 @@ def test_network_threads_identical(method: str, clients: str) -> None:
 
 
 @pytest.mark.parametrize("method", METHODS)
+def test_network_threads_over_a_lossy_stream_identical(method: str) -> None:
+    """The network thread on a lossy stream: copies held behind a lost segment are read
+    at their own arrival, a resent one when it arrives, and the loop takes them in
+    order when the gap is filled (``read_held``). Both engines, every metric the same,
+    and held copies really occur (retransmissions with random latency)."""
+    sc = tiny(**{**_BASE, **_CPU, **_NET, "net.host_link.loss.p": 0.05,
+                 "deployment.clients": "host"})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    assert ev["metrics"]["retransmissions"] > 0
+
+
+@pytest.mark.parametrize("method", METHODS)
 def test_network_threads_over_qos1_datagram_identical(method: str) -> None:
     """The network thread under QoS 1 resends, lost PUBACKs and duplicates (each copy
     received passes the thread; a resend does not), dedicated machines."""

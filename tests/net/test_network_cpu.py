@@ -361,3 +361,48 @@ def test_a_network_thread_stamps_the_receipt_then_the_loop_handles_it() -> None:
     assert net.cpu is not None
     assert net.cpu.server.busy == pytest.approx(2 * sn + sw + 2 * ds, abs=1e-15)
     assert [h.busy for h in net.cpu.hosts] == pytest.approx([dh + hn + hw] * 2, abs=1e-15)
+
+
+def _two_commands(extra: list[str], drops: frozenset[tuple[int, int, int]]
+                  ) -> tuple[Kernel, Network, list[tuple[Any, ...]]]:
+    """One node on one host (dedicated machines, zero broker services, a stream): the
+    server publishes commands 7 and 8 to node 0 at t = 0; ``drops`` loses first tries."""
+    got: list[tuple[Any, ...]] = []
+    k = Kernel()
+
+    def deliver(m: Msg) -> None:
+        got.append((m.index, k.now, m.t_recv))
+
+    sc = load(None, [*BASE, "net.transport='stream'", "nodes=1", "hosts=1",
+                     "deployment.preset='dedicated'", "broker.publish_service=0.0",
+                     "broker.delivery_service=0.0", *extra])
+    setup = replace(sc.net_setup(), warmup=0.0, drops=drops)
+    net = Network(k, setup, RandomStreams(sc.seed), deliver)
+    for index in (7, 8):
+        net.publish(net.server, COMMAND, 0, index, f"c{index}", 96, (0,))
+    k.env.run()
+    return k, net, got
+
+
+def test_a_copy_held_behind_a_resent_one_was_read_at_its_own_arrival() -> None:
+    """Command 7's first try to the host is lost: it arrives ``rto`` later (at ``A7 +
+    rto``, its try leaving the broker ``rto`` after the first), and command 8, arriving
+    at ``A8``, is held behind it. The host's network thread (``hn`` a message, ``hw`` a
+    wake-up) reads 8 at ``A8`` (a wake-up: busy until ``A8 + hn + hw``) and the resent 7
+    when it arrives (another wake-up); the loop gets 7 at once, then 8 (read long
+    before), both at ``A7 + rto``: live's shim delays and resends a copy paho's thread
+    has already read. Without the rule 8 would wait behind 7's read (``+ hn + hw``) and
+    its own (``+ hn``)."""
+    dh, hn, hw = 2e-4, 1e-4, 3e-4
+    cpu = [f"deployment.host_demand={dh}", f"deployment.host_net_msg={hn}",
+           f"deployment.host_net_wake={hw}"]
+    _k0, _n0, ref = _two_commands(cpu, frozenset())
+    a7 = ref[0][2] - hn - hw  # 7's first-try arrival: stamped after a wake-up's read
+    assert a7 > 0.0
+    _k, net, got = _two_commands(cpu, frozenset({(COMMAND, 0, 7)}))
+    rto = load(None, []).net.rto
+    assert [g[0] for g in got] == [7, 8]
+    assert [g[1] for g in got] == pytest.approx([a7 + rto] * 2, abs=1e-12)
+    assert [g[2] for g in got] == pytest.approx([a7 + rto] * 2, abs=1e-12)
+    assert net.cpu is not None
+    assert net.cpu.hosts[0].busy == pytest.approx(2 * (hn + hw) + 2 * dh, abs=1e-15)

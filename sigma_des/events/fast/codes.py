@@ -110,8 +110,8 @@ N_SOURCES = 11
 # counters and the draining connection (S.tr_ints), stream connection rows (S.conn)
 EV_RESEND = 3
 TA_RESEND, TA_RETRY, TA_ARRIVE, TA_GONE = range(4)
-#: a held downlink segment its receiver's network thread has read (the burst's end in
-#: its EF_TRECV column): Network.read_held
+#: a downlink segment (held behind a gap, or resent) its receiver's network thread has
+#: read: when the loop may take it is in its EF_TRECV column (Network.read_held)
 TA_READ = 4
 T_QOS1D, T_RETRIES, T_DUPALL, T_XROWS, T_STREAM = range(5)
 T_QLEN = 6

@@ -136,24 +136,26 @@ def stream_arrive(S, ns, now):  # type: ignore[no-untyped-def]
         cn[C_TAIL, up, client] = ns
     else:
         evi[nxt, E_PREV] = ns
+    att = evi[ns, E_ATT]
+    if up == 0 and evi[ns, E_TACT] == TA_ARRIVE and (att > 0 or seq != cn[C_DELIVER, up, client]):
+        read_held(S, ns, now, att > 0)
     if seq == cn[C_DELIVER, up, client]:
         S[TR_INTS][T_DRAIN] = 1 + up * cn.shape[2] + client
         S[TR_FLOATS][0] = now
-    elif up == 0 and evi[ns, E_TACT] == TA_ARRIVE:
-        read_held(S, ns, now)
 
 
 @jit
-def read_held(S, ns, now):  # type: ignore[no-untyped-def]
-    """Network.read_held: the downlink segment ``ns`` is held behind a gap; a receiving
-    process with a network thread reads it now (the burst's end kept in ``EF_TRECV``,
-    marked ``TA_READ``; :func:`~sigma_des.events.fast.clients.receive` hands it to the
-    loop thread when the gap is filled)."""
+def read_held(S, ns, now, resent):  # type: ignore[no-untyped-def]
+    """Network.read_held: the downlink segment ``ns``, held behind a gap or arriving on a
+    resend; a receiving process with a network thread reads it now (marked ``TA_READ``,
+    with when the loop may take it in ``EF_TRECV``: that burst's end for a held copy,
+    now for a resent one; :func:`~sigma_des.events.fast.clients.receive`)."""
     if not S[CPU_IP][CP_APP]:
         return
     p = S[CPU_PROC][S[EV_INT][ns, E_WHO]]
     if p >= 0 and threaded(S, p):
-        S[EV_FLOAT][ns, EF_TRECV] = net_span(S, p, now, True)[1]
+        end = net_span(S, p, now, True)[1]
+        S[EV_FLOAT][ns, EF_TRECV] = now if resent else end
         S[EV_INT][ns, E_TACT] = TA_READ
 
 
