@@ -44,6 +44,7 @@ from sigma_des.events.fast.codes import (
     TA_RETRY,
     TF_RTO,
 )
+from sigma_des.events.fast.cpu import net_span, threaded
 from sigma_des.events.fast.layout import (
     CONN,
     CPU_IP,
@@ -56,7 +57,6 @@ from sigma_des.events.fast.layout import (
     TR_PARAMS,
     WIRE_BYTES,
 )
-from sigma_des.events.fast.cpu import net_span, threaded
 from sigma_des.events.fast.primitives import count, fly, jit, key_of, push, put_int, release
 from sigma_des.net.resend import stream_backoff
 
