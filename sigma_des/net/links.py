@@ -62,11 +62,13 @@ class LinkDir:
 class _Conn:
     """One direction of one client's stream connection (in-order delivery)."""
 
-    __slots__ = ("next_seq", "next_deliver", "pending")
+    __slots__ = ("next_seq", "next_deliver", "pending", "lost")
 
     def __init__(self) -> None:
         self.next_seq = 0
         self.next_deliver = 0
+        #: segments lost and not yet arrived nor given up (awaiting a resend)
+        self.lost = 0
         #: segments arrived out of order, by sequence number (None: given up)
         self.pending: dict[int, _Segment | None] = {}
 
@@ -257,6 +259,8 @@ class Links:
         if not lost:
             self.k.at(arr, self._stream_arrive, seg, True, attempt)
             return
+        if attempt == 0:
+            seg.conn.lost += 1
         if attempt >= self.max_retries:
             self.gave_up += 1
             self.k.at(t, self._stream_arrive, seg, False, attempt)
@@ -273,11 +277,15 @@ class Links:
 
     def _stream_arrive(self, seg: _Segment, arrived: bool, attempt: int) -> None:
         """Segment ``seg`` arrived on try ``attempt`` (or was given up): deliver what is
-        now in order. A downlink segment held behind a gap, or arriving on a resend, is
-        announced to its receiver first (:meth:`read_held`)."""
+        now in order. A downlink segment arriving on a resend, or held behind a gap
+        while a segment of its connection awaits a resend, is announced to its receiver
+        first (:meth:`read_held`)."""
         conn = seg.conn
         conn.pending[seg.seq] = seg if arrived else None
-        if arrived and not seg.up and (attempt > 0 or seg.seq != conn.next_deliver):
+        if attempt > 0 or not arrived:
+            conn.lost -= 1
+        if arrived and not seg.up and (
+                attempt > 0 or (conn.lost > 0 and seg.seq != conn.next_deliver)):
             self.read_held(seg.m, attempt > 0)
         while conn.next_deliver in conn.pending:
             item = conn.pending.pop(conn.next_deliver)
@@ -286,10 +294,10 @@ class Links:
                 item.on_arrive(item.m)
 
     def read_held(self, m: Msg, resent: bool) -> None:
-        """Hook: the copy ``m`` reaches its receiver now, held behind an earlier segment
-        of its connection (the transport gives it to the receiver when the gap is
-        filled) or arriving on a resend (``resent``). Nothing here; the network's CPU
-        stage overrides it."""
+        """Hook: the copy ``m`` reaches its receiver now, held behind a lost segment of
+        its connection (the transport gives it to the receiver when the gap is filled)
+        or arriving on a resend (``resent``). Nothing here; the network's CPU stage
+        overrides it."""
 
     def links(self) -> list[LinkDir]:
         """All link directions (uplinks then downlinks)."""

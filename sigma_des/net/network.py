@@ -387,8 +387,8 @@ class Network(Links):
             self.k.at(end, self._hand_over, m)
 
     def read_held(self, m: Msg, resent: bool) -> None:
-        """A copy the stream holds behind a gap, or one arriving on a resend, reaches a
-        process with a network thread: the thread reads it now, and the loop thread gets
+        """A copy the stream holds behind a lost segment, or one arriving on a resend,
+        reaches a process with a network thread: the thread reads it now, and the loop thread gets
         it when it is handed on (:meth:`_client_receive`) — a held copy no earlier than
         that read's end, a resent one at once. Live's shim delays and resends a copy
         after paho's thread has read it (a resent one at its first arrival), so a batch

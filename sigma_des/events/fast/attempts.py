@@ -92,8 +92,8 @@ class AttemptTables:
         self.retries = net.max_retries
         self.timeout = net.timeout
         self.rto = net.rto
-        self.conn = np.zeros((4, 2, subjects), dtype=np.int64)
-        self.conn[2:] = -1  # pending lists: no head, no tail
+        self.conn = np.zeros((5, 2, subjects), dtype=np.int64)
+        self.conn[2:4] = -1  # pending lists: no head, no tail
         self.rows = X_ROWS if self.active else 1
         # -1: a constant source, -2: none registered (reading it stops the compiled run)
         self.ack_map = filled((N_SOURCES, N_KINDS), -2, np.int64)

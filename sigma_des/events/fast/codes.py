@@ -119,7 +119,7 @@ TF_TIMEOUT, TF_RTO = range(2)
 TF_LEN = 2
 T_RETX, T_GAVE, T_FKIND, T_FINDEX, T_FATT, T_DRAIN = range(6)
 T_ILEN = 6
-C_SEQ, C_DELIVER, C_HEAD, C_TAIL = range(4)
+C_SEQ, C_DELIVER, C_HEAD, C_TAIL, C_LOST = range(5)
 
 # F3 — deployment (docs/concepts/deployment.md): event types of a
 # publish whose CPU burst ends (the PUBLISH leaves) and of a received copy handed to the

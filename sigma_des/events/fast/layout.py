@@ -148,8 +148,9 @@ FIELDS: tuple[Field, ...] = (
     Field("x_val", _f, ("x_tables", "x_rows", "clients"), None, "attempt draws: values"),
     Field("x_tag", _i, ("x_tables", "x_rows"), None,
           "attempt draws: key index * (max_retries + 1) + attempt held by each row"),
-    Field("conn", _i, (4, 2, "clients"), None,
-          "stream connections (down, up) per client: next seq, next to deliver, pending list"),
+    Field("conn", _i, (5, 2, "clients"), None,
+          "stream connections (down, up) per client: next seq, next to deliver, pending "
+          "list, segments awaiting a resend"),
     Field("tr_floats", _f, (1,), 0.0, "time of the arrival whose in-order deliveries drain"),
     # F3 — deployment: processes on machines' cores (``procs`` = hosts + 2, ``machines``,
     # ``cpu_cores``) and per-host MQTT clients (``clients_1`` = clients + 1)

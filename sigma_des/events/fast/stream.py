@@ -20,6 +20,7 @@ from __future__ import annotations
 from sigma_des.events.fast.codes import (
     C_DELIVER,
     C_HEAD,
+    C_LOST,
     C_SEQ,
     C_TAIL,
     CP_APP,
@@ -87,6 +88,8 @@ def stream_try(S, slot, t):  # type: ignore[no-untyped-def]
         evi[slot, E_TACT] = TA_ARRIVE
         push(S, arr, slot)
         return
+    if att == 0:
+        S[CONN][C_LOST, up, client] += 1
     ti = S[TR_INTS]
     if att >= S[TR_PARAMS][T_RETRIES]:
         ti[T_GAVE] += 1
@@ -137,7 +140,11 @@ def stream_arrive(S, ns, now):  # type: ignore[no-untyped-def]
     else:
         evi[nxt, E_PREV] = ns
     att = evi[ns, E_ATT]
-    if up == 0 and evi[ns, E_TACT] == TA_ARRIVE and (att > 0 or seq != cn[C_DELIVER, up, client]):
+    arrived = evi[ns, E_TACT] == TA_ARRIVE
+    if att > 0 or not arrived:
+        cn[C_LOST, up, client] -= 1
+    if up == 0 and arrived and (att > 0 or (cn[C_LOST, up, client] > 0
+                                            and seq != cn[C_DELIVER, up, client])):
         read_held(S, ns, now, att > 0)
     if seq == cn[C_DELIVER, up, client]:
         S[TR_INTS][T_DRAIN] = 1 + up * cn.shape[2] + client
@@ -146,8 +153,8 @@ def stream_arrive(S, ns, now):  # type: ignore[no-untyped-def]
 
 @jit
 def read_held(S, ns, now, resent):  # type: ignore[no-untyped-def]
-    """Network.read_held: the downlink segment ``ns``, held behind a gap or arriving on a
-    resend; a receiving process with a network thread reads it now (marked ``TA_READ``,
+    """Network.read_held: the downlink segment ``ns``, held behind a lost one or arriving
+    on a resend; a receiving process with a network thread reads it now (marked ``TA_READ``,
     with when the loop may take it in ``EF_TRECV``: that burst's end for a held copy,
     now for a resent one; :func:`~sigma_des.events.fast.clients.receive`)."""
     if not S[CPU_IP][CP_APP]:
