@@ -51,6 +51,7 @@ from sigma_des.live.wire import (
     encode_state,
 )
 from sigma_des.loading import from_dict
+from sigma_des.net.bundlekeys import BundleKeys
 from sigma_des.net.clocks import NodeClocks
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER, rerequest_index
 
@@ -139,7 +140,11 @@ class Host(ImpairedSender):
         self.h = host
         self.qos = int(cfg["qos"])
         self.bundle = bool(cfg.get("bundle", False))
-        self._pending: list[tuple[bytes, int, int]] = []
+        # --bundle: this turn's records (payload and own draw key) and the bundles' keys
+        # as sent and as received (the simulation's rule: sigma_des.net.bundlekeys)
+        self._pending: list[tuple[bytes, int, int, int]] = []
+        self._sent_keys = BundleKeys()
+        self._recv_keys = BundleKeys()
         self.topics = topics
         self.window = Window.of(sc.duration, sc.f_trig, sc.bides.f_trig_min)
         skew = host_clock()
@@ -255,8 +260,11 @@ class Host(ImpairedSender):
             recs.append((self._local_index(node), stamp, tick, t_send, vals))
         if not recs:
             raise WireError("command: empty")
-        self._deliver(t, COMMAND, int(self.nodes[recs[0][0]]), recs[0][2], recs[0][3],
-                      len(topic), len(payload), self._on_commands, recs)
+        kind, node, tick = COMMAND, int(self.nodes[recs[0][0]]), int(recs[0][2])
+        if self.bundle:  # keyed by its place among this host's command bundles of the tick
+            kind, node, tick = self._recv_keys.key(self.h, int(self.nodes[0]), kind, node, tick)
+        self._deliver(t, kind, node, tick, recs[0][3], len(topic), len(payload),
+                      self._on_commands, recs)
 
     def _on_commands(self, t: float, recs: list[tuple[Any, ...]]) -> None:
         for j, stamp, tick, t_send, row in recs:
@@ -337,21 +345,23 @@ class Host(ImpairedSender):
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         node = int(self.nodes[j])
         msg = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
+        kind, key = (REPUBLISH, index) if republish else (STATE, frame)
         if not self.bundle:
-            kind, key = (REPUBLISH, index) if republish else (STATE, frame)
             self._publish(self.topics.state(self.h), msg, t, kind, node, key)
             return
         if not self._pending:
             self.loop.call_at(t, self._flush)  # after the current handler, before the inbox
-        self._pending.append((msg, node, frame))
+        self._pending.append((msg, kind, node, key))
 
     def _flush(self) -> None:
-        """``--bundle``: publish the states of this loop turn as one message."""
+        """``--bundle``: publish the states of this loop turn as one message, keyed by its
+        place among this host's bundles of its first record's ``(kind, index)``."""
         pend, self._pending = self._pending, []
         if pend:
             t = self.loop.now
-            self._publish(self.topics.state(self.h), b"".join(p for p, _n, _f in pend), t,
-                          STATE, pend[0][1], pend[0][2])
+            _p, kind, node, index = pend[0]
+            key = self._sent_keys.key(self.h, int(self.nodes[0]), kind, node, index)
+            self._publish(self.topics.state(self.h), b"".join(p[0] for p in pend), t, *key)
 
     # ------------------------------------------------------------ run
 

@@ -39,6 +39,7 @@ from sigma_des.live.wire import (
     encode_trigger,
 )
 from sigma_des.metrics.reports import LinkCount
+from sigma_des.net.bundlekeys import BundleKeys, first_nodes
 from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, TRIGGER, rerequest_index
 
 __all__ = ["LiveNet", "LiveServer"]
@@ -119,6 +120,11 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.unknown_topic = 0
         self.late = 0
         self.rereq_index: dict[tuple[int, int], int] = {}  # (node, frame): newest re-request
+        # bundles' draw keys, sent (commands) and received (states), per host's channel
+        # (the simulation's rule: sigma_des.net.bundlekeys)
+        self._first = first_nodes(sc.host_of)
+        self._sent_keys = BundleKeys()
+        self._recv_keys = BundleKeys()
         self.running = False
         self.rollbacks = 0
         self.resim_steps = 0
@@ -162,13 +168,15 @@ class LiveServer(AlignmentServer, ImpairedSender):
         ok = nodes.tolist()
         if self.record:
             self.kept["commands"] += [(i, tick, t, cmds[i].tolist()) for i in ok]
-        if self.bundle:  # one PUBLISH per host: its nodes' command records back to back
-            per_host: dict[int, list[bytes]] = {}
+        if self.bundle:  # one PUBLISH per host: its nodes' command records back to back,
+            # keyed by its place among the host's command bundles of this tick
+            per_host: dict[int, list[tuple[int, bytes]]] = {}
             for i in ok:
                 per_host.setdefault(self.host_of[i], []).append(
-                    encode_command(i, stamp, tick, t, cmds[i]))
+                    (i, encode_command(i, stamp, tick, t, cmds[i])))
             for h, recs in per_host.items():
-                self._publish(self.topics.cmd(h), b"".join(recs), t, COMMAND, h, tick)
+                key = self._sent_keys.key(h, self._first[h], COMMAND, recs[0][0], tick)
+                self._publish(self.topics.cmd(h), b"".join(r for _i, r in recs), t, *key)
             return
         for i in ok:
             payload = encode_command(i, stamp, tick, t, cmds[i])
@@ -234,6 +242,8 @@ class LiveServer(AlignmentServer, ImpairedSender):
         # a republished state's draws are keyed by the re-request it answers (the DES's
         # REPUBLISH); its record does not say which, so by the newest one sent
         index = self.rereq_index.get((node, frame), frame) if kind == REPUBLISH else frame
+        if self.bundle:  # by its place among the host's bundles of that (kind, index)
+            kind, node, index = self._recv_keys.key(host, self._first[host], kind, node, index)
         at = self.impair.arrival(t, DOWN, kind, node, index)
         if math.isinf(at):
             return

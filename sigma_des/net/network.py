@@ -21,7 +21,10 @@ broadcast, to each in node order; a message about node ``i`` to ``i``). With ``b
 a host client's state publishes of one loop turn are one PUBLISH (:class:`Bundle`), and
 so are the server's commands of one turn to one host, handed over record by record at
 the receiver: the publishes of one instant or, with a CPU stage, every publish made
-while the sender's process is busy joins the PUBLISH that leaves when it is free.
+while the sender's process is busy joins the PUBLISH that leaves when it is free. A
+bundle's hops draw by its place among its host's bundles of its first record's
+``(kind, index)`` (:mod:`sigma_des.net.bundlekeys`, live's rule): counted at the sender
+for the publisher → broker hop, at the broker's fan-out for the broker → receiver hop.
 
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
@@ -36,6 +39,7 @@ from typing import Any
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.broker import Broker
+from sigma_des.net.bundlekeys import BundleKeys
 from sigma_des.net.cpu import Cpu, CpuReport
 from sigma_des.net.kinds import ACK, COMMAND, TRIGGER
 from sigma_des.net.links import Links
@@ -109,6 +113,11 @@ class Network(Links):
         self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
                           else list(range(self.n))) + [self.server]
         self._pending: dict[tuple[int, int], list[tuple[Record, tuple[int, ...]]]] = {}
+        # bundles' draw keys, counted where each hop starts: the sender, the broker
+        self._up_keys = BundleKeys()
+        self._down_keys = BundleKeys()
+        # a drop fault naming a bundle's first record drops that bundle
+        self._lead_drops = self.forced_drops if self.bundle else frozenset()
         # publishes whose burst ended while their process was busy, in burst order, and
         # the latest time the first of them leaves (lock_switch after its burst's end)
         self._lock_switch = dep.lock_switch if cpu is not None else 0.0
@@ -288,11 +297,13 @@ class Network(Links):
 
     def _flush(self, key: tuple[int, int]) -> None:
         """Bundle: the records of this turn from ``key[0]`` to ``key[1]`` leave as one
-        PUBLISH (the first record's kind, subject and index key its draws; its payload
-        the sum)."""
+        PUBLISH (its payload the sum), keyed by its place among the bundles of its first
+        record's ``(kind, index)`` that this host's client sent, or the server sent it."""
         pend = self._pending.pop(key)
         now = self.k.now
         kind, subject, index, _p, _b = pend[0][0]
+        host = key[1] if key[0] == self.server else key[0]
+        kind, subject, index = self._up_keys.key(host, host, kind, subject, index)
         recs = Bundle(r for r, _s in pend)
         bits = sum(r[4] for r in recs)
         self._client_publish(Msg(key[0], kind, subject, index, recs, bits, pend[0][1], 0, now,
@@ -329,9 +340,23 @@ class Network(Links):
         if self.qos1 and self._puback(m, False, t_ack, now):
             self._resend(m, self._publish_try)
         kind, index, payload, bits, t_pub = m.kind, m.index, m.payload, m.bits, m.t_pub
+        if isinstance(payload, Bundle):  # its one receiver counts it in the broker's order
+            kind, ds, index = self._receiver_key(payload)
+            dsubj = [ds]
         for sub, ds, d in zip(subs, dsubj, departs, strict=True):
             # the broker's first try towards ``sub`` (Msg.to, inlined: the fan-out's hot loop)
             self._deliver_try(Msg(sub, kind, ds, index, payload, bits, (), 0, t_pub, d))
+
+    def _receiver_key(self, b: Bundle) -> tuple[int, int, int]:
+        """The draw key of ``b``'s broker → receiver hop: its place among the bundles of
+        its first record's ``(kind, index)`` on its host's channel, counted in the order
+        the broker sends them (as a live receiver counts them on receipt)."""
+        kind, subject, index = b[0][:3]
+        host = self.client_of[subject]
+        key = self._down_keys.key(host, host, kind, subject, index)
+        if (kind, subject, index) in self._lead_drops:
+            self.forced_drops = self.forced_drops | {key}
+        return key
 
     def _puback(self, m: Msg, up: bool, t: float, now: float) -> bool:
         """Send the PUBACK of ``m`` (received ``now``) on its client's link at ``t``; True
