@@ -59,9 +59,10 @@ def main(argv: list[str] | None = None) -> int:
                         "(e.g. --calibrate-args=--one-thread); a kept calibration made "
                         "with others is redone")
     p.add_argument("--calibrate-bundled", action="store_true",
-                   help="also run the calibration setting with bundled messages (cal-bundle) "
-                        "and calibrate on it with the most typical repeat (a campaign of "
-                        "two runs: `sigma-des calibrate RUN RUN`)")
+                   help="also run the calibration setting with bundled messages twice "
+                        "(cal-bundle, cal-bundle-r2) and calibrate on them with the most "
+                        "typical repeat (`sigma-des calibrate RUN RUN RUN`: the bundled hop "
+                        "factor matched on the bundled runs' mean)")
     p.add_argument("--retry-loaded", type=int, default=None, metavar="K",
                    help="run a live cell again when it ran under load (background CPU > "
                         "25%% of the cores), at most K times (default 1; --quick 0); the "

@@ -108,7 +108,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         report.update(bundled)
         if "bundle_hop_run" in bundled:
             report.setdefault("parameter_sources", {})[
-                "bundled targets' state-hop factor"] = [bundled["bundle_hop_run"]]
+                "bundled targets' state-hop factor"] = bundled["bundle_hop_run"].split(", ")
         if "bundle_hop_warning" in bundled:
             report["warnings"].append(bundled["bundle_hop_warning"])
     if not args.no_check:
@@ -168,8 +168,9 @@ def _combined(fits: list[Any], out_dir: Path) -> tuple[Any, dict[str, Any], int]
 def _match_bundled(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],
                    primary: int) -> dict[str, Any]:
     """A campaign whose hops were matched on a per-node run and that has a bundled run:
-    the bundled targets' state-hop factor matched on its first bundled run
-    (:func:`~sigma_des.calibrate.match.match_bundled`); nothing otherwise (the hops
+    the bundled targets' state-hop factor matched on its first bundled run, against the
+    mean of the bundled runs of that run's size and hosts (repeats;
+    :func:`~sigma_des.calibrate.match.match_bundled`); nothing otherwise (the hops
     already are a bundled run's, or no bundled run shows the excess)."""
     from sigma_des.calibrate.match import match_bundled
 
@@ -177,7 +178,10 @@ def _match_bundled(sc: Any, report: dict[str, Any], fits: list[Any], sources: li
     if not bundled or fits[primary][2]["bundle"]:
         return {}
     i = bundled[0]
-    return match_bundled(sc, report, fits[i][0], sources[i], fits[i][2]["name"])
+    own = fits[i][0]
+    same = [j for j in bundled if (fits[j][0].nodes, fits[j][0].hosts) == (own.nodes, own.hosts)]
+    return match_bundled(sc, report, own, [sources[j] for j in same],
+                         ", ".join(fits[j][2]["name"] for j in same))
 
 
 def _in_sample(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import replace
 from functools import partial
 from pathlib import Path
@@ -242,19 +243,23 @@ def match_hops(sc: Scenario, source: Path, d: Path) -> tuple[Scenario, dict[str,
     return out, report
 
 
-def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: Path,
-                  name: str) -> dict[str, Any]:
+def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario,
+                  source: Path | Sequence[Path], name: str) -> dict[str, Any]:
     """Scale the state hops of ``sc`` (matched on a per-node run) prepared for a bundled
     run of the campaign until the DES re-predicts that run's mean state latency
-    (pooled over its methods, the run's own background): the factor a bundled target
-    gets at that run's nodes (:func:`~sigma_des.calibrate.burst.bundle_hop_factor`).
+    (pooled over its methods, the run's own background), or the mean of several runs
+    of that setting: the factor a bundled target gets at that run's nodes
+    (:func:`~sigma_des.calibrate.burst.bundle_hop_factor`). Repeats matter: one
+    bundled run's latency varies by 10–20 % from run to run, and the factor carries
+    that error, grown, to every larger bundled target.
 
     Args:
         sc: the calibrated scenario after :func:`match_hops`.
         report: its report (any earlier ``bundle_hop_*`` keys are ignored).
         own: the bundled run's own fit (its size, hosts, window, seed, background).
-        source: the bundled live run.
-        name: the run's name, for the report.
+        source: the bundled live run, or the runs of its setting (the target is the
+            mean of their pooled latencies).
+        name: the run's (or runs') name, for the report.
 
     Returns:
         ``bundle_hop_scale`` (the factor), ``bundle_hop_nodes`` (the run's),
@@ -266,7 +271,9 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
     from sigma_des.calibrate.burst import scale_state_hops
     from sigma_des.calibrate.target import for_run
 
-    live, _ = _live_means(source, own)
+    runs = [source] if isinstance(source, Path) else list(source)
+    means = [m for m in (_live_means(r, own)[0] for r in runs) if math.isfinite(m)]
+    live = float(np.mean(means)) if means else math.nan
     rep = {k: v for k, v in report.items() if not k.startswith("bundle_hop_")}
     base = for_run(sc, rep, own, bundle=True)
     up, down = base.net.host_link.latency, base.net.server_link.latency_down
@@ -286,7 +293,8 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario, source: P
             first = k + (live - des) / 1000.0 / hop if hop > 0 else k
             k = _next_scale(tried, live, first)
     out: dict[str, Any] = {"bundle_hop_scale": k, "bundle_hop_nodes": float(own.nodes),
-                           "bundle_hop_run": name, "bundle_hop_rounds": rounds,
+                           "bundle_hop_run": name, "bundle_hop_runs": float(len(means)),
+                           "bundle_hop_rounds": rounds,
                            "bundle_hop_live_ms": live, "bundle_hop_des_ms": des}
     if abs(des - live) > MATCH_TOL * live:  # at a bound of the scale, or out of rounds
         out["bundle_hop_warning"] = (

@@ -134,9 +134,11 @@ def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
     from sigma_des.calibrate import cli, match
 
     seen: list[tuple[int, str]] = []
+    got_sources: list[object] = []
 
     def fake(sc, report, own, source, name):  # type: ignore[no-untyped-def]
         seen.append((own.nodes, name))
+        got_sources.append(source)
         return {"bundle_hop_scale": 1.5, "bundle_hop_nodes": float(own.nodes),
                 "bundle_hop_run": name}
 
@@ -147,6 +149,12 @@ def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
     srcs = [tmp_path / "n20", tmp_path / "b30", tmp_path / "b40"]
     got = cli._match_bundled(node[0], {}, [node, b1, b2], srcs, 0)
     assert seen == [(30, "b30")] and got["bundle_hop_nodes"] == 30.0
+    # a second bundled run of the first one's size and hosts: matched on both
+    b3 = _fit(tmp_path, "b30b", [1e-3], True, nodes=30, host_demand=1e-4)
+    both = cli._match_bundled(node[0], {}, [node, b1, b2, b3], [*srcs, tmp_path / "b30b"], 0)
+    assert seen[-1] == (30, "b30, b30b") and both["bundle_hop_run"] == "b30, b30b"
+    assert got_sources[-1] == [tmp_path / "b30", tmp_path / "b30b"]
+    seen.pop()
     assert cli._match_bundled(b1[0], {}, [b1, node], srcs[1::-1], 0) == {}
     assert cli._match_bundled(node[0], {}, [node], srcs[:1], 0) == {}
     assert len(seen) == 1

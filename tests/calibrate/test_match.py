@@ -134,6 +134,18 @@ def test_the_bundled_run_is_matched_by_scaling_the_state_hops(tmp_path: Path) ->
     assert abs(got["bundle_hop_des_ms"] - live) <= MATCH_TOL * live
     assert got["bundle_hop_scale"] == pytest.approx(1.5, abs=0.1)
     assert 2 <= got["bundle_hop_rounds"] <= 4 and "bundle_hop_warning" not in got
+    # two runs of the setting: the target is their mean (0.8 and 1.2 times the latency)
+    twin = tmp_path / "twin"
+    twin.mkdir()
+    for d, f in ((run, 0.8), (twin, 1.2)):
+        (d / "summary.json").write_text(json.dumps(
+            {"methods": {"none": {"latency_state_mean": f * live}}}))
+    two = match_bundled(cal, rep, cal, [run, twin], "run, twin")
+    assert two["bundle_hop_runs"] == 2.0 and two["bundle_hop_live_ms"] == pytest.approx(live)
+    assert two["bundle_hop_scale"] == pytest.approx(1.5, abs=0.1)
+    one = match_bundled(cal, rep, cal, [run], "run")
+    assert one["bundle_hop_live_ms"] == pytest.approx(0.8 * live)
+    assert one["bundle_hop_scale"] < two["bundle_hop_scale"] - 0.2
     # a live latency no scale within K_MAX reaches: the match says so
     (run / "summary.json").write_text(json.dumps(
         {"methods": {"none": {"latency_state_mean": 100.0 * live}}}))

@@ -118,10 +118,12 @@ class Plan:
         repeats: runs of the calibration setting (the most typical one is the
             calibration run: :func:`~sigma_lab.studies.validation.scoring.central`).
         cell_repeats: runs of each held-out cell (copies in later passes over the grid).
-        cal_bundle: also a bundled run of the calibration setting (``cal-bundle``, right
-            after ``cal-r1``), calibrated on with the most typical repeat: a campaign of
-            two runs (``sigma-des calibrate RUN RUN``). Every scored cell differs from it
-            in size (the calibration setting's N is not in the held-out grid).
+        cal_bundle: also bundled runs of the calibration setting (``cal-bundle`` right
+            after ``cal-r1``, ``cal-bundle-r2`` right after ``cal-r2`` with two repeats
+            or more), calibrated on with the most typical repeat: a campaign
+            (``sigma-des calibrate RUN RUN RUN``) whose bundled hop factor is matched on
+            the bundled runs' mean. Every scored cell differs from them in size (the
+            calibration setting's N is not in the held-out grid).
         knee_nodes: the DES's finer N grid for its knee prediction.
         knee_live: sizes above the held-out grid (increasing) at which live runs once
             more per mode, in order, while some method still holds at the largest size
@@ -173,20 +175,23 @@ class Plan:
                  for k in range(2, self.cell_repeats + 1) for c in held]
         reps = [Cell(f"cal-r{r}", self.cal_nodes, "node", "", r)
                 for r in range(1, self.repeats + 1)]
-        # the repeats spread over the grid: first, in the middle, last
-        out = [reps[0]] + ([Cell("cal-bundle", self.cal_nodes, "bundle", cal_extra=True)]
-                           if self.cal_bundle else [])
+        # the repeats spread over the grid: first, in the middle, last; with cal_bundle
+        # a bundled run right after the first and (two repeats or more) the second
+        bundled = [Cell("cal-bundle", self.cal_nodes, "bundle", cal_extra=True),
+                   Cell("cal-bundle-r2", self.cal_nodes, "bundle", cal_extra=True)]
+        bundled = bundled[:min(2, len(reps))] if self.cal_bundle else []
+        out = [reps[0], *bundled[:1]]
         cuts = [round(len(held) * k / max(1, len(reps) - 1)) for k in range(1, len(reps))]
         start = 0
-        for rep, cut in zip(reps[1:], cuts, strict=True):
-            out += held[start:cut] + [rep]
+        for r, (rep, cut) in enumerate(zip(reps[1:], cuts, strict=True)):
+            out += held[start:cut] + [rep, *bundled[1:2 if r == 0 else 1]]
             start = cut
         return tuple(out + held[start:])
 
     def select(self, patterns: str | None) -> Plan:
         """The plan with only the cells matching ``patterns`` (comma-separated globs,
-        e.g. ``n30-*,loss5-node``); the calibration runs ``cal-r1`` (and ``cal-bundle``)
-        are always kept.
+        e.g. ``n30-*,loss5-node``); the calibration runs ``cal-r1`` (and the bundled
+        ``cal-bundle*``) are always kept.
 
         Raises:
             ConfigError: (``--grid``) a pattern that matches no cell.
