@@ -190,13 +190,14 @@ def test_a_bundled_calibration_run_is_neither_held_out_nor_a_repeat() -> None:
     assert names.index("cal-bundle-r2") == names.index("cal-r2") + 1
     for cb in (plan.cells[1], plan.cells[3]):
         assert (cb.nodes, cb.mode, cb.repeat, cb.held_out, cb.cal_extra) == (
-            20, "bundle", 0, False, True)
+            40, "bundle", 0, False, True)
     # one repeat: one bundled run
     one = Plan(("none",), 4.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6, repeats=1,
                cal_bundle=True)
     assert [c.name for c in one.cells if c.cal_extra] == ["cal-bundle"]
-    # every scored cell differs from both calibration runs in size
-    assert all(c.nodes != 20 for c in full_plan(("none",), cal_bundle=True).cells
+    assert one.cells[1].nodes == 4  # cal_bundle_nodes 0: the calibration setting's N
+    # every scored cell differs from every calibration run in size
+    assert all(c.nodes not in (20, 40) for c in full_plan(("none",), cal_bundle=True).cells
                if c.held_out)
 
 

@@ -118,12 +118,16 @@ class Plan:
         repeats: runs of the calibration setting (the most typical one is the
             calibration run: :func:`~sigma_lab.studies.validation.scoring.central`).
         cell_repeats: runs of each held-out cell (copies in later passes over the grid).
-        cal_bundle: also bundled runs of the calibration setting (``cal-bundle`` right
-            after ``cal-r1``, ``cal-bundle-r2`` right after ``cal-r2`` with two repeats
-            or more), calibrated on with the most typical repeat: a campaign
-            (``sigma-des calibrate RUN RUN RUN``) whose bundled hop factor is matched on
-            the bundled runs' mean. Every scored cell differs from them in size (the
-            calibration setting's N is not in the held-out grid).
+        cal_bundle: also bundled calibration runs of ``cal_bundle_nodes`` nodes
+            (``cal-bundle`` right after ``cal-r1``, ``cal-bundle-r2`` right after
+            ``cal-r2`` with two repeats or more), calibrated on with the most typical
+            repeat: a campaign (``sigma-des calibrate RUN RUN RUN``) whose bundled hop
+            factor is matched on the bundled runs' mean. Every scored cell differs from
+            them in size.
+        cal_bundle_nodes: N of the bundled calibration runs (0: ``cal_nodes``). Away
+            from the per-node calibration's N: there the per-node match already fits the
+            bundled run's CPU, and a factor matched there understates how live's bundled
+            excess grows with N.
         knee_nodes: the DES's finer N grid for its knee prediction.
         knee_live: sizes above the held-out grid (increasing) at which live runs once
             more per mode, in order, while some method still holds at the largest size
@@ -148,6 +152,7 @@ class Plan:
     cell_repeats: int = 1
     cal_bundle: bool = False
     retry_loaded: int = 1
+    cal_bundle_nodes: int = 0
 
     def __post_init__(self) -> None:
         if not 0 <= self.warmup < self.duration:
@@ -177,8 +182,9 @@ class Plan:
                 for r in range(1, self.repeats + 1)]
         # the repeats spread over the grid: first, in the middle, last; with cal_bundle
         # a bundled run right after the first and (two repeats or more) the second
-        bundled = [Cell("cal-bundle", self.cal_nodes, "bundle", cal_extra=True),
-                   Cell("cal-bundle-r2", self.cal_nodes, "bundle", cal_extra=True)]
+        nb = self.cal_bundle_nodes or self.cal_nodes
+        bundled = [Cell("cal-bundle", nb, "bundle", cal_extra=True),
+                   Cell("cal-bundle-r2", nb, "bundle", cal_extra=True)]
         bundled = bundled[:min(2, len(reps))] if self.cal_bundle else []
         out = [reps[0], *bundled[:1]]
         cuts = [round(len(held) * k / max(1, len(reps) - 1)) for k in range(1, len(reps))]
@@ -243,12 +249,14 @@ def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1
               cell_repeats: int = 2, cal_bundle: bool = False, retry_loaded: int = 1) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
-    N = 20; the DES's knee grid 10, 20, … 60, 80, 100, 120, 150; live's knee runs at
-    120 and 150 where a method still holds at 100."""
+    N = 20 (with ``cal_bundle`` also twice bundled at N = 40); the DES's knee grid 10,
+    20, … 60, 80, 100, 120, 150; live's knee runs at 120 and 150 where a method still
+    holds at 100."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
                 knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150), knee_live=(120, 150),
-                cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded)
+                cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded,
+                cal_bundle_nodes=40)
 
 
 def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5,
