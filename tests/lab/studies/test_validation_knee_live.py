@@ -101,3 +101,21 @@ def test_knee_runs_stop_when_nothing_holds(tmp_path: Path,
     assert rows[("bundle", "bides")]["live_grid"] == "60 100 120 150"
     assert rows[("bundle", "bides")]["live_knee"] == 150
     assert rows[("bundle", "none")]["live_knee"] is None
+
+
+def test_bundled_calibration_runs_are_one_knee_point_the_mean_of_their_runs() -> None:
+    """Two bundled calibration runs at N = 40: live's bundled grid holds 40 once, and
+    its figures are the two runs' mean (missed 4 % and 8 %: 6 %, beyond the 5 % budget,
+    so the knee is 40 though the first run alone holds)."""
+    plan = Plan(METHODS, 4.0, 1.0, cal_nodes=20, nodes=(60, 100), extra_nodes=30,
+                repeats=2, knee_nodes=(40, 60, 100), cal_bundle=True, cal_bundle_nodes=40)
+    ok = _run(HOLD, {"none": 0.0, "bides": 0.0})
+    live = {"cal-r1": ok, "cal-r2": ok, "n60-bundle": ok, "n100-bundle": ok,
+            "cal-bundle": _run(HOLD, {"none": 0.04, "bides": 0.0}),
+            "cal-bundle-r2": _run(HOLD, {"none": 0.08, "bides": 0.0})}
+    des = {f"n{n}-bundle": {"methods": {k: {"trigger_rate_hz": 100.0, "missed_frac": 0.0}
+                                        for k in METHODS}} for n in (40, 60, 100)}
+    rows = {(r["mode"], r["method"]): r for r in knee_rows(plan, (live, des, {}))}
+    assert rows[("bundle", "none")]["live_grid"] == "40 60 100"
+    assert rows[("bundle", "none")]["live_knee"] == 40
+    assert rows[("bundle", "bides")]["live_knee"] is None

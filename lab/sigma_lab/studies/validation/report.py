@@ -165,10 +165,22 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
 
 def _knee_points(plan: Plan, live: dict[str, dict[str, Any]], mode: str) -> list[Cell]:
     """Live's knee grid in ``mode``: the unimpaired held-out cells and the calibration
-    setting that ran (one per size), then live's knee runs that ran."""
-    pts = [c for c in plan.cells if c.mode == mode and not c.impairment
-           and c.repeat <= 1 and c.copy == 1 and c.name in live]
+    runs that ran (one per size), then live's knee runs that ran."""
+    pts: list[Cell] = []
+    for c in plan.cells:
+        if (c.mode == mode and not c.impairment and c.repeat <= 1 and c.copy == 1
+                and c.name in live and all(p.nodes != c.nodes for p in pts)):
+            pts.append(c)
     return pts + [c for c in plan.knee_live_cells(mode) if c.name in live]
+
+
+def _point_runs(plan: Plan, live: dict[str, dict[str, Any]], c: Cell) -> list[dict[str, Any]]:
+    """The live runs of knee point ``c``: a held-out cell's copies, a campaign's further
+    calibration runs of its size and mode (repeats), a repeat's own run."""
+    if c.cal_extra:
+        return [live[x.name] for x in plan.cells if x.cal_extra and x.mode == c.mode
+                and x.nodes == c.nodes and x.name in live]
+    return [live[c.name]] if c.repeat else _copies(plan, live, c.name)
 
 
 def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[str, Any]]:
@@ -184,9 +196,8 @@ def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[
         ns = [c.nodes for c in pts]
         fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode} | set(ns))
         for m in plan.methods:
-            lf = [{k: _live_of(_copies(plan, live, c.name) if not c.repeat else [live[c.name]],
-                               m, k)[0] for k in ("trigger_rate_hz", "missed_frac")}
-                  for c in pts]
+            lf = [{k: _live_of(_point_runs(plan, live, c), m, k)[0]
+                   for k in ("trigger_rate_hz", "missed_frac")} for c in pts]
             lcap, lk = knee_of(ns, lf, f_trig)
             dcap, dk = knee_of(fine, [_des_fig(des, n, mode, m) for n in fine], f_trig)
             _, dg = knee_of(sorted(ns), [_des_fig(des, n, mode, m) for n in sorted(ns)],
@@ -210,8 +221,7 @@ def knee_points(plan: Plan, outcome: Outcome) -> dict[str, dict[str, dict[str, l
         fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode}
                       | {c.nodes for c in pts})
         out[mode] = {m: {
-            "live": [(c.nodes, _live_of(_copies(plan, live, c.name) if not c.repeat
-                                        else [live[c.name]], m, "missed_frac")[0])
+            "live": [(c.nodes, _live_of(_point_runs(plan, live, c), m, "missed_frac")[0])
                      for c in pts],
             "des": [(n, _des_fig(des, n, mode, m)["missed_frac"]) for n in fine]}
             for m in plan.methods}
