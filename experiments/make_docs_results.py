@@ -38,6 +38,9 @@ from sigma_lab.studies.machine import machine
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "results" / "data"
+#: the previous validation's residuals, pooled with the filed one's into the shipped file
+PREVIOUS = DATA / "residuals-previous.toml"
+SHIPPED = ROOT / "sigma_des" / "calibrate" / "residuals.toml"
 #: the kinds of output file filed for the docs
 KEEP = (".csv", ".json", ".md", ".png", ".toml", ".txt")
 
@@ -186,7 +189,19 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
                "commit": _git("rev-parse", "--short", "HEAD")}
         (dest / "run.json").write_text(json.dumps(run, indent=2) + "\n")
         print(f"filed {dest.relative_to(ROOT)} ({wall:.0f} s)")
+        if s.name == "validation" and not quick:
+            _ship_residuals(dest / "residuals.toml")
         return True
+
+
+def _ship_residuals(filed: Path) -> None:
+    """``predict``'s residuals: this validation's pooled with the previous one's
+    (:data:`PREVIOUS`; before filing a validation on new live runs, copy the filed
+    ``residuals.toml`` there)."""
+    from sigma_des.calibrate.intervals import pooled_residuals
+
+    SHIPPED.write_text(pooled_residuals([filed, PREVIOUS] if PREVIOUS.exists() else [filed]))
+    print(f"wrote {SHIPPED.relative_to(ROOT)}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -106,7 +106,7 @@ class Prediction:
         for m, ivs in self.intervals.items():
             rows.append([m, self.regimes[m], *(_fmt(k, ivs[k]) for k in FIGURES)])
         foot = (f"\n{len(self.seeds)} seed(s); [interval] for live at {self.coverage:.0%} "
-                "from the seeds' spread and the last validation's residuals of the metric "
+                "from the seeds' spread and the last validations' residuals of the metric "
                 "in the regime")
         missing = sorted({f"{k}/{self.regimes[m]}" for m, ivs in self.intervals.items()
                           for k, iv in ivs.items() if iv.residual is None})

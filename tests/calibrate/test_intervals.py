@@ -16,6 +16,7 @@ from sigma_des.calibrate.intervals import (
     interval,
     load_residuals,
     lookup,
+    pooled_residuals,
     regime,
     residual_bounds,
     residuals_toml,
@@ -24,6 +25,7 @@ from sigma_des.errors import ConfigError
 
 DOCS_RESIDUALS = (Path(__file__).resolve().parents[2] / "docs" / "results" / "data"
                   / "validation" / "residuals.toml")
+PREVIOUS_RESIDUALS = DOCS_RESIDUALS.parents[1] / "residuals-previous.toml"
 
 
 def test_residual_bounds_are_the_kth_order_statistics() -> None:
@@ -115,9 +117,15 @@ def test_residual_file_round_trip_and_the_shipped_one(tmp_path) -> None:  # type
     assert meta["coverage"] == COVERAGE  # written by the suite at the build coverage
     for r in shipped.values():  # every entry says where it comes from
         assert r.source and r.n > 0
-    # the shipped residuals are those of the validation the docs show
-    filed, filed_meta = load_residuals(DOCS_RESIDUALS)
-    assert shipped == filed and meta == filed_meta
+    # the shipped residuals are those of the validation the docs show pooled with the
+    # previous one's
+    pooled = tmp_path / "pooled.toml"
+    pooled.write_text(pooled_residuals([DOCS_RESIDUALS, PREVIOUS_RESIDUALS]))
+    assert load_residuals(pooled) == (shipped, meta)
+    filed, _ = load_residuals(DOCS_RESIDUALS)
+    previous, _ = load_residuals(PREVIOUS_RESIDUALS)
+    for key, r in shipped.items():
+        assert r.n == filed[key].n + previous[key].n
     for metric in ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz",
                    "missed_frac"):
         for reg in ("node-below", "node-near", "bundle-below", "bundle-near"):
@@ -125,3 +133,25 @@ def test_residual_file_round_trip_and_the_shipped_one(tmp_path) -> None:  # type
     p.write_text('[[residual]]\nmetric = "aoi_mean"\nregime = "any"\nlo = 0.2\nhi = 0.1\n')
     with pytest.raises(ConfigError, match="residuals"):
         load_residuals(p)
+
+
+def test_pooled_residuals_join_each_metric_and_regimes_values(tmp_path: Path) -> None:
+    """Two files: a key in both gets both lists joined in order (so its bounds are the
+    k-th order statistics of the union), a key in one keeps its values; files built for
+    different coverages are refused."""
+    a, b, c = tmp_path / "a.toml", tmp_path / "b.toml", tmp_path / "c.toml"
+    a.write_text(residuals_toml({("aoi_mean", "any"): [0.1, -0.2],
+                                 ("aoi_p99", "any"): [0.3]},
+                                {"coverage": 0.85, "source": "one"}))
+    b.write_text(residuals_toml({("aoi_mean", "any"): [0.05, 0.4, -0.1]},
+                                {"coverage": 0.85, "source": "two"}))
+    c.write_text(residuals_toml({("aoi_mean", "any"): [0.0]},
+                                {"coverage": 0.8, "source": "three"}))
+    p = tmp_path / "p.toml"
+    p.write_text(pooled_residuals([a, b]))
+    table, meta = load_residuals(p)
+    assert table[("aoi_mean", "any")].n == 5 and table[("aoi_p99", "any")].n == 1
+    assert "0.1, -0.2, 0.05, 0.4, -0.1" in p.read_text()
+    assert meta["coverage"] == 0.85 and meta["source"] == "one; two"
+    with pytest.raises(ConfigError, match="coverages"):
+        pooled_residuals([a, c])
