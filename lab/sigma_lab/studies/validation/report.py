@@ -166,12 +166,10 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
 def _knee_points(plan: Plan, live: dict[str, dict[str, Any]], mode: str) -> list[Cell]:
     """Live's knee grid in ``mode``: the unimpaired held-out cells and the calibration
     runs that ran (one per size), then live's knee runs that ran."""
-    pts: list[Cell] = []
-    for c in plan.cells:
-        if (c.mode == mode and not c.impairment and c.repeat <= 1 and c.copy == 1
-                and c.name in live and all(p.nodes != c.nodes for p in pts)):
-            pts.append(c)
-    return pts + [c for c in plan.knee_live_cells(mode) if c.name in live]
+    pts = {c.nodes: c for c in reversed(plan.cells) if c.mode == mode and not c.impairment
+           and c.repeat <= 1 and c.copy == 1 and c.name in live}  # the first of a size
+    return [pts[n] for n in sorted(pts)] + [c for c in plan.knee_live_cells(mode)
+                                           if c.name in live]
 
 
 def _point_runs(plan: Plan, live: dict[str, dict[str, Any]], c: Cell) -> list[dict[str, Any]]:
