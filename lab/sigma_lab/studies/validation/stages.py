@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sigma_lab.studies.validation.grid import hosts_for
+from sigma_lab.studies.validation.grid import full_plan, hosts_for
 
 METHODS = ("none", "lockstep", "hlc", "bides")
 CELLS = ("n10-node", "cal-r1", "n30-node", "n10-bundle", "cal-bundle", "n30-bundle",
@@ -92,7 +92,8 @@ def des_stats(val: Path, cell: str, method: str, duration: float, warmup: float
 
     cal = load(str(val / "cal" / "calibrated.toml"))
     rep = json.loads((val / "cal" / "calibrated.json").read_text())
-    n = 20 if cell.startswith("cal") else int(cell.split("-")[0][1:])
+    sizes = {c.name: c.nodes for c in full_plan(METHODS, cal_bundle=True).cells}
+    n = sizes[cell] if cell in sizes else int(cell.split("-")[0][1:])
     sc = prepare(cal, rep, [f"nodes={n}", f"hosts={hosts_for(n)}", f"duration={duration}",
                             f"warmup={warmup}", 'engine="events"'],
                  bundle=cell.endswith("bundle"))
