@@ -71,8 +71,8 @@ class Study:
 STUDIES = (
     Study("validation", "Live against the DES", "validation", "live_vs_des.py",
           ("--calibrate-bundled", "--out", "{out}"), ("--quick", "--out", "{out}"),
-          "The DES is calibrated on a campaign of two live runs, per node and bundled "
-          "(`sigma-des calibrate RUN RUN`), then predicts "
+          "The DES is calibrated on a campaign of live runs, one per node and two "
+          "bundled (`sigma-des calibrate RUN RUN RUN`), then predicts "
           "held-out live runs at other sizes, message modes and impairments; each "
           "prediction is scored against the live runs' own spread (the noise floor)."),
     Study("fixed_wing", "Fixed-wing model fidelity against JSBSim's minisgs", "validation",
