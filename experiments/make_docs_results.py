@@ -159,6 +159,7 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
         shown = ["python", f"experiments/{s.script}",
                  *[a.replace(str(out), f"OUT/{s.name}") for a in args]]
         print(f"== {s.name}: {shlex.join(shown)}", flush=True)
+        kept = _live_runs(out)  # a resumed suite keeps these: its wall time is not theirs
         load0, t0 = _load(), time.monotonic()
         started = dt.datetime.now(dt.UTC).replace(microsecond=0)
         r = subprocess.run([sys.executable, str(ROOT / "experiments" / s.script), *args],
@@ -185,6 +186,7 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
                "command": shlex.join(shown),
                "scale": "small-scale run (--quick)" if quick else "full size",
                "wall_s": round(wall, 1), "load_before": load0, "load_after": load1,
+               "live_runs_kept": kept, "live_runs_new": _live_runs(out) - kept,
                "machine": machine(), "version": __version__,
                "commit": _git("rev-parse", "--short", "HEAD")}
         (dest / "run.json").write_text(json.dumps(run, indent=2) + "\n")
@@ -192,6 +194,11 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
         if s.name == "validation" and not quick:
             _ship_residuals(dest / "residuals.toml")
         return True
+
+
+def _live_runs(out: Path) -> int:
+    """Live runs finished in a study's output folder (``live/*/summary.json``)."""
+    return len(list((out / "live").glob("*/summary.json")))
 
 
 def _ship_residuals(filed: Path) -> None:

@@ -61,6 +61,15 @@ def _demote(md: str, levels: int) -> str:
                   flags=re.M)
 
 
+def _resumed(run: dict[str, Any]) -> str:
+    """What a resumed run's wall time leaves out: the live runs it kept."""
+    kept = run.get("live_runs_kept", 0)
+    if not kept:
+        return ""
+    return (f" (resumed: {kept} live runs kept from an earlier invocation, "
+            f"{run.get('live_runs_new', 0)} new)")
+
+
 def _facts(run: dict[str, Any]) -> list[str]:
     m = run.get("machine", {})
     load = (f"{' / '.join(map(str, run['load_before']))} before, "
@@ -73,7 +82,7 @@ def _facts(run: dict[str, Any]) -> list[str]:
             f"{m.get('memory_gb', '?')} GB, {m.get('system', '?')}, "
             f"Python {m.get('python', '?')} |",
             f"| Load average | {load} |",
-            f"| Wall time | {run['wall_s']} s |",
+            f"| Wall time | {run['wall_s']} s{_resumed(run)} |",
             f"| Version | sigma_des {run['version']} (commit {run.get('commit') or '?'}) |"]
 
 

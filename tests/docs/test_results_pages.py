@@ -11,10 +11,12 @@ sys.path.insert(0, str(ROOT / "docs" / "_ext"))
 from sigma_docs_results import MAX_ROWS, results_page  # noqa: E402
 
 
-def _study(data: Path, name: str, page: str, load: float, scale: str, rows: int) -> None:
+def _study(data: Path, name: str, page: str, load: float, scale: str, rows: int,
+           kept: int = 0) -> None:
     d = data / name
     d.mkdir(parents=True)
     (d / "run.json").write_text(json.dumps({
+        "live_runs_kept": kept, "live_runs_new": 2,
         "name": name, "title": f"Study {name}", "page": page, "about": "What it measures.",
         "date": "2026-01-02T03:04:05Z", "command": f"python experiments/{name}.py",
         "scale": scale, "wall_s": 12.5, "load_before": [load, 1.0, 1.0],
@@ -28,8 +30,12 @@ def _study(data: Path, name: str, page: str, load: float, scale: str, rows: int)
 def test_a_page_shows_each_study_with_its_facts(tmp_path: Path) -> None:
     _study(tmp_path, "a", "performance", 0.3, "full size", 3)
     _study(tmp_path, "b", "performance", 7.5, "small-scale run (--quick)", MAX_ROWS + 5)
-    _study(tmp_path, "c", "validation", 0.1, "full size", 1)
+    _study(tmp_path, "c", "validation", 0.1, "full size", 1, kept=30)
     page = results_page("performance", tmp_path)
+    # a resumed run's wall time says what it leaves out; a fresh one's says nothing more
+    assert ("| Wall time | 12.5 s (resumed: 30 live runs kept from an earlier invocation, "
+            "2 new) |") in results_page("validation", tmp_path)
+    assert "| Wall time | 12.5 s |" in page
     assert page.index("## Study a") < page.index("## Study b") and "Study c" not in page
     a, b = page.split("## Study b")
     assert "| Date | 2026-01-02T03:04:05Z |" in a and "`python experiments/a.py`" in a
