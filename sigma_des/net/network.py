@@ -18,13 +18,8 @@ clients (``deployment.clients = "host"``) the MQTT clients are the physics hosts
 id: the host's first node) and the server: a node's state leaves through its host's
 client, and what a host client receives is handed to its nodes (a trigger, the only
 broadcast, to each in node order; a message about node ``i`` to ``i``). With ``bundle``
-a host client's state publishes of one loop turn are one PUBLISH (:class:`Bundle`), and
-so are the server's commands of one turn to one host, handed over record by record at
-the receiver: the publishes of one instant or, with a CPU stage, every publish made
-while the sender's process is busy joins the PUBLISH that leaves when it is free. A
-bundle's hops draw by its place among its host's bundles of its first record's
-``(kind, index)`` (:mod:`sigma_des.net.bundlekeys`, live's rule): counted at the sender
-for the publisher → broker hop, at the broker's fan-out for the broker → receiver hop.
+a host client's state publishes of one loop turn are one PUBLISH, and so are the
+server's commands of one turn to one host (:mod:`sigma_des.net.bundling`).
 
 This module knows nothing of alignment methods or aircraft: a delivered message
 is handed to the ``deliver`` callback given at construction.
@@ -39,7 +34,7 @@ from typing import Any
 from sigma_des.core.rng import RandomStreams
 from sigma_des.core.sim import Kernel
 from sigma_des.net.broker import Broker
-from sigma_des.net.bundlekeys import BundleKeys
+from sigma_des.net.bundling import Bundle, Bundler
 from sigma_des.net.cpu import Cpu, CpuReport
 from sigma_des.net.kinds import ACK, COMMAND, TRIGGER
 from sigma_des.net.links import Links
@@ -51,17 +46,6 @@ __all__ = ["Bundle", "Network"]
 
 #: called with every message that reaches its receiver (duplicates included)
 Deliver = Callable[[Msg], None]
-#: one record of a bundle: ``(kind, subject, index, payload, payload_bits)``
-Record = tuple[int, int, int, Any, int]
-
-
-class Bundle(tuple[Record, ...]):
-    """The payload of a bundled PUBLISH: the records one client published to one
-    receiver in one loop turn (a host's states; the server's commands to a host), in
-    publish order, handed to the receiving application one by one, each with the
-    bundle's publish time (live stamps them in the turn that sends them)."""
-
-    __slots__ = ()
 
 
 class Network(Links):
@@ -112,12 +96,10 @@ class Network(Links):
             self.members.setdefault(first[h], []).append(i)
         self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
                           else list(range(self.n))) + [self.server]
-        self._pending: dict[tuple[int, int], list[tuple[Record, tuple[int, ...]]]] = {}
-        # bundles' draw keys, counted where each hop starts: the sender, the broker
-        self._up_keys = BundleKeys()
-        self._down_keys = BundleKeys()
         # a drop fault naming a bundle's first record drops that bundle
-        self._lead_drops = self.forced_drops if self.bundle else frozenset()
+        self._bundler = Bundler(self.k, self._proc, self.server, self.client_of,
+                                self._client_publish,
+                                self.forced_drops if self.bundle else frozenset())
         # publishes whose burst ended while their process was busy, in burst order, and
         # the latest time the first of them leaves (lock_switch after its burst's end)
         self._lock_switch = dep.lock_switch if cpu is not None else 0.0
@@ -202,7 +184,7 @@ class Network(Links):
             if self.bundle and (client != self.server or kind == COMMAND):
                 # a host's states to the server, or the server's commands to one host
                 to = subs[0] if client == self.server else self.server
-                self._add_to_bundle((client, to), (kind, subject, index, payload,
+                self._bundler.add((client, to), (kind, subject, index, payload,
                                                    payload_bits), subs)
                 return
         else:
@@ -275,40 +257,6 @@ class Network(Links):
         for m in box:
             self._net_send(m)
 
-    def _add_to_bundle(self, key: tuple[int, int], rec: Record, subs: tuple[int, ...]
-                       ) -> None:
-        """Bundle: keep ``rec`` for the PUBLISH of this loop turn from client ``key[0]``
-        to ``key[1]`` (a host's states to the server; the server's commands to a host).
-
-        The first record of a turn schedules the send when the sender's process is next
-        free (now, without a CPU stage or when idle), after every event already due
-        then: records published meanwhile (jobs completing while the process serves a
-        burst, as a live host's loop handles the timers that fell due while it was
-        busy) join it. The send's own burst then makes the next turn.
-        """
-        pend = self._pending.get(key)
-        if not pend:
-            pend = self._pending[key] = []
-            proc = self._proc[key[0]]
-            now = self.k.now
-            at = proc.free if proc is not None and proc.free > now else now
-            self.k.at(at, self._flush, key)
-        pend.append((rec, subs))
-
-    def _flush(self, key: tuple[int, int]) -> None:
-        """Bundle: the records of this turn from ``key[0]`` to ``key[1]`` leave as one
-        PUBLISH (its payload the sum), keyed by its place among the bundles of its first
-        record's ``(kind, index)`` that this host's client sent, or the server sent it."""
-        pend = self._pending.pop(key)
-        now = self.k.now
-        kind, subject, index, _p, _b = pend[0][0]
-        host = key[1] if key[0] == self.server else key[0]
-        kind, subject, index = self._up_keys.key(host, host, kind, subject, index)
-        recs = Bundle(r for r, _s in pend)
-        bits = sum(r[4] for r in recs)
-        self._client_publish(Msg(key[0], kind, subject, index, recs, bits, pend[0][1], 0, now,
-                                 now))
-
     def _publish_try(self, m: Msg) -> None:
         """A try of the publisher → broker hop, leaving now."""
         m.t_sent = self.k.env.now
@@ -341,22 +289,14 @@ class Network(Links):
             self._resend(m, self._publish_try)
         kind, index, payload, bits, t_pub = m.kind, m.index, m.payload, m.bits, m.t_pub
         if isinstance(payload, Bundle):  # its one receiver counts it in the broker's order
-            kind, ds, index = self._receiver_key(payload)
+            key, dropped = self._bundler.receiver_key(payload)
+            if dropped:
+                self.forced_drops = self.forced_drops | {key}
+            kind, ds, index = key
             dsubj = [ds]
         for sub, ds, d in zip(subs, dsubj, departs, strict=True):
             # the broker's first try towards ``sub`` (Msg.to, inlined: the fan-out's hot loop)
             self._deliver_try(Msg(sub, kind, ds, index, payload, bits, (), 0, t_pub, d))
-
-    def _receiver_key(self, b: Bundle) -> tuple[int, int, int]:
-        """The draw key of ``b``'s broker → receiver hop: its place among the bundles of
-        its first record's ``(kind, index)`` on its host's channel, counted in the order
-        the broker sends them (as a live receiver counts them on receipt)."""
-        kind, subject, index = b[0][:3]
-        host = self.client_of[subject]
-        key = self._down_keys.key(host, host, kind, subject, index)
-        if (kind, subject, index) in self._lead_drops:
-            self.forced_drops = self.forced_drops | {key}
-        return key
 
     def _puback(self, m: Msg, up: bool, t: float, now: float) -> bool:
         """Send the PUBACK of ``m`` (received ``now``) on its client's link at ``t``; True
