@@ -196,6 +196,9 @@ def test_a_bundled_calibration_run_is_neither_held_out_nor_a_repeat() -> None:
                cal_bundle=True)
     assert [c.name for c in one.cells if c.cal_extra] == ["cal-bundle"]
     assert one.cells[1].nodes == 4  # cal_bundle_nodes 0: the calibration setting's N
+    with pytest.raises(ConfigError, match="cal_bundle_nodes"):
+        Plan(("none",), 4.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6, cal_bundle=True,
+             cal_bundle_nodes=-1)
     # every scored cell differs from every calibration run in size
     assert all(c.nodes not in (20, 40) for c in full_plan(("none",), cal_bundle=True).cells
                if c.held_out)

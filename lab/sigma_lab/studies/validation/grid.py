@@ -162,6 +162,9 @@ class Plan:
             raise ConfigError("--repeats", f"must be >= 1, got {self.repeats}")
         if not 1 <= self.cell_repeats <= 5:
             raise ConfigError("--cell-repeats", f"must be in 1..5, got {self.cell_repeats}")
+        if self.cal_bundle_nodes < 0:
+            raise ConfigError("cal_bundle_nodes", f"must be >= 0 (0: the calibration "
+                              f"setting's N), got {self.cal_bundle_nodes}")
         if not 0 <= self.retry_loaded <= 3:
             raise ConfigError("--retry-loaded", f"must be in 0..3, got {self.retry_loaded}")
         top = max(self.nodes, default=0)
