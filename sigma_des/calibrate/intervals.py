@@ -119,6 +119,19 @@ def _entry(e: dict[str, Any], coverage: float, default_source: str) -> Residual:
     raise ConfigError("residuals", f"{metric}/{reg}: needs values, or lo <= hi")
 
 
+def _read(path: str | Path | None) -> dict[str, Any]:
+    """A ``residuals.toml``'s tables (None: the shipped file)."""
+    try:
+        if path is None:
+            text = (resources.files("sigma_des.calibrate") / "residuals.toml").read_text()
+        else:
+            text = Path(path).read_text()
+        return tomllib.loads(text)
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise ConfigError("residuals", f"cannot read {path or 'the shipped file'}: {e}"
+                          ) from None
+
+
 def load_residuals(path: str | Path | None = None) -> tuple[dict[tuple[str, str], Residual],
                                                              dict[str, Any]]:
     """The residuals per ``(metric, regime)`` and the file's ``[meta]`` table.
@@ -129,15 +142,7 @@ def load_residuals(path: str | Path | None = None) -> tuple[dict[tuple[str, str]
     Raises:
         ConfigError: (``residuals``) an unreadable or malformed file.
     """
-    try:
-        if path is None:
-            text = (resources.files("sigma_des.calibrate") / "residuals.toml").read_text()
-        else:
-            text = Path(path).read_text()
-        data = tomllib.loads(text)
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise ConfigError("residuals", f"cannot read {path or 'the shipped file'}: {e}"
-                          ) from None
+    data = _read(path)
     meta = dict(data.get("meta", {}))
     cov = float(meta.get("coverage", COVERAGE))
     src = str(meta.get("source", ""))
@@ -218,22 +223,22 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
     held 56-88 % of their live values per metric, from two 81-94 %).
 
     Raises:
-        ConfigError: (``residuals``) an unreadable file, or files built for different
-            coverages.
+        ConfigError: (``residuals``) an unreadable file, an entry given as bounds only
+            (``lo``/``hi``: nothing to pool), or files built for different coverages.
     """
     values: dict[tuple[str, str], list[float]] = {}
     covs, sources = set(), []
     for path in paths:
-        try:
-            data = tomllib.loads(Path(path).read_text())
-        except (OSError, tomllib.TOMLDecodeError) as e:
-            raise ConfigError("residuals", f"cannot read {path}: {e}") from None
+        data = _read(path)
         meta = dict(data.get("meta", {}))
         covs.add(float(meta.get("coverage", COVERAGE)))
         sources.append(str(meta.get("source", path)))
         for entry in data.get("residual", []):
-            key = (str(entry["metric"]), str(entry["regime"]))
-            values.setdefault(key, []).extend(float(v) for v in entry.get("values", []))
+            key = (str(entry.get("metric", "")), str(entry.get("regime", "")))
+            if "values" not in entry:
+                raise ConfigError("residuals", f"{path}: {key[0]}/{key[1]} has bounds but "
+                                  "no values to pool")
+            values.setdefault(key, []).extend(float(v) for v in entry["values"])
     if len(covs) > 1:
         raise ConfigError("residuals", f"files built for different coverages: {sorted(covs)}")
     cov = covs.pop() if covs else COVERAGE

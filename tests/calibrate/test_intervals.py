@@ -155,3 +155,8 @@ def test_pooled_residuals_join_each_metric_and_regimes_values(tmp_path: Path) ->
     assert meta["coverage"] == 0.85 and meta["source"] == "one; two"
     with pytest.raises(ConfigError, match="coverages"):
         pooled_residuals([a, c])
+    bounds = tmp_path / "bounds.toml"  # bounds alone cannot be pooled: refused, not skipped
+    bounds.write_text('[[residual]]\nmetric = "aoi_mean"\nregime = "any"\nlo = -0.1\n'
+                      'hi = 0.1\n')
+    with pytest.raises(ConfigError, match="no values to pool"):
+        pooled_residuals([a, bounds])
