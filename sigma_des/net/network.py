@@ -97,8 +97,7 @@ class Network(Links):
         self.client_of = ([first[h] for h in topo.host_of] if self.host_clients
                           else list(range(self.n))) + [self.server]
         # a drop fault naming a bundle's first record drops that bundle
-        self._bundler = Bundler(self.k, self._proc, self.server, self.client_of,
-                                self._client_publish,
+        self._bundler = Bundler(self._proc, self.server, self.client_of,
                                 self.forced_drops if self.bundle else frozenset())
         # publishes whose burst ended while their process was busy, in burst order, and
         # the latest time the first of them leaves (lock_switch after its burst's end)
@@ -184,8 +183,11 @@ class Network(Links):
             if self.bundle and (client != self.server or kind == COMMAND):
                 # a host's states to the server, or the server's commands to one host
                 to = subs[0] if client == self.server else self.server
-                self._bundler.add((client, to), (kind, subject, index, payload,
-                                                   payload_bits), subs)
+                key = (client, to)
+                due = self._bundler.add(key, (kind, subject, index, payload, payload_bits),
+                                        subs, now)
+                if due is not None:  # a new turn: its PUBLISH leaves when due
+                    self.k.at(due, self._flush, key)
                 return
         else:
             subs = tuple(subscribers)
@@ -256,6 +258,10 @@ class Network(Links):
         del self._outbox[proc.name]
         for m in box:
             self._net_send(m)
+
+    def _flush(self, key: tuple[int, int]) -> None:
+        """Bundle: the open turn from ``key[0]`` to ``key[1]`` leaves as one PUBLISH."""
+        self._client_publish(self._bundler.take(key, self.k.now))
 
     def _publish_try(self, m: Msg) -> None:
         """A try of the publisher → broker hop, leaving now."""

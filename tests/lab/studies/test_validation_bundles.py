@@ -19,7 +19,6 @@ from sigma_lab.studies.validation.bundles import (
 
 from sigma_des.config import Scenario, with_overrides
 from sigma_des.net import cpu as cpumod
-from sigma_des.net.bundling import Bundler
 from sigma_des.net.network import Network
 
 COLS = ["method", "kind", "host", "node", "frame", "t_send", "t_recv", "t_trig", "cost",
@@ -98,7 +97,7 @@ def test_des_turns_count_the_publish_bursts_and_restore_the_classes() -> None:
     """With a CPU stage (host demand 0.5 ms, no record cost, waits or lock): host 0's 50
     PUBLISHes in the 0.5 s window are 50 bursts of 0.5 ms run and no wait; the patched
     methods are the classes' own again afterwards."""
-    before = (cpumod.Process.acquire, cpumod.Process.net_span, Bundler._flush,
+    before = (cpumod.Process.acquire, cpumod.Process.net_span, Network._flush,
               Network._client_publish)
     _turns, bw, _figs = des_turns(_tiny('deployment.preset="colocated"',
                                         "deployment.host_demand=0.0005",
@@ -106,5 +105,5 @@ def test_des_turns_count_the_publish_bursts_and_restore_the_classes() -> None:
     assert bw.bursts == 50
     assert bw.run == pytest.approx(50 * 0.0005)
     assert bw.lock == bw.runq == bw.core == 0.0
-    assert (cpumod.Process.acquire, cpumod.Process.net_span, Bundler._flush,
+    assert (cpumod.Process.acquire, cpumod.Process.net_span, Network._flush,
             Network._client_publish) == before

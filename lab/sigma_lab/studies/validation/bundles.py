@@ -119,18 +119,17 @@ def _instrumented(host: str, lo: float, hi: float) -> Iterator[
     """Record every host flush ``(client, t, records)`` and the publish bursts of process
     ``host`` while the block runs (the classes are restored after it)."""
     from sigma_des.net import cpu as cpumod
-    from sigma_des.net.bundling import Bundler
     from sigma_des.net.network import Network
 
     flushes: list[tuple[int, float, int]] = []
     bw = BurstWait()
     proc_cls, net_cls = cpumod.Process, Network
-    saved = (proc_cls.acquire, proc_cls.net_span, Bundler._flush, net_cls._client_publish)
+    saved = (proc_cls.acquire, proc_cls.net_span, net_cls._flush, net_cls._client_publish)
     state = {"pub": False}
 
     def flush(self: Any, key: tuple[int, int]) -> None:
         if key[0] != self.server:
-            flushes.append((key[0], self.k.now, len(self._pending[key])))
+            flushes.append((key[0], self.k.now, self._bundler.records(key)))
         saved[2](self, key)
 
     def client_publish(self: Any, m: Any) -> None:
@@ -162,12 +161,11 @@ def _instrumented(host: str, lo: float, hi: float) -> Iterator[
         return s, c
 
     proc_cls.acquire, proc_cls.net_span = acquire, net_span  # type: ignore[method-assign]
-    Bundler._flush = flush  # type: ignore[method-assign]
-    net_cls._client_publish = client_publish  # type: ignore[method-assign]
+    net_cls._flush, net_cls._client_publish = flush, client_publish  # type: ignore[method-assign]
     try:
         yield flushes, bw
     finally:
-        for cls, name, fn in zip((proc_cls, proc_cls, Bundler, net_cls),
+        for cls, name, fn in zip((proc_cls, proc_cls, net_cls, net_cls),
                                  ("acquire", "net_span", "_flush", "_client_publish"), saved,
                                  strict=True):
             setattr(cls, name, fn)
