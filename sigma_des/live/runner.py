@@ -57,7 +57,11 @@ from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
 
-
+#: Longest wait (s) of one step of the server's loop before the run.
+PUMP_STEP = 0.02
+#: How long (s) before the time origin the idle window ends and the run's loop starts
+#: (it then waits for trigger 0 itself).
+START_LEAD = 0.02
 
 @dataclass(frozen=True)
 class LiveOptions:
@@ -265,6 +269,15 @@ def _pump(srv: LiveServer, seconds: float) -> None:
     srv.loop.run(until=srv.loop.now + seconds)
 
 
+def _idle_until(srv: LiveServer, t: float) -> None:
+    """Handle the server's messages until ``t`` (monotonic seconds), in steps of at most
+    :data:`PUMP_STEP` and never past ``t``: a step overshooting the time origin issued
+    trigger 0 late (7–16 ms), and Lock-Step, whose first barrier then ended after the
+    grid's second trigger, ran the whole run on a grid shifted by that much."""
+    while (left := t - time.monotonic()) > 0:
+        _pump(srv, min(PUMP_STEP, left))
+
+
 def _wait_ready(srv: LiveServer, group: HostGroup, expected: int, timeout: float) -> None:
     deadline = time.monotonic() + timeout
     while len(srv.ready) < expected:
@@ -298,15 +311,15 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         meter = _cpu_meter(group, broker)
         t0 = _go(srv, opts, addr, run, live, book, stack)
         meter.mark("idle0")
-        while time.monotonic() < t0:
-            _pump(srv, 0.02)
+        _idle_until(srv, t0 - START_LEAD)
         meter.mark("idle1")
         srv.loop.call_at(sc.warmup, meter.mark, "w0")
         _inject(srv, opts, broker, group)
         if progress:
             print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
                   file=sys.stderr, flush=True)
-        w0 = time.perf_counter()
+        # the loop starts before t0 and waits for trigger 0 itself (at t0, not late)
+        w0 = time.perf_counter() + max(0.0, t0 - time.monotonic())
         srv.start(t0)
         if opts.hook is not None:
             opts.hook(addr, topics, srv)
