@@ -217,8 +217,14 @@ def job_services(host: ArrayLike, node: ArrayLike, t_req: ArrayLike, t_done: Arr
     it finished (its publish), so its service is ``done - start``: the FCFS analogue
     of :func:`held` for jobs.
 
+    A node's previous job is looked for among its own host's jobs only: a caller that
+    keys ``host`` by run (``method/host``, each method's times starting at 0) must not
+    see a node's job of another method as its previous one (that made every job look
+    requested when its twin in the other method ended, and the fitted step time a third
+    of live's).
+
     Args:
-        host: host of each job.
+        host: host of each job (one replay per distinct value).
         node: node of each job.
         t_req: when its trigger arrived (s).
         t_done: when it finished (its state was published, s).
@@ -232,18 +238,19 @@ def job_services(host: ArrayLike, node: ArrayLike, t_req: ArrayLike, t_done: Arr
     h = np.asarray(host)
     nd = np.asarray(node)
     done = np.asarray(t_done, dtype=np.float64)
-    req = np.asarray(t_req, dtype=np.float64).copy()
-    # a busy node's next job is requested no earlier than its previous one finished
-    for n in np.unique(nd):
-        idx = np.flatnonzero(nd == n)
-        idx = idx[np.argsort(done[idx], kind="stable")]
-        req[idx[1:]] = np.maximum(req[idx[1:]], done[idx[:-1]])
-    out = np.zeros(req.size)
+    out = np.zeros(done.size)
     for hh in np.unique(h):
         idx = np.flatnonzero(h == hh)
+        req = np.asarray(t_req, dtype=np.float64)[idx].copy()
+        # a busy node's next job is requested no earlier than its previous one finished
+        for n in np.unique(nd[idx]):
+            mine = np.flatnonzero(nd[idx] == n)
+            mine = mine[np.argsort(done[idx][mine], kind="stable")]
+            req[mine[1:]] = np.maximum(req[mine[1:]], done[idx][mine[:-1]])
         free = [-np.inf] * cores
-        for k in idx[np.lexsort((nd[idx], req[idx]))].tolist():
-            start = max(req[k], heapq.heappop(free))
+        for j in np.lexsort((nd[idx], req)).tolist():
+            k = int(idx[j])
+            start = max(float(req[j]), heapq.heappop(free))
             out[k] = max(done[k] - start, 0.0)
             heapq.heappush(free, max(done[k], start))
     return out

@@ -70,6 +70,21 @@ def test_job_services_take_out_the_wait_for_a_core() -> None:
     assert got.tolist() == [1.0, 1.0]
 
 
+def test_job_services_find_a_nodes_previous_job_on_its_own_host_key() -> None:
+    # two runs ("a/0", "b/0": methods whose clocks both start at 0) of node 0, one core:
+    # in run b the job triggered at 0.1 ends at 1.1, in run a the one triggered at 0 ends
+    # at 1.0. Each alone is a service of 1.0; looking for node 0's previous job across
+    # both runs made b's job requested at a's end (1.0) and its service 0.1
+    got = job_services(host=["a/0", "b/0"], node=[0, 0], t_req=[0.0, 0.1],
+                       t_done=[1.0, 1.1], cores=1)
+    assert got.tolist() == [1.0, 1.0]
+    # within one run the rule still holds: the second job (trigger 0.5 while busy) is
+    # requested when the first ends
+    got = job_services(host=["a/0", "a/0"], node=[0, 0], t_req=[0.0, 0.5],
+                       t_done=[1.0, 1.8], cores=1)
+    assert got.tolist() == [1.0, pytest.approx(0.8)]
+
+
 def test_calibrate_fits_each_direction_and_the_step_time(tmp_path: Path) -> None:
     sc = load(None, SETS)
     sc_cal, rep = calibrate(_write(tmp_path / "run", sc, _run(sc)), tmp_path / "files")
