@@ -203,8 +203,10 @@ def _live_runs(out: Path) -> int:
 
 def _ship_residuals(filed: Path) -> None:
     """``predict``'s residuals: this validation's pooled with the previous one's
-    (:data:`PREVIOUS`; before filing a validation on new live runs, copy the filed
-    ``residuals.toml`` there)."""
+    (:data:`PREVIOUS`: before filing a validation on new live runs, put there the
+    previous validation's ``residuals.toml``, its live runs scored by the model being
+    filed: after a change to the model, rerun ``experiments/live_vs_des.py`` on a copy
+    of its ``live/`` and ``cells/*.live.json``)."""
     from sigma_des.calibrate.intervals import pooled_residuals
 
     SHIPPED.write_text(pooled_residuals([filed, PREVIOUS] if PREVIOUS.exists() else [filed]))
