@@ -60,19 +60,27 @@ __all__ = ["MIN_SAMPLES", "STALL_FACTOR", "calibrate", "calibrated_toml", "deliv
 STALL_FACTOR = 10.0
 
 
+def _trigger_keys(trig: pd.DataFrame) -> list[str]:
+    """The columns naming one trigger: its frame, within its method when there is one."""
+    return ["method", "frame"] if "method" in trig.columns else ["frame"]
+
+
 def fanout_slope(trig: pd.DataFrame) -> tuple[float, float]:
     """Least-squares ``(intercept, slope)`` of trigger delay vs position in its fan-out.
 
     Args:
-        trig: rows with ``frame``, ``t_send``, ``t_recv`` (one per receiving client).
+        trig: rows with ``frame``, ``t_send``, ``t_recv`` (one per receiving client), and
+            ``method`` if they come from several runs (each method's times start at 0,
+            so a frame is one trigger only within its method).
 
     Returns:
         Intercept (s) and slope (s per delivery); slope 0 with fewer than two receivers.
     """
     if trig.empty:
         return 0.0, 0.0
-    t = trig.sort_values(["frame", "t_recv"], kind="stable")
-    pos = t.groupby("frame").cumcount().to_numpy(dtype=np.float64)
+    keys = _trigger_keys(trig)
+    t = trig.sort_values([*keys, "t_recv"], kind="stable")
+    pos = t.groupby(keys).cumcount().to_numpy(dtype=np.float64)
     delay = (t["t_recv"] - t["t_send"]).to_numpy()
     if pos.max() < 1:
         return float(delay.mean()), 0.0
@@ -84,14 +92,19 @@ def delivery_floor(trig: pd.DataFrame, q: float = 0.05) -> float:
     """The ``q`` quantile of the gaps between consecutive receivers of one trigger (s).
 
     Args:
-        trig: rows with ``frame`` and ``t_recv`` (one per receiving client).
+        trig: rows with ``frame`` and ``t_recv`` (one per receiving client), and
+            ``method`` if they come from several runs (as :func:`fanout_slope`).
         q: the quantile.
 
     Returns:
         The quantile, 0 when no trigger had two receivers.
     """
-    t = trig.sort_values(["frame", "t_recv"], kind="stable")
-    same = t["frame"].to_numpy()[1:] == t["frame"].to_numpy()[:-1]
+    keys = _trigger_keys(trig)
+    t = trig.sort_values([*keys, "t_recv"], kind="stable")
+    same = np.ones(max(len(t) - 1, 0), dtype=np.bool_)
+    for k in keys:
+        v = t[k].to_numpy()
+        same &= v[1:] == v[:-1]
     gaps = np.diff(t["t_recv"].to_numpy())[same]
     return float(np.quantile(gaps, q)) if gaps.size else 0.0
 

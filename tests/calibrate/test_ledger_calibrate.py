@@ -45,3 +45,17 @@ def test_delivery_floor_is_the_low_quantile_of_consecutive_gaps() -> None:
     gaps = np.array([0.0021] * 10 + [0.0001] * 70)
     assert delivery_floor(df, q=0.99) == pytest.approx(np.quantile(gaps, 0.99))
     assert delivery_floor(df.iloc[:1]) == 0.0
+
+
+def test_fanout_and_floor_take_a_trigger_within_its_method() -> None:
+    # two methods' frame 0 (each method's clock starts at 0): the receivers of one
+    # trigger are 1 ms apart and each later one waited 1 ms more. Mixed by frame alone
+    # the four receipts interleave (gaps 0.1, 0.9, 0.1 ms; positions 0..3)
+    rows = [("a", 0, 0.0, 0.0020), ("a", 0, 0.0, 0.0030),
+            ("b", 0, 0.0, 0.0021), ("b", 0, 0.0, 0.0031)]
+    df = pd.DataFrame(rows, columns=["method", "frame", "t_send", "t_recv"])
+    a, b = fanout_slope(df)
+    assert b == pytest.approx(0.001) and a == pytest.approx(0.00205)
+    assert delivery_floor(df) == pytest.approx(0.001)
+    # without a method column every row of a frame is one trigger's, as before
+    assert delivery_floor(df.drop(columns="method")) == pytest.approx(0.0001)
