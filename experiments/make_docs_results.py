@@ -38,7 +38,8 @@ from sigma_lab.studies.machine import machine
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "results" / "data"
-#: the previous validation's residuals, pooled with the filed one's into the shipped file
+#: the earlier validations' residuals (a pooled file), pooled with the filed one's into
+#: the shipped file
 PREVIOUS = DATA / "residuals-previous.toml"
 SHIPPED = ROOT / "sigma_des" / "calibrate" / "residuals.toml"
 #: the kinds of output file filed for the docs
@@ -202,9 +203,9 @@ def _live_runs(out: Path) -> int:
 
 
 def _ship_residuals(filed: Path) -> None:
-    """``predict``'s residuals: this validation's pooled with the previous one's
-    (:data:`PREVIOUS`: before filing a validation on new live runs, put there the
-    previous validation's ``residuals.toml``, its live runs scored by the model being
+    """``predict``'s residuals: this validation's pooled with the earlier ones'
+    (:data:`PREVIOUS`: before filing a validation on new live runs, pool there the
+    validation being replaced with the earlier ones, each scored by the model being
     filed: after a change to the model, rerun ``experiments/live_vs_des.py`` on a copy
     of its ``live/`` and ``cells/*.live.json``)."""
     from sigma_des.calibrate.intervals import pooled_residuals

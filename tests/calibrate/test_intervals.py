@@ -153,6 +153,14 @@ def test_pooled_residuals_join_each_metric_and_regimes_values(tmp_path: Path) ->
     assert table[("aoi_mean", "any")].n == 5 and table[("aoi_p99", "any")].n == 1
     assert "0.1, -0.2, 0.05, 0.4, -0.1" in p.read_text()
     assert meta["coverage"] == 0.85 and meta["source"] == "one; two"
+    assert meta["validations"] == 2
+    # a pooled file pooled again: its validations count, its values join in order
+    q = tmp_path / "q.toml"
+    q.write_text(pooled_residuals([b, p]))
+    table, meta = load_residuals(q)
+    assert meta["validations"] == 3 and "3 validations" in meta["kind"]
+    assert table[("aoi_mean", "any")].n == 8
+    assert "0.05, 0.4, -0.1, 0.1, -0.2, 0.05, 0.4, -0.1" in q.read_text()
     with pytest.raises(ConfigError, match="coverages"):
         pooled_residuals([a, c])
     bounds = tmp_path / "bounds.toml"  # bounds alone cannot be pooled: refused, not skipped
