@@ -217,11 +217,9 @@ def job_services(host: ArrayLike, node: ArrayLike, t_req: ArrayLike, t_done: Arr
     it finished (its publish), so its service is ``done - start``: the FCFS analogue
     of :func:`held` for jobs.
 
-    A node's previous job is looked for among its own host's jobs only: a caller that
-    keys ``host`` by run (``method/host``, each method's times starting at 0) must not
-    see a node's job of another method as its previous one (that made every job look
-    requested when its twin in the other method ended, and the fitted step time a third
-    of live's).
+    A node's previous job is looked for among its own host's jobs only, so a caller may
+    key ``host`` by run (``method/host``): each method's times start at 0, and a node's
+    job in another method is not its previous one.
 
     Args:
         host: host of each job (one replay per distinct value).
@@ -241,16 +239,16 @@ def job_services(host: ArrayLike, node: ArrayLike, t_req: ArrayLike, t_done: Arr
     out = np.zeros(done.size)
     for hh in np.unique(h):
         idx = np.flatnonzero(h == hh)
-        req = np.asarray(t_req, dtype=np.float64)[idx].copy()
+        req = np.asarray(t_req, dtype=np.float64)[idx]  # a copy: fancy indexing
+        hn, hd = nd[idx], done[idx]
         # a busy node's next job is requested no earlier than its previous one finished
-        for n in np.unique(nd[idx]):
-            mine = np.flatnonzero(nd[idx] == n)
-            mine = mine[np.argsort(done[idx][mine], kind="stable")]
-            req[mine[1:]] = np.maximum(req[mine[1:]], done[idx][mine[:-1]])
+        for n in np.unique(hn):
+            mine = np.flatnonzero(hn == n)
+            mine = mine[np.argsort(hd[mine], kind="stable")]
+            req[mine[1:]] = np.maximum(req[mine[1:]], hd[mine[:-1]])
         free = [-np.inf] * cores
-        for j in np.lexsort((nd[idx], req)).tolist():
-            k = int(idx[j])
+        for j in np.lexsort((hn, req)).tolist():
             start = max(float(req[j]), heapq.heappop(free))
-            out[k] = max(done[k] - start, 0.0)
-            heapq.heappush(free, max(done[k], start))
+            out[idx[j]] = max(hd[j] - start, 0.0)
+            heapq.heappush(free, max(float(hd[j]), start))
     return out

@@ -101,10 +101,8 @@ def delivery_floor(trig: pd.DataFrame, q: float = 0.05) -> float:
     """
     keys = _trigger_keys(trig)
     t = trig.sort_values([*keys, "t_recv"], kind="stable")
-    same = np.ones(max(len(t) - 1, 0), dtype=np.bool_)
-    for k in keys:
-        v = t[k].to_numpy()
-        same &= v[1:] == v[:-1]
+    g = t.groupby(keys, sort=False).ngroup().to_numpy()
+    same = g[1:] == g[:-1]
     gaps = np.diff(t["t_recv"].to_numpy())[same]
     return float(np.quantile(gaps, q)) if gaps.size else 0.0
 

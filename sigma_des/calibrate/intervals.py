@@ -225,7 +225,8 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
 
     Raises:
         ConfigError: (``residuals``) an unreadable file, an entry given as bounds only
-            (``lo``/``hi``: nothing to pool), or files built for different coverages.
+            (``lo``/``hi``: nothing to pool), a ``validations`` count that is not an
+            integer >= 1, or files built for different coverages.
     """
     values: dict[tuple[str, str], list[float]] = {}
     covs, sources = set(), []
@@ -233,7 +234,11 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
     for path in paths:
         data = _read(path)
         meta = dict(data.get("meta", {}))
-        count += int(meta.get("validations", 1))
+        n = meta.get("validations", 1)
+        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+            raise ConfigError("residuals", f"{path}: meta.validations must be an integer "
+                              f">= 1, got {n!r}")
+        count += n
         covs.add(float(meta.get("coverage", COVERAGE)))
         sources.append(str(meta.get("source", path)))
         for entry in data.get("residual", []):

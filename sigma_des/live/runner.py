@@ -63,6 +63,7 @@ PUMP_STEP = 0.02
 #: (it then waits for trigger 0 itself).
 START_LEAD = 0.02
 
+
 @dataclass(frozen=True)
 class LiveOptions:
     """Live-only settings (not part of the scenario).
@@ -271,9 +272,9 @@ def _pump(srv: LiveServer, seconds: float) -> None:
 
 def _idle_until(srv: LiveServer, t: float) -> None:
     """Handle the server's messages until ``t`` (monotonic seconds), in steps of at most
-    :data:`PUMP_STEP` and never past ``t``: a step overshooting the time origin issued
-    trigger 0 late (7–16 ms), and Lock-Step, whose first barrier then ended after the
-    grid's second trigger, ran the whole run on a grid shifted by that much."""
+    :data:`PUMP_STEP` and never past ``t``: a step past the time origin would issue
+    trigger 0 late, and Lock-Step, whose grid restarts at a late barrier, would run the
+    whole run on a shifted grid (a phase to the ticks the DES never has)."""
     while (left := t - time.monotonic()) > 0:
         _pump(srv, min(PUMP_STEP, left))
 

@@ -163,6 +163,11 @@ def test_pooled_residuals_join_each_metric_and_regimes_values(tmp_path: Path) ->
     assert "0.05, 0.4, -0.1, 0.1, -0.2, 0.05, 0.4, -0.1" in q.read_text()
     with pytest.raises(ConfigError, match="coverages"):
         pooled_residuals([a, c])
+    bad = tmp_path / "bad.toml"  # a count that is not an integer >= 1 is refused by name
+    bad.write_text(residuals_toml({("aoi_mean", "any"): [0.0]},
+                                  {"coverage": 0.85, "validations": 0}))
+    with pytest.raises(ConfigError, match=r"meta\.validations must be an integer >= 1, got 0"):
+        pooled_residuals([a, bad])
     bounds = tmp_path / "bounds.toml"  # bounds alone cannot be pooled: refused, not skipped
     bounds.write_text('[[residual]]\nmetric = "aoi_mean"\nregime = "any"\nlo = -0.1\n'
                       'hi = 0.1\n')
