@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from sigma_lab.studies.validation import suite
 from sigma_lab.studies.validation.grid import Cell, Plan, full_plan, quick_plan
-from sigma_lab.studies.validation.report import knee_rows
+from sigma_lab.studies.validation.knees import knee_rows
 from sigma_lab.studies.validation.suite import holding
 
 from sigma_des.errors import ConfigError

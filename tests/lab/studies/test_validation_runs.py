@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from sigma_lab.studies.validation.grid import Cell, Plan
+from sigma_lab.studies.validation.knees import knee_rows
 from sigma_lab.studies.validation.report import (
     cell_rows,
-    knee_rows,
     noise_rows,
     under_load,
     write_outputs,
@@ -176,6 +176,8 @@ def test_rows_noise_floor_knee_and_outputs(tmp_path: Path) -> None:
     assert cov["aoi_mean"]["cells"] == "2"  # each held-out cell, the other's residual
     assert "[[residual]]" in (tmp_path / "residuals.toml").read_text()
     assert "- [ ] knee within ±25 % (node messages)" in md
+    assert "Not split: no calibration" in md  # a missed knee, no cal/: said, not skipped
+    assert (tmp_path / "rounds.csv").exists()
     assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
     assert (tmp_path / "knee.png").stat().st_size > 10_000
 

@@ -21,7 +21,9 @@
   run-queue cores (:mod:`sigma_lab.studies.validation.processes`);
 * ``coverage.csv`` and ``residuals.toml`` — the intervals' coverage on the held-out
   cells and their residuals (:mod:`sigma_lab.studies.validation.coverage`);
-  ``misses.csv`` — every held-out miss and its reading (:mod:`~.misses`).
+  ``misses.csv`` — every held-out miss and its reading (:mod:`~.misses`);
+  ``rounds.csv`` — the round of a frame at each missed knee, live and DES, stage by
+  stage (:mod:`~.rounds`); the knee itself: :mod:`~.knees`.
 
 A run is **under load** when the background CPU during its metrics window (other
 processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
@@ -41,11 +43,20 @@ from sigma_des.calibrate.intervals import COVERAGE, regime, residuals_toml
 from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
-from sigma_lab.studies.validation.grid import Cell, Plan
+from sigma_lab.studies.validation.grid import Plan
 from sigma_lab.studies.validation.kneeplot import knee_plot
+from sigma_lab.studies.validation.knees import (
+    copies,
+    knee_grid,
+    knee_points,
+    knee_rows,
+    live_of,
+    point_names,
+)
 from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
-from sigma_lab.studies.validation.runs import UNDER_LOAD, under_load
+from sigma_lab.studies.validation.rounds import ROUND_COLUMNS, round_md, round_rows
+from sigma_lab.studies.validation.runs import UNDER_LOAD, des_scenario, load_calibration, under_load
 from sigma_lab.studies.validation.scoring import (
     BAND,
     KNEE_MISSED,
@@ -56,14 +67,12 @@ from sigma_lab.studies.validation.scoring import (
     Verdict,
     error,
     judge,
-    knee_of,
-    knee_verdict,
     noise_floor,
     share,
 )
 from sigma_lab.studies.validation.suite import Outcome, des_key
 
-__all__ = ["UNDER_LOAD", "cell_rows", "knee_rows", "noise_rows", "under_load", "write_outputs"]
+__all__ = ["UNDER_LOAD", "cell_rows", "noise_rows", "under_load", "write_outputs"]
 
 COLUMNS = ("cell", "mode", "nodes", "hosts", "impairment", "held_out", "method", "metric",
            "regime",
@@ -90,25 +99,6 @@ def noise_rows(plan: Plan, live: dict[str, dict[str, Any]]) -> list[dict[str, An
     return rows
 
 
-def _copies(plan: Plan, live: dict[str, dict[str, Any]], base: str) -> list[dict[str, Any]]:
-    """The finished live runs of held-out cell ``base`` (its copies, in running order;
-    a live knee run, outside the plan's cells, its one run)."""
-    runs = [live[c.name] for c in plan.cells if c.base == base and not c.repeat
-            and c.name in live]
-    return runs or ([live[base]] if base in live else [])
-
-
-def _value(run: dict[str, Any], method: str, metric: str) -> float:
-    return float(run["methods"].get(method, {}).get(metric, math.nan))
-
-
-def _live_of(runs: list[dict[str, Any]], method: str, metric: str) -> tuple[float, list[float]]:
-    """The live value of a cell (the mean of its runs' finite values) and the values."""
-    xs = [_value(r, method, metric) for r in runs]
-    ok = [x for x in xs if math.isfinite(x)]
-    return (sum(ok) / len(ok) if ok else math.nan), xs
-
-
 def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
               cores: int | None = None) -> list[dict[str, Any]]:
     """The tidy rows of ``cells.csv`` (see the module doc).
@@ -131,12 +121,12 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
                 or cell.name not in live \
                 or des_key(cell) not in des:
             continue
-        runs = [live[cell.name]] if cell.repeat else _copies(plan, live, cell.name)
+        runs = [live[cell.name]] if cell.repeat else copies(plan, live, cell.name)
         dv = des[des_key(cell)]
         load = sum(r["load_before"] + r["load_after"] for r in runs) / (2.0 * len(runs))
         for m in plan.methods:
             for k in METRICS:
-                x, xs = _live_of(runs, m, k)
+                x, xs = live_of(runs, m, k)
                 dm = dv["methods"][m]
                 y = float(dm[k])
                 own = len(runs) > 1
@@ -161,77 +151,6 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
                     "config_hash": dv["config_hash"],
                     "live_config_hash": runs[0]["config_hash"], "version": dv["version"]})
     return rows
-
-
-def _knee_points(plan: Plan, live: dict[str, dict[str, Any]], mode: str) -> list[Cell]:
-    """Live's knee grid in ``mode``: the unimpaired held-out cells and the calibration
-    runs that ran (one per size), then live's knee runs that ran."""
-    pts = {c.nodes: c for c in reversed(plan.cells) if c.mode == mode and not c.impairment
-           and c.repeat <= 1 and c.copy == 1 and c.name in live}  # the first of a size
-    return [pts[n] for n in sorted(pts)] + [c for c in plan.knee_live_cells(mode)
-                                           if c.name in live]
-
-
-def _point_runs(plan: Plan, live: dict[str, dict[str, Any]], c: Cell) -> list[dict[str, Any]]:
-    """The live runs of knee point ``c``: a held-out cell's copies, a campaign's further
-    calibration runs of its size and mode (repeats), a repeat's own run."""
-    if c.cal_extra:
-        return [live[x.name] for x in plan.cells if x.cal_extra and x.mode == c.mode
-                and x.nodes == c.nodes and x.name in live]
-    return [live[c.name]] if c.repeat else _copies(plan, live, c.name)
-
-
-def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[str, Any]]:
-    """Per mode and method: live's capacity and knee on its grid, the DES's on its finer
-    grid (and on live's), by ``sigma-des capacity``'s search (:func:`knee_of`), and the
-    verdict."""
-    live, des, _ = outcome
-    rows = []
-    for mode in ("node", "bundle"):
-        pts = _knee_points(plan, live, mode)
-        if not pts:
-            continue
-        ns = [c.nodes for c in pts]
-        fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode} | set(ns))
-        for m in plan.methods:
-            lf = [{k: _live_of(_point_runs(plan, live, c), m, k)[0]
-                   for k in ("trigger_rate_hz", "missed_frac")} for c in pts]
-            lcap, lk = knee_of(ns, lf, f_trig)
-            dcap, dk = knee_of(fine, [_des_fig(des, n, mode, m) for n in fine], f_trig)
-            _, dg = knee_of(sorted(ns), [_des_fig(des, n, mode, m) for n in sorted(ns)],
-                            f_trig)
-            rows.append({"mode": mode, "method": m, "live_grid": " ".join(map(str, sorted(ns))),
-                         "live_capacity": lcap, "live_knee": lk, "des_capacity": dcap,
-                         "des_knee": dk, "des_knee_on_live_grid": dg,
-                         "verdict": knee_verdict(lk, dk, max(ns))})
-    return rows
-
-
-def knee_points(plan: Plan, outcome: Outcome) -> dict[str, dict[str, dict[str, list[Any]]]]:
-    """Per mode and method, ``live`` and ``des`` ``(N, missed_frac)`` pairs (for
-    :func:`~sigma_lab.studies.validation.kneeplot.knee_plot`)."""
-    live, des, _ = outcome
-    out: dict[str, dict[str, dict[str, list[Any]]]] = {}
-    for mode in ("node", "bundle"):
-        pts = _knee_points(plan, live, mode)
-        if not pts:
-            continue
-        fine = sorted({c.nodes for c in plan.knee_cells() if c.mode == mode}
-                      | {c.nodes for c in pts})
-        out[mode] = {m: {
-            "live": [(c.nodes, _live_of(_point_runs(plan, live, c), m, "missed_frac")[0])
-                     for c in pts],
-            "des": [(n, _des_fig(des, n, mode, m)["missed_frac"]) for n in fine]}
-            for m in plan.methods}
-    return out
-
-
-def _des_fig(des: dict[str, dict[str, Any]], n: int, mode: str, method: str
-             ) -> dict[str, float]:
-    d = des.get(f"n{n}-{mode}")
-    if not d:
-        return {"trigger_rate_hz": math.nan, "missed_frac": math.nan}
-    return {k: float(d["methods"][method][k]) for k in ("trigger_rate_hz", "missed_frac")}
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], cols: tuple[str, ...] | None = None
@@ -466,6 +385,21 @@ def _band(ax: Any, k: str, vals: list[float]) -> None:
     ax.set_title(f"{metric_title(k)} (band {title})", fontsize=9)
 
 
+def _rounds(plan: Plan, outcome: Outcome, knees: list[dict[str, Any]], out: Path
+            ) -> list[dict[str, Any]]:
+    """``rounds.csv``'s rows (:mod:`~sigma_lab.studies.validation.rounds`): none without
+    a missed knee, or without a calibration in ``out/cal`` (the section says so)."""
+    if not any(k["verdict"] == "missed" for k in knees) \
+            or not (out / "cal" / "calibrated.toml").exists():
+        return []
+    live = outcome[0]
+    cal, report = load_calibration(out / "cal")
+    points = {mode: knee_grid(plan, live, mode) for mode in ("node", "bundle")}
+    return round_rows(plan, knees, points, lambda c: point_names(plan, live, c),
+                      lambda c: des_scenario(cal, report, c, plan, out / "cells" / "samples"),
+                      out)
+
+
 def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, command: str
                   ) -> list[dict[str, Any]]:
     """Write every output file into ``out``; the ``cells.csv`` rows."""
@@ -488,6 +422,9 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     _write_csv(out / "misses.csv", misses, MISS_COLUMNS)
     text = summary_md(plan, rows, knees, noise, outcome[2], command, cov)
     text += "\n".join(miss_md(misses)) + "\n"
+    rounds = _rounds(plan, outcome, knees, out)
+    _write_csv(out / "rounds.csv", rounds, ROUND_COLUMNS)
+    text += "\n".join(round_md(rounds, any(k["verdict"] == "missed" for k in knees))) + "\n"
     if procs:
         text += ("\n## Live processes (cores per second of the window, means over the "
                  "methods; a host is the mean of the run's hosts)\n\n"
