@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import gzip
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sigma_des.config import Scenario
 from sigma_des.events.cohort import execute
 from sigma_des.events.tap import Tap
 from sigma_des.factory import make_behaviour, make_dynamics
@@ -118,7 +119,7 @@ class _RoundTap(Tap):
                                map(float, t_recv), strict=True))
 
 
-def des_round(sc: Any, method: str) -> dict[str, float]:
+def des_round(sc: Scenario, method: str) -> dict[str, float]:
     """:func:`round_stages` of ``method`` in the DES of scenario ``sc`` (run on the
     per-message engine, which reports every trigger receipt; the record is the state's
     generation time, the moment its node published it)."""
@@ -140,7 +141,8 @@ def disputed(knee: dict[str, Any], sizes: Sequence[int]) -> list[int]:
 
 
 def round_rows(plan: Plan, knees: list[dict[str, Any]], points: dict[str, list[Cell]],
-               runs_of: Any, scenario_of: Any, out: Path) -> list[dict[str, Any]]:
+               runs_of: Callable[[Cell], list[str]], scenario_of: Callable[[Cell], Scenario],
+               out: Path) -> list[dict[str, Any]]:
     """The rows of ``rounds.csv``: for each missed knee, each disputed size's live runs
     and its DES.
 
