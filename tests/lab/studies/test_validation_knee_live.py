@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from sigma_lab.studies.validation import suite
 from sigma_lab.studies.validation.grid import Cell, Plan, full_plan, quick_plan
-from sigma_lab.studies.validation.knees import knee_rows
+from sigma_lab.studies.validation.knees import knee_rows, run_knees
 from sigma_lab.studies.validation.suite import holding
 
 from sigma_des.errors import ConfigError
@@ -119,3 +119,21 @@ def test_bundled_calibration_runs_are_one_knee_point_the_mean_of_their_runs() ->
     assert rows[("bundle", "none")]["live_grid"] == "40 60 100"
     assert rows[("bundle", "none")]["live_knee"] == 40
     assert rows[("bundle", "bides")]["live_knee"] is None
+    # each repeat on its own: the first holds at 40 (4 %) and everywhere after, the
+    # second not (8 %); the DES holds everywhere: missed against the mean's knee, but
+    # the knee of the first repeat
+    none = rows[("bundle", "none")]
+    assert none["live_run_knees"] == "- 40" and none["verdict"] == "missed"
+    assert none["within_a_live_run"] is True
+    assert rows[("bundle", "bides")]["live_run_knees"] == "- -"
+
+
+def test_run_knees_take_each_sizes_jth_run_or_its_last() -> None:
+    """Sizes 10, 20, 30: 10 run twice (both hold), 20 twice (the second fails), 30 once
+    (fails): repeat 1's knee 30, repeat 2's 20."""
+    def run(rate: float) -> dict[str, object]:
+        return {"methods": {"none": {"trigger_rate_hz": rate, "missed_frac": 0.0}}}
+
+    runs = [[run(100.0), run(99.0)], [run(98.0), run(90.0)], [run(80.0)]]
+    assert run_knees([10, 20, 30], runs, "none", 100.0) == [30, 20]
+    assert run_knees([10, 20, 30], [], "none", 100.0) == []

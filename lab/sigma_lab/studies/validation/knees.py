@@ -5,7 +5,10 @@ runs (one cell per size) and then live's knee runs (:func:`knee_grid`); a size's
 is the mean of its runs (:func:`point_runs`). The DES's knee is searched on its finer
 grid (``cells/des-n<N>-<mode>.json``) and on live's, with ``sigma-des capacity``'s
 predicate (:func:`~sigma_lab.studies.validation.scoring.knee_of`); :func:`knee_rows`
-gives ``knee.csv``'s rows, :func:`knee_points` the plot's points.
+gives ``knee.csv``'s rows, :func:`knee_points` the plot's points. The verdict compares
+the DES's knee with live's (the mean of each size's runs); beside it, each live repeat's
+own knee (:func:`run_knees`) and whether the DES's is within the tolerance of one of
+them: a size whose runs disagree about holding makes live's knee itself uncertain.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from sigma_lab.studies.validation.scoring import knee_of, knee_verdict
 from sigma_lab.studies.validation.suite import Outcome
 
 __all__ = ["copies", "copy_names", "knee_grid", "knee_points", "knee_rows", "live_of",
-           "point_names", "point_runs"]
+           "point_names", "point_runs", "run_knees"]
 
 
 def copy_names(plan: Plan, live: dict[str, dict[str, Any]], base: str) -> list[str]:
@@ -86,11 +89,28 @@ def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[
             dcap, dk = knee_of(fine, [_des_fig(des, n, mode, m) for n in fine], f_trig)
             _, dg = knee_of(sorted(ns), [_des_fig(des, n, mode, m) for n in sorted(ns)],
                             f_trig)
+            each = run_knees(ns, [point_runs(plan, live, c) for c in pts], m, f_trig)
             rows.append({"mode": mode, "method": m, "live_grid": " ".join(map(str, sorted(ns))),
                          "live_capacity": lcap, "live_knee": lk, "des_capacity": dcap,
                          "des_knee": dk, "des_knee_on_live_grid": dg,
-                         "verdict": knee_verdict(lk, dk, max(ns))})
+                         "verdict": knee_verdict(lk, dk, max(ns)),
+                         "live_run_knees": " ".join("-" if k is None else str(k) for k in each),
+                         "within_a_live_run": any(knee_verdict(k, dk, max(ns)) == "met"
+                                                  for k in each)})
     return rows
+
+
+def run_knees(nodes: list[int], runs: list[list[dict[str, Any]]], method: str,
+              f_trig: float) -> list[int | None]:
+    """Live's knee on its grid by each repeat: repeat ``j`` takes every size's ``j``-th
+    run (a size run fewer times, its last one). Where a size's runs fall on both sides of
+    the predicate, live's knee is not one size: the repeats give each of them."""
+    out = []
+    for j in range(max((len(r) for r in runs), default=0)):
+        figs = [{k: _value(r[min(j, len(r) - 1)], method, k)
+                 for k in ("trigger_rate_hz", "missed_frac")} for r in runs]
+        out.append(knee_of(nodes, figs, f_trig)[1])
+    return out
 
 
 def knee_points(plan: Plan, outcome: Outcome) -> dict[str, dict[str, dict[str, list[Any]]]]:

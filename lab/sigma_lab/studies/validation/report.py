@@ -12,7 +12,8 @@
 * ``noise.csv`` — the repeats of the calibration setting per method and metric and
   their noise floor.
 * ``knee.csv`` — per message mode and method: live's knee (its grid), the DES's
-  knee on its finer grid and on live's grid, and the verdict.
+  knee on its finer grid and on live's grid, the verdict, and each live repeat's own
+  knee (:mod:`~.knees`).
 * ``summary.md`` — shares per metric, the issue's targets ticked or not, the knee
   table, the in-sample errors and the cells.
 * ``live_vs_des.png`` — DES against live per metric, with each metric's band;
@@ -220,14 +221,20 @@ def _knee_md(knees: list[dict[str, Any]]) -> list[str]:
     lines.append("The predicate of `sigma-des capacity` on each grid, in order: capacity = "
                  "the last N that holds before the knee, knee = the first that does not.")
     lines.append("")
+    lines.append("The verdict is on live's knee from the mean of each size's runs; beside "
+                 "it, the knee each live repeat gives on its own, and whether the DES's knee "
+                 "is within ±25 % of one of them (live's runs at a size disagree about "
+                 "holding: live's own knee is uncertain there).")
+    lines.append("")
     lines.append(md_table(["mode", "method", "live grid", "live capacity", "live knee",
                            "DES capacity", "DES knee", "DES knee on live grid",
-                           "within ±25 %"],
+                           "within ±25 %", "live repeats' knees", "within a repeat's"],
                           [[r["mode"], r["method"], r["live_grid"],
                             str(r["live_capacity"] or "-"), str(r["live_knee"] or "-"),
                             str(r["des_capacity"] or "-"), str(r["des_knee"] or "-"),
                             str(r["des_knee_on_live_grid"] or "-"),
-                            r["verdict"]] for r in knees]))
+                            r["verdict"], r["live_run_knees"],
+                            "yes" if r["within_a_live_run"] else "no"] for r in knees]))
     return lines
 
 
