@@ -31,6 +31,7 @@ import argparse
 import shlex
 import sys
 from pathlib import Path
+from typing import Any
 
 from sigma_lab.studies.validation import full_plan, quick_plan, run_suite, write_outputs
 from sigma_lab.studies.validation.runs import load_calibration
@@ -67,6 +68,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="run a live cell again when it ran under load (background CPU > "
                         "25%% of the cores), at most K times (default 1; --quick 0); the "
                         "loaded runs are kept in OUT/loaded/")
+    p.add_argument("--knee-tiebreak", type=int, default=None, metavar="K",
+                   help="more live runs (0..3) of a held-out size whose runs disagree about "
+                        "holding the rate and the missed-frame budget: live's knee decided "
+                        "by the mean of an odd number of runs (default 1; --quick 0)")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -76,9 +81,10 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             raise ConfigError("--methods", f"unknown {unknown}; allowed: {', '.join(METHODS)}")
         make = quick_plan if a.quick else full_plan
-        kw: dict[str, object] = {k: v for k, v in (("duration", a.duration),
+        kw: dict[str, Any] = {k: v for k, v in (("duration", a.duration),
                                                    ("cell_repeats", a.cell_repeats),
-                                                   ("retry_loaded", a.retry_loaded))
+                                                   ("retry_loaded", a.retry_loaded),
+                                                   ("knee_tiebreak", a.knee_tiebreak))
                                  if v is not None}
         if a.calibrate_bundled:
             kw["cal_bundle"] = True

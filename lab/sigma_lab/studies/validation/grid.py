@@ -137,6 +137,10 @@ class Plan:
         retry_loaded: times a live cell that ran under load runs again (0..3): its
             loaded run is set aside and the cell run anew, at once or, for a cell kept
             from an earlier invocation, when the suite resumes.
+        knee_tiebreak: further live runs (0..3) of a held-out size on live's knee grid
+            whose runs disagree about holding (``sigma-des capacity``'s predicate, some
+            method): named as further copies (``n60-node-c3``), they enter the cell's
+            live mean like its other copies.
     """
 
     methods: tuple[str, ...]
@@ -153,6 +157,7 @@ class Plan:
     cal_bundle: bool = False
     retry_loaded: int = 1
     cal_bundle_nodes: int = 0
+    knee_tiebreak: int = 0
 
     def __post_init__(self) -> None:
         if not 0 <= self.warmup < self.duration:
@@ -167,6 +172,8 @@ class Plan:
                               f"setting's N), got {self.cal_bundle_nodes}")
         if not 0 <= self.retry_loaded <= 3:
             raise ConfigError("--retry-loaded", f"must be in 0..3, got {self.retry_loaded}")
+        if not 0 <= self.knee_tiebreak <= 3:
+            raise ConfigError("--knee-tiebreak", f"must be in 0..3, got {self.knee_tiebreak}")
         top = max(self.nodes, default=0)
         if list(self.knee_live) != sorted(set(self.knee_live)) or any(
                 n <= top for n in self.knee_live):
@@ -222,6 +229,13 @@ class Plan:
         while some method still holds; named like the DES's knee cells)."""
         return tuple(Cell(f"knee-n{n}-{mode}", n, mode) for n in self.knee_live)
 
+    def tiebreak_cells(self, cell: Cell) -> tuple[Cell, ...]:
+        """The further copies of held-out ``cell`` a knee tie-break may run
+        (:attr:`knee_tiebreak`), numbered after its :attr:`cell_repeats` copies."""
+        first = self.cell_repeats + 1
+        return tuple(replace(cell, name=f"{cell.base}-c{k}", copy=k)
+                     for k in range(first, first + self.knee_tiebreak))
+
     def knee_cells(self) -> tuple[Cell, ...]:
         """DES-only cells of the knee grid (both modes)."""
         return tuple(Cell(f"knee-n{n}-{m}", n, m) for m in MODES for n in self.knee_nodes)
@@ -240,7 +254,8 @@ class Plan:
         with its in-sample check ``cal_s``. Every live knee run counted (at most).
         """
         m = len(self.methods)
-        runs = len(self.cells) + len(MODES) * len(self.knee_live)
+        runs = len(self.cells) + len(MODES) * (len(self.knee_live)
+                                               + len(self.nodes) * self.knee_tiebreak)
         live = runs * (live_overhead + m * (self.duration + method_overhead))
         keys = {(c.nodes, c.mode, c.impairment) for c in self.cells}
         keys |= {(c.nodes, c.mode, "") for c in self.knee_cells()}
@@ -249,24 +264,27 @@ class Plan:
 
 
 def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1.0,
-              cell_repeats: int = 2, cal_bundle: bool = False, retry_loaded: int = 1) -> Plan:
+              cell_repeats: int = 2, cal_bundle: bool = False, retry_loaded: int = 1,
+              knee_tiebreak: int = 1) -> Plan:
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
     N = 20 (with ``cal_bundle`` also twice bundled at N = 40); the DES's knee grid 10,
     20, … 60, 80, 100, 120, 150; live's knee runs at 120 and 150 where a method still
-    holds at 100."""
+    holds at 100; one more live run of a held-out size whose runs disagree about
+    holding."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
                 knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150), knee_live=(120, 150),
                 cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded,
-                cal_bundle_nodes=40)
+                cal_bundle_nodes=40, knee_tiebreak=knee_tiebreak)
 
 
 def quick_plan(methods: tuple[str, ...], duration: float = 1.5, warmup: float = 0.5,
-               cell_repeats: int = 1, cal_bundle: bool = False, retry_loaded: int = 0) -> Plan:
+               cell_repeats: int = 1, cal_bundle: bool = False, retry_loaded: int = 0,
+               knee_tiebreak: int = 0) -> Plan:
     """A smoke run: calibration at N = 4 twice, N = 6 both modes, no impairments, no
     retries of loaded runs."""
     plan = Plan(methods, duration, warmup, cal_nodes=4, nodes=(6,), extra_nodes=6,
                 repeats=2, knee_nodes=(4, 6, 8), cell_repeats=cell_repeats,
-                cal_bundle=cal_bundle, retry_loaded=retry_loaded)
+                cal_bundle=cal_bundle, retry_loaded=retry_loaded, knee_tiebreak=knee_tiebreak)
     return plan.select("cal-r*,n6-*")

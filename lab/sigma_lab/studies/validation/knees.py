@@ -17,17 +17,20 @@ import math
 from typing import Any
 
 from sigma_lab.studies.validation.grid import Cell, Plan
-from sigma_lab.studies.validation.scoring import knee_of, knee_verdict
+from sigma_lab.studies.validation.scoring import KNEE_MISSED, knee_of, knee_verdict
 from sigma_lab.studies.validation.suite import Outcome
 
-__all__ = ["copies", "copy_names", "knee_grid", "knee_points", "knee_rows", "live_of",
-           "point_names", "point_runs", "run_knees"]
+__all__ = ["copies", "copy_names", "disputed_points", "knee_grid", "knee_points", "knee_rows",
+           "live_of", "point_names", "point_runs", "run_knees"]
 
 
 def copy_names(plan: Plan, live: dict[str, dict[str, Any]], base: str) -> list[str]:
     """The names of held-out cell ``base``'s finished live runs (its copies, in running
     order; a live knee run, outside the plan's cells, its one run)."""
     names = [c.name for c in plan.cells if c.base == base and not c.repeat and c.name in live]
+    cell = next((c for c in plan.cells if c.name == base), None)
+    if cell is not None:  # a knee tie-break's further copies
+        names += [c.name for c in plan.tiebreak_cells(cell) if c.name in live]
     return names or ([base] if base in live else [])
 
 
@@ -98,6 +101,25 @@ def knee_rows(plan: Plan, outcome: Outcome, f_trig: float = 100.0) -> list[dict[
                          "within_a_live_run": any(knee_verdict(k, dk, max(ns)) == "met"
                                                   for k in each)})
     return rows
+
+
+def disputed_points(plan: Plan, live: dict[str, dict[str, Any]], mode: str, f_trig: float
+                    ) -> list[tuple[Cell, list[str]]]:
+    """The held-out sizes of live's knee grid in ``mode`` whose runs (two or more)
+    disagree about holding, each with the methods they disagree on."""
+    from sigma_des.calibrate.capacity import holds
+
+    out = []
+    for c in knee_grid(plan, live, mode):
+        runs = point_runs(plan, live, c)
+        if not c.held_out or len(runs) < 2:
+            continue
+        split = [m for m in plan.methods
+                 if len({holds(_value(r, m, "trigger_rate_hz"), _value(r, m, "missed_frac"),
+                               math.nan, f_trig, KNEE_MISSED, None) for r in runs}) > 1]
+        if split:
+            out.append((c, split))
+    return out
 
 
 def run_knees(nodes: list[int], runs: list[list[dict[str, Any]]], method: str,

@@ -98,6 +98,7 @@ def _live_all(plan: Plan, out: Path, say: Say, t0: float) -> dict[str, dict[str,
             say(f"    elapsed {_clock(time.perf_counter() - t0)}, live cells left ~"
                 f"{_clock(per * (len(plan.cells) - i))}")
     _knee_live(plan, live, out, say)
+    _knee_tiebreak(plan, live, out, say)
     return live
 
 
@@ -166,6 +167,24 @@ def _knee_live(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say)
                 break
             say(f"[knee] {', '.join(still)} still hold(s) {mode}: live at N = {cell.nodes}")
             live[cell.name] = _live_kept_or_run(plan, cell, out, say, "[knee]")[0]
+
+
+def _knee_tiebreak(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say) -> None:
+    """Per mode, :attr:`Plan.knee_tiebreak` more live runs of each held-out size of live's
+    knee grid whose runs disagree about holding (added to ``live``): the mean of an odd
+    number of runs decides live's knee there."""
+    from sigma_des.config import load
+    from sigma_lab.studies.validation.knees import disputed_points
+
+    if not plan.knee_tiebreak:
+        return
+    f_trig = load(None, list(LIVE_BASE)).f_trig
+    for mode in MODES:
+        for cell, methods in disputed_points(plan, live, mode, f_trig):
+            for extra in plan.tiebreak_cells(cell):
+                say(f"[knee] {cell.name}: live's runs disagree about holding "
+                    f"({', '.join(methods)}): {extra.name}")
+                live[extra.name] = _live_kept_or_run(plan, extra, out, say, "[knee]")[0]
 
 
 def _live_one(plan: Plan, cell: Cell, out: Path, say: Say, tag: str) -> dict[str, Any]:
