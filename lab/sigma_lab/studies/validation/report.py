@@ -422,7 +422,7 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     _write_csv(out / "cells.csv", rows, COLUMNS)
     _write_csv(out / "noise.csv", noise)
     _write_csv(out / "knee.csv", knees)
-    procs = process_rows(out / "live", [c.name for c in plan.cells])
+    procs = process_rows(out / "live", list(outcome[0]))  # every run: knee runs too
     if procs:
         _write_csv(out / "processes.csv", procs, PROCESS_COLUMNS)
     misses = miss_rows(rows, procs, plan.cal_nodes)
