@@ -37,8 +37,9 @@ from sigma_lab.studies.validation.grid import Cell, Plan
 __all__ = ["ROUND_COLUMNS", "STAGES", "des_round", "disputed", "live_round", "round_md",
            "round_rows", "round_stages"]
 
-#: The stages of a round, in order (ms), and their tails.
+#: The stages of a round, in order (ms).
 STAGES = ("trigger", "job", "up", "round", "period")
+#: ``rounds.csv``'s columns: the size and run, the stages, two tails, the frames split.
 ROUND_COLUMNS = ("mode", "method", "nodes", "cell", "side", *STAGES, "trigger_p90", "up_p90",
                  "frames")
 
