@@ -367,6 +367,14 @@ class RemoteCpuMeter(CpuMeter):
         super().mark(label)
         self.remote[label] = {h: self.hosts._call(h, "cpu") for h in range(len(self.hosts.info))}
 
+    def helper(self) -> None:
+        """No helper process: the window's mark runs on the server's loop."""
+
+    def mark_ahead(self, label: str, t0: float, when: float, loop: Any) -> None:
+        """The mark on the server's ``loop`` at ``when``: it also asks every worker for
+        its host's CPU, which a helper process cannot."""
+        loop.call_at(when, self.mark, label)
+
     def _host_cpu(self, label: str, h: int) -> float:
         c = self.remote.get(label, {}).get(h)
         try:

@@ -31,6 +31,7 @@ from typing import Any
 
 import psutil
 
+from sigma_des.live.cpumark import MarkAhead
 from sigma_des.live.ledger import publishes
 
 __all__ = ["CPU_COLUMNS", "CPU_FILE", "RUNQ_COLUMN", "THREAD_COLUMNS", "WAKE_COLUMNS",
@@ -169,6 +170,8 @@ class CpuMeter:
         self.marks: dict[str, tuple[float, float, dict[str, float]]] = {}
         self.runq: dict[str, dict[str, float]] = {}
         self.threads: dict[str, dict[str, tuple[float, ...]]] = {}
+        self._ahead: dict[str, MarkAhead] = {}
+        self._helper: MarkAhead | None = None
 
     def _cpu(self, p: psutil.Process | None) -> float:
         if p is None:
@@ -186,6 +189,45 @@ class CpuMeter:
         self.marks[label] = (time.monotonic(), machine_busy(), cpu)
         self.runq[label] = {name: runq_wait_s(self.pids[name]) for name in self._ps}
         self.threads[label] = {name: thread_times(self.pids[name]) for name in self._ps}
+
+    def helper(self) -> None:
+        """Start the helper process of the next :meth:`mark_ahead` now (before the run)."""
+        self._helper = MarkAhead(self.pids)
+
+    def mark_ahead(self, label: str, t0: float, when: float, loop: Any) -> None:
+        """Have the helper process (:meth:`helper`; started now if it was not) mark
+        ``label`` at ``when`` seconds of the run that starts at ``time.monotonic()`` time
+        ``t0`` (a mark inside the run, off the server's ``loop``:
+        :mod:`sigma_des.live.cpumark`); :meth:`collect` reads it."""
+        ahead = self._helper or MarkAhead(self.pids)
+        self._helper = None
+        ahead.arm(t0 + when)
+        self._ahead[label] = ahead
+
+    def collect(self, timeout: float = 10.0) -> list[str]:
+        """Read the marks :meth:`mark_ahead` asked for; why any is missing (its window's
+        rows are then NaN)."""
+        why = []
+        for label, ahead in self._ahead.items():
+            if time.monotonic() < ahead.at:  # the run ended first (interrupted)
+                ahead.cancel()
+                why.append(f"CPU mark {label!r} not taken (the run ended before it): its "
+                           "window's CPU rows are NaN")
+                continue
+            got = ahead.result(timeout)
+            if isinstance(got, str):
+                why.append(f"CPU mark {label!r} not taken ({got}): its window's CPU rows are NaN")
+                continue
+            self.marks[label], self.runq[label], self.threads[label] = got
+        self._ahead.clear()
+        return why
+
+    def close(self) -> None:
+        """Stop every helper process still waiting (a run that ended early)."""
+        for ahead in [*self._ahead.values(), *([self._helper] if self._helper else [])]:
+            ahead.cancel()
+        self._ahead.clear()
+        self._helper = None
 
     def _thread_columns(self, name: str) -> dict[str, float]:
         """:data:`THREAD_COLUMNS` of process ``name`` over the metrics window (the

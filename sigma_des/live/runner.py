@@ -310,11 +310,13 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         live = group.alive()
         _wait_ready(srv, group, len(live), opts.ready_timeout)
         meter = _cpu_meter(group, broker)
+        meter.helper()  # the window's mark-taker, started before the idle window
+        stack.callback(meter.close)
         t0 = _go(srv, opts, addr, run, live, book, stack)
         meter.mark("idle0")
         _idle_until(srv, t0 - START_LEAD)
         meter.mark("idle1")
-        srv.loop.call_at(sc.warmup, meter.mark, "w0")
+        meter.mark_ahead("w0", t0, sc.warmup, srv.loop)  # not on the loop: it would stall it
         _inject(srv, opts, broker, group)
         if progress:
             print(f"sigma-des live: {m}: {len(live)} hosts ready, running {sc.duration:g} s",
@@ -329,6 +331,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         except KeyboardInterrupt:
             interrupted = True
         meter.mark("w1")
+        cpu_notes = meter.collect()
         srv.wall_seconds = time.perf_counter() - w0
         srv.running = False
         srv.stats.clear()  # counters sent before stop are not the hosts' (forged)
@@ -347,7 +350,7 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
     out["kept"] = srv.kept
     out["live"] = live_info(srv, group, table, sc)
     out["live"]["warnings"] = lost_notes(out["live"], sc.hosts, broker_down) + (
-        hop_notes(table, sc, opts.impair) if opts.broker is not None else [])
+        hop_notes(table, sc, opts.impair) if opts.broker is not None else []) + cpu_notes
     if book is not None:
         out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),

@@ -97,7 +97,7 @@ def test_ctrl_c_writes_partial_results_and_stops_everything(tmp_path: Path) -> N
         line = p.stderr.readline().decode()  # printed once the hosts are ready
         assert "hosts ready, running" in line, line
         kids = _children(p.pid)
-        assert len(kids) == 4  # the broker, 2 hosts and the janitor
+        assert len(kids) == 5  # the broker, 2 hosts, the janitor and the CPU-mark helper
         time.sleep(1.0)
         p.send_signal(signal.SIGINT)
         code = p.wait(timeout=30)
@@ -121,7 +121,7 @@ def test_killed_sigma_des_takes_its_broker_and_hosts_along(tmp_path: Path) -> No
         assert p.stderr is not None
         assert "hosts ready, running" in p.stderr.readline().decode()
         kids = _children(p.pid)
-        assert len(kids) == 4  # the broker, 2 hosts and the janitor
+        assert len(kids) == 5  # the broker, 2 hosts, the janitor and the CPU-mark helper
         p.kill()  # SIGKILL: no clean-up code runs; PR_SET_PDEATHSIG must
         p.wait(timeout=10)
     finally:
