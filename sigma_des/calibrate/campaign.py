@@ -223,17 +223,19 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     msg_runs = [i for i in lat_runs if i in cpu] or cpu
     rec_runs = [i for i in bundled if i in cpu] or msg_runs
     dep, broker = sc.deployment, sc.broker
+    new: dict[str, Any] = {}  # one replace: a record's CPU may not exceed its demand
     if msg_runs:
-        means: dict[str, Any] = {k: _mean_of([fits[i][0] for i in msg_runs], k)
-                                 for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}}
-        dep = replace(dep, **means)
+        new = {k: _mean_of([fits[i][0] for i in msg_runs], k)
+               for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}}
         svc = float(np.mean([fits[i][0].broker.publish_service.mean_value() for i in msg_runs]))
         broker = replace(broker, publish_service=Dist(dist="constant", value=svc))
     if rec_runs:
-        records: dict[str, Any] = {k: min(_mean_of([fits[i][0] for i in rec_runs], k),
-                                          getattr(dep, k.replace("record", "demand")))
-                                   for k in _PER_RECORD}
-        dep = replace(dep, **records)
+        for k in _PER_RECORD:
+            demand = k.replace("record", "demand")
+            new[k] = min(_mean_of([fits[i][0] for i in rec_runs], k),
+                         new.get(demand, getattr(dep, demand)))
+    if new:
+        dep = replace(dep, **new)
     per_client = float(np.mean([fits[i][1]["delivery_service_per_client_s"]
                                 for i in (msg_runs or lat_runs)]))
     sc = replace(sc, net=net, deployment=dep, broker=broker)

@@ -79,6 +79,19 @@ def test_combine_takes_each_parameter_from_the_runs_that_show_it(tmp_path: Path)
     assert set(rep["runs"]) == {"n20", "b30", "n60"}
 
 
+def test_two_per_node_runs_whose_mean_demand_is_below_the_first_runs_record(
+        tmp_path: Path) -> None:
+    """The first (primary) run's own record CPU (11 us) exceeds the mean demand of the
+    two per-node runs (10 us): the combined deployment takes the mean demand and the
+    bundled runs' record, clipped to that mean (it used to be refused as invalid)."""
+    fits = [_fit(tmp_path, "r1", [1e-3], False, host_demand=1.2e-5, host_record=1.1e-5),
+            _fit(tmp_path, "r2", [2e-3], False, host_demand=0.8e-5, host_record=0.8e-5),
+            _fit(tmp_path, "b40", [3e-3], True, host_demand=1.3e-5, host_record=1.25e-5)]
+    sc, _rep, _p = combine(fits, tmp_path)
+    assert sc.deployment.host_demand == pytest.approx(1.0e-5)
+    assert sc.deployment.host_record == pytest.approx(1.0e-5)  # 12.5 us clipped to 10
+
+
 def test_cli_two_runs_in_sample_on_each_background_kept_apart(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     a = _cpu_run(tmp_path / "a", live={"cores": 4, "bundle": False, "load1": 0.5})
