@@ -181,3 +181,37 @@ def test_a_size_whose_runs_disagree_about_holding_runs_once_more(
     with pytest.raises(ConfigError, match="--knee-tiebreak"):
         Plan(METHODS, 4.0, 1.0, cal_nodes=20, nodes=(60,), extra_nodes=30, knee_tiebreak=4)
     assert full_plan(("none",)).knee_tiebreak == 1 and quick_plan(("none",)).knee_tiebreak == 0
+
+
+def test_the_calibration_reads_every_repeat_the_most_typical_first(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Three repeats (mean AoI 20, 30, 21 ms: the typical one is cal-r3) and a bundled
+    run: `sigma-des calibrate` gets cal-r3, cal-r1, cal-r2, then cal-bundle; the same
+    runs again keep the calibration."""
+    got: list[list[str]] = []
+
+    def fake_calibrate(runs: list[Path], cal: Path, extra: Any = ()) -> None:
+        got.append([p.name for p in runs])
+        cal.mkdir(parents=True, exist_ok=True)
+        (cal / "calibrated.toml").write_text("")
+        (cal / "calibrated.json").write_text("{}")
+
+    monkeypatch.setattr(suite, "calibrate_run", fake_calibrate)
+    plan = Plan(METHODS, 4.0, 1.0, cal_nodes=20, nodes=(60,), extra_nodes=30, repeats=3,
+                cal_bundle=True, cal_bundle_nodes=40)
+
+    def rep(aoi: float) -> dict[str, Any]:
+        r = _run(HOLD, {"none": 0.0, "bides": 0.0})
+        for m in METHODS:
+            r["methods"][m].update(aoi_mean=aoi, latency_state_mean=2.0)
+        return r
+
+    live = {"cal-r1": rep(20.0), "cal-r2": rep(30.0), "cal-r3": rep(21.0),
+            "cal-bundle": rep(25.0)}
+    for name in live:
+        (tmp_path / "live" / name).mkdir(parents=True)
+        (tmp_path / "live" / name / "summary.json").write_text("{}")
+    suite._calibration(plan, live, tmp_path, lambda s: None, [])
+    assert got == [["cal-r3", "cal-r1", "cal-r2", "cal-bundle"]]
+    suite._calibration(plan, live, tmp_path, lambda s: None, [])
+    assert len(got) == 1  # kept

@@ -115,13 +115,14 @@ class Plan:
         cal_nodes: N of the calibration setting.
         nodes: N of the held-out grid.
         extra_nodes: N of the loss and latency cells.
-        repeats: runs of the calibration setting (the most typical one is the
-            calibration run: :func:`~sigma_lab.studies.validation.scoring.central`).
+        repeats: runs of the calibration setting, all calibrated on (the most typical
+            one first, the campaign's primary run:
+            :func:`~sigma_lab.studies.validation.scoring.central`).
         cell_repeats: runs of each held-out cell (copies in later passes over the grid).
         cal_bundle: also bundled calibration runs of ``cal_bundle_nodes`` nodes
             (``cal-bundle`` right after ``cal-r1``, ``cal-bundle-r2`` right after
-            ``cal-r2`` with two repeats or more), calibrated on with the most typical
-            repeat: a campaign (``sigma-des calibrate RUN RUN RUN``) whose bundled hop
+            ``cal-r2`` with two repeats or more), calibrated on with the repeats: a
+            campaign (``sigma-des calibrate RUN RUN RUN ...``) whose bundled hop
             factor is matched on the bundled runs' mean. Every scored cell differs from
             them in size.
         cal_bundle_nodes: N of the bundled calibration runs (0: ``cal_nodes``). Away

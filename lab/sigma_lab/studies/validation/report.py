@@ -266,7 +266,7 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
               "did not reproduce itself within 10 %: the DES inside the range of the cell's "
               f"own runs, at least two). {copies} of {len(held)} held-out cell x method "
               f"pairs ran more than once (live = the mean of the runs). Calibrated on {used} "
-              f"({fitted}: the most typical run of the calibration setting)."]
+              f"({fitted} first: the most typical run of the calibration setting)."]
     if copies < len(held):
         lines.append(f"**{len(held) - copies} of {len(held)} held-out cell x method pairs ran "
                      "once**: their live value is one run, not the mean of at least two the "

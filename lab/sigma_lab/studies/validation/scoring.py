@@ -19,10 +19,11 @@ Pure functions of numbers (no runs, no files), so each rule is tested by hand:
   (``>= 95 %`` of the nominal ``f_trig``; elsewhere not scored); the missed-frame
   fraction within 10 percentage points. A live value without a DES one (no state
   reached the DES's server in the window) is a miss.
-* **the calibration run** (:func:`central`): of the calibration setting's repeats, the
-  most typical one, whose mean AoI and mean state latency (every method) lie closest
-  to the repeats' medians (least summed distance in ``log x``; the first on ties):
-  one slow outlier run no longer sets every parameter.
+* **the calibration's primary run** (:func:`central`): of the calibration setting's
+  repeats, the most typical one, whose mean AoI and mean state latency (every method)
+  lie closest to the repeats' medians (least summed distance in ``log x``; the first on
+  ties): one slow outlier run no longer sets the step time and the scenario's keys; the
+  per-message CPU is the repeats' mean.
 * **knee** (:func:`knee_of`): on a grid of N, ``sigma-des capacity``'s predicate
   (:func:`~sigma_des.calibrate.capacity.holds`: rate held, at most 5 % of frames
   missed): the first N that does not hold (the knee) and the one before it;

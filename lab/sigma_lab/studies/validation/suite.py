@@ -8,15 +8,16 @@ with the same ``--out`` (an interrupted run picks up where it stopped):
   cells, live's knee runs (``knee-n<N>-<mode>``, :attr:`Plan.knee_live`) while some
   method still holds at the largest size live ran in that mode;
 * ``cal/`` — ``calibrated.toml``, ``calibrated.json`` (the report, in-sample errors
-  included), the latency sample files, ``calibrate.log`` and ``source.json`` (which
-  repeat of the calibration setting it was fitted to: the most typical one,
-  :func:`~sigma_lab.studies.validation.scoring.central`; and a fingerprint of each run
-  it read: a calibration run made again makes the calibration stale);
+  included), the latency sample files, ``calibrate.log`` and ``source.json`` (the runs
+  it was fitted to: every repeat of the calibration setting, the most typical first,
+  :func:`~sigma_lab.studies.validation.scoring.central`, and the further bundled runs;
+  and a fingerprint of each run it read: a calibration run made again makes the
+  calibration stale);
 * ``cells/des-<key>.json`` — one DES prediction (every method), stamped with the
   calibration it used (a new calibration makes it stale: it is run again).
 
 All live cells run first (the DES runs and the calibration would load the machine
-under them), then the calibration on the most typical repeat, then its predictions.
+under them), then the calibration on the repeats, then its predictions.
 Progress goes to stderr, one line per piece.
 """
 
@@ -201,8 +202,9 @@ def _live_one(plan: Plan, cell: Cell, out: Path, say: Say, tag: str) -> dict[str
 
 
 def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
-    """The repeat of the calibration setting to calibrate on: the most typical of
-    those that ran (:func:`~sigma_lab.studies.validation.scoring.central`)."""
+    """The calibration's primary run (its step time and scenario keys): the most
+    typical repeat of those that ran
+    (:func:`~sigma_lab.studies.validation.scoring.central`)."""
     reps = {c.name: live[c.name]["methods"] for c in plan.cells
             if c.repeat and c.name in live}
     if not reps:
@@ -213,14 +215,18 @@ def calibration_cell(plan: Plan, live: dict[str, dict[str, Any]]) -> str:
 def _calibration(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say,
                  args: Sequence[str]) -> None:
     name = calibration_cell(plan, live)
-    cells = [name] + [c.name for c in plan.cells if c.cal_extra and c.name in live]
+    # every repeat, the most typical first (the campaign's primary run): their per-message
+    # CPU averaged and their hop samples pooled; then the further (bundled) runs
+    cells = [name] + [c.name for c in plan.cells if c.repeat and c.name != name
+                      and c.name in live] + [c.name for c in plan.cells
+                                             if c.cal_extra and c.name in live]
     source = {"cell": name, "cells": cells, "args": list(args), "runs": runs_stamp(out, cells)}
     if calibration_kept(out, source):
         say(f"calibration: kept from an earlier run (on {', '.join(cells)})")
         return
-    say(f"calibrating on {', '.join(cells)} ({name}: the most typical of the calibration "
-        f"setting's {sum(1 for c in plan.cells if c.repeat and c.name in live)} runs; "
-        "`sigma-des calibrate`, with its in-sample check on each) ...")
+    say(f"calibrating on {', '.join(cells)} ({name} first: the most typical of the "
+        f"calibration setting's {sum(1 for c in plan.cells if c.repeat and c.name in live)} "
+        "runs; `sigma-des calibrate`, with its in-sample check on each) ...")
     t = time.perf_counter()
     calibrate_run([out / "live" / c for c in cells], out / "cal", extra=args)
     write_json(out / "cal" / "source.json", source)
