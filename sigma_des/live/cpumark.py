@@ -51,12 +51,12 @@ class MarkAhead:
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=child_setup)
         out = self.proc.stdout
         assert out is not None
-        ready = [""]
-        reader = threading.Thread(target=lambda: ready.__setitem__(0, out.readline()),
-                                  daemon=True)  # a bounded wait for its first line
-        reader.start()
-        reader.join(ready_s)
-        self.ready = ready[0].strip() == "ready"
+        self._first = [""]
+        self._reader = threading.Thread(
+            target=lambda: self._first.__setitem__(0, out.readline()), daemon=True)
+        self._reader.start()  # a bounded wait for its first line
+        self._reader.join(ready_s)
+        self.ready = self._first[0].strip() == "ready"
 
     def arm(self, at: float) -> None:
         """Take the mark at ``time.monotonic()`` time ``at``."""
@@ -78,7 +78,9 @@ class MarkAhead:
             self.cancel()
             return f"no answer within {timeout:g} s of its time"
         assert self.proc.stdout is not None and self.proc.stderr is not None
-        out, err = self.proc.stdout.read(), self.proc.stderr.read()
+        self._reader.join(5.0)  # a child slow to start: its first line may be the mark
+        first = self._first[0] if self._first[0].strip() != "ready" else ""
+        out, err = first + self.proc.stdout.read(), self.proc.stderr.read()
         self.proc.stdout.close()
         self.proc.stderr.close()
         if self.proc.returncode != 0 or not out.strip():

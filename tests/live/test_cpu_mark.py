@@ -65,3 +65,14 @@ def test_a_helper_that_fails_is_reported_not_waited_for() -> None:
     ahead.arm(time.monotonic())  # the request goes nowhere: no error here
     got = ahead.result(timeout=5.0)
     assert isinstance(got, str) and got.startswith("exit -9")
+
+
+def test_a_helper_slow_to_start_still_delivers_its_mark() -> None:
+    """Not waited for at start (``ready_s`` 0): its 'ready' line and its mark are read
+    in order whoever reads first, and the mark comes back whole."""
+    ahead = MarkAhead({"server": os.getpid()}, ready_s=0.0)
+    ahead.arm(time.monotonic() + 0.5)
+    got = ahead.result(timeout=10.0)
+    assert not isinstance(got, str), got
+    (wall, _busy, cpu), runq, threads = got
+    assert wall >= ahead.at and set(cpu) == set(runq) == set(threads) == {"server"}
