@@ -155,12 +155,17 @@ def holding(plan: Plan, live: dict[str, dict[str, Any]], mode: str, f_trig: floa
                                              KNEE_MISSED, None)]
 
 
+def _live_f_trig() -> float:
+    """The trigger rate the live runs ran (the knee's held-rate predicate needs it)."""
+    from sigma_des.config import load
+
+    return load(None, list(LIVE_BASE)).f_trig
+
+
 def _knee_live(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: Say) -> None:
     """Live's knee runs: per mode, the next :attr:`Plan.knee_live` size while a method
     still holds at the largest size live ran (added to ``live``)."""
-    from sigma_des.config import load
-
-    f_trig = load(None, list(LIVE_BASE)).f_trig  # what the live runs ran
+    f_trig = _live_f_trig()
     for mode in MODES:
         for cell in plan.knee_live_cells(mode):
             still = holding(plan, live, mode, f_trig)
@@ -174,12 +179,11 @@ def _knee_tiebreak(plan: Plan, live: dict[str, dict[str, Any]], out: Path, say: 
     """Per mode, :attr:`Plan.knee_tiebreak` more live runs of each held-out size of live's
     knee grid whose runs disagree about holding (added to ``live``): the mean of an odd
     number of runs decides live's knee there."""
-    from sigma_des.config import load
     from sigma_lab.studies.validation.knees import disputed_points
 
     if not plan.knee_tiebreak:
         return
-    f_trig = load(None, list(LIVE_BASE)).f_trig
+    f_trig = _live_f_trig()
     for mode in MODES:
         for cell, methods in disputed_points(plan, live, mode, f_trig):
             for extra in plan.tiebreak_cells(cell):
