@@ -16,7 +16,8 @@ A prediction's interval for one metric joins two parts:
 
 For a relative metric, live = DES / (1 + r), so the interval is
 ``[(m - h) / (1 + r_hi), (m + h) / (1 + r_lo)]``; for the missed-frame fraction
-``[m - h - r_hi / 100, m + h - r_lo / 100]`` clipped to 0..1. The residuals come from
+``[m - h - r_hi / 100, m + h - r_lo / 100]``, at least one frame of the target's window
+(``1 / frames``) either side of ``m`` (:func:`interval`), clipped to 0..1. The residuals come from
 ``residuals.toml`` (shipped with the package, :func:`load_residuals`): either the
 residual values (what the validation suite writes) or, where only a published
 summary of a validation exists, its bounds ``lo``, ``hi`` with their source.
@@ -175,10 +176,18 @@ class Interval:
 
 
 def interval(metric: str, values: Sequence[float], res: Residual | None,
-             coverage: float = COVERAGE) -> Interval:
+             coverage: float = COVERAGE, frames: float = 0.0) -> Interval:
     """The interval of ``metric`` from the seeds' ``values`` and the residuals ``res``
     (None: the seed spread alone); see the module doc. NaN values are left out; none
-    finite gives NaN throughout."""
+    finite gives NaN throughout.
+
+    ``frames`` (the target's trigger rate times its metrics window; 0: not known) sets
+    the missed-frame fraction's resolution: its interval reaches at least ``1 / frames``
+    either side of the DES's value. A stall of the live machine now and then drops a
+    whole frame's states, which the DES has no cause for; most validated cells below
+    capacity miss nothing in either, so their residuals alone give an interval
+    narrower than one frame, which a single stall would leave.
+    """
     xs = [v for v in values if math.isfinite(v)]
     if not xs:
         return Interval(math.nan, math.nan, math.nan, math.nan, res)
@@ -187,8 +196,9 @@ def interval(metric: str, values: Sequence[float], res: Residual | None,
     h = statistics.NormalDist().inv_cdf(0.5 + coverage / 2.0) * s
     r_lo, r_hi = (res.lo, res.hi) if res is not None else (0.0, 0.0)
     if metric in PP_METRICS:
-        lo = min(1.0, max(0.0, m - h - r_hi / 100.0))
-        hi = min(1.0, max(0.0, m + h - r_lo / 100.0))
+        step = 1.0 / frames if frames > 0.0 else 0.0
+        lo = min(1.0, max(0.0, min(m - h - r_hi / 100.0, m - step)))
+        hi = min(1.0, max(0.0, max(m + h - r_lo / 100.0, m + step)))
     else:
         lo = max(0.0, m - h) / (1.0 + r_hi)
         hi = (m + h) / (1.0 + r_lo) if r_lo > -1.0 else math.inf

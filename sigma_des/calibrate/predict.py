@@ -198,6 +198,7 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
     table, meta = load_residuals(residuals)
     cov = float(meta.get("coverage", COVERAGE))
     seed_list = [sc.seed + i for i in range(seeds)]
+    frames = sc.f_trig * (sc.duration - sc.warmup)  # the missed fraction's resolution
     pred = Prediction(sc, bundle, seed_list, coverage=cov, residual_meta=meta,
                       state_hops=state_hop_ratio(cal, report, sc))
     for m in methods or METHODS:
@@ -210,8 +211,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
         util = _mean([r["machine_cpu_util_max"] for r in runs])
         missed = _mean([r["missed_frac"] for r in runs])
         pred.regimes[m] = reg = regime(bundle, util, missed)
-        pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, reg), cov)
-                             for k in FIGURES}
+        pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, reg), cov,
+                                         frames=frames) for k in FIGURES}
     return pred
 
 

@@ -89,6 +89,24 @@ def test_interval_joins_seed_spread_and_residuals_by_hand() -> None:
     assert math.isnan(interval("aoi_mean", [math.nan], res).mean)
 
 
+def test_missed_frame_interval_reaches_one_frame_of_the_window() -> None:
+    # residuals all 0 (a regime where neither misses): the residuals alone give [m, m]
+    zero = Residual("missed_frac", "node-below", 0.0, 0.0, 40, True, "hand")
+    assert interval("missed_frac", [0.0], zero).hi == 0.0
+    # 300 frames (100 Hz x a 3 s window): one frame is 1/300 either side, clipped at 0
+    iv = interval("missed_frac", [0.0], zero, frames=300.0)
+    assert (iv.lo, iv.hi) == (0.0, pytest.approx(1 / 300))
+    mid = interval("missed_frac", [0.01], zero, frames=300.0)
+    assert (mid.lo, mid.hi) == (pytest.approx(0.01 - 1 / 300), pytest.approx(0.01 + 1 / 300))
+    # residuals reaching further than a frame keep their bounds: -0.5 pp .. +2 pp
+    wide = Residual("missed_frac", "node-near", -0.5, 2.0, 40, True, "hand")
+    w = interval("missed_frac", [0.05], wide, frames=300.0)
+    assert (w.lo, w.hi) == (pytest.approx(0.03), pytest.approx(0.055))
+    # other metrics are not in frames: the same interval with or without
+    res = Residual("aoi_mean", "node-below", -0.1, 0.1, 40, True, "hand")
+    assert interval("aoi_mean", [10.0], res, frames=300.0) == interval("aoi_mean", [10.0], res)
+
+
 def test_regime_and_lookup_order() -> None:
     assert regime(False, 0.5, 0.0) == "node-below"
     assert regime(False, 0.7, 0.0) == "node-near"

@@ -102,6 +102,25 @@ def test_coverage_leave_one_out_by_hand() -> None:
     assert vals[("aoi_mean", "any")] == vals[("aoi_mean", "node-below")]
 
 
+def test_coverage_of_missed_frames_reaches_one_frame() -> None:
+    from sigma_lab.studies.validation.coverage import coverage_rows
+
+    def row(i: int, live: float, des: float) -> dict[str, object]:
+        return {"held_out": True, "passed": True, "metric": "missed_frac",
+                "regime": "node-below", "live": live, "des": des,
+                "rel_error": 100 * (des - live), "cell": i}
+
+    # nine cells miss nothing in either; the tenth's live lost a frame of 300 (the DES
+    # none): the others' residuals are all 0, so only a frame's reach holds it
+    rows = [row(i, 0.0, 0.0) for i in range(9)] + [row(9, 1 / 300, 0.0)]
+    (bare,) = coverage_rows(rows, ["missed_frac"])
+    (c,) = coverage_rows(rows, ["missed_frac"], frames=300.0)
+    assert (bare["covered"], c["covered"]) == (9, 10)
+    # each interval is [0, 1/300] (the lower reach clipped at 0): 1/3 pp wide; without
+    # the frame, the tenth's is [0, 0] (the others' residuals all 0)
+    assert c["median_width"] == pytest.approx(100 / 300)
+
+
 def test_judge_trigger_rate_only_where_live_holds_it() -> None:
     assert judge("trigger_rate_hz", 90.0, 90.0, f_trig=100.0) == Verdict(
         False, False, True, "rate not held")

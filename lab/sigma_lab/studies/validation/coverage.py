@@ -10,7 +10,8 @@ cell's residual into its own interval (leave one out):
   ``predict``), and a residual: ``rel_error`` (percentage points for missed frames);
 * its interval is the DES value (one seed) widened by the bounds of the **other**
   rows' residuals of that metric and regime (those of every regime when fewer than
-  :data:`MIN_OTHERS` other rows share it);
+  :data:`MIN_OTHERS` other rows share it), a missed-frame interval by at least one
+  frame of the cell's window, as ``predict`` builds it;
 * covered when ``lo <= live <= hi``; per metric the share covered and the median
   width (relative to live; pp for missed frames).
 
@@ -53,9 +54,10 @@ def residual_values(rows: Sequence[dict[str, Any]]) -> dict[tuple[str, str], lis
 
 
 def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
-                  coverage: float = COVERAGE) -> list[dict[str, Any]]:
+                  coverage: float = COVERAGE, frames: float = 0.0) -> list[dict[str, Any]]:
     """Per metric: rows scored, covered, the share and the median width (see the
-    module doc)."""
+    module doc); ``frames``, the cells' frames per metrics window, sets the missed-frame
+    interval's least reach, as ``predict`` sets it."""
     scored = _scored(rows)
     out = []
     for k in metrics:
@@ -70,7 +72,8 @@ def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
                 continue
             lo, hi, enough = residual_bounds(others, coverage)
             iv = interval(k, [float(r["des"])], Residual(k, r["regime"], lo, hi, len(others),
-                                                         enough, "leave one out"), coverage)
+                                                         enough, "leave one out"), coverage,
+                          frames=frames)
             live = float(r["live"])
             hits += iv.lo <= live <= iv.hi
             widths.append(100.0 * (iv.hi - iv.lo) if k in PP_METRICS
