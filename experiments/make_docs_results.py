@@ -38,10 +38,12 @@ from sigma_lab.studies.machine import machine
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "docs" / "results" / "data"
-#: the earlier validations' residuals (a pooled file), pooled with the filed one's into
-#: the shipped file
-PREVIOUS = DATA / "residuals-previous.toml"
+#: the earlier validations' scored rows (sigma_lab.studies.validation.cross), joined
+#: with the filed one's into the shipped residuals
+PREVIOUS = DATA / "validations-previous.csv"
 SHIPPED = ROOT / "sigma_des" / "calibrate" / "residuals.toml"
+#: how the validations in the shipped residuals were made
+SOURCE = "python experiments/live_vs_des.py --calibrate-bundled --out OUT/validation"
 #: the kinds of output file filed for the docs
 KEEP = (".csv", ".json", ".md", ".png", ".toml", ".txt")
 
@@ -193,7 +195,7 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
         (dest / "run.json").write_text(json.dumps(run, indent=2) + "\n")
         print(f"filed {dest.relative_to(ROOT)} ({wall:.0f} s)")
         if s.name == "validation" and not quick:
-            _ship_residuals(dest / "residuals.toml")
+            _ship_residuals(dest / "cells.csv")
         return True
 
 
@@ -203,14 +205,16 @@ def _live_runs(out: Path) -> int:
 
 
 def _ship_residuals(filed: Path) -> None:
-    """``predict``'s residuals: this validation's pooled with the earlier ones'
-    (:data:`PREVIOUS`: before filing a validation on new live runs, pool there the
-    validation being replaced with the earlier ones, each scored by the model being
-    filed: after a change to the model, rerun ``experiments/live_vs_des.py`` on a copy
-    of its ``live/`` and ``cells/*.live.json``)."""
-    from sigma_des.calibrate.intervals import pooled_residuals
+    """``predict``'s residuals from the filed validation's ``cells.csv`` and the earlier
+    validations' rows (:data:`PREVIOUS`), each against its own live runs and against
+    the others' (:func:`sigma_lab.studies.validation.cross.shipped_toml`). Before filing
+    a validation on new live runs, add the one it replaces to :data:`PREVIOUS`
+    (``python -m sigma_lab.studies.validation.cross add``); every validation there must
+    be scored by the model being filed: after a change to the model, rerun
+    ``experiments/live_vs_des.py`` on a copy of its ``live/`` and ``cells/*.live.json``."""
+    from sigma_lab.studies.validation.cross import shipped_toml, validations
 
-    SHIPPED.write_text(pooled_residuals([filed, PREVIOUS] if PREVIOUS.exists() else [filed]))
+    SHIPPED.write_text(shipped_toml(validations(PREVIOUS, filed), SOURCE))
     print(f"wrote {SHIPPED.relative_to(ROOT)}")
 
 

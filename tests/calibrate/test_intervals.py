@@ -23,10 +23,6 @@ from sigma_des.calibrate.intervals import (
 )
 from sigma_des.errors import ConfigError
 
-DOCS_RESIDUALS = (Path(__file__).resolve().parents[2] / "docs" / "results" / "data"
-                  / "validation" / "residuals.toml")
-PREVIOUS_RESIDUALS = DOCS_RESIDUALS.parents[1] / "residuals-previous.toml"
-
 
 def test_residual_bounds_are_the_kth_order_statistics() -> None:
     # n = 19, coverage 0.8: k = floor(20 * 0.1) = 2 -> the 2nd smallest and 2nd largest
@@ -135,15 +131,6 @@ def test_residual_file_round_trip_and_the_shipped_one(tmp_path) -> None:  # type
     assert meta["coverage"] == COVERAGE  # written by the suite at the build coverage
     for r in shipped.values():  # every entry says where it comes from
         assert r.source and r.n > 0
-    # the shipped residuals are those of the validation the docs show pooled with the
-    # previous one's
-    pooled = tmp_path / "pooled.toml"
-    pooled.write_text(pooled_residuals([DOCS_RESIDUALS, PREVIOUS_RESIDUALS]))
-    assert load_residuals(pooled) == (shipped, meta)
-    filed, _ = load_residuals(DOCS_RESIDUALS)
-    previous, _ = load_residuals(PREVIOUS_RESIDUALS)
-    for key, r in shipped.items():
-        assert r.n == filed[key].n + previous[key].n
     for metric in ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz",
                    "missed_frac"):
         for reg in ("node-below", "node-near", "bundle-below", "bundle-near"):

@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from sigma_des.calibrate.intervals import COVERAGE, PP_METRICS, Residual, interval, residual_bounds
 
-__all__ = ["MIN_OTHERS", "TARGET", "coverage_rows", "residual_values"]
+__all__ = ["MIN_OTHERS", "TARGET", "coverage_rows", "residual_values", "scored_rows"]
 
 #: Fewest other rows of a regime whose residuals make an interval (else every regime's).
 MIN_OTHERS = 4
@@ -38,7 +38,8 @@ MIN_OTHERS = 4
 TARGET = 0.80
 
 
-def _scored(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+def scored_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The held-out rows the suite scored, with a finite residual and live value."""
     return [r for r in rows if r["held_out"] and r["passed"] != ""
             and math.isfinite(float(r["rel_error"])) and math.isfinite(float(r["live"]))]
 
@@ -46,7 +47,7 @@ def _scored(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 def residual_values(rows: Sequence[dict[str, Any]]) -> dict[tuple[str, str], list[float]]:
     """Scored held-out residuals per ``(metric, regime)`` and per ``(metric, "any")``."""
     out: dict[tuple[str, str], list[float]] = {}
-    for r in _scored(rows):
+    for r in scored_rows(rows):
         e = float(r["rel_error"])
         out.setdefault((r["metric"], r["regime"]), []).append(e)
         out.setdefault((r["metric"], "any"), []).append(e)
@@ -58,7 +59,7 @@ def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
     """Per metric: rows scored, covered, the share and the median width (see the
     module doc); ``frames``, the cells' frames per metrics window, sets the missed-frame
     interval's least reach, as ``predict`` sets it."""
-    scored = _scored(rows)
+    scored = scored_rows(rows)
     out = []
     for k in metrics:
         sel = [r for r in scored if r["metric"] == k]

@@ -201,7 +201,8 @@ def _coverage_md(cov: list[dict[str, Any]]) -> list[str]:
     return ["", "## Interval coverage (held-out cells, leave one out)", "",
             "Each held-out cell's interval is its DES value widened by the residuals of the "
             "other held-out cells of its metric and regime (as `sigma-des predict` widens "
-            "by the last validation's); covered when live's value is inside. The intervals "
+            "by the validations' residuals), a missed-frame interval by at least one frame "
+            "of the window either side; covered when live's value is inside. The intervals "
             "are built for more than the target share: a regime has few residuals, and "
             "intervals built for exactly the target fall short of it about half the time.",
             "",
