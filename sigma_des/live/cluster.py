@@ -413,12 +413,12 @@ class ClockedServer(LiveServer):
 
     book: ClockBook
 
-    def _state(self, t: float, kind: int, node: int, frame: int, t_gen: float, t_send: float,
-               hl: float, hc: int, obs: NDArray[np.float64]) -> None:
+    def _state(self, t: float, kind: int, node: int, frame: int, index: int, t_gen: float,
+               t_send: float, hl: float, hc: int, obs: NDArray[np.float64]) -> None:
         h = self.host_of[node]
         t_gen = self.book.to_server(h, t_gen)
         t_send = self.book.latency(h, t_send, t)
-        super()._state(t, kind, node, frame, t_gen, t_send, hl, hc, obs)
+        super()._state(t, kind, node, frame, index, t_gen, t_send, hl, hc, obs)
 
 
 #: Columns of a host's message row (after kind) holding times on the host's clock.

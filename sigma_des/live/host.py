@@ -344,7 +344,7 @@ class Host(ImpairedSender):
         frame, t_gen, obs, stamp = payload
         hl, hc = (stamp.l, stamp.c) if stamp is not None else (-math.inf, 0)
         node = int(self.nodes[j])
-        msg = encode_state(node, frame, t_gen, t, hl, hc, obs, republish)
+        msg = encode_state(node, frame, t_gen, t, hl, hc, obs, republish, index)
         kind, key = (REPUBLISH, index) if republish else (STATE, frame)
         if not self.bundle:
             self._publish(self.topics.state(self.h), msg, t, kind, node, key)

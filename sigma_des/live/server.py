@@ -119,7 +119,6 @@ class LiveServer(AlignmentServer, ImpairedSender):
         self.rejected = 0
         self.unknown_topic = 0
         self.late = 0
-        self.rereq_index: dict[tuple[int, int], int] = {}  # (node, frame): newest re-request
         # bundles' draw keys, sent (commands) and received (states), per host's channel
         # (the simulation's rule: sigma_des.net.bundlekeys)
         self._first = first_nodes(sc.host_of)
@@ -156,7 +155,7 @@ class LiveServer(AlignmentServer, ImpairedSender):
     def rerequest(self, node: int, frame: int, retry: int) -> None:
         """Lock-Step: ask ``node`` again for its state of ``frame``."""
         t = self.now()
-        index = self.rereq_index[node, frame] = rerequest_index(frame, retry)
+        index = rerequest_index(frame, retry)
         self._publish(self.topics.rereq(self.host_of[node]),
                       encode_rerequest(node, frame, retry, t), t, REREQUEST, node, index)
 
@@ -237,11 +236,10 @@ class LiveServer(AlignmentServer, ImpairedSender):
         if not self.running:
             self.late += len(recs)
             return
-        self.ledger.received(recs[0][4], len(topic), len(payload), self.qos)
-        kind, node, frame = recs[0][:3]
-        # a republished state's draws are keyed by the re-request it answers (the DES's
-        # REPUBLISH); its record does not say which, so by the newest one sent
-        index = self.rereq_index.get((node, frame), frame) if kind == REPUBLISH else frame
+        self.ledger.received(recs[0][5], len(topic), len(payload), self.qos)
+        # a republished state's draws are keyed by the re-request it answers (its record
+        # carries it, as the DES's REPUBLISH); a state's by its frame
+        kind, node, _frame, index = recs[0][:4]
         if self.bundle:  # by its place among the host's bundles of that (kind, index)
             kind, node, index = self._recv_keys.key(host, self._first[host], kind, node, index)
         at = self.impair.arrival(t, DOWN, kind, node, index)
@@ -256,12 +254,13 @@ class LiveServer(AlignmentServer, ImpairedSender):
     def _state_at(self, args: tuple[Any, ...]) -> None:
         self._state(self.now(), *args)
 
-    def _state(self, t: float, kind: int, node: int, frame: int, t_gen: float, t_send: float,
-               hl: float, hc: int, obs: NDArray[np.float64]) -> None:
+    def _state(self, t: float, kind: int, node: int, frame: int, index: int, t_gen: float,
+               t_send: float, hl: float, hc: int, obs: NDArray[np.float64]) -> None:
         if t >= self.sc.duration:
             return
         rep = kind == REPUBLISH
-        self.collector.delivered(kind, node, frame, t_send, t)
+        # each re-request's answer is a message of its own (the DES keys REPUBLISH by it)
+        self.collector.delivered(kind, node, index, t_send, t)
         self.rows.append(("state", self.host_of[node], node, frame, t_send, t, self.now(),
                           math.nan, 1.0 if rep else 0.0))
         if self.record:

@@ -12,16 +12,17 @@ Payloads (bytes in brackets; ``f64`` times in s since the run's start; the kind 
 is the message kind of :mod:`sigma_des.net.kinds`):
 
 * trigger [33]: kind u8 = 1, frame u32, t_send f64, dt f64, hlc_l f64, hlc_c u32
-* state [85]: kind u8 = 2 (5 = republished), node u32, frame u32, t_gen f64,
-  t_send f64, hlc_l f64, hlc_c u32, 12 x f32 published state (``OBS_FIELDS``)
+* state [93]: kind u8 = 2 (5 = republished), node u32, frame u32, index u64 (the
+  frame; a republish: the re-request it answers), t_gen f64, t_send f64, hlc_l f64,
+  hlc_c u32, 12 x f32 published state (``OBS_FIELDS``)
 * command [23 + 8 m]: kind u8 = 3, node u32, stamp_frame i32, tick u32, t_send f64,
   m u16, m x f64 values
 * rerequest [21]: kind u8 = 4, node u32, frame u32, retry u32, t_send f64
 
-With ``--bundle`` a host's states of one loop turn are 85-byte records back to back in
+With ``--bundle`` a host's states of one loop turn are 93-byte records back to back in
 one PUBLISH (at most :data:`MAX_BUNDLE`).
 
-Ours is 85 bytes, not the paper's 150 bits: it carries the whole published state in
+Ours is 93 bytes, not the paper's 150 bits: it carries the whole published state in
 float32 plus the times and HLC fields the measurements need (``calibrate`` sets the
 DES's ``payload_bits`` to match). Every decoder checks length,
 kind, ranges and finiteness and raises :class:`WireError` on anything else; given
@@ -42,7 +43,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, STATE, TRIGGER
+from sigma_des.net.kinds import COMMAND, REPUBLISH, REREQUEST, RETRY_SLOTS, STATE, TRIGGER
 
 __all__ = [
     "COMMAND",
@@ -75,7 +76,7 @@ __all__ = [
 ]
 
 _TRIG = struct.Struct("<BIdddI")
-_STATE = struct.Struct("<BIIdddI12f")
+_STATE = struct.Struct("<BIIQdddI12f")
 _CMD_HEAD = struct.Struct("<BIiIdH")
 _REREQ = struct.Struct("<BIIId")
 TRIGGER_BYTES = _TRIG.size
@@ -242,25 +243,41 @@ def decode_trigger(b: bytes, win: Window | None = None,
 
 def encode_state(
     node: int, frame: int, t_gen: float, t_send: float, hlc_l: float, hlc_c: int,
-    obs: NDArray[np.float64], republish: bool = False,
+    obs: NDArray[np.float64], republish: bool = False, index: int = -1,
 ) -> bytes:
-    """A state payload (``obs``: the node's 12-column published state)."""
-    return _STATE.pack(REPUBLISH if republish else STATE, node, frame, t_gen, t_send,
-                       hlc_l, hlc_c, *obs.tolist())
+    """A state payload (``obs``: the node's 12-column published state). A republish
+    carries ``index``, the re-request it answers
+    (:func:`~sigma_des.net.kinds.rerequest_index`): the key of its draws and of its
+    delivery, as the DES's REPUBLISH; a state carries its frame there.
+
+    Raises:
+        ValueError: a republish without its re-request's index.
+    """
+    if republish and index < 0:
+        raise ValueError("encode_state: a republish needs the index of its re-request")
+    return _STATE.pack(REPUBLISH if republish else STATE, node, frame,
+                       index if republish else frame, t_gen, t_send, hlc_l, hlc_c,
+                       *obs.tolist())
 
 
 def decode_state(
     b: bytes, n: int, win: Window | None = None
-) -> tuple[int, int, int, float, float, float, int, NDArray[np.float64]]:
-    """``(kind, node, frame, t_gen, t_send, hlc_l, hlc_c, obs)``; ``node`` must be < ``n``
-    (and, given the run's window ``win``, frame and times within the run)."""
+) -> tuple[int, int, int, int, float, float, float, int, NDArray[np.float64]]:
+    """``(kind, node, frame, index, t_gen, t_send, hlc_l, hlc_c, obs)``; ``node`` must be
+    < ``n``, a state's ``index`` its frame, a republish's that of a re-request of its
+    frame or a later one (a node republishes its last state) (and, given the run's window
+    ``win``, frame and times within the run)."""
     if len(b) != _STATE.size:
         raise WireError(f"state: {len(b)} bytes, expected {_STATE.size}")
     v = _STATE.unpack(b)
-    kind, node, frame, t_gen, t_send, hl, hc = v[:7]
-    obs = np.asarray(v[7:], dtype=np.float64)
+    kind, node, frame, index, t_gen, t_send, hl, hc = v[:8]
+    obs = np.asarray(v[8:], dtype=np.float64)
     if kind not in (STATE, REPUBLISH) or node >= n or frame >= 2**31:
         raise WireError(f"state: bad kind {kind}, node {node} or frame {frame}")
+    if (index != frame) if kind == STATE else not (
+            frame * RETRY_SLOTS <= index < 2**31 * RETRY_SLOTS):
+        raise WireError(f"state: index {index} of a {'state' if kind == STATE else 'republish'}"
+                        f" of frame {frame}")
     if not _finite(t_gen, t_send) or math.isnan(hl) or not np.isfinite(obs).all():
         raise WireError("state: NaN or infinite field")
     if win is not None:
@@ -268,7 +285,7 @@ def decode_state(
         win.times("state", t_gen, t_send)
         if not _hlc_ok(hl) or np.abs(obs).max() > MAX_VALUE:
             raise WireError(f"state: HLC time or a published value beyond {MAX_VALUE:g}")
-    return kind, node, frame, t_gen, t_send, hl, hc, obs
+    return kind, node, frame, index, t_gen, t_send, hl, hc, obs
 
 
 def encode_command(

@@ -16,6 +16,7 @@ import pytest
 
 from sigma_des.config import load
 from sigma_des.live.broker import find_mosquitto
+from sigma_des.live.wire import STATE_BYTES
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto is not installed")
@@ -71,7 +72,7 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
     assert "## Targets" in (tmp_path / "summary.md").read_text()
     assert (tmp_path / "live_vs_des.png").stat().st_size > 10_000
     sc = load(str(tmp_path / "cal" / "calibrated.toml"))
-    assert sc.payload_bits == 85 * 8 and sc.nodes == 4
+    assert sc.payload_bits == STATE_BYTES * 8 == 93 * 8 and sc.nodes == 4
     assert (tmp_path / "live" / "cal-r1" / "messages.csv.gz").exists()
     again = subprocess.run(cmd, check=True, env=env, timeout=600, capture_output=True, text=True)
     kept = [ln for ln in again.stderr.splitlines() if ln.startswith("[") and "kept" in ln]

@@ -26,11 +26,12 @@ from sigma_des.live.wire import (
     run_token,
     state_topic_bytes,
 )
+from sigma_des.net.kinds import STATE
 
 
 def test_sizes_are_the_documented_ones() -> None:
     assert TRIGGER_BYTES == 33
-    assert STATE_BYTES == 85
+    assert STATE_BYTES == 93
     assert len(encode_command(1, 2, 3, 0.5, np.zeros(4))) == command_bytes(4) == 23 + 8 * 4
     assert len(encode_rerequest(1, 2, 3, 0.5)) == REREQUEST_BYTES == 21
 
@@ -47,10 +48,15 @@ def test_round_trips() -> None:
     assert decode_trigger(encode_trigger(7, 0.07, 0.01, -math.inf, 0)) == (
         7, 0.07, 0.01, -math.inf, 0)
     obs = np.arange(12, dtype=np.float64) * 0.5  # exactly representable in float32
-    kind, node, frame, tg, ts, hl, hc, back = decode_state(
-        encode_state(3, 9, 0.25, 0.5, 0.125, 4, obs, republish=True), n=4)
-    assert (kind, node, frame, tg, ts, hl, hc) == (5, 3, 9, 0.25, 0.5, 0.125, 4)
+    # a republish of frame 9's state answering re-request 2 of frame 10: 10 * 64 + 2
+    kind, node, frame, index, tg, ts, hl, hc, back = decode_state(
+        encode_state(3, 9, 0.25, 0.5, 0.125, 4, obs, republish=True, index=642), n=4)
+    assert (kind, node, frame, index, tg, ts, hl, hc) == (5, 3, 9, 642, 0.25, 0.5, 0.125, 4)
     np.testing.assert_array_equal(back, obs)
+    assert decode_state(encode_state(3, 9, 0.25, 0.5, 0.125, 4, obs), n=4)[:4] == (
+        STATE, 3, 9, 9)  # a state's index is its frame
+    with pytest.raises(ValueError, match="re-request"):
+        encode_state(3, 9, 0.25, 0.5, 0.125, 4, obs, republish=True)
     vals = np.array([1.5, math.nan, -2.0])
     node, stamp, tick, ts, v = decode_command(encode_command(2, -1, 11, 0.3, vals), width=3)
     assert (node, stamp, tick, ts) == (2, -1, 11, 0.3)
@@ -68,6 +74,11 @@ def test_round_trips() -> None:
         encode_state(0, 1, 0.0, 0.0, 0.0, 0, np.full(12, math.nan)),  # NaN state
         encode_state(0, 1, 0.0, math.inf, 0.0, 0, np.zeros(12)),  # infinite time
         encode_state(9, 1, 0.0, 0.0, 0.0, 0, np.zeros(12)),  # node out of range
+        # a republish of frame 9 answering a re-request of frame 8 (it cannot be older)
+        encode_state(0, 9, 0.0, 0.0, 0.0, 0, np.zeros(12), republish=True, index=8 * 64 + 3),
+        # a state whose index is not its frame
+        encode_state(0, 1, 0.0, 0.0, 0.0, 0, np.zeros(12))[:9] + (2).to_bytes(8, "little")
+        + encode_state(0, 1, 0.0, 0.0, 0.0, 0, np.zeros(12))[17:],
         b"\x07" + encode_state(0, 1, 0.0, 0.0, 0.0, 0, np.zeros(12))[1:],  # wrong kind
         encode_trigger(1, 0.0, 0.01, 0.0, 0),  # a trigger is not a state
     ],
