@@ -19,15 +19,13 @@ is the message kind of :mod:`sigma_des.net.kinds`):
   m u16, m x f64 values
 * rerequest [21]: kind u8 = 4, node u32, frame u32, retry u32, t_send f64
 
-With ``--bundle`` a host's states of one loop turn are 93-byte records back to back in
-one PUBLISH (at most :data:`MAX_BUNDLE`).
-
-Ours is 93 bytes, not the paper's 150 bits: it carries the whole published state in
-float32 plus the times and HLC fields the measurements need (``calibrate`` sets the
-DES's ``payload_bits`` to match). Every decoder checks length,
-kind, ranges and finiteness and raises :class:`WireError` on anything else; given
-the run's :class:`Window`, also that frames and times lie within the run (a forged
-trigger for frame 2^32-1 would otherwise make a host step four billion frames).
+With ``--bundle`` a host's states of one loop turn are records back to back in one
+PUBLISH (at most :data:`MAX_BUNDLE`). A state is 93 bytes, not the paper's 150 bits:
+it carries the whole published state in float32 plus the times and HLC fields the
+measurements need (``calibrate`` sets the DES's ``payload_bits`` to match). Every
+decoder checks length, kind, ranges and finiteness and raises :class:`WireError` on
+anything else; given the run's :class:`Window`, also that frames and times lie within
+the run (a forged trigger for frame 2^32-1 would make a host step four billion frames).
 Control messages: :func:`decode_control`; the hosts' counters: :func:`check_stats`.
 """
 
