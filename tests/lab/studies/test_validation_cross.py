@@ -84,10 +84,18 @@ def test_table_keeps_only_scored_held_out_rows_and_refuses_a_tag_twice(
     with pytest.raises(SystemExit) as e:
         main(["add", "2026-12-07T09:13", str(cells), str(table)])
     assert e.value.code == 2
-    # the filed validation joins the table's under the name 'filed'
-    both = validations(table, cells)
+    # the filed validation joins the table's under the name 'filed' ...
+    other = tmp_path / "other.csv"
+    with other.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows([_row("a", "aoi_mean", 10.5, 11.0), rows[3]])
+    both = validations(table, other)
     assert list(both) == ["2026-12-07T09:13", "filed"]
     assert [r["cell"] for r in both["filed"]] == ["a", "c"]
+    # ... unless the table holds it already (its residuals would count twice)
+    with pytest.raises(ValueError, match="already holds the filed validation"):
+        validations(table, cells)
 
 
 def test_the_shipped_residuals_are_the_docs_validations() -> None:

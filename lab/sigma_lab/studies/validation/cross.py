@@ -97,10 +97,28 @@ def add(path: Path, tag: str, cells: Path) -> int:
 
 def validations(previous: Path, filed: Path) -> dict[str, list[dict[str, Any]]]:
     """The earlier validations' rows (the table at ``previous``) and the filed one's
-    (its ``cells.csv`` at ``filed``, as ``filed``), in that order."""
+    (its ``cells.csv`` at ``filed``, as ``filed``), in that order.
+
+    Raises:
+        ValueError: the table already holds the filed validation (the same live values
+            in every cell): its residuals would count twice.
+    """
     out = read_table(previous)
-    out["filed"] = compact(read_cells(filed), "filed")
+    rows = compact(read_cells(filed), "filed")
+    for tag, old in out.items():
+        if _same_live(old, rows):
+            raise ValueError(f"{previous} already holds the filed validation (as {tag!r})")
+    out["filed"] = rows
     return out
+
+
+def _same_live(a: Rows, b: Rows) -> bool:
+    """The same cells, methods and metrics with the same live values (to the table's six
+    significant digits)."""
+    ka = {(r["cell"], r["method"], r["metric"]): float(r["live"]) for r in a}
+    kb = {(r["cell"], r["method"], r["metric"]): float(r["live"]) for r in b}
+    return ka.keys() == kb.keys() and all(
+        math.isclose(v, kb[k], rel_tol=1e-5, abs_tol=1e-12) for k, v in ka.items())
 
 
 def _put(out: dict[tuple[str, str], list[float]], metric: str, reg: str, e: float) -> None:
