@@ -225,13 +225,14 @@ def residuals_toml(values: dict[tuple[str, str], list[float]], meta: dict[str, A
 
 def pooled_residuals(paths: Sequence[str | Path]) -> str:
     """One ``residuals.toml`` holding the residuals of several validations (each
-    ``(metric, regime)``'s values joined, in the order given), as the package ships it.
+    ``(metric, regime)``'s values joined, in the order given): a user's own validations
+    pooled, or pooled with the shipped file, for ``predict --residuals``.
 
     Why: one validation's residuals hold its cells' errors under one calibration; a
-    user's calibration, made another day, moves the predictions by more than that
-    (measured on held-out cells the suite never runs: intervals from one validation
-    held 78-94 % of their live values per metric, from three 84-100 %). A pooled file
-    may be pooled again: its ``validations`` count adds up.
+    calibration made another day moves the predictions by more than that. A pooled file
+    may be pooled again: its ``validations`` count adds up, and so does the
+    ``cross_pairs`` count of a file that holds cross-session residuals (the shipped
+    one).
 
     Raises:
         ConfigError: (``residuals``) an unreadable file, an entry given as bounds only
@@ -241,6 +242,7 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
     values: dict[tuple[str, str], list[float]] = {}
     covs, sources = set(), []
     count = 0  # validations pooled: a pooled file counts its own
+    pairs = 0  # ordered pairs of validations whose cross residuals are in the files
     for path in paths:
         data = _read(path)
         meta = dict(data.get("meta", {}))
@@ -249,6 +251,7 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
             raise ConfigError("residuals", f"{path}: meta.validations must be an integer "
                               f">= 1, got {n!r}")
         count += n
+        pairs += int(meta.get("cross_pairs", 0))
         covs.add(float(meta.get("coverage", COVERAGE)))
         sources.append(str(meta.get("source", path)))
         for entry in data.get("residual", []):
@@ -260,6 +263,10 @@ def pooled_residuals(paths: Sequence[str | Path]) -> str:
     if len(covs) > 1:
         raise ConfigError("residuals", f"files built for different coverages: {sorted(covs)}")
     cov = covs.pop() if covs else COVERAGE
-    return residuals_toml(values, {"coverage": cov, "kind": "per-cell residuals of held-out "
-                                   f"cells, {count} validations", "validations": count,
-                                   "source": "; ".join(dict.fromkeys(sources))})
+    kind = f"per-cell residuals of held-out cells, {count} validations"
+    meta_out: dict[str, Any] = {"coverage": cov, "kind": kind, "validations": count}
+    if pairs:
+        meta_out["kind"] = f"{kind} and {pairs} cross-session pairs"
+        meta_out["cross_pairs"] = pairs
+    meta_out["source"] = "; ".join(dict.fromkeys(sources))
+    return residuals_toml(values, meta_out)

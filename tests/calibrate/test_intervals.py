@@ -166,6 +166,16 @@ def test_pooled_residuals_join_each_metric_and_regimes_values(tmp_path: Path) ->
     assert meta["validations"] == 3 and "3 validations" in meta["kind"]
     assert table[("aoi_mean", "any")].n == 8
     assert "0.05, 0.4, -0.1, 0.1, -0.2, 0.05, 0.4, -0.1" in q.read_text()
+    assert "cross_pairs" not in meta
+    # the shipped file's cross-session pairs are kept, not dropped
+    shipped = tmp_path / "shipped.toml"
+    shipped.write_text(residuals_toml({("aoi_mean", "any"): [0.2]},
+                                      {"coverage": 0.85, "validations": 3, "cross_pairs": 6}))
+    r = tmp_path / "r.toml"
+    r.write_text(pooled_residuals([shipped, a]))
+    _t, meta = load_residuals(r)
+    assert (meta["validations"], meta["cross_pairs"]) == (4, 6)
+    assert meta["kind"].endswith("4 validations and 6 cross-session pairs")
     with pytest.raises(ConfigError, match="coverages"):
         pooled_residuals([a, c])
     bad = tmp_path / "bad.toml"  # a count that is not an integer >= 1 is refused by name
