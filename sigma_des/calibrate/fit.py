@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from sigma_des.calibrate.burst import floor_share
 from sigma_des.calibrate.dequeue import HOLD_TOL, censored_weights, held, quantiles, sender_waits
-from sigma_des.calibrate.fit_cpu import fit_deployment, path_services
+from sigma_des.calibrate.fit_cpu import fit_deployment, live_info, path_services, recorded
 from sigma_des.calibrate.fit_step import MIN_SAMPLES, fit_compute
 from sigma_des.calibrate.messages import read_messages
 from sigma_des.calibrate.report import calibrated_toml, report_lines
@@ -356,6 +356,17 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
     return max(delivery_floor(trig), 0.0), slope
 
 
+def _record_bytes(source: Path, warn: list[str]) -> tuple[int, int]:
+    """The state and trigger records' bytes on the live run's wire (its ``summary.json``
+    records them; a run that does not is taken to be of this version's wire, warned)."""
+    info = live_info(source)
+    state = int(recorded(info, "state_bytes", STATE_BYTES,
+                         f"this version's {STATE_BYTES}-byte state record taken", warn))
+    trig = int(recorded(info, "trigger_bytes", TRIGGER_BYTES,
+                        f"this version's {TRIGGER_BYTES}-byte trigger record taken", warn))
+    return state, trig
+
+
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
               hold_tol: float = HOLD_TOL, threads: bool = True, runq_growth: bool = False
               ) -> tuple[Scenario, dict[str, Any]]:
@@ -411,10 +422,11 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
     width = make_dynamics(base).command_dim
+    state_b, trig_b = _record_bytes(source, warn)
     sc = replace(
         base,
-        payload_bits=STATE_BYTES * 8,
-        trigger_payload_bits=TRIGGER_BYTES * 8,
+        payload_bits=state_b * 8,
+        trigger_payload_bits=trig_b * 8,
         commands=replace(base.commands, payload_bits=command_bytes(width) * 8),
         net=replace(net, topic_bytes=topic_len),
         broker=BrokerSpec(publish_service=publish,

@@ -36,8 +36,7 @@ from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
 __all__ = ["BACKGROUND_CAP", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
-           "path_services",
-           "pooled_demand"]
+           "live_info", "path_services", "pooled_demand", "recorded"]
 
 #: Largest ``background`` a calibration writes, as a share of ``cores``.
 BACKGROUND_CAP = 0.95
@@ -75,7 +74,7 @@ def pooled_demand(table: pd.DataFrame, kind: str) -> tuple[float, float, float]:
     return (busy / msgs if msgs > 0 else math.nan), busy, msgs
 
 
-def _live_info(source: Path) -> dict[str, dict[str, Any]]:
+def live_info(source: Path) -> dict[str, dict[str, Any]]:
     """``summary.json``'s ``live`` table per method (empty if absent)."""
     summ = (source if source.is_dir() else source.parent) / "summary.json"
     if not summ.exists():
@@ -84,8 +83,10 @@ def _live_info(source: Path) -> dict[str, dict[str, Any]]:
     return {str(m): v for m, v in live.items() if isinstance(v, dict)}
 
 
-def _recorded(info: dict[str, dict[str, Any]], key: str, default: Any, what: str,
-              warn: list[str]) -> Any:
+def recorded(info: dict[str, dict[str, Any]], key: str, default: Any, what: str,
+             warn: list[str]) -> Any:
+    """The value of ``key`` the live run recorded (``info``: :func:`live_info`), or
+    ``default`` with a warning saying ``what`` was taken instead."""
     vals = [v[key] for v in info.values() if key in v]
     if not vals:
         warn.append(f"the live run's summary.json does not record {key!r}: {what}")
@@ -284,10 +285,10 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
         return None
     table, bg_per_method, w = fit_demands(cpu)
     warn.extend(w)
-    info = _live_info(source)
+    info = live_info(source)
     here = len(os.sched_getaffinity(0))
-    cores = int(_recorded(info, "cores", here, f"this machine's {here} CPUs taken", warn))
-    bundle = bool(_recorded(info, "bundle", False, "bundle = false taken", warn))
+    cores = int(recorded(info, "cores", here, f"this machine's {here} CPUs taken", warn))
+    bundle = bool(recorded(info, "bundle", False, "bundle = false taken", warn))
     if bundle:
         warn.append("the live run bundled states (--bundle): its demands are per PUBLISH, "
                     "a bundle of a loop turn's states; the DES bundles the states published "

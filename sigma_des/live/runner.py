@@ -52,7 +52,7 @@ from sigma_des.live.results import (
     message_table,
 )
 from sigma_des.live.server import LiveServer
-from sigma_des.live.wire import Topics, run_token
+from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES, Topics, run_token
 from sigma_des.metrics.reports import MethodReport
 
 __all__ = ["LiveOptions", "MESSAGE_COLUMNS", "run_live"]
@@ -355,9 +355,11 @@ def _run_method(sc: Scenario, m: str, run: str, addr: BrokerAddress, opts: LiveO
         out["live"]["clock"] = book.report(sc.duration)
     out["live"]["cpu"] = meter.rows(message_counts(srv.ledger.as_dict(), srv.stats, sc.net.qos),
                                     wake_sums(srv.loop.wake.as_dict(), srv.stats))
-    # what `calibrate` writes into [deployment]: the machine's CPUs, the bundling, the load
+    # what `calibrate` writes into the scenario: the machine's CPUs, the bundling, the
+    # load, the records' sizes on this version's wire
     out["live"].update(cores=len(os.sched_getaffinity(0)), bundle=opts.bundle,
-                       load1=os.getloadavg()[0])
+                       load1=os.getloadavg()[0], state_bytes=STATE_BYTES,
+                       trigger_bytes=TRIGGER_BYTES)
     out["metrics"].update({k: out["live"][k] for k in LIVE_METRICS})
     return out, table, interrupted
 

@@ -405,3 +405,20 @@ def test_the_two_threads_split_recovers_known_wake_ups_exactly(tmp_path: Path) -
     sc0, rep0 = calibrate(d, tmp_path / "files0")
     assert sc0.deployment.server_net_wake == 0.0 and sc0.deployment.server_wake_side > 0.0
     assert any("no server thread columns recorded" in w for w in rep0["warnings"])
+
+
+def test_record_sizes_are_the_runs_own(tmp_path: Path) -> None:
+    """A run made with an older wire (85-byte states) is calibrated with its own record
+    sizes; a run that does not record them takes this version's, warned."""
+    from sigma_des.live.wire import STATE_BYTES, TRIGGER_BYTES
+
+    old = _cpu_run(tmp_path / "old", live={"cores": CORES, "bundle": True, "load1": 0.5,
+                                          "state_bytes": 85, "trigger_bytes": 21})
+    sc, rep = calibrate(old, tmp_path / "fo")
+    assert (sc.payload_bits, sc.trigger_payload_bits) == (85 * 8, 21 * 8)
+    assert not any("record taken" in w for w in rep["warnings"])
+    sc, rep = calibrate(_cpu_run(tmp_path / "new"), tmp_path / "fn")
+    assert (sc.payload_bits, sc.trigger_payload_bits) == (STATE_BYTES * 8, TRIGGER_BYTES * 8)
+    w = " | ".join(rep["warnings"])
+    assert f"does not record 'state_bytes': this version's {STATE_BYTES}-byte" in w
+    assert f"does not record 'trigger_bytes': this version's {TRIGGER_BYTES}-byte" in w

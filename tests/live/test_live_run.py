@@ -14,6 +14,7 @@ from sigma_des.calibrate.insample import IN_SAMPLE_METRICS
 from sigma_des.calibrate.match import MATCH_ROUNDS, MATCH_TOL
 from sigma_des.cli import main
 from sigma_des.config import load
+from sigma_des.live.wire import STATE_BYTES
 from tests.live.live_helpers import LIVE_SETS, needs_mosquitto
 
 pytestmark = needs_mosquitto
@@ -106,6 +107,7 @@ def test_calibrate_writes_a_scenario_compare_runs(live_dir: Path, tmp_path: Path
     assert dep.cores == len(os.sched_getaffinity(0)) == summ["bides"]["cores"]
     assert dep.bundle is False and summ["bides"]["bundle"] is False
     assert all(summ[m]["load1"] >= 0 for m in summ)
+    assert sc.payload_bits == 8 * summ["bides"]["state_bytes"] == 8 * STATE_BYTES
     assert 0 < dep.host_demand < 0.01 and 0 < dep.server_demand < 0.01
     assert 0 <= dep.background < dep.cores
     pub, dlv = sc.broker.publish_service, sc.broker.delivery_service
