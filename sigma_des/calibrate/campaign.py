@@ -14,8 +14,8 @@ combines them (:func:`combine`), each parameter from the runs that show it:
 * the CPU of a bundle's further records (``host_record``, ``server_record``): the mean
   over the **bundled** runs, which are the ones where a loop handles several records
   of one message (the per-node runs' figure when there is none);
-* the step time and its host share (``compute``), the scenario's own keys and the
-  cores: the primary run (the first per-node one, else the first).
+* the step time and its host share, the scenario's keys and the cores: the primary
+  run (:func:`~sigma_des.calibrate.primary.primary_run`), which the hop match re-runs.
 
 The report's ``parameter_sources`` names the runs of each, ``runs`` each run's fit. Runs
 of different scenarios are refused (:func:`check_combinable`).
@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from sigma_des.calibrate.primary import primary_run
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 from sigma_des.net.latency import Dist, load_samples
@@ -61,7 +62,8 @@ _PER_RECORD = ("host_record", "server_record")
 
 class RunInfo(dict):  # type: ignore[type-arg]
     """What a live run's ``summary.json`` says: ``name``, ``scenario`` (flat dotted
-    keys), ``bundle``, ``cores`` and the measured ``background`` (cores, NaN unknown)."""
+    keys), ``bundle``, ``cores``, the measured ``background`` (cores, NaN unknown) and
+    ``figures`` (its ``methods`` table: per method, per metric, the value)."""
 
 
 def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -94,9 +96,12 @@ def run_info(source: Path) -> RunInfo:
             if r.get("process") == "background" and r.get("window_s", 0) > 0:
                 bg.append(float(r["cpu_s"]) / float(r["window_s"]))
     scen = summ.get("scenario")
+    methods = summ.get("methods")
+    figures = {str(m): v for m, v in methods.items() if isinstance(v, dict)} if isinstance(
+        methods, dict) else {}
     return RunInfo(name=str(source), scenario=_flat(scen if isinstance(scen, dict) else {}),
-                   bundle=bundle,
-                   cores=cores, background=float(np.mean(bg)) if bg else math.nan)
+                   bundle=bundle, cores=cores,
+                   background=float(np.mean(bg)) if bg else math.nan, figures=figures)
 
 
 def check_combinable(infos: list[RunInfo]) -> None:
@@ -211,7 +216,9 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     """
     node = [i for i, (_, _, inf) in enumerate(fits) if not inf["bundle"]]
     bundled = [i for i, (_, _, inf) in enumerate(fits) if inf["bundle"]]
-    primary = node[0] if node else 0
+    primary, rule = primary_run([{"name": inf["name"], "bundle": inf["bundle"],
+                                  "nodes": f.nodes, "hosts": f.hosts,
+                                  "figures": inf.get("figures", {})} for f, _, inf in fits])
     sc, rep, _ = fits[primary]
     names = [inf["name"] for _, _, inf in fits]
     lat_runs = node or list(range(len(fits)))
@@ -247,6 +254,7 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
         # the host burst the pooled state-hop samples hold (sigma_des.calibrate.burst)
         "hop_nodes_per_host": float(np.average(m, weights=w)),
         "primary_run": names[primary],
+        "primary_rule": rule,
         "parameter_sources": {
             "hop latencies (pooled samples)": [names[i] for i in lat_runs],
             "per-message CPU, run-queue waits, broker services": [names[i] for i in msg_runs],

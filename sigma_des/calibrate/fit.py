@@ -356,15 +356,18 @@ def _fit_delivery(base: Scenario, w: pd.DataFrame, warn: list[str]) -> tuple[flo
     return max(delivery_floor(trig), 0.0), slope
 
 
-def _record_bytes(source: Path, warn: list[str]) -> tuple[int, int]:
-    """The state and trigger records' bytes on the live run's wire (its ``summary.json``
-    records them; a run that does not is taken to be of this version's wire, warned)."""
+def _record_bits(source: Path, warn: list[str]) -> dict[str, Any]:
+    """``payload_bits`` and ``trigger_payload_bits``: the state and trigger records on
+    the live run's wire (its ``summary.json`` records their bytes; a live table that does
+    not is taken to be of this version's wire, warned; a run without one, silently)."""
     info = live_info(source)
+    if not info:
+        return {"payload_bits": STATE_BYTES * 8, "trigger_payload_bits": TRIGGER_BYTES * 8}
     state = int(recorded(info, "state_bytes", STATE_BYTES,
                          f"this version's {STATE_BYTES}-byte state record taken", warn))
     trig = int(recorded(info, "trigger_bytes", TRIGGER_BYTES,
                         f"this version's {TRIGGER_BYTES}-byte trigger record taken", warn))
-    return state, trig
+    return {"payload_bits": state * 8, "trigger_payload_bits": trig * 8}
 
 
 def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
@@ -422,11 +425,9 @@ def calibrate(source: Path, files_dir: Path | None = None, strict: bool = True,
                                          for m, h in zip(states["method"], states["host"],
                                                          strict=True)]))))
     width = make_dynamics(base).command_dim
-    state_b, trig_b = _record_bytes(source, warn)
     sc = replace(
         base,
-        payload_bits=state_b * 8,
-        trigger_payload_bits=trig_b * 8,
+        **_record_bits(source, warn),
         commands=replace(base.commands, payload_bits=command_bytes(width) * 8),
         net=replace(net, topic_bytes=topic_len),
         broker=BrokerSpec(publish_service=publish,

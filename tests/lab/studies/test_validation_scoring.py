@@ -8,7 +8,6 @@ import pytest
 from sigma_lab.studies.validation.grid import Plan, full_plan, hosts_for, quick_plan
 from sigma_lab.studies.validation.scoring import (
     Verdict,
-    central,
     error,
     judge,
     knee,
@@ -229,21 +228,3 @@ def test_estimate_hand_computed() -> None:
     assert plan.estimate() == pytest.approx(7 * 9.6 + (1.2 + 6 * 1.3) + 40.0)
     with pytest.raises(ConfigError, match="--duration"):
         Plan(("none",), 1.0, 1.0, cal_nodes=4, nodes=(6,), extra_nodes=6)
-
-
-def test_central_hand_computed() -> None:
-    runs = {"r1": {"a": {"aoi_mean": 1.0, "latency_state_mean": 4.0}},
-            "r2": {"a": {"aoi_mean": 1.1, "latency_state_mean": 3.0}},
-            "r3": {"a": {"aoi_mean": 1.2, "latency_state_mean": 3.1}}}
-    # medians 1.1 and 3.1: r1 0.0953 + 0.2549, r2 0 + 0.0328, r3 0.0870 + 0
-    assert central(runs) == "r2"
-    assert central(runs, ("aoi_mean",)) == "r2"
-    assert central(runs, ("latency_state_mean",)) == "r3"
-    # a method missing (or NaN) in one run is left out of the comparison
-    runs["r2"]["b"] = {"aoi_mean": 100.0, "latency_state_mean": 100.0}
-    runs["r1"]["b"] = {"aoi_mean": math.nan, "latency_state_mean": 1.0}
-    assert central(runs) == "r2"
-    # two runs: both equally far (in log) from their median; the first wins the tie
-    assert central({"x": {"a": {"aoi_mean": 1.0}}, "y": {"a": {"aoi_mean": 2.0}}}) == "x"
-    with pytest.raises(ValueError):
-        central({})

@@ -19,10 +19,10 @@ Pure functions of numbers (no runs, no files), so each rule is tested by hand:
   (``>= 95 %`` of the nominal ``f_trig``; elsewhere not scored); the missed-frame
   fraction within 10 percentage points. A live value without a DES one (no state
   reached the DES's server in the window) is a miss.
-* **the calibration's primary run** (:func:`central`): of the calibration setting's
-  repeats, the most typical one, whose mean AoI and mean state latency (every method)
-  lie closest to the repeats' medians (least summed distance in ``log x``; the first on
-  ties): one slow outlier run no longer sets the step time and the scenario's keys; the
+* **the calibration's primary run** (:func:`~sigma_des.calibrate.primary.central`, as
+  ``calibrate`` picks it): of the calibration setting's repeats, the most typical one,
+  whose mean AoI and mean state latency (every method) lie closest to the repeats'
+  medians: one slow outlier run does not set the step time and the scenario's keys; the
   per-message CPU is the repeats' mean.
 * **knee** (:func:`knee_of`): on a grid of N, ``sigma-des capacity``'s predicate
   (:func:`~sigma_des.calibrate.capacity.holds`: rate held, at most 5 % of frames
@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+
+from sigma_des.calibrate.primary import CENTRAL_METRICS, central
 
 __all__ = ["BAND", "CENTRAL_METRICS", "KNEE_MISSED", "KNEE_TOL", "METRICS", "NOISY", "PP_BAND",
            "RATE_BAND", "RATE_HELD", "TARGETS", "Verdict", "central", "error", "judge", "knee",
@@ -61,8 +63,6 @@ TARGETS = {"aoi_mean": 0.80, "latency_state_mean": 0.80, "aoi_p99": 0.80,
            "trigger_rate_hz": 1.0, "missed_frac": 1.0}
 #: Metrics whose noisy cells may pass inside the live range (the issue's rule).
 _RANGE_RULE = ("aoi_mean", "latency_state_mean")
-#: Metrics :func:`central` compares the repeats on.
-CENTRAL_METRICS = ("aoi_mean", "latency_state_mean")
 
 
 def _finite(*xs: float) -> bool:
@@ -92,43 +92,6 @@ def noise_floor(metric: str, repeats: Iterable[float]) -> float:
         return 100.0 * (max(xs) - min(xs))
     mean = sum(xs) / len(xs)
     return (max(xs) - min(xs)) / mean if mean != 0 else math.nan
-
-
-def central(runs: dict[str, dict[str, dict[str, float]]],
-            metrics: Sequence[str] = CENTRAL_METRICS) -> str:
-    """The most typical of several runs of one setting (see the module doc).
-
-    Args:
-        runs: per run name (in running order), per method, per metric, the value.
-        metrics: the metrics compared.
-
-    Returns:
-        The name of the run whose values have the least summed ``|log x - median|``,
-        the median of the runs' ``log x`` of each method and metric with a positive
-        finite value in every run (a pair missing in some run is left out); the first run on
-        ties, with two runs (equally far from their median) or when no pair is comparable.
-
-    Raises:
-        ValueError: ``runs`` is empty.
-    """
-    if not runs:
-        raise ValueError("central() needs at least one run")
-    names = list(runs)
-    if len(names) <= 2:  # two runs are equally far from their median: the first
-        return names[0]
-    cost = dict.fromkeys(names, 0.0)
-    pairs = {(m, k) for r in runs.values() for m in r for k in metrics}
-    for m, k in sorted(pairs):
-        xs = [runs[n].get(m, {}).get(k, math.nan) for n in names]
-        if not all(_finite(x) and x > 0 for x in xs):
-            continue
-        logs = [math.log(x) for x in xs]
-        srt = sorted(logs)
-        mid = len(srt) // 2
-        med = srt[mid] if len(srt) % 2 else 0.5 * (srt[mid - 1] + srt[mid])
-        for n, lx in zip(names, logs, strict=True):
-            cost[n] += abs(lx - med)
-    return min(names, key=lambda n: (cost[n], names.index(n)))
 
 
 @dataclass(frozen=True)
