@@ -24,14 +24,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sigma_des.calibrate.intervals import Interval
+from sigma_des.calibrate.intervals import RATE_HELD, Interval
 from sigma_des.errors import ConfigError
 
 __all__ = ["MAX_EVALS", "RATE_HELD", "Capacity", "HostsRule", "find_capacity", "holds",
            "figure", "holds_at", "plot", "search"]
 
-#: Live holds its rate at or above this share of the nominal trigger rate.
-RATE_HELD = 0.95
 #: Most predictions one search makes.
 MAX_EVALS = 16
 

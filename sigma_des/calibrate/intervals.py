@@ -6,8 +6,9 @@ A prediction's interval for one metric joins two parts:
   deviation ``s``; the half-width ``h = z * s`` with ``z`` the normal quantile of the
   stated coverage (``h = 0`` with one seed);
 * **the residuals the last validation measured** for that metric and regime
-  (:func:`regime`: per node or bundled, below or near capacity), ``r = (DES - live) /
-  live`` (percentage points ``100 * (DES - live)`` for the missed-frame fraction). Of
+  (:func:`regime`: per node or bundled, below or near capacity; a trigger rate the
+  DES does not hold is read among the rates not held, :func:`rate_regime`), ``r = (DES
+  - live) / live`` (percentage points ``100 * (DES - live)`` for the missed-frame fraction). Of
   ``n`` residuals the bounds ``[r_lo, r_hi]`` are the ``k``-th smallest and largest,
   ``k = floor((n + 1) * (1 - coverage) / 2)`` (:func:`residual_bounds`): for a new
   cell exchangeable with the validated ones, live's value then lies inside with
@@ -17,7 +18,8 @@ A prediction's interval for one metric joins two parts:
 For a relative metric, live = DES / (1 + r), so the interval is
 ``[(m - h) / (1 + r_hi), (m + h) / (1 + r_lo)]``; for the missed-frame fraction
 ``[m - h - r_hi / 100, m + h - r_lo / 100]``, at least one frame of the target's window
-(``1 / frames``) either side of ``m`` (:func:`interval`), clipped to 0..1. The residuals come from
+(``1 / frames``) either side of ``m`` (:func:`interval`), clipped to 0..1; a trigger
+rate's reaches at least one trigger of the window either side. The residuals come from
 ``residuals.toml`` (shipped with the package, :func:`load_residuals`): either the
 residual values (what the validation suite writes) or, where only a published
 summary of a validation exists, its bounds ``lo``, ``hi`` with their source.
@@ -36,9 +38,9 @@ from typing import Any
 
 from sigma_des.errors import ConfigError
 
-__all__ = ["COVERAGE", "NEAR_MISSED", "NEAR_UTIL", "PP_METRICS", "Interval", "Residual",
-           "interval", "load_residuals", "lookup", "regime", "residual_bounds",
-           "residuals_toml"]
+__all__ = ["COVERAGE", "NEAR_MISSED", "NEAR_UTIL", "PP_METRICS", "RATE_HELD", "RATE_METRIC",
+           "Interval", "Residual", "interval", "load_residuals", "lookup", "rate_regime",
+           "regime", "residual_bounds", "residuals_toml"]
 
 #: The coverage the intervals are built for: above the 80 % a validation checks they
 #: reach, because a regime has only 13-26 validated residuals and the measured share of
@@ -50,6 +52,10 @@ NEAR_UTIL = 0.70
 NEAR_MISSED = 0.01
 #: Metrics whose residuals are differences in percentage points.
 PP_METRICS = ("missed_frac",)
+#: A method holds its trigger rate when it achieves at least this share of the nominal.
+RATE_HELD = 0.95
+#: The trigger rate's figure (Hz).
+RATE_METRIC = "trigger_rate_hz"
 
 
 def regime(bundle: bool, util: float, missed: float) -> str:
@@ -60,6 +66,17 @@ def regime(bundle: bool, util: float, missed: float) -> str:
     near = (math.isfinite(util) and util >= NEAR_UTIL) or (
         math.isfinite(missed) and missed >= NEAR_MISSED)
     return f"{'bundle' if bundle else 'node'}-{'near' if near else 'below'}"
+
+
+def rate_regime(reg: str, rate: float, f_trig: float) -> str:
+    """The regime a trigger-rate figure is read in: ``<mode>-limited`` when the DES's
+    ``rate`` is below :data:`RATE_HELD` of the nominal ``f_trig`` (the method's
+    alignment sets it: a barrier waiting for the slowest node, a re-request under loss),
+    else ``reg``. A held rate's residuals are nearly all 0, which says nothing of how far
+    a rate the alignment sets may be off."""
+    if math.isfinite(rate) and rate < RATE_HELD * f_trig:
+        return f"{reg.split('-')[0]}-limited"
+    return reg
 
 
 def residual_bounds(values: Sequence[float], coverage: float = COVERAGE
@@ -176,7 +193,8 @@ class Interval:
 
 
 def interval(metric: str, values: Sequence[float], res: Residual | None,
-             coverage: float = COVERAGE, frames: float = 0.0) -> Interval:
+             coverage: float = COVERAGE, frames: float = 0.0, window: float = 0.0
+             ) -> Interval:
     """The interval of ``metric`` from the seeds' ``values`` and the residuals ``res``
     (None: the seed spread alone); see the module doc. NaN values are left out; none
     finite gives NaN throughout.
@@ -186,7 +204,11 @@ def interval(metric: str, values: Sequence[float], res: Residual | None,
     either side of the DES's value. A stall of the live machine now and then drops a
     whole frame's states, which the DES has no cause for; most validated cells below
     capacity miss nothing in either, so their residuals alone give an interval
-    narrower than one frame, which a single stall would leave.
+    narrower than one frame, which a single stall would leave. ``window`` (the target's
+    metrics window, s; 0: not known) does the same for the trigger rate: its interval
+    reaches at least one trigger of the window, ``1 / window`` Hz, either side (a held
+    rate's residuals are all but zero, and a live stall moves one trigger across the
+    window's end).
     """
     xs = [v for v in values if math.isfinite(v)]
     if not xs:
@@ -202,6 +224,8 @@ def interval(metric: str, values: Sequence[float], res: Residual | None,
     else:
         lo = max(0.0, m - h) / (1.0 + r_hi)
         hi = (m + h) / (1.0 + r_lo) if r_lo > -1.0 else math.inf
+        if metric == RATE_METRIC and window > 0.0:
+            lo, hi = max(0.0, min(lo, m - 1.0 / window)), max(hi, m + 1.0 / window)
     return Interval(m, s, lo, hi, res)
 
 

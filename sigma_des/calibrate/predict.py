@@ -7,7 +7,8 @@ gives each figure (:data:`~sigma_des.calibrate.target.FIGURES`) its interval
 (:mod:`sigma_des.calibrate.intervals`): the seeds' spread and the residuals the last
 validation measured for that metric in the prediction's regime (per node or bundled;
 near capacity when the DES's mean machine utilisation reaches 70 % or its mean
-missed-frame fraction 1 %). :meth:`Prediction.write` writes ``results.csv`` (tidy: one
+missed-frame fraction 1 %; a trigger rate below 95 % of the nominal among the rates
+not held). :meth:`Prediction.write` writes ``results.csv`` (tidy: one
 row per seed, method and figure, as ``compare`` writes it) and ``summary.json`` (per
 method: the mean, the seeds' standard deviation, the interval, the regime and where its
 residuals come from).
@@ -31,6 +32,7 @@ from sigma_des.calibrate.intervals import (
     interval,
     load_residuals,
     lookup,
+    rate_regime,
     regime,
 )
 from sigma_des.calibrate.target import FIGURES, des_figures, prepare, state_hop_ratio
@@ -107,7 +109,7 @@ class Prediction:
             rows.append([m, self.regimes[m], *(_fmt(k, ivs[k]) for k in FIGURES)])
         foot = (f"\n{len(self.seeds)} seed(s); [interval] for live at {self.coverage:.0%} "
                 "from the seeds' spread and the last validations' residuals of the metric "
-                "in the regime")
+                "in the regime (a trigger rate below 95 % of f_trig: of the rates not held)")
         missing = sorted({f"{k}/{self.regimes[m]}" for m, ivs in self.intervals.items()
                           for k, iv in ivs.items() if iv.residual is None})
         if missing:
@@ -198,7 +200,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
     table, meta = load_residuals(residuals)
     cov = float(meta.get("coverage", COVERAGE))
     seed_list = [sc.seed + i for i in range(seeds)]
-    frames = sc.f_trig * (sc.duration - sc.warmup)  # the missed fraction's resolution
+    window = sc.duration - sc.warmup
+    frames = sc.f_trig * window  # the missed fraction's resolution
     pred = Prediction(sc, bundle, seed_list, coverage=cov, residual_meta=meta,
                       state_hops=state_hop_ratio(cal, report, sc))
     for m in methods or METHODS:
@@ -211,8 +214,12 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
         util = _mean([r["machine_cpu_util_max"] for r in runs])
         missed = _mean([r["missed_frac"] for r in runs])
         pred.regimes[m] = reg = regime(bundle, util, missed)
-        pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, reg), cov,
-                                         frames=frames) for k in FIGURES}
+        regs = dict.fromkeys(FIGURES, reg)
+        regs["trigger_rate_hz"] = rate_regime(reg, _mean([r["trigger_rate_hz"] for r in runs]),
+                                              sc.f_trig)
+        pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, regs[k]),
+                                         cov, frames=frames, window=window)
+                             for k in FIGURES}
     return pred
 
 

@@ -17,6 +17,7 @@ from sigma_des.calibrate.intervals import (
     load_residuals,
     lookup,
     pooled_residuals,
+    rate_regime,
     regime,
     residual_bounds,
     residuals_toml,
@@ -101,6 +102,39 @@ def test_missed_frame_interval_reaches_one_frame_of_the_window() -> None:
     # other metrics are not in frames: the same interval with or without
     res = Residual("aoi_mean", "node-below", -0.1, 0.1, 40, True, "hand")
     assert interval("aoi_mean", [10.0], res, frames=300.0) == interval("aoi_mean", [10.0], res)
+
+
+def test_a_rate_not_held_is_read_among_the_rates_not_held() -> None:
+    """Below 95 % of the nominal rate the trigger rate's regime is the mode's
+    ``limited`` one, whatever the machine; at or above it, the regime as it is."""
+    assert rate_regime("node-below", 94.9, 100.0) == "node-limited"
+    assert rate_regime("bundle-near", 3.0, 100.0) == "bundle-limited"
+    assert rate_regime("node-near", 95.0, 100.0) == "node-near"
+    assert rate_regime("node-below", 47.4, 50.0) == "node-limited"
+    assert rate_regime("node-below", 47.5, 50.0) == "node-below"
+    assert rate_regime("bundle-below", math.nan, 100.0) == "bundle-below"
+    res = {("trigger_rate_hz", "node-limited"): Residual("trigger_rate_hz", "node-limited",
+                                                         -0.2, 0.1, 40, True, "")}
+    iv = interval("trigger_rate_hz", [80.0], lookup(res, "trigger_rate_hz",
+                                                    rate_regime("node-below", 80.0, 100.0)))
+    assert (iv.lo, iv.hi) == pytest.approx((80.0 / 1.1, 80.0 / 0.8))
+
+
+def test_a_trigger_rate_interval_reaches_one_trigger_of_the_window() -> None:
+    """Residuals all 0 (held rates): the interval of a 100 Hz prediction over a 3 s
+    window is [100 - 1/3, 100 + 1/3]; wider residuals are kept; no window, no floor."""
+    zero = Residual("trigger_rate_hz", "node-below", 0.0, 0.0, 40, True, "")
+    iv = interval("trigger_rate_hz", [100.0], zero, window=3.0)
+    assert (iv.lo, iv.hi) == pytest.approx((100.0 - 1.0 / 3.0, 100.0 + 1.0 / 3.0))
+    assert (interval("trigger_rate_hz", [100.0], zero).lo,
+            interval("trigger_rate_hz", [100.0], zero).hi) == (100.0, 100.0)
+    wide = Residual("trigger_rate_hz", "node-limited", -0.2, 0.25, 40, True, "")
+    iv = interval("trigger_rate_hz", [60.0], wide, window=3.0)
+    assert (iv.lo, iv.hi) == pytest.approx((60.0 / 1.25, 60.0 / 0.8))
+    # the floor is the trigger rate's only: a latency keeps its zero-width interval
+    lat = Residual("latency_state_mean", "node-below", 0.0, 0.0, 40, True, "")
+    iv = interval("latency_state_mean", [2.0], lat, window=3.0)
+    assert (iv.lo, iv.hi) == (2.0, 2.0)
 
 
 def test_regime_and_lookup_order() -> None:

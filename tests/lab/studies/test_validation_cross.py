@@ -25,11 +25,12 @@ DATA = Path(__file__).resolve().parents[3] / "docs" / "results" / "data"
 
 
 def _row(cell: str, metric: str, live: float, des: float, regime: str = "node-below",
-         held_out: bool = True, passed: object = True) -> dict[str, object]:
+         held_out: bool = True, passed: object = True, rule: str = "band"
+         ) -> dict[str, object]:
     e = 100 * (des - live) if metric == "missed_frac" else (des - live) / live
     return {"cell": cell, "method": "none", "metric": metric, "regime": regime,
             "live": live, "des": des, "rel_error": e, "held_out": held_out,
-            "passed": passed}
+            "passed": passed, "rule": rule}
 
 
 def test_cross_values_by_hand() -> None:
@@ -62,13 +63,17 @@ def test_shipped_file_joins_within_and_cross(tmp_path: Path) -> None:
     assert (r.n, r.lo, r.hi, r.enough) == (4, pytest.approx(0.1), pytest.approx(0.5), False)
 
 
-def test_table_keeps_only_scored_held_out_rows_and_refuses_a_tag_twice(
+def test_table_keeps_held_out_rows_with_a_residual_and_refuses_a_tag_twice(
         tmp_path: Path) -> None:
+    """Scored held-out rows and the trigger rates live did not hold are kept; the
+    calibration's rows and a row with no DES value to score are not."""
     cells = tmp_path / "cells.csv"
     rows = [_row("a", "aoi_mean", 10.0, 11.0),
             _row("cal-r1", "aoi_mean", 10.0, 10.5, held_out=False),
-            _row("b", "trigger_rate_hz", 90.0, 100.0, passed=""),  # live did not hold it
-            _row("c", "aoi_p99", 20.0, 18.0, passed=False)]  # scored: outside the band
+            _row("b", "trigger_rate_hz", 90.0, 81.0, "node-limited", passed="",
+                 rule="rate not held"),
+            _row("c", "aoi_p99", 20.0, 18.0, passed=False),  # scored: outside the band
+            _row("d", "aoi_mean", 10.0, math.nan, passed="", rule="n/a")]
     with cells.open("w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
@@ -76,8 +81,10 @@ def test_table_keeps_only_scored_held_out_rows_and_refuses_a_tag_twice(
     table = tmp_path / "previous.csv"
     assert main(["add", "2026-12-07T09:13", str(cells), str(table)]) == 0
     got = read_table(table)["2026-12-07T09:13"]
-    assert [(r["cell"], r["metric"]) for r in got] == [("a", "aoi_mean"), ("c", "aoi_p99")]
-    assert got[1]["rel_error"] == pytest.approx(-0.1)
+    assert [(r["cell"], r["metric"]) for r in got] == [
+        ("a", "aoi_mean"), ("b", "trigger_rate_hz"), ("c", "aoi_p99")]
+    assert got[1]["regime"] == "node-limited" and got[1]["rel_error"] == pytest.approx(-0.1)
+    assert got[2]["rel_error"] == pytest.approx(-0.1)
     assert list(got[0]) == list(COLUMNS)
     with pytest.raises(ValueError, match="already holds"):
         add(table, "2026-12-07T09:13", cells)

@@ -120,6 +120,33 @@ def test_coverage_of_missed_frames_reaches_one_frame() -> None:
     assert c["median_width"] == pytest.approx(100 / 300)
 
 
+def test_coverage_counts_the_rates_live_did_not_hold_in_their_regime() -> None:
+    """Held rates (residual 0) and rates not held (live 60 Hz: unscored, read in
+    ``node-limited``): the latter join the coverage and the residuals by their own
+    regime; with a 3 s window a held rate's interval reaches 1/3 Hz."""
+    from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
+
+    def row(i: int, live: float, des: float, reg: str, passed: object) -> dict[str, object]:
+        return {"held_out": True, "passed": passed, "metric": "trigger_rate_hz",
+                "regime": reg, "live": live, "des": des, "rel_error": (des - live) / live,
+                "cell": i, "rule": "band" if passed != "" else "rate not held"}
+
+    held = [row(i, 100.0, 100.0, "node-below", True) for i in range(4)]
+    held.append(row(4, 99.7, 100.0, "node-below", True))  # one trigger short in 3 s
+    limited = [row(5 + i, 60.0, 60.0 * (1 + e), "node-limited", "")
+               for i, e in enumerate([-0.1, 0.05, -0.05, 0.1, 0.0])]
+    (c,) = coverage_rows(held + limited, ["trigger_rate_hz"], window=3.0)
+    assert c["cells"] == 10
+    # the held 99.7 needs the trigger's reach (the others' residuals are all 0); each
+    # limited cell lies within the other four's range but the two extremes (+-10 %)
+    assert c["covered"] == 8
+    (bare,) = coverage_rows(held + limited, ["trigger_rate_hz"])
+    assert bare["covered"] == 7
+    vals = residual_values(held + limited)
+    assert sorted(vals[("trigger_rate_hz", "node-limited")]) == pytest.approx(
+        [-0.1, -0.05, 0.0, 0.05, 0.1])
+
+
 def test_judge_trigger_rate_only_where_live_holds_it() -> None:
     assert judge("trigger_rate_hz", 90.0, 90.0, f_trig=100.0) == Verdict(
         False, False, True, "rate not held")

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from sigma_des.calibrate.intervals import COVERAGE, residuals_toml
-from sigma_lab.studies.validation.coverage import scored_rows
+from sigma_lab.studies.validation.coverage import residual_rows
 from sigma_lab.studies.validation.scoring import error
 
 __all__ = ["COLUMNS", "add", "compact", "cross_values", "read_cells", "read_table",
@@ -58,8 +58,9 @@ def read_cells(path: Path) -> list[dict[str, Any]]:
 
 
 def compact(rows: Rows, tag: str) -> list[dict[str, Any]]:
-    """The scored held-out rows of one validation, in :data:`COLUMNS`."""
-    return [{"validation": tag, **{k: r[k] for k in COLUMNS[1:]}} for r in scored_rows(rows)]
+    """The held-out rows of one validation with a residual, in :data:`COLUMNS`
+    (:func:`~sigma_lab.studies.validation.coverage.residual_rows`)."""
+    return [{"validation": tag, **{k: r[k] for k in COLUMNS[1:]}} for r in residual_rows(rows)]
 
 
 def read_table(path: Path) -> dict[str, list[dict[str, Any]]]:

@@ -10,7 +10,8 @@ rules, the first that applies:
 * ``live spread`` — the cell's live runs disagree by more than the band and the DES
   lies within their range: the miss is live's run-to-run variation;
 * ``near capacity`` — the DES puts the cell near capacity (its regime:
-  ``sigma_des.calibrate.intervals.regime``);
+  ``sigma_des.calibrate.intervals.regime``; a trigger-rate row's is the cell's and
+  method's other rows', its own saying whether the DES holds the rate);
 * ``live run queue`` — the DES is below live where live's processes waited on the
   run queue for at least :data:`RUNQ_BUSY` cores (runnable, no core free: processes
   outnumber cores), which the DES calls below capacity;
@@ -104,8 +105,11 @@ def miss_rows(rows: list[dict[str, Any]], procs: list[dict[str, Any]], cal_nodes
         procs: ``processes.csv``'s rows (may be empty: the load columns are then NaN).
         cal_nodes: the calibration setting's node count.
     """
+    machine = {(r["cell"], r["method"]): r["regime"] for r in rows
+               if r["metric"] == "aoi_mean"}
     out = []
     for r in rows:
+        r = {**r, "regime": machine.get((r["cell"], r["method"]), r["regime"])}
         if not r["held_out"] or r["within_band"] is not False or r["metric"] not in _READ \
                 or r["passed"] == "":  # not scored (a trigger rate live did not hold)
             continue

@@ -40,7 +40,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from sigma_des.calibrate.intervals import COVERAGE, regime, residuals_toml
+from sigma_des.calibrate.intervals import COVERAGE, rate_regime, regime, residuals_toml
 from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
@@ -138,9 +138,7 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
                     "cell": cell.name, "mode": cell.mode, "nodes": cell.nodes,
                     "hosts": cell.hosts, "impairment": cell.impairment,
                     "held_out": cell.held_out, "method": m, "metric": k,
-                    "regime": regime(cell.mode == "bundle",
-                                     float(dm.get("machine_cpu_util_max", math.nan)),
-                                     float(dm.get("missed_frac", math.nan))), "live": x,
+                    "regime": _regime(k, cell.mode == "bundle", dm, f_trig), "live": x,
                     "des": y, "rel_error": error(k, x, y),
                     "error_unit": "pp" if k == "missed_frac" else "rel",
                     "live_runs": " ".join(f"{z:.6g}" for z in xs), "noise_floor": floor,
@@ -152,6 +150,17 @@ def cell_rows(plan: Plan, outcome: Outcome, f_trig: float,
                     "config_hash": dv["config_hash"],
                     "live_config_hash": runs[0]["config_hash"], "version": dv["version"]})
     return rows
+
+
+def _regime(metric: str, bundle: bool, dm: dict[str, Any], f_trig: float) -> str:
+    """A row's regime as ``predict`` reads its figure in it: the DES's machine and missed
+    frames, and for the trigger rate whether the DES holds it
+    (:func:`~sigma_des.calibrate.intervals.rate_regime`)."""
+    reg = regime(bundle, float(dm.get("machine_cpu_util_max", math.nan)),
+                 float(dm.get("missed_frac", math.nan)))
+    if metric == "trigger_rate_hz":
+        return rate_regime(reg, float(dm.get("trigger_rate_hz", math.nan)), f_trig)
+    return reg
 
 
 def _write_csv(path: Path, rows: list[dict[str, Any]], cols: tuple[str, ...] | None = None
@@ -201,8 +210,11 @@ def _coverage_md(cov: list[dict[str, Any]]) -> list[str]:
     return ["", "## Interval coverage (held-out cells, leave one out)", "",
             "Each held-out cell's interval is its DES value widened by the residuals of the "
             "other held-out cells of its metric and regime (as `sigma-des predict` widens "
-            "by the validations' residuals), a missed-frame interval by at least one frame "
-            "of the window either side; covered when live's value is inside. The intervals "
+            "by the validations' residuals; a trigger rate the DES does not hold among the "
+            "rates not held), a missed-frame interval by at least one frame of the window "
+            "either side and a trigger rate's by one trigger; covered when live's value is "
+            "inside. Trigger rates live did not hold count here (not in the scores). The "
+            "intervals "
             "are built for more than the target share: a regime has few residuals, and "
             "intervals built for exactly the target fall short of it about half the time.",
             "",
@@ -414,7 +426,8 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     rows = cell_rows(plan, outcome, f_trig)
     noise = noise_rows(plan, outcome[0])
     knees = knee_rows(plan, outcome, f_trig)
-    cov = coverage_rows(rows, METRICS, frames=f_trig * (plan.duration - plan.warmup))
+    cov = coverage_rows(rows, METRICS, frames=f_trig * (plan.duration - plan.warmup),
+                        window=plan.duration - plan.warmup)
     _write_csv(out / "coverage.csv", cov)
     (out / "residuals.toml").write_text(residuals_toml(
         residual_values(rows), {"coverage": COVERAGE,

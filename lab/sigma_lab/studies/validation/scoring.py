@@ -36,6 +36,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+from sigma_des.calibrate.intervals import RATE_HELD
 from sigma_des.calibrate.primary import CENTRAL_METRICS, central
 
 __all__ = ["BAND", "CENTRAL_METRICS", "KNEE_MISSED", "KNEE_TOL", "METRICS", "NOISY", "PP_BAND",
@@ -48,8 +49,6 @@ METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "miss
 BAND = 0.15
 #: The trigger rate's band, where live holds its rate.
 RATE_BAND = 0.05
-#: Live holds its rate when it achieves at least this share of the nominal rate.
-RATE_HELD = 0.95
 #: The missed-frame fraction's band, percentage points.
 PP_BAND = 10.0
 #: A live noise floor above this marks a cell where live does not reproduce itself.
