@@ -19,7 +19,7 @@ For a relative metric, live = DES / (1 + r), so the interval is
 ``[(m - h) / (1 + r_hi), (m + h) / (1 + r_lo)]``; for the missed-frame fraction
 ``[m - h - r_hi / 100, m + h - r_lo / 100]``, at least one frame of the target's window
 (``1 / frames``) either side of ``m`` (:func:`interval`), clipped to 0..1; a trigger
-rate's reaches at least one trigger of the window either side. The residuals come from
+rate's reaches at least one trigger of the window either side and stops at ``f_trig``. The residuals come from
 ``residuals.toml`` (shipped with the package, :func:`load_residuals`): either the
 residual values (what the validation suite writes) or, where only a published
 summary of a validation exists, its bounds ``lo``, ``hi`` with their source.
@@ -193,8 +193,8 @@ class Interval:
 
 
 def interval(metric: str, values: Sequence[float], res: Residual | None,
-             coverage: float = COVERAGE, frames: float = 0.0, window: float = 0.0
-             ) -> Interval:
+             coverage: float = COVERAGE, frames: float = 0.0, window: float = 0.0,
+             f_trig: float = math.inf) -> Interval:
     """The interval of ``metric`` from the seeds' ``values`` and the residuals ``res``
     (None: the seed spread alone); see the module doc. NaN values are left out; none
     finite gives NaN throughout.
@@ -208,7 +208,8 @@ def interval(metric: str, values: Sequence[float], res: Residual | None,
     metrics window, s; 0: not known) does the same for the trigger rate: its interval
     reaches at least one trigger of the window, ``1 / window`` Hz, either side (a held
     rate's residuals are all but zero, and a live stall moves one trigger across the
-    window's end).
+    window's end); ``f_trig`` (the nominal trigger rate) caps it: no method triggers
+    faster than that.
     """
     xs = [v for v in values if math.isfinite(v)]
     if not xs:
@@ -224,8 +225,10 @@ def interval(metric: str, values: Sequence[float], res: Residual | None,
     else:
         lo = max(0.0, m - h) / (1.0 + r_hi)
         hi = (m + h) / (1.0 + r_lo) if r_lo > -1.0 else math.inf
-        if metric == RATE_METRIC and window > 0.0:
-            lo, hi = max(0.0, min(lo, m - 1.0 / window)), max(hi, m + 1.0 / window)
+        if metric == RATE_METRIC:
+            if window > 0.0:
+                lo, hi = max(0.0, min(lo, m - 1.0 / window)), max(hi, m + 1.0 / window)
+            hi = min(hi, max(f_trig, m))
     return Interval(m, s, lo, hi, res)
 
 

@@ -218,7 +218,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
         regs["trigger_rate_hz"] = rate_regime(reg, _mean([r["trigger_rate_hz"] for r in runs]),
                                               sc.f_trig)
         pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, regs[k]),
-                                         cov, frames=frames, window=window)
+                                         cov, frames=frames, window=window,
+                                         f_trig=sc.f_trig)
                              for k in FIGURES}
     return pred
 

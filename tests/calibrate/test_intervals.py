@@ -131,6 +131,9 @@ def test_a_trigger_rate_interval_reaches_one_trigger_of_the_window() -> None:
     wide = Residual("trigger_rate_hz", "node-limited", -0.2, 0.25, 40, True, "")
     iv = interval("trigger_rate_hz", [60.0], wide, window=3.0)
     assert (iv.lo, iv.hi) == pytest.approx((60.0 / 1.25, 60.0 / 0.8))
+    # no method triggers faster than f_trig: the interval stops there
+    iv = interval("trigger_rate_hz", [95.0], wide, window=3.0, f_trig=100.0)
+    assert (iv.lo, iv.hi) == pytest.approx((95.0 / 1.25, 100.0))
     # the floor is the trigger rate's only: a latency keeps its zero-width interval
     lat = Residual("latency_state_mean", "node-below", 0.0, 0.0, 40, True, "")
     iv = interval("latency_state_mean", [2.0], lat, window=3.0)

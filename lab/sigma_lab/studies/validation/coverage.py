@@ -63,12 +63,12 @@ def residual_values(rows: Sequence[dict[str, Any]]) -> dict[tuple[str, str], lis
 
 
 def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
-                  coverage: float = COVERAGE, frames: float = 0.0, window: float = 0.0
-                  ) -> list[dict[str, Any]]:
+                  coverage: float = COVERAGE, frames: float = 0.0, window: float = 0.0,
+                  f_trig: float = math.inf) -> list[dict[str, Any]]:
     """Per metric: rows scored, covered, the share and the median width (see the
     module doc); ``frames``, the cells' frames per metrics window, and ``window``, that
-    window (s), set the missed-frame and trigger-rate intervals' least reach, as
-    ``predict`` sets them."""
+    window (s), set the missed-frame and trigger-rate intervals' least reach, and
+    ``f_trig`` caps the trigger rate's, as ``predict`` sets them."""
     scored = residual_rows(rows)
     out = []
     for k in metrics:
@@ -84,7 +84,7 @@ def coverage_rows(rows: Sequence[dict[str, Any]], metrics: Sequence[str],
             lo, hi, enough = residual_bounds(others, coverage)
             iv = interval(k, [float(r["des"])], Residual(k, r["regime"], lo, hi, len(others),
                                                          enough, "leave one out"), coverage,
-                          frames=frames, window=window)
+                          frames=frames, window=window, f_trig=f_trig)
             live = float(r["live"])
             hits += iv.lo <= live <= iv.hi
             widths.append(100.0 * (iv.hi - iv.lo) if k in PP_METRICS

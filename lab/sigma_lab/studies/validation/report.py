@@ -427,7 +427,7 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     noise = noise_rows(plan, outcome[0])
     knees = knee_rows(plan, outcome, f_trig)
     cov = coverage_rows(rows, METRICS, frames=f_trig * (plan.duration - plan.warmup),
-                        window=plan.duration - plan.warmup)
+                        window=plan.duration - plan.warmup, f_trig=f_trig)
     _write_csv(out / "coverage.csv", cov)
     (out / "residuals.toml").write_text(residuals_toml(
         residual_values(rows), {"coverage": COVERAGE,
