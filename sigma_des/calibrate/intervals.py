@@ -19,10 +19,11 @@ For a relative metric, live = DES / (1 + r), so the interval is
 ``[(m - h) / (1 + r_hi), (m + h) / (1 + r_lo)]``; for the missed-frame fraction
 ``[m - h - r_hi / 100, m + h - r_lo / 100]``, at least one frame of the target's window
 (``1 / frames``) either side of ``m`` (:func:`interval`), clipped to 0..1; a trigger
-rate's reaches at least one trigger of the window either side and stops at ``f_trig``. The residuals come from
-``residuals.toml`` (shipped with the package, :func:`load_residuals`): either the
-residual values (what the validation suite writes) or, where only a published
-summary of a validation exists, its bounds ``lo``, ``hi`` with their source.
+rate's reaches at least one trigger of the window either side and stops at ``f_trig``.
+The residuals come from ``residuals.toml`` (shipped with the package,
+:func:`load_residuals`): either the residual values (what the validation suite writes)
+or, where only a published summary of a validation exists, its bounds ``lo``, ``hi``
+with their source.
 """
 
 from __future__ import annotations

@@ -205,7 +205,7 @@ def _coverage_md(cov: list[dict[str, Any]]) -> list[str]:
              f"{c['covered']} ({100 * c['share']:.0f} %)" if c["cells"] else "-",
              f"{c['built_for']:.0%}", f"≥ {c['target']:.0%}",
              (f"{c['median_width']:.1f} pp" if c["width_unit"] == "pp"
-              else f"{100 * c['median_width']:.0f} % of live")
+              else f"{100 * c['median_width']:.2g} % of live")
              if math.isfinite(c["median_width"]) else "-"] for c in cov]
     return ["", "## Interval coverage (held-out cells, leave one out)", "",
             "Each held-out cell's interval is its DES value widened by the residuals of the "
