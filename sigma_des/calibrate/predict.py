@@ -96,6 +96,7 @@ class Prediction:
     runs: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     intervals: dict[str, dict[str, Interval]] = field(default_factory=dict)
     regimes: dict[str, str] = field(default_factory=dict)
+    rate_regimes: dict[str, str] = field(default_factory=dict)
     coverage: float = COVERAGE
     residual_meta: dict[str, Any] = field(default_factory=dict)
     state_hops: tuple[float, str] = (1.0, "")
@@ -106,7 +107,10 @@ class Prediction:
                                       for k in FIGURES)]
         rows = [head]
         for m, ivs in self.intervals.items():
-            rows.append([m, self.regimes[m], *(_fmt(k, ivs[k]) for k in FIGURES)])
+            reg = self.regimes[m]
+            rate = self.rate_regimes.get(m, reg)
+            rows.append([m, reg if rate == reg else f"{reg}, rate {rate.split('-')[1]}",
+                         *(_fmt(k, ivs[k]) for k in FIGURES)])
         foot = (f"\n{len(self.seeds)} seed(s); [interval] for live at {self.coverage:.0%} "
                 "from the seeds' spread and the last validations' residuals of the metric "
                 "in the regime (a trigger rate below 95 % of f_trig: of the rates not held)")
@@ -138,15 +142,19 @@ class Prediction:
             return None if r is None else {"regime": r.regime, "lo": r.lo, "hi": r.hi,
                                            "n": r.n, "enough": r.enough, "source": r.source}
 
+        def method(m: str, ivs: dict[str, Interval]) -> dict[str, Any]:
+            figs = {k: {"mean": iv.mean, "sd": iv.sd, "lo": iv.lo, "hi": iv.hi,
+                        "unit": UNITS[k], "residual": res(iv.residual)}
+                    for k, iv in ivs.items()}
+            return {"regime": self.regimes[m],
+                    "rate_regime": self.rate_regimes.get(m, self.regimes[m]), **figs}
+
         return {"config_hash": config_hash(self.scenario), "version": __version__,
                 "nodes": self.scenario.nodes, "hosts": self.scenario.hosts,
                 "bundle": self.bundle, "seeds": self.seeds, "coverage": self.coverage,
                 "residuals": self.residual_meta,
                 "state_hop_factor": self.state_hops[0], "state_hop_rule": self.state_hops[1],
-                "methods": {m: {"regime": self.regimes[m], **{k: {
-                    "mean": iv.mean, "sd": iv.sd, "lo": iv.lo, "hi": iv.hi,
-                    "unit": UNITS[k], "residual": res(iv.residual)} for k, iv in ivs.items()}}
-                    for m, ivs in self.intervals.items()}}
+                "methods": {m: method(m, ivs) for m, ivs in self.intervals.items()}}
 
     def write(self, out_dir: str | Path) -> tuple[Path, Path]:
         """Write ``results.csv`` and ``summary.json`` into ``out_dir``, all or none."""
@@ -215,8 +223,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
         missed = _mean([r["missed_frac"] for r in runs])
         pred.regimes[m] = reg = regime(bundle, util, missed)
         regs = dict.fromkeys(FIGURES, reg)
-        regs["trigger_rate_hz"] = rate_regime(reg, _mean([r["trigger_rate_hz"] for r in runs]),
-                                              sc.f_trig)
+        regs["trigger_rate_hz"] = pred.rate_regimes[m] = rate_regime(
+            reg, _mean([r["trigger_rate_hz"] for r in runs]), sc.f_trig)
         pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, regs[k]),
                                          cov, frames=frames, window=window,
                                          f_trig=sc.f_trig)

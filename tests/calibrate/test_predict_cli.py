@@ -12,7 +12,7 @@ import pytest
 
 from sigma_des.calibrate.campaign import loaded_runs
 from sigma_des.calibrate.capacity import holds
-from sigma_des.calibrate.intervals import interval, load_residuals, lookup
+from sigma_des.calibrate.intervals import interval, load_residuals, lookup, rate_regime
 from sigma_des.calibrate.predict import load_calibration
 from sigma_des.calibrate.target import prepare
 from sigma_des.cli import main
@@ -114,6 +114,15 @@ def test_predict_writes_results_and_intervals(cal: Path, tmp_path: Path,
         iv = interval(k, vals, lookup(table, k, m["regime"]), float(meta["coverage"]))
         assert (m[k]["mean"], m[k]["lo"], m[k]["hi"]) == pytest.approx((iv.mean, iv.lo, iv.hi))
         assert m[k]["residual"]["source"]
+    # the trigger rate: read in its own regime, one trigger of the 0.4 s window either
+    # side at least, never above the nominal 100 Hz
+    vals = [float(r["value"]) for r in rows if r["metric"] == "trigger_rate_hz"]
+    assert m["rate_regime"] == rate_regime(m["regime"], sum(vals) / len(vals), 100.0)
+    iv = interval("trigger_rate_hz", vals, lookup(table, "trigger_rate_hz", m["rate_regime"]),
+                  float(meta["coverage"]), window=0.4, f_trig=100.0)
+    got = m["trigger_rate_hz"]
+    assert (got["lo"], got["hi"]) == pytest.approx((iv.lo, iv.hi))
+    assert got["lo"] <= got["mean"] - 2.5 + 1e-9 and got["hi"] <= max(100.0, got["mean"])
 
 
 @pytest.mark.parametrize("f_trig", [None, 50.0])
