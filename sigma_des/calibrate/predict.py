@@ -27,6 +27,7 @@ from typing import IO, Any
 
 from sigma_des.calibrate.intervals import (
     COVERAGE,
+    RATE_METRIC,
     Interval,
     Residual,
     interval,
@@ -223,8 +224,8 @@ def predict(cal: Scenario, report: dict[str, Any], sets: Sequence[str], *,
         missed = _mean([r["missed_frac"] for r in runs])
         pred.regimes[m] = reg = regime(bundle, util, missed)
         regs = dict.fromkeys(FIGURES, reg)
-        regs["trigger_rate_hz"] = pred.rate_regimes[m] = rate_regime(
-            reg, _mean([r["trigger_rate_hz"] for r in runs]), sc.f_trig)
+        regs[RATE_METRIC] = pred.rate_regimes[m] = rate_regime(
+            reg, _mean([r[RATE_METRIC] for r in runs]), sc.f_trig)
         pred.intervals[m] = {k: interval(k, [r[k] for r in runs], lookup(table, k, regs[k]),
                                          cov, frames=frames, window=window,
                                          f_trig=sc.f_trig)

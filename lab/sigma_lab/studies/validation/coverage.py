@@ -30,7 +30,14 @@ import statistics
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from sigma_des.calibrate.intervals import COVERAGE, PP_METRICS, Residual, interval, residual_bounds
+from sigma_des.calibrate.intervals import (
+    COVERAGE,
+    PP_METRICS,
+    RATE_METRIC,
+    Residual,
+    interval,
+    residual_bounds,
+)
 
 __all__ = ["MIN_OTHERS", "TARGET", "coverage_rows", "residual_rows", "residual_values"]
 
@@ -47,7 +54,7 @@ def residual_rows(rows: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
     prediction of a rate the alignment sets needs those residuals (in the regime their
     ``cells.csv`` row gives)."""
     return [r for r in rows if r["held_out"]
-            and (r["passed"] != "" or (r["metric"] == "trigger_rate_hz"
+            and (r["passed"] != "" or (r["metric"] == RATE_METRIC
                                        and r["rule"] == "rate not held"))
             and math.isfinite(float(r["rel_error"])) and math.isfinite(float(r["live"]))]
 

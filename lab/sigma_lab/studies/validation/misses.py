@@ -109,10 +109,10 @@ def miss_rows(rows: list[dict[str, Any]], procs: list[dict[str, Any]], cal_nodes
                if r["metric"] == "aoi_mean"}
     out = []
     for r in rows:
-        r = {**r, "regime": machine.get((r["cell"], r["method"]), r["regime"])}
         if not r["held_out"] or r["within_band"] is not False or r["metric"] not in _READ \
                 or r["passed"] == "":  # not scored (a trigger rate live did not hold)
             continue
+        r = {**r, "regime": machine.get((r["cell"], r["method"]), r["regime"])}
         runs = _runs(r)
         spread = _spread(r, runs)
         inside = len(runs) >= 2 and min(runs) <= r["des"] <= max(runs)

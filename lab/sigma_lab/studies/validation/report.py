@@ -40,7 +40,13 @@ import os
 from pathlib import Path
 from typing import Any
 
-from sigma_des.calibrate.intervals import COVERAGE, rate_regime, regime, residuals_toml
+from sigma_des.calibrate.intervals import (
+    COVERAGE,
+    RATE_METRIC,
+    rate_regime,
+    regime,
+    residuals_toml,
+)
 from sigma_des.plotstyle import MIN_DPI, line_kw, metric_title
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.coverage import coverage_rows, residual_values
@@ -158,8 +164,8 @@ def _regime(metric: str, bundle: bool, dm: dict[str, Any], f_trig: float) -> str
     (:func:`~sigma_des.calibrate.intervals.rate_regime`)."""
     reg = regime(bundle, float(dm.get("machine_cpu_util_max", math.nan)),
                  float(dm.get("missed_frac", math.nan)))
-    if metric == "trigger_rate_hz":
-        return rate_regime(reg, float(dm.get("trigger_rate_hz", math.nan)), f_trig)
+    if metric == RATE_METRIC:
+        return rate_regime(reg, float(dm.get(RATE_METRIC, math.nan)), f_trig)
     return reg
 
 
