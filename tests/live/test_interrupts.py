@@ -27,9 +27,9 @@ class Failing:
         raise ValueError("not an interrupt")
 
 
-def _wait() -> int:
+def _wait(steps: int = 200) -> int:
     i = 0
-    for i in range(200):  # noqa: B007  (the count shows the wait was not cut)
+    for i in range(steps):  # noqa: B007  (the count shows the wait was not cut)
         time.sleep(0.005)
     return i
 
@@ -41,13 +41,15 @@ def test_a_signal_swallowed_by_a_finalizer_is_delivered_again(
     def hook(u: Any) -> None:  # what Python's own hook would print
         seen.append(u.exc_value)
 
+    gc.collect()  # earlier tests' garbage: its finalizers are not this test's
     monkeypatch.setattr(sys, "unraisablehook", hook)
     with Interrupts() as sig:
         with pytest.raises(KeyboardInterrupt):
             x = Finalized()
             del x  # the KeyboardInterrupt raised in __del__ is swallowed by Python
             gc.collect()
-            _wait()  # ... and delivered again: it ends the wait
+            _wait(1000)  # ... and delivered again 10 ms later: it ends the wait (5 s
+            # bound: a loaded test machine may start the timer's thread late)
         assert sig.count == 1 and seen == []  # nothing printed for it
         y = Failing()
         del y  # any other exception of a finalizer is reported as before
