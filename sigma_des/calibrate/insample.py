@@ -29,7 +29,8 @@ import pandas as pd
 from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 
-__all__ = ["IN_SAMPLE_METRICS", "TOLERANCE", "in_sample", "live_trigger_latency", "missed_frac"]
+__all__ = ["IN_SAMPLE_METRICS", "TOLERANCE", "in_sample", "live_trigger_latency", "missed_frac",
+           "repeats_apart"]
 
 #: Metrics compared, in report order.
 IN_SAMPLE_METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "latency_trigger_mean",
@@ -131,3 +132,47 @@ def in_sample(sc: Scenario, source: Path) -> tuple[list[dict[str, Any]], list[st
             warn.append(f"{method}: the calibrated DES misses its own run by more than "
                         f"{TOLERANCE:.0%} on {', '.join(bad)}")
     return rows, warn
+
+
+def repeats_apart(report: dict[str, Any]) -> list[dict[str, Any]]:
+    """Where no calibration can be within :data:`TOLERANCE` of every run: live's own
+    repeats of one setting (the runs' size, hosts and message mode) that disagree on a
+    method's metric by more than ``(1 + TOLERANCE) / (1 - TOLERANCE)`` (22 %; for missed
+    frames by more than ``2 * TOLERANCE``, 20 pp). No one value is within the tolerance
+    of each of them, and the DES predicts a setting alike whichever run it is (up to
+    the run's seed).
+
+    Args:
+        report: a calibration's report: its ``in_sample`` rows (with ``run``) and
+            ``runs`` (each run's ``nodes``, ``hosts`` and ``bundle``).
+
+    Returns:
+        One row per such setting x method x metric, in report order: ``setting``,
+        ``method``, ``metric``, ``runs``, ``live`` (the repeats' values), ``apart``
+        (``max / min - 1``; ``max - min`` for ``missed_frac``) and ``flagged`` (how many
+        of the group's cells the check flagged).
+    """
+    runs = report.get("runs", {})
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for r in report.get("in_sample", []):
+        info = runs.get(r.get("run"))
+        if info is None or not math.isfinite(r["live"]):
+            continue
+        mode = "bundled" if info.get("bundle") else "per node"
+        setting = f"N = {info['nodes']}, {info['hosts']} hosts, {mode}"
+        groups.setdefault((setting, r["method"], r["metric"]), []).append(r)
+    out = []
+    for (setting, method, metric), rows in groups.items():
+        live = [float(r["live"]) for r in rows]
+        lo, hi = min(live), max(live)
+        if len(rows) < 2 or (metric != "missed_frac" and lo <= 0.0):
+            continue
+        if metric == "missed_frac":
+            apart, too = hi - lo, hi - lo > 2 * TOLERANCE
+        else:
+            apart, too = hi / lo - 1.0, hi / lo > (1 + TOLERANCE) / (1 - TOLERANCE)
+        if too:
+            out.append({"setting": setting, "method": method, "metric": metric,
+                        "runs": [r["run"] for r in rows], "live": live, "apart": apart,
+                        "flagged": sum(bool(r["flagged"]) for r in rows)})
+    return out

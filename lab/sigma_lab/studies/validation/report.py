@@ -40,6 +40,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from sigma_des.calibrate.insample import repeats_apart
 from sigma_des.calibrate.intervals import (
     COVERAGE,
     RATE_METRIC,
@@ -232,6 +233,19 @@ def judge_row(r: dict[str, Any]) -> Verdict:
     return Verdict(r["passed"] != "", bool(r["passed"]), bool(r["within_band"]), r["rule"])
 
 
+def _apart(report: dict[str, Any]) -> str:
+    """How many in-sample misses no calibration could avoid: their setting's live
+    repeats more than 22 % apart (``repeats_apart``), on the scored metrics."""
+    apart = [g for g in repeats_apart(report) if g["metric"] in METRICS]
+    n = sum(g["flagged"] for g in apart)
+    if not n:
+        return ""
+    where = "; ".join(f"{g['setting']}, {g['method']} {g['metric']} "
+                      f"{' / '.join(f'{v:.3g}' for v in g['live'])}" for g in apart)
+    return (f"; {n} of the misses are runs of a setting whose own live repeats are more "
+            f"than 22 % apart, so no one value is within 10 % of each: {where}")
+
+
 def _knee_md(knees: list[dict[str, Any]]) -> list[str]:
     """The knee section of ``summary.md``."""
     lines: list[str] = []
@@ -313,7 +327,7 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
     lines += [f"- [{'x' if knee_ok[m] else ' '}] knee within ±25 % ({m} messages)"
               for m in ("node", "bundle")]
     lines += [f"- [{'x' if ins_ok else ' '}] in-sample error ≤ 10 % on every metric "
-              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells)"]
+              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells{_apart(report)})"]
     if cov:
         lines += _coverage_md(cov)
     lines += ["", "## Live noise floor (calibration setting, repeats)", "",
