@@ -52,10 +52,11 @@ __all__ = ["MAY_DIFFER", "UNDER_LOAD", "RunInfo", "check_combinable", "combine",
 MAY_DIFFER = frozenset({"nodes", "hosts", "duration", "warmup", "seed"})
 #: A run whose background CPU exceeds this share of the cores was under load.
 UNDER_LOAD = 0.25
-#: Deployment keys that are per-message costs or waits: shown by every run.
+#: Deployment keys that are per-message costs or waits (and the loop's hand-over
+#: interval): shown by every run.
 _PER_MESSAGE = ("host_demand", "server_demand", "host_wake", "server_wake", "host_wake_side",
                 "server_wake_side", "host_net_wake", "server_net_wake", "host_net_msg",
-                "server_net_msg", "host_runq", "server_runq", "broker_runq")
+                "server_net_msg", "host_runq", "server_runq", "broker_runq", "lock_switch")
 #: Deployment keys shown by bundled runs.
 _PER_RECORD = ("host_record", "server_record")
 
@@ -253,11 +254,13 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
         "delivery_service_per_client_s": per_client,
         # the host burst the pooled state-hop samples hold (sigma_des.calibrate.burst)
         "hop_nodes_per_host": float(np.average(m, weights=w)),
+        "lock_switch_s": dep.lock_switch,
         "primary_run": names[primary],
         "primary_rule": rule,
         "parameter_sources": {
             "hop latencies (pooled samples)": [names[i] for i in lat_runs],
-            "per-message CPU, run-queue waits, broker services": [names[i] for i in msg_runs],
+            "per-message CPU, run-queue waits, hand-over interval, broker services":
+                [names[i] for i in msg_runs],
             "per-record CPU of bundles": [names[i] for i in rec_runs],
             "step time, host share, scenario keys, cores": [names[primary]],
             "broker per-delivery service": [names[i] for i in (msg_runs or lat_runs)],

@@ -10,11 +10,11 @@ Utilization Law on its busy CPU (one thread, or with the thread columns two thre
 tandem: ``*_demand``, ``*_wake``, ``*_wake_side``, ``*_net_msg``, ``*_net_wake``), the
 measured run-queue waits (``*_runq``, kept constant unless ``growth``), the record cost
 of a bundle (``*_record``, the loop line's slope), the broker's busy CPU per message in
-or out as both of its service times, ``lock_switch`` = :data:`LIVE_LOCK_SWITCH`,
-``server_tick = 0``, ``clients = "host"`` and ``bundle`` as run. Without a ``cpu.csv``
-nothing is fitted (no CPU stage; a warning says so). Each rule, its formula and why it
-is so: docs/concepts/live-and-calibration.md ("The machine") and
-docs/concepts/decisions.md.
+or out as both of its service times, ``lock_switch`` = the server loop's measured
+hand-over interval (:func:`hand_over`), ``server_tick = 0``, ``clients = "host"`` and
+``bundle`` as run. Without a ``cpu.csv`` nothing is fitted (no CPU stage; a warning
+says so). Each rule, its formula and why it is so: docs/concepts/live-and-calibration.md
+("The machine") and docs/concepts/decisions.md.
 """
 
 from __future__ import annotations
@@ -36,12 +36,14 @@ from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
 __all__ = ["BACKGROUND_CAP", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
-           "live_info", "path_services", "pooled_demand", "recorded"]
+           "hand_over", "live_info", "path_services", "pooled_demand", "recorded"]
 
 #: Largest ``background`` a calibration writes, as a share of ``cores``.
 BACKGROUND_CAP = 0.95
-#: ``deployment.lock_switch`` of a live run: Python's interpreter-lock switch interval,
-#: which the live processes do not change (``sys.getswitchinterval()``'s default)
+#: Longest ``deployment.lock_switch``: Python's interpreter-lock switch interval, which
+#: the live processes do not change (``sys.getswitchinterval()``'s default): a busy
+#: thread gives the lock up at the latest then. Also the value for a run whose
+#: ``cpu.csv`` cannot show the hand-over (:func:`hand_over`).
 LIVE_LOCK_SWITCH = 0.005
 #: A machine this busy (share of its cores, ours + background) is warned about.
 SATURATED = 0.95
@@ -226,6 +228,28 @@ def _split_wake(wake: float, rep: dict[str, float], kind: str) -> tuple[float, f
     return a, wake - a
 
 
+def hand_over(cpu: pd.DataFrame) -> float:
+    """The server's loop thread's busy wall seconds per voluntary switch beyond its
+    wake-ups, ``Σ loop_wall_s / (Σ main_switches - Σ wakes)`` over its rows (every
+    method): how long the busy thread runs, on average, before another thread (paho's
+    network thread) gets the interpreter lock from it. A busy live loop gives the lock
+    up at every blocking call (a publish's socket write, a log line), not only at
+    Python's switch interval; a wake-up's own end is one switch each, so those are
+    taken out. At most :data:`LIVE_LOCK_SWITCH`; NaN where the columns are missing
+    (a run recorded before them) or no such switch happened.
+    """
+    rows = kind_rows(cpu, "server")
+    need = [WALL_COLUMN, "main_switches", "wakes"]
+    if not len(rows) or any(c not in rows.columns for c in need):
+        return math.nan
+    r = rows[need].dropna()
+    extra = float(r["main_switches"].sum() - r["wakes"].sum())
+    wall = float(r[WALL_COLUMN].sum())
+    if not (extra > 0.0 and wall > 0.0):
+        return math.nan
+    return min(wall / extra, LIVE_LOCK_SWITCH)
+
+
 def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
                 warn: list[str], growth: bool) -> tuple[float, float]:
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
@@ -306,13 +330,18 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     host_rec = _record(host_rep, "host", host)
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
+    switch = hand_over(cpu)
+    if not math.isfinite(switch):
+        warn.append(f"{CPU_FILE} does not show the server loop's hand-overs (loop wall "
+                    "time and switch counts; a run of an older version?): lock_switch = "
+                    f"{LIVE_LOCK_SWITCH * 1e3:g} ms, Python's switch interval, taken")
     runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth)
             for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=k["host"]["wake"], server_wake=k["server"]["wake"],
                          host_record=host_rec, server_record=server_rec,
-                         lock_switch=LIVE_LOCK_SWITCH,
+                         lock_switch=switch if math.isfinite(switch) else LIVE_LOCK_SWITCH,
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
                          runq_growth=growth and any(math.isfinite(q) for _f, q in runq.values()),
@@ -326,7 +355,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
            for key in ("demand", "wake", "wake_side", "net_msg", "net_wake")},
         "broker_demand_s": broker,
         "host_record_s": host_rec, "server_record_s": server_rec,
-        "machine_utilisation": u,
+        "machine_utilisation": u, "lock_switch_measured_s": switch,
         **{f"{k}_runq_per_cpu_s": q for k, (_f, q) in runq.items()},
         **{f"{k}_runq_floor": f for k, (f, _q) in runq.items()},
         **host_rep, **server_rep,

@@ -18,7 +18,7 @@ from scipy.special import ndtri
 from sigma_des import load
 from sigma_des.calibrate.demands import fit_demands
 from sigma_des.calibrate.fit import calibrate, calibrated_toml, for_target
-from sigma_des.calibrate.fit_cpu import path_services, pooled_demand
+from sigma_des.calibrate.fit_cpu import hand_over, path_services, pooled_demand
 from sigma_des.calibrate.fit_step import HOST_SHARE_CAP, host_share, icc
 from sigma_des.cli import main
 from sigma_des.live.cpu import write_cpu
@@ -85,7 +85,8 @@ def test_calibrate_writes_the_deployment_with_the_fitted_values(tmp_path: Path) 
         assert getattr(dep, key) == getattr(want, key), key
     for key in ("background", "host_demand", "server_demand"):
         assert getattr(dep, key) == pytest.approx(getattr(want, key), rel=1e-12), key
-    assert dep.lock_switch == 0.005 == sys.getswitchinterval()  # live's Python default
+    # this cpu.csv cannot show the server loop's hand-overs: Python's switch interval
+    assert dep.lock_switch == 0.005 == sys.getswitchinterval()
     for svc in (sc.broker.publish_service, sc.broker.delivery_service):
         assert svc.dist == "constant" and svc.value == pytest.approx(broker, rel=1e-12)
     # written out and read back: the same keys and values
@@ -110,7 +111,49 @@ def test_calibrate_writes_the_deployment_with_the_fitted_values(tmp_path: Path) 
     assert rep["path_cpu_service_down_s"] == pytest.approx(cpu_down, rel=1e-12)
     assert rep["server_queue_folded_into_server_link"] is False
     assert rep["state_held_frac"] == 0.0  # states 0.5 ms apart > 0.1 ms
-    assert not any("cpu.csv" in w for w in rep["warnings"])
+    cpu_warnings = [w for w in rep["warnings"] if "cpu.csv" in w]
+    assert cpu_warnings == ["cpu.csv does not show the server loop's hand-overs (loop wall "
+                            "time and switch counts; a run of an older version?): "
+                            "lock_switch = 5 ms, Python's switch interval, taken"]
+    assert math.isnan(rep["lock_switch_measured_s"])
+
+
+def _loop_rows(server: list[tuple[float, float, float]]) -> pd.DataFrame:
+    """A cpu table with the server's (loop wall s, main switches, wakes) per method and
+    a host whose loop wakes more often than it switches (timers due without a wait)."""
+    rows = [{"method": f"m{i}", "process": "server", "loop_wall_s": w, "main_switches": sw,
+             "wakes": wk} for i, (w, sw, wk) in enumerate(server)]
+    rows.append({"method": "m0", "process": "host0", "loop_wall_s": 9.0,
+                 "main_switches": 10.0, "wakes": 100.0})
+    return pd.DataFrame(rows)
+
+
+def test_the_hand_over_interval_is_the_busy_wall_time_per_switch_beyond_the_wake_ups() -> None:
+    # pooled over methods: (0.3 + 0.1) s / ((3000 + 1000) - (2000 + 1000)) = 0.4 ms;
+    # the host's rows are not the server's
+    assert hand_over(_loop_rows([(0.3, 3000.0, 2000.0), (0.1, 1000.0, 1000.0)])) == \
+        pytest.approx(0.4e-3, rel=1e-12)
+    # a wake-up's own end is one switch each: no switch beyond them, nothing to measure
+    assert math.isnan(hand_over(_loop_rows([(0.3, 2000.0, 2000.0)])))
+    # a loop that kept the lock longer than Python's switch interval gave it up then
+    assert hand_over(_loop_rows([(1.0, 110.0, 10.0)])) == 0.005  # 10 ms measured
+    # a run recorded before the columns: nothing measured
+    old = _loop_rows([(0.3, 3000.0, 2000.0)]).drop(columns=["loop_wall_s"])
+    assert math.isnan(hand_over(old))
+
+
+def test_a_campaign_takes_the_mean_hand_over_of_its_per_node_runs(tmp_path: Path) -> None:
+    from sigma_des.calibrate.campaign import combine
+
+    sc, rep = calibrate(_cpu_run(tmp_path / "run"), tmp_path / "files")
+    fits = []
+    for i, (sw, bundle) in enumerate(((0.0004, False), (0.0002, False), (0.001, True))):
+        s = replace(sc, deployment=replace(sc.deployment, lock_switch=sw))
+        fits.append((s, rep, {"name": f"r{i}", "bundle": bundle, "background": 0.0,
+                              "figures": {}}))
+    out, report, _primary = combine(fits, tmp_path / "combined")
+    assert out.deployment.lock_switch == pytest.approx(0.0003, rel=1e-12)  # bundled left out
+    assert report["lock_switch_s"] == out.deployment.lock_switch
 
 
 def test_per_client_delivery_is_not_rescaled_with_one_client_per_host(tmp_path: Path) -> None:
