@@ -250,6 +250,18 @@ def hand_over(cpu: pd.DataFrame) -> float:
     return min(wall / extra, LIVE_LOCK_SWITCH)
 
 
+def _lock_switch(cpu: pd.DataFrame, warn: list[str]) -> tuple[float, float]:
+    """``deployment.lock_switch`` and the measured hand-over (:func:`hand_over`; NaN:
+    not measured, then Python's switch interval, warned)."""
+    switch = hand_over(cpu)
+    if math.isfinite(switch):
+        return switch, switch
+    warn.append(f"{CPU_FILE} does not show the server loop's hand-overs (loop wall "
+                "time and switch counts; a run of an older version?): lock_switch = "
+                f"{LIVE_LOCK_SWITCH * 1e3:g} ms, Python's switch interval, taken")
+    return LIVE_LOCK_SWITCH, switch
+
+
 def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
                 warn: list[str], growth: bool) -> tuple[float, float]:
     """``(deployment.<kind>_runq, measured wait per CPU second)``: the run-queue wait of
@@ -330,18 +342,14 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     host_rec = _record(host_rep, "host", host)
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
-    switch = hand_over(cpu)
-    if not math.isfinite(switch):
-        warn.append(f"{CPU_FILE} does not show the server loop's hand-overs (loop wall "
-                    "time and switch counts; a run of an older version?): lock_switch = "
-                    f"{LIVE_LOCK_SWITCH * 1e3:g} ms, Python's switch interval, taken")
+    lock, switch = _lock_switch(cpu, warn)
     runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth)
             for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=k["host"]["wake"], server_wake=k["server"]["wake"],
                          host_record=host_rec, server_record=server_rec,
-                         lock_switch=switch if math.isfinite(switch) else LIVE_LOCK_SWITCH,
+                         lock_switch=lock,
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
                          runq_growth=growth and any(math.isfinite(q) for _f, q in runq.values()),

@@ -3,7 +3,7 @@
 A user calibrates once and predicts later. A validation's own residuals hold its
 held-out cells' errors under a calibration made minutes before them, so they leave out
 how far live moves between sessions (the calibration setting's mean state latency,
-in seven calibrations on one machine: 1.77-2.04 ms). Validations of the same grid give,
+in eight calibrations on one machine: 1.77-2.04 ms). Validations of the same grid give,
 per held-out cell, method and metric, the DES's value under their calibration and
 live's value; for two validations X and Y, X's DES value against Y's live value is the
 residual of a prediction calibrated in X's session and checked in Y's, in X's regime
