@@ -196,7 +196,9 @@ def _pool_latencies(scs: list[Scenario], d: Path) -> dict[tuple[str, str], Dist]
             files = list(dict.fromkeys(x.file for x in dists))
             if len(files) == 1:
                 continue
-            samples = np.concatenate([np.asarray(load_samples(f)) for f in files])
+            # sorted: the pooled samples (and so every draw from them) do not depend on
+            # the order the runs were given in
+            samples = np.sort(np.concatenate([np.asarray(load_samples(f)) for f in files]))
             path = d / f"{Path(files[0]).stem}_pooled.txt"
             if not path.exists():
                 np.savetxt(path, samples, fmt="%.9g")
@@ -204,8 +206,15 @@ def _pool_latencies(scs: list[Scenario], d: Path) -> dict[tuple[str, str], Dist]
     return out
 
 
+def _mean(values: list[float], weights: list[float] | None = None) -> float:
+    """The (weighted) mean, exactly rounded (``math.fsum``): the same whatever the order
+    of the runs."""
+    w = [1.0] * len(values) if weights is None else weights
+    return math.fsum(v * x for v, x in zip(values, w, strict=True)) / math.fsum(w)
+
+
 def _mean_of(scs: list[Scenario], name: str) -> float:
-    return float(np.mean([float(getattr(sc.deployment, name)) for sc in scs]))
+    return _mean([float(getattr(sc.deployment, name)) for sc in scs])
 
 
 def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
@@ -235,7 +244,7 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     if msg_runs:
         new = {k: _mean_of([fits[i][0] for i in msg_runs], k)
                for k in _PER_MESSAGE if k in {f.name for f in fields(dep)}}
-        svc = float(np.mean([fits[i][0].broker.publish_service.mean_value() for i in msg_runs]))
+        svc = _mean([fits[i][0].broker.publish_service.mean_value() for i in msg_runs])
         broker = replace(broker, publish_service=Dist(dist="constant", value=svc))
     if rec_runs:
         for k in _PER_RECORD:
@@ -244,8 +253,8 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
                          new.get(demand, getattr(dep, demand)))
     if new:
         dep = replace(dep, **new)
-    per_client = float(np.mean([fits[i][1]["delivery_service_per_client_s"]
-                                for i in (msg_runs or lat_runs)]))
+    per_client = _mean([float(fits[i][1]["delivery_service_per_client_s"])
+                        for i in (msg_runs or lat_runs)])
     sc = replace(sc, net=net, deployment=dep, broker=broker)
     out = {k: v for k, v in rep.items() if not isinstance(v, dict | list)}
     w = [float(fits[i][1].get("states", 0)) or 1.0 for i in lat_runs]
@@ -253,7 +262,7 @@ def combine(fits: list[tuple[Scenario, dict[str, Any], RunInfo]], d: Path
     out.update({
         "delivery_service_per_client_s": per_client,
         # the host burst the pooled state-hop samples hold (sigma_des.calibrate.burst)
-        "hop_nodes_per_host": float(np.average(m, weights=w)),
+        "hop_nodes_per_host": _mean(m, w),
         "lock_switch_s": dep.lock_switch,
         "primary_run": names[primary],
         "primary_rule": rule,

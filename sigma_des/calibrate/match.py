@@ -273,7 +273,7 @@ def match_bundled(sc: Scenario, report: dict[str, Any], own: Scenario,
 
     runs = [source] if isinstance(source, Path) else list(source)
     means = [m for m in (_live_means(r, own)[0] for r in runs) if math.isfinite(m)]
-    live = float(np.mean(means)) if means else math.nan
+    live = math.fsum(means) / len(means) if means else math.nan  # any order: the same
     rep = {k: v for k, v in report.items() if not k.startswith("bundle_hop_")}
     base = for_run(sc, rep, own, bundle=True)
     up, down = base.net.host_link.latency, base.net.server_link.latency_down

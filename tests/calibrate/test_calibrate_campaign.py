@@ -171,3 +171,23 @@ def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
     assert cli._match_bundled(b1[0], {}, [b1, node], srcs[1::-1], 0) == {}
     assert cli._match_bundled(node[0], {}, [node], srcs[:1], 0) == {}
     assert len(seen) == 1
+
+
+def test_the_combined_figures_do_not_depend_on_the_order_of_the_runs(tmp_path: Path) -> None:
+    """Pooled hop samples are sorted and means exactly rounded: given in another order,
+    the same runs give the same samples (so the same draws) and bit-identical means.
+    ``0.1 + 0.2 + 0.3`` summed left to right is 0.6000000000000001, right to left 0.6."""
+    def fits(d: Path, order: list[int]) -> list[tuple]:  # type: ignore[type-arg]
+        d.mkdir()
+        made = [_fit(d, f"r{i}", [1e-3 * (i + 1), 5e-4 * i], False, host_demand=x,
+                     host_record=x / 2) for i, x in enumerate((0.1, 0.2, 0.3))]
+        return [made[i] for i in order]
+
+    a, rep_a, _ = combine(fits(tmp_path / "a", [0, 1, 2]), tmp_path / "a")
+    b, rep_b, _ = combine(fits(tmp_path / "b", [2, 1, 0]), tmp_path / "b")
+    assert a.deployment.host_demand == b.deployment.host_demand == 0.6 / 3
+    assert np.loadtxt(a.net.host_link.latency.file).tolist() == \
+        np.loadtxt(b.net.host_link.latency.file).tolist() == [0.0, 5e-4, 1e-3, 1e-3, 2e-3, 3e-3]  # type: ignore[union-attr]
+    for key in ("delivery_service_per_client_s", "hop_nodes_per_host"):
+        assert rep_a[key] == rep_b[key]
+    assert a.broker.publish_service.value == b.broker.publish_service.value
