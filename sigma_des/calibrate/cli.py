@@ -168,13 +168,15 @@ def _combined(fits: list[Any], out_dir: Path) -> tuple[Any, dict[str, Any], int]
 def _match_bundled(sc: Any, report: dict[str, Any], fits: list[Any], sources: list[Path],
                    primary: int) -> dict[str, Any]:
     """A campaign whose hops were matched on a per-node run and that has a bundled run:
-    the bundled targets' state-hop factor matched on its first bundled run, against the
-    mean of the bundled runs of that run's size and hosts (repeats;
-    :func:`~sigma_des.calibrate.match.match_bundled`); nothing otherwise (the hops
-    already are a bundled run's, or no bundled run shows the excess)."""
+    the bundled targets' state-hop factor matched on its first bundled run in name order
+    (whatever order the runs were given in), against the mean of the bundled runs of
+    that run's size and hosts (repeats; :func:`~sigma_des.calibrate.match.match_bundled`);
+    nothing otherwise (the hops already are a bundled run's, or no bundled run shows the
+    excess)."""
     from sigma_des.calibrate.match import match_bundled
 
-    bundled = [i for i, (_s, _r, info) in enumerate(fits) if info["bundle"]]
+    bundled = sorted((i for i, (_s, _r, info) in enumerate(fits) if info["bundle"]),
+                     key=lambda i: str(fits[i][2]["name"]))
     if not bundled or fits[primary][2]["bundle"]:
         return {}
     i = bundled[0]

@@ -142,7 +142,8 @@ def test_combine_records_the_burst_of_the_pooled_hops(tmp_path: Path) -> None:
 def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Hops matched on a per-node primary and a bundled run in the campaign: the bundled
-    match runs on the first bundled run (its own fit and source); a campaign whose
+    match runs on the first bundled run by name (its own fit and source), whatever the
+    order given; a campaign whose
     primary is bundled, or without a bundled run, gets none."""
     from sigma_des.calibrate import cli, match
 
@@ -166,6 +167,12 @@ def test_the_bundled_match_runs_on_the_first_bundled_run_of_a_per_node_campaign(
     b3 = _fit(tmp_path, "b30b", [1e-3], True, nodes=30, host_demand=1e-4)
     both = cli._match_bundled(node[0], {}, [node, b1, b2, b3], [*srcs, tmp_path / "b30b"], 0)
     assert seen[-1] == (30, "b30, b30b") and both["bundle_hop_run"] == "b30, b30b"
+    assert got_sources[-1] == [tmp_path / "b30", tmp_path / "b30b"]
+    seen.pop()
+    # given in another order: the same run (first by name) and the same sources
+    again = cli._match_bundled(node[0], {}, [node, b3, b2, b1],
+                               [tmp_path / "n20", tmp_path / "b30b", srcs[2], srcs[1]], 0)
+    assert seen[-1] == (30, "b30, b30b") and again["bundle_hop_run"] == "b30, b30b"
     assert got_sources[-1] == [tmp_path / "b30", tmp_path / "b30b"]
     seen.pop()
     assert cli._match_bundled(b1[0], {}, [b1, node], srcs[1::-1], 0) == {}
