@@ -188,21 +188,25 @@ def with_background(sc: Scenario, background: float) -> Scenario:
 def _pool_latencies(scs: list[Scenario], d: Path) -> dict[tuple[str, str], Dist]:
     """Each empirical link latency's samples over ``scs``, pooled into ``d``."""
     out: dict[tuple[str, str], Dist] = {}
+    written: dict[tuple[str, ...], Path] = {}  # links sharing one sample set share a file
     for link in ("host_link", "server_link"):
         for attr in ("latency", "latency_down"):
             dists = [getattr(getattr(sc.net, link), attr) for sc in scs]
             if not dists or any(x is None or x.dist != "empirical" for x in dists):
                 continue
-            files = list(dict.fromkeys(x.file for x in dists))
+            files = tuple(dict.fromkeys(x.file for x in dists))
             if len(files) == 1:
                 continue
-            # sorted: the pooled samples (and so every draw from them) do not depend on
-            # the order the runs were given in
-            samples = np.sort(np.concatenate([np.asarray(load_samples(f)) for f in files]))
-            path = d / f"{Path(files[0]).stem}_pooled.txt"
-            if not path.exists():
+            if files not in written:
+                # sorted: the pooled samples (and so every draw from them) do not depend
+                # on the order the runs were given in; written anew, never a file an
+                # earlier calibration left in ``d``
+                samples = np.sort(np.concatenate([np.asarray(load_samples(f))
+                                                  for f in files]))
+                path = d / f"{Path(files[0]).stem}_pooled.txt"
                 np.savetxt(path, samples, fmt="%.9g")
-            out[(link, attr)] = Dist(dist="empirical", file=str(path))
+                written[files] = path
+            out[(link, attr)] = Dist(dist="empirical", file=str(written[files]))
     return out
 
 

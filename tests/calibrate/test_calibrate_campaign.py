@@ -198,3 +198,15 @@ def test_the_combined_figures_do_not_depend_on_the_order_of_the_runs(tmp_path: P
     for key in ("delivery_service_per_client_s", "hop_nodes_per_host"):
         assert rep_a[key] == rep_b[key]
     assert a.broker.publish_service.value == b.broker.publish_service.value
+
+
+def test_a_second_campaign_in_the_same_folder_pools_its_own_samples(tmp_path: Path) -> None:
+    """The pooled hop file is written by each combine: one left in the folder by an
+    earlier campaign of other runs is not read back."""
+    first = [_fit(tmp_path, f"a{i}", [1e-3 * (i + 1)], False, host_demand=1e-4)
+             for i in range(2)]
+    combine(first, tmp_path)
+    second = [_fit(tmp_path, f"a{i}", [7e-3 + 1e-3 * i], False, host_demand=1e-4)
+              for i in range(2)]  # the same run names, other samples
+    sc, _rep, _p = combine(second, tmp_path)
+    assert np.loadtxt(sc.net.host_link.latency.file).tolist() == [7e-3, 8e-3]  # type: ignore[union-attr]
