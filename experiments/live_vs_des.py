@@ -12,6 +12,9 @@
    live noise floor, reported beside every error.
 4. The DES alone on a finer N grid (10 … 150) for its knee: the smallest N missing
    more than 5 % of frames, against live's.
+5. (``--loaded-check``) The calibration setting once more with a CPU hog busy on one
+   core: a calibration on that run alone against one on ``cal-r1`` alone, both scored
+   on the held-out cells (refused by ``predict``, or as good as the idle one).
 
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
 with the project's own Mosquitto; its load average and background CPU are kept, and
@@ -34,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from sigma_lab.studies.validation import full_plan, quick_plan, run_suite, write_outputs
+from sigma_lab.studies.validation.loaded import run_loaded
 from sigma_lab.studies.validation.runs import load_calibration
 
 from sigma_des.config import METHODS
@@ -72,6 +76,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="more live runs (0..3) of a held-out size whose runs disagree about "
                         "holding the rate and the missed-frame budget: live's knee decided "
                         "by the mean of an odd number of runs (default 1; --quick 0)")
+    p.add_argument("--loaded-check", action="store_true",
+                   help="also run the calibration setting once with a CPU hog busy on one "
+                        "core, calibrate on it alone and on cal-r1 alone, and score both on "
+                        "the held-out cells (loaded.csv; ~8 min more)")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
@@ -101,6 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         outcome = run_suite(plan, out, calibrate_args=shlex.split(a.calibrate_args))
         cal, _ = load_calibration(out / "cal")
+        if a.loaded_check:
+            run_loaded(plan, out)
     except ConfigError as e:
         print(f"live_vs_des: {e}", file=sys.stderr)
         return 2

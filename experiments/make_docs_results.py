@@ -73,11 +73,13 @@ class Study:
 
 STUDIES = (
     Study("validation", "Live against the DES", "validation", "live_vs_des.py",
-          ("--calibrate-bundled", "--out", "{out}"), ("--quick", "--out", "{out}"),
+          ("--calibrate-bundled", "--loaded-check", "--out", "{out}"),
+          ("--quick", "--out", "{out}"),
           "The DES is calibrated on a campaign of live runs, one per node and two "
           "bundled (`sigma-des calibrate RUN RUN RUN`), then predicts "
           "held-out live runs at other sizes, message modes and impairments; each "
-          "prediction is scored against the live runs' own spread (the noise floor)."),
+          "prediction is scored against the live runs' own spread (the noise floor). "
+          "A calibration made beside a CPU hog is scored against an idle one."),
     Study("fixed_wing", "Fixed-wing model fidelity against JSBSim's minisgs", "validation",
           "fixed_wing_fit.py", ("--out", "{out}"), ("--quick", "--out", "{out}"),
           "Our 6-DoF fixed wing tuned by `sigma-des tune` (GA + DTW) to a log flown by "

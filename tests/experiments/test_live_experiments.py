@@ -18,6 +18,9 @@ from sigma_des.config import load
 from sigma_des.live.broker import find_mosquitto
 from sigma_des.live.wire import STATE_BYTES
 
+#: the validation's scored metrics, in its tables' order
+METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac")
+
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(find_mosquitto() is None, reason="mosquitto is not installed")
 
@@ -74,10 +77,22 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
     sc = load(str(tmp_path / "cal" / "calibrated.toml"))
     assert sc.payload_bits == STATE_BYTES * 8 == 93 * 8 and sc.nodes == 4
     assert (tmp_path / "live" / "cal-r1" / "messages.csv.gz").exists()
-    again = subprocess.run(cmd, check=True, env=env, timeout=600, capture_output=True, text=True)
+    # the rerun adds the loaded check: a run beside a CPU hog, two one-run calibrations
+    again = subprocess.run([*cmd, "--loaded-check"], check=True, env=env, timeout=900,
+                           capture_output=True, text=True)
     kept = [ln for ln in again.stderr.splitlines() if ln.startswith("[") and "kept" in ln]
     assert len(kept) == 4  # every live cell
     assert "calibration: kept" in again.stderr
+    loaded = list(csv.DictReader((tmp_path / "loaded.csv").open()))
+    assert [(r["calibration"], r["metric"]) for r in loaded] == [
+        (c, k) for c in ("cal-r1", "cal-hog") for k in METRICS]
+    rows = list(csv.DictReader((tmp_path / "cells.csv").open()))
+    held = {k: sum(r["metric"] == k and r["held_out"] == "True" and r["passed"] != ""
+                   for r in rows) for k in METRICS}
+    assert all(int(r["scored"]) == held[r["metric"]] for r in loaded)
+    hog = next(r for r in loaded if r["calibration"] == "cal-hog")
+    assert float(hog["background_cores"]) > 0.5  # a core kept busy beside the run
+    assert "## A calibration under load" in (tmp_path / "summary.md").read_text()
     assert list(csv.DictReader((tmp_path / "cells.csv").open())) == rows
     # calibrate's own options: the kept live cells stay, the calibration is redone with them
     third = subprocess.run([*cmd, "--calibrate-args=--one-thread"], check=True, env=env,

@@ -11,6 +11,8 @@
 * :mod:`~sigma_lab.studies.validation.coverage` — the intervals' coverage on the
   held-out cells and the ``residuals.toml`` ``sigma-des predict`` reads;
   :mod:`~sigma_lab.studies.validation.kneeplot` — ``knee.png``;
+* :mod:`~sigma_lab.studies.validation.loaded` — a calibration made under a CPU hog
+  against an idle one (``--loaded-check``);
 * :mod:`~sigma_lab.studies.validation.stages` — the state latency split by stage and
   publish order, live against the DES, per cell (``python -m``; not part of the suite).
 

@@ -24,7 +24,9 @@
   cells and their residuals (:mod:`sigma_lab.studies.validation.coverage`);
   ``misses.csv`` — every held-out miss and its reading (:mod:`~.misses`);
   ``rounds.csv`` — the round of a frame at each missed knee, live and DES, stage by
-  stage (:mod:`~.rounds`); the knee itself: :mod:`~.knees`.
+  stage (:mod:`~.rounds`); the knee itself: :mod:`~.knees`;
+  ``loaded.csv`` — with ``--loaded-check``, a calibration under a CPU hog against an
+  idle one, scored on the held-out cells (:mod:`~.loaded`).
 
 A run is **under load** when the background CPU during its metrics window (other
 processes' CPU, from its own CPU table) exceeds :data:`UNDER_LOAD` of the machine's
@@ -61,6 +63,7 @@ from sigma_lab.studies.validation.knees import (
     live_of,
     point_names,
 )
+from sigma_lab.studies.validation.loaded import LOADED_COLUMNS, loaded_md, loaded_rows
 from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
 from sigma_lab.studies.validation.rounds import ROUND_COLUMNS, round_md, round_rows
@@ -463,6 +466,11 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
     _write_csv(out / "misses.csv", misses, MISS_COLUMNS)
     text = summary_md(plan, rows, knees, noise, outcome[2], command, cov)
     text += "\n".join(miss_md(misses)) + "\n"
+    cores = os.cpu_count() or 1
+    loaded = loaded_rows(rows, out, cores, f_trig)
+    if loaded:
+        _write_csv(out / "loaded.csv", loaded, LOADED_COLUMNS)
+        text += "\n".join(loaded_md(loaded, cores)) + "\n"
     rounds = _rounds(plan, outcome, knees, out)
     _write_csv(out / "rounds.csv", rounds, ROUND_COLUMNS)
     text += "\n".join(round_md(rounds, any(k["verdict"] == "missed" for k in knees))) + "\n"

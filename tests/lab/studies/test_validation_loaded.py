@@ -1,0 +1,88 @@
+"""The loaded-calibration check: the hog, the scores of both calibrations, the verdict."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import psutil
+import pytest
+from sigma_lab.studies.validation.loaded import HOG, IDLE, Hog, loaded_md, loaded_rows
+from sigma_lab.studies.validation.scoring import METRICS
+
+#: one held-out cell x method: live value and its two runs, per metric
+LIVE = {"aoi_mean": (20.0, "19 21"), "aoi_p99": (30.0, "29 31"),
+        "latency_state_mean": (2.0, "1.9 2.1"), "trigger_rate_hz": (100.0, "100 100"),
+        "missed_frac": (0.0, "0 0")}
+IDLE_DES = {"aoi_mean": 21.0, "aoi_p99": 40.0, "latency_state_mean": 2.2,
+            "trigger_rate_hz": 100.0, "missed_frac": 0.02}  # +5 %, +33 %, +10 %, 0, 2 pp
+HOG_DES = {"aoi_mean": 25.0, "aoi_p99": 31.0, "latency_state_mean": 3.0,
+           "trigger_rate_hz": 90.0, "missed_frac": 0.2}  # +25 %, +3 %, +50 %, -10 %, 20 pp
+
+
+def _rows() -> list[dict[str, Any]]:
+    rows = [{"cell": "n30-node", "method": "none", "metric": k, "held_out": True, "live": v,
+             "live_runs": runs, "noise_floor": 0.05} for k, (v, runs) in LIVE.items()]
+    # a calibration run's own row: not held out, never scored here
+    rows.append({**rows[0], "cell": "cal-r1", "held_out": False})
+    return rows
+
+
+def _calibration(out: Path, name: str, des: dict[str, float], background: float) -> None:
+    d = out / "loaded" / name
+    (d / "cal").mkdir(parents=True)
+    (d / "des.json").write_text(json.dumps({"n30-node": {"none": des}}))
+    (d / "cal" / "calibrated.json").write_text(json.dumps(
+        {"background_cores_of_runs": {f"runs/{name}": background}}))
+
+
+def test_both_calibrations_scored_with_the_headline_rule(tmp_path: Path) -> None:
+    _calibration(tmp_path, IDLE, IDLE_DES, 0.07)
+    _calibration(tmp_path, HOG, HOG_DES, 1.05)
+    got = {(r["calibration"], r["metric"]): r for r in
+           loaded_rows(_rows(), tmp_path, cores=2, f_trig=100.0)}
+    assert {k: got[(IDLE, k)]["within"] for k in METRICS} == {
+        "aoi_mean": 1, "aoi_p99": 0, "latency_state_mean": 1, "trigger_rate_hz": 1,
+        "missed_frac": 1}
+    assert {k: got[(HOG, k)]["within"] for k in METRICS} == {
+        "aoi_mean": 0, "aoi_p99": 1, "latency_state_mean": 0, "trigger_rate_hz": 0,
+        "missed_frac": 0}
+    assert all(r["scored"] == 1 for r in got.values())
+    # 1.05 of 2 cores is above a quarter: predict refuses it; 0.07 is not
+    assert got[(HOG, "aoi_mean")]["refused"] and not got[(IDLE, "aoi_mean")]["refused"]
+    assert got[(HOG, "aoi_mean")]["background_cores"] == pytest.approx(1.05)
+
+
+def test_the_verdict(tmp_path: Path) -> None:
+    assert loaded_rows(_rows(), tmp_path, cores=2, f_trig=100.0) == []  # nothing run
+    _calibration(tmp_path, IDLE, IDLE_DES, 0.07)
+    _calibration(tmp_path, HOG, HOG_DES, 1.05)
+    refused = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
+    assert refused[-1].startswith("- [x]") and "refused by `predict`" in refused[-1]
+    assert "| cal-hog | 1.05 | yes | 0 / 1 | 1 / 1 | 0 / 1 | 0 / 1 | 0 / 1 |" in "\n".join(refused)
+    # the same predictions from a run at 0.3 cores (not refused): fewer cells -> not met
+    (tmp_path / "loaded" / HOG / "cal" / "calibrated.json").write_text(json.dumps(
+        {"background_cores_of_runs": {"runs/cal-hog": 0.3}}))
+    worse = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
+    assert worse[-1].startswith("- [ ]") and "fewer cells" in worse[-1]
+    # as good as the idle one on every metric -> met
+    (tmp_path / "loaded" / HOG / "des.json").write_text(json.dumps(
+        {"n30-node": {"none": IDLE_DES}}))
+    good = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
+    assert good[-1].startswith("- [x]") and "as many cells" in good[-1]
+    assert loaded_md([r for r in loaded_rows(_rows(), tmp_path, 2, 100.0)
+                      if r["calibration"] == IDLE], cores=2) == []
+
+
+def test_the_hog_spins_a_core_and_is_bounded() -> None:
+    with Hog(limit=30.0) as hog:
+        assert hog.proc is not None
+        time.sleep(0.6)
+        cpu = psutil.Process(hog.proc.pid).cpu_times()
+        assert cpu.user + cpu.system > 0.3  # busy, not sleeping
+    assert hog.proc.poll() is not None  # stopped with the block
+    lone = Hog(limit=0.3)
+    lone.__enter__()  # never exited: the spin loop ends by itself
+    assert lone.proc is not None and lone.proc.wait(timeout=10) == 0
