@@ -85,12 +85,12 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
     assert "calibration: kept" in again.stderr
     loaded = list(csv.DictReader((tmp_path / "loaded.csv").open()))
     assert [(r["calibration"], r["metric"]) for r in loaded] == [
-        (c, k) for c in ("cal-r1", "cal-hog") for k in METRICS]
+        (c, k) for c in ("idle", "hog") for k in METRICS]
     rows = list(csv.DictReader((tmp_path / "cells.csv").open()))
     held = {k: sum(r["metric"] == k and r["held_out"] == "True" and r["passed"] != ""
                    for r in rows) for k in METRICS}
     assert all(int(r["scored"]) == held[r["metric"]] for r in loaded)
-    hog = next(r for r in loaded if r["calibration"] == "cal-hog")
+    hog = next(r for r in loaded if r["calibration"] == "hog")
     assert float(hog["background_cores"]) > 0.5  # a core kept busy beside the run
     assert "## A calibration under load" in (tmp_path / "summary.md").read_text()
     assert list(csv.DictReader((tmp_path / "cells.csv").open())) == rows

@@ -9,7 +9,15 @@ from typing import Any
 
 import psutil
 import pytest
-from sigma_lab.studies.validation.loaded import HOG, IDLE, Hog, loaded_md, loaded_rows
+from sigma_lab.studies.validation.grid import full_plan
+from sigma_lab.studies.validation.loaded import (
+    HOG,
+    IDLE,
+    Hog,
+    loaded_md,
+    loaded_rows,
+    quietest,
+)
 from sigma_lab.studies.validation.scoring import METRICS
 
 #: one held-out cell x method: live value and its two runs, per metric
@@ -20,6 +28,9 @@ IDLE_DES = {"aoi_mean": 21.0, "aoi_p99": 40.0, "latency_state_mean": 2.2,
             "trigger_rate_hz": 100.0, "missed_frac": 0.02}  # +5 %, +33 %, +10 %, 0, 2 pp
 HOG_DES = {"aoi_mean": 25.0, "aoi_p99": 31.0, "latency_state_mean": 3.0,
            "trigger_rate_hz": 90.0, "missed_frac": 0.2}  # +25 %, +3 %, +50 %, -10 %, 20 pp
+
+
+RUN = {IDLE: "cal-r3", HOG: "cal-hog"}
 
 
 def _rows() -> list[dict[str, Any]]:
@@ -35,7 +46,7 @@ def _calibration(out: Path, name: str, des: dict[str, float], background: float)
     (d / "cal").mkdir(parents=True)
     (d / "des.json").write_text(json.dumps({"n30-node": {"none": des}}))
     (d / "cal" / "calibrated.json").write_text(json.dumps(
-        {"background_cores_of_runs": {f"runs/{name}": background}}))
+        {"background_cores_of_runs": {f"runs/{RUN[name]}": background}}))
 
 
 def test_both_calibrations_scored_with_the_headline_rule(tmp_path: Path) -> None:
@@ -53,6 +64,7 @@ def test_both_calibrations_scored_with_the_headline_rule(tmp_path: Path) -> None
     # 1.05 of 2 cores is above a quarter: predict refuses it; 0.07 is not
     assert got[(HOG, "aoi_mean")]["refused"] and not got[(IDLE, "aoi_mean")]["refused"]
     assert got[(HOG, "aoi_mean")]["background_cores"] == pytest.approx(1.05)
+    assert got[(IDLE, "aoi_mean")]["run"] == "cal-r3"
 
 
 def test_the_verdict(tmp_path: Path) -> None:
@@ -61,10 +73,11 @@ def test_the_verdict(tmp_path: Path) -> None:
     _calibration(tmp_path, HOG, HOG_DES, 1.05)
     refused = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
     assert refused[-1].startswith("- [x]") and "refused by `predict`" in refused[-1]
-    assert "| cal-hog | 1.05 | yes | 0 / 1 | 1 / 1 | 0 / 1 | 0 / 1 | 0 / 1 |" in "\n".join(refused)
+    assert ("| hog (`cal-hog`) | 1.05 | yes | 0 / 1 | 1 / 1 | 0 / 1 | 0 / 1 | 0 / 1 |"
+            in "\n".join(refused))
     # the same predictions from a run at 0.3 cores (not refused): fewer cells -> not met
     (tmp_path / "loaded" / HOG / "cal" / "calibrated.json").write_text(json.dumps(
-        {"background_cores_of_runs": {"runs/cal-hog": 0.3}}))
+        {"background_cores_of_runs": {"runs/cal-hog": 0.3}}))  # (not refused)
     worse = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
     assert worse[-1].startswith("- [ ]") and "fewer cells" in worse[-1]
     # as good as the idle one on every metric -> met
@@ -86,3 +99,22 @@ def test_the_hog_spins_a_core_and_is_bounded() -> None:
     lone = Hog(limit=0.3)
     lone.__enter__()  # never exited: the spin loop ends by itself
     assert lone.proc is not None and lone.proc.wait(timeout=10) == 0
+
+
+def test_the_idle_reference_is_the_quietest_repeat(tmp_path: Path) -> None:
+    plan = full_plan(("none",))
+
+    def run(name: str, cpu_s: list[float] | None) -> None:
+        d = tmp_path / "live" / name
+        d.mkdir(parents=True)
+        cpu = [] if cpu_s is None else [
+            {"process": "background", "window_s": 3.0, "cpu_s": c} for c in cpu_s]
+        (d / "summary.json").write_text(json.dumps({"live": {"none": {"cpu": cpu}}}))
+
+    run("cal-r1", [0.75])  # 0.25 cores
+    run("cal-r2", [0.15, 0.45])  # 0.05 and 0.15: 0.10 cores, the quietest
+    run("cal-r3", None)  # no figure: never chosen over one with it
+    run("n30-node", [0.0])  # held out: not a repeat of the calibration setting
+    assert quietest(plan, tmp_path) == "cal-r2"
+    run("cal-bundle", [0.0])  # bundled: another setting
+    assert quietest(plan, tmp_path) == "cal-r2"

@@ -3,9 +3,10 @@
 The target: a calibration run made while a CPU hog is busy on one core either predicts
 an idle machine's held-out cells within the same bands as an idle calibration, or is
 refused. ``--loaded-check`` runs the calibration setting once more with :class:`Hog`
-beside it (``loaded/cal-hog/live``), calibrates on that run alone and, as the reference,
-on ``cal-r1`` alone (the same one-run recipe on the idle machine), and predicts the
-held-out cells from each (``loaded/<name>/des.json``; :func:`run_loaded`).
+beside it (``loaded/hog/live``), calibrates on that run alone and, as the reference, on
+the quietest repeat of the calibration setting alone (the same one-run recipe; the
+least background CPU, :func:`quietest`), and predicts the held-out cells from each
+(``loaded/<idle|hog>/des.json``; :func:`run_loaded`).
 :func:`loaded_rows` scores both predictions with the headline's rule against the live
 values of ``cells.csv`` and says whether ``sigma-des predict`` refuses the calibration
 (:func:`~sigma_des.calibrate.campaign.loaded_runs`); ``loaded.csv`` and a section of
@@ -27,9 +28,11 @@ from types import TracebackType
 from typing import Any
 
 from sigma_des.calibrate.campaign import UNDER_LOAD, loaded_runs
+from sigma_des.errors import ConfigError
 from sigma_des.tables import md_table
 from sigma_lab.studies.validation.grid import Plan
 from sigma_lab.studies.validation.runs import (
+    background_cores,
     calibrate_run,
     des_cell,
     live_cell,
@@ -39,12 +42,13 @@ from sigma_lab.studies.validation.runs import (
 )
 from sigma_lab.studies.validation.scoring import METRICS, judge
 
-__all__ = ["HOG", "IDLE", "LOADED_COLUMNS", "Hog", "loaded_md", "loaded_rows", "run_loaded"]
+__all__ = ["HOG", "HOG_RUN", "IDLE", "LOADED_COLUMNS", "Hog", "loaded_md", "loaded_rows",
+           "quietest", "run_loaded"]
 
-#: The loaded run's name, and the idle calibration run it is compared with.
-HOG, IDLE = "cal-hog", "cal-r1"
+#: The two calibrations (folders of ``out/loaded``), and the loaded run's name.
+IDLE, HOG, HOG_RUN = "idle", "hog", "cal-hog"
 #: ``loaded.csv``'s columns: one row per calibration and metric.
-LOADED_COLUMNS = ("calibration", "background_cores", "refused", "metric", "within",
+LOADED_COLUMNS = ("calibration", "run", "background_cores", "refused", "metric", "within",
                   "scored")
 #: The hog: a spin loop that ends by itself after ``argv[1]`` seconds.
 _SPIN = ("import sys, time\nend = time.monotonic() + float(sys.argv[1])\n"
@@ -76,23 +80,39 @@ class Hog:
             self.proc.wait(timeout=10)
 
 
+def quietest(plan: Plan, out: Path) -> str:
+    """The repeat of the calibration setting whose live run had the least background CPU
+    (the first on ties, or without the figure): the idle reference."""
+    reps = [c.name for c in plan.cells if c.repeat >= 1 and c.mode == "node"
+            and (out / "live" / c.name / "summary.json").exists()]
+    if not reps:
+        raise ConfigError("--loaded-check", f"no run of the calibration setting in {out}")
+
+    def bg(name: str) -> float:
+        b = background_cores(read_json(out / "live" / name / "summary.json") or {})
+        return b if math.isfinite(b) else math.inf
+
+    return min(reps, key=lambda n: (bg(n), reps.index(n)))
+
+
 def run_loaded(plan: Plan, out: Path, say: Callable[[str], None] = print) -> None:
     """The loaded run, both one-run calibrations and their predictions (see the module
     doc), each skipped when already in ``out/loaded``.
 
     Raises:
-        ConfigError: a calibration failed (its log named).
+        ConfigError: no run of the calibration setting, or a calibration failed.
     """
-    base = next(c for c in plan.cells if c.name == IDLE)
-    runs = {IDLE: out / "live" / IDLE, HOG: out / "loaded" / HOG / "live"}
+    idle = quietest(plan, out)
+    base = next(c for c in plan.cells if c.name == idle)
+    runs = {IDLE: out / "live" / idle, HOG: out / "loaded" / HOG / "live"}
     if not (runs[HOG] / "summary.json").exists():
-        say(f"{HOG}: the calibration setting with a CPU hog busy on one core")
+        say(f"{HOG_RUN}: the calibration setting with a CPU hog busy on one core")
         with Hog(live_timeout(plan) + 60.0):
-            live_cell(replace(base, name=HOG), plan, runs[HOG])
+            live_cell(replace(base, name=HOG_RUN), plan, runs[HOG])
     for name, run in runs.items():
         d = out / "loaded" / name
         if not (d / "cal" / "calibrated.json").exists():
-            say(f"{name}: calibrating on this run alone")
+            say(f"{name}: calibrating on {run.name if name == IDLE else HOG_RUN} alone")
             calibrate_run([run], d / "cal", timeout=1200.0)
         if (d / "des.json").exists():
             continue
@@ -122,8 +142,10 @@ def loaded_rows(rows: list[dict[str, Any]], out: Path, cores: int, f_trig: float
             continue
         pred = json.loads((d / "des.json").read_text())
         report = read_json(d / "cal" / "calibrated.json") or {}
-        bgs = [float(v) for v in (report.get("background_cores_of_runs") or {}).values()]
+        of_runs = report.get("background_cores_of_runs") or {}
+        bgs = [float(v) for v in of_runs.values()]
         bg = max((b for b in bgs if math.isfinite(b)), default=math.nan)
+        run = ", ".join(Path(str(k)).name for k in of_runs)
         refused = bool(loaded_runs(report, cores))
         for k in METRICS:
             verdicts = []
@@ -134,7 +156,8 @@ def loaded_rows(rows: list[dict[str, Any]], out: Path, cores: int, f_trig: float
                 verdicts.append(judge(k, r["live"], pred[r["cell"]][r["method"]][k],
                                       r["noise_floor"], f_trig, reps if len(reps) > 1 else ()))
             scored = [v for v in verdicts if v.scored]
-            out_rows.append({"calibration": name, "background_cores": bg, "refused": refused,
+            out_rows.append({"calibration": name, "run": run, "background_cores": bg,
+                             "refused": refused,
                              "metric": k, "within": sum(v.within_band for v in scored),
                              "scored": len(scored)})
     return out_rows
@@ -150,7 +173,8 @@ def loaded_md(lrows: list[dict[str, Any]], cores: int) -> list[str]:
     hog = by[(HOG, METRICS[0])]
     as_good = all(by[(HOG, k)]["within"] >= by[(IDLE, k)]["within"] for k in METRICS)
     met = hog["refused"] or as_good
-    body = [[c, f"{by[(c, METRICS[0])]['background_cores']:.2f}",
+    body = [[f"{c} (`{by[(c, METRICS[0])]['run']}`)",
+             f"{by[(c, METRICS[0])]['background_cores']:.2f}",
              "yes" if by[(c, METRICS[0])]["refused"] else "no",
              *[f"{by[(c, k)]['within']} / {by[(c, k)]['scored']}" for k in METRICS]]
             for c in (IDLE, HOG)]
@@ -159,11 +183,12 @@ def loaded_md(lrows: list[dict[str, Any]], cores: int) -> list[str]:
            "not refused" + ("; as many cells within the band as the idle one" if as_good
                             else "; fewer cells within the band than the idle one"))
     return ["", "## A calibration under load", "",
-            f"The calibration setting run once more with a CPU hog busy on one core "
-            f"(`{HOG}`), calibrated on that run alone, against `{IDLE}` calibrated alone on "
-            "the idle machine: held-out cells within the headline's band from each (the "
-            "same live values and rule as above; a one-run calibration has no bundled "
-            "run, so its bundled cells are predicted with the per-node hops).", "",
+            "The calibration setting run once more with a CPU hog busy on one core, "
+            "calibrated on that run alone, against the setting's quietest repeat (the "
+            "least background CPU) calibrated alone: held-out cells within the headline's "
+            "band from each (the same live values and rule as above; a one-run calibration "
+            "has no bundled run, so its bundled cells are predicted with the per-node "
+            "hops).", "",
             md_table(["calibration", "background (cores)", "refused", *METRICS], body), "",
             f"- [{'x' if met else ' '}] a calibration under load is refused, or predicts as "
             f"well as an idle one: {why}"]
