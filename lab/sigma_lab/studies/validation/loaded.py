@@ -3,7 +3,7 @@
 The target: a calibration run made while a CPU hog is busy on one core either predicts
 an idle machine's held-out cells within the same bands as an idle calibration, or is
 refused. ``--loaded-check`` runs the calibration setting once more with :class:`Hog`
-beside it (``loaded/hog/live``), calibrates on that run alone and, as the reference, on
+beside it (``loaded/hog/cal-hog``), calibrates on that run alone and, as the reference, on
 the quietest repeat of the calibration setting alone (the same one-run recipe; the
 least background CPU, :func:`quietest`), and predicts the held-out cells from each
 (``loaded/<idle|hog>/des.json``; :func:`run_loaded`).
@@ -104,7 +104,7 @@ def run_loaded(plan: Plan, out: Path, say: Callable[[str], None] = print) -> Non
     """
     idle = quietest(plan, out)
     base = next(c for c in plan.cells if c.name == idle)
-    runs = {IDLE: out / "live" / idle, HOG: out / "loaded" / HOG / "live"}
+    runs = {IDLE: out / "live" / idle, HOG: out / "loaded" / HOG / HOG_RUN}
     if not (runs[HOG] / "summary.json").exists():
         say(f"{HOG_RUN}: the calibration setting with a CPU hog busy on one core")
         with Hog(live_timeout(plan) + 60.0):
