@@ -202,8 +202,9 @@ def run_study(s: Study, quick: bool, work: Path | None = None) -> bool:
 
 
 def _live_runs(out: Path) -> int:
-    """Live runs finished in a study's output folder (``live/*/summary.json``)."""
-    return len(list((out / "live").glob("*/summary.json")))
+    """Live runs finished in a study's output folder (``live/*/summary.json``, and the
+    validation's loaded run, ``loaded/*/*/summary.json``)."""
+    return len([*out.glob("live/*/summary.json"), *out.glob("loaded/*/*/summary.json")])
 
 
 def _ship_residuals(filed: Path) -> None:

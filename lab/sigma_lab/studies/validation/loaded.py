@@ -112,7 +112,7 @@ def run_loaded(plan: Plan, out: Path, say: Callable[[str], None] = print) -> Non
     for name, run in runs.items():
         d = out / "loaded" / name
         if not (d / "cal" / "calibrated.json").exists():
-            say(f"{name}: calibrating on {run.name if name == IDLE else HOG_RUN} alone")
+            say(f"{name}: calibrating on {run.name} alone")
             calibrate_run([run], d / "cal", timeout=1200.0)
         if (d / "des.json").exists():
             continue
