@@ -92,7 +92,10 @@ def test_live_vs_des_quick(tmp_path: Path) -> None:
     assert all(int(r["scored"]) == held[r["metric"]] for r in loaded)
     hog = next(r for r in loaded if r["calibration"] == "hog")
     assert float(hog["background_cores"]) > 0.5  # a core kept busy beside the run
-    assert "## A calibration under load" in (tmp_path / "summary.md").read_text()
+    text = (tmp_path / "summary.md").read_text()
+    assert "## A calibration under load" in text
+    targets = text.split("## Targets")[1].split("\n## ")[0]  # ticked in the target list too
+    assert "a calibration under load is refused, or predicts as well" in targets
     assert list(csv.DictReader((tmp_path / "cells.csv").open())) == rows
     # calibrate's own options: the kept live cells stay, the calibration is redone with them
     third = subprocess.run([*cmd, "--calibrate-args=--one-thread"], check=True, env=env,

@@ -16,6 +16,7 @@ from sigma_lab.studies.validation.loaded import (
     Hog,
     loaded_md,
     loaded_rows,
+    loaded_target,
     quietest,
 )
 from sigma_lab.studies.validation.scoring import METRICS
@@ -85,8 +86,10 @@ def test_the_verdict(tmp_path: Path) -> None:
         {"n30-node": {"none": IDLE_DES}}))
     good = loaded_md(loaded_rows(_rows(), tmp_path, 2, 100.0), cores=2)
     assert good[-1].startswith("- [x]") and "as many cells" in good[-1]
-    assert loaded_md([r for r in loaded_rows(_rows(), tmp_path, 2, 100.0)
-                      if r["calibration"] == IDLE], cores=2) == []
+    idle_only = [r for r in loaded_rows(_rows(), tmp_path, 2, 100.0)
+                 if r["calibration"] == IDLE]
+    assert loaded_md(idle_only, cores=2) == [] and loaded_target(idle_only, 2) is None
+    assert loaded_target(loaded_rows(_rows(), tmp_path, 2, 100.0), 2) == good[-1]
 
 
 def test_the_hog_spins_a_core_and_is_bounded() -> None:

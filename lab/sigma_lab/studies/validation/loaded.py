@@ -43,7 +43,7 @@ from sigma_lab.studies.validation.runs import (
 from sigma_lab.studies.validation.scoring import METRICS, judge
 
 __all__ = ["HOG", "HOG_RUN", "IDLE", "LOADED_COLUMNS", "Hog", "loaded_md", "loaded_rows",
-           "quietest", "run_loaded"]
+           "loaded_target", "quietest", "run_loaded"]
 
 #: The two calibrations (folders of ``out/loaded``), and the loaded run's name.
 IDLE, HOG, HOG_RUN = "idle", "hog", "cal-hog"
@@ -163,25 +163,35 @@ def loaded_rows(rows: list[dict[str, Any]], out: Path, cores: int, f_trig: float
     return out_rows
 
 
-def loaded_md(lrows: list[dict[str, Any]], cores: int) -> list[str]:
-    """The section of ``summary.md`` and its verdict: met when the loaded calibration is
-    refused, or is within the band on at least as many cells as the idle one on each
-    metric. Nothing without both calibrations' rows."""
+def loaded_target(lrows: list[dict[str, Any]], cores: int) -> str | None:
+    """The target's line of ``summary.md``, ticked when the loaded calibration is refused
+    or is within the band on at least as many cells as the idle one on every metric;
+    None without both calibrations' rows."""
     by = {(r["calibration"], r["metric"]): r for r in lrows}
     if not all((c, k) in by for c in (IDLE, HOG) for k in METRICS):
-        return []
-    hog = by[(HOG, METRICS[0])]
+        return None
+    refused = by[(HOG, METRICS[0])]["refused"]
     as_good = all(by[(HOG, k)]["within"] >= by[(IDLE, k)]["within"] for k in METRICS)
-    met = hog["refused"] or as_good
+    why = ("refused by `predict` and `capacity` (background above "
+           f"{UNDER_LOAD:.0%} of the {cores} cores)" if refused else
+           "not refused" + ("; as many cells within the band as the idle one" if as_good
+                            else "; fewer cells within the band than the idle one"))
+    return (f"- [{'x' if refused or as_good else ' '}] a calibration under load is refused, "
+            f"or predicts as well as an idle one: {why}")
+
+
+def loaded_md(lrows: list[dict[str, Any]], cores: int) -> list[str]:
+    """The section of ``summary.md``: both calibrations' shares and the verdict
+    (:func:`loaded_target`). Nothing without both calibrations' rows."""
+    target = loaded_target(lrows, cores)
+    if target is None:
+        return []
+    by = {(r["calibration"], r["metric"]): r for r in lrows}
     body = [[f"{c} (`{by[(c, METRICS[0])]['run']}`)",
              f"{by[(c, METRICS[0])]['background_cores']:.2f}",
              "yes" if by[(c, METRICS[0])]["refused"] else "no",
              *[f"{by[(c, k)]['within']} / {by[(c, k)]['scored']}" for k in METRICS]]
             for c in (IDLE, HOG)]
-    why = ("refused by `predict` and `capacity` (background above "
-           f"{UNDER_LOAD:.0%} of the {cores} cores)" if hog["refused"] else
-           "not refused" + ("; as many cells within the band as the idle one" if as_good
-                            else "; fewer cells within the band than the idle one"))
     return ["", "## A calibration under load", "",
             "The calibration setting run once more with a CPU hog busy on one core, "
             "calibrated on that run alone, against the setting's quietest repeat (the "
@@ -190,5 +200,4 @@ def loaded_md(lrows: list[dict[str, Any]], cores: int) -> list[str]:
             "has no bundled run, so its bundled cells are predicted with the per-node "
             "hops).", "",
             md_table(["calibration", "background (cores)", "refused", *METRICS], body), "",
-            f"- [{'x' if met else ' '}] a calibration under load is refused, or predicts as "
-            f"well as an idle one: {why}"]
+            target]

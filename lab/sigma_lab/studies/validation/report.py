@@ -63,7 +63,12 @@ from sigma_lab.studies.validation.knees import (
     live_of,
     point_names,
 )
-from sigma_lab.studies.validation.loaded import LOADED_COLUMNS, loaded_md, loaded_rows
+from sigma_lab.studies.validation.loaded import (
+    LOADED_COLUMNS,
+    loaded_md,
+    loaded_rows,
+    loaded_target,
+)
 from sigma_lab.studies.validation.misses import MISS_COLUMNS, miss_md, miss_rows
 from sigma_lab.studies.validation.processes import PROCESS_COLUMNS, process_md, process_rows
 from sigma_lab.studies.validation.rounds import ROUND_COLUMNS, round_md, round_rows
@@ -276,8 +281,8 @@ def _knee_md(knees: list[dict[str, Any]]) -> list[str]:
 
 def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any]],
                noise: list[dict[str, Any]], report: dict[str, Any], command: str,
-               cov: list[dict[str, Any]] | None = None) -> str:
-    """``summary.md`` (see the module doc)."""
+               cov: list[dict[str, Any]] | None = None, more: tuple[str, ...] = ()) -> str:
+    """``summary.md`` (see the module doc); ``more``: further lines of its target list."""
     loads = [r["load"] for r in rows if r["metric"] == METRICS[0]]
     held = [r for r in rows if r["held_out"] and r["metric"] == METRICS[0]]
     lines = ["# Live vs DES validation", "", f"`{command}`", "",
@@ -330,7 +335,8 @@ def summary_md(plan: Plan, rows: list[dict[str, Any]], knees: list[dict[str, Any
     lines += [f"- [{'x' if knee_ok[m] else ' '}] knee within ±25 % ({m} messages)"
               for m in ("node", "bundle")]
     lines += [f"- [{'x' if ins_ok else ' '}] in-sample error ≤ 10 % on every metric "
-              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells{_apart(report)})"]
+              f"({sum(not r['flagged'] for r in ins)} of {len(ins)} cells{_apart(report)})",
+              *more]
     if cov:
         lines += _coverage_md(cov)
     lines += ["", "## Live noise floor (calibration setting, repeats)", "",
@@ -464,10 +470,12 @@ def write_outputs(plan: Plan, outcome: Outcome, out: Path, f_trig: float, comman
         _write_csv(out / "processes.csv", procs, PROCESS_COLUMNS)
     misses = miss_rows(rows, procs, plan.cal_nodes)
     _write_csv(out / "misses.csv", misses, MISS_COLUMNS)
-    text = summary_md(plan, rows, knees, noise, outcome[2], command, cov)
-    text += "\n".join(miss_md(misses)) + "\n"
     cores = os.cpu_count() or 1
     loaded = loaded_rows(rows, out, cores, f_trig)
+    target = loaded_target(loaded, cores)
+    text = summary_md(plan, rows, knees, noise, outcome[2], command, cov,
+                      () if target is None else (target,))
+    text += "\n".join(miss_md(misses)) + "\n"
     if loaded:
         _write_csv(out / "loaded.csv", loaded, LOADED_COLUMNS)
         text += "\n".join(loaded_md(loaded, cores)) + "\n"
