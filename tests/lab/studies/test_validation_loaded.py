@@ -121,3 +121,42 @@ def test_the_idle_reference_is_the_quietest_repeat(tmp_path: Path) -> None:
     assert quietest(plan, tmp_path) == "cal-r2"
     run("cal-bundle", [0.0])  # bundled: another setting
     assert quietest(plan, tmp_path) == "cal-r2"
+
+
+def test_a_kept_idle_calibration_of_another_repeat_is_made_again(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The quietest repeat decides the idle reference: a kept calibration made on another
+    repeat (an earlier choice) is redone with its predictions; the hog's is kept."""
+    from sigma_lab.studies.validation import loaded
+    from sigma_lab.studies.validation.grid import quick_plan
+
+    plan = quick_plan(("none",))
+    for name, cpu in (("cal-r1", 0.6), ("cal-r2", 0.0)):  # cal-r2 is the quieter now
+        d = tmp_path / "live" / name
+        d.mkdir(parents=True)
+        (d / "summary.json").write_text(json.dumps({"live": {"none": {"cpu": [
+            {"process": "background", "window_s": 3.0, "cpu_s": cpu}]}}}))
+    hog_run = tmp_path / "loaded" / HOG / "cal-hog"
+    hog_run.mkdir(parents=True)
+    (hog_run / "summary.json").write_text("{}")
+    for name, run in ((IDLE, "cal-r1"), (HOG, "cal-hog")):  # both kept from before
+        _calibration(tmp_path, name, IDLE_DES, 0.1)
+        (tmp_path / "loaded" / name / "cal" / "calibrated.json").write_text(json.dumps(
+            {"background_cores_of_runs": {f"x/{run}": 0.1}}))
+    made: list[str] = []
+
+    def calibrate(runs: list[Path], cal_dir: Path, timeout: float) -> None:
+        made.append(runs[0].name)
+        (cal_dir / "calibrated.json").write_text(json.dumps(
+            {"background_cores_of_runs": {str(runs[0]): 0.0}}))
+
+    monkeypatch.setattr(loaded, "calibrate_run", calibrate)
+    monkeypatch.setattr(loaded, "load_calibration", lambda d: (None, {}))
+    monkeypatch.setattr(loaded, "des_cell", lambda cal, rep, cell, plan, d: {
+        "methods": {"none": {k: 7.0 for k in METRICS}}})
+    loaded.run_loaded(plan, tmp_path, say=lambda line: None)
+    assert made == ["cal-r2"]  # the idle one again, on the quietest; the hog's kept
+    idle = json.loads((tmp_path / "loaded" / IDLE / "des.json").read_text())
+    assert set(idle) == {"n6-node", "n6-bundle"} and idle["n6-node"]["none"]["aoi_mean"] == 7.0
+    hog = json.loads((tmp_path / "loaded" / HOG / "des.json").read_text())
+    assert hog == {"n30-node": {"none": IDLE_DES}}  # untouched
