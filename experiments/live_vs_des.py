@@ -13,8 +13,9 @@
 4. The DES alone on a finer N grid (10 … 150) for its knee: the smallest N missing
    more than 5 % of frames, against live's.
 5. (``--loaded-check``) The calibration setting once more with a CPU hog busy on one
-   core: a calibration on that run alone against one on ``cal-r1`` alone, both scored
-   on the held-out cells (refused by ``predict``, or as good as the idle one).
+   core: a calibration on that run alone against one on the setting's quietest repeat
+   alone, both scored on the held-out cells (refused by ``predict``, or as good as the
+   idle one).
 
 Every live run is bounded (a time limit, then SIGTERM, then SIGKILL), on loopback,
 with the project's own Mosquitto; its load average and background CPU are kept, and
@@ -78,8 +79,8 @@ def main(argv: list[str] | None = None) -> int:
                         "by the mean of an odd number of runs (default 1; --quick 0)")
     p.add_argument("--loaded-check", action="store_true",
                    help="also run the calibration setting once with a CPU hog busy on one "
-                        "core, calibrate on it alone and on cal-r1 alone, and score both on "
-                        "the held-out cells (loaded.csv; ~8 min more)")
+                        "core, calibrate on it alone and on the quietest repeat alone, and "
+                        "score both on the held-out cells (loaded.csv; ~2 min more)")
     p.add_argument("--estimate", action="store_true", help="print the expected wall time, exit")
     a = p.parse_args(argv)
     methods = tuple(a.methods.split(",")) if a.methods else (
