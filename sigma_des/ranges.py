@@ -256,6 +256,7 @@ RANGES: dict[type, dict[str, tuple[str, Range]]] = {
         **{f"{w}_record": ("s", _r(0.0, f"deployment.{w}_demand")) for w in ("host", "server")},
         **{k: ("s per CPU s", _r(0.0, MAX_RUNQ)) for k in RUNQ_KEYS},
         "runq_growth": ("", _FLAG),
+        "broker_runq_growth": ("", _FLAG),
         "clients": ("", _one_of(*CLIENTS)),
         "bundle": ("", _FLAG),
     },

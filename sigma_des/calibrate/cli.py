@@ -45,8 +45,9 @@ def add_calibrate_args(p: argparse.ArgumentParser) -> None:
                    "threads apart (default: the loop and paho's network thread apart; "
                    "docs/concepts/deployment.md, 'The network thread')")
     p.add_argument("--runq-growth", action="store_true",
-                   help="run-queue waits that grow with the DES machine's load (Erlang C; "
-                   "default: each process kind's measured wait per CPU second, kept; "
+                   help="every process's run-queue wait grows with the DES machine's load "
+                   "(Erlang C; default: the broker's alone grows, the hosts' and the "
+                   "server's measured waits per CPU second are kept; "
                    "docs/concepts/deployment.md, 'Run-queue waits')")
     p.add_argument("--no-match", action="store_true",
                    help="keep the fitted hop latencies as they are (default: rescale each "

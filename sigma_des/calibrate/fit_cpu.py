@@ -8,9 +8,10 @@ metrics windows, at most :data:`BACKGROUND_CAP` × ``cores``; warned about on a
 saturated machine), each process kind's CPU per message and per wake-up by the
 Utilization Law on its busy CPU (one thread, or with the thread columns two threads in
 tandem: ``*_demand``, ``*_wake``, ``*_wake_side``, ``*_net_msg``, ``*_net_wake``), the
-measured run-queue waits (``*_runq``, kept constant unless ``growth``), the record cost
-of a bundle (``*_record``, the loop line's slope), the broker's busy CPU per message in
-or out as both of its service times, ``lock_switch`` = the server loop's measured
+measured run-queue waits (``*_runq``; the hosts' and the server's kept constant unless
+``growth``, the broker's growing with its machine's load), the record cost of a bundle
+(``*_record``, the loop line's slope), the broker's busy CPU per message in or out as
+both of its service times, ``lock_switch`` = the server loop's measured
 hand-over interval (:func:`hand_over`), ``server_tick = 0``, ``clients = "host"`` and
 ``bundle`` as run. Without a ``cpu.csv`` nothing is fitted (no CPU stage; a warning
 says so). Each rule, its formula and why it is so: docs/concepts/live-and-calibration.md
@@ -343,7 +344,8 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
     lock, switch = _lock_switch(cpu, warn)
-    runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth)
+    # the broker's wait grows with load in any case (see the module doc)
+    runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth or kind == "broker")
             for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
@@ -353,6 +355,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
                          host_runq=runq["host"][0], server_runq=runq["server"][0],
                          broker_runq=runq["broker"][0],
                          runq_growth=growth and any(math.isfinite(q) for _f, q in runq.values()),
+                         broker_runq_growth=not growth and math.isfinite(runq["broker"][1]),
                          **{f"{kind}_{key}": k[kind][key] for kind in k
                             for key in ("wake_side", "net_msg", "net_wake")},
                          clients="host", bundle=bundle)
@@ -392,10 +395,11 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     thread was idle: on average ``wake_share`` (the live loops' wake-ups per call) of
     it. Without a CPU stage only the broker's services, unscaled.
 
-    With run-queue waits (``*_runq``, ``runq_growth``) the broker's services and the
-    receiver's burst (a state's: the server's; a trigger's: a host's) wait ``q`` per
-    CPU second of them, ``q = floor + queue_wait(cores, u)`` at the calibration run's
-    machine utilisation ``u``: the receipt is stamped after the receiver's wait.
+    With run-queue waits (``*_runq``, ``runq_growth``, ``broker_runq_growth``) the
+    broker's services and the receiver's burst (a state's: the server's; a trigger's: a
+    host's) wait ``q`` per CPU second of them, ``q = floor + queue_wait(cores, u)`` at
+    the calibration run's machine utilisation ``u`` for a kind that grows (the floor
+    alone for one that does not): the receipt is stamped after the receiver's wait.
 
     Also ``recv_up`` and ``recv_down``: the receiver's burst for a message that waited
     for its thread (the server's demand for a state, a host's for a trigger; no
@@ -415,7 +419,8 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     # the broker's and the receiver's run-queue waits are in a measured latency (all 0,
     # and the sums exactly the plain ones, without them)
     g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
-    q_b, q_h, q_s = dep.broker_runq + g, dep.host_runq + g, dep.server_runq + g
+    g_b = queue_wait(dep.cores, u) if dep.runq_growth or dep.broker_runq_growth else 0.0
+    q_b, q_h, q_s = dep.broker_runq + g_b, dep.host_runq + g, dep.server_runq + g
     # with a network thread: the sender's write is on the path, and the receipt is
     # stamped at the end of the receiver's network-thread burst (its wait included)
     h_net = dep.host_net_msg + dep.host_net_wake * share.get("host_net", 0.0)

@@ -150,6 +150,8 @@ class Process:
             what one that finds that thread idle costs more (both 0: no such thread).
         switch: the interpreter lock's switch interval (s): a received copy's
             network-thread burst waits for the loop thread to be free at most this long.
+        grow: its bursts also wait the machine's queue (:meth:`Machine.load_wait`; the
+            machine must have ``growth``).
 
     Attributes:
         free: time the thread is free again (s).
@@ -161,12 +163,14 @@ class Process:
 
     __slots__ = ("name", "machine", "scale", "warmup", "end", "wake", "side", "runq", "free",
                  "busy", "max_wait", "bursts", "queued", "net_msg", "net_wake", "net_free",
-                 "switch")
+                 "switch", "grow")
 
     def __init__(self, name: str, machine: Machine, scale: float, warmup: float,
                  end: float, wake: float = 0.0, runq: float = 0.0, side: float = 0.0,
-                 net: tuple[float, float] = (0.0, 0.0), switch: float = 0.0) -> None:
+                 net: tuple[float, float] = (0.0, 0.0), switch: float = 0.0,
+                 grow: bool = True) -> None:
         self.name = name
+        self.grow = grow
         self.net_msg, self.net_wake = net
         self.net_free = -math.inf
         self.switch = switch
@@ -198,12 +202,14 @@ class Process:
 
     def run_wait(self, a: float, cpu: float, length: float) -> float:
         """The run-queue wait of a burst of ``cpu`` CPU seconds (``length`` on a core)
-        arriving at ``a``: ``(runq + machine's load wait) · length``; the burst's CPU
-        counts in its machine's load window. 0, and nothing counted, with neither."""
+        arriving at ``a``: ``(runq + machine's load wait) · length`` (the load wait only
+        if the process ``grow``s); the burst's CPU counts in its machine's load window
+        whether or not. 0, and nothing counted, with neither."""
         m = self.machine
         if not (m.growth or self.runq > 0.0):
             return 0.0
-        wait = (self.runq + m.load_wait(a)) * length
+        g = m.load_wait(a)  # also closes the load window: every burst's arrival does
+        wait = (self.runq + g if self.grow else self.runq) * length
         m.w_busy += cpu
         if self.warmup <= a < self.end:
             self.queued += wait
@@ -363,7 +369,7 @@ class Cpu:
         c = spec.cores
         scale = c / (c - spec.background)
         names = ["broker", "server", *(f"host{h}" for h in range(hosts))]
-        grow = spec.runq_growth
+        grow = spec.runq_growth or spec.broker_runq_growth
         if spec.preset == "colocated":
             one = Machine("all", c, grow, spec.background)
             machines = [one] * len(names)
@@ -376,9 +382,10 @@ class Cpu:
         sides = [0.0, spec.server_wake_side, *([spec.host_wake_side] * hosts)]
         nets = [(0.0, 0.0), (spec.server_net_msg, spec.server_net_wake),
                 *([(spec.host_net_msg, spec.host_net_wake)] * hosts)]
-        procs = [Process(n, m, scale, warmup, end, w, q, d, t, spec.lock_switch)
-                 for n, m, w, q, d, t in zip(names, machines, wakes, runqs, sides, nets,
-                                             strict=True)]
+        grows = [grow, *([spec.runq_growth] * (hosts + 1))]
+        procs = [Process(n, m, scale, warmup, end, w, q, d, t, spec.lock_switch, g)
+                 for n, m, w, q, d, t, g in zip(names, machines, wakes, runqs, sides, nets,
+                                                grows, strict=True)]
         self.cores = c
         self.broker = procs[0]
         self.server = procs[1]

@@ -220,6 +220,23 @@ def test_run_queue_waits_identical(method: str, preset: str) -> None:
     assert m["server_runq_cores"] > 0.0 and m["host_runq_cores_mean"] > 0.0
 
 
+@pytest.mark.parametrize("preset", ["colocated", "dedicated"])
+@pytest.mark.parametrize("method", METHODS)
+def test_broker_growth_alone_identical(method: str, preset: str) -> None:
+    """The broker's run-queue wait growing with its machine's load, the other processes'
+    floors constant (``broker_runq_growth``, as ``calibrate`` writes it): both engines,
+    every metric the same, and the growth really changes the run."""
+    base = {**_BASE, **_CPU, **_NET, "deployment.preset": preset,
+            "deployment.runq_growth": False, "deployment.broker_runq": 0.4}
+    sc = tiny(**{**base, "deployment.broker_runq_growth": True})
+    ev, co = run_both(sc, method)
+    assert co["engine"]["used"] == "cohort"
+    m = ev["metrics"]
+    _exercised(m)
+    plain = run_both(tiny(**base), method)[0]["metrics"]
+    assert m["latency_state_mean"] != plain["latency_state_mean"]
+
+
 #: the calibrated shape (session 15): both kinds' processes two threads, a wait for the
 #: interpreter lock, the side part per network wake-up, run-queue waits with growth
 _NET: dict[str, Any] = {

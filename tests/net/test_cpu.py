@@ -160,6 +160,22 @@ def test_growth_follows_the_last_windows_utilisation() -> None:
     assert start == 3 * LOAD_WINDOW + 0.001
 
 
+def test_broker_growth_alone_the_hosts_burst_counts_in_the_window_but_waits_no_queue(
+) -> None:
+    """One core, ``broker_runq_growth``: a host's 0.025 CPU-s in [0, 0.05) makes the next
+    window's utilisation 0.5 for every process on the machine, but only the broker's
+    burst waits queue_wait(1, 0.5) = 1 times its length; the host's starts at once."""
+    cpu = _runq(broker_runq_growth=True)
+    h, b = cpu.hosts[0], cpu.broker
+    assert (b.grow, h.grow, cpu.server.grow) == (True, False, False)
+    assert h.burst(0.0, 0.025) == 0.025
+    start, _end = h.span(LOAD_WINDOW + 0.01, 0.001)
+    assert start == LOAD_WINDOW + 0.01
+    start, _end = b.span(LOAD_WINDOW + 0.02, 0.002)
+    assert start == pytest.approx(LOAD_WINDOW + 0.02 + 1.0 * 0.002)
+    assert (b.queued, h.queued) == (pytest.approx(0.002), 0.0)
+
+
 def test_a_wake_ups_side_part_takes_a_core_but_not_the_thread() -> None:
     """One core, server demand 0.2, wake 0.1, side 0.3, run-queue floor 0.5. The first
     burst (arrival 1.0) wakes the thread: its side part takes the core [1.0, 1.3); the

@@ -11,7 +11,7 @@ Process ``p`` is the spec's ``Cpu.processes[p]`` (broker, server, hosts); its
 counters (CPU seconds and longest wait in the metrics window, bursts) are handed
 back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
-Run-queue waits (``deployment.*_runq``, ``runq_growth``) are
+Run-queue waits (``deployment.*_runq``, ``runq_growth``, ``broker_runq_growth``) are
 ``Process.run_wait`` and ``Machine.load_wait``, and a wake-up's part on the other thread
 (``*_wake_side``) is ``Process.beside``, and a process's network thread
 (``*_net_msg``, ``*_net_wake``) ``Process.net_span``, the same operations in the same order.
@@ -37,6 +37,7 @@ from sigma_des.events.fast.layout import (
     CPU_ACC,
     CPU_BURSTS,
     CPU_FREE,
+    CPU_GROW,
     CPU_IV,
     CPU_LOAD,
     CPU_MACH,
@@ -87,7 +88,8 @@ def run_wait(S, p, a, cpu, length):  # type: ignore[no-untyped-def]
     rq = S[CPU_RUNQ][p]
     if not (ld[ML_GROW] != 0.0 or rq > 0.0):
         return 0.0
-    wait = (rq + _load_wait(S, m, a)) * length
+    q = _load_wait(S, m, a)  # also closes the load window: every burst's arrival does
+    wait = (rq + q if S[CPU_GROW][p] != 0.0 else rq) * length
     ld[ML_BUSY] += cpu
     g = S[FPARAMS]
     if g[G_WARMUP] <= a and a < g[G_END]:

@@ -166,6 +166,7 @@ FIELDS: tuple[Field, ...] = (
     Field("cpu_acc", _f, ("procs", 3), 0.0,
           "process CPU seconds, longest wait and run-queue wait in window"),
     Field("cpu_runq", _f, ("procs",), None, "run-queue wait floor per CPU second, per process"),
+    Field("cpu_grow", _f, ("procs",), None, "1: the process's bursts wait its machine's queue"),
     Field("cpu_load", _f, ("machines", ML_LEN), None, "each machine's load window ML_*"),
     Field("cpu_bursts", _i, ("procs",), 0.0, "bursts arriving in the window, per process"),
     Field("cl_of", _i, ("clients",), None, "MQTT client of each node (the server's: itself)"),
@@ -311,7 +312,7 @@ CL_OF = INDEX["cl_of"]
 BCAST = INDEX["bcast"]
 MEM_PTR, MEM = INDEX["mem_ptr"], INDEX["mem"]
 CPU_WAKE, CPU_SIDE = INDEX["cpu_wake"], INDEX["cpu_side"]
-CPU_RUNQ, CPU_LOAD = INDEX["cpu_runq"], INDEX["cpu_load"]
+CPU_RUNQ, CPU_LOAD, CPU_GROW = INDEX["cpu_runq"], INDEX["cpu_load"], INDEX["cpu_grow"]
 CPU_SWITCH = INDEX["cpu_switch"]
 CPU_OB, CPU_OBQ = INDEX["cpu_ob"], INDEX["cpu_obq"]
 CPU_OBT, CPU_INB = INDEX["cpu_obt"], INDEX["cpu_inb"]

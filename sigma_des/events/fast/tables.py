@@ -275,8 +275,8 @@ def deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
 _DEPLOYMENT: IdentityMemo[dict[str, NDArray[Any]]] = IdentityMemo()
 #: the fields :func:`deployment_tables` supplies
 DEPLOYMENT_FIELDS = ("cpu_ip", "cpu_proc", "cpu_dem", "cpu_mach", "cpu_scale", "cpu_wake",
-                     "cpu_side", "cpu_switch", "cpu_net", "cl_of", "cpu_runq", "cpu_load",
-                     "bcast", "mem_ptr", "mem")
+                     "cpu_side", "cpu_switch", "cpu_net", "cl_of", "cpu_runq", "cpu_grow",
+                     "cpu_load", "bcast", "mem_ptr", "mem")
 
 
 def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
@@ -296,6 +296,7 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     net_cpu = np.zeros((H + 2, 2))
     switch = np.zeros(H + 2)
     runq = np.zeros(H + 2)
+    grow = np.zeros(H + 2)
     load = np.zeros((len(cpu.machines) if cpu is not None else 1, CO.ML_LEN))
     if cpu is not None:
         for m, x in enumerate(cpu.machines):
@@ -309,6 +310,7 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
             side[p] = pr.side
             net_cpu[p] = (pr.net_msg, pr.net_wake)
             runq[p] = pr.runq
+            grow[p] = float(pr.grow)
             switch[p] = dep.lock_switch if p != CO.P_BROKER else 0.0
         ip[CO.CP_BROKER] = CO.P_BROKER if net.broker.process is not None else -1
         for i in range(n + 1):  # Network._proc: no burst for a zero demand
@@ -335,6 +337,6 @@ def _deployment_tables(net: Network, spec: RunSpec) -> dict[str, NDArray[Any]]:
     return {"cpu_ip": ip, "cpu_proc": proc, "cpu_dem": demand, "cpu_mach": mach,
             "cpu_scale": scale, "cpu_wake": wake, "cpu_side": side, "cpu_switch": switch,
             "cpu_net": net_cpu,
-            "cl_of": cl_of, "cpu_runq": runq, "cpu_load": load,
+            "cl_of": cl_of, "cpu_runq": runq, "cpu_grow": grow, "cpu_load": load,
             "bcast": bcast, "mem_ptr": ptr,
             "mem": np.array(mem, dtype=np.int64)}
