@@ -280,6 +280,17 @@ def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
     return (max(q - queue_wait(cores, u), 0.0) if growth else q), q
 
 
+def _runq_keys(runq: dict[str, tuple[float, float]], growth: bool) -> dict[str, Any]:
+    """The ``[deployment]`` run-queue keys from each kind's ``(floor, measured)``: the
+    broker's wait grows with load in any case (see the module doc), every kind's with
+    ``growth``; nothing grows where nothing was measured."""
+    measured = {k: math.isfinite(q) for k, (_f, q) in runq.items()}
+    return {"host_runq": runq["host"][0], "server_runq": runq["server"][0],
+            "broker_runq": runq["broker"][0],
+            "runq_growth": growth and any(measured.values()),
+            "broker_runq_growth": not growth and measured["broker"]}
+
+
 def _record(rep: dict[str, float], kind: str, demand: float) -> float:
     """``deployment.<kind>_record``: the loop line's slope per call, in ``[0, demand]``
     (0 without a line: a run recorded before the wake-up columns)."""
@@ -344,18 +355,13 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
     lock, switch = _lock_switch(cpu, warn)
-    # the broker's wait grows with load in any case (see the module doc)
     runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth or kind == "broker")
             for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
                          host_wake=k["host"]["wake"], server_wake=k["server"]["wake"],
                          host_record=host_rec, server_record=server_rec,
-                         lock_switch=lock,
-                         host_runq=runq["host"][0], server_runq=runq["server"][0],
-                         broker_runq=runq["broker"][0],
-                         runq_growth=growth and any(math.isfinite(q) for _f, q in runq.values()),
-                         broker_runq_growth=not growth and math.isfinite(runq["broker"][1]),
+                         lock_switch=lock, **_runq_keys(runq, growth),
                          **{f"{kind}_{key}": k[kind][key] for kind in k
                             for key in ("wake_side", "net_msg", "net_wake")},
                          clients="host", bundle=bundle)

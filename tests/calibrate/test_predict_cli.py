@@ -110,8 +110,10 @@ def test_predict_writes_results_and_intervals(cal: Path, tmp_path: Path,
     m = summ["methods"]["none"]
     for k in ("aoi_mean", "latency_state_mean", "missed_frac"):
         vals = [float(r["value"]) for r in rows if r["metric"] == k]
-        # at the coverage the residuals file was written for, as predict builds them
-        iv = interval(k, vals, lookup(table, k, m["regime"]), float(meta["coverage"]))
+        # at the coverage the residuals file was written for, as predict builds them (a
+        # missed-frame interval reaching at least one frame of the 0.4 s window: 40)
+        iv = interval(k, vals, lookup(table, k, m["regime"]), float(meta["coverage"]),
+                      frames=40.0, window=0.4, f_trig=100.0)
         assert (m[k]["mean"], m[k]["lo"], m[k]["hi"]) == pytest.approx((iv.mean, iv.lo, iv.hi))
         assert m[k]["residual"]["source"]
     # the trigger rate: read in its own regime, one trigger of the 0.4 s window either

@@ -36,13 +36,13 @@ def _given() -> dict[str, np.ndarray]:
 
 def test_positions_are_generated_from_the_declaration() -> None:
     names = [f.name for f in L.FIELDS]
-    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 25 deployment + 2 payload pool
+    # 39 + 11 queue + 8 link + 1 resim + 13 transport + 26 deployment + 2 payload pool
     # + 4 rollbacks in the loop + 4 the aligner's ring + 3 fan-out elements
     # + 3 channels + 1 tally
-    assert len(set(names)) == len(names) == 114
+    assert len(set(names)) == len(names) == 115
     assert L.INDEX == {name: i for i, name in enumerate(names)}
     # one module constant per field, its name in capitals, for the compiled code
-    assert [getattr(L, name.upper()) for name in names] == list(range(114))
+    assert [getattr(L, name.upper()) for name in names] == list(range(115))
     assert (L.HEAP_T, L.FREE, L.SEEN) == (0, 4, 38)
     assert L.RESIM_PEND == 58  # appended by issue 15's per-frame Python path
 
