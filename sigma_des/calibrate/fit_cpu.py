@@ -424,9 +424,9 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     server = dep.server_demand + dep.server_wake * share.get("server", 0.0)
     # the broker's and the receiver's run-queue waits are in a measured latency (all 0,
     # and the sums exactly the plain ones, without them)
-    g = queue_wait(dep.cores, u) if dep.runq_growth else 0.0
-    g_b = queue_wait(dep.cores, u) if dep.runq_growth or dep.broker_runq_growth else 0.0
-    q_b, q_h, q_s = dep.broker_runq + g_b, dep.host_runq + g, dep.server_runq + g
+    g = queue_wait(dep.cores, u)
+    q_b, q_h, q_s = (getattr(dep, f"{k}_runq") + (g if dep.grows(k) else 0.0)
+                     for k in ("broker", "host", "server"))
     # with a network thread: the sender's write is on the path, and the receipt is
     # stamped at the end of the receiver's network-thread burst (its wait included)
     h_net = dep.host_net_msg + dep.host_net_wake * share.get("host_net", 0.0)

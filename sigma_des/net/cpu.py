@@ -369,20 +369,21 @@ class Cpu:
         c = spec.cores
         scale = c / (c - spec.background)
         names = ["broker", "server", *(f"host{h}" for h in range(hosts))]
-        grow = spec.runq_growth or spec.broker_runq_growth
+        grows = [spec.grows(n.rstrip("0123456789")) for n in names]
+        # a machine keeps load windows when a process on it grows
         if spec.preset == "colocated":
-            one = Machine("all", c, grow, spec.background)
+            one = Machine("all", c, any(grows), spec.background)
             machines = [one] * len(names)
             self.machines = [one]
         else:
-            machines = [Machine(n, c, grow, spec.background) for n in names]
+            machines = [Machine(n, c, g, spec.background) for n, g in zip(names, grows,
+                                                                           strict=True)]
             self.machines = machines
         wakes = [0.0, spec.server_wake, *([spec.host_wake] * hosts)]
         runqs = [spec.broker_runq, spec.server_runq, *([spec.host_runq] * hosts)]
         sides = [0.0, spec.server_wake_side, *([spec.host_wake_side] * hosts)]
         nets = [(0.0, 0.0), (spec.server_net_msg, spec.server_net_wake),
                 *([(spec.host_net_msg, spec.host_net_wake)] * hosts)]
-        grows = [grow, *([spec.runq_growth] * (hosts + 1))]
         procs = [Process(n, m, scale, warmup, end, w, q, d, t, spec.lock_switch, g)
                  for n, m, w, q, d, t, g in zip(names, machines, wakes, runqs, sides, nets,
                                                 grows, strict=True)]

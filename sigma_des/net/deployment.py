@@ -178,3 +178,8 @@ class DeploymentSpec:
     def cpu(self) -> bool:
         """True if the run has a CPU stage (a preset other than ``none``)."""
         return self.preset != "none"
+
+    def grows(self, kind: str) -> bool:
+        """True if the run-queue wait of ``kind``'s processes (``broker``, ``server``,
+        ``host``) grows with its machine's load (``runq_growth``, ``broker_runq_growth``)."""
+        return self.runq_growth or (kind == "broker" and self.broker_runq_growth)
