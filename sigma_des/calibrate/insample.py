@@ -30,7 +30,7 @@ from sigma_des.config import Scenario
 from sigma_des.errors import ConfigError
 
 __all__ = ["IN_SAMPLE_METRICS", "TOLERANCE", "in_sample", "live_trigger_latency", "missed_frac",
-           "repeats_apart"]
+           "apart_text", "repeats_apart"]
 
 #: Metrics compared, in report order.
 IN_SAMPLE_METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "latency_trigger_mean",
@@ -176,3 +176,12 @@ def repeats_apart(report: dict[str, Any]) -> list[dict[str, Any]]:
                         "runs": [r["run"] for r in rows], "live": live, "apart": apart,
                         "flagged": sum(bool(r["flagged"]) for r in rows)})
     return out
+
+
+def apart_text(group: dict[str, Any]) -> str:
+    """One :func:`repeats_apart` row in words, as both reports print it: the setting,
+    the method and metric, live's repeats and how far apart they are."""
+    size = (f"{100 * group['apart']:.0f} pp" if group["metric"] == "missed_frac"
+            else f"{100 * group['apart']:.0f} %")
+    return (f"{group['setting']}, {group['method']} {group['metric']}: "
+            f"{' / '.join(f'{v:.4g}' for v in group['live'])} ({size})")

@@ -40,7 +40,7 @@ def report_lines(report: dict[str, Any]) -> list[str]:
 def _apart_lines(report: dict[str, Any], flagged: int) -> list[str]:
     """The flagged cells no calibration could bring within 10 % of every run: live's
     repeats of their setting too far apart (:func:`~sigma_des.calibrate.insample.repeats_apart`)."""
-    from sigma_des.calibrate.insample import repeats_apart
+    from sigma_des.calibrate.insample import apart_text, repeats_apart
 
     apart = repeats_apart(report)
     if not apart:
@@ -48,11 +48,7 @@ def _apart_lines(report: dict[str, Any], flagged: int) -> list[str]:
     lines = [f"in-sample: {sum(g['flagged'] for g in apart)} of the {flagged} flagged cells "
              "are runs of a setting whose live repeats are more than 22 % (20 pp) apart: no "
              "one value is within 10 % of each"]
-    for g in apart:
-        size = (f"{100 * g['apart']:.0f} pp" if g["metric"] == "missed_frac"
-                else f"{100 * g['apart']:.0f} %")
-        lines.append(f"live repeats apart: {g['setting']}, {g['method']} {g['metric']}: "
-                     f"{' / '.join(f'{v:.4g}' for v in g['live'])} ({size})")
+    lines += [f"live repeats apart: {apart_text(g)}" for g in apart]
     return lines
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from sigma_des.calibrate.insample import repeats_apart
+from sigma_des.calibrate.insample import apart_text, repeats_apart
 from sigma_des.calibrate.report import report_lines
 
 RUNS = {"r1": {"nodes": 20, "hosts": 2, "bundle": False},
@@ -44,6 +44,11 @@ def test_repeats_more_than_22_percent_apart_are_named_and_others_not() -> None:
     assert lat["apart"] == pytest.approx(2.445 / 1.849 - 1)
     assert lat["flagged"] == 2  # 2.13 is 15 % above 1.849 and 13 % below 2.445
     assert missed["apart"] == pytest.approx(0.25) and missed["flagged"] == 1
+    # the words both reports print: per cent for a ratio, points for missed frames
+    assert apart_text(lat) == ("N = 20, 2 hosts, per node, lockstep latency_state_mean: "
+                               "2.154 / 1.849 / 2.445 (32 %)")
+    assert apart_text(missed) == ("N = 20, 2 hosts, per node, lockstep missed_frac: "
+                                  "0 / 0.25 (25 pp)")
 
 
 def test_the_report_counts_the_flagged_cells_of_such_settings() -> None:

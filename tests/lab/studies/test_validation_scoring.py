@@ -13,6 +13,7 @@ from sigma_lab.studies.validation.scoring import (
     knee,
     knee_of,
     knee_verdict,
+    live_repeats,
     noise_floor,
     share,
 )
@@ -35,6 +36,12 @@ def test_noise_floor_is_range_over_mean() -> None:
     assert noise_floor("aoi_mean", [10.0, math.nan, 14.0]) == pytest.approx(4.0 / 12.0)
     assert math.isnan(noise_floor("aoi_mean", [10.0]))
     assert math.isnan(noise_floor("aoi_mean", [0.0, 0.0]))
+
+
+def test_live_repeats_read_back_as_written() -> None:
+    # cells.csv keeps a cell's runs space-joined; a once-run cell has one
+    assert live_repeats({"live_runs": "12.5 13 1e-05"}) == [12.5, 13.0, 1e-05]
+    assert live_repeats({"live_runs": 7.25}) == [7.25]
 
 
 def test_judge_band_and_the_live_range_rule() -> None:

@@ -40,7 +40,7 @@ from sigma_lab.studies.validation.runs import (
     load_calibration,
     read_json,
 )
-from sigma_lab.studies.validation.scoring import METRICS, judge
+from sigma_lab.studies.validation.scoring import METRICS, judge, live_repeats
 
 __all__ = ["HOG", "HOG_RUN", "IDLE", "LOADED_COLUMNS", "Hog", "loaded_md", "loaded_rows",
            "loaded_target", "quietest", "run_loaded"]
@@ -158,7 +158,7 @@ def loaded_rows(rows: list[dict[str, Any]], out: Path, cores: int, f_trig: float
             for r in held:
                 if r["metric"] != k or r["cell"] not in pred:
                     continue
-                reps = [float(x) for x in str(r["live_runs"]).split()]
+                reps = live_repeats(r)
                 verdicts.append(judge(k, r["live"], pred[r["cell"]][r["method"]][k],
                                       r["noise_floor"], f_trig, reps if len(reps) > 1 else ()))
             scored = [v for v in verdicts if v.scored]

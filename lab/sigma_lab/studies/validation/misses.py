@@ -28,7 +28,7 @@ import math
 from collections import Counter
 from typing import Any
 
-from sigma_lab.studies.validation.scoring import BAND, PP_BAND
+from sigma_lab.studies.validation.scoring import BAND, PP_BAND, live_repeats
 
 __all__ = ["MISS_COLUMNS", "RUNQ_BUSY", "miss_md", "miss_rows"]
 
@@ -42,10 +42,6 @@ MISS_COLUMNS = ("cell", "method", "metric", "des", "live", "error", "error_unit"
 RUNQ_BUSY = 1.0
 #: Metrics whose misses are read (the trigger rate's are where live held it: few).
 _READ = ("aoi_mean", "aoi_p99", "latency_state_mean", "missed_frac", "trigger_rate_hz")
-
-
-def _runs(r: dict[str, Any]) -> list[float]:
-    return [float(x) for x in str(r["live_runs"]).split()]
 
 
 def _spread(r: dict[str, Any], runs: list[float]) -> float:
@@ -113,7 +109,7 @@ def miss_rows(rows: list[dict[str, Any]], procs: list[dict[str, Any]], cal_nodes
                 or r["passed"] == "":  # not scored (a trigger rate live did not hold)
             continue
         r = {**r, "regime": machine.get((r["cell"], r["method"]), r["regime"])}
-        runs = _runs(r)
+        runs = live_repeats(r)
         spread = _spread(r, runs)
         inside = len(runs) >= 2 and min(runs) <= r["des"] <= max(runs)
         busy, runq = _load(procs, r["cell"], r["method"])

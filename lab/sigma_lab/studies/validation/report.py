@@ -42,7 +42,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from sigma_des.calibrate.insample import repeats_apart
+from sigma_des.calibrate.insample import apart_text, repeats_apart
 from sigma_des.calibrate.intervals import (
     COVERAGE,
     RATE_METRIC,
@@ -248,8 +248,7 @@ def _apart(report: dict[str, Any]) -> str:
     n = sum(g["flagged"] for g in apart)
     if not n:
         return ""
-    where = "; ".join(f"{g['setting']}, {g['method']} {g['metric']} "
-                      f"{' / '.join(f'{v:.3g}' for v in g['live'])}" for g in apart)
+    where = "; ".join(apart_text(g) for g in apart)
     return (f"; {n} of the misses are runs of a setting whose own live repeats are more "
             f"than 22 % apart, so no one value is within 10 % of each: {where}")
 

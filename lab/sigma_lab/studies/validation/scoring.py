@@ -35,13 +35,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from sigma_des.calibrate.intervals import RATE_HELD
 from sigma_des.calibrate.primary import CENTRAL_METRICS, central
 
 __all__ = ["BAND", "CENTRAL_METRICS", "KNEE_MISSED", "KNEE_TOL", "METRICS", "NOISY", "PP_BAND",
            "RATE_BAND", "RATE_HELD", "TARGETS", "Verdict", "central", "error", "judge", "knee",
-           "knee_of", "knee_verdict", "noise_floor", "share"]
+           "knee_of", "knee_verdict", "live_repeats", "noise_floor", "share"]
 
 #: Metrics compared, in table order.
 METRICS = ("aoi_mean", "aoi_p99", "latency_state_mean", "trigger_rate_hz", "missed_frac")
@@ -111,6 +112,12 @@ class Verdict:
     ok: bool
     within_band: bool
     rule: str
+
+
+def live_repeats(row: dict[str, Any]) -> list[float]:
+    """A ``cells.csv`` row's live runs, as numbers (the row keeps them space-joined in
+    ``live_runs``)."""
+    return [float(x) for x in str(row["live_runs"]).split()]
 
 
 def judge(metric: str, live: float, des: float, floor: float = math.nan,
