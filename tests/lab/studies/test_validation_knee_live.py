@@ -37,7 +37,7 @@ def test_knee_live_sizes_must_increase_above_the_held_out_grid() -> None:
     for bad in ((100,), (150, 120), (120, 120)):
         with pytest.raises(ConfigError, match="knee_live"):
             _plan(bad)
-    assert full_plan(("none",)).knee_live == (120, 150)
+    assert full_plan(("none",)).knee_live == (120, 150, 180)
     assert quick_plan(("none",)).knee_live == ()
     assert [c.name for c in _plan().knee_live_cells("node")] == ["knee-n120-node",
                                                                 "knee-n150-node"]

@@ -270,12 +270,15 @@ def full_plan(methods: tuple[str, ...], duration: float = 4.0, warmup: float = 1
     """The issue's grid: N in {10, 30, 60, 100}, both modes, loss/latency at N = 30,
     each held-out cell ``cell_repeats`` times, the calibration setting 3 times at
     N = 20 (with ``cal_bundle`` also twice bundled at N = 40); the DES's knee grid 10,
-    20, … 60, 80, 100, 120, 150; live's knee runs at 120 and 150 where a method still
-    holds at 100; one more live run of a held-out size whose runs disagree about
-    holding."""
+    20, … 60, 80, 100, 120, 150, 180; live's knee runs at 120, 150 and 180 while a
+    method still holds at the last size run; one more live run of a held-out size
+    whose runs disagree about holding. Both grids reach 180, a fifth past 150, so that
+    a knee at 150 on one side and none by 150 on the other is decided within the
+    knee's ±25 % rather than left as an unknown beyond the grid."""
     return Plan(methods, duration, warmup, cal_nodes=20, nodes=(10, 30, 60, 100),
                 extra_nodes=30, repeats=3,
-                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150), knee_live=(120, 150),
+                knee_nodes=(10, 20, 30, 40, 50, 60, 80, 100, 120, 150, 180),
+                knee_live=(120, 150, 180),
                 cell_repeats=cell_repeats, cal_bundle=cal_bundle, retry_loaded=retry_loaded,
                 cal_bundle_nodes=40, knee_tiebreak=knee_tiebreak)
 
