@@ -11,10 +11,19 @@ import pytest
 
 from sigma_des import Scenario, load
 
-# The ideal-run cache (sigma_des.cache.ideal) of this test process and its children goes
-# to a private directory, removed at the end, so tests never read or fill ~/.cache.
-_CACHE_ROOT = tempfile.mkdtemp(prefix="sigma_des_test_cache_")
-os.environ["SIGMA_DES_CACHE_DIR"] = _CACHE_ROOT
+#: The ideal-run cache directory (sigma_des.cache.ideal) of this test process and its
+#: children: private, made at configure time and removed at the end, so tests never read
+#: or fill ~/.cache. Made in a hook, not on import: test modules also import this file
+#: as ``tests.conftest``, and a second import must not make a second directory.
+_CACHE_ROOT: list[str] = []
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Point the ideal-run cache at a fresh private directory."""
+    _CACHE_ROOT.append(tempfile.mkdtemp(prefix="sigma_des_test_cache_"))
+    os.environ["SIGMA_DES_CACHE_DIR"] = _CACHE_ROOT[-1]
+    # tests that drive SB3 directly, as a user would: its default logger's folder
+    os.environ["SB3_LOGDIR"] = os.path.join(_CACHE_ROOT[-1], "sb3")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -24,7 +33,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     """Remove this process's ideal-run cache directory."""
-    shutil.rmtree(_CACHE_ROOT, ignore_errors=True)
+    for d in _CACHE_ROOT:
+        shutil.rmtree(d, ignore_errors=True)
 
 
 #: A tiny deterministic scenario: 3 nodes on 2 hosts, constant latencies, no loss,
@@ -60,9 +70,11 @@ def tiny(**over: Any) -> Scenario:
 
     import tomli_w
 
-    with tempfile.NamedTemporaryFile("w", suffix=".toml", delete=False) as fh:
-        fh.write(tomli_w.dumps(TINY))
-    return load(fh.name, sets)
+    with tempfile.TemporaryDirectory(prefix="sigma_des_tiny_") as d:
+        path = os.path.join(d, "tiny.toml")
+        with open(path, "w") as fh:
+            fh.write(tomli_w.dumps(TINY))
+        return load(path, sets)
 
 
 def _toml(v: Any) -> str:

@@ -202,6 +202,7 @@ def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: st
         raise ValueError(f"policy: must be one of {POLICIES}, got {policy!r}")
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
     torch.set_num_threads(1)  # a shared machine: one core per training
@@ -223,6 +224,9 @@ def train(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, policy: st
         history = saves.curve_rows()
     else:
         model = Algo(name, env, seed=seed, device="cpu", verbose=0, **kw)
+    # SB3's default logger makes a /tmp/SB3-<time> folder per training even when it
+    # writes nothing; the curve is the record, so a logger with no outputs.
+    model.set_logger(Logger(folder=None, output_formats=[]))
     remaining = total_steps - model.num_timesteps
     if remaining > 0 and (max_wall_s is None or max_wall_s > 0):
         cb = _curve(lambda: saves.save(model, env, history), history, log, save_every,

@@ -176,6 +176,7 @@ def train_ppo(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, n_scen
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
     torch.set_num_threads(1)  # a shared machine: one core per training
@@ -196,6 +197,9 @@ def train_ppo(env_kwargs: Mapping[str, Any], total_steps: int, seed: int, n_scen
                 log(row)
 
     model = PPO("MlpPolicy", env, seed=seed, device="cpu", verbose=0, **ppo_kwargs)
+    # SB3's default logger makes a /tmp/SB3-<time> folder per training even when it
+    # writes nothing; the curve above is the record, so a logger with no outputs.
+    model.set_logger(Logger(folder=None, output_formats=[]))
     model.learn(total_timesteps=total_steps, callback=_Curve())
 
     def policy(obs: np.ndarray) -> np.ndarray:

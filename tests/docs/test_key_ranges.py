@@ -12,7 +12,6 @@ import math
 import re
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +27,8 @@ ROOT = Path(__file__).resolve().parents[2]
 _DEP = {"deployment.preset": "colocated"}
 _DEMAND = {**_DEP, "deployment.host_demand": 0.5, "deployment.server_demand": 0.5}
 _WAKE = {**_DEMAND, "deployment.host_wake": 0.5, "deployment.server_wake": 0.5}
-#: A delay sample file: the ``empirical`` distribution needs one.
-SAMPLES = Path(tempfile.mkdtemp(prefix="sigma_des_ranges_")) / "delays.txt"
-SAMPLES.write_text("0.001\n0.002\n")
+#: A delay sample file (shipped with the tests): the ``empirical`` distribution needs one.
+SAMPLES = Path(__file__).resolve().parent / "data" / "delays.txt"
 CONTEXT: dict[str, dict[str, Any]] = {
     "f_trig": {"bides.f_trig_min": 1e-9},
     "net.middleware": {"net.transport": "datagram", "net.qos": 0},

@@ -129,3 +129,15 @@ def _evals_text(text: str) -> list[dict[str, str]]:
 
 def _evals(path: Path) -> list[dict[str, str]]:
     return _evals_text(path.read_text())
+
+
+def test_training_leaves_no_logger_folder(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                          ) -> None:
+    # SB3's default logger would make this folder (or /tmp/SB3-<time>) per training
+    from sigma_des.env.sb3 import train_ppo
+
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3"))
+    _, h = train(KW, 16, 0, n_scenes=2, **TINY)
+    _, h2 = train_ppo(KW, 16, 0, n_scenes=2, **TINY)
+    assert h and h2
+    assert not (tmp_path / "sb3").exists()
