@@ -257,6 +257,7 @@ RANGES: dict[type, dict[str, tuple[str, Range]]] = {
         **{k: ("s per CPU s", _r(0.0, MAX_RUNQ)) for k in RUNQ_KEYS},
         "runq_growth": ("", _FLAG),
         "broker_runq_growth": ("", _FLAG),
+        "server_runq_growth": ("", _FLAG),
         "clients": ("", _one_of(*CLIENTS)),
         "bundle": ("", _FLAG),
     },

@@ -8,8 +8,8 @@ metrics windows, at most :data:`BACKGROUND_CAP` × ``cores``; warned about on a
 saturated machine), each process kind's CPU per message and per wake-up by the
 Utilization Law on its busy CPU (one thread, or with the thread columns two threads in
 tandem: ``*_demand``, ``*_wake``, ``*_wake_side``, ``*_net_msg``, ``*_net_wake``), the
-measured run-queue waits (``*_runq``; the hosts' and the server's kept constant unless
-``growth``, the broker's growing with its machine's load), the record cost of a bundle
+measured run-queue waits (``*_runq``; the hosts' kept constant unless ``growth``, the
+broker's and the server's growing with their machine's load), the record cost of a bundle
 (``*_record``, the loop line's slope), the broker's busy CPU per message in or out as
 both of its service times, ``lock_switch`` = the server loop's measured
 hand-over interval (:func:`hand_over`), ``server_tick = 0``, ``clients = "host"`` and
@@ -36,7 +36,7 @@ from sigma_des.live.loop import WakeStats
 from sigma_des.net.cpu import queue_wait
 from sigma_des.net.spec import DeploymentSpec
 
-__all__ = ["BACKGROUND_CAP", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
+__all__ = ["BACKGROUND_CAP", "GROWING", "LIVE_LOCK_SWITCH", "SATURATED", "CpuFit", "fit_deployment",
            "hand_over", "live_info", "path_services", "pooled_demand", "recorded"]
 
 #: Largest ``background`` a calibration writes, as a share of ``cores``.
@@ -48,6 +48,10 @@ BACKGROUND_CAP = 0.95
 LIVE_LOCK_SWITCH = 0.005
 #: A machine this busy (share of its cores, ours + background) is warned about.
 SATURATED = 0.95
+#: Process kinds whose run-queue wait a calibration lets grow with the machine's load
+#: (the floor is the measured wait less the queue at the run's utilisation): live's
+#: broker and server wait as the machine's queue does, the hosts far less.
+GROWING = ("broker", "server")
 
 
 @dataclass(frozen=True)
@@ -282,13 +286,14 @@ def _runq_floor(cpu: pd.DataFrame, kind: str, u: float, cores: int,
 
 def _runq_keys(runq: dict[str, tuple[float, float]], growth: bool) -> dict[str, Any]:
     """The ``[deployment]`` run-queue keys from each kind's ``(floor, measured)``: the
-    broker's wait grows with load in any case (see the module doc), every kind's with
-    ``growth``; nothing grows where nothing was measured."""
+    broker's and the server's waits grow with load in any case (:data:`GROWING`), every
+    kind's with ``growth``; nothing grows where nothing was measured."""
     measured = {k: math.isfinite(q) for k, (_f, q) in runq.items()}
     return {"host_runq": runq["host"][0], "server_runq": runq["server"][0],
             "broker_runq": runq["broker"][0],
             "runq_growth": growth and any(measured.values()),
-            "broker_runq_growth": not growth and measured["broker"]}
+            "broker_runq_growth": not growth and measured["broker"],
+            "server_runq_growth": not growth and measured["server"]}
 
 
 def _record(rep: dict[str, float], kind: str, demand: float) -> float:
@@ -355,7 +360,7 @@ def fit_deployment(source: Path, base_broker: float, warn: list[str], threads: b
     server_rec = _record(server_rep, "server", server)
     u = busy / cores
     lock, switch = _lock_switch(cpu, warn)
-    runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth or kind == "broker")
+    runq = {kind: _runq_floor(cpu, kind, u, cores, warn, growth or kind in GROWING)
             for kind in ("host", "server", "broker")}
     dep = DeploymentSpec(preset="colocated", cores=cores, background=background,
                          host_demand=host, server_demand=server, server_tick=0.0,
@@ -401,7 +406,7 @@ def path_services(dep: DeploymentSpec, publish: float, delivery: float,
     thread was idle: on average ``wake_share`` (the live loops' wake-ups per call) of
     it. Without a CPU stage only the broker's services, unscaled.
 
-    With run-queue waits (``*_runq``, ``runq_growth``, ``broker_runq_growth``) the
+    With run-queue waits (``*_runq``, ``runq_growth``, ``*_runq_growth``) the
     broker's services and the receiver's burst (a state's: the server's; a trigger's: a
     host's) wait ``q`` per CPU second of them, ``q = floor + queue_wait(cores, u)`` at
     the calibration run's machine utilisation ``u`` for a kind that grows (the floor

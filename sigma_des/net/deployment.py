@@ -27,7 +27,7 @@ MAX_DEMAND = 1.0
 LATER_KEYS = ("host_wake", "server_wake", "host_record", "server_record", "lock_switch",
               "host_runq", "server_runq", "broker_runq", "runq_growth", "host_wake_side",
               "server_wake_side", "host_net_wake", "server_net_wake", "host_net_msg",
-              "server_net_msg", "broker_runq_growth")
+              "server_net_msg", "broker_runq_growth", "server_runq_growth")
 #: Largest run-queue wait per CPU second a deployment accepts.
 MAX_RUNQ = 100.0
 #: ``[deployment]`` keys in seconds of CPU (0..:data:`MAX_DEMAND`), and run-queue keys.
@@ -97,10 +97,12 @@ class DeploymentSpec:
         runq_growth: every burst also waits :func:`~sigma_des.net.cpu.queue_wait`
             (Erlang C) per CPU second at its machine's utilisation over the last whole
             :data:`~sigma_des.net.cpu.LOAD_WINDOW` (the machine's queue).
-        broker_runq_growth: the broker's bursts alone wait that queue too (every
+        broker_runq_growth: the broker's bursts also wait that queue (every
             process's with ``runq_growth``): live's broker, one single-threaded C
-            process, waits more per CPU second as its machine gets busier, the Python
-            processes do not.
+            process, waits more per CPU second as its machine gets busier.
+        server_runq_growth: the server's bursts also wait that queue: live's server
+            waits as its machine's queue does once the machine is nearly full (a
+            bundled swarm on many hosts), the hosts far less than it.
         clients: ``node`` (one MQTT client per node) or ``host`` (one per physics
             host process, as live runs).
         bundle: a host's states of one loop turn leave as one PUBLISH, and the
@@ -125,6 +127,7 @@ class DeploymentSpec:
     broker_runq: float = 0.0
     runq_growth: bool = False
     broker_runq_growth: bool = False
+    server_runq_growth: bool = False
     host_wake_side: float = 0.0
     server_wake_side: float = 0.0
     host_net_wake: float = 0.0
@@ -164,7 +167,7 @@ class DeploymentSpec:
                     f"of a one-record message's CPU), got {rec}")
         if self.preset == "none":
             for name in ("background", *CPU_SECONDS, *RUNQ_KEYS, "runq_growth",
-                         "broker_runq_growth"):
+                         "broker_runq_growth", "server_runq_growth"):
                 v = getattr(self, name)
                 require(v == 0.0, name,
                         f"needs deployment.preset colocated or dedicated (got {v} with "
@@ -181,5 +184,7 @@ class DeploymentSpec:
 
     def grows(self, kind: str) -> bool:
         """True if the run-queue wait of ``kind``'s processes (``broker``, ``server``,
-        ``host``) grows with its machine's load (``runq_growth``, ``broker_runq_growth``)."""
-        return self.runq_growth or (kind == "broker" and self.broker_runq_growth)
+        ``host``) grows with its machine's load (``runq_growth``, ``broker_runq_growth``,
+        ``server_runq_growth``)."""
+        return (self.runq_growth or (kind == "broker" and self.broker_runq_growth)
+                or (kind == "server" and self.server_runq_growth))

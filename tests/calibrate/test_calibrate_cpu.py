@@ -277,8 +277,8 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert rep["host_loop_call_s"] == pytest.approx(10e-6, rel=1e-9)
     # a further record of a bundle costs one call's worth (the line's slope)
     assert dep.host_record == pytest.approx(10e-6, rel=1e-9) == rep["host_record_s"]
-    # run-queue waits: 0.1 s a process over its CPU; the hosts' and the server's kept as
-    # measured, the broker's less the machine's queue at the run's utilisation (ours +
+    # run-queue waits: 0.1 s a process over its CPU; the hosts' kept as measured, the
+    # broker's and the server's less the machine's queue at the run's utilisation (ours +
     # background over the 4 cores), which the DES adds back at its own load
     cpu_s = {k: procs[k][0] * WINDOW + procs[k][2] for k in procs}
     u = (BACKGROUND_CPU + sum(cpu_s.values())) / WINDOW / CORES
@@ -291,23 +291,27 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     assert dep.broker_runq == pytest.approx(0.1 / cpu_s["broker"] - g, rel=1e-12)
     assert dep.broker_runq_growth
     assert rep["broker_runq_per_cpu_s"] == pytest.approx(0.1 / cpu_s["broker"], rel=1e-12)
-    assert dep.server_runq == pytest.approx(0.1 / cpu_s["server"], rel=1e-12)
+    assert 0.0 < g < 0.1 / cpu_s["server"]
+    assert dep.server_runq == pytest.approx(0.1 / cpu_s["server"] - g, rel=1e-12)
+    assert dep.server_runq_growth
     # --runq-growth: the floors less the machine's queue at the run's utilisation
     # (ours + background over the 4 cores), and the DES adds it back at its own load
     dep_g = calibrate(d, tmp_path / "files_g", runq_growth=True)[0].deployment
     assert dep_g.host_runq == pytest.approx(q_h - queue_wait(CORES, u), rel=1e-12)
     assert dep_g.host_runq > 0.0 and dep_g.runq_growth and not dep_g.broker_runq_growth
+    assert not dep_g.server_runq_growth
+    assert dep_g.server_runq == pytest.approx(dep.server_runq, rel=1e-12)
     assert dep_g.broker_runq == pytest.approx(dep.broker_runq, rel=1e-12)
     assert dep.server_record == pytest.approx(20e-6, rel=1e-9)
     assert rep["host_wake_share"] == pytest.approx(w_h / (900 * 8 / 3 + 250 * 9), rel=1e-12)
     # the sender's expected wake-up is on the path the hop samples are net of
     scale = CORES / (CORES - BACKGROUND_CPU / WINDOW)
-    # ... and the broker's run-queue wait at the run's load (its floor plus the queue:
-    # the measured wait) and the server's measured one (no growth term)
+    # ... and the broker's and the server's run-queue waits at the run's load (each
+    # floor plus the queue: the measured wait)
     server = dep.server_demand + dep.server_wake * rep["server_wake_share"]
     assert rep["path_cpu_service_up_s"] == pytest.approx(
         scale * (2 * 0.09 / 9000 * (1 + 0.1 / cpu_s["broker"]) + dep.host_demand
-                 + dep.host_wake * rep["host_wake_share"] + dep.server_runq * server),
+                 + dep.host_wake * rep["host_wake_share"] + 0.1 / cpu_s["server"] * server),
         rel=1e-12)
     # without the wake-up columns (a run recorded before them): the whole CPU per message
     write_cpu({"bides": {"cpu": _cpu_rows(procs, BACKGROUND_CPU)}}, d)
@@ -318,13 +322,14 @@ def test_wake_up_and_per_message_demands_recovered_exactly(tmp_path: Path) -> No
     # ... nor run-queue waits: no floors, no growth, said
     dep0 = sc0.deployment
     assert (dep0.host_runq, dep0.server_runq, dep0.broker_runq, dep0.runq_growth,
-            dep0.broker_runq_growth) == (0.0, 0.0, 0.0, False, False)
+            dep0.broker_runq_growth, dep0.server_runq_growth) == (0.0, 0.0, 0.0, False,
+                                                                   False, False)
     assert any("no broker run-queue wait recorded" in w for w in rep0["warnings"])
 
 
 def test_runq_growth_is_a_calibrate_option(tmp_path: Path) -> None:
-    """``sigma-des calibrate`` keeps the hosts' and the server's measured run-queue waits
-    and lets the broker's grow; with ``--runq-growth`` the written scenario has every
+    """``sigma-des calibrate`` keeps the hosts' measured run-queue waits and lets the
+    broker's and the server's grow; with ``--runq-growth`` the written scenario has every
     process's growth on and every floor net of Erlang C."""
     d = _cpu_run(tmp_path / "run")
     rows = _cpu_rows(PROCS, BACKGROUND_CPU)
@@ -341,6 +346,7 @@ def test_runq_growth_is_a_calibrate_option(tmp_path: Path) -> None:
     busy_h = sum(PROCS[h][0] * WINDOW + PROCS[h][2] for h in ("host0", "host1"))
     assert not out[False].runq_growth and out[True].runq_growth
     assert out[False].broker_runq_growth and not out[True].broker_runq_growth
+    assert out[False].server_runq_growth and not out[True].server_runq_growth
     assert out[False].host_runq == pytest.approx(0.2 / busy_h, rel=1e-12)
     assert out[True].host_runq < out[False].host_runq
     assert out[True].broker_runq == pytest.approx(out[False].broker_runq, rel=1e-12)

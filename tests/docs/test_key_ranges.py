@@ -38,7 +38,8 @@ CONTEXT: dict[str, dict[str, Any]] = {
     **{f"deployment.{k}": _DEP for k in ("cores", "background", "host_demand",
                                          "server_demand", "server_tick", "lock_switch",
                                          "host_runq", "server_runq", "broker_runq",
-                                         "runq_growth", "broker_runq_growth")},
+                                         "runq_growth", "broker_runq_growth",
+                                         "server_runq_growth")},
     **{f"deployment.{w}_{k}": _DEMAND for w in ("host", "server")
        for k in ("wake", "record", "net_msg", "net_wake")},
     **{f"deployment.{w}_wake_side": _WAKE for w in ("host", "server")},

@@ -230,6 +230,11 @@ def test_broker_growth_alone_identical(method: str, preset: str) -> None:
             "deployment.runq_growth": False, "deployment.broker_runq": 0.4}
     sc = tiny(**{**base, "deployment.broker_runq_growth": True})
     ev, co = run_both(sc, method)
+    # ... and with the server's growing too (as calibrate writes both)
+    both = run_both(tiny(**{**base, "deployment.broker_runq_growth": True,
+                            "deployment.server_runq_growth": True}), method)
+    assert both[1]["engine"]["used"] == "cohort"
+    assert both[0]["metrics"]["latency_state_mean"] != ev["metrics"]["latency_state_mean"]
     assert co["engine"]["used"] == "cohort"
     m = ev["metrics"]
     _exercised(m)

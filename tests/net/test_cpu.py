@@ -176,6 +176,22 @@ def test_broker_growth_alone_the_hosts_burst_counts_in_the_window_but_waits_no_q
     assert (b.queued, h.queued) == (pytest.approx(0.002), 0.0)
 
 
+def test_server_growth_as_calibrate_writes_it_the_hosts_wait_no_queue() -> None:
+    """One core, broker and server growth (as ``calibrate`` writes them): a host's
+    0.025 CPU-s in [0, 0.05) makes the next window's utilisation 0.5; the server's
+    burst there waits queue_wait(1, 0.5) = 1 times its length on top of its floor
+    (0.5 x 0.004), the host's starts at once."""
+    cpu = _runq(broker_runq_growth=True, server_runq_growth=True, server_runq=0.5)
+    h, s = cpu.hosts[0], cpu.server
+    assert (cpu.broker.grow, s.grow, h.grow) == (True, True, False)
+    assert h.burst(0.0, 0.025) == 0.025
+    start, _end = h.span(LOAD_WINDOW + 0.01, 0.001)
+    assert start == LOAD_WINDOW + 0.01
+    start, _end = s.span(LOAD_WINDOW + 0.02, 0.004)
+    assert start == pytest.approx(LOAD_WINDOW + 0.02 + (0.5 + 1.0) * 0.004)
+    assert (s.queued, h.queued) == (pytest.approx(0.006), 0.0)
+
+
 def test_a_wake_ups_side_part_takes_a_core_but_not_the_thread() -> None:
     """One core, server demand 0.2, wake 0.1, side 0.3, run-queue floor 0.5. The first
     burst (arrival 1.0) wakes the thread: its side part takes the core [1.0, 1.3); the

@@ -11,10 +11,11 @@ Process ``p`` is the spec's ``Cpu.processes[p]`` (broker, server, hosts); its
 counters (CPU seconds and longest wait in the metrics window, bursts) are handed
 back at the end of the run.
 A zero demand is no burst: callers never call :func:`burst` for it.
-Run-queue waits (``deployment.*_runq``, ``runq_growth``, ``broker_runq_growth``) are
-``Process.run_wait`` and ``Machine.load_wait``, and a wake-up's part on the other thread
-(``*_wake_side``) is ``Process.beside``, and a process's network thread
-(``*_net_msg``, ``*_net_wake``) ``Process.net_span``, the same operations in the same order.
+Run-queue waits (``deployment.*_runq``, ``runq_growth``, ``broker_runq_growth``,
+``server_runq_growth``) are ``Process.run_wait`` and ``Machine.load_wait``, and a
+wake-up's part on the other thread (``*_wake_side``) is ``Process.beside``, and a
+process's network thread (``*_net_msg``, ``*_net_wake``) ``Process.net_span``, the same
+operations in the same order.
 """
 
 from __future__ import annotations
