@@ -4,7 +4,8 @@ Each folder ``docs/results/data/<name>/`` holds one study's committed outputs, f
 ``python experiments/make_docs_results.py``: its ``run.json`` (title, page, date,
 machine, load, command, scale), its tables (CSV), summary (Markdown), plots (PNG) and
 what it printed (``stdout.txt``). A page lists its studies in folder order; nothing on
-it is written by hand.
+it is written by hand. The validation page also tabulates every validation kept in
+``validations-previous.csv`` beside the filed one (:func:`history_section`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PAGES", "results_page"]
+__all__ = ["BANDS", "PAGES", "PREVIOUS", "history_section", "results_page"]
 
 #: page name -> (title, introduction)
 PAGES = {
@@ -33,6 +34,14 @@ PAGES = {
 }
 #: CSV files longer than this are shown in part (the whole file is a download).
 MAX_ROWS = 40
+#: The earlier validations' held-out rows, each rescored by the model filed with the
+#: validation study (``sigma_lab.studies.validation.cross``), under ``data/``.
+PREVIOUS = "validations-previous.csv"
+#: The held-out shares of the history table and their bands (relative; missed frames
+#: in percentage points), as the validation suite scores them.
+BANDS = {"aoi_mean": ("mean AoI", 0.15), "aoi_p99": ("p99 AoI", 0.15),
+         "latency_state_mean": ("mean state latency", 0.15),
+         "missed_frac": ("missed frames", 10.0)}
 
 
 def _cell(v: str) -> str:
@@ -121,6 +130,48 @@ def study_section(folder: Path, rel: str) -> list[str]:
     return out
 
 
+def _shares(rows: list[dict[str, str]]) -> list[str]:
+    """Per :data:`BANDS` metric: ``k of n (p %)`` of ``rows`` within the band."""
+    out = []
+    for metric, (_, band) in BANDS.items():
+        errs = [float(r["rel_error"]) for r in rows if r["metric"] == metric]
+        errs = [e for e in errs if e == e]  # a NaN error (live 0) is not scored
+        k = sum(abs(e) <= band for e in errs)
+        out.append(f"{k} of {len(errs)} ({100 * k / len(errs):.0f} %)" if errs else "–")
+    return out
+
+
+def history_section(data: Path) -> list[str]:
+    """Every validation's held-out shares, the earlier ones (:data:`PREVIOUS`, as the
+    current model scores their live runs) and the filed one (``validation/cells.csv``);
+    nothing without the earlier table."""
+    prev = data / PREVIOUS
+    filed = data / "validation" / "cells.csv"
+    if not prev.exists():
+        return []
+    with prev.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    tags = list(dict.fromkeys(r["validation"] for r in rows))
+    head = ["validation", *(f"{name} (±{band:g} pp)" if metric == "missed_frac" else
+                            f"{name} (±{100 * band:g} %)"
+                            for metric, (name, band) in BANDS.items())]
+    table = [head, ["---"] * len(head)]
+    for tag in tags:
+        table.append([tag, *_shares([r for r in rows if r["validation"] == tag])])
+    if filed.exists():
+        with filed.open(newline="") as fh:
+            held = [r for r in csv.DictReader(fh) if r["held_out"] == "True"]
+        table.append(["the filed run (above)", *_shares(held)])
+    return ["## Every validation, scored by the current model", "",
+            "Each earlier validation's calibration runs calibrated again and its held-out "
+            "cells predicted again by the model filed above, against the same live runs; "
+            "a cell is within the band when the DES is within it of the mean of the "
+            "cell's live runs. The spread between rows is the machine's from session to "
+            "session as much as the model's.", "",
+            *("| " + " | ".join(r) + " |" for r in table), "",
+            f"{{download}}`Download {PREVIOUS} <data/{PREVIOUS}>`", ""]
+
+
 def results_page(page: str, data: Path) -> str:
     """The page ``page`` as MyST Markdown, from the study folders under ``data``."""
     title, intro = PAGES[page]
@@ -132,4 +183,6 @@ def results_page(page: str, data: Path) -> str:
                 "`python experiments/make_docs_results.py`.", ""]
     for d in folders:
         out += study_section(d, f"data/{d.name}")
+    if page == "validation":
+        out += history_section(data)
     return "\n".join(out)

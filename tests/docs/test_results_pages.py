@@ -49,3 +49,28 @@ def test_a_page_shows_each_study_with_its_facts(tmp_path: Path) -> None:
 
 def test_a_page_without_studies_says_so(tmp_path: Path) -> None:
     assert "No study has been filed" in results_page("validation", tmp_path / "none")
+
+
+def test_the_validation_page_tabulates_every_validation(tmp_path: Path) -> None:
+    # two earlier validations' rows and the filed run's held-out rows, counted by hand
+    _study(tmp_path, "validation", "validation", 0.1, "full size", 1)
+    (tmp_path / "validations-previous.csv").write_text(
+        "validation,cell,method,metric,regime,live,des,rel_error\n"
+        "T1,a,none,aoi_mean,node-below,10,11,0.1\n"
+        "T1,a,none,aoi_p99,node-below,10,12,0.2\n"
+        "T1,b,none,aoi_mean,node-below,10,8.4,-0.16\n"
+        "T1,a,none,missed_frac,node-below,0.1,0.15,5\n"
+        "T2,a,none,aoi_mean,node-below,10,10,0\n"
+        "T2,a,none,latency_state_mean,node-below,0,1,nan\n")
+    (tmp_path / "validation" / "cells.csv").write_text(
+        "cell,held_out,method,metric,rel_error\n"
+        "a,True,none,aoi_mean,0.15\n"
+        "b,True,none,missed_frac,-12\n"
+        "cal-r1,False,none,aoi_mean,0.9\n")
+    page = results_page("validation", tmp_path)
+    assert "## Every validation, scored by the current model" in page
+    assert "| T1 | 1 of 2 (50 %) | 0 of 1 (0 %) | – | 1 of 1 (100 %) |" in page
+    assert "| T2 | 1 of 1 (100 %) | – | – | – |" in page  # a NaN error is not scored
+    assert "| the filed run (above) | 1 of 1 (100 %) | – | – | 0 of 1 (0 %) |" in page
+    assert "<data/validations-previous.csv>" in page
+    assert "Every validation" not in results_page("performance", tmp_path)
