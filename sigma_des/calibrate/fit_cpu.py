@@ -292,8 +292,7 @@ def _runq_keys(runq: dict[str, tuple[float, float]], growth: bool) -> dict[str, 
     return {"host_runq": runq["host"][0], "server_runq": runq["server"][0],
             "broker_runq": runq["broker"][0],
             "runq_growth": growth and any(measured.values()),
-            "broker_runq_growth": not growth and measured["broker"],
-            "server_runq_growth": not growth and measured["server"]}
+            **{f"{k}_runq_growth": not growth and measured[k] for k in GROWING}}
 
 
 def _record(rep: dict[str, float], kind: str, demand: float) -> float:
